@@ -1,0 +1,12 @@
+// classify.tf1d — post-classification: interpolate the scalar, then look up a
+// piecewise-linear RGBA transfer function baked into the 256×1 table `lut`.
+// Texel centres sit at (i + 0.5)/N, so x ∈ [0,1] maps to (x·(N−1) + 0.5)/N.
+
+fn classify(s: Sample) -> Sample {
+    var o = s;
+    let n = f32(textureDimensions(lut).x);
+    let x = (clamp(s.value, 0.0, 1.0) * (n - 1.0) + 0.5) / n;
+    let c = textureSampleLevel(lut, linear_clamp, vec2<f32>(x, 0.5), 0.0);
+    o.color = vec4<f32>(c.rgb, clamp(c.a * params.opacity, 0.0, 1.0));
+    return o;
+}

@@ -1,0 +1,1038 @@
+//! The WGSL composer: turns the user's plugin stack into one slice shader.
+//!
+//! For each enabled plugin instance (in stack order) the composer
+//! 1. generates the declarations of its bindings (`params`, resources, per-slice
+//!    state, pre-pass target) from one description ([`Binding`]), which also yields the
+//!    bind group layout entries, so declarations and layouts cannot disagree;
+//! 2. parses and validates the plugin's file on its own (shared prelude + its
+//!    declarations + its code), so that errors point at the plugin's file and line;
+//! 3. checks the signatures of the hook functions it defines;
+//! 4. renames every name the plugin declares at module scope, and its generated
+//!    binding names, with a per-instance prefix (`p{index}_{name}_`), token by token,
+//!    so two instances of one plugin never collide and line numbers are preserved;
+//! 5. inserts the renamed code at `//!PLUGINS` and a call per hook at each
+//!    `//!HOOK name` marker of the template `shaders/slice.wgsl`, in stack order.
+//!
+//! The composed module is validated with naga; any error is mapped back through a
+//! per-line origin table to the contributing file and line (a plugin's `.wgsl`, the
+//! template, or a generated line). Disabled plugins contribute nothing.
+
+use std::collections::HashSet;
+use std::fmt;
+
+use crate::params::UniformLayout;
+use crate::plugin::{Plugin, ResourceKind, StorageFormat};
+
+pub const COMMON_FILE: &str = "shaders/common.wgsl";
+pub const TEMPLATE_FILE: &str = "shaders/slice.wgsl";
+pub const COMMON_WGSL: &str = include_str!("../../shaders/common.wgsl");
+pub const TEMPLATE_WGSL: &str = include_str!("../../shaders/slice.wgsl");
+
+/// Precision of the eye buffer.
+#[derive(
+    Debug, Clone, Copy, PartialEq, Eq, Hash, Default, serde::Serialize, serde::Deserialize,
+)]
+pub enum TargetFormat {
+    #[default]
+    Rgba16Float,
+    Rgba32Float,
+}
+
+impl TargetFormat {
+    pub fn wgsl(self) -> &'static str {
+        match self {
+            TargetFormat::Rgba16Float => "rgba16float",
+            TargetFormat::Rgba32Float => "rgba32float",
+        }
+    }
+    pub fn wgpu(self) -> wgpu::TextureFormat {
+        match self {
+            TargetFormat::Rgba16Float => wgpu::TextureFormat::Rgba16Float,
+            TargetFormat::Rgba32Float => wgpu::TextureFormat::Rgba32Float,
+        }
+    }
+}
+
+/// The hooks, in the order they run per sample (plus the per-slice state update).
+pub const HOOKS: [&str; 6] = [
+    "clip",
+    "sample",
+    "classify",
+    "shade",
+    "composite",
+    "slice_update",
+];
+
+/// Expected signature of each hook: argument types and result type.
+fn hook_signature(name: &str) -> Option<(&'static [&'static str], &'static str)> {
+    Some(match name {
+        "clip" => (&["Sample"], "bool"),
+        "sample" | "classify" | "shade" => (&["Sample"], "Sample"),
+        "composite" => (&["Sample", "vec4<f32>"], "vec4<f32>"),
+        "slice_update" => (&["Sample", "vec4<f32>", "vec2<f32>"], "vec4<f32>"),
+        "prepass" => (&["vec3<u32>", "vec3<u32>"], "vec4<f32>"),
+        _ => return None,
+    })
+}
+
+/// Where a line of composed WGSL came from.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Origin {
+    File {
+        file: String,
+        line: u32,
+        /// Index of the plugin instance in the enabled stack, for plugin files.
+        instance: Option<usize>,
+    },
+    Generated {
+        what: String,
+        instance: Option<usize>,
+    },
+}
+
+/// A composed WGSL module and the origin of each of its lines.
+#[derive(Debug, Clone)]
+pub struct ComposedModule {
+    pub source: String,
+    pub origins: Vec<Origin>,
+}
+
+impl ComposedModule {
+    fn new() -> Self {
+        Self {
+            source: String::new(),
+            origins: Vec::new(),
+        }
+    }
+
+    fn push_file(&mut self, file: &str, text: &str, instance: Option<usize>) {
+        for (i, line) in text.lines().enumerate() {
+            self.source.push_str(line);
+            self.source.push('\n');
+            self.origins.push(Origin::File {
+                file: file.to_string(),
+                line: i as u32 + 1,
+                instance,
+            });
+        }
+    }
+
+    fn push_generated(&mut self, what: &str, text: &str, instance: Option<usize>) {
+        for line in text.lines() {
+            self.source.push_str(line);
+            self.source.push('\n');
+            self.origins.push(Origin::Generated {
+                what: what.to_string(),
+                instance,
+            });
+        }
+    }
+
+    fn push_line(&mut self, line: &str, origin: Origin) {
+        self.source.push_str(line);
+        self.source.push('\n');
+        self.origins.push(origin);
+    }
+
+    /// Origin of a 1-based line.
+    pub fn origin(&self, line: u32) -> Option<&Origin> {
+        self.origins.get(line.checked_sub(1)? as usize)
+    }
+}
+
+/// What a binding is.
+#[derive(Debug, Clone, PartialEq)]
+pub enum BindingKind {
+    Uniform { size: u32 },
+    Texture2d,
+    Texture3d,
+    StorageTexture2d(StorageFormat),
+    StorageTexture3d(StorageFormat),
+}
+
+/// One generated binding: the WGSL declaration and the layout entry come from it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Binding {
+    pub group: u32,
+    pub binding: u32,
+    /// Name as the plugin writes it (`params`, `lut`, `state_prev`, …).
+    pub local_name: String,
+    pub kind: BindingKind,
+    /// Instance (index in the enabled stack) that owns it.
+    pub instance: usize,
+    /// Role, so that the renderer can bind the right resource.
+    pub role: BindingRole,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum BindingRole {
+    Params,
+    Resource(usize),
+    PrepassTarget,
+    StatePrev,
+    StateNext,
+}
+
+impl Binding {
+    pub fn wgsl(&self, prefix: &str, struct_name: &str) -> String {
+        let ty = match &self.kind {
+            BindingKind::Uniform { .. } => {
+                return format!(
+                    "@group({}) @binding({}) var<uniform> {prefix}{}: {struct_name};",
+                    self.group, self.binding, self.local_name
+                );
+            }
+            BindingKind::Texture2d => "texture_2d<f32>".to_string(),
+            BindingKind::Texture3d => "texture_3d<f32>".to_string(),
+            BindingKind::StorageTexture2d(f) => {
+                format!("texture_storage_2d<{}, write>", f.wgsl())
+            }
+            BindingKind::StorageTexture3d(f) => {
+                format!("texture_storage_3d<{}, write>", f.wgsl())
+            }
+        };
+        format!(
+            "@group({}) @binding({}) var {prefix}{}: {ty};",
+            self.group, self.binding, self.local_name
+        )
+    }
+
+    /// The matching bind group layout entry.
+    pub fn layout_entry(&self, visibility: wgpu::ShaderStages) -> wgpu::BindGroupLayoutEntry {
+        let ty = match &self.kind {
+            BindingKind::Uniform { size } => wgpu::BindingType::Buffer {
+                ty: wgpu::BufferBindingType::Uniform,
+                has_dynamic_offset: false,
+                min_binding_size: wgpu::BufferSize::new(*size as u64),
+            },
+            BindingKind::Texture2d | BindingKind::Texture3d => wgpu::BindingType::Texture {
+                sample_type: wgpu::TextureSampleType::Float { filterable: true },
+                view_dimension: if self.kind == BindingKind::Texture2d {
+                    wgpu::TextureViewDimension::D2
+                } else {
+                    wgpu::TextureViewDimension::D3
+                },
+                multisampled: false,
+            },
+            BindingKind::StorageTexture2d(f) | BindingKind::StorageTexture3d(f) => {
+                wgpu::BindingType::StorageTexture {
+                    access: wgpu::StorageTextureAccess::WriteOnly,
+                    format: f.wgpu(),
+                    view_dimension: if matches!(self.kind, BindingKind::StorageTexture2d(_)) {
+                        wgpu::TextureViewDimension::D2
+                    } else {
+                        wgpu::TextureViewDimension::D3
+                    },
+                }
+            }
+        };
+        let visibility = match self.kind {
+            // storage writes happen in compute passes only
+            BindingKind::StorageTexture2d(_) | BindingKind::StorageTexture3d(_) => {
+                wgpu::ShaderStages::COMPUTE
+            }
+            _ => visibility,
+        };
+        wgpu::BindGroupLayoutEntry {
+            binding: self.binding,
+            visibility,
+            ty,
+            count: None,
+        }
+    }
+}
+
+/// What the composer produced for one enabled instance.
+#[derive(Debug, Clone)]
+pub struct InstanceLayout {
+    /// Index of the instance in the input list.
+    pub input_index: usize,
+    pub prefix: String,
+    pub hooks: Vec<&'static str>,
+    pub uniform: UniformLayout,
+    /// Entry point of its state update, if it has per-slice state.
+    pub update_entry: Option<String>,
+    /// Its pre-pass module (bindings in group 1) and the module's bindings.
+    pub prepass: Option<(ComposedModule, Vec<Binding>)>,
+}
+
+/// The composed pipeline description.
+#[derive(Debug, Clone)]
+pub struct Composition {
+    pub main: ComposedModule,
+    /// Bindings of groups 1 (plugin resources) and 2 (per-slice state).
+    pub bindings: Vec<Binding>,
+    pub instances: Vec<InstanceLayout>,
+}
+
+/// A composition error, mapped to the contributing file and line.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ComposeError {
+    #[error("{file}:{line}:{column}: {message}{}", plugin_suffix(plugin))]
+    Shader {
+        file: String,
+        line: u32,
+        column: u32,
+        message: String,
+        plugin: Option<String>,
+    },
+    #[error("{message}")]
+    Limits { message: String },
+    #[error("{plugin}: {message}")]
+    Plugin { plugin: String, message: String },
+}
+
+fn plugin_suffix(p: &Option<String>) -> String {
+    match p {
+        Some(id) => format!(" (plugin {id})"),
+        None => String::new(),
+    }
+}
+
+impl ComposeError {
+    /// The plugin the error belongs to, if any.
+    pub fn plugin(&self) -> Option<&str> {
+        match self {
+            ComposeError::Shader { plugin, .. } => plugin.as_deref(),
+            ComposeError::Plugin { plugin, .. } => Some(plugin),
+            ComposeError::Limits { .. } => None,
+        }
+    }
+}
+
+// ------------------------------------------------------------------ tokens
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Tok {
+    Ident,
+    Other,
+    Trivia,
+}
+
+/// Splits WGSL into (kind, byte range) tokens; comments and white space are trivia.
+fn tokenize(src: &str) -> Vec<(Tok, usize, usize)> {
+    let b = src.as_bytes();
+    let mut out = Vec::new();
+    let mut i = 0;
+    while i < b.len() {
+        let start = i;
+        let c = b[i];
+        if c == b'/' && b.get(i + 1) == Some(&b'/') {
+            while i < b.len() && b[i] != b'\n' {
+                i += 1;
+            }
+            out.push((Tok::Trivia, start, i));
+        } else if c == b'/' && b.get(i + 1) == Some(&b'*') {
+            // block comments nest in WGSL
+            let mut depth = 0;
+            while i < b.len() {
+                if b[i] == b'/' && b.get(i + 1) == Some(&b'*') {
+                    depth += 1;
+                    i += 2;
+                } else if b[i] == b'*' && b.get(i + 1) == Some(&b'/') {
+                    depth -= 1;
+                    i += 2;
+                    if depth == 0 {
+                        break;
+                    }
+                } else {
+                    i += 1;
+                }
+            }
+            out.push((Tok::Trivia, start, i));
+        } else if c.is_ascii_whitespace() {
+            while i < b.len() && b[i].is_ascii_whitespace() {
+                i += 1;
+            }
+            out.push((Tok::Trivia, start, i));
+        } else if c.is_ascii_alphabetic() || c == b'_' {
+            while i < b.len() && (b[i].is_ascii_alphanumeric() || b[i] == b'_') {
+                i += 1;
+            }
+            out.push((Tok::Ident, start, i));
+        } else if c.is_ascii_digit() {
+            while i < b.len() && (b[i].is_ascii_alphanumeric() || b[i] == b'_' || b[i] == b'.') {
+                i += 1;
+            }
+            out.push((Tok::Other, start, i));
+        } else {
+            // one (possibly multi-byte UTF-8) character
+            i += src[i..].chars().next().map_or(1, char::len_utf8);
+            out.push((Tok::Other, start, i));
+        }
+    }
+    out
+}
+
+/// A module-scope declaration found by scanning tokens.
+#[derive(Debug, Clone, PartialEq, Eq)]
+struct Decl {
+    name: String,
+    is_fn: bool,
+    line: u32,
+}
+
+/// Names declared at module scope (`fn`, `const`, `var`, `override`, `struct`, `alias`).
+fn module_decls(src: &str) -> Vec<Decl> {
+    let toks: Vec<_> = tokenize(src)
+        .into_iter()
+        .filter(|t| t.0 != Tok::Trivia)
+        .collect();
+    let text = |t: &(Tok, usize, usize)| &src[t.1..t.2];
+    let mut out = Vec::new();
+    let mut depth = 0i32;
+    let mut i = 0;
+    while i < toks.len() {
+        let t = text(&toks[i]);
+        match t {
+            "{" => depth += 1,
+            "}" => depth -= 1,
+            "fn" | "const" | "override" | "struct" | "alias" | "var" if depth == 0 => {
+                let mut j = i + 1;
+                // var<uniform> / var<private>: skip the template list
+                if t == "var" && j < toks.len() && text(&toks[j]) == "<" {
+                    while j < toks.len() && text(&toks[j]) != ">" {
+                        j += 1;
+                    }
+                    j += 1;
+                }
+                if let Some(tok) = toks.get(j)
+                    && tok.0 == Tok::Ident
+                {
+                    out.push(Decl {
+                        name: text(tok).to_string(),
+                        is_fn: t == "fn",
+                        line: src[..tok.1].matches('\n').count() as u32 + 1,
+                    });
+                }
+            }
+            _ => {}
+        }
+        i += 1;
+    }
+    out
+}
+
+/// Prefixes every identifier in `names` (except member accesses after `.`).
+fn rename(src: &str, names: &HashSet<String>, prefix: &str) -> String {
+    let mut out = String::with_capacity(src.len() + 64);
+    let mut prev_sig: Option<&str> = None;
+    for (kind, a, b) in tokenize(src) {
+        let t = &src[a..b];
+        if kind == Tok::Ident && names.contains(t) && prev_sig != Some(".") {
+            out.push_str(prefix);
+        }
+        out.push_str(t);
+        if kind != Tok::Trivia {
+            prev_sig = Some(t);
+        }
+    }
+    out
+}
+
+// ------------------------------------------------------------------ naga helpers
+
+/// Line (1-based) and column of a byte offset.
+fn line_col(src: &str, offset: usize) -> (u32, u32) {
+    let offset = offset.min(src.len());
+    let prefix = &src[..offset];
+    let line = prefix.matches('\n').count() as u32 + 1;
+    let col = offset - prefix.rfind('\n').map_or(0, |p| p + 1) + 1;
+    (line, col as u32)
+}
+
+/// Parses and validates; returns the error message and byte offset of its first span.
+fn naga_check(src: &str) -> Result<naga::Module, (String, Option<usize>)> {
+    let module = naga::front::wgsl::parse_str(src).map_err(|e| {
+        let offset = e
+            .labels()
+            .next()
+            .and_then(|(s, _)| s.to_range())
+            .map(|r| r.start);
+        let mut msg = e.message().to_string();
+        for (_, label) in e.labels() {
+            if !label.is_empty() {
+                msg.push_str(&format!(" — {label}"));
+            }
+        }
+        (msg, offset)
+    })?;
+    let mut v = naga::valid::Validator::new(
+        naga::valid::ValidationFlags::all(),
+        // pack2x16float/unpack2x16float need this; every wgpu device on the
+        // backends vwb allows has it (DownlevelFlags::SHADER_F16_IN_F32).
+        naga::valid::Capabilities::default() | naga::valid::Capabilities::SHADER_FLOAT16_IN_FLOAT32,
+    );
+    v.validate(&module).map_err(|e| {
+        let offset = e
+            .spans()
+            .next()
+            .and_then(|(s, _)| s.to_range())
+            .map(|r| r.start);
+        // full chain of causes: naga's top error is often generic
+        let mut msg = e.as_inner().to_string();
+        let mut src_err: Option<&dyn std::error::Error> = std::error::Error::source(e.as_inner());
+        while let Some(s) = src_err {
+            msg.push_str(&format!(": {s}"));
+            src_err = s.source();
+        }
+        (msg, offset)
+    })?;
+    Ok(module)
+}
+
+fn type_name(module: &naga::Module, ty: naga::Handle<naga::Type>) -> String {
+    let t = &module.types[ty];
+    if let Some(n) = &t.name {
+        return n.clone();
+    }
+    let scalar = |s: naga::Scalar| match (s.kind, s.width) {
+        (naga::ScalarKind::Float, 4) => "f32",
+        (naga::ScalarKind::Sint, 4) => "i32",
+        (naga::ScalarKind::Uint, 4) => "u32",
+        (naga::ScalarKind::Bool, _) => "bool",
+        _ => "?",
+    };
+    match t.inner {
+        naga::TypeInner::Scalar(s) => scalar(s).to_string(),
+        naga::TypeInner::Vector { size, scalar: s } => {
+            format!("vec{}<{}>", size as u8, scalar(s))
+        }
+        _ => "?".to_string(),
+    }
+}
+
+// ------------------------------------------------------------------ composition
+
+/// Names of the generated bindings of an instance, as the plugin writes them.
+fn instance_bindings(
+    plugin: &dyn Plugin,
+    instance: usize,
+    uniform: &UniformLayout,
+    prepass_module: bool,
+    group1_next: &mut u32,
+    group2_next: &mut u32,
+) -> Vec<Binding> {
+    let mut out = Vec::new();
+    let mut push = |group: u32, next: &mut u32, name: &str, kind, role| {
+        out.push(Binding {
+            group,
+            binding: *next,
+            local_name: name.to_string(),
+            kind,
+            instance,
+            role,
+        });
+        *next += 1;
+    };
+    push(
+        1,
+        group1_next,
+        "params",
+        BindingKind::Uniform { size: uniform.size },
+        BindingRole::Params,
+    );
+    for (i, r) in plugin.resources().iter().enumerate() {
+        let kind = match r.kind {
+            ResourceKind::Texture2d => BindingKind::Texture2d,
+            ResourceKind::Texture3d => BindingKind::Texture3d,
+        };
+        push(1, group1_next, r.name, kind, BindingRole::Resource(i));
+    }
+    if let Some(pp) = plugin.prepass() {
+        let kind = if prepass_module {
+            BindingKind::StorageTexture3d(pp.format)
+        } else {
+            BindingKind::Texture3d
+        };
+        push(1, group1_next, pp.target, kind, BindingRole::PrepassTarget);
+    }
+    if !prepass_module && let Some(st) = plugin.slice_state() {
+        push(
+            2,
+            group2_next,
+            "state_prev",
+            BindingKind::Texture2d,
+            BindingRole::StatePrev,
+        );
+        push(
+            2,
+            group2_next,
+            "state_next",
+            BindingKind::StorageTexture2d(st.format),
+            BindingRole::StateNext,
+        );
+    }
+    out
+}
+
+fn decls_text(bindings: &[Binding], prefix: &str, uniform: &UniformLayout) -> String {
+    let struct_name = format!("{prefix}Params");
+    let mut s = uniform.wgsl(&struct_name);
+    s.push('\n');
+    for b in bindings {
+        s.push_str(&b.wgsl(prefix, &struct_name));
+        s.push('\n');
+    }
+    s
+}
+
+fn instance_prefix(plugin: &dyn Plugin, index: usize) -> String {
+    let name = plugin.id().split('.').nth(1).unwrap_or("plugin");
+    format!("p{index}_{name}_")
+}
+
+/// Checks one plugin file in isolation and returns its declarations.
+fn check_plugin_file(
+    plugin: &dyn Plugin,
+    file: &str,
+    source: &str,
+    decls_unprefixed: &str,
+    allowed_hooks: &[&str],
+) -> Result<Vec<Decl>, ComposeError> {
+    let head = format!("{COMMON_WGSL}\n{decls_unprefixed}\n");
+    let head_lines = head.matches('\n').count() as u32;
+    let full = format!("{head}{source}\n");
+    let shader_err = |msg: String, offset: Option<usize>| {
+        let (line, column) = offset.map_or((0, 0), |o| line_col(&full, o));
+        let (file, line) = if line > head_lines {
+            (file.to_string(), line - head_lines)
+        } else {
+            // an error in the shared prelude caused by a name clash with the plugin
+            (COMMON_FILE.to_string(), line)
+        };
+        ComposeError::Shader {
+            file,
+            line,
+            column,
+            message: msg,
+            plugin: Some(plugin.id().to_string()),
+        }
+    };
+    let module = naga_check(&full).map_err(|(m, o)| shader_err(m, o))?;
+    let decls = module_decls(source);
+    let common_names: HashSet<String> = module_decls(COMMON_WGSL)
+        .into_iter()
+        .map(|d| d.name)
+        .collect();
+    for d in &decls {
+        if common_names.contains(&d.name) {
+            return Err(ComposeError::Shader {
+                file: file.to_string(),
+                line: d.line,
+                column: 1,
+                message: format!("'{}' is already declared in {COMMON_FILE}", d.name),
+                plugin: Some(plugin.id().to_string()),
+            });
+        }
+        let Some((args, ret)) = hook_signature(&d.name) else {
+            continue;
+        };
+        if !d.is_fn {
+            continue;
+        }
+        if !allowed_hooks.contains(&d.name.as_str()) {
+            return Err(ComposeError::Shader {
+                file: file.to_string(),
+                line: d.line,
+                column: 1,
+                message: format!(
+                    "hook '{}' is not allowed here (this file may define: {})",
+                    d.name,
+                    allowed_hooks.join(", ")
+                ),
+                plugin: Some(plugin.id().to_string()),
+            });
+        }
+        let f = module
+            .functions
+            .iter()
+            .find(|(_, f)| f.name.as_deref() == Some(d.name.as_str()))
+            .map(|(_, f)| f);
+        let Some(f) = f else { continue };
+        let got_args: Vec<String> = f
+            .arguments
+            .iter()
+            .map(|a| type_name(&module, a.ty))
+            .collect();
+        let got_ret = f
+            .result
+            .as_ref()
+            .map_or("()".to_string(), |r| type_name(&module, r.ty));
+        if got_args != args || got_ret != ret {
+            return Err(ComposeError::Shader {
+                file: file.to_string(),
+                line: d.line,
+                column: 1,
+                message: format!(
+                    "hook '{}' must be fn {}({}) -> {ret}, found ({}) -> {got_ret}",
+                    d.name,
+                    d.name,
+                    args.join(", "),
+                    got_args.join(", ")
+                ),
+                plugin: Some(plugin.id().to_string()),
+            });
+        }
+    }
+    Ok(decls)
+}
+
+/// Per-stage resource counts of a composition, checked against device limits.
+fn check_limits(bindings: &[Binding], limits: &wgpu::Limits) -> Result<(), ComposeError> {
+    // group 0: frame + slice_info uniforms, volume texture, 2 samplers;
+    // group 3 (compute): output storage texture + accumulation storage buffer.
+    let mut uniforms = 2u32;
+    let mut sampled = 1u32;
+    let mut storage_tex = 1u32;
+    let mut per_group = [5u32, 0, 0, 2];
+    let mut max_uniform = 0u32;
+    for b in bindings {
+        per_group[b.group as usize] += 1;
+        match b.kind {
+            BindingKind::Uniform { size } => {
+                uniforms += 1;
+                max_uniform = max_uniform.max(size);
+            }
+            BindingKind::Texture2d | BindingKind::Texture3d => sampled += 1,
+            _ => storage_tex += 1,
+        }
+    }
+    let checks = [
+        (
+            "uniform buffers per shader stage",
+            uniforms,
+            limits.max_uniform_buffers_per_shader_stage,
+        ),
+        (
+            "sampled textures per shader stage",
+            sampled,
+            limits.max_sampled_textures_per_shader_stage,
+        ),
+        (
+            "storage textures per shader stage",
+            storage_tex,
+            limits.max_storage_textures_per_shader_stage,
+        ),
+        (
+            "bindings per bind group",
+            per_group.into_iter().max().unwrap_or(0),
+            limits.max_bindings_per_bind_group,
+        ),
+        (
+            "bytes in one uniform buffer",
+            max_uniform,
+            limits.max_uniform_buffer_binding_size as u32,
+        ),
+    ];
+    for (what, n, limit) in checks {
+        if n > limit {
+            return Err(ComposeError::Limits {
+                message: format!(
+                    "the plugin stack needs {n} {what}, the device allows {limit}; disable or remove a plugin"
+                ),
+            });
+        }
+    }
+    Ok(())
+}
+
+/// Composes the enabled plugins (in stack order) into the slice shader.
+pub fn compose(
+    plugins: &[&dyn Plugin],
+    target: TargetFormat,
+    limits: &wgpu::Limits,
+) -> Result<Composition, ComposeError> {
+    let mut bindings = Vec::new();
+    let mut instances = Vec::new();
+    let mut segments = Vec::new();
+    let (mut g1, mut g2) = (0u32, 0u32);
+
+    for (index, plugin) in plugins.iter().enumerate() {
+        let plugin = *plugin;
+        let prefix = instance_prefix(plugin, index);
+        let uniform = UniformLayout::new(&plugin.params());
+        let shader = plugin.shader();
+
+        // bindings of the main module
+        let inst_bindings = instance_bindings(plugin, index, &uniform, false, &mut g1, &mut g2);
+        let local_names: HashSet<String> =
+            inst_bindings.iter().map(|b| b.local_name.clone()).collect();
+
+        // check the file in isolation, with unprefixed names
+        let mut iso_g1 = 0;
+        let mut iso_g2 = 0;
+        let iso_bindings =
+            instance_bindings(plugin, index, &uniform, false, &mut iso_g1, &mut iso_g2);
+        let mut allowed: Vec<&str> = HOOKS[..5].to_vec();
+        if plugin.slice_state().is_some() {
+            allowed.push("slice_update");
+        }
+        let decls = check_plugin_file(
+            plugin,
+            &shader.file,
+            &shader.source,
+            &decls_text(&iso_bindings, "", &uniform),
+            &allowed,
+        )?;
+        let hooks: Vec<&'static str> = HOOKS
+            .iter()
+            .copied()
+            .filter(|h| decls.iter().any(|d| d.is_fn && d.name == *h))
+            .collect();
+        if plugin.slice_state().is_some() && !hooks.contains(&"slice_update") {
+            return Err(ComposeError::Plugin {
+                plugin: plugin.id().to_string(),
+                message: format!(
+                    "declares per-slice state but {} defines no slice_update hook",
+                    shader.file
+                ),
+            });
+        }
+        let mut names: HashSet<String> = decls.iter().map(|d| d.name.clone()).collect();
+        names.extend(local_names.iter().cloned());
+        names.insert("Params".to_string());
+        let renamed = rename(&shader.source, &names, &prefix);
+
+        // the pre-pass module
+        let prepass = match plugin.prepass() {
+            Some(pp) => Some(compose_prepass(plugin, index, &prefix, &uniform, &pp)?),
+            None => None,
+        };
+
+        let update_entry = plugin.slice_state().map(|_| format!("cs_update_{index}"));
+        segments.push((
+            index,
+            shader.file.to_string(),
+            decls_text(&inst_bindings, &prefix, &uniform),
+            renamed,
+        ));
+        bindings.extend(inst_bindings);
+        instances.push(InstanceLayout {
+            input_index: index,
+            prefix,
+            hooks,
+            uniform,
+            update_entry,
+            prepass,
+        });
+    }
+
+    check_limits(&bindings, limits)?;
+
+    // assemble
+    let mut m = ComposedModule::new();
+    m.push_file(COMMON_FILE, COMMON_WGSL, None);
+    for (i, line) in TEMPLATE_WGSL.lines().enumerate() {
+        let origin = Origin::File {
+            file: TEMPLATE_FILE.to_string(),
+            line: i as u32 + 1,
+            instance: None,
+        };
+        let trimmed = line.trim();
+        if trimmed == "//!DECLS" {
+            for (index, _, decls, _) in &segments {
+                m.push_generated("bindings", decls, Some(*index));
+            }
+        } else if trimmed == "//!PLUGINS" {
+            for (index, file, _, code) in &segments {
+                m.push_file(file, code, Some(*index));
+            }
+        } else if let Some(hook) = trimmed.strip_prefix("//!HOOK ") {
+            for inst in &instances {
+                if !inst.hooks.contains(&hook) {
+                    continue;
+                }
+                let p = &inst.prefix;
+                let call = match hook {
+                    "clip" => format!("    if (!{p}clip(s)) {{ return false; }}"),
+                    "composite" => format!("    c = {p}composite(s, c);"),
+                    h => format!("    s = {p}{h}(s);"),
+                };
+                m.push_line(
+                    &call,
+                    Origin::Generated {
+                        what: format!("{hook} hook call"),
+                        instance: Some(inst.input_index),
+                    },
+                );
+            }
+        } else if trimmed == "//!UPDATES" {
+            for inst in &instances {
+                if let Some(entry) = &inst.update_entry {
+                    let p = &inst.prefix;
+                    let code = format!(
+                        "@compute @workgroup_size(8, 8, 1)\n\
+                         fn {entry}(@builtin(global_invocation_id) gid: vec3<u32>) {{\n    \
+                         let size = textureDimensions({p}state_next);\n    \
+                         if (gid.x >= size.x || gid.y >= size.y) {{\n        return;\n    }}\n    \
+                         let e = state_texel_sample(gid.xy, size);\n    \
+                         textureStore({p}state_next, vec2<i32>(gid.xy), {p}slice_update(e.s, e.c, e.s.uv));\n\
+                         }}"
+                    );
+                    m.push_generated("state update entry point", &code, Some(inst.input_index));
+                }
+            }
+        } else {
+            m.push_line(&line.replace("{{TARGET_FORMAT}}", target.wgsl()), origin);
+        }
+    }
+
+    validate_composed(&m, plugins)?;
+    Ok(Composition {
+        main: m,
+        bindings,
+        instances,
+    })
+}
+
+fn compose_prepass(
+    plugin: &dyn Plugin,
+    index: usize,
+    prefix: &str,
+    uniform: &UniformLayout,
+    pp: &crate::plugin::PrepassDecl,
+) -> Result<(ComposedModule, Vec<Binding>), ComposeError> {
+    let (mut g1, mut g2) = (0, 0);
+    let iso = instance_bindings(plugin, index, uniform, true, &mut g1, &mut g2);
+    let decls = check_plugin_file(
+        plugin,
+        &pp.shader.file,
+        &pp.shader.source,
+        &decls_text(&iso, "", uniform),
+        &["prepass"],
+    )?;
+    if !decls.iter().any(|d| d.is_fn && d.name == "prepass") {
+        return Err(ComposeError::Plugin {
+            plugin: plugin.id().to_string(),
+            message: format!("{} defines no prepass function", pp.shader.file),
+        });
+    }
+    let mut names: HashSet<String> = decls.iter().map(|d| d.name.clone()).collect();
+    names.extend(iso.iter().map(|b| b.local_name.clone()));
+    let mut m = ComposedModule::new();
+    m.push_file(COMMON_FILE, COMMON_WGSL, None);
+    m.push_generated("bindings", &decls_text(&iso, prefix, uniform), Some(index));
+    m.push_file(
+        &pp.shader.file,
+        &rename(&pp.shader.source, &names, prefix),
+        Some(index),
+    );
+    let target = format!("{prefix}{}", pp.target);
+    let entry = format!(
+        "@compute @workgroup_size(4, 4, 4)\n\
+         fn prepass_main(@builtin(global_invocation_id) gid: vec3<u32>) {{\n    \
+         let dims = textureDimensions({target});\n    \
+         if (any(gid >= dims)) {{\n        return;\n    }}\n    \
+         textureStore({target}, gid, {prefix}prepass(gid, dims));\n\
+         }}"
+    );
+    m.push_generated("pre-pass entry point", &entry, Some(index));
+    validate_composed(&m, &[plugin])?;
+    Ok((m, iso))
+}
+
+/// Validates a composed module; errors are mapped through its origin table.
+pub fn validate_composed(m: &ComposedModule, plugins: &[&dyn Plugin]) -> Result<(), ComposeError> {
+    match naga_check(&m.source) {
+        Ok(_) => Ok(()),
+        Err((message, offset)) => Err(map_error(m, plugins, message, offset)),
+    }
+}
+
+fn map_error(
+    m: &ComposedModule,
+    plugins: &[&dyn Plugin],
+    message: String,
+    offset: Option<usize>,
+) -> ComposeError {
+    let (line, column) = offset.map_or((0, 0), |o| line_col(&m.source, o));
+    let plugin_id = |i: Option<usize>| i.and_then(|i| plugins.get(i)).map(|p| p.id().to_string());
+    match m.origin(line) {
+        Some(Origin::File {
+            file,
+            line,
+            instance,
+        }) => ComposeError::Shader {
+            file: file.clone(),
+            line: *line,
+            column,
+            message,
+            plugin: plugin_id(*instance),
+        },
+        Some(Origin::Generated { what, instance }) => ComposeError::Shader {
+            file: format!("<generated {what}>"),
+            line: 0,
+            column,
+            message,
+            plugin: plugin_id(*instance),
+        },
+        None => ComposeError::Shader {
+            file: "<composed>".to_string(),
+            line,
+            column,
+            message,
+            plugin: None,
+        },
+    }
+}
+
+impl fmt::Display for Origin {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Origin::File { file, line, .. } => write!(f, "{file}:{line}"),
+            Origin::Generated { what, .. } => write!(f, "<generated {what}>"),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn tokenizer_keeps_text_and_skips_comments() {
+        let src = "fn a(x: f32) -> f32 { /* a /* nested */ b */ return x.a + 1.0e-3; } // a\n";
+        let joined: String = tokenize(src).iter().map(|t| &src[t.1..t.2]).collect();
+        assert_eq!(joined, src);
+        let names: HashSet<String> = ["a".to_string()].into();
+        let r = rename(src, &names, "p0_");
+        assert_eq!(
+            r,
+            "fn p0_a(x: f32) -> f32 { /* a /* nested */ b */ return x.a + 1.0e-3; } // a\n"
+        );
+    }
+
+    #[test]
+    fn decls_are_found_at_module_scope_only() {
+        let src = "const K = 1.0;\nvar<private> g: f32;\nstruct S { a: f32 }\nfn f() { let inner = 1; }\nalias T = f32;\noverride o: f32 = 1.0;";
+        let d: Vec<(String, bool, u32)> = module_decls(src)
+            .into_iter()
+            .map(|d| (d.name, d.is_fn, d.line))
+            .collect();
+        assert_eq!(
+            d,
+            vec![
+                ("K".into(), false, 1),
+                ("g".into(), false, 2),
+                ("S".into(), false, 3),
+                ("f".into(), true, 4),
+                ("T".into(), false, 5),
+                ("o".into(), false, 6)
+            ]
+        );
+    }
+
+    #[test]
+    fn standalone_shaders_are_valid() {
+        naga_check(crate::renderer::DISPLAY_WGSL).expect("shaders/display.wgsl");
+    }
+
+    #[test]
+    fn empty_stack_composes_and_validates() {
+        let c = compose(&[], TargetFormat::Rgba16Float, &wgpu::Limits::default()).unwrap();
+        assert!(c.main.source.contains("fn cs_main"));
+        assert!(c.bindings.is_empty());
+        assert_eq!(c.main.source.lines().count(), c.main.origins.len());
+    }
+}

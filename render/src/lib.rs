@@ -1,0 +1,20 @@
+//! vwb renderer core: volumes, slice geometry, the plugin API and WGSL composer, the
+//! raster and compute slice pipelines, presets. No UI dependency.
+
+pub mod camera;
+pub mod composer;
+pub mod gpu;
+pub mod params;
+pub mod plugin;
+pub mod preset;
+pub mod renderer;
+pub mod slicing;
+pub mod tf;
+pub mod volume;
+
+pub use camera::{Camera, Projection};
+pub use composer::{ComposeError, TargetFormat};
+pub use gpu::GpuContext;
+pub use plugin::{Plugin, PluginInstance, Registry};
+pub use renderer::{Backend, FrameSettings, FrameStats, RenderError, Renderer, StackChange};
+pub use volume::Volume;

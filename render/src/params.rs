@@ -1,0 +1,653 @@
+//! The declarative parameter spec: one description per plugin parameter drives the
+//! WGSL uniform struct, the packed uniform bytes, RON presets (only non-default values
+//! are saved; bad values fail with the path `plugin.param`) and the generated UI.
+//!
+//! Uniform layout follows WGSL's rules for uniform buffers: scalars (f32, i32, u32)
+//! are 4-byte aligned, vec3/vec4 are 16-byte aligned (a vec3 takes 12 bytes, the next
+//! scalar may fill its last 4), and the struct size is rounded up to 16. Bool and enum
+//! parameters are u32. Transfer-function curves are not uniforms: the plugin bakes
+//! them into a texture.
+
+use std::collections::BTreeMap;
+
+use serde::{Deserialize, Serialize};
+
+use crate::tf::TfCurve;
+
+#[derive(Debug, Clone, PartialEq)]
+pub enum ParamKind {
+    Float {
+        min: f32,
+        max: f32,
+        /// Logarithmic slider (min must be > 0).
+        log: bool,
+        default: f32,
+    },
+    Int {
+        min: i32,
+        max: i32,
+        default: i32,
+    },
+    Bool {
+        default: bool,
+    },
+    Enum {
+        options: Vec<&'static str>,
+        default: usize,
+    },
+    /// Straight RGBA in [0,1].
+    Color {
+        default: [f32; 4],
+    },
+    Vec3 {
+        min: f32,
+        max: f32,
+        default: [f32; 3],
+    },
+    Tf {
+        default: TfCurve,
+    },
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct ParamSpec {
+    /// Key in presets and in WGSL (`params.<key>`): lowercase identifier.
+    pub key: &'static str,
+    pub label: &'static str,
+    pub doc: &'static str,
+    pub kind: ParamKind,
+    /// A change needs a recomposed pipeline (the value changes the shader structure).
+    pub structural: bool,
+}
+
+impl ParamSpec {
+    pub fn float(key: &'static str, label: &'static str, min: f32, max: f32, default: f32) -> Self {
+        Self::new(
+            key,
+            label,
+            ParamKind::Float {
+                min,
+                max,
+                log: false,
+                default,
+            },
+        )
+    }
+    pub fn float_log(
+        key: &'static str,
+        label: &'static str,
+        min: f32,
+        max: f32,
+        default: f32,
+    ) -> Self {
+        Self::new(
+            key,
+            label,
+            ParamKind::Float {
+                min,
+                max,
+                log: true,
+                default,
+            },
+        )
+    }
+    pub fn int(key: &'static str, label: &'static str, min: i32, max: i32, default: i32) -> Self {
+        Self::new(key, label, ParamKind::Int { min, max, default })
+    }
+    pub fn boolean(key: &'static str, label: &'static str, default: bool) -> Self {
+        Self::new(key, label, ParamKind::Bool { default })
+    }
+    pub fn enumeration(
+        key: &'static str,
+        label: &'static str,
+        options: &[&'static str],
+        default: usize,
+    ) -> Self {
+        Self::new(
+            key,
+            label,
+            ParamKind::Enum {
+                options: options.to_vec(),
+                default,
+            },
+        )
+    }
+    pub fn color(key: &'static str, label: &'static str, default: [f32; 4]) -> Self {
+        Self::new(key, label, ParamKind::Color { default })
+    }
+    pub fn vec3(key: &'static str, label: &'static str, min: f32, max: f32, d: [f32; 3]) -> Self {
+        Self::new(
+            key,
+            label,
+            ParamKind::Vec3 {
+                min,
+                max,
+                default: d,
+            },
+        )
+    }
+    pub fn tf(key: &'static str, label: &'static str, default: TfCurve) -> Self {
+        Self::new(key, label, ParamKind::Tf { default })
+    }
+    pub fn new(key: &'static str, label: &'static str, kind: ParamKind) -> Self {
+        Self {
+            key,
+            label,
+            doc: "",
+            kind,
+            structural: false,
+        }
+    }
+    pub fn with_doc(mut self, doc: &'static str) -> Self {
+        self.doc = doc;
+        self
+    }
+    pub fn structural(mut self) -> Self {
+        self.structural = true;
+        self
+    }
+
+    pub fn default_value(&self) -> ParamValue {
+        match &self.kind {
+            ParamKind::Float { default, .. } => ParamValue::Float(*default),
+            ParamKind::Int { default, .. } => ParamValue::Int(*default),
+            ParamKind::Bool { default } => ParamValue::Bool(*default),
+            ParamKind::Enum { options, default } => ParamValue::Enum(
+                options
+                    .get(*default)
+                    .copied()
+                    .unwrap_or_default()
+                    .to_string(),
+            ),
+            ParamKind::Color { default } => ParamValue::Color(*default),
+            ParamKind::Vec3 { default, .. } => ParamValue::Vec3(*default),
+            ParamKind::Tf { default } => ParamValue::Tf(default.clone()),
+        }
+    }
+
+    /// WGSL type of the uniform member, or None for non-uniform kinds.
+    pub fn wgsl_type(&self) -> Option<&'static str> {
+        match self.kind {
+            ParamKind::Float { .. } => Some("f32"),
+            ParamKind::Int { .. } => Some("i32"),
+            ParamKind::Bool { .. } | ParamKind::Enum { .. } => Some("u32"),
+            ParamKind::Color { .. } => Some("vec4<f32>"),
+            ParamKind::Vec3 { .. } => Some("vec3<f32>"),
+            ParamKind::Tf { .. } => None,
+        }
+    }
+
+    /// Checks a value against the spec; the message does not include the path.
+    pub fn check(&self, v: &ParamValue) -> Result<(), String> {
+        let range = |x: f32, min: f32, max: f32| {
+            if !x.is_finite() {
+                Err(format!("{x} is not finite"))
+            } else if x < min || x > max {
+                Err(format!("{x} is outside [{min}, {max}]"))
+            } else {
+                Ok(())
+            }
+        };
+        match (&self.kind, v) {
+            (ParamKind::Float { min, max, .. }, ParamValue::Float(x)) => range(*x, *min, *max),
+            (ParamKind::Int { min, max, .. }, ParamValue::Int(x)) => {
+                if x < min || x > max {
+                    Err(format!("{x} is outside [{min}, {max}]"))
+                } else {
+                    Ok(())
+                }
+            }
+            (ParamKind::Bool { .. }, ParamValue::Bool(_)) => Ok(()),
+            (ParamKind::Enum { options, .. }, ParamValue::Enum(s)) => {
+                if options.contains(&s.as_str()) {
+                    Ok(())
+                } else {
+                    Err(format!("'{s}' is not one of {options:?}"))
+                }
+            }
+            (ParamKind::Color { .. }, ParamValue::Color(c)) => {
+                c.iter().try_for_each(|x| range(*x, 0.0, 1.0))
+            }
+            (ParamKind::Vec3 { min, max, .. }, ParamValue::Vec3(c)) => {
+                c.iter().try_for_each(|x| range(*x, *min, *max))
+            }
+            (ParamKind::Tf { .. }, ParamValue::Tf(t)) => t.validate(),
+            (_, v) => Err(format!(
+                "expected {}, got {}",
+                self.kind_name(),
+                v.kind_name()
+            )),
+        }
+    }
+
+    pub fn kind_name(&self) -> &'static str {
+        match self.kind {
+            ParamKind::Float { .. } => "a float",
+            ParamKind::Int { .. } => "an int",
+            ParamKind::Bool { .. } => "a bool",
+            ParamKind::Enum { .. } => "an enum name",
+            ParamKind::Color { .. } => "a colour (r, g, b, a)",
+            ParamKind::Vec3 { .. } => "a vec3 (x, y, z)",
+            ParamKind::Tf { .. } => "a transfer function",
+        }
+    }
+
+    /// Parses a value from RON. Numbers are accepted for floats and ints, strings for
+    /// enums, tuples/lists for colours and vectors, `(points: [...])` for TFs.
+    pub fn from_ron(&self, value: &ron::Value) -> Result<ParamValue, String> {
+        let v = match &self.kind {
+            ParamKind::Float { .. } => ParamValue::Float(ron_f32(value)?),
+            ParamKind::Int { .. } => {
+                let x = ron_f32(value)?;
+                if x.fract() != 0.0 {
+                    return Err(format!("expected an int, got {x}"));
+                }
+                ParamValue::Int(x as i32)
+            }
+            ParamKind::Bool { .. } => match value {
+                ron::Value::Bool(b) => ParamValue::Bool(*b),
+                other => return Err(format!("expected a bool, got {}", describe_ron(other))),
+            },
+            ParamKind::Enum { .. } => match value {
+                ron::Value::String(s) => ParamValue::Enum(s.clone()),
+                other => {
+                    return Err(format!(
+                        "expected an enum name string, got {}",
+                        describe_ron(other)
+                    ));
+                }
+            },
+            ParamKind::Color { .. } => {
+                let xs = ron_list(value, 4)?;
+                ParamValue::Color([xs[0], xs[1], xs[2], xs[3]])
+            }
+            ParamKind::Vec3 { .. } => {
+                let xs = ron_list(value, 3)?;
+                ParamValue::Vec3([xs[0], xs[1], xs[2]])
+            }
+            ParamKind::Tf { .. } => {
+                let t: TfCurve = value
+                    .clone()
+                    .into_rust()
+                    .map_err(|e| format!("expected a transfer function (points: [...]): {e}"))?;
+                ParamValue::Tf(t)
+            }
+        };
+        self.check(&v)?;
+        Ok(v)
+    }
+}
+
+fn describe_ron(v: &ron::Value) -> String {
+    let s = ron::to_string(v).unwrap_or_else(|_| format!("{v:?}"));
+    if s.len() > 60 {
+        format!("{}…", &s[..s.floor_char_boundary(60)])
+    } else {
+        s
+    }
+}
+
+fn ron_f32(v: &ron::Value) -> Result<f32, String> {
+    match v {
+        ron::Value::Number(n) => Ok((*n).into_f64() as f32),
+        other => Err(format!("expected a number, got {}", describe_ron(other))),
+    }
+}
+
+fn ron_list(v: &ron::Value, n: usize) -> Result<Vec<f32>, String> {
+    match v {
+        ron::Value::Seq(items) if items.len() == n => items.iter().map(ron_f32).collect(),
+        other => Err(format!("expected {n} numbers, got {}", describe_ron(other))),
+    }
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub enum ParamValue {
+    Float(f32),
+    Int(i32),
+    Bool(bool),
+    Enum(String),
+    Color([f32; 4]),
+    Vec3([f32; 3]),
+    Tf(TfCurve),
+}
+
+impl ParamValue {
+    pub fn kind_name(&self) -> &'static str {
+        match self {
+            ParamValue::Float(_) => "a float",
+            ParamValue::Int(_) => "an int",
+            ParamValue::Bool(_) => "a bool",
+            ParamValue::Enum(_) => "an enum name",
+            ParamValue::Color(_) => "a colour",
+            ParamValue::Vec3(_) => "a vec3",
+            ParamValue::Tf(_) => "a transfer function",
+        }
+    }
+
+    /// RON value as written in presets (plain numbers, strings, tuples).
+    pub fn to_ron(&self) -> ron::Value {
+        let num = |x: f32| ron::Value::Number(ron::Number::F32((x).into()));
+        match self {
+            ParamValue::Float(x) => num(*x),
+            ParamValue::Int(x) => ron::Value::Number(ron::Number::I32(*x)),
+            ParamValue::Bool(b) => ron::Value::Bool(*b),
+            ParamValue::Enum(s) => ron::Value::String(s.clone()),
+            ParamValue::Color(c) => ron::Value::Seq(c.iter().map(|x| num(*x)).collect()),
+            ParamValue::Vec3(c) => ron::Value::Seq(c.iter().map(|x| num(*x)).collect()),
+            ParamValue::Tf(t) => ron::to_string(t)
+                .ok()
+                .and_then(|s| ron::from_str(&s).ok())
+                .unwrap_or(ron::Value::Unit),
+        }
+    }
+}
+
+/// Values of all parameters of one plugin instance, by key.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct ParamValues {
+    pub values: BTreeMap<String, ParamValue>,
+}
+
+impl ParamValues {
+    pub fn defaults(specs: &[ParamSpec]) -> Self {
+        Self {
+            values: specs
+                .iter()
+                .map(|s| (s.key.to_string(), s.default_value()))
+                .collect(),
+        }
+    }
+
+    pub fn get(&self, key: &str) -> Option<&ParamValue> {
+        self.values.get(key)
+    }
+
+    pub fn set(&mut self, key: &str, v: ParamValue) {
+        self.values.insert(key.to_string(), v);
+    }
+
+    pub fn float(&self, key: &str) -> f32 {
+        match self.get(key) {
+            Some(ParamValue::Float(x)) => *x,
+            Some(ParamValue::Int(x)) => *x as f32,
+            _ => 0.0,
+        }
+    }
+    pub fn int(&self, key: &str) -> i32 {
+        match self.get(key) {
+            Some(ParamValue::Int(x)) => *x,
+            _ => 0,
+        }
+    }
+    pub fn boolean(&self, key: &str) -> bool {
+        matches!(self.get(key), Some(ParamValue::Bool(true)))
+    }
+    pub fn enumeration(&self, key: &str) -> &str {
+        match self.get(key) {
+            Some(ParamValue::Enum(s)) => s,
+            _ => "",
+        }
+    }
+    pub fn color(&self, key: &str) -> [f32; 4] {
+        match self.get(key) {
+            Some(ParamValue::Color(c)) => *c,
+            _ => [0.0; 4],
+        }
+    }
+    pub fn vec3(&self, key: &str) -> [f32; 3] {
+        match self.get(key) {
+            Some(ParamValue::Vec3(c)) => *c,
+            _ => [0.0; 3],
+        }
+    }
+    pub fn tf(&self, key: &str) -> Option<&TfCurve> {
+        match self.get(key) {
+            Some(ParamValue::Tf(t)) => Some(t),
+            _ => None,
+        }
+    }
+}
+
+/// One member of a generated uniform struct.
+#[derive(Debug, Clone, PartialEq)]
+pub struct UniformMember {
+    pub key: &'static str,
+    pub wgsl_type: &'static str,
+    pub offset: u32,
+    pub size: u32,
+}
+
+/// Layout of the uniform struct generated from a spec.
+#[derive(Debug, Clone, PartialEq)]
+pub struct UniformLayout {
+    pub members: Vec<UniformMember>,
+    /// Size in bytes, a multiple of 16, at least 16.
+    pub size: u32,
+}
+
+impl UniformLayout {
+    pub fn new(specs: &[ParamSpec]) -> Self {
+        let mut members = Vec::new();
+        let mut offset = 0u32;
+        for s in specs {
+            let Some(ty) = s.wgsl_type() else { continue };
+            let (align, size) = match ty {
+                "vec4<f32>" => (16, 16),
+                "vec3<f32>" => (16, 12),
+                _ => (4, 4),
+            };
+            offset = offset.div_ceil(align) * align;
+            members.push(UniformMember {
+                key: s.key,
+                wgsl_type: ty,
+                offset,
+                size,
+            });
+            offset += size;
+        }
+        let size = offset.div_ceil(16).max(1) * 16;
+        Self { members, size }
+    }
+
+    /// WGSL struct declaration named `name`.
+    pub fn wgsl(&self, name: &str) -> String {
+        let mut s = format!("struct {name} {{\n");
+        if self.members.is_empty() {
+            s.push_str("    unused: u32,\n");
+        }
+        for m in &self.members {
+            s.push_str(&format!("    {}: {},\n", m.key, m.wgsl_type));
+        }
+        s.push('}');
+        s
+    }
+
+    /// Packs values (missing ones as defaults) into uniform bytes.
+    pub fn pack(&self, specs: &[ParamSpec], values: &ParamValues) -> Vec<u8> {
+        let mut out = vec![0u8; self.size as usize];
+        for m in &self.members {
+            let spec = specs.iter().find(|s| s.key == m.key);
+            let v = values
+                .get(m.key)
+                .cloned()
+                .or_else(|| spec.map(|s| s.default_value()));
+            let o = m.offset as usize;
+            let mut put =
+                |i: usize, bytes: [u8; 4]| out[o + 4 * i..o + 4 * i + 4].copy_from_slice(&bytes);
+            match (v, spec.map(|s| &s.kind)) {
+                (Some(ParamValue::Float(x)), _) => put(0, x.to_le_bytes()),
+                (Some(ParamValue::Int(x)), _) => put(0, x.to_le_bytes()),
+                (Some(ParamValue::Bool(b)), _) => put(0, (b as u32).to_le_bytes()),
+                (Some(ParamValue::Enum(e)), Some(ParamKind::Enum { options, .. })) => {
+                    let idx = options.iter().position(|o| *o == e).unwrap_or(0) as u32;
+                    put(0, idx.to_le_bytes())
+                }
+                (Some(ParamValue::Color(c)), _) => {
+                    for (i, x) in c.iter().enumerate() {
+                        put(i, x.to_le_bytes());
+                    }
+                }
+                (Some(ParamValue::Vec3(c)), _) => {
+                    for (i, x) in c.iter().enumerate() {
+                        put(i, x.to_le_bytes());
+                    }
+                }
+                _ => {}
+            }
+        }
+        out
+    }
+}
+
+/// Checks that a plugin's specs are well formed (unique identifier keys, defaults valid).
+pub fn validate_specs(specs: &[ParamSpec]) -> Result<(), String> {
+    let mut seen = std::collections::HashSet::new();
+    for s in specs {
+        let valid_ident = !s.key.is_empty()
+            && s.key.chars().next().is_some_and(|c| c.is_ascii_lowercase())
+            && s.key
+                .chars()
+                .all(|c| c.is_ascii_lowercase() || c.is_ascii_digit() || c == '_');
+        if !valid_ident {
+            return Err(format!(
+                "parameter key '{}' must be a lowercase identifier",
+                s.key
+            ));
+        }
+        if !seen.insert(s.key) {
+            return Err(format!("parameter key '{}' is declared twice", s.key));
+        }
+        if let ParamKind::Float { min, log: true, .. } = s.kind
+            && min <= 0.0
+        {
+            return Err(format!(
+                "parameter '{}' is logarithmic but its minimum {min} is not > 0",
+                s.key
+            ));
+        }
+        s.check(&s.default_value())
+            .map_err(|e| format!("parameter '{}' default: {e}", s.key))?;
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn specs() -> Vec<ParamSpec> {
+        vec![
+            ParamSpec::float("a", "A", 0.0, 1.0, 0.5),
+            ParamSpec::vec3("dir", "Dir", -1.0, 1.0, [0.0, 1.0, 0.0]),
+            ParamSpec::boolean("on", "On", true),
+            ParamSpec::color("tint", "Tint", [1.0, 0.0, 0.0, 1.0]),
+            ParamSpec::enumeration("mode", "Mode", &["x", "y"], 1),
+            ParamSpec::tf("tf", "TF", TfCurve::ramp(0.0, 1.0, [1.0; 4])),
+            ParamSpec::int("n", "N", 1, 13, 4),
+        ]
+    }
+
+    #[test]
+    fn layout_follows_wgsl_rules() {
+        let l = UniformLayout::new(&specs());
+        let offs: Vec<(&str, u32)> = l.members.iter().map(|m| (m.key, m.offset)).collect();
+        assert_eq!(
+            offs,
+            vec![
+                ("a", 0),
+                ("dir", 16),
+                ("on", 28),
+                ("tint", 32),
+                ("mode", 48),
+                ("n", 52)
+            ]
+        );
+        assert_eq!(l.size, 64);
+    }
+
+    #[test]
+    fn layout_matches_naga() {
+        let l = UniformLayout::new(&specs());
+        let src = format!(
+            "{}\n@group(0) @binding(0) var<uniform> u: P;\n@fragment fn f() -> @location(0) vec4<f32> {{ return vec4<f32>(u.a); }}",
+            l.wgsl("P")
+        );
+        let module = naga::front::wgsl::parse_str(&src).unwrap();
+        let (_, ty) = module
+            .types
+            .iter()
+            .find(|(_, t)| t.name.as_deref() == Some("P"))
+            .unwrap();
+        let naga::TypeInner::Struct { members, span } = &ty.inner else {
+            panic!("not a struct")
+        };
+        for (m, n) in l.members.iter().zip(members) {
+            assert_eq!(Some(m.key), n.name.as_deref());
+            assert_eq!(m.offset, n.offset, "member {}", m.key);
+        }
+        assert_eq!(l.size, span.div_ceil(16) * 16);
+    }
+
+    #[test]
+    fn pack_writes_values_at_offsets() {
+        let s = specs();
+        let l = UniformLayout::new(&s);
+        let mut v = ParamValues::defaults(&s);
+        v.set("a", ParamValue::Float(0.25));
+        let b = l.pack(&s, &v);
+        assert_eq!(f32::from_le_bytes(b[0..4].try_into().unwrap()), 0.25);
+        assert_eq!(f32::from_le_bytes(b[20..24].try_into().unwrap()), 1.0);
+        assert_eq!(u32::from_le_bytes(b[28..32].try_into().unwrap()), 1);
+        assert_eq!(u32::from_le_bytes(b[48..52].try_into().unwrap()), 1);
+        assert_eq!(i32::from_le_bytes(b[52..56].try_into().unwrap()), 4);
+    }
+
+    #[test]
+    fn ron_values_are_checked() {
+        let s = specs();
+        let a = &s[0];
+        assert_eq!(
+            a.from_ron(&ron::from_str("0.75").unwrap()),
+            Ok(ParamValue::Float(0.75))
+        );
+        assert!(
+            a.from_ron(&ron::from_str("2.0").unwrap())
+                .unwrap_err()
+                .contains("outside")
+        );
+        assert!(
+            a.from_ron(&ron::from_str("\"x\"").unwrap())
+                .unwrap_err()
+                .contains("number")
+        );
+        let m = &s[4];
+        assert!(m.from_ron(&ron::from_str("\"z\"").unwrap()).is_err());
+        let tf = &s[5];
+        let v = tf
+            .from_ron(
+                &ron::from_str(
+                    "(points: [(x: 0.0, color: (0,0,0,0)), (x: 1.0, color: (1,1,1,1))])",
+                )
+                .unwrap(),
+            )
+            .unwrap();
+        assert!(matches!(v, ParamValue::Tf(_)));
+        // round trip through to_ron
+        for spec in &s {
+            let d = spec.default_value();
+            assert_eq!(spec.from_ron(&d.to_ron()).unwrap(), d, "{}", spec.key);
+        }
+    }
+
+    #[test]
+    fn specs_are_validated() {
+        assert!(validate_specs(&specs()).is_ok());
+        let mut bad = specs();
+        bad.push(ParamSpec::float("a", "A again", 0.0, 1.0, 0.5));
+        assert!(validate_specs(&bad).unwrap_err().contains("twice"));
+        assert!(validate_specs(&[ParamSpec::float("B", "b", 0.0, 1.0, 0.5)]).is_err());
+        assert!(validate_specs(&[ParamSpec::float_log("l", "l", 0.0, 1.0, 0.5)]).is_err());
+        assert!(validate_specs(&[ParamSpec::float("l", "l", 0.0, 1.0, 5.0)]).is_err());
+    }
+}

@@ -1,0 +1,480 @@
+//! The plugin API and the typed registry.
+//!
+//! A plugin contributes WGSL hook functions (its `.wgsl` file holds only those, plus
+//! helpers), a parameter spec, optional GPU resources, an optional per-slice state
+//! (ping-pong buffers updated after every slice), an optional pre-pass that fills a
+//! 3D texture, and an optional CPU twin of its GPU math.
+//!
+//! Hook signatures (names inside the plugin's file; the composer prefixes them per
+//! instance):
+//! - `fn clip(s: Sample) -> bool` — false drops the sample (runs before sampling)
+//! - `fn sample(s: Sample) -> Sample` — may replace `s.value` / set `s.normal`
+//! - `fn classify(s: Sample) -> Sample` — sets `s.color` (straight RGBA per Δs0)
+//! - `fn shade(s: Sample) -> Sample` — modifies `s.color`
+//! - `fn composite(s: Sample, c: vec4<f32>) -> vec4<f32>` — premultiplied contribution
+//! - `fn slice_update(s: Sample, c: vec4<f32>, uv: vec2<f32>) -> vec4<f32>` — next
+//!   state texel after the current slice (needs [`SliceStateDecl`])
+//! - pre-pass file: `fn prepass(voxel: vec3<u32>, dims: vec3<u32>) -> vec4<f32>`
+//!
+//! Names the plugin can use: `params.<key>` (its uniform parameters), each declared
+//! resource by name, `state_prev` (its state of the previous slice, a texture_2d
+//! read with `linear_clamp` at `s.uv`), its pre-pass target by name (a texture_3d),
+//! and everything in `shaders/common.wgsl`.
+
+use std::borrow::Cow;
+use std::collections::HashMap;
+use std::sync::Arc;
+
+use glam::{DVec2, DVec3, DVec4};
+
+use crate::params::{ParamSpec, ParamValues, validate_specs};
+use crate::volume::Volume;
+
+/// Plugin category: the part before the dot of the id.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum Category {
+    Clip,
+    Sample,
+    Classify,
+    Shade,
+    Composite,
+    Flow,
+    Search,
+    Test,
+}
+
+impl Category {
+    pub const ALL: [Category; 8] = [
+        Category::Clip,
+        Category::Sample,
+        Category::Classify,
+        Category::Shade,
+        Category::Composite,
+        Category::Flow,
+        Category::Search,
+        Category::Test,
+    ];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Category::Clip => "clip",
+            Category::Sample => "sample",
+            Category::Classify => "classify",
+            Category::Shade => "shade",
+            Category::Composite => "composite",
+            Category::Flow => "flow",
+            Category::Search => "search",
+            Category::Test => "test",
+        }
+    }
+
+    pub fn from_name(s: &str) -> Option<Self> {
+        Self::ALL.into_iter().find(|c| c.name() == s)
+    }
+}
+
+/// WGSL source with the file it came from (relative to the repository root), so that
+/// errors can name it.
+#[derive(Debug, Clone)]
+pub struct ShaderSource {
+    pub file: Cow<'static, str>,
+    pub source: Cow<'static, str>,
+}
+
+impl ShaderSource {
+    pub const fn new_static(file: &'static str, source: &'static str) -> Self {
+        Self {
+            file: Cow::Borrowed(file),
+            source: Cow::Borrowed(source),
+        }
+    }
+}
+
+/// Sampled resources a plugin owns (it creates them in [`Plugin::create_resources`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ResourceKind {
+    /// `texture_2d<f32>`, filterable
+    Texture2d,
+    /// `texture_3d<f32>`, filterable
+    Texture3d,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ResourceDecl {
+    pub name: &'static str,
+    pub kind: ResourceKind,
+}
+
+/// A resource created by a plugin, matching its [`ResourceDecl`] at the same index.
+#[derive(Debug, Clone)]
+pub struct GpuResource {
+    pub texture: wgpu::Texture,
+    pub view: wgpu::TextureView,
+}
+
+impl GpuResource {
+    pub fn bytes(&self) -> u64 {
+        let s = self.texture.size();
+        let bpp = self.texture.format().block_copy_size(None).unwrap_or(4) as u64;
+        s.width as u64 * s.height as u64 * s.depth_or_array_layers as u64 * bpp
+    }
+}
+
+/// Formats for per-slice state and pre-pass targets (both are storage-writable).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum StorageFormat {
+    R32Float,
+    Rgba16Float,
+    Rgba32Float,
+}
+
+impl StorageFormat {
+    pub fn wgsl(self) -> &'static str {
+        match self {
+            StorageFormat::R32Float => "r32float",
+            StorageFormat::Rgba16Float => "rgba16float",
+            StorageFormat::Rgba32Float => "rgba32float",
+        }
+    }
+    pub fn wgpu(self) -> wgpu::TextureFormat {
+        match self {
+            StorageFormat::R32Float => wgpu::TextureFormat::R32Float,
+            StorageFormat::Rgba16Float => wgpu::TextureFormat::Rgba16Float,
+            StorageFormat::Rgba32Float => wgpu::TextureFormat::Rgba32Float,
+        }
+    }
+    /// Sampling 32-bit float formats with filtering needs FLOAT32_FILTERABLE.
+    pub fn needs_float32_filterable(self) -> bool {
+        !matches!(self, StorageFormat::Rgba16Float)
+    }
+}
+
+/// Per-slice state: a pair of 2D textures in eye-buffer space, swapped after each
+/// slice. The plugin reads the previous one as `state_prev` and returns the next texel
+/// from `slice_update`. Its resolution is the eye buffer's times `scale`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SliceStateDecl {
+    pub format: StorageFormat,
+    pub scale: f32,
+    /// Value the state is cleared to before the first slice.
+    pub clear: [f32; 4],
+}
+
+/// A pre-pass: a compute pass that fills a 3D texture named `target` (read by the
+/// plugin's hooks as a `texture_3d<f32>`) from `shader`'s `prepass` function. It
+/// reruns only when the volume or one of the parameters in `depends_on` changes.
+#[derive(Debug, Clone)]
+pub struct PrepassDecl {
+    pub target: &'static str,
+    pub format: StorageFormat,
+    /// Size of the target relative to the volume (1 = one texel per voxel).
+    pub scale: f32,
+    pub shader: ShaderSource,
+    pub depends_on: Vec<&'static str>,
+}
+
+/// What a plugin gets to create and update its resources.
+pub struct GpuInit<'a> {
+    pub device: &'a wgpu::Device,
+    pub queue: &'a wgpu::Queue,
+    pub features: wgpu::Features,
+    pub volume: &'a Volume,
+}
+
+impl GpuInit<'_> {
+    /// Float format for lookup tables: rgba32float where filterable, else rgba16float.
+    pub fn lut_format(&self) -> wgpu::TextureFormat {
+        if self.features.contains(wgpu::Features::FLOAT32_FILTERABLE) {
+            wgpu::TextureFormat::Rgba32Float
+        } else {
+            wgpu::TextureFormat::Rgba16Float
+        }
+    }
+}
+
+#[derive(Debug, thiserror::Error)]
+pub enum PluginError {
+    #[error("{plugin}: {message}")]
+    Invalid { plugin: String, message: String },
+}
+
+/// A sample on the CPU (f64), mirroring the WGSL `Sample`.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct CpuSample {
+    pub pos: DVec3,
+    pub tex: DVec3,
+    pub ray_dir: DVec3,
+    pub uv: DVec2,
+    pub value: f64,
+    pub step: f64,
+    pub color: DVec4,
+    pub normal: DVec3,
+    pub slice: u32,
+}
+
+/// What CPU twins can read: the volume and its normalised scalars.
+pub struct CpuContext<'a> {
+    pub volume: &'a Volume,
+    /// Normalised scalars in [0,1], x fastest (as uploaded to the GPU).
+    pub scalars: &'a [f32],
+}
+
+impl CpuContext<'_> {
+    /// Trilinear interpolation at a texture coordinate, with texel centres at
+    /// (i + 0.5)/n and clamp-to-edge, as the GPU sampler does.
+    pub fn value(&self, tex: DVec3) -> f64 {
+        let d = self.volume.dims;
+        let mut i0 = [0usize; 3];
+        let mut i1 = [0usize; 3];
+        let mut t = [0.0f64; 3];
+        for a in 0..3 {
+            let n = d[a].max(1) as f64;
+            let x = (tex[a] * n - 0.5).clamp(0.0, n - 1.0);
+            let f = x.floor();
+            i0[a] = f as usize;
+            i1[a] = (i0[a] + 1).min(d[a].max(1) as usize - 1);
+            t[a] = x - f;
+        }
+        let at = |x: usize, y: usize, z: usize| {
+            self.scalars[(z * d[1] as usize + y) * d[0] as usize + x] as f64
+        };
+        let lerp = |a: f64, b: f64, t: f64| a + (b - a) * t;
+        let c00 = lerp(at(i0[0], i0[1], i0[2]), at(i1[0], i0[1], i0[2]), t[0]);
+        let c10 = lerp(at(i0[0], i1[1], i0[2]), at(i1[0], i1[1], i0[2]), t[0]);
+        let c01 = lerp(at(i0[0], i0[1], i1[2]), at(i1[0], i0[1], i1[2]), t[0]);
+        let c11 = lerp(at(i0[0], i1[1], i1[2]), at(i1[0], i1[1], i1[2]), t[0]);
+        lerp(lerp(c00, c10, t[1]), lerp(c01, c11, t[1]), t[2])
+    }
+}
+
+/// CPU twin of a plugin's GPU hooks, in f64. Each method mirrors the WGSL hook of the
+/// same name; the defaults do what an absent hook does.
+pub trait CpuTwin: Send + Sync {
+    fn clip(&self, _s: &CpuSample) -> bool {
+        true
+    }
+    fn sample(&self, _ctx: &CpuContext, _s: &mut CpuSample) {}
+    fn classify(&self, _s: &mut CpuSample) {}
+    fn shade(&self, _ctx: &CpuContext, _s: &mut CpuSample) {}
+    fn composite(&self, _s: &CpuSample, _c: &mut DVec4) {}
+}
+
+/// A plugin type. Instances (with their own parameter values) live in a stack.
+pub trait Plugin: Send + Sync + 'static {
+    /// Stable id `category.name`, e.g. `classify.tf1d`.
+    fn id(&self) -> &'static str;
+    fn display_name(&self) -> &'static str;
+    fn description(&self) -> &'static str {
+        ""
+    }
+    fn category(&self) -> Category {
+        self.id()
+            .split('.')
+            .next()
+            .and_then(Category::from_name)
+            .unwrap_or(Category::Test)
+    }
+    fn params(&self) -> Vec<ParamSpec>;
+    /// The hook functions.
+    fn shader(&self) -> ShaderSource;
+    fn resources(&self) -> Vec<ResourceDecl> {
+        Vec::new()
+    }
+    fn slice_state(&self) -> Option<SliceStateDecl> {
+        None
+    }
+    fn prepass(&self) -> Option<PrepassDecl> {
+        None
+    }
+    /// Creates the resources declared by [`Plugin::resources`], in order.
+    fn create_resources(
+        &self,
+        _gpu: &GpuInit,
+        _params: &ParamValues,
+    ) -> Result<Vec<GpuResource>, PluginError> {
+        Ok(Vec::new())
+    }
+    /// Updates resources after a parameter change (e.g. re-bakes a lookup table).
+    fn update_resources(
+        &self,
+        _gpu: &GpuInit,
+        _params: &ParamValues,
+        _resources: &[GpuResource],
+    ) -> Result<(), PluginError> {
+        Ok(())
+    }
+    /// CPU twin for the given parameters, if the plugin has one.
+    fn cpu_twin(&self, _params: &ParamValues) -> Option<Box<dyn CpuTwin>> {
+        None
+    }
+}
+
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum RegistryError {
+    #[error("plugin id '{0}' is already registered")]
+    Duplicate(String),
+    #[error(
+        "plugin id '{0}' is not of the form category.name (lowercase; category one of clip, sample, classify, shade, composite, flow, search, test)"
+    )]
+    BadId(String),
+    #[error("plugin '{id}': {message}")]
+    BadSpec { id: String, message: String },
+    #[error("no plugin '{0}' is registered")]
+    Unknown(String),
+}
+
+/// Typed registry of plugin types; ids are unique.
+#[derive(Default, Clone)]
+pub struct Registry {
+    plugins: Vec<Arc<dyn Plugin>>,
+    index: HashMap<&'static str, usize>,
+}
+
+impl std::fmt::Debug for Registry {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_list().entries(self.ids()).finish()
+    }
+}
+
+/// Checks an id of the form `category.name`.
+pub fn valid_id(id: &str) -> bool {
+    let Some((cat, name)) = id.split_once('.') else {
+        return false;
+    };
+    Category::from_name(cat).is_some()
+        && !name.is_empty()
+        && name.chars().next().is_some_and(|c| c.is_ascii_lowercase())
+        && name
+            .chars()
+            .all(|c| c.is_ascii_lowercase() || c.is_ascii_digit() || c == '_')
+}
+
+impl Registry {
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    pub fn register(&mut self, plugin: Arc<dyn Plugin>) -> Result<(), RegistryError> {
+        let id = plugin.id();
+        if !valid_id(id) {
+            return Err(RegistryError::BadId(id.to_string()));
+        }
+        if self.index.contains_key(id) {
+            return Err(RegistryError::Duplicate(id.to_string()));
+        }
+        validate_specs(&plugin.params()).map_err(|message| RegistryError::BadSpec {
+            id: id.to_string(),
+            message,
+        })?;
+        self.index.insert(id, self.plugins.len());
+        self.plugins.push(plugin);
+        Ok(())
+    }
+
+    pub fn get(&self, id: &str) -> Result<Arc<dyn Plugin>, RegistryError> {
+        self.index
+            .get(id)
+            .map(|&i| self.plugins[i].clone())
+            .ok_or_else(|| RegistryError::Unknown(id.to_string()))
+    }
+
+    pub fn ids(&self) -> impl Iterator<Item = &'static str> + '_ {
+        self.plugins.iter().map(|p| p.id())
+    }
+
+    pub fn plugins(&self) -> &[Arc<dyn Plugin>] {
+        &self.plugins
+    }
+
+    pub fn by_category(&self, c: Category) -> impl Iterator<Item = &Arc<dyn Plugin>> {
+        self.plugins.iter().filter(move |p| p.category() == c)
+    }
+}
+
+/// One entry of the user's plugin stack.
+#[derive(Clone)]
+pub struct PluginInstance {
+    pub plugin: Arc<dyn Plugin>,
+    pub enabled: bool,
+    pub params: ParamValues,
+    /// Identity that survives reordering (keeps GPU resources and pre-pass results).
+    pub uid: u64,
+}
+
+impl std::fmt::Debug for PluginInstance {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("PluginInstance")
+            .field("id", &self.plugin.id())
+            .field("enabled", &self.enabled)
+            .field("uid", &self.uid)
+            .finish()
+    }
+}
+
+static NEXT_UID: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(1);
+
+impl PluginInstance {
+    pub fn new(plugin: Arc<dyn Plugin>) -> Self {
+        let params = ParamValues::defaults(&plugin.params());
+        Self {
+            plugin,
+            enabled: true,
+            params,
+            uid: NEXT_UID.fetch_add(1, std::sync::atomic::Ordering::Relaxed),
+        }
+    }
+
+    /// A copy with a new identity (the UI's "duplicate").
+    pub fn duplicate(&self) -> Self {
+        Self {
+            uid: NEXT_UID.fetch_add(1, std::sync::atomic::Ordering::Relaxed),
+            ..self.clone()
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    struct Dummy(&'static str);
+    impl Plugin for Dummy {
+        fn id(&self) -> &'static str {
+            self.0
+        }
+        fn display_name(&self) -> &'static str {
+            "Dummy"
+        }
+        fn params(&self) -> Vec<ParamSpec> {
+            Vec::new()
+        }
+        fn shader(&self) -> ShaderSource {
+            ShaderSource::new_static("dummy.wgsl", "")
+        }
+    }
+
+    #[test]
+    fn registry_rejects_duplicates_and_bad_ids() {
+        let mut r = Registry::new();
+        r.register(Arc::new(Dummy("classify.a"))).unwrap();
+        assert_eq!(
+            r.register(Arc::new(Dummy("classify.a"))).unwrap_err(),
+            RegistryError::Duplicate("classify.a".into())
+        );
+        for bad in [
+            "nodot",
+            "unknowncat.x",
+            "classify.",
+            "classify.Upper",
+            "shade.a-b",
+        ] {
+            assert!(matches!(
+                r.register(Arc::new(Dummy(bad))),
+                Err(RegistryError::BadId(_))
+            ));
+        }
+        assert_eq!(r.ids().collect::<Vec<_>>(), vec!["classify.a"]);
+        assert_eq!(r.get("classify.a").unwrap().category(), Category::Classify);
+        assert!(r.get("classify.b").is_err());
+    }
+}

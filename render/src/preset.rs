@@ -1,0 +1,330 @@
+//! Presets: the whole document (volume source, camera, slice settings, backend, the
+//! ordered plugin list with enabled flags and parameters) in RON, with a `version`.
+//!
+//! - Only non-default parameters are saved.
+//! - Unknown keys (anywhere in the document, or unknown parameter keys) are warnings.
+//! - Bad values are errors naming the file and the path, e.g.
+//!   `ct.ron: plugins[0] classify.tf1d.opacity: 200 is outside [0.01, 100]`.
+//! - Saves are atomic: a temporary file in the same folder is renamed over the target,
+//!   so a failed save never destroys the previous file.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+use serde::{Deserialize, Serialize};
+
+use crate::camera::Camera;
+use crate::composer::TargetFormat;
+use crate::params::ParamValues;
+use crate::plugin::{PluginInstance, Registry};
+use crate::renderer::{Backend, FrameSettings};
+
+pub const PRESET_VERSION: u32 = 1;
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
+pub enum VolumeSource {
+    /// The demo volume embedded in the binary.
+    #[default]
+    Demo,
+    /// A volume file; relative paths are relative to the preset's folder.
+    File(PathBuf),
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct RenderSection {
+    /// Distance between slices in voxels.
+    pub slice_spacing: f32,
+    pub backend: Backend,
+    pub target: TargetFormat,
+    /// Compute backend: stop rays at this opacity.
+    pub early_termination: Option<f32>,
+    /// Background the image is composited over (straight RGBA; alpha ignored).
+    pub background: [f32; 4],
+    /// Default image size.
+    pub size: [u32; 2],
+}
+
+impl Default for RenderSection {
+    fn default() -> Self {
+        Self {
+            slice_spacing: 1.0,
+            backend: Backend::Raster,
+            target: TargetFormat::Rgba16Float,
+            early_termination: None,
+            background: [0.0, 0.0, 0.0, 1.0],
+            size: [512, 512],
+        }
+    }
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct PluginEntry {
+    pub id: String,
+    #[serde(default = "yes", skip_serializing_if = "is_true")]
+    pub enabled: bool,
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub params: BTreeMap<String, ron::Value>,
+}
+
+fn yes() -> bool {
+    true
+}
+fn is_true(b: &bool) -> bool {
+    *b
+}
+
+/// The file format.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct PresetFile {
+    pub version: u32,
+    #[serde(default, skip_serializing_if = "String::is_empty")]
+    pub description: String,
+    #[serde(default)]
+    pub volume: VolumeSource,
+    #[serde(default)]
+    pub camera: Camera,
+    #[serde(default)]
+    pub render: RenderSection,
+    #[serde(default)]
+    pub plugins: Vec<PluginEntry>,
+}
+
+/// A resolved document: plugins looked up in the registry, parameters typed.
+#[derive(Debug, Clone)]
+pub struct Document {
+    pub description: String,
+    pub volume: VolumeSource,
+    pub camera: Camera,
+    pub render: RenderSection,
+    pub stack: Vec<PluginInstance>,
+}
+
+#[derive(Debug, thiserror::Error)]
+pub enum PresetError {
+    #[error("{file}: {source}")]
+    Io {
+        file: String,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error("{file}: {message}")]
+    Syntax { file: String, message: String },
+    #[error("{file}: {path}: {message}")]
+    Value {
+        file: String,
+        path: String,
+        message: String,
+    },
+}
+
+/// A parsed document and the warnings met on the way.
+#[derive(Debug)]
+pub struct Loaded {
+    pub document: Document,
+    pub warnings: Vec<String>,
+}
+
+impl Document {
+    pub fn frame_settings(&self) -> FrameSettings {
+        FrameSettings {
+            camera: self.camera,
+            width: self.render.size[0],
+            height: self.render.size[1],
+            slice_spacing: self.render.slice_spacing,
+            backend: self.render.backend,
+            early_termination: self.render.early_termination,
+        }
+    }
+
+    /// Loads a preset file.
+    pub fn load(path: &Path, registry: &Registry) -> Result<Loaded, PresetError> {
+        let file = path.display().to_string();
+        let text = std::fs::read_to_string(path).map_err(|source| PresetError::Io {
+            file: file.clone(),
+            source,
+        })?;
+        let mut loaded = Self::parse(&text, &file, registry)?;
+        // relative volume paths are relative to the preset
+        if let VolumeSource::File(p) = &mut loaded.document.volume
+            && p.is_relative()
+            && let Some(dir) = path.parent()
+        {
+            *p = dir.join(&*p);
+        }
+        Ok(loaded)
+    }
+
+    /// Parses preset text; `file` names the source in messages.
+    pub fn parse(text: &str, file: &str, registry: &Registry) -> Result<Loaded, PresetError> {
+        let mut warnings = Vec::new();
+        let syntax = |message: String| PresetError::Syntax {
+            file: file.to_string(),
+            message,
+        };
+        let mut de = ron::Deserializer::from_str(text).map_err(|e| syntax(e.to_string()))?;
+        let raw: PresetFile = serde_ignored::deserialize(&mut de, |p| {
+            warnings.push(format!("{file}: unknown key '{p}' ignored"));
+        })
+        .map_err(|e| syntax(de.span_error(e).to_string()))?;
+        de.end().map_err(|e| syntax(de.span_error(e).to_string()))?;
+        let value_err = |path: String, message: String| PresetError::Value {
+            file: file.to_string(),
+            path,
+            message,
+        };
+        if raw.version != PRESET_VERSION {
+            return Err(value_err(
+                "version".into(),
+                format!(
+                    "version {} is not supported (expected {PRESET_VERSION})",
+                    raw.version
+                ),
+            ));
+        }
+        let r = &raw.render;
+        if !(r.slice_spacing.is_finite() && r.slice_spacing > 0.0) {
+            return Err(value_err(
+                "render.slice_spacing".into(),
+                format!("{} must be finite and > 0", r.slice_spacing),
+            ));
+        }
+        if r.size[0] == 0 || r.size[1] == 0 || r.size[0] > 16384 || r.size[1] > 16384 {
+            return Err(value_err(
+                "render.size".into(),
+                format!("{:?} must be within 1..=16384 per side", r.size),
+            ));
+        }
+        if let Some(t) = r.early_termination
+            && !(t > 0.0 && t <= 1.0)
+        {
+            return Err(value_err(
+                "render.early_termination".into(),
+                format!("{t} must be in (0, 1]"),
+            ));
+        }
+        if r.background.iter().any(|c| !c.is_finite()) {
+            return Err(value_err(
+                "render.background".into(),
+                "components must be finite".into(),
+            ));
+        }
+        let c = &raw.camera;
+        let finite = [c.distance, c.yaw_deg, c.pitch_deg, c.near]
+            .iter()
+            .chain(c.target.iter())
+            .all(|v| v.is_finite());
+        if !finite || c.distance <= 0.0 || c.near <= 0.0 {
+            return Err(value_err(
+                "camera".into(),
+                "distance and near must be > 0 and all values finite".into(),
+            ));
+        }
+        let mut stack = Vec::new();
+        for (i, entry) in raw.plugins.iter().enumerate() {
+            let plugin = registry
+                .get(&entry.id)
+                .map_err(|e| value_err(format!("plugins[{i}]"), e.to_string()))?;
+            let specs = plugin.params();
+            let mut params = ParamValues::defaults(&specs);
+            for (key, value) in &entry.params {
+                let path = format!("plugins[{i}] {}.{key}", entry.id);
+                match specs.iter().find(|s| s.key == key) {
+                    None => warnings.push(format!(
+                        "{file}: {path}: unknown parameter ignored (known: {})",
+                        specs.iter().map(|s| s.key).collect::<Vec<_>>().join(", ")
+                    )),
+                    Some(spec) => {
+                        let v = spec.from_ron(value).map_err(|m| value_err(path, m))?;
+                        params.set(key, v);
+                    }
+                }
+            }
+            let mut inst = PluginInstance::new(plugin);
+            inst.enabled = entry.enabled;
+            inst.params = params;
+            stack.push(inst);
+        }
+        Ok(Loaded {
+            document: Document {
+                description: raw.description,
+                volume: raw.volume,
+                camera: raw.camera,
+                render: raw.render,
+                stack,
+            },
+            warnings,
+        })
+    }
+
+    /// The file form, with only non-default parameters.
+    pub fn to_file(&self) -> PresetFile {
+        PresetFile {
+            version: PRESET_VERSION,
+            description: self.description.clone(),
+            volume: self.volume.clone(),
+            camera: self.camera,
+            render: self.render,
+            plugins: self
+                .stack
+                .iter()
+                .map(|inst| {
+                    let specs = inst.plugin.params();
+                    let params = specs
+                        .iter()
+                        .filter_map(|s| {
+                            let v = inst.params.get(s.key)?;
+                            (*v != s.default_value()).then(|| (s.key.to_string(), v.to_ron()))
+                        })
+                        .collect();
+                    PluginEntry {
+                        id: inst.plugin.id().to_string(),
+                        enabled: inst.enabled,
+                        params,
+                    }
+                })
+                .collect(),
+        }
+    }
+
+    pub fn to_ron(&self) -> String {
+        let cfg = ron::ser::PrettyConfig::new()
+            .depth_limit(6)
+            .struct_names(false)
+            .separate_tuple_members(false);
+        ron::ser::to_string_pretty(&self.to_file(), cfg)
+            .unwrap_or_else(|e| format!("// serialisation failed: {e}\n"))
+    }
+
+    /// Saves atomically (temporary file + rename in the same folder).
+    pub fn save(&self, path: &Path) -> Result<(), PresetError> {
+        write_atomic(path, self.to_ron().as_bytes()).map_err(|source| PresetError::Io {
+            file: path.display().to_string(),
+            source,
+        })
+    }
+}
+
+/// Writes `bytes` to `path` atomically: the old file stays intact if anything fails.
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
+    use std::io::Write;
+    let dir = path
+        .parent()
+        .filter(|d| !d.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().to_string())
+        .unwrap_or_else(|| "out".into());
+    let tmp = dir.join(format!(".{name}.tmp{}", std::process::id()));
+    let result = (|| {
+        let mut f = std::fs::File::create(&tmp)?;
+        f.write_all(bytes)?;
+        f.sync_all()?;
+        std::fs::rename(&tmp, path)
+    })();
+    if result.is_err() {
+        let _ = std::fs::remove_file(&tmp);
+    }
+    result
+}

@@ -1,0 +1,1708 @@
+//! The slice renderer: uploads the volume, keeps the composed pipeline of the user's
+//! plugin stack, and renders view-aligned slices with either backend.
+//!
+//! - **raster**: proxy polygons drawn front to back; the fragment shader runs the hook
+//!   chain; blending composites `under` into the eye buffer.
+//! - **compute**: one invocation per pixel steps through the same slice planes, with
+//!   optional early ray termination; it rounds its accumulator to fp16 after every
+//!   slice when the eye buffer is rgba16float, as the blender does.
+//!
+//! When an enabled plugin has per-slice state, both backends run slice by slice: draw
+//! (or dispatch) slice k reading state A, then run the plugin's update writing state B,
+//! swap. Pre-passes run before the slices, and only when the volume or the parameters
+//! they depend on changed.
+//!
+//! Change tracking: [`Renderer::update_stack`] recomposes only when the structure
+//! changed (which plugins are enabled, their order, structural parameters, the target
+//! format); a parameter change only rewrites the instance's uniform buffer and lets the
+//! plugin update its resources. If composition fails, the previous pipeline stays in
+//! use and the error is returned.
+
+use std::collections::HashMap;
+use std::sync::Arc;
+use std::time::Instant;
+
+use bytemuck::{Pod, Zeroable};
+use glam::Mat4;
+use serde::{Deserialize, Serialize};
+use wgpu::util::DeviceExt;
+
+use crate::camera::Camera;
+use crate::composer::{Binding, BindingRole, ComposeError, Composition, TargetFormat, compose};
+use crate::gpu::GpuContext;
+use crate::params::ParamValues;
+use crate::plugin::{GpuInit, GpuResource, Plugin, PluginError, PluginInstance};
+use crate::slicing::{SliceError, SlicePlan, VolumeBox};
+use crate::volume::Volume;
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
+pub enum Backend {
+    #[default]
+    Raster,
+    Compute,
+}
+
+impl Backend {
+    pub fn name(self) -> &'static str {
+        match self {
+            Backend::Raster => "raster",
+            Backend::Compute => "compute",
+        }
+    }
+}
+
+impl std::str::FromStr for Backend {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "raster" => Ok(Backend::Raster),
+            "compute" => Ok(Backend::Compute),
+            _ => Err(format!("unknown backend '{s}' (raster or compute)")),
+        }
+    }
+}
+
+/// Everything about one frame that is not the plugin stack.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FrameSettings {
+    pub camera: Camera,
+    pub width: u32,
+    pub height: u32,
+    /// Distance between slices in voxels (1 = one slice per voxel).
+    pub slice_spacing: f32,
+    pub backend: Backend,
+    /// Compute backend only: stop a ray once its opacity reaches this value.
+    pub early_termination: Option<f32>,
+}
+
+impl Default for FrameSettings {
+    fn default() -> Self {
+        Self {
+            camera: Camera::default(),
+            width: 256,
+            height: 256,
+            slice_spacing: 1.0,
+            backend: Backend::Raster,
+            early_termination: None,
+        }
+    }
+}
+
+#[derive(Debug, thiserror::Error)]
+pub enum RenderError {
+    #[error(transparent)]
+    Compose(#[from] ComposeError),
+    #[error(transparent)]
+    Slices(#[from] SliceError),
+    #[error(transparent)]
+    Plugin(#[from] PluginError),
+    #[error("image size {0}x{1} is invalid (1..={2} per side)")]
+    BadSize(u32, u32, u32),
+    #[error("volume {name}: {dims:?} exceeds the device's 3D texture limit of {limit}")]
+    VolumeTooLarge {
+        name: String,
+        dims: [u32; 3],
+        limit: u32,
+    },
+    #[error(
+        "the raster backend needs blending on rgba32float (FLOAT32_BLENDABLE), which this adapter lacks; use --backend compute or rgba16float"
+    )]
+    NoFloat32Blending,
+    #[error("per-slice passes are limited to {max} slices, this frame needs {count}")]
+    TooManyPerSliceSlices { count: u32, max: u32 },
+    #[error("GPU error: {0}")]
+    Gpu(String),
+}
+
+/// Timings of one frame.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct FrameStats {
+    pub slices: u32,
+    /// GPU time per pass group ("prepass", "slices"), from timestamp queries.
+    pub gpu_passes: Vec<(String, f64)>,
+    /// Total GPU time in ms, if timestamps are available.
+    pub gpu_ms: Option<f64>,
+    /// Wall time from encoding to the GPU finishing, in ms.
+    pub wall_ms: f64,
+    pub per_slice_mode: bool,
+    pub prepasses_run: usize,
+}
+
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Pod, Zeroable)]
+struct FrameUniform {
+    view_proj: [f32; 16],
+    inv_view_proj: [f32; 16],
+    eye: [f32; 4],
+    forward: [f32; 4],
+    box_min: [f32; 4],
+    box_max: [f32; 4],
+    viewport: [f32; 4],
+    volume_dims: [f32; 4],
+    value_range: [f32; 4],
+    counts: [u32; 4],
+    settings: [f32; 4],
+}
+
+const SLICE_INFO_STRIDE: u64 = 256;
+/// The display pass (`shaders/display.wgsl`).
+pub const DISPLAY_WGSL: &str = include_str!("../../shaders/display.wgsl");
+/// Most slices a frame with per-slice passes may have.
+pub const MAX_PER_SLICE_SLICES: u32 = 65_536;
+const MAX_TIMESTAMPS: u32 = 8;
+
+struct InstanceGpu {
+    plugin_id: &'static str,
+    uniform: wgpu::Buffer,
+    uniform_size: u64,
+    resources: Vec<GpuResource>,
+    params: ParamValues,
+    prepass_target: Option<(wgpu::Texture, wgpu::TextureView)>,
+    /// Parameters the last pre-pass ran with (None: never ran).
+    prepass_done: Option<ParamValues>,
+    state: Option<[(wgpu::Texture, wgpu::TextureView); 2]>,
+}
+
+struct Pipelines {
+    composition: Composition,
+    /// (uid, plugin) of the enabled instances, in stack order.
+    stack: Vec<(u64, Arc<dyn Plugin>)>,
+    key: StructureKey,
+    g1_layout: wgpu::BindGroupLayout,
+    g2_layout: wgpu::BindGroupLayout,
+    g3_layout: wgpu::BindGroupLayout,
+    raster: wgpu::RenderPipeline,
+    cs_main: wgpu::ComputePipeline,
+    cs_slice: wgpu::ComputePipeline,
+    cs_resolve: wgpu::ComputePipeline,
+    /// (instance index, pipeline) per state update.
+    updates: Vec<(usize, wgpu::ComputePipeline)>,
+    /// (instance index, pipeline, group-1 layout) per pre-pass.
+    prepasses: Vec<(usize, wgpu::ComputePipeline, wgpu::BindGroupLayout)>,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+struct StructureKey {
+    entries: Vec<(u64, &'static str, Vec<String>)>,
+    target: TargetFormat,
+}
+
+struct Target {
+    width: u32,
+    height: u32,
+    format: TargetFormat,
+    texture: wgpu::Texture,
+    view: wgpu::TextureView,
+    accum: wgpu::Buffer,
+    display: wgpu::Texture,
+    display_view: wgpu::TextureView,
+}
+
+/// Result of [`Renderer::update_stack`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum StackChange {
+    /// Nothing changed.
+    None,
+    /// Only parameters changed: uniforms (and plugin resources) were rewritten.
+    Params,
+    /// The pipeline was recomposed.
+    Recomposed,
+}
+
+pub struct Renderer {
+    gpu: GpuContext,
+    volume: Arc<Volume>,
+    vbox: VolumeBox,
+    volume_view: wgpu::TextureView,
+    linear: wgpu::Sampler,
+    nearest: wgpu::Sampler,
+    frame_buf: wgpu::Buffer,
+    slice_info: wgpu::Buffer,
+    slice_info_slices: u32,
+    g0_layout: wgpu::BindGroupLayout,
+    g0: wgpu::BindGroup,
+    pipelines: Option<Pipelines>,
+    instances: HashMap<u64, InstanceGpu>,
+    target: Option<Target>,
+    vertices: Option<(wgpu::Buffer, u64)>,
+    timestamps: Option<(wgpu::QuerySet, wgpu::Buffer, wgpu::Buffer)>,
+    display_pipeline: Option<(TargetFormat, wgpu::ComputePipeline, wgpu::BindGroupLayout)>,
+    /// Where `VWB_SHADER_DUMP` points, read once.
+    dump_dir: Option<std::path::PathBuf>,
+}
+
+fn uniform_entry(
+    binding: u32,
+    vis: wgpu::ShaderStages,
+    dynamic: bool,
+) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: vis,
+        ty: wgpu::BindingType::Buffer {
+            ty: wgpu::BufferBindingType::Uniform,
+            has_dynamic_offset: dynamic,
+            min_binding_size: None,
+        },
+        count: None,
+    }
+}
+
+impl Renderer {
+    pub fn new(gpu: &GpuContext, volume: Arc<Volume>) -> Result<Self, RenderError> {
+        let device = &gpu.device;
+        let limit = gpu.limits.max_texture_dimension_3d;
+        if volume.dims.iter().any(|&d| d == 0 || d > limit) {
+            return Err(RenderError::VolumeTooLarge {
+                name: volume.name.clone(),
+                dims: volume.dims,
+                limit,
+            });
+        }
+        let vbox = VolumeBox::new(volume.dims, volume.spacing);
+        let volume_view = upload_volume(gpu, &volume);
+        let sampler = |filter| {
+            device.create_sampler(&wgpu::SamplerDescriptor {
+                label: Some("vwb sampler"),
+                address_mode_u: wgpu::AddressMode::ClampToEdge,
+                address_mode_v: wgpu::AddressMode::ClampToEdge,
+                address_mode_w: wgpu::AddressMode::ClampToEdge,
+                mag_filter: filter,
+                min_filter: filter,
+                ..Default::default()
+            })
+        };
+        let linear = sampler(wgpu::FilterMode::Linear);
+        let nearest = sampler(wgpu::FilterMode::Nearest);
+        let frame_buf = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("vwb frame"),
+            size: std::mem::size_of::<FrameUniform>() as u64,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let all = wgpu::ShaderStages::VERTEX_FRAGMENT | wgpu::ShaderStages::COMPUTE;
+        let fc = wgpu::ShaderStages::FRAGMENT | wgpu::ShaderStages::COMPUTE;
+        let g0_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("vwb group 0 (core)"),
+            entries: &[
+                uniform_entry(0, all, false),
+                wgpu::BindGroupLayoutEntry {
+                    binding: 1,
+                    visibility: fc,
+                    ty: wgpu::BindingType::Texture {
+                        sample_type: wgpu::TextureSampleType::Float { filterable: true },
+                        view_dimension: wgpu::TextureViewDimension::D3,
+                        multisampled: false,
+                    },
+                    count: None,
+                },
+                wgpu::BindGroupLayoutEntry {
+                    binding: 2,
+                    visibility: fc,
+                    ty: wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering),
+                    count: None,
+                },
+                wgpu::BindGroupLayoutEntry {
+                    binding: 3,
+                    visibility: fc,
+                    ty: wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering),
+                    count: None,
+                },
+                uniform_entry(4, fc, true),
+            ],
+        });
+        let slice_info = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("vwb slice info"),
+            size: SLICE_INFO_STRIDE,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let g0 = make_g0(
+            device,
+            &g0_layout,
+            &frame_buf,
+            &volume_view,
+            &linear,
+            &nearest,
+            &slice_info,
+        );
+        let mut r = Self {
+            gpu: gpu.clone(),
+            volume,
+            vbox,
+            volume_view,
+            linear,
+            nearest,
+            frame_buf,
+            slice_info,
+            slice_info_slices: 1,
+            g0,
+            g0_layout,
+            pipelines: None,
+            instances: HashMap::new(),
+            target: None,
+            vertices: None,
+            timestamps: None,
+            display_pipeline: None,
+            dump_dir: std::env::var_os("VWB_SHADER_DUMP").map(Into::into),
+        };
+        if gpu.has_timestamps()
+            && gpu
+                .features
+                .contains(wgpu::Features::TIMESTAMP_QUERY_INSIDE_ENCODERS)
+        {
+            let qs = device.create_query_set(&wgpu::QuerySetDescriptor {
+                label: Some("vwb timestamps"),
+                ty: wgpu::QueryType::Timestamp,
+                count: MAX_TIMESTAMPS,
+            });
+            let size = MAX_TIMESTAMPS as u64 * 8;
+            let resolve = device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("vwb timestamp resolve"),
+                size,
+                usage: wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
+                mapped_at_creation: false,
+            });
+            let read = device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("vwb timestamp read"),
+                size,
+                usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            });
+            r.timestamps = Some((qs, resolve, read));
+        }
+        Ok(r)
+    }
+
+    pub fn gpu(&self) -> &GpuContext {
+        &self.gpu
+    }
+
+    pub fn volume(&self) -> &Arc<Volume> {
+        &self.volume
+    }
+
+    pub fn volume_box(&self) -> &VolumeBox {
+        &self.vbox
+    }
+
+    /// Replaces the volume; pre-passes rerun, plugin resources are recreated.
+    pub fn set_volume(&mut self, volume: Arc<Volume>) -> Result<(), RenderError> {
+        let limit = self.gpu.limits.max_texture_dimension_3d;
+        if volume.dims.iter().any(|&d| d == 0 || d > limit) {
+            return Err(RenderError::VolumeTooLarge {
+                name: volume.name.clone(),
+                dims: volume.dims,
+                limit,
+            });
+        }
+        self.vbox = VolumeBox::new(volume.dims, volume.spacing);
+        self.volume_view = upload_volume(&self.gpu, &volume);
+        self.volume = volume;
+        self.instances.clear();
+        self.pipelines = None;
+        self.rebuild_g0();
+        Ok(())
+    }
+
+    fn rebuild_g0(&mut self) {
+        self.g0 = make_g0(
+            &self.gpu.device,
+            &self.g0_layout,
+            &self.frame_buf,
+            &self.volume_view,
+            &self.linear,
+            &self.nearest,
+            &self.slice_info,
+        );
+    }
+
+    /// The composed WGSL of the current pipeline.
+    pub fn composed_wgsl(&self) -> Option<&str> {
+        self.pipelines
+            .as_ref()
+            .map(|p| p.composition.main.source.as_str())
+    }
+
+    /// Ids of the plugins in the current (last good) pipeline.
+    pub fn active_plugins(&self) -> Vec<&'static str> {
+        self.pipelines
+            .as_ref()
+            .map(|p| p.stack.iter().map(|(_, pl)| pl.id()).collect())
+            .unwrap_or_default()
+    }
+
+    /// GPU memory each enabled instance holds (uniforms, resources, pre-pass target,
+    /// state), by uid.
+    pub fn plugin_memory(&self) -> Vec<(u64, &'static str, u64)> {
+        let Some(p) = &self.pipelines else {
+            return Vec::new();
+        };
+        p.stack
+            .iter()
+            .filter_map(|(uid, _)| {
+                let g = self.instances.get(uid)?;
+                let tex = |t: &wgpu::Texture| {
+                    let s = t.size();
+                    s.width as u64
+                        * s.height as u64
+                        * s.depth_or_array_layers as u64
+                        * t.format().block_copy_size(None).unwrap_or(4) as u64
+                };
+                let mut bytes = g.uniform_size;
+                bytes += g.resources.iter().map(GpuResource::bytes).sum::<u64>();
+                bytes += g.prepass_target.as_ref().map_or(0, |(t, _)| tex(t));
+                bytes += g
+                    .state
+                    .as_ref()
+                    .map_or(0, |s| s.iter().map(|(t, _)| tex(t)).sum());
+                Some((*uid, g.plugin_id, bytes))
+            })
+            .collect()
+    }
+
+    /// Brings the pipeline in line with the plugin stack. On a composition error the
+    /// previous pipeline stays in use and the error is returned.
+    pub fn update_stack(
+        &mut self,
+        stack: &[PluginInstance],
+        target: TargetFormat,
+    ) -> Result<StackChange, RenderError> {
+        let enabled: Vec<&PluginInstance> = stack.iter().filter(|i| i.enabled).collect();
+        let key = StructureKey {
+            entries: enabled
+                .iter()
+                .map(|i| {
+                    let structural = i
+                        .plugin
+                        .params()
+                        .iter()
+                        .filter(|s| s.structural)
+                        .map(|s| format!("{:?}", i.params.get(s.key)))
+                        .collect();
+                    (i.uid, i.plugin.id(), structural)
+                })
+                .collect(),
+            target,
+        };
+        let recompose = self.pipelines.as_ref().is_none_or(|p| p.key != key);
+        if recompose {
+            let plugins: Vec<&dyn Plugin> = enabled.iter().map(|i| i.plugin.as_ref()).collect();
+            let composition = compose(&plugins, target, &self.gpu.limits)?;
+            self.dump(&composition);
+            // resources for new instances (kept for known ones)
+            for inst in &enabled {
+                self.ensure_instance(inst)?;
+            }
+            let pipelines = self.build_pipelines(composition, &enabled, key)?;
+            self.pipelines = Some(pipelines);
+            let live: std::collections::HashSet<u64> = stack.iter().map(|i| i.uid).collect();
+            self.instances.retain(|uid, _| live.contains(uid));
+        }
+        let mut params_changed = false;
+        for inst in &enabled {
+            params_changed |= self.sync_params(inst)?;
+        }
+        Ok(if recompose {
+            StackChange::Recomposed
+        } else if params_changed {
+            StackChange::Params
+        } else {
+            StackChange::None
+        })
+    }
+
+    fn dump(&self, c: &Composition) {
+        let Some(dir) = &self.dump_dir else { return };
+        if let Err(e) = std::fs::create_dir_all(dir) {
+            log::warn!("VWB_SHADER_DUMP: cannot create {}: {e}", dir.display());
+            return;
+        }
+        let mut files = vec![("composed_main.wgsl".to_string(), c.main.source.clone())];
+        for inst in &c.instances {
+            if let Some((m, _)) = &inst.prepass {
+                files.push((
+                    format!("composed_prepass_{}.wgsl", inst.prefix),
+                    m.source.clone(),
+                ));
+            }
+        }
+        for (name, src) in files {
+            let path = dir.join(name);
+            if let Err(e) = std::fs::write(&path, src) {
+                log::warn!("VWB_SHADER_DUMP: cannot write {}: {e}", path.display());
+            }
+        }
+    }
+
+    fn gpu_init(&self) -> GpuInit<'_> {
+        GpuInit {
+            device: &self.gpu.device,
+            queue: &self.gpu.queue,
+            features: self.gpu.features,
+            volume: &self.volume,
+        }
+    }
+
+    fn ensure_instance(&mut self, inst: &PluginInstance) -> Result<(), RenderError> {
+        if self
+            .instances
+            .get(&inst.uid)
+            .is_some_and(|g| g.plugin_id == inst.plugin.id())
+        {
+            return Ok(());
+        }
+        let plugin = inst.plugin.as_ref();
+        let specs = plugin.params();
+        let layout = crate::params::UniformLayout::new(&specs);
+        let uniform = self
+            .gpu
+            .device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some(plugin.id()),
+                contents: &layout.pack(&specs, &inst.params),
+                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            });
+        let resources = plugin.create_resources(&self.gpu_init(), &inst.params)?;
+        if resources.len() != plugin.resources().len() {
+            return Err(RenderError::Plugin(PluginError::Invalid {
+                plugin: plugin.id().to_string(),
+                message: format!(
+                    "created {} resources but declares {}",
+                    resources.len(),
+                    plugin.resources().len()
+                ),
+            }));
+        }
+        let prepass_target = plugin.prepass().map(|pp| {
+            let dims = self
+                .volume
+                .dims
+                .map(|d| ((d as f32 * pp.scale).ceil() as u32).max(1));
+            let texture = self.gpu.device.create_texture(&wgpu::TextureDescriptor {
+                label: Some(pp.target),
+                size: wgpu::Extent3d {
+                    width: dims[0],
+                    height: dims[1],
+                    depth_or_array_layers: dims[2],
+                },
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: wgpu::TextureDimension::D3,
+                format: pp.format.wgpu(),
+                usage: wgpu::TextureUsages::STORAGE_BINDING
+                    | wgpu::TextureUsages::TEXTURE_BINDING
+                    | wgpu::TextureUsages::COPY_SRC,
+                view_formats: &[],
+            });
+            let view = texture.create_view(&Default::default());
+            (texture, view)
+        });
+        self.instances.insert(
+            inst.uid,
+            InstanceGpu {
+                plugin_id: plugin.id(),
+                uniform_size: layout.size as u64,
+                uniform,
+                resources,
+                params: inst.params.clone(),
+                prepass_target,
+                prepass_done: None,
+                state: None,
+            },
+        );
+        Ok(())
+    }
+
+    /// Writes changed parameters; returns whether anything changed.
+    fn sync_params(&mut self, inst: &PluginInstance) -> Result<bool, RenderError> {
+        let Some(g) = self.instances.get(&inst.uid) else {
+            return Ok(false);
+        };
+        if g.params == inst.params {
+            return Ok(false);
+        }
+        let specs = inst.plugin.params();
+        let layout = crate::params::UniformLayout::new(&specs);
+        self.gpu
+            .queue
+            .write_buffer(&g.uniform, 0, &layout.pack(&specs, &inst.params));
+        inst.plugin
+            .update_resources(&self.gpu_init(), &inst.params, &g.resources)?;
+        if let Some(g) = self.instances.get_mut(&inst.uid) {
+            g.params = inst.params.clone();
+        }
+        Ok(true)
+    }
+
+    fn build_pipelines(
+        &self,
+        composition: Composition,
+        enabled: &[&PluginInstance],
+        key: StructureKey,
+    ) -> Result<Pipelines, RenderError> {
+        let device = &self.gpu.device;
+        let fc = wgpu::ShaderStages::FRAGMENT | wgpu::ShaderStages::COMPUTE;
+        let layout_for = |group: u32, bindings: &[Binding], label: &str| {
+            let entries: Vec<_> = bindings
+                .iter()
+                .filter(|b| b.group == group)
+                .map(|b| b.layout_entry(fc))
+                .collect();
+            device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+                label: Some(label),
+                entries: &entries,
+            })
+        };
+        let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
+        let g1_layout = layout_for(1, &composition.bindings, "vwb group 1 (plugins)");
+        let g2_layout = layout_for(2, &composition.bindings, "vwb group 2 (slice state)");
+        let target = key.target;
+        let g3_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("vwb group 3 (compute output)"),
+            entries: &[
+                wgpu::BindGroupLayoutEntry {
+                    binding: 0,
+                    visibility: wgpu::ShaderStages::COMPUTE,
+                    ty: wgpu::BindingType::StorageTexture {
+                        access: wgpu::StorageTextureAccess::WriteOnly,
+                        format: target.wgpu(),
+                        view_dimension: wgpu::TextureViewDimension::D2,
+                    },
+                    count: None,
+                },
+                wgpu::BindGroupLayoutEntry {
+                    binding: 1,
+                    visibility: wgpu::ShaderStages::COMPUTE,
+                    ty: wgpu::BindingType::Buffer {
+                        ty: wgpu::BufferBindingType::Storage { read_only: false },
+                        has_dynamic_offset: false,
+                        min_binding_size: None,
+                    },
+                    count: None,
+                },
+            ],
+        });
+        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("vwb composed slice shader"),
+            source: wgpu::ShaderSource::Wgsl(composition.main.source.as_str().into()),
+        });
+        let raster_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("vwb raster"),
+            bind_group_layouts: &[Some(&self.g0_layout), Some(&g1_layout), Some(&g2_layout)],
+            immediate_size: 0,
+        });
+        let compute_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("vwb compute"),
+            bind_group_layouts: &[
+                Some(&self.g0_layout),
+                Some(&g1_layout),
+                Some(&g2_layout),
+                Some(&g3_layout),
+            ],
+            immediate_size: 0,
+        });
+        let blend = wgpu::BlendComponent {
+            src_factor: wgpu::BlendFactor::OneMinusDstAlpha,
+            dst_factor: wgpu::BlendFactor::One,
+            operation: wgpu::BlendOperation::Add,
+        };
+        let raster = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+            label: Some("vwb raster slices"),
+            layout: Some(&raster_layout),
+            vertex: wgpu::VertexState {
+                module: &module,
+                entry_point: Some("vs_main"),
+                compilation_options: Default::default(),
+                buffers: &[Some(wgpu::VertexBufferLayout {
+                    array_stride: 16,
+                    step_mode: wgpu::VertexStepMode::Vertex,
+                    attributes: &[
+                        wgpu::VertexAttribute {
+                            format: wgpu::VertexFormat::Float32x3,
+                            offset: 0,
+                            shader_location: 0,
+                        },
+                        wgpu::VertexAttribute {
+                            format: wgpu::VertexFormat::Uint32,
+                            offset: 12,
+                            shader_location: 1,
+                        },
+                    ],
+                })],
+            },
+            primitive: wgpu::PrimitiveState {
+                topology: wgpu::PrimitiveTopology::TriangleList,
+                cull_mode: None,
+                ..Default::default()
+            },
+            depth_stencil: None,
+            multisample: Default::default(),
+            fragment: Some(wgpu::FragmentState {
+                module: &module,
+                entry_point: Some("fs_main"),
+                compilation_options: Default::default(),
+                targets: &[Some(wgpu::ColorTargetState {
+                    format: target.wgpu(),
+                    blend: Some(wgpu::BlendState {
+                        color: blend,
+                        alpha: blend,
+                    }),
+                    write_mask: wgpu::ColorWrites::ALL,
+                })],
+            }),
+            multiview_mask: None,
+            cache: None,
+        });
+        let compute = |entry: &str, layout: &wgpu::PipelineLayout, m: &wgpu::ShaderModule| {
+            device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                label: Some(entry),
+                layout: Some(layout),
+                module: m,
+                entry_point: Some(entry),
+                compilation_options: Default::default(),
+                cache: None,
+            })
+        };
+        let cs_main = compute("cs_main", &compute_layout, &module);
+        let cs_slice = compute("cs_slice", &compute_layout, &module);
+        let cs_resolve = compute("cs_resolve", &compute_layout, &module);
+        let mut updates = Vec::new();
+        let mut prepasses = Vec::new();
+        for (i, inst) in composition.instances.iter().enumerate() {
+            if let Some(entry) = &inst.update_entry {
+                updates.push((i, compute(entry, &compute_layout, &module)));
+            }
+            if let Some((m, bindings)) = &inst.prepass {
+                let pl = layout_for(1, bindings, "vwb prepass group 1");
+                let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                    label: Some("vwb prepass"),
+                    bind_group_layouts: &[Some(&self.g0_layout), Some(&pl)],
+                    immediate_size: 0,
+                });
+                let pm = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+                    label: Some("vwb prepass shader"),
+                    source: wgpu::ShaderSource::Wgsl(m.source.as_str().into()),
+                });
+                prepasses.push((i, compute("prepass_main", &layout, &pm), pl));
+            }
+        }
+        if let Some(err) = pollster::block_on(scope.pop()) {
+            return Err(RenderError::Compose(ComposeError::Limits {
+                message: format!("the device rejected the composed pipeline: {err}"),
+            }));
+        }
+        Ok(Pipelines {
+            stack: enabled.iter().map(|i| (i.uid, i.plugin.clone())).collect(),
+            composition,
+            key,
+            g1_layout,
+            g2_layout,
+            g3_layout,
+            raster,
+            cs_main,
+            cs_slice,
+            cs_resolve,
+            updates,
+            prepasses,
+        })
+    }
+
+    fn ensure_target(&mut self, w: u32, h: u32, format: TargetFormat) {
+        if self
+            .target
+            .as_ref()
+            .is_some_and(|t| t.width == w && t.height == h && t.format == format)
+        {
+            return;
+        }
+        let device = &self.gpu.device;
+        let size = wgpu::Extent3d {
+            width: w,
+            height: h,
+            depth_or_array_layers: 1,
+        };
+        let texture = device.create_texture(&wgpu::TextureDescriptor {
+            label: Some("vwb eye buffer"),
+            size,
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: format.wgpu(),
+            usage: wgpu::TextureUsages::RENDER_ATTACHMENT
+                | wgpu::TextureUsages::STORAGE_BINDING
+                | wgpu::TextureUsages::TEXTURE_BINDING
+                | wgpu::TextureUsages::COPY_SRC,
+            view_formats: &[],
+        });
+        let view = texture.create_view(&Default::default());
+        let accum = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("vwb accumulation"),
+            size: w as u64 * h as u64 * 16,
+            usage: wgpu::BufferUsages::STORAGE,
+            mapped_at_creation: false,
+        });
+        let display = device.create_texture(&wgpu::TextureDescriptor {
+            label: Some("vwb display"),
+            size,
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: wgpu::TextureFormat::Rgba8Unorm,
+            usage: wgpu::TextureUsages::STORAGE_BINDING
+                | wgpu::TextureUsages::TEXTURE_BINDING
+                | wgpu::TextureUsages::COPY_SRC,
+            view_formats: &[],
+        });
+        let display_view = display.create_view(&Default::default());
+        self.target = Some(Target {
+            width: w,
+            height: h,
+            format,
+            texture,
+            view,
+            accum,
+            display,
+            display_view,
+        });
+        // state textures follow the eye buffer's size
+        for g in self.instances.values_mut() {
+            g.state = None;
+        }
+    }
+
+    fn ensure_slice_info(&mut self, slices: u32) {
+        let need = slices.max(1);
+        if self.slice_info_slices >= need {
+            return;
+        }
+        let n = need.next_power_of_two();
+        let data: Vec<u8> = (0..n)
+            .flat_map(|k| {
+                let mut chunk = vec![0u8; SLICE_INFO_STRIDE as usize];
+                chunk[..4].copy_from_slice(&k.to_le_bytes());
+                chunk
+            })
+            .collect();
+        self.slice_info = self
+            .gpu
+            .device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("vwb slice info"),
+                contents: &data,
+                usage: wgpu::BufferUsages::UNIFORM,
+            });
+        self.slice_info_slices = n;
+        self.rebuild_g0();
+    }
+
+    fn ensure_state(&mut self) {
+        let (Some(p), Some(t)) = (&self.pipelines, &self.target) else {
+            return;
+        };
+        for (uid, plugin) in &p.stack {
+            let Some(decl) = plugin.slice_state() else {
+                continue;
+            };
+            let Some(g) = self.instances.get_mut(uid) else {
+                continue;
+            };
+            if g.state.is_some() {
+                continue;
+            }
+            let w = ((t.width as f32 * decl.scale).round() as u32).max(1);
+            let h = ((t.height as f32 * decl.scale).round() as u32).max(1);
+            let make = || {
+                let tex = self.gpu.device.create_texture(&wgpu::TextureDescriptor {
+                    label: Some("vwb slice state"),
+                    size: wgpu::Extent3d {
+                        width: w,
+                        height: h,
+                        depth_or_array_layers: 1,
+                    },
+                    mip_level_count: 1,
+                    sample_count: 1,
+                    dimension: wgpu::TextureDimension::D2,
+                    format: decl.format.wgpu(),
+                    usage: wgpu::TextureUsages::STORAGE_BINDING
+                        | wgpu::TextureUsages::TEXTURE_BINDING
+                        | wgpu::TextureUsages::RENDER_ATTACHMENT,
+                    view_formats: &[],
+                });
+                let view = tex.create_view(&Default::default());
+                (tex, view)
+            };
+            g.state = Some([make(), make()]);
+        }
+    }
+
+    /// Bind group of group 1 (plugins) for the main pipeline.
+    fn group1(&self, p: &Pipelines) -> wgpu::BindGroup {
+        let entries: Vec<wgpu::BindGroupEntry> = p
+            .composition
+            .bindings
+            .iter()
+            .filter(|b| b.group == 1)
+            .filter_map(|b| self.bind_entry(p, b, None))
+            .collect();
+        self.gpu
+            .device
+            .create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("vwb group 1"),
+                layout: &p.g1_layout,
+                entries: &entries,
+            })
+    }
+
+    /// Bind groups of group 2 for even and odd slices.
+    fn group2(&self, p: &Pipelines) -> [wgpu::BindGroup; 2] {
+        [0usize, 1].map(|parity| {
+            let entries: Vec<wgpu::BindGroupEntry> = p
+                .composition
+                .bindings
+                .iter()
+                .filter(|b| b.group == 2)
+                .filter_map(|b| self.bind_entry(p, b, Some(parity)))
+                .collect();
+            self.gpu
+                .device
+                .create_bind_group(&wgpu::BindGroupDescriptor {
+                    label: Some("vwb group 2"),
+                    layout: &p.g2_layout,
+                    entries: &entries,
+                })
+        })
+    }
+
+    fn bind_entry<'a>(
+        &'a self,
+        p: &Pipelines,
+        b: &Binding,
+        parity: Option<usize>,
+    ) -> Option<wgpu::BindGroupEntry<'a>> {
+        let uid = p.stack.get(b.instance)?.0;
+        let g = self.instances.get(&uid)?;
+        let resource = match b.role {
+            BindingRole::Params => g.uniform.as_entire_binding(),
+            BindingRole::Resource(i) => {
+                wgpu::BindingResource::TextureView(&g.resources.get(i)?.view)
+            }
+            BindingRole::PrepassTarget => {
+                wgpu::BindingResource::TextureView(&g.prepass_target.as_ref()?.1)
+            }
+            BindingRole::StatePrev => {
+                wgpu::BindingResource::TextureView(&g.state.as_ref()?[parity.unwrap_or(0)].1)
+            }
+            BindingRole::StateNext => {
+                wgpu::BindingResource::TextureView(&g.state.as_ref()?[1 - parity.unwrap_or(0)].1)
+            }
+        };
+        Some(wgpu::BindGroupEntry {
+            binding: b.binding,
+            resource,
+        })
+    }
+
+    fn write_frame(&self, s: &FrameSettings, plan: &SlicePlan, view: &crate::camera::View) {
+        let vp: Mat4 = view.view_proj();
+        let t = self.target.as_ref().expect("target exists");
+        let range = self.volume.range;
+        let span = (range[1] - range[0]) as f32;
+        let u = FrameUniform {
+            view_proj: vp.to_cols_array(),
+            inv_view_proj: vp.inverse().to_cols_array(),
+            eye: [
+                view.eye.x,
+                view.eye.y,
+                view.eye.z,
+                if view.perspective { 1.0 } else { 0.0 },
+            ],
+            forward: [view.forward.x, view.forward.y, view.forward.z, plan.spacing],
+            box_min: [
+                self.vbox.min.x,
+                self.vbox.min.y,
+                self.vbox.min.z,
+                self.vbox.voxel,
+            ],
+            box_max: [self.vbox.max.x, self.vbox.max.y, self.vbox.max.z, plan.d0],
+            viewport: [
+                t.width as f32,
+                t.height as f32,
+                1.0 / t.width as f32,
+                1.0 / t.height as f32,
+            ],
+            volume_dims: [
+                self.volume.dims[0] as f32,
+                self.volume.dims[1] as f32,
+                self.volume.dims[2] as f32,
+                0.0,
+            ],
+            value_range: [
+                range[0] as f32,
+                range[1] as f32,
+                if span > 0.0 { 1.0 / span } else { 0.0 },
+                0.0,
+            ],
+            counts: [
+                plan.count,
+                (t.format == TargetFormat::Rgba16Float) as u32,
+                (s.backend == Backend::Compute && s.early_termination.is_some()) as u32,
+                0,
+            ],
+            settings: [s.early_termination.unwrap_or(1.0), 0.0, 0.0, 0.0],
+        };
+        self.gpu
+            .queue
+            .write_buffer(&self.frame_buf, 0, bytemuck::bytes_of(&u));
+    }
+
+    /// The slice plan for settings (what the frame will draw).
+    pub fn plan(&self, s: &FrameSettings) -> Result<SlicePlan, RenderError> {
+        let view = s.camera.view(s.width as f32 / s.height.max(1) as f32);
+        Ok(SlicePlan::new(&view, &self.vbox, s.slice_spacing)?)
+    }
+
+    /// Renders one frame into the eye buffer with the current (last good) pipeline.
+    pub fn render(&mut self, s: &FrameSettings) -> Result<FrameStats, RenderError> {
+        let max = self.gpu.limits.max_texture_dimension_2d;
+        if s.width == 0 || s.height == 0 || s.width > max || s.height > max {
+            return Err(RenderError::BadSize(s.width, s.height, max));
+        }
+        if self.pipelines.is_none() {
+            self.update_stack(&[], TargetFormat::default())?;
+        }
+        let target_format = self
+            .pipelines
+            .as_ref()
+            .map(|p| p.key.target)
+            .unwrap_or_default();
+        if s.backend == Backend::Raster
+            && target_format == TargetFormat::Rgba32Float
+            && !self
+                .gpu
+                .features
+                .contains(wgpu::Features::FLOAT32_BLENDABLE)
+        {
+            return Err(RenderError::NoFloat32Blending);
+        }
+        let view = s.camera.view(s.width as f32 / s.height as f32);
+        let plan = SlicePlan::new(&view, &self.vbox, s.slice_spacing)?;
+        self.ensure_target(s.width, s.height, target_format);
+        self.ensure_state();
+        let per_slice = self
+            .pipelines
+            .as_ref()
+            .is_some_and(|p| !p.updates.is_empty());
+        if per_slice {
+            if plan.count > MAX_PER_SLICE_SLICES {
+                return Err(RenderError::TooManyPerSliceSlices {
+                    count: plan.count,
+                    max: MAX_PER_SLICE_SLICES,
+                });
+            }
+            self.ensure_slice_info(plan.count);
+        }
+        self.write_frame(s, &plan, &view);
+
+        // vertices for the raster backend
+        let mut slice_ranges = Vec::new();
+        if s.backend == Backend::Raster {
+            let tris = plan.triangles(&self.vbox);
+            let mut data = Vec::with_capacity(tris.len() * 16);
+            let mut last = u32::MAX;
+            for (i, (p, k)) in tris.iter().enumerate() {
+                if *k != last {
+                    slice_ranges.push((*k, i as u32, i as u32));
+                    last = *k;
+                }
+                if let Some(r) = slice_ranges.last_mut() {
+                    r.2 = i as u32 + 1;
+                }
+                data.extend_from_slice(bytemuck::cast_slice(&p.to_array()));
+                data.extend_from_slice(&k.to_le_bytes());
+            }
+            let need = (data.len() as u64).max(16);
+            if self.vertices.as_ref().is_none_or(|(_, cap)| *cap < need) {
+                let cap = need.next_power_of_two();
+                let buf = self.gpu.device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some("vwb proxy polygons"),
+                    size: cap,
+                    usage: wgpu::BufferUsages::VERTEX | wgpu::BufferUsages::COPY_DST,
+                    mapped_at_creation: false,
+                });
+                self.vertices = Some((buf, cap));
+            }
+            if let Some((buf, _)) = &self.vertices
+                && !data.is_empty()
+            {
+                self.gpu.queue.write_buffer(buf, 0, &data);
+            }
+        }
+
+        let start = Instant::now();
+        let p = self.pipelines.as_ref().expect("pipeline exists");
+        let t = self.target.as_ref().expect("target exists");
+        let device = &self.gpu.device;
+        let mut enc = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
+            label: Some("vwb frame"),
+        });
+        let ts = self.timestamps.as_ref();
+        let mut ts_labels: Vec<&str> = Vec::new();
+        let mut stamp = |enc: &mut wgpu::CommandEncoder, label: Option<&'static str>| {
+            if let Some((qs, _, _)) = ts {
+                let idx = ts_labels.len() as u32;
+                if idx < MAX_TIMESTAMPS {
+                    enc.write_timestamp(qs, idx);
+                    ts_labels.push(label.unwrap_or(""));
+                }
+            }
+        };
+
+        // pre-passes that are out of date
+        let mut prepasses_run = 0;
+        let dirty: Vec<usize> = p
+            .prepasses
+            .iter()
+            .filter(|(i, _, _)| {
+                let uid = p.stack[*i].0;
+                let plugin = &p.stack[*i].1;
+                let deps = plugin.prepass().map(|d| d.depends_on).unwrap_or_default();
+                self.instances
+                    .get(&uid)
+                    .is_some_and(|g| match &g.prepass_done {
+                        None => true,
+                        Some(done) => deps.iter().any(|k| done.get(k) != g.params.get(k)),
+                    })
+            })
+            .map(|(i, _, _)| *i)
+            .collect();
+        if !dirty.is_empty() {
+            stamp(&mut enc, Some("prepass"));
+            for (i, pipeline, layout) in &p.prepasses {
+                if !dirty.contains(i) {
+                    continue;
+                }
+                let uid = p.stack[*i].0;
+                let g = &self.instances[&uid];
+                let Some((_, bindings)) = &p.composition.instances[*i].prepass else {
+                    continue;
+                };
+                let Some((tex, _)) = &g.prepass_target else {
+                    continue;
+                };
+                let storage_view = tex.create_view(&Default::default());
+                let entries: Vec<wgpu::BindGroupEntry> = bindings
+                    .iter()
+                    .filter_map(|b| {
+                        let resource = match b.role {
+                            BindingRole::Params => g.uniform.as_entire_binding(),
+                            BindingRole::Resource(r) => {
+                                wgpu::BindingResource::TextureView(&g.resources.get(r)?.view)
+                            }
+                            BindingRole::PrepassTarget => {
+                                wgpu::BindingResource::TextureView(&storage_view)
+                            }
+                            _ => return None,
+                        };
+                        Some(wgpu::BindGroupEntry {
+                            binding: b.binding,
+                            resource,
+                        })
+                    })
+                    .collect();
+                let bg = device.create_bind_group(&wgpu::BindGroupDescriptor {
+                    label: Some("vwb prepass group 1"),
+                    layout,
+                    entries: &entries,
+                });
+                let size = tex.size();
+                let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                    label: Some("vwb prepass"),
+                    timestamp_writes: None,
+                });
+                pass.set_pipeline(pipeline);
+                pass.set_bind_group(0, &self.g0, &[0]);
+                pass.set_bind_group(1, &bg, &[]);
+                pass.dispatch_workgroups(
+                    size.width.div_ceil(4),
+                    size.height.div_ceil(4),
+                    size.depth_or_array_layers.div_ceil(4),
+                );
+                prepasses_run += 1;
+            }
+        }
+
+        let g1 = self.group1(p);
+        let g2 = self.group2(p);
+        let g3 = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("vwb group 3"),
+            layout: &p.g3_layout,
+            entries: &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: wgpu::BindingResource::TextureView(&t.view),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: t.accum.as_entire_binding(),
+                },
+            ],
+        });
+
+        stamp(&mut enc, Some("slices"));
+        // clear the per-slice state
+        if per_slice {
+            for (uid, plugin) in &p.stack {
+                let (Some(decl), Some(g)) = (plugin.slice_state(), self.instances.get(uid)) else {
+                    continue;
+                };
+                let Some(state) = &g.state else { continue };
+                let c = decl.clear;
+                let _clear = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+                    label: Some("vwb clear state"),
+                    color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                        view: &state[0].1,
+                        depth_slice: None,
+                        resolve_target: None,
+                        ops: wgpu::Operations {
+                            load: wgpu::LoadOp::Clear(wgpu::Color {
+                                r: c[0] as f64,
+                                g: c[1] as f64,
+                                b: c[2] as f64,
+                                a: c[3] as f64,
+                            }),
+                            store: wgpu::StoreOp::Store,
+                        },
+                    })],
+                    ..Default::default()
+                });
+            }
+        }
+        let wg = (t.width.div_ceil(8), t.height.div_ceil(8));
+        let run_updates = |enc: &mut wgpu::CommandEncoder, k: u32| {
+            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("vwb state update"),
+                timestamp_writes: None,
+            });
+            pass.set_bind_group(0, &self.g0, &[(k as u64 * SLICE_INFO_STRIDE) as u32]);
+            pass.set_bind_group(1, &g1, &[]);
+            pass.set_bind_group(2, &g2[(k % 2) as usize], &[]);
+            pass.set_bind_group(3, &g3, &[]);
+            for (i, pipeline) in &p.updates {
+                let uid = p.stack[*i].0;
+                let Some(state) = self.instances.get(&uid).and_then(|g| g.state.as_ref()) else {
+                    continue;
+                };
+                let size = state[0].0.size();
+                pass.set_pipeline(pipeline);
+                pass.dispatch_workgroups(size.width.div_ceil(8), size.height.div_ceil(8), 1);
+            }
+        };
+        match s.backend {
+            Backend::Raster => {
+                let vbuf = &self.vertices.as_ref().expect("vertex buffer").0;
+                let begin = |enc: &'_ mut wgpu::CommandEncoder, clear: bool| {
+                    enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+                        label: Some("vwb slices"),
+                        color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                            view: &t.view,
+                            depth_slice: None,
+                            resolve_target: None,
+                            ops: wgpu::Operations {
+                                load: if clear {
+                                    wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT)
+                                } else {
+                                    wgpu::LoadOp::Load
+                                },
+                                store: wgpu::StoreOp::Store,
+                            },
+                        })],
+                        ..Default::default()
+                    })
+                    .forget_lifetime()
+                };
+                if per_slice {
+                    // clear once, then one pass per slice followed by the updates
+                    drop(begin(&mut enc, true));
+                    for k in 0..plan.count {
+                        if let Some(&(_, a, b)) = slice_ranges.iter().find(|r| r.0 == k) {
+                            let mut pass = begin(&mut enc, false);
+                            pass.set_pipeline(&p.raster);
+                            pass.set_bind_group(0, &self.g0, &[0]);
+                            pass.set_bind_group(1, &g1, &[]);
+                            pass.set_bind_group(2, &g2[(k % 2) as usize], &[]);
+                            pass.set_vertex_buffer(0, vbuf.slice(..));
+                            pass.draw(a..b, 0..1);
+                        }
+                        run_updates(&mut enc, k);
+                    }
+                } else {
+                    let n = slice_ranges.last().map_or(0, |r| r.2);
+                    let mut pass = begin(&mut enc, true);
+                    pass.set_pipeline(&p.raster);
+                    pass.set_bind_group(0, &self.g0, &[0]);
+                    pass.set_bind_group(1, &g1, &[]);
+                    pass.set_bind_group(2, &g2[0], &[]);
+                    pass.set_vertex_buffer(0, vbuf.slice(..));
+                    if n > 0 {
+                        pass.draw(0..n, 0..1);
+                    }
+                }
+            }
+            Backend::Compute => {
+                if per_slice {
+                    for k in 0..plan.count {
+                        {
+                            let mut pass = enc.begin_compute_pass(&Default::default());
+                            pass.set_pipeline(&p.cs_slice);
+                            pass.set_bind_group(
+                                0,
+                                &self.g0,
+                                &[(k as u64 * SLICE_INFO_STRIDE) as u32],
+                            );
+                            pass.set_bind_group(1, &g1, &[]);
+                            pass.set_bind_group(2, &g2[(k % 2) as usize], &[]);
+                            pass.set_bind_group(3, &g3, &[]);
+                            pass.dispatch_workgroups(wg.0, wg.1, 1);
+                        }
+                        run_updates(&mut enc, k);
+                    }
+                    let mut pass = enc.begin_compute_pass(&Default::default());
+                    pass.set_pipeline(if plan.count == 0 {
+                        &p.cs_main
+                    } else {
+                        &p.cs_resolve
+                    });
+                    pass.set_bind_group(0, &self.g0, &[0]);
+                    pass.set_bind_group(1, &g1, &[]);
+                    pass.set_bind_group(2, &g2[0], &[]);
+                    pass.set_bind_group(3, &g3, &[]);
+                    pass.dispatch_workgroups(wg.0, wg.1, 1);
+                } else {
+                    let mut pass = enc.begin_compute_pass(&Default::default());
+                    pass.set_pipeline(&p.cs_main);
+                    pass.set_bind_group(0, &self.g0, &[0]);
+                    pass.set_bind_group(1, &g1, &[]);
+                    pass.set_bind_group(2, &g2[0], &[]);
+                    pass.set_bind_group(3, &g3, &[]);
+                    pass.dispatch_workgroups(wg.0, wg.1, 1);
+                }
+            }
+        }
+        stamp(&mut enc, None);
+        let n_stamps = ts_labels.len() as u32;
+        if let Some((qs, resolve, read)) = ts
+            && n_stamps > 0
+        {
+            enc.resolve_query_set(qs, 0..n_stamps, resolve, 0);
+            enc.copy_buffer_to_buffer(resolve, 0, read, 0, n_stamps as u64 * 8);
+        }
+        self.gpu.queue.submit([enc.finish()]);
+        // mark pre-passes done
+        let done: Vec<u64> = dirty.iter().map(|i| p.stack[*i].0).collect();
+        for uid in done {
+            if let Some(g) = self.instances.get_mut(&uid) {
+                g.prepass_done = Some(g.params.clone());
+            }
+        }
+        let mut stats = FrameStats {
+            slices: plan.count,
+            per_slice_mode: per_slice,
+            prepasses_run,
+            ..Default::default()
+        };
+        if let Some((_, _, read)) = &self.timestamps
+            && n_stamps > 1
+        {
+            let ticks = read_buffer(&self.gpu, read, n_stamps as u64 * 8);
+            let ticks: Vec<u64> = ticks
+                .chunks_exact(8)
+                .map(|c| u64::from_le_bytes(c.try_into().expect("8 bytes")))
+                .collect();
+            let period = self.gpu.queue.get_timestamp_period() as f64;
+            let ms = |a: u64, b: u64| b.saturating_sub(a) as f64 * period / 1.0e6;
+            for i in 0..ticks.len() - 1 {
+                stats
+                    .gpu_passes
+                    .push((ts_labels[i].to_string(), ms(ticks[i], ticks[i + 1])));
+            }
+            stats.gpu_ms = Some(ms(ticks[0], ticks[ticks.len() - 1]));
+        } else {
+            self.gpu.wait();
+        }
+        stats.wall_ms = start.elapsed().as_secs_f64() * 1e3;
+        Ok(stats)
+    }
+
+    /// Reads the eye buffer: premultiplied RGBA per pixel, row-major from the top.
+    pub fn read_pixels(&self) -> Option<(u32, u32, Vec<[f32; 4]>)> {
+        let t = self.target.as_ref()?;
+        let bpp = match t.format {
+            TargetFormat::Rgba16Float => 8,
+            TargetFormat::Rgba32Float => 16,
+        };
+        let bytes = read_texture(&self.gpu, &t.texture, bpp);
+        let row = (t.width * bpp).div_ceil(256) * 256;
+        let mut out = Vec::with_capacity((t.width * t.height) as usize);
+        for y in 0..t.height {
+            let line = &bytes[(y * row) as usize..(y * row + t.width * bpp) as usize];
+            for px in line.chunks_exact(bpp as usize) {
+                let v: [f32; 4] = if bpp == 8 {
+                    std::array::from_fn(|c| {
+                        half::f16::from_le_bytes([px[2 * c], px[2 * c + 1]]).to_f32()
+                    })
+                } else {
+                    std::array::from_fn(|c| {
+                        f32::from_le_bytes(px[4 * c..4 * c + 4].try_into().expect("4 bytes"))
+                    })
+                };
+                out.push(v);
+            }
+        }
+        Some((t.width, t.height, out))
+    }
+
+    /// Composites the eye buffer over `background` into an 8-bit RGBA texture (for
+    /// display) and returns its view.
+    pub fn display(&mut self, background: [f32; 4]) -> Option<&wgpu::TextureView> {
+        let format = self.target.as_ref()?.format;
+        if self.display_pipeline.as_ref().is_none_or(|d| d.0 != format) {
+            let device = &self.gpu.device;
+            let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+                label: Some("vwb display"),
+                source: wgpu::ShaderSource::Wgsl(DISPLAY_WGSL.into()),
+            });
+            let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+                label: Some("vwb display"),
+                entries: &[
+                    wgpu::BindGroupLayoutEntry {
+                        binding: 0,
+                        visibility: wgpu::ShaderStages::COMPUTE,
+                        ty: wgpu::BindingType::Texture {
+                            sample_type: wgpu::TextureSampleType::Float { filterable: false },
+                            view_dimension: wgpu::TextureViewDimension::D2,
+                            multisampled: false,
+                        },
+                        count: None,
+                    },
+                    wgpu::BindGroupLayoutEntry {
+                        binding: 1,
+                        visibility: wgpu::ShaderStages::COMPUTE,
+                        ty: wgpu::BindingType::StorageTexture {
+                            access: wgpu::StorageTextureAccess::WriteOnly,
+                            format: wgpu::TextureFormat::Rgba8Unorm,
+                            view_dimension: wgpu::TextureViewDimension::D2,
+                        },
+                        count: None,
+                    },
+                    uniform_entry(2, wgpu::ShaderStages::COMPUTE, false),
+                ],
+            });
+            let pl = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                label: Some("vwb display"),
+                bind_group_layouts: &[Some(&layout)],
+                immediate_size: 0,
+            });
+            let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                label: Some("vwb display"),
+                layout: Some(&pl),
+                module: &module,
+                entry_point: Some("main"),
+                compilation_options: Default::default(),
+                cache: None,
+            });
+            self.display_pipeline = Some((format, pipeline, layout));
+        }
+        let (_, pipeline, layout) = self.display_pipeline.as_ref()?;
+        let t = self.target.as_ref()?;
+        let device = &self.gpu.device;
+        let bg = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("vwb background"),
+            contents: bytemuck::cast_slice(&background),
+            usage: wgpu::BufferUsages::UNIFORM,
+        });
+        let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("vwb display"),
+            layout,
+            entries: &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: wgpu::BindingResource::TextureView(&t.view),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: wgpu::BindingResource::TextureView(&t.display_view),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 2,
+                    resource: bg.as_entire_binding(),
+                },
+            ],
+        });
+        let mut enc = device.create_command_encoder(&Default::default());
+        {
+            let mut pass = enc.begin_compute_pass(&Default::default());
+            pass.set_pipeline(pipeline);
+            pass.set_bind_group(0, &group, &[]);
+            pass.dispatch_workgroups(t.width.div_ceil(8), t.height.div_ceil(8), 1);
+        }
+        self.gpu.queue.submit([enc.finish()]);
+        Some(&t.display_view)
+    }
+
+    /// The 8-bit display texture (after [`Renderer::display`]).
+    pub fn display_texture(&self) -> Option<&wgpu::Texture> {
+        self.target.as_ref().map(|t| &t.display)
+    }
+
+    /// Reads a pre-pass target of the instance `uid` (for tests): texels as f32 RGBA.
+    pub fn read_prepass(&self, uid: u64) -> Option<([u32; 3], Vec<f32>)> {
+        let g = self.instances.get(&uid)?;
+        let (tex, _) = g.prepass_target.as_ref()?;
+        let bpp = tex.format().block_copy_size(None)?;
+        let s = tex.size();
+        let bytes = read_texture(&self.gpu, tex, bpp);
+        let row = (s.width * bpp).div_ceil(256) * 256;
+        let comps = (bpp / 4) as usize;
+        let mut out = Vec::new();
+        for z in 0..s.depth_or_array_layers {
+            for y in 0..s.height {
+                let o = ((z * s.height + y) * row) as usize;
+                let line = &bytes[o..o + (s.width * bpp) as usize];
+                for px in line.chunks_exact(bpp as usize) {
+                    for c in 0..comps {
+                        out.push(f32::from_le_bytes(
+                            px[4 * c..4 * c + 4].try_into().expect("4 bytes"),
+                        ));
+                    }
+                }
+            }
+        }
+        Some(([s.width, s.height, s.depth_or_array_layers], out))
+    }
+}
+
+#[allow(clippy::too_many_arguments)]
+fn make_g0(
+    device: &wgpu::Device,
+    layout: &wgpu::BindGroupLayout,
+    frame: &wgpu::Buffer,
+    volume: &wgpu::TextureView,
+    linear: &wgpu::Sampler,
+    nearest: &wgpu::Sampler,
+    slice_info: &wgpu::Buffer,
+) -> wgpu::BindGroup {
+    device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: Some("vwb group 0"),
+        layout,
+        entries: &[
+            wgpu::BindGroupEntry {
+                binding: 0,
+                resource: frame.as_entire_binding(),
+            },
+            wgpu::BindGroupEntry {
+                binding: 1,
+                resource: wgpu::BindingResource::TextureView(volume),
+            },
+            wgpu::BindGroupEntry {
+                binding: 2,
+                resource: wgpu::BindingResource::Sampler(linear),
+            },
+            wgpu::BindGroupEntry {
+                binding: 3,
+                resource: wgpu::BindingResource::Sampler(nearest),
+            },
+            wgpu::BindGroupEntry {
+                binding: 4,
+                resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                    buffer: slice_info,
+                    offset: 0,
+                    size: wgpu::BufferSize::new(16),
+                }),
+            },
+        ],
+    })
+}
+
+/// Uploads the normalised scalar volume (R32Float where filterable, else R16Float).
+fn upload_volume(gpu: &GpuContext, volume: &Volume) -> wgpu::TextureView {
+    let scalars = volume.normalized_scalars();
+    let (format, bytes): (wgpu::TextureFormat, Vec<u8>) = if gpu.float32_filterable() {
+        (
+            wgpu::TextureFormat::R32Float,
+            bytemuck::cast_slice(&scalars).to_vec(),
+        )
+    } else {
+        (
+            wgpu::TextureFormat::R16Float,
+            scalars
+                .iter()
+                .flat_map(|v| half::f16::from_f32(*v).to_le_bytes())
+                .collect(),
+        )
+    };
+    let [w, h, d] = volume.dims;
+    let texture = gpu.device.create_texture_with_data(
+        &gpu.queue,
+        &wgpu::TextureDescriptor {
+            label: Some("vwb volume"),
+            size: wgpu::Extent3d {
+                width: w,
+                height: h,
+                depth_or_array_layers: d,
+            },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D3,
+            format,
+            usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+            view_formats: &[],
+        },
+        wgpu::util::TextureDataOrder::LayerMajor,
+        &bytes,
+    );
+    texture.create_view(&Default::default())
+}
+
+/// Copies a texture (2D or 3D) to host memory; rows padded to 256 bytes.
+fn read_texture(gpu: &GpuContext, tex: &wgpu::Texture, bpp: u32) -> Vec<u8> {
+    let s = tex.size();
+    let row = (s.width * bpp).div_ceil(256) * 256;
+    let size = row as u64 * s.height as u64 * s.depth_or_array_layers as u64;
+    let buf = gpu.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("vwb readback"),
+        size,
+        usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    let mut enc = gpu.device.create_command_encoder(&Default::default());
+    enc.copy_texture_to_buffer(
+        tex.as_image_copy(),
+        wgpu::TexelCopyBufferInfo {
+            buffer: &buf,
+            layout: wgpu::TexelCopyBufferLayout {
+                offset: 0,
+                bytes_per_row: Some(row),
+                rows_per_image: Some(s.height),
+            },
+        },
+        s,
+    );
+    gpu.queue.submit([enc.finish()]);
+    read_buffer(gpu, &buf, size)
+}
+
+fn read_buffer(gpu: &GpuContext, buf: &wgpu::Buffer, size: u64) -> Vec<u8> {
+    let slice = buf.slice(..size);
+    slice.map_async(wgpu::MapMode::Read, |_| {});
+    gpu.wait();
+    let data = match slice.get_mapped_range() {
+        Ok(view) => view.to_vec(),
+        Err(e) => {
+            log::error!("readback failed: {e}");
+            vec![0; size as usize]
+        }
+    };
+    buf.unmap();
+    data
+}

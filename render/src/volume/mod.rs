@@ -1,0 +1,659 @@
+//! Volume loading: NRRD files (attached or detached headers, raw or gzip data),
+//! headerless raw files, and an embedded demo volume.
+//!
+//! # Conventions
+//!
+//! - **Layout.** Voxels are stored x fastest, then y, then z: the value of voxel
+//!   `(x, y, z)` starts at index `(x + dims[0] * (y + dims[1] * z)) * components`.
+//!   Vector volumes (2 or 3 components) are interleaved, so the components of one
+//!   voxel are adjacent (NRRD axis 0 is the component axis).
+//! - **Spacing.** `spacing[a]` is the world-space size of one voxel along axis `a`
+//!   (x, y, z), always finite and positive; it defaults to 1 when a file does not
+//!   record it. For NRRD `space directions` it is the length of each axis vector
+//!   (the orientation itself is not kept).
+//! - **Scalar.** Every volume has one scalar per voxel: component 0 for scalar
+//!   volumes, the Euclidean magnitude of the components for vector volumes. It is
+//!   in raw data units and may be NaN or ±Inf for float data.
+//! - **Range and histogram.** [`Volume::range`] is the minimum and maximum of the
+//!   *finite* scalars (`[0, 0]` when none is finite) and [`Volume::histogram`] has
+//!   [`HISTOGRAM_BINS`] equal bins over that range, also counting finite scalars
+//!   only. Non-finite scalars are counted in [`Volume::non_finite`].
+//! - **Normalised scalars.** [`Volume::normalized_scalars`] maps the scalar to
+//!   `[0, 1]` with the range: `(s - min) / (max - min)`, clamped. NaN and -Inf map
+//!   to 0, +Inf to 1, and everything maps to 0 when the range is degenerate
+//!   (`max <= min`). This is what the renderer uploads as its scalar texture.
+//! - **Limits.** Nothing is allocated for a volume with more than [`MAX_VOXELS`]
+//!   voxels or whose data (on disk or in memory) exceeds [`MAX_BYTES`]. For raw
+//!   data the file length is checked against the layout before any allocation.
+//!
+//! # Types
+//!
+//! In-memory samples are one of [`ScalarType`]. NRRD files may also hold 32- and
+//! 64-bit integers and doubles: those are converted to `f32` on load (integers of
+//! magnitude above 2^24 lose precision, doubles outside the `f32` range become
+//! ±Inf and are then counted as non-finite).
+
+mod demo;
+mod nrrd;
+mod raw;
+#[cfg(test)]
+mod tests;
+
+use std::fmt;
+use std::path::{Path, PathBuf};
+
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+pub use demo::demo;
+pub use nrrd::{
+    ByteSkip, NrrdEncoding, NrrdHeader, NrrdType, load_nrrd, load_nrrd_bytes, parse_nrrd_header,
+};
+pub use raw::{RawDesc, load_raw};
+
+/// The largest number of voxels (product of the three dims) a volume may have.
+pub const MAX_VOXELS: u64 = 1 << 31;
+
+/// The largest size in bytes of a volume's data, on disk or in memory (16 GiB).
+pub const MAX_BYTES: u64 = 16 << 30;
+
+/// Number of bins of [`Volume::histogram`].
+pub const HISTOGRAM_BINS: usize = 256;
+
+/// The type of the samples held in memory.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+pub enum ScalarType {
+    U8,
+    I8,
+    U16,
+    I16,
+    F32,
+}
+
+impl ScalarType {
+    /// Size of one sample in bytes.
+    pub fn size_bytes(self) -> usize {
+        match self {
+            ScalarType::U8 | ScalarType::I8 => 1,
+            ScalarType::U16 | ScalarType::I16 => 2,
+            ScalarType::F32 => 4,
+        }
+    }
+
+    /// Lower-case name as used in NRRD headers and file names (`uint8`, `float32`, ...).
+    pub fn name(self) -> &'static str {
+        match self {
+            ScalarType::U8 => "uint8",
+            ScalarType::I8 => "int8",
+            ScalarType::U16 => "uint16",
+            ScalarType::I16 => "int16",
+            ScalarType::F32 => "float32",
+        }
+    }
+}
+
+impl fmt::Display for ScalarType {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// Byte order of multi-byte samples in a file.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+pub enum Endian {
+    Little,
+    Big,
+}
+
+impl Endian {
+    /// `"little"` or `"big"`, as in NRRD headers.
+    pub fn name(self) -> &'static str {
+        match self {
+            Endian::Little => "little",
+            Endian::Big => "big",
+        }
+    }
+}
+
+/// Voxel samples: interleaved components, x fastest, then y, then z.
+#[derive(Clone, PartialEq)]
+pub enum VoxelData {
+    U8(Vec<u8>),
+    I8(Vec<i8>),
+    U16(Vec<u16>),
+    I16(Vec<i16>),
+    F32(Vec<f32>),
+}
+
+/// Runs `$body` with `$v` bound to the typed vector of a [`VoxelData`].
+macro_rules! with_samples {
+    ($data:expr, $v:ident => $body:expr) => {
+        match $data {
+            VoxelData::U8($v) => $body,
+            VoxelData::I8($v) => $body,
+            VoxelData::U16($v) => $body,
+            VoxelData::I16($v) => $body,
+            VoxelData::F32($v) => $body,
+        }
+    };
+}
+
+impl VoxelData {
+    /// Number of samples (voxels times components).
+    pub fn len(&self) -> usize {
+        with_samples!(self, v => v.len())
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    pub fn scalar_type(&self) -> ScalarType {
+        match self {
+            VoxelData::U8(_) => ScalarType::U8,
+            VoxelData::I8(_) => ScalarType::I8,
+            VoxelData::U16(_) => ScalarType::U16,
+            VoxelData::I16(_) => ScalarType::I16,
+            VoxelData::F32(_) => ScalarType::F32,
+        }
+    }
+
+    /// Sample `i` converted to f64, if it exists.
+    pub fn get_f64(&self, i: usize) -> Option<f64> {
+        with_samples!(self, v => v.get(i).map(|&s| f64::from(s)))
+    }
+}
+
+/// Summarises instead of printing every sample.
+impl fmt::Debug for VoxelData {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(
+            f,
+            "VoxelData::{:?}([..; {}])",
+            self.scalar_type(),
+            self.len()
+        )
+    }
+}
+
+/// A loaded volume with its scalar statistics.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Volume {
+    /// File stem of the source, or `"demo"`.
+    pub name: String,
+    pub dims: [u32; 3],
+    /// 1 for a scalar volume, 2 or 3 for a vector volume.
+    pub components: u32,
+    /// World size of a voxel along x, y, z (finite, positive; 1 when unknown).
+    pub spacing: [f64; 3],
+    pub data: VoxelData,
+    /// Min and max of the finite scalars; `[0, 0]` when none is finite.
+    pub range: [f64; 2],
+    /// [`HISTOGRAM_BINS`] bins over `range` of the finite scalars.
+    pub histogram: Vec<u64>,
+    /// Number of voxels whose scalar is NaN or ±Inf.
+    pub non_finite: u64,
+    /// The file the volume was loaded from (the header for detached NRRD).
+    pub source: Option<PathBuf>,
+}
+
+impl Volume {
+    /// Builds a volume from its samples and computes range, histogram and the
+    /// non-finite count (in parallel).
+    ///
+    /// Fails when a dim is zero, the layout exceeds [`MAX_VOXELS`] / [`MAX_BYTES`],
+    /// `components` is not 1, 2 or 3, a spacing is not finite and positive, or
+    /// `data` does not hold exactly `dims product * components` samples.
+    pub fn new(
+        name: impl Into<String>,
+        dims: [u32; 3],
+        components: u32,
+        spacing: [f64; 3],
+        data: VoxelData,
+    ) -> Result<Volume, VolumeError> {
+        let name = name.into();
+        let layout = check_layout(
+            dims.map(u64::from),
+            u64::from(components),
+            data.scalar_type().size_bytes() as u64,
+            None,
+        )?;
+        check_spacing(spacing, None)?;
+        if data.len() != layout.values {
+            return Err(VolumeError::Invalid {
+                file: None,
+                message: format!(
+                    "volume '{name}': data has {} samples but {} needs {}",
+                    data.len(),
+                    layout_desc(
+                        dims.map(u64::from),
+                        u64::from(components),
+                        data.scalar_type().name()
+                    ),
+                    layout.values
+                ),
+            });
+        }
+        let stats = compute_stats(&data, components as usize);
+        Ok(Volume {
+            name,
+            dims,
+            components,
+            spacing,
+            data,
+            range: stats.range,
+            histogram: stats.histogram,
+            non_finite: stats.non_finite,
+            source: None,
+        })
+    }
+
+    /// Number of voxels (product of the dims).
+    pub fn voxel_count(&self) -> usize {
+        self.dims.iter().map(|&d| d as usize).product()
+    }
+
+    pub fn scalar_type(&self) -> ScalarType {
+        self.data.scalar_type()
+    }
+
+    /// The scalar of voxel `(x, y, z)` (component 0, or the magnitude of a vector)
+    /// in raw data units; NaN or ±Inf possible for float data.
+    ///
+    /// # Panics
+    /// When the voxel is outside the volume; see [`Volume::try_scalar`].
+    pub fn scalar(&self, x: u32, y: u32, z: u32) -> f64 {
+        self.try_scalar(x, y, z).unwrap_or_else(|| {
+            panic!(
+                "voxel ({x}, {y}, {z}) is outside the volume {}x{}x{}",
+                self.dims[0], self.dims[1], self.dims[2]
+            )
+        })
+    }
+
+    /// Like [`Volume::scalar`], `None` outside the volume.
+    pub fn try_scalar(&self, x: u32, y: u32, z: u32) -> Option<f64> {
+        let [dx, dy, dz] = self.dims;
+        if x >= dx || y >= dy || z >= dz {
+            return None;
+        }
+        let c = self.components as usize;
+        let voxel = x as usize + dx as usize * (y as usize + dy as usize * z as usize);
+        let start = voxel * c;
+        with_samples!(&self.data, v => v.get(start..start + c).map(voxel_scalar))
+    }
+
+    /// The scalars mapped to `[0, 1]` with [`Volume::range`] (see the module
+    /// docs), one per voxel, x fastest. Always finite.
+    pub fn normalized_scalars(&self) -> Vec<f32> {
+        let c = self.components.max(1) as usize;
+        let [lo, hi] = self.range;
+        with_samples!(&self.data, v => v
+            .par_chunks_exact(c)
+            .map(|voxel| normalize(voxel_scalar(voxel), lo, hi))
+            .collect())
+    }
+
+    /// All components as f32 (interleaved, x fastest) with non-finite samples
+    /// replaced by 0, for uploading vector fields.
+    pub fn components_f32(&self) -> Vec<f32> {
+        with_samples!(&self.data, v => v
+            .par_iter()
+            .map(|&s| {
+                let s = f64::from(s) as f32;
+                if s.is_finite() { s } else { 0.0 }
+            })
+            .collect())
+    }
+
+    /// Size of the sample data in bytes.
+    pub fn size_bytes(&self) -> usize {
+        self.data.len() * self.scalar_type().size_bytes()
+    }
+}
+
+/// Everything that can go wrong while loading or building a volume. The message
+/// names the file (when there is one) and the cause.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum VolumeError {
+    /// Opening, reading or seeking a file failed.
+    #[error("{}: {context}: {source}", .file.display())]
+    Io {
+        file: PathBuf,
+        context: String,
+        #[source]
+        source: std::io::Error,
+    },
+
+    /// [`load`] was given a file without the NRRD magic.
+    #[error(
+        "{}: not an NRRD file (it does not start with \"NRRD000\"); headerless raw data \
+         does not record its layout, so load it with load_raw and give dims, type and endianness",
+        .file.display()
+    )]
+    NotNrrd { file: PathBuf },
+
+    /// The NRRD header is malformed, incomplete or asks for something unsupported.
+    #[error("{}{}: {message}", file_prefix(.file), header_location(*.line))]
+    Header {
+        file: Option<PathBuf>,
+        /// 1-based header line, when the problem belongs to one line.
+        line: Option<usize>,
+        message: String,
+    },
+
+    /// The dims overflow or exceed [`MAX_VOXELS`] / [`MAX_BYTES`].
+    #[error("{}dims {} {reason}", file_prefix(.file), dims_text(.dims))]
+    TooLarge {
+        file: Option<PathBuf>,
+        dims: [u64; 3],
+        reason: String,
+    },
+
+    /// A raw data file is shorter than the layout needs (or, for [`load_raw`], not
+    /// exactly as long).
+    #[error(
+        "{}: file has {file_len} bytes but {needed_by} needs {needed} ({layout}){}",
+        .file.display(),
+        skip_note(*.skip)
+    )]
+    DataSize {
+        file: PathBuf,
+        file_len: u64,
+        /// Bytes before the data (attached header, line and byte skips).
+        skip: u64,
+        needed: u64,
+        /// `"the header"` or `"the raw description"`.
+        needed_by: &'static str,
+        /// Dims and type, e.g. `256x256x108 int16`.
+        layout: String,
+    },
+
+    /// Gzip data is corrupt, too short or too long.
+    #[error("{}: {message}", .file.display())]
+    Compressed { file: PathBuf, message: String },
+
+    /// The sample buffer could not be allocated.
+    #[error("{}cannot allocate {bytes} bytes for the voxel data", file_prefix(.file))]
+    OutOfMemory { file: Option<PathBuf>, bytes: u64 },
+
+    /// Invalid arguments (a raw description, the parts given to [`Volume::new`]),
+    /// or data that does not fit its description in a way not covered above.
+    #[error("{}{message}", file_prefix(.file))]
+    Invalid {
+        file: Option<PathBuf>,
+        message: String,
+    },
+}
+
+impl VolumeError {
+    /// The file the error is about, if any.
+    pub fn file(&self) -> Option<&Path> {
+        match self {
+            VolumeError::Io { file, .. }
+            | VolumeError::NotNrrd { file }
+            | VolumeError::DataSize { file, .. }
+            | VolumeError::Compressed { file, .. } => Some(file),
+            VolumeError::Header { file, .. }
+            | VolumeError::TooLarge { file, .. }
+            | VolumeError::OutOfMemory { file, .. }
+            | VolumeError::Invalid { file, .. } => file.as_deref(),
+        }
+    }
+
+    /// Sets the file of an error that has none yet.
+    pub(crate) fn in_file(mut self, path: &Path) -> Self {
+        if let VolumeError::Header { file, .. }
+        | VolumeError::TooLarge { file, .. }
+        | VolumeError::OutOfMemory { file, .. }
+        | VolumeError::Invalid { file, .. } = &mut self
+        {
+            file.get_or_insert_with(|| path.to_path_buf());
+        }
+        self
+    }
+}
+
+fn file_prefix(file: &Option<PathBuf>) -> String {
+    match file {
+        Some(f) => format!("{}: ", f.display()),
+        None => String::new(),
+    }
+}
+
+fn header_location(line: Option<usize>) -> String {
+    match line {
+        Some(l) => format!("header line {l}"),
+        None => "header".to_owned(),
+    }
+}
+
+fn dims_text(dims: &[u64; 3]) -> String {
+    format!("{}x{}x{}", dims[0], dims[1], dims[2])
+}
+
+fn skip_note(skip: u64) -> String {
+    if skip == 0 {
+        String::new()
+    } else {
+        format!(" after skipping the first {skip} bytes")
+    }
+}
+
+/// Loads a volume, recognising the format by content. Only NRRD (magic
+/// `NRRD000x`) is self-describing; headerless raw data must go through
+/// [`load_raw`].
+pub fn load(path: &Path) -> Result<Volume, VolumeError> {
+    let mut file = std::fs::File::open(path).map_err(|source| VolumeError::Io {
+        file: path.to_path_buf(),
+        context: "cannot open".to_owned(),
+        source,
+    })?;
+    let mut magic = [0u8; 7];
+    let got = raw::read_fully(&mut file, &mut magic).map_err(|source| VolumeError::Io {
+        file: path.to_path_buf(),
+        context: "cannot read".to_owned(),
+        source,
+    })?;
+    if &magic[..got] == b"NRRD000" {
+        load_nrrd(path)
+    } else {
+        Err(VolumeError::NotNrrd {
+            file: path.to_path_buf(),
+        })
+    }
+}
+
+/// A checked volume layout.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Layout {
+    pub dims: [u32; 3],
+    pub components: u32,
+    /// Number of samples (voxels times components).
+    pub values: usize,
+}
+
+/// Checks dims and components against the limits without allocating anything.
+/// `bytes_per_value` is the largest size of one sample (on disk or in memory).
+pub(crate) fn check_layout(
+    dims: [u64; 3],
+    components: u64,
+    bytes_per_value: u64,
+    file: Option<&Path>,
+) -> Result<Layout, VolumeError> {
+    let file = file.map(Path::to_path_buf);
+    let too_large = |reason: String| VolumeError::TooLarge {
+        file: file.clone(),
+        dims,
+        reason,
+    };
+    if dims.contains(&0) {
+        return Err(VolumeError::Invalid {
+            file: file.clone(),
+            message: format!("dims {}: every size must be at least 1", dims_text(&dims)),
+        });
+    }
+    if !(1..=3).contains(&components) {
+        return Err(VolumeError::Invalid {
+            file: file.clone(),
+            message: format!(
+                "{components} components per voxel: only 1 (scalar), 2 or 3 (vector) are supported"
+            ),
+        });
+    }
+    let voxels = dims
+        .iter()
+        .try_fold(1u64, |acc, &d| acc.checked_mul(d))
+        .ok_or_else(|| too_large("overflow the voxel count".to_owned()))?;
+    if voxels > MAX_VOXELS {
+        return Err(too_large(format!(
+            "hold {voxels} voxels, above the limit of {MAX_VOXELS} voxels"
+        )));
+    }
+    let values = voxels * components;
+    let bytes = values
+        .checked_mul(bytes_per_value)
+        .ok_or_else(|| too_large("overflow the byte count".to_owned()))?;
+    if bytes > MAX_BYTES {
+        return Err(too_large(format!(
+            "with {components} component(s) of {bytes_per_value} bytes need {bytes} bytes, \
+             above the limit of {MAX_BYTES} bytes (16 GiB)"
+        )));
+    }
+    let values = usize::try_from(values)
+        .map_err(|_| too_large("do not fit in this platform's address space".to_owned()))?;
+    // Each dim is <= MAX_VOXELS < u32::MAX here, so the conversions are exact.
+    let dims32 = dims.map(|d| u32::try_from(d).unwrap_or(u32::MAX));
+    Ok(Layout {
+        dims: dims32,
+        components: components as u32,
+        values,
+    })
+}
+
+/// Checks that every spacing is finite and positive.
+pub(crate) fn check_spacing(spacing: [f64; 3], file: Option<&Path>) -> Result<(), VolumeError> {
+    if spacing.iter().all(|s| s.is_finite() && *s > 0.0) {
+        Ok(())
+    } else {
+        Err(VolumeError::Invalid {
+            file: file.map(Path::to_path_buf),
+            message: format!(
+                "spacing {spacing:?}: every spacing must be finite and greater than 0"
+            ),
+        })
+    }
+}
+
+/// Human description of a layout, e.g. `256x256x108 int16` or `128x64x14 x2 float32`.
+pub(crate) fn layout_desc(dims: [u64; 3], components: u64, type_name: &str) -> String {
+    if components == 1 {
+        format!("{} {type_name}", dims_text(&dims))
+    } else {
+        format!("{} x{components} {type_name}", dims_text(&dims))
+    }
+}
+
+/// Volume name from a path: its file stem, or the whole file name.
+pub(crate) fn name_from_path(path: &Path) -> String {
+    path.file_stem()
+        .or_else(|| path.file_name())
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "volume".to_owned())
+}
+
+/// The scalar of one voxel: component 0, or the Euclidean magnitude.
+fn voxel_scalar<T: Copy + Into<f64>>(voxel: &[T]) -> f64 {
+    match voxel {
+        [s] => (*s).into(),
+        _ => voxel
+            .iter()
+            .map(|&s| {
+                let s: f64 = s.into();
+                s * s
+            })
+            .sum::<f64>()
+            .sqrt(),
+    }
+}
+
+/// Maps a scalar to `[0, 1]` with the finite range `[lo, hi]`.
+fn normalize(s: f64, lo: f64, hi: f64) -> f32 {
+    if s.is_nan() || s == f64::NEG_INFINITY {
+        0.0
+    } else if s == f64::INFINITY {
+        1.0
+    } else if hi > lo {
+        ((s - lo) / (hi - lo)).clamp(0.0, 1.0) as f32
+    } else {
+        0.0
+    }
+}
+
+/// The histogram bin of a scalar, `None` for non-finite ones.
+fn histogram_bin(s: f64, lo: f64, hi: f64) -> Option<usize> {
+    if !s.is_finite() {
+        return None;
+    }
+    if hi <= lo {
+        return Some(0);
+    }
+    // `as` saturates, so rounding past either end stays in range.
+    let bin = ((s - lo) / (hi - lo) * HISTOGRAM_BINS as f64) as usize;
+    Some(bin.min(HISTOGRAM_BINS - 1))
+}
+
+struct Stats {
+    range: [f64; 2],
+    histogram: Vec<u64>,
+    non_finite: u64,
+}
+
+fn compute_stats(data: &VoxelData, components: usize) -> Stats {
+    with_samples!(data, v => stats_of(v, components.max(1)))
+}
+
+fn stats_of<T: Copy + Into<f64> + Sync>(samples: &[T], components: usize) -> Stats {
+    let (lo, hi, non_finite) = samples
+        .par_chunks_exact(components)
+        .map(voxel_scalar)
+        .fold(
+            || (f64::INFINITY, f64::NEG_INFINITY, 0u64),
+            |(lo, hi, n), s| {
+                if s.is_finite() {
+                    (lo.min(s), hi.max(s), n)
+                } else {
+                    (lo, hi, n + 1)
+                }
+            },
+        )
+        .reduce(
+            || (f64::INFINITY, f64::NEG_INFINITY, 0u64),
+            |a, b| (a.0.min(b.0), a.1.max(b.1), a.2 + b.2),
+        );
+    let range = if lo <= hi { [lo, hi] } else { [0.0, 0.0] };
+    let histogram = samples
+        .par_chunks_exact(components)
+        .fold(
+            || vec![0u64; HISTOGRAM_BINS],
+            |mut h, voxel| {
+                if let Some(bin) = histogram_bin(voxel_scalar(voxel), range[0], range[1]) {
+                    h[bin] += 1;
+                }
+                h
+            },
+        )
+        .reduce(
+            || vec![0u64; HISTOGRAM_BINS],
+            |mut a, b| {
+                a.iter_mut().zip(b).for_each(|(x, y)| *x += y);
+                a
+            },
+        );
+    Stats {
+        range,
+        histogram,
+        non_finite,
+    }
+}

@@ -1,0 +1,239 @@
+// vwb slice template: the hook runners and the entry points of both backends.
+// The composer inserts generated declarations at `//!DECLS`, plugin code at `//!PLUGINS`
+// and generated hook calls at each `//!HOOK name` marker, in the order of the user's
+// plugin stack. Hook order per sample: clip -> sample -> classify -> shade -> composite.
+
+//!DECLS
+
+//!PLUGINS
+
+fn run_clip(s: Sample) -> bool {
+//!HOOK clip
+    return true;
+}
+
+fn run_sample(s_in: Sample) -> Sample {
+    var s = s_in;
+    s.value = volume_value(s.tex);
+//!HOOK sample
+    return s;
+}
+
+fn run_classify(s_in: Sample) -> Sample {
+    var s = s_in;
+    // Without a classification plugin: a grey ramp.
+    s.color = vec4<f32>(s.value, s.value, s.value, s.value);
+//!HOOK classify
+    return s;
+}
+
+fn run_shade(s_in: Sample) -> Sample {
+    var s = s_in;
+//!HOOK shade
+    return s;
+}
+
+fn run_composite(s: Sample, c_in: vec4<f32>) -> vec4<f32> {
+    var c = c_in;
+//!HOOK composite
+    return c;
+}
+
+struct Evaluated {
+    s: Sample,
+    // premultiplied, opacity-corrected contribution of this sample
+    c: vec4<f32>,
+}
+
+fn evaluate(s_in: Sample) -> Evaluated {
+    var e: Evaluated;
+    e.s = s_in;
+    e.c = vec4<f32>(0.0);
+    if (!run_clip(s_in)) {
+        e.s.color = vec4<f32>(0.0);
+        return e;
+    }
+    var s = run_sample(s_in);
+    s = run_classify(s);
+    s = run_shade(s);
+    let a = correct_opacity(s.color.a, s.step);
+    let rgb = clamp(s.color.rgb, vec3<f32>(0.0), vec3<f32>(1.0e6));
+    e.c = run_composite(s, vec4<f32>(rgb * a, a));
+    e.s = s;
+    return e;
+}
+
+fn make_sample(pos: vec3<f32>, ray_dir: vec3<f32>, uv: vec2<f32>, slice: u32) -> Sample {
+    var s: Sample;
+    s.pos = pos;
+    s.tex = (pos - frame.box_min.xyz) / (frame.box_max.xyz - frame.box_min.xyz);
+    s.ray_dir = ray_dir;
+    s.uv = uv;
+    s.value = 0.0;
+    // distance along this ray between two slice planes
+    s.step = frame.forward.w / max(dot(ray_dir, frame.forward.xyz), 1.0e-6);
+    s.color = vec4<f32>(0.0);
+    s.normal = vec3<f32>(0.0);
+    s.slice = slice;
+    return s;
+}
+
+// Front-to-back "under" compositing: C += (1 − A)·c (c premultiplied).
+fn under(acc: vec4<f32>, c: vec4<f32>) -> vec4<f32> {
+    return acc + (1.0 - acc.a) * c;
+}
+
+// Round to fp16 like an rgba16float blend target does, so that both backends
+// accumulate with the same precision.
+fn round_like_target(v: vec4<f32>) -> vec4<f32> {
+    if (frame.counts.y == 0u) {
+        return v;
+    }
+    return vec4<f32>(unpack2x16float(pack2x16float(v.xy)), unpack2x16float(pack2x16float(v.zw)));
+}
+
+// ---------------------------------------------------------------- raster backend
+// Proxy polygons (box ∩ slice plane) are drawn front to back; the blend state
+// implements `under` (src·(1 − dst.a) + dst).
+
+struct VsOut {
+    @builtin(position) clip_pos: vec4<f32>,
+    @location(0) world: vec3<f32>,
+    @location(1) @interpolate(flat) slice: u32,
+}
+
+@vertex
+fn vs_main(@location(0) pos: vec3<f32>, @location(1) slice: u32) -> VsOut {
+    var o: VsOut;
+    o.clip_pos = frame.view_proj * vec4<f32>(pos, 1.0);
+    o.world = pos;
+    o.slice = slice;
+    return o;
+}
+
+fn ray_dir_to(pos: vec3<f32>) -> vec3<f32> {
+    if (frame.eye.w > 0.5) {
+        return normalize(pos - frame.eye.xyz);
+    }
+    return frame.forward.xyz;
+}
+
+@fragment
+fn fs_main(in: VsOut) -> @location(0) vec4<f32> {
+    let uv = in.clip_pos.xy * frame.viewport.zw;
+    let s = make_sample(in.world, ray_dir_to(in.world), uv, in.slice);
+    return evaluate(s).c;
+}
+
+// ---------------------------------------------------------------- compute backend
+// One invocation per pixel steps through the same slice planes: the sample of slice k
+// is where the pixel's ray meets the plane at distance d_k = d_0 + k·Δs from the eye.
+
+struct Ray {
+    origin: vec3<f32>,
+    dir: vec3<f32>,
+}
+
+fn pixel_ray(uv: vec2<f32>) -> Ray {
+    let ndc = vec2<f32>(uv.x * 2.0 - 1.0, 1.0 - uv.y * 2.0);
+    let near = frame.inv_view_proj * vec4<f32>(ndc, 0.0, 1.0);
+    let far = frame.inv_view_proj * vec4<f32>(ndc, 1.0, 1.0);
+    var r: Ray;
+    r.origin = near.xyz / near.w;
+    r.dir = normalize(far.xyz / far.w - r.origin);
+    return r;
+}
+
+// Parameter t >= 0 along the ray of the point on slice plane k, or -1 if the point
+// lies outside the volume box or behind the near plane.
+fn slice_hit(r: Ray, k: u32) -> f32 {
+    let d = frame.box_max.w + f32(k) * frame.forward.w;
+    let t = (d - dot(r.origin - frame.eye.xyz, frame.forward.xyz)) / dot(r.dir, frame.forward.xyz);
+    let p = r.origin + r.dir * t;
+    if (t < 0.0 || any(p < frame.box_min.xyz) || any(p > frame.box_max.xyz)) {
+        return -1.0;
+    }
+    return t;
+}
+
+fn pixel_sample(r: Ray, t: f32, uv: vec2<f32>, k: u32) -> Sample {
+    return make_sample(r.origin + r.dir * t, r.dir, uv, k);
+}
+
+@group(3) @binding(0) var out_tex: texture_storage_2d<{{TARGET_FORMAT}}, write>;
+@group(3) @binding(1) var<storage, read_write> accum: array<vec4<f32>>;
+
+// Whole frame in one dispatch (no plugin needs per-slice passes).
+@compute @workgroup_size(8, 8, 1)
+fn cs_main(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let size = vec2<u32>(frame.viewport.xy);
+    if (gid.x >= size.x || gid.y >= size.y) {
+        return;
+    }
+    let uv = (vec2<f32>(gid.xy) + 0.5) * frame.viewport.zw;
+    let r = pixel_ray(uv);
+    var acc = vec4<f32>(0.0);
+    let early = frame.counts.z != 0u;
+    for (var k = 0u; k < frame.counts.x; k = k + 1u) {
+        let t = slice_hit(r, k);
+        if (t < 0.0) {
+            continue;
+        }
+        let e = evaluate(pixel_sample(r, t, uv, k));
+        acc = round_like_target(under(acc, e.c));
+        if (early && acc.a >= frame.settings.x) {
+            break;
+        }
+    }
+    textureStore(out_tex, vec2<i32>(gid.xy), acc);
+}
+
+// One slice per dispatch, accumulating in `accum` (used when a plugin has per-slice state).
+@compute @workgroup_size(8, 8, 1)
+fn cs_slice(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let size = vec2<u32>(frame.viewport.xy);
+    if (gid.x >= size.x || gid.y >= size.y) {
+        return;
+    }
+    let idx = gid.y * size.x + gid.x;
+    var acc = accum[idx];
+    if (slice_info.index == 0u) {
+        acc = vec4<f32>(0.0);
+    }
+    let early = frame.counts.z != 0u && acc.a >= frame.settings.x;
+    let uv = (vec2<f32>(gid.xy) + 0.5) * frame.viewport.zw;
+    let r = pixel_ray(uv);
+    let t = slice_hit(r, slice_info.index);
+    if (t >= 0.0 && !early) {
+        let e = evaluate(pixel_sample(r, t, uv, slice_info.index));
+        acc = round_like_target(under(acc, e.c));
+    }
+    accum[idx] = acc;
+}
+
+// Copy the accumulation buffer into the eye buffer.
+@compute @workgroup_size(8, 8, 1)
+fn cs_resolve(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let size = vec2<u32>(frame.viewport.xy);
+    if (gid.x >= size.x || gid.y >= size.y) {
+        return;
+    }
+    textureStore(out_tex, vec2<i32>(gid.xy), accum[gid.y * size.x + gid.x]);
+}
+
+// Sample of the current slice under a state texel (for per-slice state updates).
+fn state_texel_sample(texel: vec2<u32>, state_size: vec2<u32>) -> Evaluated {
+    let uv = (vec2<f32>(texel) + 0.5) / vec2<f32>(state_size);
+    let r = pixel_ray(uv);
+    let k = slice_info.index;
+    let t = slice_hit(r, k);
+    var e: Evaluated;
+    if (t < 0.0) {
+        e.s = make_sample(r.origin, r.dir, uv, k);
+        e.c = vec4<f32>(0.0);
+        return e;
+    }
+    return evaluate(pixel_sample(r, t, uv, k));
+}
+
+//!UPDATES

@@ -1,0 +1,410 @@
+// vwb shared WGSL: core uniforms, core bindings (group 0) and the Sample record
+// that flows through the hooks clip -> sample -> classify -> shade -> composite.
+//
+// Conventions
+// - World space: the volume box is centred on the origin; its longest side is 1.
+// - `Sample.tex` is the volume texture coordinate in [0,1]^3 (texel centres at (i+0.5)/n).
+// - `Sample.value` is the scalar normalised to [0,1] over the volume's finite value range.
+// - `Sample.color` is straight (not premultiplied) RGBA; alpha is the opacity for one
+//   reference step Δs0 (one voxel). The core applies opacity correction
+//   α' = 1 − (1 − α)^(Δs/Δs0) after `shade` and premultiplies before `composite`.
+// - Textures must be read with textureSampleLevel / textureLoad (the same code runs in
+//   fragment and compute stages).
+
+struct Frame {
+    view_proj: mat4x4<f32>,
+    inv_view_proj: mat4x4<f32>,
+    // xyz: camera position; w: 1 perspective, 0 orthographic
+    eye: vec4<f32>,
+    // xyz: unit view direction (slice normal); w: slice spacing Δs in world units
+    forward: vec4<f32>,
+    // xyz: volume box min (world); w: Δs0, the world length of one voxel
+    box_min: vec4<f32>,
+    // xyz: volume box max (world); w: distance of slice 0 from the eye along `forward`
+    box_max: vec4<f32>,
+    // width, height, 1/width, 1/height of the eye buffer
+    viewport: vec4<f32>,
+    // volume dims (voxels) in xyz
+    volume_dims: vec4<f32>,
+    // data min, data max (raw units), 1/(max-min), 0
+    value_range: vec4<f32>,
+    // x: slice count, y: 1 when the eye buffer is fp16, z: 1 when early termination is on
+    counts: vec4<u32>,
+    // x: early-termination opacity threshold
+    settings: vec4<f32>,
+}
+
+struct SliceInfo {
+    index: u32,
+    pad0: u32,
+    pad1: u32,
+    pad2: u32,
+}
+
+@group(0) @binding(0) var<uniform> frame: Frame;
+@group(0) @binding(1) var volume_tex: texture_3d<f32>;
+@group(0) @binding(2) var linear_clamp: sampler;
+@group(0) @binding(3) var nearest_clamp: sampler;
+@group(0) @binding(4) var<uniform> slice_info: SliceInfo;
+
+struct Sample {
+    // world position of the sample
+    pos: vec3<f32>,
+    // volume texture coordinate in [0,1]^3
+    tex: vec3<f32>,
+    // unit direction from the eye towards the sample
+    ray_dir: vec3<f32>,
+    // screen coordinate in [0,1]^2 (y down)
+    uv: vec2<f32>,
+    // normalised scalar value (set by the core sampler, may be replaced by `sample` hooks)
+    value: f32,
+    // world distance along the ray to the next slice plane
+    step: f32,
+    // straight RGBA set by `classify` (alpha per reference step Δs0)
+    color: vec4<f32>,
+    // free for shading plugins (e.g. a gradient); zero by default
+    normal: vec3<f32>,
+    // index of the slice, front (0) to back
+    slice: u32,
+}
+
+// Scalar at a texture coordinate (trilinear).
+fn volume_value(tex: vec3<f32>) -> f32 {
+    return textureSampleLevel(volume_tex, linear_clamp, tex, 0.0).r;
+}
+
+// Scalar at an integer voxel (no filtering); clamps to the volume.
+fn volume_voxel(v: vec3<i32>) -> f32 {
+    let dims = vec3<i32>(textureDimensions(volume_tex));
+    return textureLoad(volume_tex, clamp(v, vec3<i32>(0), dims - vec3<i32>(1)), 0).r;
+}
+
+// Raw data value for a normalised value.
+fn data_value(v: f32) -> f32 {
+    return mix(frame.value_range.x, frame.value_range.y, v);
+}
+
+// Opacity correction α' = 1 − (1 − α)^(Δs/Δs0), exact at α = 0 and α = 1.
+fn correct_opacity(alpha: f32, step: f32) -> f32 {
+    let a = clamp(alpha, 0.0, 1.0);
+    if (a >= 1.0) {
+        return 1.0;
+    }
+    let ratio = step / frame.box_min.w;
+    return 1.0 - exp2(ratio * log2(1.0 - a));
+}
+// vwb slice template: the hook runners and the entry points of both backends.
+// The composer inserts generated declarations at `//!DECLS`, plugin code at `//!PLUGINS`
+// and generated hook calls at each `//!HOOK name` marker, in the order of the user's
+// plugin stack. Hook order per sample: clip -> sample -> classify -> shade -> composite.
+
+struct p0_smooth_Params {
+    radius: i32,
+    amount: f32,
+}
+@group(1) @binding(0) var<uniform> p0_smooth_params: p0_smooth_Params;
+@group(1) @binding(1) var p0_smooth_smoothed: texture_3d<f32>;
+struct p1_tf1d_Params {
+    opacity: f32,
+}
+@group(1) @binding(2) var<uniform> p1_tf1d_params: p1_tf1d_Params;
+@group(1) @binding(3) var p1_tf1d_lut: texture_2d<f32>;
+struct p2_slice_shadow_Params {
+    strength: f32,
+}
+@group(1) @binding(4) var<uniform> p2_slice_shadow_params: p2_slice_shadow_Params;
+@group(2) @binding(0) var p2_slice_shadow_state_prev: texture_2d<f32>;
+@group(2) @binding(1) var p2_slice_shadow_state_next: texture_storage_2d<rgba32float, write>;
+struct p3_tf1d_Params {
+    opacity: f32,
+}
+@group(1) @binding(5) var<uniform> p3_tf1d_params: p3_tf1d_Params;
+@group(1) @binding(6) var p3_tf1d_lut: texture_2d<f32>;
+
+// test.smooth — demonstrates a pre-pass that fills a 3D texture: the sample hook
+// blends the interpolated value with the box-filtered volume `smoothed`.
+fn p0_smooth_sample(s: Sample) -> Sample {
+    var o = s;
+    let sm = textureSampleLevel(p0_smooth_smoothed, linear_clamp, s.tex, 0.0).r;
+    o.value = mix(s.value, sm, p0_smooth_params.amount);
+    return o;
+}
+// classify.tf1d — post-classification: interpolate the scalar, then look up a
+// piecewise-linear RGBA transfer function baked into the 256×1 table `lut`.
+// Texel centres sit at (i + 0.5)/N, so x ∈ [0,1] maps to (x·(N−1) + 0.5)/N.
+
+fn p1_tf1d_classify(s: Sample) -> Sample {
+    var o = s;
+    let n = f32(textureDimensions(p1_tf1d_lut).x);
+    let x = (clamp(s.value, 0.0, 1.0) * (n - 1.0) + 0.5) / n;
+    let c = textureSampleLevel(p1_tf1d_lut, linear_clamp, vec2<f32>(x, 0.5), 0.0);
+    o.color = vec4<f32>(c.rgb, clamp(c.a * p1_tf1d_params.opacity, 0.0, 1.0));
+    return o;
+}
+// test.slice_shadow — demonstrates per-slice state (ping-pong buffers).
+// `state_prev.r` holds the opacity accumulated in front of the current slice, as seen
+// from the eye; `shade` darkens the slice by it and `slice_update` adds the slice's
+// own contribution for the next slice. With strength 1 every sample is attenuated by
+// what lies in front of it a second time (a head-on "shadow").
+
+fn p2_slice_shadow_shade(s: Sample) -> Sample {
+    var o = s;
+    let occ = textureSampleLevel(p2_slice_shadow_state_prev, linear_clamp, s.uv, 0.0).r;
+    o.color = vec4<f32>(s.color.rgb * (1.0 - p2_slice_shadow_params.strength * occ), s.color.a);
+    return o;
+}
+
+fn p2_slice_shadow_slice_update(s: Sample, c: vec4<f32>, uv: vec2<f32>) -> vec4<f32> {
+    let prev = textureSampleLevel(p2_slice_shadow_state_prev, linear_clamp, uv, 0.0).r;
+    return vec4<f32>(prev + (1.0 - prev) * c.a, 0.0, 0.0, 1.0);
+}
+// classify.tf1d — post-classification: interpolate the scalar, then look up a
+// piecewise-linear RGBA transfer function baked into the 256×1 table `lut`.
+// Texel centres sit at (i + 0.5)/N, so x ∈ [0,1] maps to (x·(N−1) + 0.5)/N.
+
+fn p3_tf1d_classify(s: Sample) -> Sample {
+    var o = s;
+    let n = f32(textureDimensions(p3_tf1d_lut).x);
+    let x = (clamp(s.value, 0.0, 1.0) * (n - 1.0) + 0.5) / n;
+    let c = textureSampleLevel(p3_tf1d_lut, linear_clamp, vec2<f32>(x, 0.5), 0.0);
+    o.color = vec4<f32>(c.rgb, clamp(c.a * p3_tf1d_params.opacity, 0.0, 1.0));
+    return o;
+}
+
+fn run_clip(s: Sample) -> bool {
+    return true;
+}
+
+fn run_sample(s_in: Sample) -> Sample {
+    var s = s_in;
+    s.value = volume_value(s.tex);
+    s = p0_smooth_sample(s);
+    return s;
+}
+
+fn run_classify(s_in: Sample) -> Sample {
+    var s = s_in;
+    // Without a classification plugin: a grey ramp.
+    s.color = vec4<f32>(s.value, s.value, s.value, s.value);
+    s = p1_tf1d_classify(s);
+    s = p3_tf1d_classify(s);
+    return s;
+}
+
+fn run_shade(s_in: Sample) -> Sample {
+    var s = s_in;
+    s = p2_slice_shadow_shade(s);
+    return s;
+}
+
+fn run_composite(s: Sample, c_in: vec4<f32>) -> vec4<f32> {
+    var c = c_in;
+    return c;
+}
+
+struct Evaluated {
+    s: Sample,
+    // premultiplied, opacity-corrected contribution of this sample
+    c: vec4<f32>,
+}
+
+fn evaluate(s_in: Sample) -> Evaluated {
+    var e: Evaluated;
+    e.s = s_in;
+    e.c = vec4<f32>(0.0);
+    if (!run_clip(s_in)) {
+        e.s.color = vec4<f32>(0.0);
+        return e;
+    }
+    var s = run_sample(s_in);
+    s = run_classify(s);
+    s = run_shade(s);
+    let a = correct_opacity(s.color.a, s.step);
+    let rgb = clamp(s.color.rgb, vec3<f32>(0.0), vec3<f32>(1.0e6));
+    e.c = run_composite(s, vec4<f32>(rgb * a, a));
+    e.s = s;
+    return e;
+}
+
+fn make_sample(pos: vec3<f32>, ray_dir: vec3<f32>, uv: vec2<f32>, slice: u32) -> Sample {
+    var s: Sample;
+    s.pos = pos;
+    s.tex = (pos - frame.box_min.xyz) / (frame.box_max.xyz - frame.box_min.xyz);
+    s.ray_dir = ray_dir;
+    s.uv = uv;
+    s.value = 0.0;
+    // distance along this ray between two slice planes
+    s.step = frame.forward.w / max(dot(ray_dir, frame.forward.xyz), 1.0e-6);
+    s.color = vec4<f32>(0.0);
+    s.normal = vec3<f32>(0.0);
+    s.slice = slice;
+    return s;
+}
+
+// Front-to-back "under" compositing: C += (1 − A)·c (c premultiplied).
+fn under(acc: vec4<f32>, c: vec4<f32>) -> vec4<f32> {
+    return acc + (1.0 - acc.a) * c;
+}
+
+// Round to fp16 like an rgba16float blend target does, so that both backends
+// accumulate with the same precision.
+fn round_like_target(v: vec4<f32>) -> vec4<f32> {
+    if (frame.counts.y == 0u) {
+        return v;
+    }
+    return vec4<f32>(unpack2x16float(pack2x16float(v.xy)), unpack2x16float(pack2x16float(v.zw)));
+}
+
+// ---------------------------------------------------------------- raster backend
+// Proxy polygons (box ∩ slice plane) are drawn front to back; the blend state
+// implements `under` (src·(1 − dst.a) + dst).
+
+struct VsOut {
+    @builtin(position) clip_pos: vec4<f32>,
+    @location(0) world: vec3<f32>,
+    @location(1) @interpolate(flat) slice: u32,
+}
+
+@vertex
+fn vs_main(@location(0) pos: vec3<f32>, @location(1) slice: u32) -> VsOut {
+    var o: VsOut;
+    o.clip_pos = frame.view_proj * vec4<f32>(pos, 1.0);
+    o.world = pos;
+    o.slice = slice;
+    return o;
+}
+
+fn ray_dir_to(pos: vec3<f32>) -> vec3<f32> {
+    if (frame.eye.w > 0.5) {
+        return normalize(pos - frame.eye.xyz);
+    }
+    return frame.forward.xyz;
+}
+
+@fragment
+fn fs_main(in: VsOut) -> @location(0) vec4<f32> {
+    let uv = in.clip_pos.xy * frame.viewport.zw;
+    let s = make_sample(in.world, ray_dir_to(in.world), uv, in.slice);
+    return evaluate(s).c;
+}
+
+// ---------------------------------------------------------------- compute backend
+// One invocation per pixel steps through the same slice planes: the sample of slice k
+// is where the pixel's ray meets the plane at distance d_k = d_0 + k·Δs from the eye.
+
+struct Ray {
+    origin: vec3<f32>,
+    dir: vec3<f32>,
+}
+
+fn pixel_ray(uv: vec2<f32>) -> Ray {
+    let ndc = vec2<f32>(uv.x * 2.0 - 1.0, 1.0 - uv.y * 2.0);
+    let near = frame.inv_view_proj * vec4<f32>(ndc, 0.0, 1.0);
+    let far = frame.inv_view_proj * vec4<f32>(ndc, 1.0, 1.0);
+    var r: Ray;
+    r.origin = near.xyz / near.w;
+    r.dir = normalize(far.xyz / far.w - r.origin);
+    return r;
+}
+
+// Parameter t >= 0 along the ray of the point on slice plane k, or -1 if the point
+// lies outside the volume box or behind the near plane.
+fn slice_hit(r: Ray, k: u32) -> f32 {
+    let d = frame.box_max.w + f32(k) * frame.forward.w;
+    let t = (d - dot(r.origin - frame.eye.xyz, frame.forward.xyz)) / dot(r.dir, frame.forward.xyz);
+    let p = r.origin + r.dir * t;
+    if (t < 0.0 || any(p < frame.box_min.xyz) || any(p > frame.box_max.xyz)) {
+        return -1.0;
+    }
+    return t;
+}
+
+fn pixel_sample(r: Ray, t: f32, uv: vec2<f32>, k: u32) -> Sample {
+    return make_sample(r.origin + r.dir * t, r.dir, uv, k);
+}
+
+@group(3) @binding(0) var out_tex: texture_storage_2d<rgba16float, write>;
+@group(3) @binding(1) var<storage, read_write> accum: array<vec4<f32>>;
+
+// Whole frame in one dispatch (no plugin needs per-slice passes).
+@compute @workgroup_size(8, 8, 1)
+fn cs_main(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let size = vec2<u32>(frame.viewport.xy);
+    if (gid.x >= size.x || gid.y >= size.y) {
+        return;
+    }
+    let uv = (vec2<f32>(gid.xy) + 0.5) * frame.viewport.zw;
+    let r = pixel_ray(uv);
+    var acc = vec4<f32>(0.0);
+    let early = frame.counts.z != 0u;
+    for (var k = 0u; k < frame.counts.x; k = k + 1u) {
+        let t = slice_hit(r, k);
+        if (t < 0.0) {
+            continue;
+        }
+        let e = evaluate(pixel_sample(r, t, uv, k));
+        acc = round_like_target(under(acc, e.c));
+        if (early && acc.a >= frame.settings.x) {
+            break;
+        }
+    }
+    textureStore(out_tex, vec2<i32>(gid.xy), acc);
+}
+
+// One slice per dispatch, accumulating in `accum` (used when a plugin has per-slice state).
+@compute @workgroup_size(8, 8, 1)
+fn cs_slice(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let size = vec2<u32>(frame.viewport.xy);
+    if (gid.x >= size.x || gid.y >= size.y) {
+        return;
+    }
+    let idx = gid.y * size.x + gid.x;
+    var acc = accum[idx];
+    if (slice_info.index == 0u) {
+        acc = vec4<f32>(0.0);
+    }
+    let early = frame.counts.z != 0u && acc.a >= frame.settings.x;
+    let uv = (vec2<f32>(gid.xy) + 0.5) * frame.viewport.zw;
+    let r = pixel_ray(uv);
+    let t = slice_hit(r, slice_info.index);
+    if (t >= 0.0 && !early) {
+        let e = evaluate(pixel_sample(r, t, uv, slice_info.index));
+        acc = round_like_target(under(acc, e.c));
+    }
+    accum[idx] = acc;
+}
+
+// Copy the accumulation buffer into the eye buffer.
+@compute @workgroup_size(8, 8, 1)
+fn cs_resolve(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let size = vec2<u32>(frame.viewport.xy);
+    if (gid.x >= size.x || gid.y >= size.y) {
+        return;
+    }
+    textureStore(out_tex, vec2<i32>(gid.xy), accum[gid.y * size.x + gid.x]);
+}
+
+// Sample of the current slice under a state texel (for per-slice state updates).
+fn state_texel_sample(texel: vec2<u32>, state_size: vec2<u32>) -> Evaluated {
+    let uv = (vec2<f32>(texel) + 0.5) / vec2<f32>(state_size);
+    let r = pixel_ray(uv);
+    let k = slice_info.index;
+    let t = slice_hit(r, k);
+    var e: Evaluated;
+    if (t < 0.0) {
+        e.s = make_sample(r.origin, r.dir, uv, k);
+        e.c = vec4<f32>(0.0);
+        return e;
+    }
+    return evaluate(pixel_sample(r, t, uv, k));
+}
+
+@compute @workgroup_size(8, 8, 1)
+fn cs_update_2(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let size = textureDimensions(p2_slice_shadow_state_next);
+    if (gid.x >= size.x || gid.y >= size.y) {
+        return;
+    }
+    let e = state_texel_sample(gid.xy, size);
+    textureStore(p2_slice_shadow_state_next, vec2<i32>(gid.xy), p2_slice_shadow_slice_update(e.s, e.c, e.s.uv));
+}

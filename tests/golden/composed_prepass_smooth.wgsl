@@ -1,0 +1,124 @@
+// vwb shared WGSL: core uniforms, core bindings (group 0) and the Sample record
+// that flows through the hooks clip -> sample -> classify -> shade -> composite.
+//
+// Conventions
+// - World space: the volume box is centred on the origin; its longest side is 1.
+// - `Sample.tex` is the volume texture coordinate in [0,1]^3 (texel centres at (i+0.5)/n).
+// - `Sample.value` is the scalar normalised to [0,1] over the volume's finite value range.
+// - `Sample.color` is straight (not premultiplied) RGBA; alpha is the opacity for one
+//   reference step Δs0 (one voxel). The core applies opacity correction
+//   α' = 1 − (1 − α)^(Δs/Δs0) after `shade` and premultiplies before `composite`.
+// - Textures must be read with textureSampleLevel / textureLoad (the same code runs in
+//   fragment and compute stages).
+
+struct Frame {
+    view_proj: mat4x4<f32>,
+    inv_view_proj: mat4x4<f32>,
+    // xyz: camera position; w: 1 perspective, 0 orthographic
+    eye: vec4<f32>,
+    // xyz: unit view direction (slice normal); w: slice spacing Δs in world units
+    forward: vec4<f32>,
+    // xyz: volume box min (world); w: Δs0, the world length of one voxel
+    box_min: vec4<f32>,
+    // xyz: volume box max (world); w: distance of slice 0 from the eye along `forward`
+    box_max: vec4<f32>,
+    // width, height, 1/width, 1/height of the eye buffer
+    viewport: vec4<f32>,
+    // volume dims (voxels) in xyz
+    volume_dims: vec4<f32>,
+    // data min, data max (raw units), 1/(max-min), 0
+    value_range: vec4<f32>,
+    // x: slice count, y: 1 when the eye buffer is fp16, z: 1 when early termination is on
+    counts: vec4<u32>,
+    // x: early-termination opacity threshold
+    settings: vec4<f32>,
+}
+
+struct SliceInfo {
+    index: u32,
+    pad0: u32,
+    pad1: u32,
+    pad2: u32,
+}
+
+@group(0) @binding(0) var<uniform> frame: Frame;
+@group(0) @binding(1) var volume_tex: texture_3d<f32>;
+@group(0) @binding(2) var linear_clamp: sampler;
+@group(0) @binding(3) var nearest_clamp: sampler;
+@group(0) @binding(4) var<uniform> slice_info: SliceInfo;
+
+struct Sample {
+    // world position of the sample
+    pos: vec3<f32>,
+    // volume texture coordinate in [0,1]^3
+    tex: vec3<f32>,
+    // unit direction from the eye towards the sample
+    ray_dir: vec3<f32>,
+    // screen coordinate in [0,1]^2 (y down)
+    uv: vec2<f32>,
+    // normalised scalar value (set by the core sampler, may be replaced by `sample` hooks)
+    value: f32,
+    // world distance along the ray to the next slice plane
+    step: f32,
+    // straight RGBA set by `classify` (alpha per reference step Δs0)
+    color: vec4<f32>,
+    // free for shading plugins (e.g. a gradient); zero by default
+    normal: vec3<f32>,
+    // index of the slice, front (0) to back
+    slice: u32,
+}
+
+// Scalar at a texture coordinate (trilinear).
+fn volume_value(tex: vec3<f32>) -> f32 {
+    return textureSampleLevel(volume_tex, linear_clamp, tex, 0.0).r;
+}
+
+// Scalar at an integer voxel (no filtering); clamps to the volume.
+fn volume_voxel(v: vec3<i32>) -> f32 {
+    let dims = vec3<i32>(textureDimensions(volume_tex));
+    return textureLoad(volume_tex, clamp(v, vec3<i32>(0), dims - vec3<i32>(1)), 0).r;
+}
+
+// Raw data value for a normalised value.
+fn data_value(v: f32) -> f32 {
+    return mix(frame.value_range.x, frame.value_range.y, v);
+}
+
+// Opacity correction α' = 1 − (1 − α)^(Δs/Δs0), exact at α = 0 and α = 1.
+fn correct_opacity(alpha: f32, step: f32) -> f32 {
+    let a = clamp(alpha, 0.0, 1.0);
+    if (a >= 1.0) {
+        return 1.0;
+    }
+    let ratio = step / frame.box_min.w;
+    return 1.0 - exp2(ratio * log2(1.0 - a));
+}
+struct p0_smooth_Params {
+    radius: i32,
+    amount: f32,
+}
+@group(1) @binding(0) var<uniform> p0_smooth_params: p0_smooth_Params;
+@group(1) @binding(1) var p0_smooth_smoothed: texture_storage_3d<r32float, write>;
+// test.smooth pre-pass: a (2r+1)³ box filter of the volume into `smoothed`.
+fn p0_smooth_prepass(voxel: vec3<u32>, dims: vec3<u32>) -> vec4<f32> {
+    let v = vec3<i32>(voxel);
+    let r = p0_smooth_params.radius;
+    var sum = 0.0;
+    for (var z = -r; z <= r; z = z + 1) {
+        for (var y = -r; y <= r; y = y + 1) {
+            for (var x = -r; x <= r; x = x + 1) {
+                sum = sum + volume_voxel(v + vec3<i32>(x, y, z));
+            }
+        }
+    }
+    let n = f32((2 * r + 1) * (2 * r + 1) * (2 * r + 1));
+    return vec4<f32>(sum / n, 0.0, 0.0, 1.0);
+}
+@compute @workgroup_size(4, 4, 4)
+fn prepass_main(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let dims = textureDimensions(p0_smooth_smoothed);
+    if (any(gid >= dims)) {
+        return;
+    }
+    textureStore(p0_smooth_smoothed, gid, p0_smooth_prepass(gid, dims));
+}

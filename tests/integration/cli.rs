@@ -1,0 +1,174 @@
+//! The `vwb` binary: `render` of each shipped preset, `info`, failures with a message
+//! naming the file and the cause and a non-zero exit, and VWB_SHADER_DUMP.
+
+use std::process::Command;
+
+use crate::common::*;
+use crate::presets::shipped_presets;
+
+fn vwb() -> Command {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_vwb"));
+    c.current_dir(repo());
+    c
+}
+
+fn tmp(name: &str) -> std::path::PathBuf {
+    let d = std::env::temp_dir().join(format!("vwb-cli-{}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    d.join(name)
+}
+
+#[test]
+fn render_writes_a_png_for_every_shipped_preset() {
+    gpu();
+    for preset in shipped_presets() {
+        let stem = preset.file_stem().unwrap().to_string_lossy().to_string();
+        let out = tmp(&format!("{stem}.png"));
+        let o = vwb()
+            .args(["render", "--preset"])
+            .arg(&preset)
+            .args(["--size", "96x80", "-o"])
+            .arg(&out)
+            .output()
+            .unwrap();
+        assert!(
+            o.status.success(),
+            "{stem}: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+        let img = image::open(&out).unwrap().to_rgb8();
+        assert_eq!(img.dimensions(), (96, 80));
+        let lit = img.pixels().filter(|p| p.0.iter().any(|&v| v > 40)).count();
+        assert!(
+            lit > 96 * 80 / 20,
+            "{stem}: the head is visible ({lit} lit pixels)"
+        );
+    }
+}
+
+#[test]
+fn render_timings_and_backend_override() {
+    let out = tmp("t.png");
+    let o = vwb()
+        .args([
+            "render",
+            "--preset",
+            "presets/demo.ron",
+            "--size",
+            "64x64",
+            "--backend",
+            "compute",
+            "--timings",
+            "--frames",
+            "2",
+            "-o",
+        ])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert!(stdout.contains("backend compute"), "{stdout}");
+    assert!(stdout.contains("wall_ms median"), "{stdout}");
+}
+
+#[test]
+fn failures_name_the_file_and_exit_non_zero() {
+    let bad = tmp("bad.ron");
+    std::fs::write(
+        &bad,
+        r#"(version: 1, plugins: [(id: "classify.tf1d", params: {"opacity": -3.0})])"#,
+    )
+    .unwrap();
+    let cases: Vec<(Vec<String>, String)> = vec![
+        (
+            vec![
+                "render".into(),
+                "--preset".into(),
+                bad.display().to_string(),
+                "-o".into(),
+                tmp("x.png").display().to_string(),
+            ],
+            "classify.tf1d.opacity".into(),
+        ),
+        (
+            vec![
+                "render".into(),
+                "--preset".into(),
+                "presets/missing.ron".into(),
+                "-o".into(),
+                tmp("x.png").display().to_string(),
+            ],
+            "presets/missing.ron".into(),
+        ),
+        (
+            vec![
+                "render".into(),
+                "--preset".into(),
+                "presets/demo.ron".into(),
+                "--volume".into(),
+                "Cargo.toml".into(),
+                "-o".into(),
+                tmp("x.png").display().to_string(),
+            ],
+            "Cargo.toml".into(),
+        ),
+        (
+            vec![
+                "render".into(),
+                "--preset".into(),
+                "presets/demo.ron".into(),
+                "--size".into(),
+                "0x5".into(),
+                "-o".into(),
+                tmp("x.png").display().to_string(),
+            ],
+            "size".into(),
+        ),
+    ];
+    for (args, want) in cases {
+        let o = vwb().args(&args).output().unwrap();
+        let stderr = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success(), "{args:?} succeeded");
+        assert_ne!(o.status.code(), Some(101), "{args:?} panicked: {stderr}");
+        assert!(
+            stderr.contains(&want),
+            "{args:?}: expected '{want}' in {stderr}"
+        );
+    }
+}
+
+#[test]
+fn info_lists_adapter_and_plugins() {
+    let o = vwb().arg("info").output().unwrap();
+    assert!(o.status.success());
+    let s = String::from_utf8_lossy(&o.stdout);
+    assert!(s.contains("adapter: ") && s.contains("Vulkan"), "{s}");
+    assert!(s.contains("plugin classify.tf1d"), "{s}");
+    assert!(s.contains("limit max_texture_dimension_3d"), "{s}");
+}
+
+#[test]
+fn shader_dump_writes_the_composed_wgsl() {
+    let dir = tmp("dump");
+    let o = vwb()
+        .env("VWB_SHADER_DUMP", &dir)
+        .args([
+            "render",
+            "--preset",
+            "presets/demo_smooth.ron",
+            "--size",
+            "32x32",
+            "-o",
+        ])
+        .arg(tmp("d.png"))
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let main = std::fs::read_to_string(dir.join("composed_main.wgsl")).unwrap();
+    assert!(main.contains("fn p1_tf1d_classify("));
+    assert!(
+        std::fs::read_dir(&dir).unwrap().count() >= 2,
+        "the pre-pass module is dumped too"
+    );
+}

@@ -1,0 +1,155 @@
+use std::path::{Path, PathBuf};
+use std::sync::{Arc, OnceLock};
+
+use vwb_render::plugin::{PluginInstance, Registry};
+use vwb_render::renderer::{Backend, FrameSettings};
+use vwb_render::volume::{Volume, VoxelData};
+use vwb_render::{Camera, GpuContext, Projection, Renderer, TargetFormat};
+
+pub fn repo() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+pub fn bless() -> bool {
+    std::env::var_os("VWB_BLESS").is_some()
+}
+
+/// The shared GPU context. Panics (fails the test) without a Vulkan adapter.
+pub fn gpu() -> &'static GpuContext {
+    static GPU: OnceLock<GpuContext> = OnceLock::new();
+    GPU.get_or_init(|| {
+        let g = GpuContext::new_headless().unwrap_or_else(|e| {
+            panic!("GPU tests need a Vulkan adapter (lavapipe on the CPU is fine): {e}")
+        });
+        assert_eq!(
+            g.info.backend,
+            wgpu::Backend::Vulkan,
+            "GPU tests must run on Vulkan, got {}",
+            g.describe()
+        );
+        eprintln!("GPU tests on {}", g.describe());
+        g
+    })
+}
+
+pub fn registry() -> Registry {
+    vwb_plugins::builtin_registry()
+}
+
+pub fn instance(id: &str) -> PluginInstance {
+    PluginInstance::new(registry().get(id).expect("registered"))
+}
+
+pub fn demo() -> Arc<Volume> {
+    static DEMO: OnceLock<Arc<Volume>> = OnceLock::new();
+    DEMO.get_or_init(|| Arc::new(vwb_render::volume::demo()))
+        .clone()
+}
+
+/// A volume from a function of the voxel index, f32.
+pub fn synthetic(dims: [u32; 3], f: impl Fn(u32, u32, u32) -> f32) -> Arc<Volume> {
+    let mut v = Vec::with_capacity((dims[0] * dims[1] * dims[2]) as usize);
+    for z in 0..dims[2] {
+        for y in 0..dims[1] {
+            for x in 0..dims[0] {
+                v.push(f(x, y, z));
+            }
+        }
+    }
+    Arc::new(Volume::new("synthetic", dims, 1, [1.0; 3], VoxelData::F32(v)).expect("valid volume"))
+}
+
+pub fn settings(w: u32, h: u32, backend: Backend) -> FrameSettings {
+    FrameSettings {
+        camera: Camera {
+            distance: 1.6,
+            yaw_deg: 235.0,
+            pitch_deg: -10.0,
+            roll_deg: 180.0,
+            ..Default::default()
+        },
+        width: w,
+        height: h,
+        slice_spacing: 1.0,
+        backend,
+        early_termination: None,
+    }
+}
+
+pub fn ortho_axis(w: u32, h: u32, backend: Backend) -> FrameSettings {
+    let mut camera = Camera {
+        projection: Projection::Orthographic { height: 1.2 },
+        ..Default::default()
+    };
+    camera.axis_view(2, false);
+    FrameSettings {
+        camera,
+        width: w,
+        height: h,
+        slice_spacing: 1.0,
+        backend,
+        early_termination: None,
+    }
+}
+
+/// Renders and returns premultiplied pixels.
+pub fn render(
+    r: &mut Renderer,
+    stack: &[PluginInstance],
+    target: TargetFormat,
+    s: &FrameSettings,
+) -> Vec<[f32; 4]> {
+    r.update_stack(stack, target).expect("stack composes");
+    r.render(s).expect("renders");
+    r.read_pixels().expect("pixels").2
+}
+
+/// Composites over black, in [0,1].
+pub fn rgb(px: &[[f32; 4]]) -> Vec<[f64; 3]> {
+    vwb_app::headless::composite_over(px, [0.0, 0.0, 0.0, 1.0])
+}
+
+/// RMS and max difference over all channels.
+pub fn diff(a: &[[f64; 3]], b: &[[f64; 3]]) -> (f64, f64) {
+    assert_eq!(a.len(), b.len());
+    let mut sum = 0.0;
+    let mut max = 0.0f64;
+    for (p, q) in a.iter().zip(b) {
+        for c in 0..3 {
+            let d = p[c] - q[c];
+            sum += d * d;
+            max = max.max(d.abs());
+        }
+    }
+    ((sum / (a.len() * 3) as f64).sqrt(), max)
+}
+
+pub fn mean_luma(a: &[[f64; 3]]) -> f64 {
+    a.iter().map(|p| (p[0] + p[1] + p[2]) / 3.0).sum::<f64>() / a.len() as f64
+}
+
+pub fn write_or_compare_text(path: &Path, actual: &str) {
+    if bless() || !path.exists() {
+        std::fs::create_dir_all(path.parent().unwrap()).unwrap();
+        std::fs::write(path, actual).unwrap();
+        if !bless() {
+            panic!("{} did not exist; wrote it — rerun", path.display());
+        }
+        return;
+    }
+    let expected = std::fs::read_to_string(path).unwrap();
+    if expected != actual {
+        let line = expected
+            .lines()
+            .zip(actual.lines())
+            .position(|(a, b)| a != b)
+            .map_or(
+                expected.lines().count().min(actual.lines().count()) + 1,
+                |i| i + 1,
+            );
+        panic!(
+            "{} differs from the composed output at line {line}; rerun with VWB_BLESS=1 if the change is intended",
+            path.display()
+        );
+    }
+}

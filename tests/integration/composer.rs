@@ -1,0 +1,258 @@
+//! Composer: golden output, per-instance naming, error mapping to file:line, the last
+//! good pipeline surviving a broken plugin, change tracking, device limits.
+
+use vwb_render::Renderer;
+use vwb_render::composer::{ComposeError, TargetFormat, compose};
+use vwb_render::params::{ParamSpec, ParamValue};
+use vwb_render::plugin::{Plugin, PluginInstance, ShaderSource};
+use vwb_render::renderer::{Backend, RenderError, StackChange};
+
+use crate::common::*;
+
+struct Fixture {
+    id: &'static str,
+    shader: ShaderSource,
+}
+
+impl Plugin for Fixture {
+    fn id(&self) -> &'static str {
+        self.id
+    }
+    fn display_name(&self) -> &'static str {
+        "fixture"
+    }
+    fn params(&self) -> Vec<ParamSpec> {
+        vec![ParamSpec::float("gain", "Gain", 0.0, 2.0, 1.0)]
+    }
+    fn shader(&self) -> ShaderSource {
+        self.shader.clone()
+    }
+}
+
+fn broken() -> PluginInstance {
+    PluginInstance::new(std::sync::Arc::new(Fixture {
+        id: "shade.broken_fixture",
+        shader: ShaderSource::new_static(
+            "tests/fixtures/broken_plugin.wgsl",
+            include_str!("../fixtures/broken_plugin.wgsl"),
+        ),
+    }))
+}
+
+#[test]
+fn golden_composition() {
+    let reg = registry();
+    let tf = reg.get("classify.tf1d").unwrap();
+    let smooth = reg.get("test.smooth").unwrap();
+    let shadow = reg.get("test.slice_shadow").unwrap();
+    // two instances of one plugin, plus a pre-pass and a per-slice state
+    let stack: Vec<&dyn Plugin> = vec![smooth.as_ref(), tf.as_ref(), shadow.as_ref(), tf.as_ref()];
+    let c = compose(&stack, TargetFormat::Rgba16Float, &wgpu::Limits::default()).unwrap();
+    assert!(
+        c.main.source.contains("fn p1_tf1d_classify(")
+            && c.main.source.contains("fn p3_tf1d_classify(")
+    );
+    assert!(
+        c.main
+            .source
+            .contains("    s = p1_tf1d_classify(s);\n    s = p3_tf1d_classify(s);")
+    );
+    assert!(c.main.source.contains("fn cs_update_2("));
+    // bindings are numbered once, in stack order
+    let g1: Vec<(u32, String)> = c
+        .bindings
+        .iter()
+        .filter(|b| b.group == 1)
+        .map(|b| (b.binding, b.local_name.clone()))
+        .collect();
+    assert_eq!(
+        g1,
+        vec![
+            (0, "params".into()),
+            (1, "smoothed".into()),
+            (2, "params".into()),
+            (3, "lut".into()),
+            (4, "params".into()),
+            (5, "params".into()),
+            (6, "lut".into())
+        ]
+    );
+    write_or_compare_text(
+        &repo().join("tests/golden/composed_main.wgsl"),
+        &c.main.source,
+    );
+    let pre = &c.instances[0].prepass.as_ref().unwrap().0;
+    write_or_compare_text(
+        &repo().join("tests/golden/composed_prepass_smooth.wgsl"),
+        &pre.source,
+    );
+}
+
+#[test]
+fn every_origin_line_is_mapped() {
+    let reg = registry();
+    let tf = reg.get("classify.tf1d").unwrap();
+    let c = compose(
+        &[tf.as_ref()],
+        TargetFormat::Rgba32Float,
+        &wgpu::Limits::default(),
+    )
+    .unwrap();
+    assert_eq!(c.main.source.lines().count(), c.main.origins.len());
+    // the classify hook comes from the plugin's own file and line
+    let line = c
+        .main
+        .source
+        .lines()
+        .position(|l| l.starts_with("fn p0_tf1d_classify("))
+        .unwrap() as u32
+        + 1;
+    let origin = c.main.origin(line).unwrap().to_string();
+    assert!(
+        origin.starts_with("plugins/src/classify_tf1d/tf1d.wgsl:"),
+        "{origin}"
+    );
+}
+
+#[test]
+fn broken_plugin_is_reported_at_file_line_and_old_pipeline_keeps_rendering() {
+    let gpu = gpu();
+    let mut r = Renderer::new(gpu, demo()).unwrap();
+    let s = settings(64, 64, Backend::Raster);
+    let good = vec![instance("classify.tf1d")];
+    let before = render(&mut r, &good, TargetFormat::Rgba16Float, &s);
+    assert!(
+        mean_luma(&rgb(&before)) > 0.01,
+        "the good pipeline shows something"
+    );
+
+    let mut bad = good.clone();
+    bad.push(broken());
+    let err = r.update_stack(&bad, TargetFormat::Rgba16Float).unwrap_err();
+    match &err {
+        RenderError::Compose(ComposeError::Shader {
+            file, line, plugin, ..
+        }) => {
+            assert_eq!(file, "tests/fixtures/broken_plugin.wgsl");
+            assert_eq!(*line, 7);
+            assert_eq!(plugin.as_deref(), Some("shade.broken_fixture"));
+        }
+        other => panic!("unexpected error {other}"),
+    }
+    let msg = err.to_string();
+    assert!(
+        msg.starts_with("tests/fixtures/broken_plugin.wgsl:7:"),
+        "{msg}"
+    );
+    assert!(msg.contains("undeclared_gain"), "{msg}");
+
+    // the previous pipeline is still in use
+    assert_eq!(r.active_plugins(), vec!["classify.tf1d"]);
+    r.render(&s).unwrap();
+    let after = r.read_pixels().unwrap().2;
+    assert_eq!(
+        before, after,
+        "the last good pipeline renders the same image"
+    );
+}
+
+#[test]
+fn wrong_hook_signature_names_the_function_line() {
+    let p = Fixture {
+        id: "classify.bad_signature",
+        shader: ShaderSource::new_static(
+            "fixtures/bad_signature.wgsl",
+            "// a classify hook that returns the wrong type\n\nfn classify(s: Sample) -> f32 {\n    return s.value;\n}\n",
+        ),
+    };
+    let err = compose(&[&p], TargetFormat::Rgba16Float, &wgpu::Limits::default()).unwrap_err();
+    let msg = err.to_string();
+    assert!(msg.starts_with("fixtures/bad_signature.wgsl:3:"), "{msg}");
+    assert!(
+        msg.contains("must be fn classify(Sample) -> Sample"),
+        "{msg}"
+    );
+}
+
+#[test]
+fn clash_with_shared_names_is_reported() {
+    let p = Fixture {
+        id: "shade.clash",
+        shader: ShaderSource::new_static(
+            "fixtures/clash.wgsl",
+            "fn shade(s: Sample) -> Sample { return s; }\nfn under(a: f32) -> f32 { return a; }\n",
+        ),
+    };
+    // `under` is a template function, not in common.wgsl: the per-instance prefix
+    // keeps the plugin's own `under` apart, so this composes.
+    compose(&[&p], TargetFormat::Rgba16Float, &wgpu::Limits::default()).unwrap();
+    let q = Fixture {
+        id: "shade.clash2",
+        shader: ShaderSource::new_static(
+            "fixtures/clash2.wgsl",
+            "fn shade(s: Sample) -> Sample { return s; }\n\nfn volume_value(t: vec3<f32>) -> f32 { return 0.0; }\n",
+        ),
+    };
+    let err = compose(&[&q], TargetFormat::Rgba16Float, &wgpu::Limits::default()).unwrap_err();
+    assert!(err.to_string().contains("fixtures/clash2.wgsl:"), "{err}");
+}
+
+#[test]
+fn disabled_plugins_contribute_no_code_and_changes_are_tracked() {
+    let gpu = gpu();
+    let mut r = Renderer::new(gpu, demo()).unwrap();
+    let mut stack = vec![instance("classify.tf1d"), instance("test.smooth")];
+    stack[1].enabled = false;
+    assert_eq!(
+        r.update_stack(&stack, TargetFormat::Rgba16Float).unwrap(),
+        StackChange::Recomposed
+    );
+    let wgsl = r.composed_wgsl().unwrap().to_string();
+    assert!(
+        !wgsl.contains("smooth"),
+        "a disabled plugin contributes no code"
+    );
+    assert_eq!(
+        r.update_stack(&stack, TargetFormat::Rgba16Float).unwrap(),
+        StackChange::None
+    );
+    stack[0].params.set("opacity", ParamValue::Float(0.5));
+    assert_eq!(
+        r.update_stack(&stack, TargetFormat::Rgba16Float).unwrap(),
+        StackChange::Params,
+        "a parameter change only rewrites uniforms"
+    );
+    assert_eq!(r.composed_wgsl().unwrap(), wgsl);
+    stack[1].enabled = true;
+    assert_eq!(
+        r.update_stack(&stack, TargetFormat::Rgba16Float).unwrap(),
+        StackChange::Recomposed
+    );
+    assert!(r.composed_wgsl().unwrap().contains("p1_smooth_sample"));
+    assert_eq!(
+        r.update_stack(&stack, TargetFormat::Rgba32Float).unwrap(),
+        StackChange::Recomposed,
+        "the target format is structural"
+    );
+}
+
+#[test]
+fn device_limits_are_checked() {
+    let reg = registry();
+    let tf = reg.get("classify.tf1d").unwrap();
+    let limits = wgpu::Limits {
+        max_sampled_textures_per_shader_stage: 2,
+        ..wgpu::Limits::default()
+    };
+    let stack: Vec<&dyn Plugin> = vec![tf.as_ref(), tf.as_ref()];
+    let err = compose(&stack, TargetFormat::Rgba16Float, &limits).unwrap_err();
+    assert!(matches!(err, ComposeError::Limits { .. }), "{err}");
+    assert!(err.to_string().contains("sampled textures"), "{err}");
+}
+
+#[test]
+fn duplicate_ids_are_rejected_by_the_builtin_registry() {
+    let mut reg = registry();
+    let again = reg.get("classify.tf1d").unwrap();
+    assert!(reg.register(again).is_err());
+}

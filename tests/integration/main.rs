@@ -1,0 +1,10 @@
+//! Integration tests of vwb on the CPU Vulkan device (Mesa lavapipe) or any real GPU.
+//! GPU tests fail — never skip — when no Vulkan adapter exists.
+//!
+//! `VWB_BLESS=1 cargo test --test integration` regenerates the golden files.
+
+mod cli;
+mod common;
+mod composer;
+mod presets;
+mod render;

@@ -1,0 +1,162 @@
+//! Presets: every shipped preset loads without warnings and composes (naga-valid) for
+//! both eye-buffer formats; round trips; only non-default parameters are saved;
+//! unknown keys warn; bad values fail with the path; saves are atomic.
+
+use vwb_render::composer::{TargetFormat, compose};
+use vwb_render::params::ParamValue;
+use vwb_render::plugin::Plugin;
+use vwb_render::preset::{Document, PresetError, VolumeSource, write_atomic};
+
+use crate::common::*;
+
+pub fn shipped_presets() -> Vec<std::path::PathBuf> {
+    let mut v: Vec<_> = std::fs::read_dir(repo().join("presets"))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "ron"))
+        .collect();
+    v.sort();
+    assert!(v.len() >= 5, "presets/ holds the shipped presets");
+    v
+}
+
+#[test]
+fn every_shipped_preset_loads_and_composes() {
+    let reg = registry();
+    for path in shipped_presets() {
+        let loaded = Document::load(&path, &reg).unwrap_or_else(|e| panic!("{e}"));
+        assert!(
+            loaded.warnings.is_empty(),
+            "{}: {:?}",
+            path.display(),
+            loaded.warnings
+        );
+        let doc = loaded.document;
+        if let VolumeSource::File(f) = &doc.volume {
+            assert!(
+                f.exists(),
+                "{}: volume {} missing",
+                path.display(),
+                f.display()
+            );
+        }
+        let enabled: Vec<&dyn Plugin> = doc
+            .stack
+            .iter()
+            .filter(|i| i.enabled)
+            .map(|i| i.plugin.as_ref())
+            .collect();
+        for target in [TargetFormat::Rgba16Float, TargetFormat::Rgba32Float] {
+            compose(&enabled, target, &gpu().limits)
+                .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+        }
+    }
+}
+
+#[test]
+fn round_trip_saves_only_non_default_parameters() {
+    let reg = registry();
+    let path = repo().join("presets/demo_slice_shadow.ron");
+    let doc = Document::load(&path, &reg).unwrap().document;
+    let text = doc.to_ron();
+    assert!(text.contains("strength"), "a changed parameter is saved");
+    assert!(
+        !text.contains("opacity"),
+        "a default parameter is not saved:\n{text}"
+    );
+    let again = Document::parse(&text, "roundtrip.ron", &reg).unwrap();
+    assert!(again.warnings.is_empty());
+    let d2 = again.document;
+    assert_eq!(d2.camera, doc.camera);
+    assert_eq!(d2.render, doc.render);
+    assert_eq!(d2.stack.len(), doc.stack.len());
+    for (a, b) in d2.stack.iter().zip(&doc.stack) {
+        assert_eq!(a.plugin.id(), b.plugin.id());
+        assert_eq!(a.enabled, b.enabled);
+        assert_eq!(a.params, b.params);
+    }
+}
+
+#[test]
+fn unknown_keys_warn() {
+    let reg = registry();
+    let text = r#"(version: 1, colour_mode: "x", render: (slice_spacing: 1.0, sharpness: 2.0),
+        plugins: [(id: "classify.tf1d", params: {"opacity": 0.5, "gamma": 2.0})])"#;
+    let loaded = Document::parse(text, "warn.ron", &reg).unwrap();
+    let all = loaded.warnings.join("\n");
+    assert!(all.contains("colour_mode"), "{all}");
+    assert!(all.contains("sharpness"), "{all}");
+    assert!(all.contains("classify.tf1d.gamma"), "{all}");
+    assert_eq!(
+        loaded.document.stack[0].params.get("opacity"),
+        Some(&ParamValue::Float(0.5))
+    );
+}
+
+#[test]
+fn bad_values_fail_with_their_path() {
+    let reg = registry();
+    let cases = [
+        (
+            r#"(version: 1, plugins: [(id: "classify.tf1d", params: {"opacity": 500.0})])"#,
+            "plugins[0] classify.tf1d.opacity",
+        ),
+        (
+            r#"(version: 1, plugins: [(id: "classify.tf1d", params: {"tf": (points: [(x: 0.5, color: (1,1,1,1)), (x: 0.2, color: (1,1,1,1))])})])"#,
+            "point 1",
+        ),
+        (
+            r#"(version: 1, plugins: [(id: "classify.tf1d", params: {"tf": (points: [])})])"#,
+            "no control points",
+        ),
+        (
+            r#"(version: 1, plugins: [(id: "classify.nope")])"#,
+            "plugins[0]",
+        ),
+        (r#"(version: 7)"#, "version"),
+        (
+            r#"(version: 1, render: (slice_spacing: -1.0))"#,
+            "render.slice_spacing",
+        ),
+        (r#"(version: 1, render: (size: (0, 10)))"#, "render.size"),
+        (
+            r#"(version: 1, plugins: [(id: "test.smooth", params: {"radius": 1.5})])"#,
+            "test.smooth.radius",
+        ),
+    ];
+    for (text, want) in cases {
+        let err = Document::parse(text, "bad.ron", &reg).unwrap_err();
+        let msg = err.to_string();
+        assert!(msg.starts_with("bad.ron: "), "{msg}");
+        assert!(msg.contains(want), "expected '{want}' in: {msg}");
+    }
+    // syntax errors name the file and position
+    let err = Document::parse("(version: 1, plugins: [", "syntax.ron", &reg).unwrap_err();
+    assert!(matches!(err, PresetError::Syntax { .. }));
+    assert!(err.to_string().starts_with("syntax.ron: 1:"), "{err}");
+}
+
+#[test]
+fn saves_are_atomic() {
+    let dir = std::env::temp_dir().join(format!("vwb-atomic-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("p.ron");
+    std::fs::write(&path, "old").unwrap();
+    write_atomic(&path, b"new").unwrap();
+    assert_eq!(std::fs::read_to_string(&path).unwrap(), "new");
+    // a failing save (the target is a directory) leaves no temporary file behind
+    let target_dir = dir.join("taken");
+    std::fs::create_dir_all(target_dir.join("inner")).unwrap();
+    assert!(write_atomic(&target_dir, b"x").is_err());
+    assert!(
+        target_dir.join("inner").is_dir(),
+        "the old content survives"
+    );
+    let leftovers: Vec<_> = std::fs::read_dir(&dir)
+        .unwrap()
+        .filter_map(|e| e.ok())
+        .filter(|e| e.file_name().to_string_lossy().contains(".tmp"))
+        .collect();
+    assert!(leftovers.is_empty());
+    std::fs::remove_dir_all(&dir).ok();
+}

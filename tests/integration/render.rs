@@ -1,0 +1,355 @@
+//! Renders on the Vulkan device: both backends agree, checked-in reference images,
+//! per-slice state against its closed form, pre-passes fill every z slice and rerun
+//! only when needed, and the edge cases (camera inside, NaN voxels, early termination).
+
+use std::path::Path;
+
+use vwb_plugins::test_slice_shadow::homogeneous;
+use vwb_plugins::test_smooth::SmoothTwin;
+use vwb_render::Renderer;
+use vwb_render::TargetFormat;
+use vwb_render::params::ParamValue;
+use vwb_render::plugin::CpuContext;
+use vwb_render::preset::Document;
+use vwb_render::renderer::Backend;
+use vwb_render::tf::{TfCurve, TfPoint};
+
+use crate::common::*;
+
+const ONE_LEVEL: f64 = 1.0 / 255.0;
+
+#[test]
+fn raster_and_compute_agree_on_the_demo() {
+    let mut r = Renderer::new(gpu(), demo()).unwrap();
+    let stack = Document::load(&repo().join("presets/demo.ron"), &registry())
+        .unwrap()
+        .document
+        .stack;
+    for target in [TargetFormat::Rgba16Float, TargetFormat::Rgba32Float] {
+        let a = rgb(&render(
+            &mut r,
+            &stack,
+            target,
+            &settings(128, 128, Backend::Raster),
+        ));
+        let b = rgb(&render(
+            &mut r,
+            &stack,
+            target,
+            &settings(128, 128, Backend::Compute),
+        ));
+        let (rms, max) = diff(&a, &b);
+        eprintln!(
+            "{target:?}: raster vs compute RMS {:.5} ({:.3} levels), max {max:.4}",
+            rms,
+            rms / ONE_LEVEL
+        );
+        assert!(mean_luma(&a) > 0.05, "the head is visible");
+        assert!(rms < ONE_LEVEL, "{target:?}: RMS {rms} ≥ 1/255");
+    }
+}
+
+fn png_rgb(path: &Path) -> Vec<[f64; 3]> {
+    let img = image::open(path)
+        .unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+        .to_rgb8();
+    img.pixels()
+        .map(|p| p.0.map(|v| v as f64 / 255.0))
+        .collect()
+}
+
+/// Renders a preset at 128² and compares with tests/reference_images/<name>.png.
+/// Tolerance: RMS < 1.5/255 and max < 32/255 — lavapipe reproduces the images to the
+/// bit; real GPUs filter with fewer bits of weight precision (about 8 on NVIDIA).
+fn check_reference(preset: &str, name: &str, backend: Backend) {
+    let loaded = Document::load(&repo().join("presets").join(preset), &registry()).unwrap();
+    let doc = loaded.document;
+    let volume = vwb_app::headless::load_volume(&doc.volume).unwrap();
+    let mut r = Renderer::new(gpu(), volume).unwrap();
+    let mut s = doc.frame_settings();
+    s.width = 128;
+    s.height = 128;
+    s.backend = backend;
+    let (img, _, _) = {
+        r.update_stack(&doc.stack, doc.render.target).unwrap();
+        vwb_app::headless::render_image(&mut r, &s, doc.render.background).unwrap()
+    };
+    let path = repo()
+        .join("tests/reference_images")
+        .join(format!("{name}.png"));
+    if bless() || !path.exists() {
+        vwb_app::headless::save_png(&img, &path).unwrap();
+        assert!(
+            bless(),
+            "{} did not exist; wrote it — rerun",
+            path.display()
+        );
+        return;
+    }
+    let want = png_rgb(&path);
+    let got: Vec<[f64; 3]> = img
+        .pixels()
+        .map(|p| p.0.map(|v| v as f64 / 255.0))
+        .collect();
+    let (rms, max) = diff(&want, &got);
+    eprintln!(
+        "{name}: RMS {:.3} levels, max {:.0} levels",
+        rms / ONE_LEVEL,
+        max / ONE_LEVEL
+    );
+    assert!(
+        rms < 1.5 * ONE_LEVEL,
+        "{name}: RMS {} levels",
+        rms / ONE_LEVEL
+    );
+    assert!(
+        max < 32.0 * ONE_LEVEL,
+        "{name}: max {} levels",
+        max / ONE_LEVEL
+    );
+}
+
+#[test]
+fn reference_image_demo_raster() {
+    check_reference("demo.ron", "demo_raster", Backend::Raster);
+}
+
+#[test]
+fn reference_image_demo_compute() {
+    check_reference("demo_compute.ron", "demo_compute", Backend::Compute);
+}
+
+#[test]
+fn reference_image_demo_slice_shadow() {
+    check_reference(
+        "demo_slice_shadow.ron",
+        "demo_slice_shadow",
+        Backend::Raster,
+    );
+}
+
+#[test]
+fn reference_image_ct_head() {
+    check_reference("ct_head.ron", "ct_head", Backend::Raster);
+}
+
+fn flat_tf(c: f32, a: f32) -> ParamValue {
+    ParamValue::Tf(TfCurve::new(vec![
+        TfPoint {
+            x: 0.0,
+            color: [c, c, c, a],
+        },
+        TfPoint {
+            x: 1.0,
+            color: [c, c, c, a],
+        },
+    ]))
+}
+
+#[test]
+fn per_slice_state_matches_its_closed_form_on_both_backends() {
+    // homogeneous medium: every sample has colour c and opacity a
+    let vol = synthetic(
+        [32, 32, 32],
+        |x, y, z| if x + y + z == 0 { 0.0 } else { 1.0 },
+    );
+    let mut r = Renderer::new(gpu(), vol).unwrap();
+    let mut tf = instance("classify.tf1d");
+    let (c, a) = (0.8, 0.05);
+    tf.params.set("tf", flat_tf(c, a));
+    let mut shadow = instance("test.slice_shadow");
+    shadow.params.set("strength", ParamValue::Float(1.0));
+    let stack = vec![tf.clone(), shadow.clone()];
+    let s = ortho_axis(32, 32, Backend::Raster);
+    let n = r.plan(&s).unwrap().count;
+    let (want_c, want_a) = homogeneous(c as f64, a as f64, n, 1.0);
+    let mut images = Vec::new();
+    for backend in [Backend::Raster, Backend::Compute] {
+        let s = ortho_axis(32, 32, backend);
+        r.update_stack(&stack, TargetFormat::Rgba32Float).unwrap();
+        let stats = r.render(&s).unwrap();
+        assert!(stats.per_slice_mode);
+        let px = r.read_pixels().unwrap().2;
+        let centre = px[16 * 32 + 16];
+        eprintln!(
+            "{backend:?}: centre {centre:?}, closed form ({want_c:.5}, {want_a:.5}), {n} slices"
+        );
+        assert!(
+            (centre[0] as f64 - want_c).abs() < 2e-3,
+            "{backend:?} colour"
+        );
+        assert!(
+            (centre[3] as f64 - want_a).abs() < 2e-3,
+            "{backend:?} alpha"
+        );
+        images.push(rgb(&px));
+    }
+    let (rms, _) = diff(&images[0], &images[1]);
+    assert!(rms < ONE_LEVEL, "per-slice raster vs compute RMS {rms}");
+
+    // strength 0 equals the image without the plugin
+    let mut off = shadow.clone();
+    off.params.set("strength", ParamValue::Float(0.0));
+    let with = rgb(&render(
+        &mut r,
+        &[tf.clone(), off],
+        TargetFormat::Rgba32Float,
+        &s,
+    ));
+    let without = rgb(&render(&mut r, &[tf], TargetFormat::Rgba32Float, &s));
+    let (rms, max) = diff(&with, &without);
+    assert!(
+        max < 1e-5,
+        "strength 0 changes the image: rms {rms} max {max}"
+    );
+}
+
+#[test]
+fn prepass_fills_every_z_slice_and_reruns_only_when_needed() {
+    // values vary along z so that a pre-pass writing only z = 0 (wgpu's GL bug) fails
+    let dims = [12, 10, 9];
+    let vol = synthetic(dims, |x, y, z| {
+        (x as f32 * 0.5 + y as f32 * 0.25 + z as f32 * 3.0).sin()
+    });
+    let mut r = Renderer::new(gpu(), vol.clone()).unwrap();
+    let mut smooth = instance("test.smooth");
+    smooth.params.set("radius", ParamValue::Int(0));
+    let mut stack = vec![smooth, instance("classify.tf1d")];
+    r.update_stack(&stack, TargetFormat::Rgba16Float).unwrap();
+    let s = ortho_axis(16, 16, Backend::Compute);
+    assert_eq!(r.render(&s).unwrap().prepasses_run, 1);
+    assert_eq!(r.render(&s).unwrap().prepasses_run, 0, "nothing changed");
+    let scalars = vol.normalized_scalars();
+    let (pdims, texels) = r.read_prepass(stack[0].uid).unwrap();
+    assert_eq!(pdims, dims);
+    for (i, v) in scalars.iter().enumerate() {
+        assert!(
+            (texels[i] - v).abs() < 1e-6,
+            "texel {i} (z = {}) not written",
+            i / 120
+        );
+    }
+    // `amount` is not a pre-pass input
+    stack[0].params.set("amount", ParamValue::Float(0.5));
+    r.update_stack(&stack, TargetFormat::Rgba16Float).unwrap();
+    assert_eq!(r.render(&s).unwrap().prepasses_run, 0);
+    // `radius` is
+    stack[0].params.set("radius", ParamValue::Int(1));
+    r.update_stack(&stack, TargetFormat::Rgba16Float).unwrap();
+    assert_eq!(r.render(&s).unwrap().prepasses_run, 1);
+    let (_, texels) = r.read_prepass(stack[0].uid).unwrap();
+    let twin = SmoothTwin {
+        radius: 1,
+        amount: 1.0,
+    };
+    let ctx = CpuContext {
+        volume: &vol,
+        scalars: &scalars,
+    };
+    for z in 0..dims[2] {
+        for y in [0, 4, 9] {
+            for x in [0, 5, 11] {
+                let want = twin.smoothed_voxel(&ctx, [x as i64, y as i64, z as i64]);
+                let got = texels[((z * dims[1] + y) * dims[0] + x) as usize] as f64;
+                assert!((got - want).abs() < 1e-5, "({x},{y},{z}): {got} vs {want}");
+            }
+        }
+    }
+}
+
+#[test]
+fn camera_inside_the_volume_renders_on_both_backends() {
+    let mut r = Renderer::new(gpu(), demo()).unwrap();
+    let stack = vec![instance("classify.tf1d")];
+    let mut images = Vec::new();
+    for backend in [Backend::Raster, Backend::Compute] {
+        let mut s = settings(64, 64, backend);
+        s.camera.distance = 0.15;
+        let px = render(&mut r, &stack, TargetFormat::Rgba32Float, &s);
+        assert!(px.iter().all(|p| p.iter().all(|v| v.is_finite())));
+        let img = rgb(&px);
+        assert!(
+            mean_luma(&img) > 0.01,
+            "{backend:?}: inside view is not empty"
+        );
+        images.push(img);
+    }
+    let (rms, _) = diff(&images[0], &images[1]);
+    assert!(rms < ONE_LEVEL, "inside: raster vs compute RMS {rms}");
+}
+
+#[test]
+fn nan_and_inf_voxels_give_finite_images() {
+    let vol = synthetic([16, 16, 16], |x, y, z| match (x + y + z) % 7 {
+        0 => f32::NAN,
+        1 => f32::INFINITY,
+        2 => f32::NEG_INFINITY,
+        _ => (x * y + z) as f32,
+    });
+    assert!(vol.non_finite > 0);
+    let mut r = Renderer::new(gpu(), vol).unwrap();
+    for backend in [Backend::Raster, Backend::Compute] {
+        let px = render(
+            &mut r,
+            &[instance("classify.tf1d")],
+            TargetFormat::Rgba16Float,
+            &settings(32, 32, backend),
+        );
+        assert!(
+            px.iter().all(|p| p.iter().all(|v| v.is_finite())),
+            "{backend:?}"
+        );
+    }
+}
+
+#[test]
+fn early_termination_stops_opaque_rays_without_visible_change() {
+    let mut r = Renderer::new(gpu(), demo()).unwrap();
+    let mut tf = instance("classify.tf1d");
+    tf.params.set("opacity", ParamValue::Float(8.0));
+    let stack = vec![tf];
+    let mut s = settings(64, 64, Backend::Compute);
+    let full = rgb(&render(&mut r, &stack, TargetFormat::Rgba32Float, &s));
+    s.early_termination = Some(0.995);
+    let early = rgb(&render(&mut r, &stack, TargetFormat::Rgba32Float, &s));
+    let (rms, max) = diff(&full, &early);
+    assert!(max < 0.006, "early termination changed a pixel by {max}");
+    assert!(rms < ONE_LEVEL);
+}
+
+#[test]
+fn orthographic_and_perspective_both_render() {
+    let mut r = Renderer::new(gpu(), demo()).unwrap();
+    let stack = vec![instance("classify.tf1d")];
+    let ortho = rgb(&render(
+        &mut r,
+        &stack,
+        TargetFormat::Rgba16Float,
+        &ortho_axis(48, 48, Backend::Raster),
+    ));
+    let persp = rgb(&render(
+        &mut r,
+        &stack,
+        TargetFormat::Rgba16Float,
+        &settings(48, 48, Backend::Raster),
+    ));
+    assert!(mean_luma(&ortho) > 0.01 && mean_luma(&persp) > 0.01);
+    assert!(
+        diff(&ortho, &persp).0 > 0.01,
+        "different cameras give different images"
+    );
+}
+
+#[test]
+fn bad_sizes_and_spacings_are_errors_not_panics() {
+    let mut r = Renderer::new(gpu(), demo()).unwrap();
+    r.update_stack(&[instance("classify.tf1d")], TargetFormat::Rgba16Float)
+        .unwrap();
+    let mut s = settings(0, 10, Backend::Raster);
+    assert!(r.render(&s).is_err());
+    s.width = 10;
+    s.slice_spacing = 0.0;
+    assert!(r.render(&s).is_err());
+    s.slice_spacing = 1e-6;
+    assert!(r.render(&s).unwrap_err().to_string().contains("slices"));
+}
