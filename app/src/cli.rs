@@ -10,6 +10,8 @@ use vwb_render::renderer::Backend;
 use vwb_render::{GpuContext, TargetFormat};
 
 use crate::headless;
+use crate::measure::{self, Against};
+use vwb_render::reference::DEFAULT_TOLERANCE_DELTA_E;
 
 #[derive(Debug, Parser)]
 #[command(
@@ -35,12 +37,25 @@ pub struct Cli {
 pub enum Command {
     /// Render a preset headless to a PNG.
     Render(RenderArgs),
+    /// Render a preset on the GPU and compare it with the CPU reference, the converged
+    /// reference or another preset: writes image.png, against.png, heatmap.png and
+    /// metrics.json into the output folder.
+    Compare(CompareArgs),
+    /// Time a preset per pass and per plugin (ablation) and list GPU memory per plugin.
+    Bench(BenchArgs),
+    /// Sweep parameters over a grid; time every point and measure its error against the
+    /// converged reference; write sweep.csv, the images and a Pareto plot.
+    Sweep(SweepArgs),
+    /// Print the scene (volume, camera, classification, slices) as JSON for peer
+    /// renderers such as bench/vtk_peer.py.
+    Scene(SceneArgs),
     /// Print the adapter, its limits and the registered plugin ids.
     Info,
 }
 
-#[derive(Debug, clap::Args)]
-pub struct RenderArgs {
+/// Overrides of the preset's volume and frame settings, shared by the subcommands.
+#[derive(Debug, Clone, Default, clap::Args)]
+pub struct FrameArgs {
     /// Volume file overriding the preset's (NRRD).
     #[arg(long)]
     pub volume: Option<PathBuf>,
@@ -56,6 +71,36 @@ pub struct RenderArgs {
     /// Slice spacing in voxels overriding the preset's.
     #[arg(long)]
     pub spacing: Option<f32>,
+}
+
+impl FrameArgs {
+    pub fn apply(&self, doc: &mut Document) -> Result<()> {
+        if let Some(v) = &self.volume {
+            doc.volume = VolumeSource::File(v.clone());
+        }
+        if let Some(s) = self.size {
+            doc.render.size = s;
+        }
+        if let Some(b) = self.backend {
+            doc.render.backend = b;
+        }
+        if let Some(t) = self.target {
+            doc.render.target = t;
+        }
+        if let Some(s) = self.spacing {
+            if !(s.is_finite() && s > 0.0) {
+                bail!("--spacing must be a number > 0, got {s}");
+            }
+            doc.render.slice_spacing = s;
+        }
+        Ok(())
+    }
+}
+
+#[derive(Debug, clap::Args)]
+pub struct RenderArgs {
+    #[command(flatten)]
+    pub frame: FrameArgs,
     /// Print per-frame timings (median of --frames after warm-up).
     #[arg(long)]
     pub timings: bool,
@@ -65,6 +110,66 @@ pub struct RenderArgs {
     /// Output PNG.
     #[arg(short, long)]
     pub output: PathBuf,
+}
+
+#[derive(Debug, clap::Args)]
+pub struct CompareArgs {
+    #[command(flatten)]
+    pub frame: FrameArgs,
+    /// reference (CPU twins, same slices), converged (CPU, refined until stable) or a
+    /// preset file (rendered on the GPU at the same size).
+    #[arg(long, default_value = "reference")]
+    pub against: Against,
+    /// Convergence tolerance of the converged reference (RMS ΔE*uv between halvings).
+    #[arg(long, default_value_t = DEFAULT_TOLERANCE_DELTA_E)]
+    pub tolerance: f64,
+    /// Frames to time.
+    #[arg(long, default_value_t = 5)]
+    pub frames: u32,
+    /// Output folder.
+    #[arg(short, long)]
+    pub output: PathBuf,
+}
+
+#[derive(Debug, clap::Args)]
+pub struct BenchArgs {
+    #[command(flatten)]
+    pub frame: FrameArgs,
+    /// Timed frames per measurement.
+    #[arg(long, default_value_t = 20)]
+    pub frames: u32,
+    /// Untimed warm-up frames per measurement.
+    #[arg(long, default_value_t = 3)]
+    pub warmup: u32,
+    /// Output CSV.
+    #[arg(short, long)]
+    pub output: PathBuf,
+}
+
+#[derive(Debug, clap::Args)]
+pub struct SweepArgs {
+    #[command(flatten)]
+    pub frame: FrameArgs,
+    /// NAME=A..B:N (N values, append :log for geometric spacing) or NAME=a,b,c; NAME is
+    /// render.slice_spacing or <plugin id>.<key>, e.g. classify.tf1d.opacity. Repeat
+    /// for a grid.
+    #[arg(long = "param", required = true)]
+    pub params: Vec<String>,
+    /// Timed frames per point.
+    #[arg(long, default_value_t = 5)]
+    pub frames: u32,
+    /// Convergence tolerance of the references (RMS ΔE*uv between halvings).
+    #[arg(long, default_value_t = DEFAULT_TOLERANCE_DELTA_E)]
+    pub tolerance: f64,
+    /// Output folder.
+    #[arg(short, long)]
+    pub output: PathBuf,
+}
+
+#[derive(Debug, clap::Args)]
+pub struct SceneArgs {
+    #[command(flatten)]
+    pub frame: FrameArgs,
 }
 
 pub fn parse_size(s: &str) -> Result<[u32; 2], String> {
@@ -107,21 +212,7 @@ pub fn run_render(preset: Option<&std::path::Path>, a: &RenderArgs) -> Result<()
         bail!("vwb render needs --preset P.ron");
     };
     let mut doc = load_document(Some(preset))?;
-    if let Some(v) = &a.volume {
-        doc.volume = VolumeSource::File(v.clone());
-    }
-    if let Some(s) = a.size {
-        doc.render.size = s;
-    }
-    if let Some(b) = a.backend {
-        doc.render.backend = b;
-    }
-    if let Some(t) = a.target {
-        doc.render.target = t;
-    }
-    if let Some(s) = a.spacing {
-        doc.render.slice_spacing = s;
-    }
+    a.frame.apply(&mut doc)?;
     let volume = headless::load_volume(&doc.volume)?;
     let gpu = GpuContext::new_headless()?;
     eprintln!("adapter: {}", gpu.describe());
@@ -141,45 +232,17 @@ pub fn run_render(preset: Option<&std::path::Path>, a: &RenderArgs) -> Result<()
         volume.dims
     );
     if a.timings {
-        let frames = a.frames.max(1);
-        // warm-up
-        for _ in 0..2 {
-            r.render(&settings)?;
-        }
-        let mut gpu_ms = Vec::new();
-        let mut wall_ms = Vec::new();
-        let mut passes: std::collections::BTreeMap<String, Vec<f64>> = Default::default();
-        for _ in 0..frames {
-            let s = r.render(&settings)?;
-            wall_ms.push(s.wall_ms);
-            if let Some(g) = s.gpu_ms {
-                gpu_ms.push(g);
-            }
-            for (name, ms) in s.gpu_passes {
-                passes.entry(name).or_default().push(ms);
-            }
-        }
-        let (wm, wmin, wmax) = headless::summarize(&wall_ms);
+        let t = measure::time_frames(&mut r, &settings, 2, a.frames)?;
         println!(
             "timings: {} frames after 2 warm-up, {}x{}, {} slices, backend {}, adapter {}",
-            frames,
+            t.frames,
             settings.width,
             settings.height,
-            first.slices,
+            t.slices,
             settings.backend.name(),
             gpu.info.name
         );
-        println!("wall_ms median {wm:.3} min {wmin:.3} max {wmax:.3}");
-        if gpu_ms.is_empty() {
-            println!("gpu_ms unavailable (adapter lacks timestamp queries; wall time above)");
-        } else {
-            let (gm, gmin, gmax) = headless::summarize(&gpu_ms);
-            println!("gpu_ms median {gm:.3} min {gmin:.3} max {gmax:.3}");
-            for (name, v) in passes {
-                let (m, lo, hi) = headless::summarize(&v);
-                println!("pass {name} median {m:.3} min {lo:.3} max {hi:.3}");
-            }
-        }
+        measure::print_timing(&t);
     }
     Ok(())
 }
@@ -234,5 +297,90 @@ pub fn run_info() -> Result<()> {
     for p in registry.plugins() {
         println!("plugin {} ({})", p.id(), p.display_name());
     }
+    Ok(())
+}
+
+/// The preset of a measurement command with the frame overrides applied.
+fn preset_document(
+    preset: Option<&std::path::Path>,
+    frame: &FrameArgs,
+    cmd: &str,
+) -> Result<(PathBuf, Document)> {
+    let Some(preset) = preset else {
+        bail!("vwb {cmd} needs --preset P.ron");
+    };
+    let mut doc = load_document(Some(preset))?;
+    frame.apply(&mut doc)?;
+    Ok((preset.to_path_buf(), doc))
+}
+
+pub fn run_compare(preset: Option<&std::path::Path>, a: &CompareArgs) -> Result<()> {
+    let (path, doc) = preset_document(preset, &a.frame, "compare")?;
+    let m = measure::run_compare(&path, &doc, &a.against, &a.output, a.frames, a.tolerance)?;
+    println!(
+        "RMS ΔE*uv {:.4}  mean {:.4}  max {:.3}  >6: {:.3}%  PSNR {:.2} dB  SSIM {:.5}",
+        m.rms_delta_e,
+        m.mean_delta_e,
+        m.max_delta_e,
+        m.share_above_6 * 100.0,
+        m.psnr_db,
+        m.ssim
+    );
+    eprintln!(
+        "wrote {}/{{image,against,heatmap}}.png and metrics.json",
+        a.output.display()
+    );
+    Ok(())
+}
+
+pub fn run_bench(preset: Option<&std::path::Path>, a: &BenchArgs) -> Result<()> {
+    let (_, doc) = preset_document(preset, &a.frame, "bench")?;
+    let volume = headless::load_volume(&doc.volume)?;
+    let gpu = GpuContext::new_headless()?;
+    eprintln!("adapter: {}", gpu.describe());
+    let rows = measure::bench_document(&gpu, &doc, volume, a.warmup, a.frames)?;
+    let mut csv = String::from(measure::BENCH_CSV_HEADER);
+    csv.push('\n');
+    for row in &rows {
+        println!("{}", row.csv());
+        csv.push_str(&row.csv());
+        csv.push('\n');
+    }
+    measure::save_text(&a.output, &csv)?;
+    eprintln!("wrote {}", a.output.display());
+    Ok(())
+}
+
+pub fn run_sweep(preset: Option<&std::path::Path>, a: &SweepArgs) -> Result<()> {
+    let (_, doc) = preset_document(preset, &a.frame, "sweep")?;
+    let axes = a
+        .params
+        .iter()
+        .map(|p| measure::parse_axis(p, &doc))
+        .collect::<Result<Vec<_>>>()?;
+    let points = measure::run_sweep(&doc, &axes, &a.output, a.frames, a.tolerance)?;
+    for p in &points {
+        println!(
+            "{:?}: {} slices, {:.3} {} ms, RMS ΔE*uv {:.4}{}",
+            p.values,
+            p.slices,
+            p.ms,
+            p.clock,
+            p.metrics.rms_delta_e,
+            if p.pareto { "  (Pareto front)" } else { "" }
+        );
+    }
+    eprintln!(
+        "wrote {}/sweep.csv, pareto.svg, sweep.json and the images",
+        a.output.display()
+    );
+    Ok(())
+}
+
+pub fn run_scene(preset: Option<&std::path::Path>, a: &SceneArgs) -> Result<()> {
+    let (path, doc) = preset_document(preset, &a.frame, "scene")?;
+    let volume = headless::load_volume(&doc.volume)?;
+    let json = measure::scene_json(&doc, &volume, &path);
+    println!("{}", serde_json::to_string_pretty(&json)?);
     Ok(())
 }

@@ -5,6 +5,7 @@ use std::path::Path;
 use std::sync::Arc;
 
 use anyhow::{Context, Result, bail};
+use vwb_render::metrics::RgbImageF;
 use vwb_render::preset::{Document, VolumeSource};
 use vwb_render::renderer::{FrameSettings, FrameStats};
 use vwb_render::{GpuContext, Renderer, Volume};
@@ -29,31 +30,16 @@ pub fn renderer_for(gpu: &GpuContext, doc: &Document, volume: Arc<Volume>) -> Re
     Ok(r)
 }
 
-/// Premultiplied RGBA composited over an opaque background: C + (1 − A)·bg, clamped.
+/// Premultiplied RGBA composited over an opaque background: C + (1 − A)·bg, clamped
+/// (the convention of `vwb_render::metrics`).
 pub fn composite_over(pixels: &[[f32; 4]], background: [f32; 4]) -> Vec<[f64; 3]> {
-    pixels
-        .iter()
-        .map(|p| {
-            let a = p[3].clamp(0.0, 1.0) as f64;
-            std::array::from_fn(|c| {
-                let v = p[c] as f64 + (1.0 - a) * background[c] as f64;
-                if v.is_finite() {
-                    v.clamp(0.0, 1.0)
-                } else {
-                    0.0
-                }
-            })
-        })
-        .collect()
+    let bg = std::array::from_fn(|i| background[i] as f64);
+    RgbImageF::from_rgba_f32_premultiplied_over(pixels, pixels.len() as u32, 1, bg).pixels
 }
 
 /// 8-bit RGB image of composited pixels.
 pub fn to_image(w: u32, h: u32, rgb: &[[f64; 3]]) -> image::RgbImage {
-    let mut img = image::RgbImage::new(w, h);
-    for (px, c) in img.pixels_mut().zip(rgb) {
-        *px = image::Rgb(c.map(|v| (v * 255.0).round() as u8));
-    }
-    img
+    RgbImageF::new(w, h, rgb.to_vec()).to_rgb8()
 }
 
 /// Writes a PNG atomically (the old file survives a failure).
@@ -80,20 +66,4 @@ pub fn render_image(
     };
     let img = to_image(w, h, &composite_over(&px, background));
     Ok((img, px, stats))
-}
-
-/// Median, min and max of a list of milliseconds.
-pub fn summarize(ms: &[f64]) -> (f64, f64, f64) {
-    let mut v: Vec<f64> = ms.iter().copied().filter(|x| x.is_finite()).collect();
-    if v.is_empty() {
-        return (f64::NAN, f64::NAN, f64::NAN);
-    }
-    v.sort_by(f64::total_cmp);
-    let mid = v.len() / 2;
-    let median = if v.len() % 2 == 1 {
-        v[mid]
-    } else {
-        0.5 * (v[mid - 1] + v[mid])
-    };
-    (median, v[0], v[v.len() - 1])
 }

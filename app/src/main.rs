@@ -1,11 +1,17 @@
 use clap::Parser;
-use vwb_app::cli::{Cli, Command, run_info, run_render};
+use vwb_app::cli::{
+    Cli, Command, run_bench, run_compare, run_info, run_render, run_scene, run_sweep,
+};
 
 fn main() {
     env_logger::Builder::from_env(env_logger::Env::default().default_filter_or("warn")).init();
     let cli = Cli::parse();
     let result = match &cli.command {
         Some(Command::Render(a)) => run_render(cli.preset.as_deref(), a),
+        Some(Command::Compare(a)) => run_compare(cli.preset.as_deref(), a),
+        Some(Command::Bench(a)) => run_bench(cli.preset.as_deref(), a),
+        Some(Command::Sweep(a)) => run_sweep(cli.preset.as_deref(), a),
+        Some(Command::Scene(a)) => run_scene(cli.preset.as_deref(), a),
         Some(Command::Info) => run_info(),
         None => vwb_app::window::run(&cli),
     };

@@ -4,9 +4,11 @@
 pub mod camera;
 pub mod composer;
 pub mod gpu;
+pub mod metrics;
 pub mod params;
 pub mod plugin;
 pub mod preset;
+pub mod reference;
 pub mod renderer;
 pub mod slicing;
 pub mod tf;

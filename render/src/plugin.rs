@@ -212,14 +212,68 @@ pub struct CpuSample {
     pub slice: u32,
 }
 
-/// What CPU twins can read: the volume and its normalised scalars.
+/// What CPU twins can read: the volume, its normalised scalars and, for a plugin with
+/// per-slice state, its state of the previous slice.
+#[derive(Clone, Copy)]
 pub struct CpuContext<'a> {
     pub volume: &'a Volume,
     /// Normalised scalars in [0,1], x fastest (as uploaded to the GPU).
     pub scalars: &'a [f32],
+    /// The plugin's state of the previous slice (`state_prev`), if it has one.
+    pub state: Option<&'a StateImage>,
 }
 
-impl CpuContext<'_> {
+/// A per-slice state image on the CPU (the twin of a `state_prev` texture).
+#[derive(Debug, Clone, PartialEq)]
+pub struct StateImage {
+    pub width: u32,
+    pub height: u32,
+    pub texels: Vec<DVec4>,
+}
+
+impl StateImage {
+    pub fn new(width: u32, height: u32, clear: DVec4) -> Self {
+        Self {
+            width,
+            height,
+            texels: vec![clear; width as usize * height as usize],
+        }
+    }
+
+    /// Bilinear read at `uv` with texel centres at (i + 0.5)/n and clamp-to-edge, as
+    /// `textureSampleLevel(state_prev, linear_clamp, uv, 0.0)`.
+    pub fn sample(&self, uv: DVec2) -> DVec4 {
+        let (w, h) = (self.width.max(1) as f64, self.height.max(1) as f64);
+        let x = (uv.x * w - 0.5).clamp(0.0, w - 1.0);
+        let y = (uv.y * h - 0.5).clamp(0.0, h - 1.0);
+        if !(x.is_finite() && y.is_finite()) {
+            return self.texels[0];
+        }
+        let (x0, y0) = (x.floor() as usize, y.floor() as usize);
+        let x1 = (x0 + 1).min(self.width as usize - 1);
+        let y1 = (y0 + 1).min(self.height as usize - 1);
+        let (fx, fy) = (x - x0 as f64, y - y0 as f64);
+        let at = |x: usize, y: usize| self.texels[y * self.width as usize + x];
+        let top = at(x0, y0).lerp(at(x1, y0), fx);
+        let bottom = at(x0, y1).lerp(at(x1, y1), fx);
+        top.lerp(bottom, fy)
+    }
+}
+
+impl<'a> CpuContext<'a> {
+    pub fn new(volume: &'a Volume, scalars: &'a [f32]) -> Self {
+        Self {
+            volume,
+            scalars,
+            state: None,
+        }
+    }
+
+    /// The previous slice's state at `uv` (zero for a plugin without state).
+    pub fn state_prev(&self, uv: DVec2) -> DVec4 {
+        self.state.map_or(DVec4::ZERO, |s| s.sample(uv))
+    }
+
     /// Trilinear interpolation at a texture coordinate, with texel centres at
     /// (i + 0.5)/n and clamp-to-edge, as the GPU sampler does.
     pub fn value(&self, tex: DVec3) -> f64 {
@@ -257,6 +311,12 @@ pub trait CpuTwin: Send + Sync {
     fn classify(&self, _s: &mut CpuSample) {}
     fn shade(&self, _ctx: &CpuContext, _s: &mut CpuSample) {}
     fn composite(&self, _s: &CpuSample, _c: &mut DVec4) {}
+    /// The next state texel (plugins with per-slice state): `s` is the shaded sample of
+    /// the current slice under the texel, `c` its premultiplied contribution, `uv` the
+    /// texel centre; `ctx.state_prev` reads the previous state.
+    fn slice_update(&self, _ctx: &CpuContext, _s: &CpuSample, _c: DVec4, _uv: DVec2) -> DVec4 {
+        DVec4::ZERO
+    }
 }
 
 /// A plugin type. Instances (with their own parameter values) live in a stack.

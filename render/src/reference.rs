@@ -33,9 +33,13 @@
 //! maps NaN to the lower bound on common hardware), and a non-finite ray parameter
 //! (a ray parallel to the slices) drops the sample instead of passing NaNs on.
 //!
-//! Plugins take part through their [`CpuTwin`]s. A plugin with per-slice state
-//! ([`Plugin::slice_state`](crate::plugin::Plugin::slice_state)) depends on the
-//! previous slice's image and is not supported here.
+//! Plugins take part through their [`CpuTwin`]s. When a plugin has per-slice state
+//! ([`Plugin::slice_state`](crate::plugin::Plugin::slice_state)) the frame is rendered
+//! slice by slice, like the GPU's per-slice mode: every pixel's sample of slice k
+//! (its twin reading the previous state through [`CpuContext::state_prev`]), then every
+//! state texel's [`CpuTwin::slice_update`] from the sample under its centre (no
+//! contribution where the ray misses slice k), the new state rounded to the declared
+//! storage format (fp16 for rgba16float).
 
 use std::ops::Range;
 use std::sync::Arc;
@@ -45,7 +49,9 @@ use glam::{DMat4, DVec2, DVec3, DVec4};
 use rayon::prelude::*;
 
 use crate::metrics::{RgbImageF, compare};
-use crate::plugin::{CpuContext, CpuSample, CpuTwin, PluginInstance};
+use crate::plugin::{
+    CpuContext, CpuSample, CpuTwin, PluginInstance, SliceStateDecl, StateImage, StorageFormat,
+};
 use crate::renderer::{Backend, FrameSettings};
 use crate::slicing::{SliceError, SlicePlan, VolumeBox};
 use crate::volume::Volume;
@@ -70,8 +76,6 @@ const RGB_MAX: f64 = 1.0e6;
 pub enum ReferenceError {
     #[error("plugin '{0}' has no CPU twin, so the reference renderer cannot evaluate it")]
     NoTwin(String),
-    #[error("plugin '{plugin}' is not supported by the reference renderer: {reason}")]
-    Unsupported { plugin: String, reason: String },
     #[error("reference rendering was cancelled")]
     Cancelled,
     #[error(transparent)]
@@ -141,9 +145,8 @@ pub struct Converged {
 /// Renders the stack with the settings' camera, size and slice spacing.
 ///
 /// Disabled instances are skipped; every enabled plugin needs a CPU twin
-/// ([`ReferenceError::NoTwin`]) and must not have per-slice state
-/// ([`ReferenceError::Unsupported`]). Rows are rendered in parallel; the cancel flag
-/// is checked before every row.
+/// ([`ReferenceError::NoTwin`]). Rows are rendered in parallel; the cancel flag is
+/// checked before every row.
 pub fn render_reference(
     volume: &Volume,
     stack: &[PluginInstance],
@@ -237,24 +240,22 @@ fn check_size(settings: &FrameSettings) -> Result<(), ReferenceError> {
     Ok(())
 }
 
-/// The CPU twins of the enabled instances, in stack order.
-fn twins_for(stack: &[PluginInstance]) -> Result<Vec<Box<dyn CpuTwin>>, ReferenceError> {
+/// The CPU twins of the enabled instances, in stack order, with their state decls.
+type Twins = (Vec<Box<dyn CpuTwin>>, Vec<Option<SliceStateDecl>>);
+
+fn twins_for(stack: &[PluginInstance]) -> Result<Twins, ReferenceError> {
     stack
         .iter()
         .filter(|i| i.enabled)
         .map(|i| {
             let p = &i.plugin;
-            if p.slice_state().is_some() {
-                return Err(ReferenceError::Unsupported {
-                    plugin: p.id().to_string(),
-                    reason: "it has per-slice state, which needs a slice-by-slice reference"
-                        .to_string(),
-                });
-            }
-            p.cpu_twin(&i.params)
-                .ok_or_else(|| ReferenceError::NoTwin(p.id().to_string()))
+            let twin = p
+                .cpu_twin(&i.params)
+                .ok_or_else(|| ReferenceError::NoTwin(p.id().to_string()))?;
+            Ok((twin, p.slice_state()))
         })
-        .collect()
+        .collect::<Result<Vec<_>, _>>()
+        .map(|v| v.into_iter().unzip())
 }
 
 /// What stays the same between the passes of one call: the volume, its normalised
@@ -263,15 +264,17 @@ struct Prepared<'a> {
     volume: &'a Volume,
     scalars: Vec<f32>,
     twins: Vec<Box<dyn CpuTwin>>,
+    states: Vec<Option<SliceStateDecl>>,
 }
 
 impl<'a> Prepared<'a> {
     fn new(volume: &'a Volume, stack: &[PluginInstance]) -> Result<Self, ReferenceError> {
-        let twins = twins_for(stack)?;
+        let (twins, states) = twins_for(stack)?;
         Ok(Self {
             volume,
             scalars: volume.normalized_scalars(),
             twins,
+            states,
         })
     }
 
@@ -283,10 +286,10 @@ impl<'a> Prepared<'a> {
     ) -> Result<ReferenceImage, ReferenceError> {
         check_size(settings)?;
         let frame = Frame::new(self.volume, settings, spacing_voxels, opts.emulate_fp16)?;
-        let ctx = CpuContext {
-            volume: self.volume,
-            scalars: &self.scalars,
-        };
+        let ctx = CpuContext::new(self.volume, &self.scalars);
+        if self.states.iter().any(Option::is_some) {
+            return self.render_slice_major(&frame, &ctx, opts);
+        }
         let (w, h) = (settings.width, settings.height);
         let rows: Vec<Vec<[f64; 4]>> = (0..h)
             .into_par_iter()
@@ -309,6 +312,112 @@ impl<'a> Prepared<'a> {
             pixels: rows.into_iter().flatten().collect(),
             slices: frame.count,
         })
+    }
+}
+
+impl Prepared<'_> {
+    /// Slice by slice, for stacks with per-slice state (module docs).
+    fn render_slice_major(
+        &self,
+        frame: &Frame,
+        ctx: &CpuContext,
+        opts: &ReferenceOptions,
+    ) -> Result<ReferenceImage, ReferenceError> {
+        let (w, h) = (frame.width, frame.height);
+        let mut acc = vec![DVec4::ZERO; w as usize * h as usize];
+        let mut states: Vec<Option<StateImage>> = self
+            .states
+            .iter()
+            .map(|d| {
+                d.map(|d| {
+                    let (sw, sh) = state_size(w, h, d.scale);
+                    StateImage::new(sw, sh, DVec4::from_array(d.clear.map(f64::from)))
+                })
+            })
+            .collect();
+        let mut rows_done = 0u64;
+        for k in 0..frame.count {
+            if opts.cancelled() {
+                return Err(ReferenceError::Cancelled);
+            }
+            acc.par_chunks_mut(w as usize)
+                .enumerate()
+                .for_each(|(y, row)| {
+                    for (x, a) in row.iter_mut().enumerate() {
+                        let done = frame.early.is_some_and(|t| a.w >= t);
+                        if done {
+                            continue;
+                        }
+                        let uv = frame.uv(x as u32, y as u32);
+                        if let Some((_, c)) = frame.slice_sample(ctx, &self.twins, &states, uv, k) {
+                            *a += (1.0 - a.w) * c;
+                            if frame.fp16 {
+                                *a = round_f16(*a);
+                            }
+                        }
+                    }
+                });
+            let next: Vec<Option<StateImage>> = states
+                .iter()
+                .enumerate()
+                .map(|(i, st)| {
+                    let st = st.as_ref()?;
+                    let decl = self.states[i]?;
+                    let ctx_i = CpuContext {
+                        state: Some(st),
+                        ..*ctx
+                    };
+                    let (sw, sh) = (st.width, st.height);
+                    let texels = (0..sw as usize * sh as usize)
+                        .into_par_iter()
+                        .map(|n| {
+                            let (tx, ty) = ((n % sw as usize) as f64, (n / sw as usize) as f64);
+                            let uv = DVec2::new((tx + 0.5) / sw as f64, (ty + 0.5) / sh as f64);
+                            let (s, c) = frame
+                                .slice_sample(ctx, &self.twins, &states, uv, k)
+                                .unwrap_or_else(|| (frame.missed_sample(uv, k), DVec4::ZERO));
+                            round_state(self.twins[i].slice_update(&ctx_i, &s, c, uv), decl.format)
+                        })
+                        .collect();
+                    Some(StateImage {
+                        width: sw,
+                        height: sh,
+                        texels,
+                    })
+                })
+                .collect();
+            states = next;
+            let rows = (k as u64 + 1) * h as u64 / frame.count as u64;
+            if let Some(p) = &opts.progress {
+                p.fetch_add((rows - rows_done) as usize, Ordering::Relaxed);
+            }
+            rows_done = rows;
+        }
+        if let Some(p) = &opts.progress {
+            p.fetch_add((h as u64 - rows_done) as usize, Ordering::Relaxed);
+        }
+        Ok(ReferenceImage {
+            width: w,
+            height: h,
+            pixels: acc.into_iter().map(|a| a.to_array()).collect(),
+            slices: frame.count,
+        })
+    }
+}
+
+/// Size of a per-slice state texture for a `w`×`h` eye buffer (as the renderer
+/// allocates it).
+fn state_size(w: u32, h: u32, scale: f32) -> (u32, u32) {
+    let side = |n: u32| ((n as f32 * scale).round() as u32).max(1);
+    (side(w), side(h))
+}
+
+/// A state texel as the declared storage format holds it.
+fn round_state(v: DVec4, format: StorageFormat) -> DVec4 {
+    match format {
+        StorageFormat::Rgba16Float => round_f16(v),
+        StorageFormat::Rgba32Float => v.as_vec4().as_dvec4(),
+        StorageFormat::R32Float => DVec4::new(v.x as f32 as f64, 0.0, 0.0, 1.0),
     }
 }
 
@@ -409,38 +518,82 @@ impl Frame {
         lo as u32..hi as u32
     }
 
-    /// `cs_main` for one pixel: premultiplied RGBA.
-    fn pixel(&self, ctx: &CpuContext, twins: &[Box<dyn CpuTwin>], x: u32, y: u32) -> [f64; 4] {
-        let uv = DVec2::new(
+    fn uv(&self, x: u32, y: u32) -> DVec2 {
+        DVec2::new(
             (x as f64 + 0.5) / self.width as f64,
             (y as f64 + 0.5) / self.height as f64,
-        );
+        )
+    }
+
+    /// The sample of slice `k` on the ray through `uv` (`pixel_sample`), before the
+    /// hooks run; `None` where the ray misses the slice inside the box.
+    fn make_sample(&self, origin: DVec3, dir: DVec3, uv: DVec2, k: u32) -> Option<CpuSample> {
+        let dd = dir.dot(self.forward);
+        let depth0 = (origin - self.eye).dot(self.forward);
+        let d = self.d0 + k as f64 * self.spacing;
+        let t = (d - depth0) / dd;
+        let pos = origin + dir * t;
+        if !(t >= 0.0 && t.is_finite() && self.inside(pos)) {
+            return None;
+        }
+        Some(CpuSample {
+            pos,
+            tex: (pos - self.box_min) / (self.box_max - self.box_min),
+            ray_dir: dir,
+            uv,
+            value: 0.0,
+            step: self.spacing / dd.max(1.0e-6),
+            color: DVec4::ZERO,
+            normal: DVec3::ZERO,
+            slice: k,
+        })
+    }
+
+    fn ratio(&self, dir: DVec3) -> f64 {
+        self.spacing / dir.dot(self.forward).max(1.0e-6) / self.voxel
+    }
+
+    /// Slice `k` under `uv` through all hooks: the shaded sample and its contribution.
+    fn slice_sample(
+        &self,
+        ctx: &CpuContext,
+        twins: &[Box<dyn CpuTwin>],
+        states: &[Option<StateImage>],
+        uv: DVec2,
+        k: u32,
+    ) -> Option<(CpuSample, DVec4)> {
+        let (origin, dir) = self.ray(uv);
+        let sample = self.make_sample(origin, dir, uv, k)?;
+        Some(evaluate(ctx, twins, states, sample, self.ratio(dir)))
+    }
+
+    /// What `state_texel_sample` passes on where the ray misses slice `k`.
+    fn missed_sample(&self, uv: DVec2, k: u32) -> CpuSample {
+        let (origin, dir) = self.ray(uv);
+        CpuSample {
+            pos: origin,
+            tex: (origin - self.box_min) / (self.box_max - self.box_min),
+            ray_dir: dir,
+            uv,
+            step: self.spacing / dir.dot(self.forward).max(1.0e-6),
+            slice: k,
+            ..Default::default()
+        }
+    }
+
+    /// `cs_main` for one pixel: premultiplied RGBA.
+    fn pixel(&self, ctx: &CpuContext, twins: &[Box<dyn CpuTwin>], x: u32, y: u32) -> [f64; 4] {
+        let uv = self.uv(x, y);
         let (origin, dir) = self.ray(uv);
         let dd = dir.dot(self.forward);
         let depth0 = (origin - self.eye).dot(self.forward);
-        let step = self.spacing / dd.max(1.0e-6);
-        let ratio = step / self.voxel;
-        let extent = self.box_max - self.box_min;
+        let ratio = self.ratio(dir);
         let mut acc = DVec4::ZERO;
         for k in self.slice_range(origin, dir, depth0, dd) {
-            let d = self.d0 + k as f64 * self.spacing;
-            let t = (d - depth0) / dd;
-            let pos = origin + dir * t;
-            if !(t >= 0.0 && t.is_finite()) || !self.inside(pos) {
+            let Some(sample) = self.make_sample(origin, dir, uv, k) else {
                 continue;
-            }
-            let sample = CpuSample {
-                pos,
-                tex: (pos - self.box_min) / extent,
-                ray_dir: dir,
-                uv,
-                value: 0.0,
-                step,
-                color: DVec4::ZERO,
-                normal: DVec3::ZERO,
-                slice: k,
             };
-            let c = evaluate(ctx, twins, sample, ratio);
+            let (_, c) = evaluate(ctx, twins, &[], sample, ratio);
             acc += (1.0 - acc.w) * c;
             if self.fp16 {
                 acc = round_f16(acc);
@@ -467,27 +620,35 @@ fn correct_opacity(alpha: f64, ratio: f64) -> f64 {
     1.0 - (1.0 - a).powf(ratio)
 }
 
-/// `evaluate()`: the premultiplied, opacity-corrected contribution of one sample.
+/// `evaluate()`: the shaded sample and its premultiplied, opacity-corrected
+/// contribution. `states[i]` is twin i's previous state (empty: no state anywhere).
 fn evaluate(
     ctx: &CpuContext,
     twins: &[Box<dyn CpuTwin>],
+    states: &[Option<StateImage>],
     sample: CpuSample,
     ratio: f64,
-) -> DVec4 {
+) -> (CpuSample, DVec4) {
     if !twins.iter().all(|t| t.clip(&sample)) {
-        return DVec4::ZERO;
+        let mut s = sample;
+        s.color = DVec4::ZERO;
+        return (s, DVec4::ZERO);
     }
+    let with_state = |i: usize| CpuContext {
+        state: states.get(i).and_then(Option::as_ref),
+        ..*ctx
+    };
     let mut s = sample;
     s.value = ctx.value(s.tex);
-    for t in twins {
-        t.sample(ctx, &mut s);
+    for (i, t) in twins.iter().enumerate() {
+        t.sample(&with_state(i), &mut s);
     }
     s.color = DVec4::splat(s.value);
     for t in twins {
         t.classify(&mut s);
     }
-    for t in twins {
-        t.shade(ctx, &mut s);
+    for (i, t) in twins.iter().enumerate() {
+        t.shade(&with_state(i), &mut s);
     }
     let a = correct_opacity(s.color.w, ratio);
     let rgb = DVec3::new(
@@ -499,7 +660,7 @@ fn evaluate(
     for t in twins {
         t.composite(&s, &mut c);
     }
-    c
+    (s, c)
 }
 
 /// `round_like_target` for an rgba16float eye buffer (via f32, where the GPU computes).
@@ -510,5 +671,468 @@ fn round_f16(v: DVec4) -> DVec4 {
 
 #[cfg(test)]
 mod tests {
-//TESTS
+    use std::time::Instant;
+
+    use super::*;
+    use crate::camera::{Camera, Projection};
+    use crate::params::{ParamSpec, ParamValues};
+    use crate::plugin::{Plugin, ShaderSource};
+    use crate::tf::{LUT_SIZE, TfCurve, TfPoint, eval_lut};
+    use crate::volume::VoxelData;
+
+    /// Test classifier: colour `rgb`, opacity `alpha · value` (a linear ramp).
+    struct Ramp {
+        color: [f64; 4],
+    }
+
+    struct RampTwin {
+        color: DVec4,
+    }
+
+    impl CpuTwin for RampTwin {
+        fn classify(&self, s: &mut CpuSample) {
+            s.color = self.color.truncate().extend(self.color.w * s.value);
+        }
+    }
+
+    impl Plugin for Ramp {
+        fn id(&self) -> &'static str {
+            "classify.test_ramp"
+        }
+        fn display_name(&self) -> &'static str {
+            "Test ramp"
+        }
+        fn params(&self) -> Vec<ParamSpec> {
+            Vec::new()
+        }
+        fn shader(&self) -> ShaderSource {
+            ShaderSource::new_static("test_ramp.wgsl", "")
+        }
+        fn cpu_twin(&self, _params: &ParamValues) -> Option<Box<dyn CpuTwin>> {
+            Some(Box::new(RampTwin {
+                color: DVec4::from_array(self.color),
+            }))
+        }
+    }
+
+    /// Test classifier over a baked lookup table, like `classify.tf1d`.
+    struct Lut {
+        curve: TfCurve,
+    }
+
+    struct LutTwin {
+        lut: Vec<[f32; 4]>,
+    }
+
+    impl CpuTwin for LutTwin {
+        fn classify(&self, s: &mut CpuSample) {
+            s.color = DVec4::from_array(eval_lut(&self.lut, s.value.clamp(0.0, 1.0)));
+        }
+    }
+
+    impl Plugin for Lut {
+        fn id(&self) -> &'static str {
+            "classify.test_lut"
+        }
+        fn display_name(&self) -> &'static str {
+            "Test LUT"
+        }
+        fn params(&self) -> Vec<ParamSpec> {
+            Vec::new()
+        }
+        fn shader(&self) -> ShaderSource {
+            ShaderSource::new_static("test_lut.wgsl", "")
+        }
+        fn cpu_twin(&self, _params: &ParamValues) -> Option<Box<dyn CpuTwin>> {
+            Some(Box::new(LutTwin {
+                lut: self.curve.bake(LUT_SIZE),
+            }))
+        }
+    }
+
+    /// A plugin without a twin.
+    struct Opaque {
+        id: &'static str,
+    }
+
+    impl Plugin for Opaque {
+        fn id(&self) -> &'static str {
+            self.id
+        }
+        fn display_name(&self) -> &'static str {
+            "Opaque"
+        }
+        fn params(&self) -> Vec<ParamSpec> {
+            Vec::new()
+        }
+        fn shader(&self) -> ShaderSource {
+            ShaderSource::new_static("opaque.wgsl", "")
+        }
+    }
+
+    fn instance(p: impl Plugin) -> PluginInstance {
+        PluginInstance::new(Arc::new(p))
+    }
+
+    fn ramp(color: [f64; 4]) -> Vec<PluginInstance> {
+        vec![instance(Ramp { color })]
+    }
+
+    /// A tissue-like curve (the points of `classify.tf1d`'s default).
+    fn tissue_curve() -> TfCurve {
+        let p = |x: f32, color: [f32; 4]| TfPoint { x, color };
+        TfCurve::new(vec![
+            p(0.0, [0.0, 0.0, 0.0, 0.0]),
+            p(0.25, [0.8, 0.4, 0.3, 0.0]),
+            p(0.45, [0.9, 0.6, 0.5, 0.08]),
+            p(1.0, [1.0, 1.0, 0.95, 0.6]),
+        ])
+    }
+
+    fn cube(n: u32, f: impl Fn(u32, u32, u32) -> f32) -> Volume {
+        let mut data = Vec::with_capacity((n * n * n) as usize);
+        for z in 0..n {
+            for y in 0..n {
+                for x in 0..n {
+                    data.push(f(x, y, z));
+                }
+            }
+        }
+        Volume::new("test", [n; 3], 1, [1.0; 3], VoxelData::F32(data)).unwrap()
+    }
+
+    /// 1 everywhere but the corner voxel (0, 0, 0), which is 0 (so the range is [0, 1]).
+    fn homogeneous(n: u32) -> Volume {
+        cube(n, |x, y, z| if x + y + z == 0 { 0.0 } else { 1.0 })
+    }
+
+    /// Orthographic view along +z, `size`² pixels.
+    fn ortho_z(size: u32, spacing: f32) -> FrameSettings {
+        let mut camera = Camera {
+            projection: Projection::Orthographic { height: 1.5 },
+            ..Default::default()
+        };
+        camera.axis_view(2, false);
+        FrameSettings {
+            camera,
+            width: size,
+            height: size,
+            slice_spacing: spacing,
+            ..Default::default()
+        }
+    }
+
+    fn opts() -> ReferenceOptions {
+        ReferenceOptions::default()
+    }
+
+    #[test]
+    fn homogeneous_slab_matches_closed_form() {
+        let volume = homogeneous(16);
+        let c = [0.8, 0.4, 0.2, 0.1];
+        // planes at the centre ± m·0.75 voxels; the faces are 8 voxels away: 21 planes
+        let settings = ortho_z(33, 0.75);
+        let img = render_reference(&volume, &ramp(c), &settings, &opts()).unwrap();
+        assert_eq!(img.slices, 21);
+        let n = 21.0;
+        let alpha = 1.0 - (1.0 - c[3]).powf(0.75);
+        let coverage = 1.0 - (1.0 - alpha).powf(n);
+        let got = img.pixel(16, 16);
+        for i in 0..3 {
+            assert!(
+                (got[i] - c[i] * coverage).abs() < 1e-6,
+                "channel {i}: {} vs {}",
+                got[i],
+                c[i] * coverage
+            );
+        }
+        assert!((got[3] - coverage).abs() < 1e-6, "{} vs {coverage}", got[3]);
+        // the image corners look past the box (view height 1.5 > 1)
+        assert_eq!(img.pixel(0, 0), [0.0; 4]);
+        assert_eq!(img.pixel(32, 32), [0.0; 4]);
+    }
+
+    #[test]
+    fn empty_stack_is_the_grey_ramp() {
+        let volume = homogeneous(16);
+        let img = render_reference(&volume, &[], &ortho_z(33, 0.75), &opts()).unwrap();
+        // value 1: colour (1, 1, 1, 1) per voxel, opaque after the first slice
+        assert_eq!(img.pixel(16, 16), [1.0; 4]);
+    }
+
+    #[test]
+    fn opacity_correction_makes_spacing_irrelevant() {
+        // a soft-edged block in the middle: the integrand vanishes at the box faces,
+        // so the slice sum is a trapezoid rule and differs from the integral by O(Δs²)
+        let volume = cube(16, |x, y, z| {
+            if [x, y, z].iter().all(|v| (4..12).contains(v)) {
+                1.0
+            } else {
+                0.0
+            }
+        });
+        let stack = ramp([0.9, 0.7, 0.3, 0.1]);
+        let settings = |spacing| FrameSettings {
+            width: 32,
+            height: 32,
+            slice_spacing: spacing,
+            ..Default::default()
+        };
+        let coarse = render_reference(&volume, &stack, &settings(1.0), &opts()).unwrap();
+        let fine = render_reference(&volume, &stack, &settings(0.5), &opts()).unwrap();
+        let finer = render_reference(&volume, &stack, &settings(0.25), &opts()).unwrap();
+        assert!(fine.slices >= 2 * coarse.slices - 2);
+        let max_diff = |a: &ReferenceImage, b: &ReferenceImage| {
+            a.pixels
+                .iter()
+                .zip(&b.pixels)
+                .flat_map(|(p, q)| (0..4).map(move |i| (p[i] - q[i]).abs()))
+                .fold(0.0, f64::max)
+        };
+        let max_alpha = fine.pixels.iter().map(|p| p[3]).fold(0.0, f64::max);
+        assert!(max_alpha > 0.5, "the block is dense enough: {max_alpha}");
+        let d1 = max_diff(&coarse, &fine);
+        let d2 = max_diff(&fine, &finer);
+        eprintln!("max |Δ| 1→½: {d1:.2e}, ½→¼: {d2:.2e}");
+        // without the correction, halving the spacing would double the optical depth:
+        // 1 − 0.9^10 = 0.65 against 1 − 0.9^20 = 0.88
+        // and the slice sums converge to the integral at second order
+        assert!(d1 < 2e-2, "{d1}");
+        assert!(d2 < 5e-3, "{d2}");
+        assert!(d2 < d1 / 2.5, "{d1} → {d2}");
+    }
+
+    #[test]
+    fn fp16_emulation_rounds_the_accumulator() {
+        let volume = homogeneous(16);
+        let stack = ramp([0.8, 0.4, 0.2, 0.1]);
+        let settings = ortho_z(33, 0.75);
+        let exact = render_reference(&volume, &stack, &settings, &opts()).unwrap();
+        let o = ReferenceOptions {
+            emulate_fp16: true,
+            ..Default::default()
+        };
+        let half = render_reference(&volume, &stack, &settings, &o).unwrap();
+        for (p, q) in half.pixels.iter().zip(&exact.pixels) {
+            for i in 0..4 {
+                assert_eq!(half::f16::from_f64(p[i]).to_f64(), p[i]);
+                assert!((p[i] - q[i]).abs() < 5e-3, "{} vs {}", p[i], q[i]);
+            }
+        }
+        assert_ne!(half.pixel(16, 16), exact.pixel(16, 16));
+    }
+
+    #[test]
+    fn early_termination_follows_the_compute_backend() {
+        let volume = homogeneous(16);
+        let stack = ramp([0.8, 0.4, 0.2, 0.1]);
+        let full = render_reference(&volume, &stack, &ortho_z(33, 0.75), &opts()).unwrap();
+        let early = FrameSettings {
+            backend: Backend::Compute,
+            early_termination: Some(0.5),
+            ..ortho_z(33, 0.75)
+        };
+        let img = render_reference(&volume, &stack, &early, &opts()).unwrap();
+        let alpha = 1.0 - 0.9f64.powf(0.75);
+        // stops after the first slice that reaches 0.5
+        let n = ((0.5f64).ln() / (1.0 - alpha).ln()).ceil();
+        let want = 1.0 - (1.0 - alpha).powf(n);
+        let a = img.pixel(16, 16)[3];
+        assert!((a - want).abs() < 1e-9, "{a} vs {want}");
+        assert!(a < full.pixel(16, 16)[3]);
+        // the raster backend has no early termination
+        let raster = FrameSettings {
+            backend: Backend::Raster,
+            ..early
+        };
+        let img = render_reference(&volume, &stack, &raster, &opts()).unwrap();
+        assert_eq!(img.pixels, full.pixels);
+    }
+
+    #[test]
+    fn cancel_and_progress() {
+        let volume = homogeneous(8);
+        let settings = ortho_z(12, 1.0);
+        let cancel = Arc::new(AtomicBool::new(true));
+        let o = ReferenceOptions {
+            cancel: Some(cancel.clone()),
+            ..Default::default()
+        };
+        assert_eq!(
+            render_reference(&volume, &[], &settings, &o).unwrap_err(),
+            ReferenceError::Cancelled
+        );
+        assert_eq!(
+            render_converged(&volume, &[], &settings, &o, 0.1, [0.0; 3]).unwrap_err(),
+            ReferenceError::Cancelled
+        );
+        cancel.store(false, Ordering::Relaxed);
+        let progress = Arc::new(AtomicUsize::new(0));
+        let o = ReferenceOptions {
+            progress: Some(progress.clone()),
+            ..o
+        };
+        render_reference(&volume, &[], &settings, &o).unwrap();
+        assert_eq!(progress.load(Ordering::Relaxed), 12);
+    }
+
+    #[test]
+    fn cancel_from_another_thread_stops_the_render() {
+        let volume = crate::volume::demo();
+        let stack = vec![instance(Lut {
+            curve: tissue_curve(),
+        })];
+        let settings = FrameSettings {
+            width: 256,
+            height: 256,
+            slice_spacing: 0.01,
+            ..Default::default()
+        };
+        let cancel = Arc::new(AtomicBool::new(false));
+        let progress = Arc::new(AtomicUsize::new(0));
+        let o = ReferenceOptions {
+            cancel: Some(cancel.clone()),
+            progress: Some(progress.clone()),
+            ..Default::default()
+        };
+        let start = Instant::now();
+        let result = std::thread::scope(|scope| {
+            let job = scope.spawn(|| render_reference(&volume, &stack, &settings, &o));
+            // cancel once some rows are done (or right away on a very slow machine)
+            while progress.load(Ordering::Relaxed) < 2 && start.elapsed().as_secs() < 30 {
+                std::thread::sleep(std::time::Duration::from_millis(5));
+            }
+            cancel.store(true, Ordering::Relaxed);
+            job.join().unwrap()
+        });
+        assert_eq!(result.unwrap_err(), ReferenceError::Cancelled);
+        assert!(progress.load(Ordering::Relaxed) < 256);
+    }
+
+    #[test]
+    fn stack_errors() {
+        let volume = homogeneous(8);
+        let settings = ortho_z(8, 1.0);
+        let no_twin = instance(Opaque {
+            id: "shade.no_twin",
+        });
+        assert_eq!(
+            render_reference(&volume, std::slice::from_ref(&no_twin), &settings, &opts())
+                .unwrap_err(),
+            ReferenceError::NoTwin("shade.no_twin".into())
+        );
+        // disabled instances are skipped
+        let mut off = no_twin;
+        off.enabled = false;
+        let img = render_reference(&volume, &[off], &settings, &opts()).unwrap();
+        let grey = render_reference(&volume, &[], &settings, &opts()).unwrap();
+        assert_eq!(img, grey);
+        // sizes and spacings
+        for (w, h) in [(0, 8), (8, 0), (MAX_SIDE + 1, 1)] {
+            let s = FrameSettings {
+                width: w,
+                height: h,
+                ..settings
+            };
+            assert_eq!(
+                render_reference(&volume, &[], &s, &opts()).unwrap_err(),
+                ReferenceError::BadSize(w, h)
+            );
+        }
+        for spacing in [0.0, -1.0, f32::NAN] {
+            let s = FrameSettings {
+                slice_spacing: spacing,
+                ..settings
+            };
+            assert!(matches!(
+                render_reference(&volume, &[], &s, &opts()),
+                Err(ReferenceError::Slices(SliceError::BadSpacing(_)))
+            ));
+            assert!(matches!(
+                render_converged(&volume, &[], &s, &opts(), 0.1, [0.0; 3]),
+                Err(ReferenceError::Slices(SliceError::BadSpacing(_)))
+            ));
+        }
+        assert!(matches!(
+            render_converged(&volume, &[], &settings, &opts(), f64::NAN, [0.0; 3]),
+            Err(ReferenceError::BadTolerance(t)) if t.is_nan()
+        ));
+        assert_eq!(
+            render_converged(&volume, &[], &settings, &opts(), -1.0, [0.0; 3]).unwrap_err(),
+            ReferenceError::BadTolerance(-1.0)
+        );
+    }
+
+    #[test]
+    fn nan_voxels_give_finite_images() {
+        let volume = cube(12, |x, y, z| match (x + 2 * y + 3 * z) % 7 {
+            0 => f32::NAN,
+            1 => f32::INFINITY,
+            2 => f32::NEG_INFINITY,
+            v => v as f32,
+        });
+        assert!(volume.non_finite > 0);
+        for stack in [
+            Vec::new(),
+            ramp([1.0, 0.5, 0.25, 0.3]),
+            vec![instance(Lut {
+                curve: tissue_curve(),
+            })],
+        ] {
+            for settings in [
+                FrameSettings {
+                    width: 24,
+                    height: 20,
+                    ..Default::default()
+                },
+                ortho_z(16, 0.5),
+            ] {
+                let img = render_reference(&volume, &stack, &settings, &opts()).unwrap();
+                for p in &img.pixels {
+                    assert!(p.iter().all(|v| v.is_finite()), "{p:?}");
+                    assert!((0.0..=1.0).contains(&p[3]), "{p:?}");
+                }
+                assert!(img.pixels.iter().any(|p| p[3] > 0.0));
+            }
+        }
+    }
+
+    #[test]
+    fn converged_demo() {
+        let volume = crate::volume::demo();
+        let stack = vec![instance(Lut {
+            curve: tissue_curve(),
+        })];
+        let settings = FrameSettings {
+            width: 48,
+            height: 48,
+            ..Default::default()
+        };
+        let start = Instant::now();
+        let c = render_converged(
+            &volume,
+            &stack,
+            &settings,
+            &opts(),
+            DEFAULT_TOLERANCE_DELTA_E,
+            [0.0; 3],
+        )
+        .unwrap();
+        eprintln!(
+            "converged demo 48x48: {:?} in {:.2} s, steps {:?}",
+            c.converged,
+            start.elapsed().as_secs_f64(),
+            c.steps
+        );
+        assert!(c.converged);
+        assert!(c.last_change_rms_delta_e < DEFAULT_TOLERANCE_DELTA_E);
+        assert_eq!(c.last_change_rms_delta_e, c.steps.last().unwrap().1);
+        assert_eq!(c.spacing, c.steps.last().unwrap().0);
+        assert_eq!(c.steps[0].0, 0.25);
+        for w in c.steps.windows(2) {
+            assert_eq!(w[1].0, w[0].0 / 2.0);
+            assert!(w[1].1 < w[0].1, "changes decrease: {:?}", c.steps);
+        }
+        assert!(c.image.pixels.iter().any(|p| p[3] > 0.5));
+    }
 }

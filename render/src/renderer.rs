@@ -118,7 +118,9 @@ pub enum RenderError {
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct FrameStats {
     pub slices: u32,
-    /// GPU time per pass group ("prepass", "slices"), from timestamp queries.
+    /// GPU time per pass, from timestamp queries: `prepass <plugin id>` for every
+    /// pre-pass that ran and `slices` for the slice loop (all hooks of all plugins
+    /// in one shader, plus per-slice state updates). Empty without timestamps.
     pub gpu_passes: Vec<(String, f64)>,
     /// Total GPU time in ms, if timestamps are available.
     pub gpu_ms: Option<f64>,
@@ -149,7 +151,7 @@ const SLICE_INFO_STRIDE: u64 = 256;
 pub const DISPLAY_WGSL: &str = include_str!("../../shaders/display.wgsl");
 /// Most slices a frame with per-slice passes may have.
 pub const MAX_PER_SLICE_SLICES: u32 = 65_536;
-const MAX_TIMESTAMPS: u32 = 8;
+const MAX_TIMESTAMPS: u32 = 64;
 
 struct InstanceGpu {
     plugin_id: &'static str,
@@ -1147,13 +1149,13 @@ impl Renderer {
             label: Some("vwb frame"),
         });
         let ts = self.timestamps.as_ref();
-        let mut ts_labels: Vec<&str> = Vec::new();
-        let mut stamp = |enc: &mut wgpu::CommandEncoder, label: Option<&'static str>| {
+        let mut ts_labels: Vec<String> = Vec::new();
+        let mut stamp = |enc: &mut wgpu::CommandEncoder, label: Option<String>| {
             if let Some((qs, _, _)) = ts {
                 let idx = ts_labels.len() as u32;
                 if idx < MAX_TIMESTAMPS {
                     enc.write_timestamp(qs, idx);
-                    ts_labels.push(label.unwrap_or(""));
+                    ts_labels.push(label.unwrap_or_default());
                 }
             }
         };
@@ -1177,11 +1179,11 @@ impl Renderer {
             .map(|(i, _, _)| *i)
             .collect();
         if !dirty.is_empty() {
-            stamp(&mut enc, Some("prepass"));
             for (i, pipeline, layout) in &p.prepasses {
                 if !dirty.contains(i) {
                     continue;
                 }
+                stamp(&mut enc, Some(format!("prepass {}", p.stack[*i].1.id())));
                 let uid = p.stack[*i].0;
                 let g = &self.instances[&uid];
                 let Some((_, bindings)) = &p.composition.instances[*i].prepass else {
@@ -1249,7 +1251,7 @@ impl Renderer {
             ],
         });
 
-        stamp(&mut enc, Some("slices"));
+        stamp(&mut enc, Some("slices".to_string()));
         // clear the per-slice state
         if per_slice {
             for (uid, plugin) in &p.stack {
@@ -1424,7 +1426,7 @@ impl Renderer {
             for i in 0..ticks.len() - 1 {
                 stats
                     .gpu_passes
-                    .push((ts_labels[i].to_string(), ms(ticks[i], ticks[i + 1])));
+                    .push((ts_labels[i].clone(), ms(ticks[i], ticks[i + 1])));
             }
             stats.gpu_ms = Some(ms(ticks[0], ticks[ticks.len() - 1]));
         } else {

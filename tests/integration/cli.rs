@@ -172,3 +172,125 @@ fn shader_dump_writes_the_composed_wgsl() {
         "the pre-pass module is dumped too"
     );
 }
+
+#[test]
+fn sweep_over_slice_spacing_converges_and_writes_a_pareto_plot() {
+    gpu();
+    let dir = tmp("sweep");
+    let o = vwb()
+        .args(["sweep", "--preset", "presets/demo.ron", "--size", "48x48"])
+        .args(["--target", "rgba32float", "--frames", "2"])
+        .args(["--param", "render.slice_spacing=0.5,1,2,4", "-o"])
+        .arg(&dir)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let csv = std::fs::read_to_string(dir.join("sweep.csv")).unwrap();
+    let mut lines = csv.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let col = |name: &str| header.iter().position(|h| *h == name).unwrap();
+    let rows: Vec<Vec<String>> = lines
+        .map(|l| l.split(',').map(String::from).collect())
+        .collect();
+    assert_eq!(rows.len(), 4);
+    let num = |r: &Vec<String>, c: &str| r[col(c)].parse::<f64>().unwrap();
+    // finer spacing: more slices and less error against the converged reference
+    for pair in rows.windows(2) {
+        assert!(num(&pair[0], "slices") > num(&pair[1], "slices"));
+        assert!(
+            num(&pair[0], "rms_delta_e") < num(&pair[1], "rms_delta_e"),
+            "{csv}"
+        );
+    }
+    assert!(rows.iter().any(|r| r[col("pareto")] == "true"));
+    for r in &rows {
+        assert!(dir.join(&r[col("image")]).exists());
+    }
+    let svg = std::fs::read_to_string(dir.join("pareto.svg")).unwrap();
+    assert!(svg.starts_with("<svg") && svg.contains("Pareto front"));
+    assert!(dir.join("reference_00.png").exists());
+}
+
+#[test]
+fn compare_bench_and_scene() {
+    gpu();
+    let dir = tmp("compare");
+    let o = vwb()
+        .args(["compare", "--preset", "presets/demo.ron", "--size", "40x32"])
+        .args(["--against", "converged", "-o"])
+        .arg(&dir)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    for f in ["image.png", "against.png", "heatmap.png"] {
+        assert!(dir.join(f).exists(), "{f}");
+    }
+    let m: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("metrics.json")).unwrap()).unwrap();
+    let rms = m["metrics"]["rms_delta_e"].as_f64().unwrap();
+    assert!(rms > 0.0 && rms < 5.0, "{rms}");
+    assert_eq!(m["against"]["converged"], true);
+    assert!(m["metrics"]["ssim"].as_f64().unwrap() > 0.9);
+
+    let csv = tmp("bench.csv");
+    let o = vwb()
+        .args([
+            "bench",
+            "--preset",
+            "presets/demo_smooth.ron",
+            "--size",
+            "32x32",
+        ])
+        .args(["--frames", "2", "--warmup", "1", "-o"])
+        .arg(&csv)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let text = std::fs::read_to_string(&csv).unwrap();
+    assert!(text.starts_with("kind,name,clock"));
+    for needle in [
+        "frame,frame,",
+        "plugin,test.smooth#0",
+        "plugin,classify.tf1d#1",
+        "memory,test.smooth#0",
+        "cold_pass,prepass test.smooth",
+    ] {
+        assert!(text.contains(needle), "{needle} in\n{text}");
+    }
+
+    let o = vwb()
+        .args(["scene", "--preset", "presets/demo.ron"])
+        .output()
+        .unwrap();
+    assert!(o.status.success());
+    let scene: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(scene["tf"]["lut"].as_array().unwrap().len(), 256);
+    assert_eq!(scene["volume"]["dims"], serde_json::json!([128, 128, 84]));
+
+    // bad parameters name the cause
+    for (args, needle) in [
+        (
+            vec!["--param", "classify.nope.x=1..2:3"],
+            "no plugin 'classify.nope'",
+        ),
+        (
+            vec!["--param", "classify.tf1d.opacity=1..2"],
+            "expected A..B:N",
+        ),
+        (vec!["--param", "classify.tf1d.opacity=0..2:3"], "opacity"),
+        (
+            vec!["--param", "render.slice_spacing=0,1"],
+            "slice spacing must be > 0",
+        ),
+    ] {
+        let o = vwb()
+            .args(["sweep", "--preset", "presets/demo.ron", "-o"])
+            .arg(tmp("bad"))
+            .args(&args)
+            .output()
+            .unwrap();
+        assert!(!o.status.success());
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(err.contains(needle), "{args:?}: {err}");
+    }
+}

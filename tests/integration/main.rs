@@ -6,5 +6,7 @@
 mod cli;
 mod common;
 mod composer;
+mod extremes;
 mod presets;
+mod reference;
 mod render;

@@ -242,10 +242,7 @@ fn prepass_fills_every_z_slice_and_reruns_only_when_needed() {
         radius: 1,
         amount: 1.0,
     };
-    let ctx = CpuContext {
-        volume: &vol,
-        scalars: &scalars,
-    };
+    let ctx = CpuContext::new(&vol, &scalars);
     for z in 0..dims[2] {
         for y in [0, 4, 9] {
             for x in [0, 5, 11] {

@@ -1,0 +1,81 @@
+//! The GPU pipeline against the CPU reference renderer (the plugins' f64 twins):
+//! every shipped preset, both backends, with the fp16 accumulation of an rgba16float
+//! eye buffer emulated.
+
+use vwb_render::metrics::{RgbImageF, compare};
+use vwb_render::preset::Document;
+use vwb_render::reference::{ReferenceOptions, render_reference};
+use vwb_render::{Backend, FrameSettings, TargetFormat};
+
+use crate::common::*;
+use crate::presets::shipped_presets;
+
+/// RMS ΔE*uv of a GPU image against the reference, both over black.
+pub fn delta_e_rms(gpu_px: &[[f32; 4]], reference: &[[f64; 4]], w: u32, h: u32) -> f64 {
+    let a = RgbImageF::from_rgba_f32_premultiplied_over(gpu_px, w, h, [0.0; 3]);
+    let b = RgbImageF::from_rgba_premultiplied_over(reference, w, h, [0.0; 3]);
+    compare(&a, &b).rms_delta_e
+}
+
+/// GPU pixels and the matching reference of a stack on a volume.
+pub fn gpu_and_reference(
+    volume: std::sync::Arc<vwb_render::Volume>,
+    stack: &[vwb_render::PluginInstance],
+    target: TargetFormat,
+    s: &FrameSettings,
+) -> (Vec<[f32; 4]>, Vec<[f64; 4]>) {
+    let mut r = vwb_render::Renderer::new(gpu(), volume.clone()).expect("renderer");
+    let px = render(&mut r, stack, target, s);
+    let opts = ReferenceOptions {
+        emulate_fp16: target == TargetFormat::Rgba16Float,
+        ..Default::default()
+    };
+    let reference = render_reference(&volume, stack, s, &opts).expect("reference renders");
+    (px, reference.pixels)
+}
+
+#[test]
+fn every_shipped_preset_matches_its_cpu_twins() {
+    let registry = registry();
+    for path in shipped_presets() {
+        let name = path.file_name().unwrap().to_string_lossy().to_string();
+        let doc = Document::load(&path, &registry)
+            .unwrap_or_else(|e| panic!("{e}"))
+            .document;
+        let volume = vwb_app::headless::load_volume(&doc.volume).unwrap();
+        for backend in [Backend::Raster, Backend::Compute] {
+            let s = FrameSettings {
+                width: 64,
+                height: 64,
+                backend,
+                ..doc.frame_settings()
+            };
+            let (px, reference) =
+                gpu_and_reference(volume.clone(), &doc.stack, doc.render.target, &s);
+            assert!(
+                reference.iter().filter(|p| p[3] > 0.1).count() > 64 * 64 / 20,
+                "{name}: the volume is visible in the reference"
+            );
+            let rms = delta_e_rms(&px, &reference, 64, 64);
+            eprintln!(
+                "{name} {}: GPU vs CPU twins RMS ΔE*uv {rms:.4}",
+                backend.name()
+            );
+            assert!(rms < 0.5, "{name} {}: RMS ΔE*uv {rms}", backend.name());
+        }
+    }
+}
+
+#[test]
+fn fp16_emulation_models_the_rgba16float_drift() {
+    let stack = [instance("classify.tf1d")];
+    let s = settings(64, 64, Backend::Compute);
+    let (px, emulated) = gpu_and_reference(demo(), &stack, TargetFormat::Rgba16Float, &s);
+    let exact = render_reference(&demo(), &stack, &s, &ReferenceOptions::default())
+        .unwrap()
+        .pixels;
+    let rms = delta_e_rms(&px, &emulated, 64, 64);
+    let rms_exact = delta_e_rms(&px, &exact, 64, 64);
+    eprintln!("rgba16float vs fp16-emulating reference {rms:.4}, vs f64 reference {rms_exact:.4}");
+    assert!(rms < rms_exact, "{rms} vs {rms_exact}");
+}
