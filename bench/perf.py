@@ -11,29 +11,18 @@ machine and the adapter. Rerun:
 """
 
 import argparse
-import os
-import platform
 import re
 import subprocess
 import sys
 import tempfile
 from pathlib import Path
 
-REPO = Path(__file__).resolve().parent.parent
+from doclib import REPO, machine_line, vwb_env, write_block
+
 CASES = [
     ("demo (MRI 128×128×84)", "presets/demo.ron"),
     ("CT head 256×256×108", "presets/ct_head.ron"),
 ]
-
-
-def cpu_model() -> str:
-    try:
-        for line in open("/proc/cpuinfo"):
-            if line.startswith("model name"):
-                return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or "unknown CPU"
 
 
 def run(vwb, preset, backend, size, frames, env):
@@ -69,11 +58,7 @@ def main():
     ap.add_argument("--ct-preset", default="presets/ct_head.ron",
                     help="CT head preset (e.g. a copy whose volume path suits another machine)")
     a = ap.parse_args()
-    env = dict(os.environ)
-    env.setdefault("XDG_RUNTIME_DIR", "/tmp")
-    if not a.gpu:
-        env["VK_DRIVER_FILES"] = "/usr/share/vulkan/icd.d/lvp_icd.x86_64.json"
-        env.setdefault("LP_NUM_THREADS", "2")
+    env = vwb_env(a.gpu)
     rows = []
     adapter = "?"
     cases = [(n, a.ct_preset if "CT" in n else p) for n, p in CASES]
@@ -92,7 +77,7 @@ def main():
     lines = [
         f"Command: `{cmd}` (release build; `vwb render --timings`, median of {a.frames} frames after 2 warm-up frames).",
         "",
-        f"- Machine: {cpu_model()}, {os.cpu_count()} cores, {platform.system()} {platform.release()}",
+        f"- Machine: {machine_line()}",
         f"- Adapter: {adapter}" + ("" if a.gpu else f" (LP_NUM_THREADS={env['LP_NUM_THREADS']})"),
         f"- Image {a.size}, one slice per voxel (slice spacing 1), rgba16float eye buffer, classify.tf1d, no early termination",
         "",
@@ -104,16 +89,7 @@ def main():
     if a.print_only:
         print(block)
         return
-    doc = Path(a.doc)
-    text = doc.read_text() if doc.exists() else "# Performance\n"
-    begin, end = f"<!-- BEGIN {a.block} -->", f"<!-- END {a.block} -->"
-    if begin in text and end in text:
-        pre, rest = text.split(begin, 1)
-        _, post = rest.split(end, 1)
-        text = f"{pre}{begin}\n{block}\n{end}{post}"
-    else:
-        text = text.rstrip() + f"\n\n{begin}\n{block}\n{end}\n"
-    doc.write_text(text)
+    write_block(Path(a.doc), a.block, block)
     print(block)
 
 

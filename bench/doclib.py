@@ -1,0 +1,55 @@
+"""Shared helpers of the benchmark scripts: the machine line, the environment that
+pins lavapipe, and rewriting a marked block of a Markdown file."""
+
+import os
+import platform
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parent.parent
+LAVAPIPE_ICD = "/usr/share/vulkan/icd.d/lvp_icd.x86_64.json"
+
+
+def cpu_model() -> str:
+    try:
+        for line in open("/proc/cpuinfo"):
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or "unknown CPU"
+
+
+def machine_line() -> str:
+    return f"{cpu_model()}, {os.cpu_count()} cores, {platform.system()} {platform.release()}"
+
+
+def vwb_env(gpu: bool) -> dict:
+    """Environment for running vwb: lavapipe pinned with 2 threads unless `gpu`."""
+    env = dict(os.environ)
+    env.setdefault("XDG_RUNTIME_DIR", "/tmp")
+    if not gpu:
+        env["VK_DRIVER_FILES"] = LAVAPIPE_ICD
+        env.setdefault("LP_NUM_THREADS", "2")
+    return env
+
+
+def default_vwb() -> str:
+    for build in ("release", "debug"):
+        p = REPO / "target" / build / "vwb"
+        if p.exists():
+            return str(p)
+    return str(REPO / "target/release/vwb")
+
+
+def write_block(doc: Path, name: str, block: str) -> None:
+    """Replaces the text between <!-- BEGIN name --> and <!-- END name --> (appends the
+    block when the markers are missing)."""
+    text = doc.read_text() if doc.exists() else "# Performance\n"
+    begin, end = f"<!-- BEGIN {name} -->", f"<!-- END {name} -->"
+    if begin in text and end in text:
+        pre, rest = text.split(begin, 1)
+        _, post = rest.split(end, 1)
+        text = f"{pre}{begin}\n{block}\n{end}{post}"
+    else:
+        text = text.rstrip() + f"\n\n{begin}\n{block}\n{end}\n"
+    doc.write_text(text)
