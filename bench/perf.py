@@ -17,7 +17,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-from doclib import REPO, machine_line, vwb_env, write_block
+from doclib import REPO, default_vwb, machine_line, vwb_env, write_block
 
 CASES = [
     ("demo (MRI 128×128×84)", "presets/demo.ron"),
@@ -25,10 +25,10 @@ CASES = [
 ]
 
 
-def run(vwb, preset, backend, size, frames, env):
+def run(vwb, preset, backend, size, frames, env, extra=()):
     out = Path(tempfile.gettempdir()) / "vwb-perf.png"
     cmd = [vwb, "render", "--preset", preset, "--size", size, "--backend", backend,
-           "--timings", "--frames", str(frames), "-o", str(out)]
+           "--timings", "--frames", str(frames), "-o", str(out), *extra]
     p = subprocess.run(cmd, cwd=REPO, env=env, capture_output=True, text=True)
     if p.returncode != 0:
         sys.exit(f"{' '.join(cmd)} failed:\n{p.stderr}")
@@ -48,7 +48,7 @@ def run(vwb, preset, backend, size, frames, env):
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--vwb", default=str(REPO / "target/release/vwb"))
+    ap.add_argument("--vwb", default=default_vwb())
     ap.add_argument("--size", default="512x512")
     ap.add_argument("--frames", type=int, default=10)
     ap.add_argument("--gpu", action="store_true", help="use the best adapter instead of pinning lavapipe")
@@ -63,8 +63,9 @@ def main():
     adapter = "?"
     cases = [(n, a.ct_preset if "CT" in n else p) for n, p in CASES]
     for name, preset in cases:
-        for backend in ("raster", "compute"):
-            r = run(a.vwb, preset, backend, a.size, a.frames, env)
+        for backend, extra in (("raster", ()), ("compute", ()),
+                               ("compute, early termination 0.99", ("--early-termination", "0.99"))):
+            r = run(a.vwb, preset, backend.split(",")[0], a.size, a.frames, env, extra)
             adapter = r["adapter"]
             g = r["gpu"]
             w = r["wall"]
@@ -79,7 +80,7 @@ def main():
         "",
         f"- Machine: {machine_line()}",
         f"- Adapter: {adapter}" + ("" if a.gpu else f" (LP_NUM_THREADS={env['LP_NUM_THREADS']})"),
-        f"- Image {a.size}, one slice per voxel (slice spacing 1), rgba16float eye buffer, classify.tf1d, no early termination",
+        f"- Image {a.size}, one slice per voxel (slice spacing 1), rgba16float eye buffer, classify.tf1d, early termination only where the backend column says so",
         "",
         "| volume | backend | slices | GPU ms median (min–max) | wall ms median |",
         "|---|---|---|---|---|",

@@ -156,6 +156,37 @@ fn slice_hit(r: Ray, k: u32) -> f32 {
     return t;
 }
 
+// Slices [first, last) that can meet the box along the ray: the ray's slab interval
+// through the box mapped to slice indices, widened by two slices against rounding.
+// Every slice in the range is still tested exactly by slice_hit, so the samples are
+// the same as looping over all slices; the range only skips planes the ray cannot hit
+// inside the box (pixels that miss the box loop over none).
+fn slice_range(r: Ray) -> vec2<u32> {
+    let tiny = vec3<f32>(1.0e-20);
+    let d = select(r.dir, tiny, abs(r.dir) < tiny);
+    let ta = (frame.box_min.xyz - r.origin) / d;
+    let tb = (frame.box_max.xyz - r.origin) / d;
+    let t_in = max(max(min(ta.x, tb.x), min(ta.y, tb.y)), min(ta.z, tb.z));
+    let t_out = min(min(max(ta.x, tb.x), max(ta.y, tb.y)), max(ta.z, tb.z));
+    let count = frame.counts.x;
+    if (t_out < t_in) {
+        return vec2<u32>(0u, 0u);
+    }
+    let dd = dot(r.dir, frame.forward.xyz);
+    let depth0 = dot(r.origin - frame.eye.xyz, frame.forward.xyz);
+    let ka = (depth0 + t_in * dd - frame.box_max.w) / frame.forward.w;
+    let kb = (depth0 + t_out * dd - frame.box_max.w) / frame.forward.w;
+    let lo = floor(min(ka, kb)) - 2.0;
+    let hi = ceil(max(ka, kb)) + 3.0;
+    // not finite (NaN fails both comparisons): fall back to every slice
+    if (!(lo <= hi)) {
+        return vec2<u32>(0u, count);
+    }
+    let first = u32(clamp(lo, 0.0, f32(count)));
+    let last = u32(clamp(hi, 0.0, f32(count)));
+    return vec2<u32>(first, last);
+}
+
 fn pixel_sample(r: Ray, t: f32, uv: vec2<f32>, k: u32) -> Sample {
     return make_sample(r.origin + r.dir * t, r.dir, uv, k);
 }
@@ -174,7 +205,8 @@ fn cs_main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let r = pixel_ray(uv);
     var acc = vec4<f32>(0.0);
     let early = frame.counts.z != 0u;
-    for (var k = 0u; k < frame.counts.x; k = k + 1u) {
+    let range = slice_range(r);
+    for (var k = range.x; k < range.y; k = k + 1u) {
         let t = slice_hit(r, k);
         if (t < 0.0) {
             continue;

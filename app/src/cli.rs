@@ -71,6 +71,25 @@ pub struct FrameArgs {
     /// Slice spacing in voxels overriding the preset's.
     #[arg(long)]
     pub spacing: Option<f32>,
+    /// Compute backend: stop a ray once its opacity reaches this value (0 < T ≤ 1);
+    /// `off` disables it.
+    #[arg(long, value_parser = parse_early_termination)]
+    pub early_termination: Option<EarlyTermination>,
+}
+
+/// `--early-termination`: a threshold or off.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct EarlyTermination(pub Option<f32>);
+
+pub fn parse_early_termination(s: &str) -> Result<EarlyTermination, String> {
+    if s == "off" {
+        return Ok(EarlyTermination(None));
+    }
+    s.parse::<f32>()
+        .ok()
+        .filter(|t| *t > 0.0 && *t <= 1.0)
+        .map(|t| EarlyTermination(Some(t)))
+        .ok_or_else(|| format!("early termination '{s}' is neither off nor a number in (0, 1]"))
 }
 
 impl FrameArgs {
@@ -92,6 +111,9 @@ impl FrameArgs {
                 bail!("--spacing must be a number > 0, got {s}");
             }
             doc.render.slice_spacing = s;
+        }
+        if let Some(EarlyTermination(t)) = self.early_termination {
+            doc.render.early_termination = t;
         }
         Ok(())
     }
@@ -383,4 +405,28 @@ pub fn run_scene(preset: Option<&std::path::Path>, a: &SceneArgs) -> Result<()> 
     let json = measure::scene_json(&doc, &volume, &path);
     println!("{}", serde_json::to_string_pretty(&json)?);
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn early_termination_values() {
+        assert_eq!(parse_early_termination("off"), Ok(EarlyTermination(None)));
+        assert_eq!(
+            parse_early_termination("0.99"),
+            Ok(EarlyTermination(Some(0.99)))
+        );
+        for bad in ["0", "1.5", "-0.2", "nan", "x"] {
+            assert!(parse_early_termination(bad).is_err(), "{bad}");
+        }
+        let mut doc = load_document(None).unwrap();
+        let args = FrameArgs {
+            early_termination: Some(EarlyTermination(Some(0.5))),
+            ..Default::default()
+        };
+        args.apply(&mut doc).unwrap();
+        assert_eq!(doc.render.early_termination, Some(0.5));
+    }
 }
