@@ -102,12 +102,10 @@ pub struct Document {
 
 #[derive(Debug, thiserror::Error)]
 pub enum PresetError {
-    #[error("{file}: {source}")]
-    Io {
-        file: String,
-        #[source]
-        source: std::io::Error,
-    },
+    /// The cause is part of the message (not a `source`), so that error chains print
+    /// it once.
+    #[error("{file}: {cause}")]
+    Io { file: String, cause: std::io::Error },
     #[error("{file}: {message}")]
     Syntax { file: String, message: String },
     #[error("{file}: {path}: {message}")]
@@ -140,9 +138,9 @@ impl Document {
     /// Loads a preset file.
     pub fn load(path: &Path, registry: &Registry) -> Result<Loaded, PresetError> {
         let file = path.display().to_string();
-        let text = std::fs::read_to_string(path).map_err(|source| PresetError::Io {
+        let text = std::fs::read_to_string(path).map_err(|cause| PresetError::Io {
             file: file.clone(),
-            source,
+            cause,
         })?;
         let mut loaded = Self::parse(&text, &file, registry)?;
         // relative volume paths are relative to the preset
@@ -298,9 +296,9 @@ impl Document {
 
     /// Saves atomically (temporary file + rename in the same folder).
     pub fn save(&self, path: &Path) -> Result<(), PresetError> {
-        write_atomic(path, self.to_ron().as_bytes()).map_err(|source| PresetError::Io {
+        write_atomic(path, self.to_ron().as_bytes()).map_err(|cause| PresetError::Io {
             file: path.display().to_string(),
-            source,
+            cause,
         })
     }
 }

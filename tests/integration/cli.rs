@@ -135,7 +135,25 @@ fn failures_name_the_file_and_exit_non_zero() {
             stderr.contains(&want),
             "{args:?}: expected '{want}' in {stderr}"
         );
+        // the cause is said once, not repeated by the error chain
+        let cause = "No such file or directory";
+        assert!(stderr.matches(cause).count() <= 1, "{stderr}");
     }
+    let o = vwb()
+        .args([
+            "render",
+            "--preset",
+            "presets/demo.ron",
+            "--volume",
+            "missing.nhdr",
+            "-o",
+        ])
+        .arg(tmp("x.png"))
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert!(stderr.contains("missing.nhdr: cannot open"), "{stderr}");
+    assert_eq!(stderr.matches("No such file").count(), 1, "{stderr}");
 }
 
 #[test]

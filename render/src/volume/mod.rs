@@ -317,13 +317,13 @@ impl Volume {
 #[derive(Debug, thiserror::Error)]
 #[non_exhaustive]
 pub enum VolumeError {
-    /// Opening, reading or seeking a file failed.
-    #[error("{}: {context}: {source}", .file.display())]
+    /// Opening, reading or seeking a file failed. The cause is part of the message
+    /// (not a `source`), so that error chains print it once.
+    #[error("{}: {context}: {cause}", .file.display())]
     Io {
         file: PathBuf,
         context: String,
-        #[source]
-        source: std::io::Error,
+        cause: std::io::Error,
     },
 
     /// [`load`] was given a file without the NRRD magic.
@@ -445,17 +445,11 @@ fn skip_note(skip: u64) -> String {
 /// `NRRD000x`) is self-describing; headerless raw data must go through
 /// [`load_raw`].
 pub fn load(path: &Path) -> Result<Volume, VolumeError> {
-    let mut file = std::fs::File::open(path).map_err(|source| VolumeError::Io {
-        file: path.to_path_buf(),
-        context: "cannot open".to_owned(),
-        source,
-    })?;
+    let mut file =
+        std::fs::File::open(path).map_err(|cause| raw::io_error(path, "cannot open", cause))?;
     let mut magic = [0u8; 7];
-    let got = raw::read_fully(&mut file, &mut magic).map_err(|source| VolumeError::Io {
-        file: path.to_path_buf(),
-        context: "cannot read".to_owned(),
-        source,
-    })?;
+    let got = raw::read_fully(&mut file, &mut magic)
+        .map_err(|cause| raw::io_error(path, "cannot read", cause))?;
     if &magic[..got] == b"NRRD000" {
         load_nrrd(path)
     } else {

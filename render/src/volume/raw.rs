@@ -117,11 +117,11 @@ pub fn load_raw(path: &Path, desc: &RawDesc) -> Result<Volume, VolumeError> {
     Ok(volume)
 }
 
-pub(crate) fn io_error(path: &Path, context: &str, source: io::Error) -> VolumeError {
+pub(crate) fn io_error(path: &Path, context: &str, cause: io::Error) -> VolumeError {
     VolumeError::Io {
         file: path.to_path_buf(),
         context: context.to_owned(),
-        source,
+        cause,
     }
 }
 
