@@ -63,8 +63,12 @@ def main():
     adapter = "?"
     cases = [(n, a.ct_preset if "CT" in n else p) for n, p in CASES]
     for name, preset in cases:
-        for backend, extra in (("raster", ()), ("compute", ()),
-                               ("compute, early termination 0.99", ("--early-termination", "0.99"))):
+        for backend, extra in (
+            ("raster", ()),
+            ("compute", ()),
+            ("compute, no empty-space skipping", ("--skipping", "off")),
+            ("compute, early termination 0.99", ("--early-termination", "0.99")),
+        ):
             r = run(a.vwb, preset, backend.split(",")[0], a.size, a.frames, env, extra)
             adapter = r["adapter"]
             g = r["gpu"]
@@ -80,7 +84,7 @@ def main():
         "",
         f"- Machine: {machine_line()}",
         f"- Adapter: {adapter}" + ("" if a.gpu else f" (LP_NUM_THREADS={env['LP_NUM_THREADS']})"),
-        f"- Image {a.size}, one slice per voxel (slice spacing 1), rgba16float eye buffer, classify.tf1d, early termination only where the backend column says so",
+        f"- Image {a.size}, one slice per voxel (slice spacing 1), rgba16float eye buffer, classify.tf1d, empty-space skipping on (it acts in the compute backend) and early termination off unless the backend column says otherwise",
         "",
         "| volume | backend | slices | GPU ms median (min–max) | wall ms median |",
         "|---|---|---|---|---|",

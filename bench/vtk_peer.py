@@ -76,13 +76,22 @@ def vwb_scene(vwb, preset, size, spacing, env):
     return json.loads(p.stdout)
 
 
-def vwb_render(vwb, scene, backend, frames, png, env):
+# vwb variants timed against VTK: (label, backend, extra arguments). VTK's ray caster
+# terminates rays early, so the last row is the like-for-like one.
+VWB_VARIANTS = [
+    ("raster", "raster", []),
+    ("compute", "compute", []),
+    ("compute + early termination 0.99", "compute", ["--early-termination", "0.99"]),
+]
+
+
+def vwb_render(vwb, scene, backend, frames, png, env, extra=()):
     """Runs `vwb render --timings` on the scene's preset, size and slice spacing."""
     img = scene["image"]
     cmd = [vwb, "render", "--preset", scene["preset"],
            "--size", f"{img['width']}x{img['height']}",
            "--spacing", str(scene["slice_spacing_voxels"]), "--backend", backend,
-           "--timings", "--frames", str(frames), "-o", str(png)]
+           "--timings", "--frames", str(frames), "-o", str(png), *extra]
     p = subprocess.run(cmd, cwd=REPO, env=env, capture_output=True, text=True)
     if p.returncode != 0:
         sys.exit(f"{shlex.join(cmd)} failed:\n{p.stderr}")
@@ -340,11 +349,11 @@ def main():
         print(f"{label}: VTK {mapper_used} median {v[0]:.1f} ms (min {v[1]:.1f} max {v[2]:.1f}) "
               f"→ {vtk_png}", flush=True)
         del rw, camera, mapper  # release the GL context before vwb runs
-        for backend in ("raster", "compute"):
-            png = out / f"{stem}_vwb_{backend}.png"
-            r = vwb_render(a.vwb, scene, backend, a.frames, png, env)
+        for n, (backend, kind, extra) in enumerate(VWB_VARIANTS):
+            png = out / f"{stem}_vwb_{n}_{kind}.png"
+            r = vwb_render(a.vwb, scene, kind, a.frames, png, env, extra)
             adapter = r["adapter"]
-            rms = compare(png, vtk_rgb, out / f"{stem}_vwb_{backend}_vs_vtk.png")
+            rms = compare(png, vtk_rgb, out / f"{stem}_vwb_{n}_{kind}_vs_vtk.png")
             rows.append((label, size, r["slices"], backend, r["wall"], r["gpu"], v, rms))
             shown = "n/a (sizes differ)" if rms is None else f"{rms:.2f}/255"
             print(f"{label}: vwb {backend} wall {r['wall'][0]:.1f} ms → {png}; RMS vs VTK {shown}",

@@ -30,7 +30,8 @@ struct Frame {
     value_range: vec4<f32>,
     // x: slice count, y: 1 when the eye buffer is fp16, z: 1 when early termination is on
     counts: vec4<u32>,
-    // x: early-termination opacity threshold
+    // x: early-termination opacity threshold; y: brick size of empty-space skipping
+    // (0: off)
     settings: vec4<f32>,
 }
 
@@ -46,6 +47,9 @@ struct SliceInfo {
 @group(0) @binding(2) var linear_clamp: sampler;
 @group(0) @binding(3) var nearest_clamp: sampler;
 @group(0) @binding(4) var<uniform> slice_info: SliceInfo;
+// Empty-space skipping: per brick of frame.settings.y voxels, > 0.5 where a sample can
+// be visible (render/src/skipping.rs).
+@group(0) @binding(5) var occupancy: texture_3d<f32>;
 
 struct Sample {
     // world position of the sample
@@ -66,6 +70,19 @@ struct Sample {
     normal: vec3<f32>,
     // index of the slice, front (0) to back
     slice: u32,
+}
+
+// False where the brick holding `tex` cannot produce a visible sample (its hooks can
+// be skipped: the contribution would be exactly zero). Always true while skipping is
+// off (frame.settings.y = 0).
+fn brick_visible(tex: vec3<f32>) -> bool {
+    let b = frame.settings.y;
+    if (b <= 0.0) {
+        return true;
+    }
+    let dims = vec3<i32>(textureDimensions(occupancy));
+    let brick = vec3<i32>(floor(tex * frame.volume_dims.xyz / b));
+    return textureLoad(occupancy, clamp(brick, vec3<i32>(0), dims - vec3<i32>(1)), 0).r > 0.5;
 }
 
 // Scalar at a texture coordinate (trilinear).

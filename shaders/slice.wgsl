@@ -187,12 +187,65 @@ fn slice_range(r: Ray) -> vec2<u32> {
     return vec2<u32>(first, last);
 }
 
+// The last slice whose sample may still lie in the brick holding `tex` (rounded down
+// with a margin, so that no slice beyond the brick is ever skipped).
+fn brick_exit_slice(r: Ray, tex: vec3<f32>) -> u32 {
+    let b = frame.settings.y;
+    let brick = floor(tex * frame.volume_dims.xyz / b);
+    let extent = frame.box_max.xyz - frame.box_min.xyz;
+    let lo = frame.box_min.xyz + extent * (brick * b / frame.volume_dims.xyz);
+    let hi = frame.box_min.xyz + extent * min((brick + 1.0) * b / frame.volume_dims.xyz, vec3<f32>(1.0));
+    let tiny = vec3<f32>(1.0e-20);
+    let d = select(r.dir, tiny, abs(r.dir) < tiny);
+    let ta = (lo - r.origin) / d;
+    let tb = (hi - r.origin) / d;
+    let t_out = min(min(max(ta.x, tb.x), max(ta.y, tb.y)), max(ta.z, tb.z));
+    let depth = dot(r.origin - frame.eye.xyz, frame.forward.xyz) + t_out * dot(r.dir, frame.forward.xyz);
+    let k = floor((depth - frame.box_max.w) / frame.forward.w - 0.01);
+    // not finite: no jump
+    if (!(k >= 0.0)) {
+        return 0u;
+    }
+    return u32(min(k, f32(frame.counts.x)));
+}
+
 fn pixel_sample(r: Ray, t: f32, uv: vec2<f32>, k: u32) -> Sample {
     return make_sample(r.origin + r.dir * t, r.dir, uv, k);
 }
 
 @group(3) @binding(0) var out_tex: texture_storage_2d<{{TARGET_FORMAT}}, write>;
 @group(3) @binding(1) var<storage, read_write> accum: array<vec4<f32>>;
+
+// Front to back over the slices the ray can meet. With `skipping`, a sample in an
+// empty brick jumps to the last slice that may still lie in that brick: the skipped
+// samples would each have added exactly nothing (and `round_like_target` is
+// idempotent), so the image is the same. `skipping` is a constant at both call sites,
+// so each entry point compiles only its own loop.
+fn march(r: Ray, uv: vec2<f32>, skipping: bool) -> vec4<f32> {
+    var acc = vec4<f32>(0.0);
+    let early = frame.counts.z != 0u;
+    let range = slice_range(r);
+    for (var k = range.x; k < range.y; k = k + 1u) {
+        let t = slice_hit(r, k);
+        if (t < 0.0) {
+            continue;
+        }
+        let s = pixel_sample(r, t, uv, k);
+        if (skipping && !brick_visible(s.tex)) {
+            let exit = brick_exit_slice(r, s.tex);
+            if (exit > k + 1u) {
+                k = exit - 1u;
+            }
+            continue;
+        }
+        let e = evaluate(s);
+        acc = round_like_target(under(acc, e.c));
+        if (early && acc.a >= frame.settings.x) {
+            break;
+        }
+    }
+    return acc;
+}
 
 // Whole frame in one dispatch (no plugin needs per-slice passes).
 @compute @workgroup_size(8, 8, 1)
@@ -202,22 +255,18 @@ fn cs_main(@builtin(global_invocation_id) gid: vec3<u32>) {
         return;
     }
     let uv = (vec2<f32>(gid.xy) + 0.5) * frame.viewport.zw;
-    let r = pixel_ray(uv);
-    var acc = vec4<f32>(0.0);
-    let early = frame.counts.z != 0u;
-    let range = slice_range(r);
-    for (var k = range.x; k < range.y; k = k + 1u) {
-        let t = slice_hit(r, k);
-        if (t < 0.0) {
-            continue;
-        }
-        let e = evaluate(pixel_sample(r, t, uv, k));
-        acc = round_like_target(under(acc, e.c));
-        if (early && acc.a >= frame.settings.x) {
-            break;
-        }
+    textureStore(out_tex, vec2<i32>(gid.xy), march(pixel_ray(uv), uv, false));
+}
+
+// `cs_main` with empty-space skipping (used while the occupancy grid is active).
+@compute @workgroup_size(8, 8, 1)
+fn cs_main_skip(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let size = vec2<u32>(frame.viewport.xy);
+    if (gid.x >= size.x || gid.y >= size.y) {
+        return;
     }
-    textureStore(out_tex, vec2<i32>(gid.xy), acc);
+    let uv = (vec2<f32>(gid.xy) + 0.5) * frame.viewport.zw;
+    textureStore(out_tex, vec2<i32>(gid.xy), march(pixel_ray(uv), uv, true));
 }
 
 // One slice per dispatch, accumulating in `accum` (used when a plugin has per-slice state).

@@ -75,6 +75,15 @@ pub struct FrameArgs {
     /// `off` disables it.
     #[arg(long, value_parser = parse_early_termination)]
     pub early_termination: Option<EarlyTermination>,
+    /// Empty-space skipping on or off (default: the preset's, normally on).
+    #[arg(long)]
+    pub skipping: Option<OnOff>,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum OnOff {
+    On,
+    Off,
 }
 
 /// `--early-termination`: a threshold or off.
@@ -114,6 +123,9 @@ impl FrameArgs {
         }
         if let Some(EarlyTermination(t)) = self.early_termination {
             doc.render.early_termination = t;
+        }
+        if let Some(on) = self.skipping {
+            doc.render.empty_space_skipping = on == OnOff::On;
         }
         Ok(())
     }

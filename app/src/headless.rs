@@ -26,6 +26,7 @@ pub fn load_volume_file(path: &Path) -> Result<Volume> {
 /// A renderer with a document's plugin stack applied.
 pub fn renderer_for(gpu: &GpuContext, doc: &Document, volume: Arc<Volume>) -> Result<Renderer> {
     let mut r = Renderer::new(gpu, volume)?;
+    r.set_empty_space_skipping(doc.render.empty_space_skipping);
     r.update_stack(&doc.stack, doc.render.target)?;
     Ok(r)
 }

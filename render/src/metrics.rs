@@ -81,11 +81,8 @@ impl RgbImageF {
         height: u32,
         background: [f64; 3],
     ) -> Self {
-        let pixels = rgba
-            .iter()
-            .map(|p| over(p.map(f64::from), background))
-            .collect();
-        Self::new(width, height, pixels)
+        let wide: Vec<[f64; 4]> = rgba.iter().map(|p| p.map(f64::from)).collect();
+        Self::from_rgba_premultiplied_over(&wide, width, height, background)
     }
 
     /// From an 8-bit image (as written to PNG).

@@ -319,6 +319,28 @@ pub trait CpuTwin: Send + Sync {
     }
 }
 
+/// Whether any value in `[lo, hi]` (normalised) can be classified with α > 0.
+pub type VisibleFn = dyn Fn(f64, f64) -> bool + Send + Sync;
+
+/// What a plugin promises about transparent samples, for empty-space skipping
+/// ([`crate::skipping`]). A wrong promise changes images, so the default promises
+/// nothing.
+#[derive(Clone)]
+pub enum Transparency {
+    /// No promise (the default): skipping is off while the plugin is enabled. Right
+    /// for plugins that replace `s.value`, make opacity out of nothing, composite from
+    /// something other than the contribution (e.g. maximum intensity), or read the
+    /// shaded sample in `slice_update` beyond its contribution.
+    Unknown,
+    /// Samples that reach the plugin with α = 0 leave it with α = 0 and contribute
+    /// nothing (clipping, shading that changes colour only).
+    Keeps,
+    /// A classifier that sets the colour from `s.value` alone: the function says
+    /// whether some value in the range gets α > 0. It must be conservative (answer
+    /// true when unsure).
+    ByValue(Arc<VisibleFn>),
+}
+
 /// A plugin type. Instances (with their own parameter values) live in a stack.
 pub trait Plugin: Send + Sync + 'static {
     /// Stable id `category.name`, e.g. `classify.tf1d`.
@@ -366,6 +388,10 @@ pub trait Plugin: Send + Sync + 'static {
     /// CPU twin for the given parameters, if the plugin has one.
     fn cpu_twin(&self, _params: &ParamValues) -> Option<Box<dyn CpuTwin>> {
         None
+    }
+    /// Its promise about transparent samples, for empty-space skipping.
+    fn transparency(&self, _params: &ParamValues) -> Transparency {
+        Transparency::Unknown
     }
 }
 

@@ -43,6 +43,9 @@ pub struct RenderSection {
     pub background: [f32; 4],
     /// Default image size.
     pub size: [u32; 2],
+    /// Skip the hooks of samples in bricks that cannot be visible (render/src/skipping.rs);
+    /// never changes the image.
+    pub empty_space_skipping: bool,
 }
 
 impl Default for RenderSection {
@@ -54,6 +57,7 @@ impl Default for RenderSection {
             early_termination: None,
             background: [0.0, 0.0, 0.0, 1.0],
             size: [512, 512],
+            empty_space_skipping: true,
         }
     }
 }

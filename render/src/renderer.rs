@@ -32,6 +32,7 @@ use crate::composer::{Binding, BindingRole, ComposeError, Composition, TargetFor
 use crate::gpu::GpuContext;
 use crate::params::ParamValues;
 use crate::plugin::{GpuInit, GpuResource, Plugin, PluginError, PluginInstance};
+use crate::skipping::{BRICK, BrickRanges, stack_visibility};
 use crate::slicing::{SliceError, SlicePlan, VolumeBox};
 use crate::volume::Volume;
 
@@ -175,6 +176,8 @@ struct Pipelines {
     g3_layout: wgpu::BindGroupLayout,
     raster: wgpu::RenderPipeline,
     cs_main: wgpu::ComputePipeline,
+    /// `cs_main` with empty-space skipping.
+    cs_main_skip: wgpu::ComputePipeline,
     cs_slice: wgpu::ComputePipeline,
     cs_resolve: wgpu::ComputePipeline,
     /// (instance index, pipeline) per state update.
@@ -223,6 +226,14 @@ pub struct Renderer {
     slice_info_slices: u32,
     g0_layout: wgpu::BindGroupLayout,
     g0: wgpu::BindGroup,
+    /// Value range per brick of the volume (empty-space skipping).
+    bricks: BrickRanges,
+    /// Occupancy per brick for the current stack (1×1×1 "visible" when skipping is off).
+    occupancy: (wgpu::Texture, wgpu::TextureView),
+    /// The occupancy bytes uploaded, when skipping is active.
+    occupancy_bytes: Option<Vec<u8>>,
+    /// The user's switch (on by default).
+    skipping_enabled: bool,
     pipelines: Option<Pipelines>,
     instances: HashMap<u64, InstanceGpu>,
     target: Option<Target>,
@@ -311,6 +322,16 @@ impl Renderer {
                     count: None,
                 },
                 uniform_entry(4, fc, true),
+                wgpu::BindGroupLayoutEntry {
+                    binding: 5,
+                    visibility: fc,
+                    ty: wgpu::BindingType::Texture {
+                        sample_type: wgpu::TextureSampleType::Float { filterable: true },
+                        view_dimension: wgpu::TextureViewDimension::D3,
+                        multisampled: false,
+                    },
+                    count: None,
+                },
             ],
         });
         let slice_info = device.create_buffer(&wgpu::BufferDescriptor {
@@ -319,6 +340,8 @@ impl Renderer {
             usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
+        let bricks = BrickRanges::new(volume.dims, &volume.normalized_scalars());
+        let occupancy = upload_occupancy(gpu, [1, 1, 1], &[255]);
         let g0 = make_g0(
             device,
             &g0_layout,
@@ -327,6 +350,7 @@ impl Renderer {
             &linear,
             &nearest,
             &slice_info,
+            &occupancy.1,
         );
         let mut r = Self {
             gpu: gpu.clone(),
@@ -340,6 +364,10 @@ impl Renderer {
             slice_info_slices: 1,
             g0,
             g0_layout,
+            bricks,
+            occupancy,
+            occupancy_bytes: None,
+            skipping_enabled: true,
             pipelines: None,
             instances: HashMap::new(),
             target: None,
@@ -400,11 +428,46 @@ impl Renderer {
         }
         self.vbox = VolumeBox::new(volume.dims, volume.spacing);
         self.volume_view = upload_volume(&self.gpu, &volume);
+        self.bricks = BrickRanges::new(volume.dims, &volume.normalized_scalars());
+        self.occupancy = upload_occupancy(&self.gpu, [1, 1, 1], &[255]);
+        self.occupancy_bytes = None;
         self.volume = volume;
         self.instances.clear();
         self.pipelines = None;
         self.rebuild_g0();
         Ok(())
+    }
+
+    /// Turns empty-space skipping on or off (on by default; it only ever acts when
+    /// every enabled plugin promises how it treats transparent samples). Takes effect
+    /// at the next [`Renderer::update_stack`].
+    pub fn set_empty_space_skipping(&mut self, on: bool) {
+        self.skipping_enabled = on;
+    }
+
+    /// Share of bricks skipped for the current stack, `None` when skipping is off.
+    pub fn empty_brick_share(&self) -> Option<f64> {
+        self.occupancy_bytes
+            .as_ref()
+            .map(|b| b.iter().filter(|&&v| v == 0).count() as f64 / b.len().max(1) as f64)
+    }
+
+    /// Recomputes the occupancy for the stack and uploads it when it changed.
+    fn update_occupancy(&mut self, stack: &[PluginInstance]) {
+        let bytes = if self.skipping_enabled {
+            stack_visibility(stack).map(|visible| self.bricks.occupancy(&*visible))
+        } else {
+            None
+        };
+        if bytes == self.occupancy_bytes {
+            return;
+        }
+        self.occupancy = match &bytes {
+            Some(b) => upload_occupancy(&self.gpu, self.bricks.dims, b),
+            None => upload_occupancy(&self.gpu, [1, 1, 1], &[255]),
+        };
+        self.occupancy_bytes = bytes;
+        self.rebuild_g0();
     }
 
     fn rebuild_g0(&mut self) {
@@ -416,6 +479,7 @@ impl Renderer {
             &self.linear,
             &self.nearest,
             &self.slice_info,
+            &self.occupancy.1,
         );
     }
 
@@ -505,6 +569,7 @@ impl Renderer {
         for inst in &enabled {
             params_changed |= self.sync_params(inst)?;
         }
+        self.update_occupancy(stack);
         Ok(if recompose {
             StackChange::Recomposed
         } else if params_changed {
@@ -767,6 +832,7 @@ impl Renderer {
             })
         };
         let cs_main = compute("cs_main", &compute_layout, &module);
+        let cs_main_skip = compute("cs_main_skip", &compute_layout, &module);
         let cs_slice = compute("cs_slice", &compute_layout, &module);
         let cs_resolve = compute("cs_resolve", &compute_layout, &module);
         let mut updates = Vec::new();
@@ -803,6 +869,7 @@ impl Renderer {
             g3_layout,
             raster,
             cs_main,
+            cs_main_skip,
             cs_slice,
             cs_resolve,
             updates,
@@ -1051,7 +1118,16 @@ impl Renderer {
                 (s.backend == Backend::Compute && s.early_termination.is_some()) as u32,
                 0,
             ],
-            settings: [s.early_termination.unwrap_or(1.0), 0.0, 0.0, 0.0],
+            settings: [
+                s.early_termination.unwrap_or(1.0),
+                if self.occupancy_bytes.is_some() {
+                    BRICK as f32
+                } else {
+                    0.0
+                },
+                0.0,
+                0.0,
+            ],
         };
         self.gpu
             .queue
@@ -1382,7 +1458,11 @@ impl Renderer {
                     pass.dispatch_workgroups(wg.0, wg.1, 1);
                 } else {
                     let mut pass = enc.begin_compute_pass(&Default::default());
-                    pass.set_pipeline(&p.cs_main);
+                    pass.set_pipeline(if self.occupancy_bytes.is_some() {
+                        &p.cs_main_skip
+                    } else {
+                        &p.cs_main
+                    });
                     pass.set_bind_group(0, &self.g0, &[0]);
                     pass.set_bind_group(1, &g1, &[]);
                     pass.set_bind_group(2, &g2[0], &[]);
@@ -1593,6 +1673,7 @@ fn make_g0(
     linear: &wgpu::Sampler,
     nearest: &wgpu::Sampler,
     slice_info: &wgpu::Buffer,
+    occupancy: &wgpu::TextureView,
 ) -> wgpu::BindGroup {
     device.create_bind_group(&wgpu::BindGroupDescriptor {
         label: Some("vwb group 0"),
@@ -1622,8 +1703,47 @@ fn make_g0(
                     size: wgpu::BufferSize::new(16),
                 }),
             },
+            wgpu::BindGroupEntry {
+                binding: 5,
+                resource: wgpu::BindingResource::TextureView(occupancy),
+            },
         ],
     })
+}
+
+/// Uploads brick occupancy bytes (255 = may be visible) as an R8Unorm 3D texture.
+fn upload_occupancy(
+    gpu: &GpuContext,
+    dims: [u32; 3],
+    bytes: &[u8],
+) -> (wgpu::Texture, wgpu::TextureView) {
+    let size = wgpu::Extent3d {
+        width: dims[0],
+        height: dims[1],
+        depth_or_array_layers: dims[2],
+    };
+    let texture = gpu.device.create_texture(&wgpu::TextureDescriptor {
+        label: Some("vwb brick occupancy"),
+        size,
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D3,
+        format: wgpu::TextureFormat::R8Unorm,
+        usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+        view_formats: &[],
+    });
+    gpu.queue.write_texture(
+        texture.as_image_copy(),
+        bytes,
+        wgpu::TexelCopyBufferLayout {
+            offset: 0,
+            bytes_per_row: Some(dims[0]),
+            rows_per_image: Some(dims[1]),
+        },
+        size,
+    );
+    let view = texture.create_view(&Default::default());
+    (texture, view)
 }
 
 /// Uploads the normalised scalar volume (R32Float where filterable, else R16Float).

@@ -11,7 +11,7 @@ use vwb_render::TargetFormat;
 use vwb_render::params::ParamValue;
 use vwb_render::plugin::CpuContext;
 use vwb_render::preset::Document;
-use vwb_render::renderer::Backend;
+use vwb_render::renderer::{Backend, FrameSettings};
 use vwb_render::tf::{TfCurve, TfPoint};
 
 use crate::common::*;
@@ -349,4 +349,55 @@ fn bad_sizes_and_spacings_are_errors_not_panics() {
     assert!(r.render(&s).is_err());
     s.slice_spacing = 1e-6;
     assert!(r.render(&s).unwrap_err().to_string().contains("slices"));
+}
+
+/// Empty-space skipping changes nothing in the image: every shipped preset (and the
+/// per-slice-state one) renders the same with it on and off, on both backends and with
+/// early termination, while a good share of the bricks is skipped where the stack
+/// allows it. (The extremes suite runs with skipping on against the CPU reference.)
+#[test]
+fn empty_space_skipping_leaves_images_unchanged() {
+    let registry = registry();
+    for path in crate::presets::shipped_presets() {
+        let name = path.file_name().unwrap().to_string_lossy().to_string();
+        let doc = Document::load(&path, &registry).unwrap().document;
+        let volume = vwb_app::headless::load_volume(&doc.volume).unwrap();
+        for (backend, early_termination) in [
+            (Backend::Raster, None),
+            (Backend::Compute, None),
+            (Backend::Compute, Some(0.95)),
+        ] {
+            let s = FrameSettings {
+                width: 64,
+                height: 64,
+                backend,
+                early_termination,
+                ..doc.frame_settings()
+            };
+            let mut images = Vec::new();
+            let mut share = None;
+            for on in [true, false] {
+                let mut r = Renderer::new(gpu(), volume.clone()).unwrap();
+                r.set_empty_space_skipping(on);
+                images.push(render(&mut r, &doc.stack, doc.render.target, &s));
+                if on {
+                    share = r.empty_brick_share();
+                }
+            }
+            assert_eq!(images[0], images[1], "{name} {}", backend.name());
+            let smooth = doc.stack.iter().any(|i| i.plugin.id() == "test.smooth");
+            match share {
+                // test.smooth replaces the value, so it promises nothing
+                None => assert!(smooth, "{name}: skipping should be on"),
+                Some(f) => {
+                    eprintln!(
+                        "{name} {}: {:.0} % of bricks skipped",
+                        backend.name(),
+                        f * 100.0
+                    );
+                    assert!(f > 0.05, "{name}: {f}");
+                }
+            }
+        }
+    }
 }

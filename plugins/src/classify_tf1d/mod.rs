@@ -5,11 +5,13 @@
 //! reference step). The CPU twin evaluates the same baked table with the same linear
 //! interpolation as the GPU sampler.
 
+use std::sync::Arc;
+
 use glam::DVec4;
 use vwb_render::params::{ParamSpec, ParamValues};
 use vwb_render::plugin::{
     CpuSample, CpuTwin, GpuInit, GpuResource, Plugin, PluginError, ResourceDecl, ResourceKind,
-    ShaderSource,
+    ShaderSource, Transparency,
 };
 use vwb_render::tf::{LUT_SIZE, TfCurve, TfPoint, eval_lut};
 
@@ -136,6 +138,22 @@ impl Plugin for Tf1d {
             res.texture.size(),
         );
         Ok(())
+    }
+    /// Colour from the value alone: a value range can be visible when any table entry
+    /// the GPU interpolates for it has α > 0 (the entries around both ends included).
+    fn transparency(&self, params: &ParamValues) -> Transparency {
+        let opacity = params.float("opacity");
+        let visible: Vec<bool> = curve(params)
+            .bake(LUT_SIZE)
+            .iter()
+            .map(|c| c[3] * opacity > 0.0)
+            .collect();
+        Transparency::ByValue(Arc::new(move |lo: f64, hi: f64| {
+            let last = visible.len() - 1;
+            let index = |v: f64| v.clamp(0.0, 1.0) * last as f64;
+            let (a, b) = (index(lo).floor() as usize, index(hi).ceil() as usize);
+            a <= b && visible[a..=b.min(last)].iter().any(|&v| v)
+        }))
     }
     fn cpu_twin(&self, params: &ParamValues) -> Option<Box<dyn CpuTwin>> {
         Some(Box::new(Tf1dTwin {

@@ -10,6 +10,7 @@ use glam::{DVec2, DVec4};
 use vwb_render::params::{ParamSpec, ParamValues};
 use vwb_render::plugin::{
     CpuContext, CpuSample, CpuTwin, Plugin, ShaderSource, SliceStateDecl, StorageFormat,
+    Transparency,
 };
 
 pub struct SliceShadow;
@@ -36,6 +37,11 @@ impl Plugin for SliceShadow {
             scale: 1.0,
             clear: [0.0; 4],
         })
+    }
+    /// `shade` scales the colour only and `slice_update` reads only the contribution's
+    /// opacity, so transparent samples stay without effect.
+    fn transparency(&self, _params: &ParamValues) -> Transparency {
+        Transparency::Keeps
     }
     fn cpu_twin(&self, params: &ParamValues) -> Option<Box<dyn CpuTwin>> {
         Some(Box::new(SliceShadowTwin {
