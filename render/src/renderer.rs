@@ -261,6 +261,29 @@ fn uniform_entry(
     }
 }
 
+/// A filterable float 3D texture binding.
+fn texture3d_entry(binding: u32, vis: wgpu::ShaderStages) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: vis,
+        ty: wgpu::BindingType::Texture {
+            sample_type: wgpu::TextureSampleType::Float { filterable: true },
+            view_dimension: wgpu::TextureViewDimension::D3,
+            multisampled: false,
+        },
+        count: None,
+    }
+}
+
+fn sampler_entry(binding: u32, vis: wgpu::ShaderStages) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: vis,
+        ty: wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering),
+        count: None,
+    }
+}
+
 impl Renderer {
     pub fn new(gpu: &GpuContext, volume: Arc<Volume>) -> Result<Self, RenderError> {
         let device = &gpu.device;
@@ -299,39 +322,11 @@ impl Renderer {
             label: Some("vwb group 0 (core)"),
             entries: &[
                 uniform_entry(0, all, false),
-                wgpu::BindGroupLayoutEntry {
-                    binding: 1,
-                    visibility: fc,
-                    ty: wgpu::BindingType::Texture {
-                        sample_type: wgpu::TextureSampleType::Float { filterable: true },
-                        view_dimension: wgpu::TextureViewDimension::D3,
-                        multisampled: false,
-                    },
-                    count: None,
-                },
-                wgpu::BindGroupLayoutEntry {
-                    binding: 2,
-                    visibility: fc,
-                    ty: wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering),
-                    count: None,
-                },
-                wgpu::BindGroupLayoutEntry {
-                    binding: 3,
-                    visibility: fc,
-                    ty: wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering),
-                    count: None,
-                },
+                texture3d_entry(1, fc),
+                sampler_entry(2, fc),
+                sampler_entry(3, fc),
                 uniform_entry(4, fc, true),
-                wgpu::BindGroupLayoutEntry {
-                    binding: 5,
-                    visibility: fc,
-                    ty: wgpu::BindingType::Texture {
-                        sample_type: wgpu::TextureSampleType::Float { filterable: true },
-                        view_dimension: wgpu::TextureViewDimension::D3,
-                        multisampled: false,
-                    },
-                    count: None,
-                },
+                texture3d_entry(5, fc),
             ],
         });
         let slice_info = device.create_buffer(&wgpu::BufferDescriptor {
