@@ -1,6 +1,7 @@
 use clap::Parser;
 use vwb_app::cli::{
-    Cli, Command, run_bench, run_compare, run_info, run_render, run_scene, run_sweep,
+    Cli, Command, run_bench, run_classification, run_compare, run_info, run_render, run_scene,
+    run_sweep,
 };
 
 fn main() {
@@ -12,6 +13,7 @@ fn main() {
         Some(Command::Bench(a)) => run_bench(cli.preset.as_deref(), a),
         Some(Command::Sweep(a)) => run_sweep(cli.preset.as_deref(), a),
         Some(Command::Scene(a)) => run_scene(cli.preset.as_deref(), a),
+        Some(Command::Classification(a)) => run_classification(a),
         Some(Command::Info) => run_info(),
         None => vwb_app::window::run(&cli),
     };

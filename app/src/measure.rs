@@ -15,7 +15,7 @@ use serde::Serialize;
 use serde_json::json;
 use vwb_render::metrics::{self, HEATMAP_DEFAULT_MAX, Metrics, RgbImageF};
 use vwb_render::params::{ParamKind, ParamValue};
-use vwb_render::plugin::CpuSample;
+use vwb_render::plugin::{CpuContext, CpuSample};
 use vwb_render::preset::{Document, VolumeSource};
 use vwb_render::reference::{self, Converged, ReferenceImage, ReferenceOptions};
 use vwb_render::slicing::VolumeBox;
@@ -1034,9 +1034,14 @@ pub fn scene_json(doc: &Document, volume: &Volume, preset: &Path) -> serde_json:
         .stack
         .iter()
         .filter(|i| i.enabled)
-        .map(|i| i.plugin.cpu_twin(&i.params))
+        .map(|i| i.configured().cpu_twin(&i.params))
         .collect();
-    let lut = twins.map(|twins| {
+    let scalars = volume.normalized_scalars();
+    let ctx = CpuContext::new(volume, &scalars).with_spacing(s.slice_spacing as f64);
+    let lut = twins.map(|mut twins| {
+        for t in &mut twins {
+            t.prepare(&ctx);
+        }
         (0..256)
             .map(|i| {
                 let v = i as f64 / 255.0;
@@ -1046,7 +1051,7 @@ pub fn scene_json(doc: &Document, volume: &Volume, preset: &Path) -> serde_json:
                     ..Default::default()
                 };
                 for t in &twins {
-                    t.classify(&mut sample);
+                    t.classify(&ctx, &mut sample);
                 }
                 sample.color.to_array().map(|c| c.clamp(0.0, 1.0))
             })

@@ -17,7 +17,7 @@ use std::sync::Arc;
 pub fn builtin_registry() -> Registry {
     let mut r = Registry::new();
     let all: Vec<Arc<dyn Plugin>> = vec![
-        Arc::new(classify_tf1d::Tf1d),
+        Arc::new(classify_tf1d::Tf1d::default()),
         Arc::new(test_slice_shadow::SliceShadow),
         Arc::new(test_smooth::Smooth),
     ];
@@ -46,10 +46,29 @@ mod tests {
         assert!(fresh.register(r.plugins()[0].clone()).is_err());
     }
 
+    /// Every configuration a structural enum parameter selects, per built-in.
+    fn configurations(p: &Arc<dyn Plugin>) -> Vec<Arc<dyn Plugin>> {
+        let mut all = vec![p.clone()];
+        for spec in p.params().iter().filter(|s| s.structural) {
+            if let params::ParamKind::Enum { options, .. } = &spec.kind {
+                for o in options {
+                    let mut values = params::ParamValues::defaults(&p.params());
+                    values.set(spec.key, params::ParamValue::Enum(o.to_string()));
+                    if let Some(c) = p.configure(&values) {
+                        all.push(c);
+                    }
+                }
+            }
+        }
+        all
+    }
+
     #[test]
     fn every_builtin_composes_alone_and_twice() {
         let r = builtin_registry();
-        for p in r.plugins() {
+        let all: Vec<_> = r.plugins().iter().flat_map(configurations).collect();
+        assert!(all.len() >= 5, "tf1d's three modes are composed");
+        for p in &all {
             let one: Vec<&dyn Plugin> = vec![p.as_ref()];
             compose(&one, TargetFormat::Rgba16Float, &wgpu::Limits::default())
                 .unwrap_or_else(|e| panic!("{}: {e}", p.id()));

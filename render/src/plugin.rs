@@ -179,6 +179,10 @@ pub struct GpuInit<'a> {
     pub queue: &'a wgpu::Queue,
     pub features: wgpu::Features,
     pub volume: &'a Volume,
+    /// The slice spacing of the frame being drawn, in voxels (Δs/Δs0; 1 before the
+    /// first frame). Plugins whose resources depend on it say so with
+    /// [`Plugin::uses_slice_spacing`].
+    pub slice_spacing: f32,
 }
 
 impl GpuInit<'_> {
@@ -221,6 +225,8 @@ pub struct CpuContext<'a> {
     pub scalars: &'a [f32],
     /// The plugin's state of the previous slice (`state_prev`), if it has one.
     pub state: Option<&'a StateImage>,
+    /// Slice spacing of the frame in voxels (Δs/Δs0), as `GpuInit::slice_spacing`.
+    pub spacing: f64,
 }
 
 /// A per-slice state image on the CPU (the twin of a `state_prev` texture).
@@ -266,7 +272,19 @@ impl<'a> CpuContext<'a> {
             volume,
             scalars,
             state: None,
+            spacing: 1.0,
         }
+    }
+
+    /// The same context for a frame with slice spacing `spacing` (voxels).
+    pub fn with_spacing(self, spacing: f64) -> Self {
+        Self { spacing, ..self }
+    }
+
+    /// The volume box in world space (min, max), as the GPU's `frame.box_min/max`.
+    pub fn volume_box(&self) -> (DVec3, DVec3) {
+        let b = crate::slicing::VolumeBox::new(self.volume.dims, self.volume.spacing);
+        (b.min.as_dvec3(), b.max.as_dvec3())
     }
 
     /// The previous slice's state at `uv` (zero for a plugin without state).
@@ -277,6 +295,14 @@ impl<'a> CpuContext<'a> {
     /// Trilinear interpolation at a texture coordinate, with texel centres at
     /// (i + 0.5)/n and clamp-to-edge, as the GPU sampler does.
     pub fn value(&self, tex: DVec3) -> f64 {
+        self.trilinear(tex, |i| DVec4::splat(self.scalars[i] as f64))
+            .x
+    }
+
+    /// Trilinear interpolation at `tex` (as [`CpuContext::value`]) of a per-voxel
+    /// quantity: `voxel(i)` for the voxel at linear index i (x fastest), e.g. a
+    /// classified colour (the twin of sampling a pre-pass target of scale 1).
+    pub fn trilinear(&self, tex: DVec3, voxel: impl Fn(usize) -> DVec4) -> DVec4 {
         let d = self.volume.dims;
         let mut i0 = [0usize; 3];
         let mut i1 = [0usize; 3];
@@ -289,26 +315,27 @@ impl<'a> CpuContext<'a> {
             i1[a] = (i0[a] + 1).min(d[a].max(1) as usize - 1);
             t[a] = x - f;
         }
-        let at = |x: usize, y: usize, z: usize| {
-            self.scalars[(z * d[1] as usize + y) * d[0] as usize + x] as f64
-        };
-        let lerp = |a: f64, b: f64, t: f64| a + (b - a) * t;
-        let c00 = lerp(at(i0[0], i0[1], i0[2]), at(i1[0], i0[1], i0[2]), t[0]);
-        let c10 = lerp(at(i0[0], i1[1], i0[2]), at(i1[0], i1[1], i0[2]), t[0]);
-        let c01 = lerp(at(i0[0], i0[1], i1[2]), at(i1[0], i0[1], i1[2]), t[0]);
-        let c11 = lerp(at(i0[0], i1[1], i1[2]), at(i1[0], i1[1], i1[2]), t[0]);
-        lerp(lerp(c00, c10, t[1]), lerp(c01, c11, t[1]), t[2])
+        let at = |x: usize, y: usize, z: usize| voxel((z * d[1] as usize + y) * d[0] as usize + x);
+        let c00 = at(i0[0], i0[1], i0[2]).lerp(at(i1[0], i0[1], i0[2]), t[0]);
+        let c10 = at(i0[0], i1[1], i0[2]).lerp(at(i1[0], i1[1], i0[2]), t[0]);
+        let c01 = at(i0[0], i0[1], i1[2]).lerp(at(i1[0], i0[1], i1[2]), t[0]);
+        let c11 = at(i0[0], i1[1], i1[2]).lerp(at(i1[0], i1[1], i1[2]), t[0]);
+        c00.lerp(c10, t[1]).lerp(c01.lerp(c11, t[1]), t[2])
     }
 }
 
 /// CPU twin of a plugin's GPU hooks, in f64. Each method mirrors the WGSL hook of the
 /// same name; the defaults do what an absent hook does.
 pub trait CpuTwin: Send + Sync {
+    /// Called once per frame before any sample, with the frame's context (e.g. to
+    /// build tables that depend on the slice spacing, as `update_resources` does on
+    /// the GPU).
+    fn prepare(&mut self, _ctx: &CpuContext) {}
     fn clip(&self, _s: &CpuSample) -> bool {
         true
     }
     fn sample(&self, _ctx: &CpuContext, _s: &mut CpuSample) {}
-    fn classify(&self, _s: &mut CpuSample) {}
+    fn classify(&self, _ctx: &CpuContext, _s: &mut CpuSample) {}
     fn shade(&self, _ctx: &CpuContext, _s: &mut CpuSample) {}
     fn composite(&self, _s: &CpuSample, _c: &mut DVec4) {}
     /// The next state texel (plugins with per-slice state): `s` is the shaded sample of
@@ -392,6 +419,19 @@ pub trait Plugin: Send + Sync + 'static {
     /// Its promise about transparent samples, for empty-space skipping.
     fn transparency(&self, _params: &ParamValues) -> Transparency {
         Transparency::Unknown
+    }
+    /// The plugin as its structural parameters configure it, where they change its
+    /// code, resources, pre-pass or state (e.g. a classification mode). The returned
+    /// plugin has the same id and parameters; `None` (the default) means `self`.
+    /// Everything structural (composition, resources, pre-pass, twin, transparency) is
+    /// asked of the configured plugin ([`PluginInstance::configured`]).
+    fn configure(&self, _params: &ParamValues) -> Option<Arc<dyn Plugin>> {
+        None
+    }
+    /// Whether [`Plugin::update_resources`] must run again when the slice spacing
+    /// changes ([`GpuInit::slice_spacing`]), e.g. for a pre-integration table.
+    fn uses_slice_spacing(&self) -> bool {
+        false
     }
 }
 
@@ -507,6 +547,22 @@ impl PluginInstance {
             enabled: true,
             params,
             uid: NEXT_UID.fetch_add(1, std::sync::atomic::Ordering::Relaxed),
+        }
+    }
+
+    /// The plugin as configured by this instance's structural parameters
+    /// ([`Plugin::configure`]).
+    pub fn configured(&self) -> Arc<dyn Plugin> {
+        self.plugin
+            .configure(&self.params)
+            .unwrap_or_else(|| self.plugin.clone())
+    }
+
+    /// This instance with its plugin replaced by the configured one.
+    pub fn with_configured_plugin(&self) -> Self {
+        Self {
+            plugin: self.configured(),
+            ..self.clone()
         }
     }
 

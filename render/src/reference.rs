@@ -157,7 +157,7 @@ pub fn render_reference(
     if opts.cancelled() {
         return Err(ReferenceError::Cancelled);
     }
-    let prepared = Prepared::new(volume, stack)?;
+    let mut prepared = Prepared::new(volume, stack)?;
     prepared.render(settings, settings.slice_spacing, opts)
 }
 
@@ -190,7 +190,7 @@ pub fn render_converged(
     if opts.cancelled() {
         return Err(ReferenceError::Cancelled);
     }
-    let prepared = Prepared::new(volume, stack)?;
+    let mut prepared = Prepared::new(volume, stack)?;
     let start = requested.min(CONVERGED_START_SPACING);
     let finest = CONVERGED_MIN_SPACING.min(start as f64 / 2.0);
     let (w, h) = (settings.width, settings.height);
@@ -248,7 +248,7 @@ fn twins_for(stack: &[PluginInstance]) -> Result<Twins, ReferenceError> {
         .iter()
         .filter(|i| i.enabled)
         .map(|i| {
-            let p = &i.plugin;
+            let p = i.configured();
             let twin = p
                 .cpu_twin(&i.params)
                 .ok_or_else(|| ReferenceError::NoTwin(p.id().to_string()))?;
@@ -279,14 +279,18 @@ impl<'a> Prepared<'a> {
     }
 
     fn render(
-        &self,
+        &mut self,
         settings: &FrameSettings,
         spacing_voxels: f32,
         opts: &ReferenceOptions,
     ) -> Result<ReferenceImage, ReferenceError> {
         check_size(settings)?;
         let frame = Frame::new(self.volume, settings, spacing_voxels, opts.emulate_fp16)?;
-        let ctx = CpuContext::new(self.volume, &self.scalars);
+        let ctx =
+            CpuContext::new(self.volume, &self.scalars).with_spacing(frame.spacing / frame.voxel);
+        for t in &mut self.twins {
+            t.prepare(&ctx);
+        }
         if self.states.iter().any(Option::is_some) {
             return self.render_slice_major(&frame, &ctx, opts);
         }
@@ -644,8 +648,8 @@ fn evaluate(
         t.sample(&with_state(i), &mut s);
     }
     s.color = DVec4::splat(s.value);
-    for t in twins {
-        t.classify(&mut s);
+    for (i, t) in twins.iter().enumerate() {
+        t.classify(&with_state(i), &mut s);
     }
     for (i, t) in twins.iter().enumerate() {
         t.shade(&with_state(i), &mut s);
@@ -690,7 +694,7 @@ mod tests {
     }
 
     impl CpuTwin for RampTwin {
-        fn classify(&self, s: &mut CpuSample) {
+        fn classify(&self, _ctx: &CpuContext, s: &mut CpuSample) {
             s.color = self.color.truncate().extend(self.color.w * s.value);
         }
     }
@@ -725,7 +729,7 @@ mod tests {
     }
 
     impl CpuTwin for LutTwin {
-        fn classify(&self, s: &mut CpuSample) {
+        fn classify(&self, _ctx: &CpuContext, s: &mut CpuSample) {
             s.color = DVec4::from_array(eval_lut(&self.lut, s.value.clamp(0.0, 1.0)));
         }
     }

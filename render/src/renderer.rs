@@ -129,6 +129,9 @@ pub struct FrameStats {
     pub wall_ms: f64,
     pub per_slice_mode: bool,
     pub prepasses_run: usize,
+    /// Plugin resources rebuilt for a new slice spacing before this frame (e.g.
+    /// pre-integration tables; [`Plugin::uses_slice_spacing`]).
+    pub spacing_updates: usize,
 }
 
 #[repr(C)]
@@ -163,6 +166,11 @@ struct InstanceGpu {
     prepass_target: Option<(wgpu::Texture, wgpu::TextureView)>,
     /// Parameters the last pre-pass ran with (None: never ran).
     prepass_done: Option<ParamValues>,
+    /// Values of the structural parameters the resources were made for.
+    structure: Vec<String>,
+    /// Slice spacing (voxels) the resources were last updated for, for plugins that
+    /// use it.
+    spacing: f32,
     state: Option<[(wgpu::Texture, wgpu::TextureView); 2]>,
 }
 
@@ -184,6 +192,16 @@ struct Pipelines {
     updates: Vec<(usize, wgpu::ComputePipeline)>,
     /// (instance index, pipeline, group-1 layout) per pre-pass.
     prepasses: Vec<(usize, wgpu::ComputePipeline, wgpu::BindGroupLayout)>,
+}
+
+/// The values of an instance's structural parameters.
+fn structure_of(inst: &PluginInstance) -> Vec<String> {
+    inst.plugin
+        .params()
+        .iter()
+        .filter(|s| s.structural)
+        .map(|s| format!("{:?}", inst.params.get(s.key)))
+        .collect()
 }
 
 #[derive(Debug, Clone, PartialEq)]
@@ -242,6 +260,8 @@ pub struct Renderer {
     display_pipeline: Option<(TargetFormat, wgpu::ComputePipeline, wgpu::BindGroupLayout)>,
     /// Where `VWB_SHADER_DUMP` points, read once.
     dump_dir: Option<std::path::PathBuf>,
+    /// Slice spacing (voxels) of the last frame drawn ([`GpuInit::slice_spacing`]).
+    slice_spacing: f32,
 }
 
 fn uniform_entry(
@@ -370,6 +390,7 @@ impl Renderer {
             timestamps: None,
             display_pipeline: None,
             dump_dir: std::env::var_os("VWB_SHADER_DUMP").map(Into::into),
+            slice_spacing: 1.0,
         };
         if gpu.has_timestamps()
             && gpu
@@ -529,20 +550,17 @@ impl Renderer {
         stack: &[PluginInstance],
         target: TargetFormat,
     ) -> Result<StackChange, RenderError> {
+        // structural parameters pick the plugin's configuration (Plugin::configure)
+        let stack: Vec<PluginInstance> = stack
+            .iter()
+            .map(PluginInstance::with_configured_plugin)
+            .collect();
+        let stack = &stack[..];
         let enabled: Vec<&PluginInstance> = stack.iter().filter(|i| i.enabled).collect();
         let key = StructureKey {
             entries: enabled
                 .iter()
-                .map(|i| {
-                    let structural = i
-                        .plugin
-                        .params()
-                        .iter()
-                        .filter(|s| s.structural)
-                        .map(|s| format!("{:?}", i.params.get(s.key)))
-                        .collect();
-                    (i.uid, i.plugin.id(), structural)
-                })
+                .map(|i| (i.uid, i.plugin.id(), structure_of(i)))
                 .collect(),
             target,
         };
@@ -574,6 +592,39 @@ impl Renderer {
         })
     }
 
+    /// Brings spacing-dependent plugin resources (e.g. pre-integration tables) in line
+    /// with the frame's slice spacing (voxels); only those whose spacing changed.
+    fn sync_spacing(&mut self, spacing: f32) -> Result<usize, RenderError> {
+        self.slice_spacing = spacing;
+        let Some(p) = &self.pipelines else {
+            return Ok(0);
+        };
+        let stale: Vec<(u64, Arc<dyn Plugin>)> = p
+            .stack
+            .iter()
+            .filter(|(uid, plugin)| {
+                plugin.uses_slice_spacing()
+                    && self
+                        .instances
+                        .get(uid)
+                        .is_some_and(|g| g.spacing != spacing)
+            })
+            .cloned()
+            .collect();
+        let mut updated = 0;
+        for (uid, plugin) in stale {
+            let Some(g) = self.instances.get(&uid) else {
+                continue;
+            };
+            plugin.update_resources(&self.gpu_init(), &g.params, &g.resources)?;
+            if let Some(g) = self.instances.get_mut(&uid) {
+                g.spacing = spacing;
+            }
+            updated += 1;
+        }
+        Ok(updated)
+    }
+
     fn dump(&self, c: &Composition) {
         let Some(dir) = &self.dump_dir else { return };
         if let Err(e) = std::fs::create_dir_all(dir) {
@@ -603,14 +654,16 @@ impl Renderer {
             queue: &self.gpu.queue,
             features: self.gpu.features,
             volume: &self.volume,
+            slice_spacing: self.slice_spacing,
         }
     }
 
     fn ensure_instance(&mut self, inst: &PluginInstance) -> Result<(), RenderError> {
+        let structure = structure_of(inst);
         if self
             .instances
             .get(&inst.uid)
-            .is_some_and(|g| g.plugin_id == inst.plugin.id())
+            .is_some_and(|g| g.plugin_id == inst.plugin.id() && g.structure == structure)
         {
             return Ok(());
         }
@@ -670,6 +723,8 @@ impl Renderer {
                 params: inst.params.clone(),
                 prepass_target,
                 prepass_done: None,
+                structure,
+                spacing: self.slice_spacing,
                 state: None,
             },
         );
@@ -1160,6 +1215,7 @@ impl Renderer {
         }
         let view = s.camera.view(s.width as f32 / s.height as f32);
         let plan = SlicePlan::new(&view, &self.vbox, s.slice_spacing)?;
+        let spacing_updates = self.sync_spacing(plan.spacing / self.vbox.voxel)?;
         self.ensure_target(s.width, s.height, target_format);
         self.ensure_state();
         let per_slice = self
@@ -1486,6 +1542,7 @@ impl Renderer {
             slices: plan.count,
             per_slice_mode: per_slice,
             prepasses_run,
+            spacing_updates,
             ..Default::default()
         };
         if let Some((_, _, read)) = &self.timestamps

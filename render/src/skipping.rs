@@ -93,7 +93,7 @@ impl BrickRanges {
 pub fn stack_visibility(stack: &[PluginInstance]) -> Option<Arc<VisibleFn>> {
     let mut visible: Arc<VisibleFn> = Arc::new(|_lo: f64, hi: f64| hi > 0.0);
     for inst in stack.iter().filter(|i| i.enabled) {
-        match inst.plugin.transparency(&inst.params) {
+        match inst.configured().transparency(&inst.params) {
             Transparency::Unknown => return None,
             Transparency::Keeps => {}
             Transparency::ByValue(f) => visible = f,

@@ -1,4 +1,15 @@
-//! Piecewise-linear RGBA transfer function and its lookup-table bake.
+//! The transfer-function model: piecewise-linear RGBA control points plus primitives
+//! (Gaussian, ramp, box), an optional logarithmic opacity axis, and the lookup-table
+//! bake.
+//!
+//! Composition (our choice; the papers leave it open): the control-point curve and
+//! every primitive are independent absorbers, so their opacities combine as
+//! α = 1 − (1 − α_curve)·Π(1 − α_i) and the colour is the opacity-weighted mean of
+//! their colours (the curve's colour where every opacity is 0). With `log_opacity`
+//! the combined opacity a ∈ [0,1] is read on a logarithmic axis of three decades,
+//! α = (10^(3a) − 1)/(10^3 − 1), so that the low opacities dense data needs get most
+//! of the editor's range. The global opacity scale is the plugins' `opacity`
+//! parameter.
 //!
 //! Control points live on the normalised value axis [0,1] (0 = the volume's finite
 //! minimum, 1 = its maximum). Colours are straight RGBA in [0,1]; alpha is the
@@ -22,23 +33,124 @@ pub struct TfPoint {
     pub color: [f32; 4],
 }
 
+/// Shape of a [`TfPrimitive`] over the normalised value. In RON it is a string
+/// (`"gaussian"`, `"ramp"`, `"box"`): parameter values pass through `ron::Value`,
+/// which keeps no enum variant names.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(try_from = "String", into = "String")]
+pub enum PrimitiveShape {
+    /// height·exp(−4 ln 2 ((x − centre)/width)²): `width` is the full width at half
+    /// maximum.
+    Gaussian,
+    /// 0 below centre − width/2, rising linearly to `height` at centre + width/2,
+    /// `height` above.
+    Ramp,
+    /// `height` on [centre − width/2, centre + width/2], 0 elsewhere.
+    Box,
+}
+
+impl PrimitiveShape {
+    pub const ALL: [PrimitiveShape; 3] = [Self::Gaussian, Self::Ramp, Self::Box];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Gaussian => "gaussian",
+            Self::Ramp => "ramp",
+            Self::Box => "box",
+        }
+    }
+}
+
+impl From<PrimitiveShape> for String {
+    fn from(s: PrimitiveShape) -> String {
+        s.name().to_string()
+    }
+}
+
+impl TryFrom<String> for PrimitiveShape {
+    type Error = String;
+    fn try_from(s: String) -> Result<Self, String> {
+        Self::ALL
+            .into_iter()
+            .find(|p| p.name() == s)
+            .ok_or_else(|| format!("unknown primitive shape '{s}' (gaussian, ramp or box)"))
+    }
+}
+
+/// A TF primitive: a shape with a straight colour (rgb) and a peak opacity.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct TfPrimitive {
+    pub shape: PrimitiveShape,
+    pub centre: f32,
+    pub width: f32,
+    pub height: f32,
+    pub color: [f32; 3],
+}
+
+impl TfPrimitive {
+    /// Opacity of the primitive at x.
+    pub fn alpha(&self, x: f64) -> f64 {
+        let (c, w, h) = (self.centre as f64, self.width as f64, self.height as f64);
+        match self.shape {
+            PrimitiveShape::Gaussian => {
+                let t = (x - c) / w;
+                h * (-4.0 * std::f64::consts::LN_2 * t * t).exp()
+            }
+            PrimitiveShape::Ramp => h * ((x - (c - 0.5 * w)) / w).clamp(0.0, 1.0),
+            PrimitiveShape::Box => {
+                if (x - c).abs() <= 0.5 * w {
+                    h
+                } else {
+                    0.0
+                }
+            }
+        }
+    }
+}
+
+fn is_false(b: &bool) -> bool {
+    !*b
+}
+
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct TfCurve {
     pub points: Vec<TfPoint>,
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub primitives: Vec<TfPrimitive>,
+    /// Read the combined opacity on a logarithmic axis (module docs).
+    #[serde(default, skip_serializing_if = "is_false")]
+    pub log_opacity: bool,
+}
+
+/// Decades of the logarithmic opacity axis.
+pub const LOG_OPACITY_DECADES: f64 = 3.0;
+
+/// The logarithmic opacity axis: a ∈ [0,1] → (10^(3a) − 1)/(10^3 − 1).
+pub fn log_opacity(a: f64) -> f64 {
+    let top = 10f64.powf(LOG_OPACITY_DECADES) - 1.0;
+    (10f64.powf(LOG_OPACITY_DECADES * a.clamp(0.0, 1.0)) - 1.0) / top
 }
 
 impl TfCurve {
     pub fn new(points: Vec<TfPoint>) -> Self {
-        Self { points }
+        Self {
+            points,
+            primitives: Vec::new(),
+            log_opacity: false,
+        }
+    }
+
+    /// The curve with primitives added.
+    pub fn with_primitives(mut self, primitives: Vec<TfPrimitive>) -> Self {
+        self.primitives = primitives;
+        self
     }
 
     /// A grey ramp from transparent at `lo` to `color` at `hi`.
     pub fn ramp(lo: f32, hi: f32, color: [f32; 4]) -> Self {
         let mut c0 = color;
         c0[3] = 0.0;
-        Self {
-            points: vec![TfPoint { x: lo, color: c0 }, TfPoint { x: hi, color }],
-        }
+        Self::new(vec![TfPoint { x: lo, color: c0 }, TfPoint { x: hi, color }])
     }
 
     /// Checks the curve; the message names the offending point.
@@ -71,11 +183,59 @@ impl TfCurve {
                 }
             }
         }
+        for (i, p) in self.primitives.iter().enumerate() {
+            let name = format!("primitive {i} ({:?})", p.shape);
+            if !p.centre.is_finite() {
+                return Err(format!("{name}: centre = {} is not finite", p.centre));
+            }
+            if !(p.width.is_finite() && p.width > 0.0) {
+                return Err(format!("{name}: width = {} must be > 0", p.width));
+            }
+            if !(p.height.is_finite() && (0.0..=1.0).contains(&p.height)) {
+                return Err(format!("{name}: height = {} is not in [0, 1]", p.height));
+            }
+            for (c, v) in p.color.iter().enumerate() {
+                if !v.is_finite() || !(0.0..=1.0).contains(v) {
+                    return Err(format!(
+                        "{name}: colour component {c} = {v} is not in [0, 1]"
+                    ));
+                }
+            }
+        }
         Ok(())
     }
 
-    /// Exact curve value at x (f64).
+    /// The model's value at x (f64): the control-point curve combined with the
+    /// primitives, on the chosen opacity axis (module docs).
     pub fn eval(&self, x: f64) -> [f64; 4] {
+        let base = self.eval_points(x);
+        let mut transmit = 1.0 - base[3];
+        let mut weight = base[3];
+        let mut rgb = [base[0] * base[3], base[1] * base[3], base[2] * base[3]];
+        for p in &self.primitives {
+            let a = p.alpha(x).clamp(0.0, 1.0);
+            transmit *= 1.0 - a;
+            weight += a;
+            for (c, v) in rgb.iter_mut().enumerate() {
+                *v += p.color[c] as f64 * a;
+            }
+        }
+        let rgb = if weight > 0.0 && !self.primitives.is_empty() {
+            rgb.map(|v| v / weight)
+        } else {
+            [base[0], base[1], base[2]]
+        };
+        let alpha = 1.0 - transmit;
+        let alpha = if self.log_opacity {
+            log_opacity(alpha)
+        } else {
+            alpha
+        };
+        [rgb[0], rgb[1], rgb[2], alpha]
+    }
+
+    /// The control-point curve alone at x: linear between points, constant outside.
+    pub fn eval_points(&self, x: f64) -> [f64; 4] {
         let pts = &self.points;
         let to64 = |c: [f32; 4]| c.map(|v| v as f64);
         match pts.len() {
@@ -181,5 +341,97 @@ mod tests {
         c.points[1].x = 1.5;
         assert!(c.validate().unwrap_err().contains("not in [0, 1]"));
         assert!(curve().validate().is_ok());
+        let prim = |width: f32, height: f32| TfPrimitive {
+            shape: PrimitiveShape::Gaussian,
+            centre: 0.5,
+            width,
+            height,
+            color: [1.0, 0.0, 0.0],
+        };
+        let e = curve()
+            .with_primitives(vec![prim(0.1, 0.5), prim(0.0, 0.5)])
+            .validate()
+            .unwrap_err();
+        assert!(e.contains("primitive 1") && e.contains("width"), "{e}");
+        let e = curve()
+            .with_primitives(vec![prim(0.1, f32::NAN)])
+            .validate()
+            .unwrap_err();
+        assert!(e.contains("primitive 0") && e.contains("height"), "{e}");
+    }
+
+    #[test]
+    fn primitives_have_their_documented_shapes() {
+        let p = |shape| TfPrimitive {
+            shape,
+            centre: 0.5,
+            width: 0.25,
+            height: 0.75,
+            color: [0.0, 1.0, 0.0],
+        };
+        let g = p(PrimitiveShape::Gaussian);
+        assert!((g.alpha(0.5) - 0.75).abs() < 1e-12);
+        // full width at half maximum
+        assert!((g.alpha(0.625) - 0.375).abs() < 1e-12);
+        assert!((g.alpha(0.375) - 0.375).abs() < 1e-12);
+        let r = p(PrimitiveShape::Ramp);
+        assert_eq!(
+            (r.alpha(0.3), r.alpha(0.5), r.alpha(0.9)),
+            (0.0, 0.375, 0.75)
+        );
+        let b = p(PrimitiveShape::Box);
+        assert_eq!(
+            (b.alpha(0.37), b.alpha(0.38), b.alpha(0.63)),
+            (0.0, 0.75, 0.0)
+        );
+    }
+
+    #[test]
+    fn primitives_combine_as_independent_absorbers() {
+        // transparent curve + a box: the box alone
+        let empty = TfCurve::ramp(0.0, 1.0, [0.0, 0.0, 1.0, 0.0]);
+        let boxed = empty.clone().with_primitives(vec![TfPrimitive {
+            shape: PrimitiveShape::Box,
+            centre: 0.5,
+            width: 0.2,
+            height: 0.5,
+            color: [1.0, 0.0, 0.0],
+        }]);
+        assert_eq!(boxed.eval(0.5), [1.0, 0.0, 0.0, 0.5]);
+        assert_eq!(boxed.eval(0.9), [0.0, 0.0, 1.0, 0.0]);
+        // curve α 0.5 blue + box α 0.5 red: α = 1 − 0.5², colour the even mix
+        let mut both = boxed.clone();
+        both.points = vec![TfPoint {
+            x: 0.0,
+            color: [0.0, 0.0, 1.0, 0.5],
+        }];
+        let c = both.eval(0.5);
+        assert!(
+            (c[3] - 0.75).abs() < 1e-12 && (c[0] - 0.5).abs() < 1e-12 && (c[2] - 0.5).abs() < 1e-12
+        );
+        // logarithmic axis: ends fixed, a = 2/3 → 10² − 1 over 10³ − 1
+        let mut log = both;
+        log.log_opacity = true;
+        assert_eq!(log_opacity(0.0), 0.0);
+        assert!((log_opacity(1.0) - 1.0).abs() < 1e-12);
+        assert!((log_opacity(2.0 / 3.0) - 99.0 / 999.0).abs() < 1e-12);
+        assert!((log.eval(0.5)[3] - log_opacity(0.75)).abs() < 1e-12);
+    }
+
+    #[test]
+    fn model_round_trips_through_ron_and_old_files_still_load() {
+        let mut c = curve().with_primitives(vec![TfPrimitive {
+            shape: PrimitiveShape::Ramp,
+            centre: 0.7,
+            width: 0.1,
+            height: 1.0,
+            color: [1.0, 1.0, 1.0],
+        }]);
+        c.log_opacity = true;
+        let text = ron::to_string(&c).unwrap();
+        assert_eq!(ron::from_str::<TfCurve>(&text).unwrap(), c);
+        let old = "(points: [(x: 0.0, color: (0.0, 0.0, 0.0, 0.0)), (x: 1.0, color: (1.0, 1.0, 1.0, 1.0))])";
+        let t: TfCurve = ron::from_str(old).unwrap();
+        assert!(t.primitives.is_empty() && !t.log_opacity);
     }
 }

@@ -122,6 +122,7 @@ struct p0_smooth_Params {
 @group(1) @binding(0) var<uniform> p0_smooth_params: p0_smooth_Params;
 @group(1) @binding(1) var p0_smooth_smoothed: texture_3d<f32>;
 struct p1_tf1d_Params {
+    mode: u32,
     opacity: f32,
 }
 @group(1) @binding(2) var<uniform> p1_tf1d_params: p1_tf1d_Params;
@@ -133,6 +134,7 @@ struct p2_slice_shadow_Params {
 @group(2) @binding(0) var p2_slice_shadow_state_prev: texture_2d<f32>;
 @group(2) @binding(1) var p2_slice_shadow_state_next: texture_storage_2d<rgba32float, write>;
 struct p3_tf1d_Params {
+    mode: u32,
     opacity: f32,
 }
 @group(1) @binding(5) var<uniform> p3_tf1d_params: p3_tf1d_Params;

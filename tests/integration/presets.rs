@@ -40,12 +40,13 @@ fn every_shipped_preset_loads_and_composes() {
                 f.display()
             );
         }
-        let enabled: Vec<&dyn Plugin> = doc
+        let configured: Vec<_> = doc
             .stack
             .iter()
             .filter(|i| i.enabled)
-            .map(|i| i.plugin.as_ref())
+            .map(|i| i.configured())
             .collect();
+        let enabled: Vec<&dyn Plugin> = configured.iter().map(|p| p.as_ref()).collect();
         for target in [TargetFormat::Rgba16Float, TargetFormat::Rgba32Float] {
             compose(&enabled, target, &gpu().limits)
                 .unwrap_or_else(|e| panic!("{}: {e}", path.display()));

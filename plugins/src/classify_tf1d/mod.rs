@@ -1,24 +1,68 @@
-//! `classify.tf1d`: a piecewise-linear RGBA transfer function over the normalised
-//! scalar, baked into a lookup texture (post-classification).
+//! `classify.tf1d`: a transfer function over the normalised scalar (the model of
+//! [`vwb_render::tf`]: control points, primitives, logarithmic opacity axis), baked
+//! into a lookup table, in three modes (Rezk-Salama 2001 §2–3; Engel et al. 2001):
 //!
-//! Parameters: `tf` (the curve), `opacity` (a global opacity scale, clamped to 1 per
-//! reference step). The CPU twin evaluates the same baked table with the same linear
-//! interpolation as the GPU sampler.
+//! - `post` (post-classification): interpolate the scalar, then look it up
+//!   (`tf1d.wgsl`).
+//! - `pre` (pre-classification): a pre-pass classifies every voxel into an
+//!   opacity-weighted RGBA volume (`tf1d_prepass.wgsl`, rgba16float, rerun only when
+//!   the TF changes), which the sampler interpolates (`tf1d_pre.wgsl`).
+//! - `preintegrated`: a 256×256 table over (front, back) values for the current slice
+//!   spacing (`preint.rs`, `tf1d_preint.wgsl`), rebuilt only when the TF, the opacity
+//!   scale or the spacing changes.
+//!
+//! Parameters: `mode`, `tf` (the curve), `opacity` (a global opacity scale, clamped
+//! to 1 per reference step). The CPU twins evaluate the same baked tables with the
+//! same filtering as the GPU samplers.
+
+pub mod preint;
 
 use std::sync::Arc;
 
-use glam::DVec4;
+use glam::{DVec3, DVec4};
 use vwb_render::params::{ParamSpec, ParamValues};
 use vwb_render::plugin::{
-    CpuSample, CpuTwin, GpuInit, GpuResource, Plugin, PluginError, ResourceDecl, ResourceKind,
-    ShaderSource, Transparency,
+    CpuContext, CpuSample, CpuTwin, GpuInit, GpuResource, Plugin, PluginError, PrepassDecl,
+    ResourceDecl, ResourceKind, ShaderSource, StorageFormat, Transparency,
 };
 use vwb_render::tf::{LUT_SIZE, TfCurve, TfPoint, eval_lut};
 
 #[cfg(test)]
 mod tests;
 
-pub struct Tf1d;
+/// Classification mode (the `mode` parameter; structural: it changes the code, the
+/// resources and the pre-pass).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Mode {
+    /// Interpolate the scalar, then classify.
+    #[default]
+    Post,
+    /// Classify the voxels in a pre-pass, then interpolate the opacity-weighted colours.
+    Pre,
+    /// Classify the slab between two slices from a pre-integrated table.
+    Preintegrated,
+}
+
+impl Mode {
+    pub const NAMES: [&'static str; 3] = ["post", "pre", "preintegrated"];
+
+    pub fn name(self) -> &'static str {
+        Self::NAMES[self as usize]
+    }
+
+    pub fn from_name(name: &str) -> Option<Self> {
+        [Mode::Post, Mode::Pre, Mode::Preintegrated]
+            .into_iter()
+            .find(|m| m.name() == name)
+    }
+}
+
+/// The plugin, configured for one mode (the registry holds the post-classification
+/// one; [`Plugin::configure`] picks the others).
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Tf1d {
+    pub mode: Mode,
+}
 
 /// The default curve: soft tissue faint, dense matter bright.
 pub fn default_curve() -> TfCurve {
@@ -46,10 +90,9 @@ fn curve(params: &ParamValues) -> TfCurve {
     params.tf("tf").cloned().unwrap_or_else(default_curve)
 }
 
-fn bake_bytes(params: &ParamValues, format: wgpu::TextureFormat) -> Vec<u8> {
-    let lut = curve(params).bake(LUT_SIZE);
+fn texel_bytes(lut: &[[f32; 4]], format: wgpu::TextureFormat) -> Vec<u8> {
     match format {
-        wgpu::TextureFormat::Rgba32Float => bytemuck::cast_slice(&lut).to_vec(),
+        wgpu::TextureFormat::Rgba32Float => bytemuck::cast_slice(lut).to_vec(),
         _ => lut
             .iter()
             .flat_map(|c| c.iter().flat_map(|v| half::f16::from_f32(*v).to_le_bytes()))
@@ -65,10 +108,13 @@ impl Plugin for Tf1d {
         "1D transfer function"
     }
     fn description(&self) -> &'static str {
-        "Piecewise-linear RGBA transfer function over the scalar (post-classification)"
+        "Transfer function over the scalar: post-, pre- or pre-integrated classification"
     }
     fn params(&self) -> Vec<ParamSpec> {
         vec![
+            ParamSpec::enumeration("mode", "Mode", &Mode::NAMES, 0)
+                .structural()
+                .with_doc("post: interpolate then classify; pre: classify voxels then interpolate; preintegrated: slab integrals between slices"),
             ParamSpec::tf("tf", "Transfer function", default_curve())
                 .with_doc("control points over the normalised value [0,1]"),
             ParamSpec::float_log("opacity", "Opacity scale", 0.01, 100.0, 1.0)
@@ -76,34 +122,74 @@ impl Plugin for Tf1d {
         ]
     }
     fn shader(&self) -> ShaderSource {
-        ShaderSource::new_static(
-            "plugins/src/classify_tf1d/tf1d.wgsl",
-            include_str!("tf1d.wgsl"),
-        )
+        match self.mode {
+            Mode::Post => ShaderSource::new_static(
+                "plugins/src/classify_tf1d/tf1d.wgsl",
+                include_str!("tf1d.wgsl"),
+            ),
+            Mode::Pre => ShaderSource::new_static(
+                "plugins/src/classify_tf1d/tf1d_pre.wgsl",
+                include_str!("tf1d_pre.wgsl"),
+            ),
+            Mode::Preintegrated => ShaderSource::new_static(
+                "plugins/src/classify_tf1d/tf1d_preint.wgsl",
+                include_str!("tf1d_preint.wgsl"),
+            ),
+        }
     }
     fn resources(&self) -> Vec<ResourceDecl> {
+        let name = match self.mode {
+            Mode::Post | Mode::Pre => "lut",
+            Mode::Preintegrated => "preint",
+        };
         vec![ResourceDecl {
-            name: "lut",
+            name,
             kind: ResourceKind::Texture2d,
         }]
+    }
+    fn prepass(&self) -> Option<PrepassDecl> {
+        (self.mode == Mode::Pre).then(|| PrepassDecl {
+            target: "classified",
+            format: StorageFormat::Rgba16Float,
+            scale: 1.0,
+            shader: ShaderSource::new_static(
+                "plugins/src/classify_tf1d/tf1d_prepass.wgsl",
+                include_str!("tf1d_prepass.wgsl"),
+            ),
+            depends_on: vec!["tf"],
+        })
+    }
+    fn configure(&self, params: &ParamValues) -> Option<Arc<dyn Plugin>> {
+        let mode = Mode::from_name(params.enumeration("mode")).unwrap_or_default();
+        (mode != self.mode).then(|| Arc::new(Tf1d { mode }) as Arc<dyn Plugin>)
+    }
+    fn uses_slice_spacing(&self) -> bool {
+        self.mode == Mode::Preintegrated
     }
     fn create_resources(
         &self,
         gpu: &GpuInit,
         params: &ParamValues,
     ) -> Result<Vec<GpuResource>, PluginError> {
-        let format = gpu.lut_format();
+        let (label, width, height) = match self.mode {
+            Mode::Post | Mode::Pre => ("classify.tf1d lut", LUT_SIZE as u32, 1),
+            Mode::Preintegrated => (
+                "classify.tf1d pre-integration table",
+                LUT_SIZE as u32,
+                LUT_SIZE as u32,
+            ),
+        };
         let texture = gpu.device.create_texture(&wgpu::TextureDescriptor {
-            label: Some("classify.tf1d lut"),
+            label: Some(label),
             size: wgpu::Extent3d {
-                width: LUT_SIZE as u32,
-                height: 1,
+                width,
+                height,
                 depth_or_array_layers: 1,
             },
             mip_level_count: 1,
             sample_count: 1,
             dimension: wgpu::TextureDimension::D2,
-            format,
+            format: gpu.lut_format(),
             usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
             view_formats: &[],
         });
@@ -124,24 +210,41 @@ impl Plugin for Tf1d {
                 message: "lookup texture missing".into(),
             });
         };
+        let lut = curve(params).bake(LUT_SIZE);
+        let texels = match self.mode {
+            Mode::Post | Mode::Pre => lut,
+            Mode::Preintegrated => preint::build(
+                &lut,
+                params.float("opacity") as f64,
+                gpu.slice_spacing as f64,
+            )
+            .texels_f32(),
+        };
         let format = res.texture.format();
-        let bytes = bake_bytes(params, format);
+        let bytes = texel_bytes(&texels, format);
         let bpp = format.block_copy_size(None).unwrap_or(16);
+        let size = res.texture.size();
         gpu.queue.write_texture(
             res.texture.as_image_copy(),
             &bytes,
             wgpu::TexelCopyBufferLayout {
                 offset: 0,
-                bytes_per_row: Some(LUT_SIZE as u32 * bpp),
-                rows_per_image: Some(1),
+                bytes_per_row: Some(size.width * bpp),
+                rows_per_image: Some(size.height),
             },
-            res.texture.size(),
+            size,
         );
         Ok(())
     }
-    /// Colour from the value alone: a value range can be visible when any table entry
-    /// the GPU interpolates for it has α > 0 (the entries around both ends included).
+    /// Post: colour from the value alone; a value range can be visible when any table
+    /// entry the GPU interpolates for it has α > 0 (the entries around both ends
+    /// included). Pre: a sample interpolates classified voxels whose values lie in its
+    /// brick's range (apron included), so the same test holds. Pre-integrated: the slab
+    /// reaches into the next slice's brick, so no promise.
     fn transparency(&self, params: &ParamValues) -> Transparency {
+        if self.mode == Mode::Preintegrated {
+            return Transparency::Unknown;
+        }
         let opacity = params.float("opacity");
         let visible: Vec<bool> = curve(params)
             .bake(LUT_SIZE)
@@ -156,22 +259,86 @@ impl Plugin for Tf1d {
         }))
     }
     fn cpu_twin(&self, params: &ParamValues) -> Option<Box<dyn CpuTwin>> {
-        Some(Box::new(Tf1dTwin {
-            lut: curve(params).bake(LUT_SIZE),
-            opacity: params.float("opacity") as f64,
-        }))
+        let lut = curve(params).bake(LUT_SIZE);
+        let opacity = params.float("opacity") as f64;
+        Some(match self.mode {
+            Mode::Post => Box::new(Tf1dTwin { lut, opacity }),
+            Mode::Pre => Box::new(PreTwin { lut, opacity }),
+            Mode::Preintegrated => Box::new(PreintTwin {
+                lut,
+                opacity,
+                table: None,
+            }),
+        })
     }
 }
 
-/// CPU twin of `classify`.
+/// CPU twin of `classify` (post-classification).
 pub struct Tf1dTwin {
     pub lut: Vec<[f32; 4]>,
     pub opacity: f64,
 }
 
 impl CpuTwin for Tf1dTwin {
-    fn classify(&self, s: &mut CpuSample) {
+    fn classify(&self, _ctx: &CpuContext, s: &mut CpuSample) {
         let c = eval_lut(&self.lut, s.value.clamp(0.0, 1.0));
         s.color = DVec4::new(c[0], c[1], c[2], (c[3] * self.opacity).clamp(0.0, 1.0));
+    }
+}
+
+/// CPU twin of pre-classification: the pre-pass (each voxel through the table,
+/// opacity-weighted, rounded to the rgba16float target), interpolated trilinearly.
+pub struct PreTwin {
+    pub lut: Vec<[f32; 4]>,
+    pub opacity: f64,
+}
+
+fn round_f16(v: f64) -> f64 {
+    half::f16::from_f64(v).to_f64()
+}
+
+impl CpuTwin for PreTwin {
+    fn classify(&self, ctx: &CpuContext, s: &mut CpuSample) {
+        let c = ctx.trilinear(s.tex, |i| {
+            // the pre-pass computes in f32 and stores fp16
+            let c = eval_lut(&self.lut, (ctx.scalars[i] as f64).clamp(0.0, 1.0));
+            let a = c[3] as f32;
+            let w = |v: f64| round_f16((v as f32 * a) as f64);
+            DVec4::new(w(c[0]), w(c[1]), w(c[2]), round_f16(a as f64))
+        });
+        let rgb = if c.w > 0.0 {
+            c.truncate() / c.w
+        } else {
+            DVec3::ZERO
+        };
+        s.color = rgb.extend((c.w * self.opacity).clamp(0.0, 1.0));
+    }
+}
+
+/// CPU twin of pre-integrated classification: the same table (built for the frame's
+/// spacing in `prepare`, rounded to f32 like the texture) and the same bilinear lookup
+/// at (front, back).
+pub struct PreintTwin {
+    pub lut: Vec<[f32; 4]>,
+    pub opacity: f64,
+    pub table: Option<preint::PreintTable>,
+}
+
+impl CpuTwin for PreintTwin {
+    fn prepare(&mut self, ctx: &CpuContext) {
+        let mut t = preint::build(&self.lut, self.opacity, ctx.spacing as f32 as f64);
+        for e in &mut t.entries {
+            *e = e.map(|v| v as f32 as f64);
+        }
+        self.table = Some(t);
+    }
+    fn classify(&self, ctx: &CpuContext, s: &mut CpuSample) {
+        let Some(table) = &self.table else {
+            return;
+        };
+        let back_pos = s.pos + s.ray_dir * s.step;
+        let (lo, hi) = ctx.volume_box();
+        let back = ctx.value((back_pos - lo) / (hi - lo));
+        s.color = table.lookup(s.value, back);
     }
 }

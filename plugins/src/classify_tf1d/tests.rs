@@ -1,24 +1,58 @@
 use super::*;
 use vwb_render::params::ParamValue;
+use vwb_render::tf::{PrimitiveShape, TfPrimitive};
+use vwb_render::volume::{Volume, VoxelData};
+
+/// A 4³ volume whose values rise along x (normalised 0, 1/3, 2/3, 1).
+fn ramp_volume() -> Volume {
+    let data = (0..64).map(|i| (i % 4) as u8).collect();
+    Volume::new("ramp", [4, 4, 4], 1, [1.0; 3], VoxelData::U8(data)).unwrap()
+}
+
+fn classify_at(twin: &dyn CpuTwin, ctx: &CpuContext, value: f64) -> DVec4 {
+    let mut s = CpuSample {
+        value,
+        ..Default::default()
+    };
+    twin.classify(ctx, &mut s);
+    s.color
+}
+
+/// A sharp TF: a narrow opaque spike at 0.5 over a faint ramp.
+fn sharp_curve() -> TfCurve {
+    TfCurve::ramp(0.0, 1.0, [0.2, 0.4, 1.0, 0.05]).with_primitives(vec![TfPrimitive {
+        shape: PrimitiveShape::Box,
+        centre: 0.5,
+        width: 0.02,
+        height: 0.9,
+        color: [1.0, 0.3, 0.1],
+    }])
+}
+
+fn params_for(mode: Mode, curve: TfCurve) -> ParamValues {
+    let mut params = ParamValues::defaults(&Tf1d::default().params());
+    params.set("mode", ParamValue::Enum(mode.name().to_string()));
+    params.set("tf", ParamValue::Tf(curve));
+    params
+}
 
 #[test]
 fn twin_follows_the_curve() {
-    let p = Tf1d;
+    let volume = ramp_volume();
+    let scalars = volume.normalized_scalars();
+    let ctx = CpuContext::new(&volume, &scalars);
+    let p = Tf1d::default();
     let mut params = ParamValues::defaults(&p.params());
     let c = TfCurve::ramp(0.2, 0.8, [1.0, 0.5, 0.0, 0.5]);
     params.set("tf", ParamValue::Tf(c.clone()));
     params.set("opacity", ParamValue::Float(2.0));
     let twin = p.cpu_twin(&params).unwrap();
     for v in [0.0, 0.1, 0.2, 0.5, 0.77, 1.0] {
-        let mut s = CpuSample {
-            value: v,
-            ..Default::default()
-        };
-        twin.classify(&mut s);
+        let color = classify_at(twin.as_ref(), &ctx, v);
         let want = c.eval(v);
         // table resolution: the curve is linear between its points, so the table is exact
-        assert!((s.color.x - want[0]).abs() < 1e-6, "v {v}");
-        assert!((s.color.w - (want[3] * 2.0).min(1.0)).abs() < 1e-6, "v {v}");
+        assert!((color.x - want[0]).abs() < 1e-6, "v {v}");
+        assert!((color.w - (want[3] * 2.0).min(1.0)).abs() < 1e-6, "v {v}");
     }
 }
 
@@ -32,7 +66,10 @@ fn default_curve_is_valid() {
 /// reported empty.
 #[test]
 fn visibility_promise_is_conservative() {
-    let p = Tf1d;
+    let volume = ramp_volume();
+    let scalars = volume.normalized_scalars();
+    let ctx = CpuContext::new(&volume, &scalars);
+    let p = Tf1d::default();
     let mut params = ParamValues::defaults(&p.params());
     params.set(
         "tf",
@@ -44,13 +81,9 @@ fn visibility_promise_is_conservative() {
     let twin = p.cpu_twin(&params).unwrap();
     for i in 0..=2000 {
         let v = i as f64 / 2000.0;
-        let mut s = CpuSample {
-            value: v,
-            ..Default::default()
-        };
-        twin.classify(&mut s);
-        if s.color.w > 0.0 {
-            assert!(visible(v, v), "α({v}) = {} but reported empty", s.color.w);
+        let alpha = classify_at(twin.as_ref(), &ctx, v).w;
+        if alpha > 0.0 {
+            assert!(visible(v, v), "α({v}) = {alpha} but reported empty");
             assert!(visible(v - 0.01, v + 0.01));
         }
     }
@@ -64,4 +97,208 @@ fn visibility_promise_is_conservative() {
         panic!()
     };
     assert!(visible(0.5, 0.5));
+}
+
+#[test]
+fn mode_parameter_configures_the_plugin() {
+    let base = Tf1d::default();
+    assert!(
+        base.configure(&params_for(Mode::Post, default_curve()))
+            .is_none()
+    );
+    for mode in [Mode::Pre, Mode::Preintegrated] {
+        let p = base.configure(&params_for(mode, default_curve())).unwrap();
+        assert_eq!(p.id(), "classify.tf1d");
+        assert_eq!(p.prepass().is_some(), mode == Mode::Pre);
+        assert_eq!(p.uses_slice_spacing(), mode == Mode::Preintegrated);
+        assert!(p.configure(&params_for(mode, default_curve())).is_none());
+    }
+    // pre-integration makes no transparency promise (its slab reaches the next brick)
+    let pi = base
+        .configure(&params_for(Mode::Preintegrated, default_curve()))
+        .unwrap();
+    assert!(matches!(
+        pi.transparency(&params_for(Mode::Preintegrated, default_curve())),
+        Transparency::Unknown
+    ));
+}
+
+/// Pre-classification interpolates opacity-weighted colours: halfway between an
+/// opaque red voxel and a transparent blue one the colour stays red (post would mix).
+#[test]
+fn pre_classification_weights_colours_by_opacity() {
+    let volume = ramp_volume();
+    let scalars = volume.normalized_scalars();
+    let ctx = CpuContext::new(&volume, &scalars);
+    let curve = TfCurve::new(vec![
+        TfPoint {
+            x: 0.0,
+            color: [1.0, 0.0, 0.0, 0.8],
+        },
+        TfPoint {
+            x: 1.0 / 3.0,
+            color: [0.0, 0.0, 1.0, 0.0],
+        },
+    ]);
+    let params = params_for(Mode::Pre, curve.clone());
+    let twin = Tf1d { mode: Mode::Pre }.cpu_twin(&params).unwrap();
+    // between voxel x = 0 (value 0) and x = 1 (value 1/3): tex.x = 1/4 of a 4-wide grid
+    let mut s = CpuSample {
+        tex: DVec3::new(0.25, 0.5, 0.5),
+        ..Default::default()
+    };
+    s.value = ctx.value(s.tex);
+    twin.classify(&ctx, &mut s);
+    assert!(
+        (s.color.x - 1.0).abs() < 2e-3 && s.color.z < 2e-3,
+        "{:?}",
+        s.color
+    );
+    assert!((s.color.w - 0.4).abs() < 2e-3, "{:?}", s.color);
+    let post = Tf1d::default().cpu_twin(&params).unwrap();
+    let mut q = s;
+    post.classify(&ctx, &mut q);
+    assert!((q.color.x - 0.5).abs() < 1e-2 && (q.color.z - 0.5).abs() < 1e-2);
+}
+
+#[test]
+fn preintegration_recursion_matches_direct_compositing() {
+    let lut = sharp_curve().bake(64);
+    for d in [0.25, 1.0, 4.0] {
+        let t = preint::build(&lut, 1.0, d);
+        for i in (0..64).step_by(3) {
+            for j in (0..64).step_by(5) {
+                let want = preint::entry_direct(&lut, 1.0, d, i, j);
+                let got = t.entries[j * 64 + i];
+                for c in 0..4 {
+                    assert!(
+                        (got[c] - want[c]).abs() < 1e-9,
+                        "d {d} ({i},{j}) channel {c}: {} vs {}",
+                        got[c],
+                        want[c]
+                    );
+                }
+            }
+        }
+    }
+}
+
+/// The table against the emission–absorption integral evaluated by brute force
+/// (10⁵ steps along the slab of the TF as the GPU holds it: the baked table,
+/// linearly interpolated).
+#[test]
+fn preintegration_table_matches_the_integral() {
+    let curve = sharp_curve();
+    let lut = curve.bake(LUT_SIZE);
+    for d in [0.5, 1.0, 4.0] {
+        let table = preint::build(&lut, 1.0, d);
+        for (sf, sb) in [(0.3, 0.7), (0.7, 0.3), (0.45, 0.55), (0.1, 0.2), (0.5, 0.5)] {
+            let steps = 100_000;
+            let h = d / steps as f64;
+            let (mut c, mut a) = (DVec3::ZERO, 0.0f64);
+            for k in 0..steps {
+                let v = sf + (sb - sf) * (k as f64 + 0.5) / steps as f64;
+                let e = eval_lut(&lut, v);
+                let kappa = -(1.0 - e[3]).ln();
+                let ak = 1.0 - (-kappa * h).exp();
+                c += (1.0 - a) * ak * DVec3::new(e[0], e[1], e[2]);
+                a += (1.0 - a) * ak;
+            }
+            let got = table.lookup(sf, sb);
+            let slab_alpha = 1.0 - (1.0 - got.w).powf(d);
+            assert!(
+                (slab_alpha - a).abs() < 0.01,
+                "d {d} ({sf},{sb}): α {slab_alpha} vs {a}"
+            );
+            let rgb = got.truncate() * slab_alpha;
+            assert!(
+                (rgb - c).abs().max_element() < 0.01,
+                "d {d} ({sf},{sb}): {rgb} vs {c}"
+            );
+        }
+    }
+}
+
+/// Stable when front ≈ back: entries next to the diagonal approach the homogeneous
+/// ones, and extreme TFs give finite values.
+#[test]
+fn preintegration_is_stable_at_the_extremes() {
+    let lut = sharp_curve().bake(LUT_SIZE);
+    let t = preint::build(&lut, 1.0, 1.0);
+    for v in [0.0, 0.2, 0.5, 0.9, 1.0] {
+        let on = t.lookup(v, v);
+        let near = t.lookup(v, v + 1e-6);
+        assert!(
+            (on - near).abs().max_element() < 1e-3,
+            "v {v}: {on} vs {near}"
+        );
+        // the homogeneous slab has the TF's own opacity per reference step (exactly at
+        // table nodes; between them bilinear filtering mixes in the neighbours)
+        let want = eval_lut(&lut, v);
+        assert!(
+            (on.w - want[3]).abs() < 1e-3,
+            "v {v}: {} vs {}",
+            on.w,
+            want[3]
+        );
+        let node = (v * 255.0).round() as usize;
+        assert!((t.entries[node * 256 + node][3] - lut[node][3] as f64).abs() < 1e-9);
+    }
+    for (opacity, d) in [
+        (0.0, 1.0),
+        (1e6, 1.0),
+        (1.0, 1e-4),
+        (1.0, 1e4),
+        (1.0, f64::NAN),
+    ] {
+        let t = preint::build(&lut, opacity, d);
+        let bad = t.entries.iter().position(|e| {
+            e.iter()
+                .any(|v| !(v.is_finite() && (0.0..=1.0).contains(v)))
+        });
+        assert!(
+            bad.is_none(),
+            "opacity {opacity} d {d}: {:?}",
+            bad.map(|i| (i, t.entries[i]))
+        );
+    }
+    assert!(
+        preint::build(&lut, 0.0, 1.0)
+            .entries
+            .iter()
+            .all(|e| e[3] == 0.0)
+    );
+}
+
+/// The twin reads the back value where the ray meets the next slice.
+#[test]
+fn preintegrated_twin_reads_front_and_back() {
+    let volume = ramp_volume();
+    let scalars = volume.normalized_scalars();
+    let ctx = CpuContext::new(&volume, &scalars).with_spacing(1.0);
+    let params = params_for(Mode::Preintegrated, sharp_curve());
+    let mut twin = Tf1d {
+        mode: Mode::Preintegrated,
+    }
+    .cpu_twin(&params)
+    .unwrap();
+    twin.prepare(&ctx);
+    let (lo, hi) = ctx.volume_box();
+    let tex = DVec3::new(0.375, 0.5, 0.5);
+    let mut s = CpuSample {
+        tex,
+        pos: lo + (hi - lo) * tex,
+        ray_dir: DVec3::X,
+        step: (hi.x - lo.x) / 4.0,
+        ..Default::default()
+    };
+    s.value = ctx.value(s.tex);
+    twin.classify(&ctx, &mut s);
+    let table = preint::build(&sharp_curve().bake(LUT_SIZE), 1.0, 1.0);
+    let want = table.lookup(ctx.value(tex), ctx.value(tex + DVec3::new(0.25, 0.0, 0.0)));
+    assert!(
+        (s.color - want).abs().max_element() < 1e-6,
+        "{} vs {want}",
+        s.color
+    );
 }

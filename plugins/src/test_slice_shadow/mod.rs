@@ -109,7 +109,7 @@ mod tests {
         )
         .unwrap();
         let (c, a) = (0.8f32, 0.1f32);
-        let mut tf = PluginInstance::new(Arc::new(crate::classify_tf1d::Tf1d));
+        let mut tf = PluginInstance::new(Arc::new(crate::classify_tf1d::Tf1d::default()));
         let point = |x| TfPoint {
             x,
             color: [c, c, c, a],

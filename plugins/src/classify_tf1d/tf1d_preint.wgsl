@@ -1,0 +1,18 @@
+// classify.tf1d, pre-integrated classification (Engel et al. 2001): the slab from
+// this slice to the next along the ray runs from the front value s.value to the back
+// value read where the ray meets the next slice plane. The n×n table `preint`
+// (built on the CPU for the current TF, opacity scale and slice spacing; see
+// preint.rs) holds the slab's straight colour and its opacity per reference step,
+// which the core's opacity correction turns back into the slab opacity.
+
+fn classify(s: Sample) -> Sample {
+    var o = s;
+    let back_pos = s.pos + s.ray_dir * s.step;
+    let back_tex = (back_pos - frame.box_min.xyz) / (frame.box_max.xyz - frame.box_min.xyz);
+    let back = volume_value(back_tex);
+    let n = vec2<f32>(textureDimensions(preint));
+    let fb = clamp(vec2<f32>(s.value, back), vec2<f32>(0.0), vec2<f32>(1.0));
+    let uv = (fb * (n - 1.0) + 0.5) / n;
+    o.color = textureSampleLevel(preint, linear_clamp, uv, 0.0);
+    return o;
+}

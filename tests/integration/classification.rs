@@ -1,0 +1,191 @@
+//! Classification modes on the GPU: what reruns when (pre-pass, pre-integration table),
+//! mode switches, the pre-integration gain on a sharp TF against a fine reference, and
+//! bad TF input in presets. GPU vs CPU twin agreement for every mode is checked on the
+//! shipped presets (reference.rs), which use all three.
+
+use vwb_render::params::ParamValue;
+use vwb_render::preset::Document;
+use vwb_render::reference::{ReferenceOptions, render_reference};
+use vwb_render::renderer::StackChange;
+use vwb_render::tf::{PrimitiveShape, TfCurve, TfPrimitive};
+use vwb_render::{Backend, FrameSettings, PluginInstance, Renderer, TargetFormat};
+
+use crate::common::*;
+use crate::reference::delta_e_rms;
+
+fn tf1d(mode: &str, curve: TfCurve) -> PluginInstance {
+    let mut i = instance("classify.tf1d");
+    i.params.set("mode", ParamValue::Enum(mode.into()));
+    i.params.set("tf", ParamValue::Tf(curve));
+    i
+}
+
+/// A faint ramp with a narrow opaque box: thin shells that coarse slicing misses.
+fn sharp() -> TfCurve {
+    TfCurve::ramp(0.0, 1.0, [0.3, 0.5, 1.0, 0.02]).with_primitives(vec![TfPrimitive {
+        shape: PrimitiveShape::Box,
+        centre: 0.5,
+        width: 0.04,
+        height: 0.8,
+        color: [1.0, 0.9, 0.8],
+    }])
+}
+
+fn at(spacing: f32) -> FrameSettings {
+    FrameSettings {
+        slice_spacing: spacing,
+        ..settings(64, 64, Backend::Compute)
+    }
+}
+
+#[test]
+fn preintegration_table_is_rebuilt_only_for_a_new_tf_or_spacing() {
+    let mut r = Renderer::new(gpu(), demo()).unwrap();
+    let mut stack = vec![tf1d("preintegrated", sharp())];
+    r.update_stack(&stack, TargetFormat::Rgba32Float).unwrap();
+    // created for spacing 1 (the default): a frame at 1 rebuilds nothing
+    assert_eq!(r.render(&at(1.0)).unwrap().spacing_updates, 0);
+    assert_eq!(r.render(&at(1.0)).unwrap().spacing_updates, 0);
+    // a new spacing rebuilds once
+    assert_eq!(r.render(&at(2.0)).unwrap().spacing_updates, 1);
+    assert_eq!(r.render(&at(2.0)).unwrap().spacing_updates, 0);
+    // a camera change alone rebuilds nothing
+    let mut s = at(2.0);
+    s.camera.yaw_deg += 30.0;
+    assert_eq!(r.render(&s).unwrap().spacing_updates, 0);
+    // a new TF is a parameter change (table rewritten), not a recomposition
+    let mut curve = sharp();
+    curve.primitives[0].centre = 0.6;
+    stack[0].params.set("tf", ParamValue::Tf(curve));
+    assert_eq!(
+        r.update_stack(&stack, TargetFormat::Rgba32Float).unwrap(),
+        StackChange::Params
+    );
+    // post-classification has no spacing-dependent resources
+    let mut r2 = Renderer::new(gpu(), demo()).unwrap();
+    r2.update_stack(&[tf1d("post", sharp())], TargetFormat::Rgba32Float)
+        .unwrap();
+    assert_eq!(r2.render(&at(3.0)).unwrap().spacing_updates, 0);
+}
+
+#[test]
+fn preclassification_prepass_reruns_only_for_a_new_tf() {
+    let mut r = Renderer::new(gpu(), demo()).unwrap();
+    let mut stack = vec![tf1d("pre", sharp())];
+    r.update_stack(&stack, TargetFormat::Rgba32Float).unwrap();
+    assert_eq!(r.render(&at(1.0)).unwrap().prepasses_run, 1);
+    assert_eq!(r.render(&at(2.0)).unwrap().prepasses_run, 0);
+    // the opacity scale is applied after interpolation: no pre-pass
+    stack[0].params.set("opacity", ParamValue::Float(0.5));
+    r.update_stack(&stack, TargetFormat::Rgba32Float).unwrap();
+    assert_eq!(r.render(&at(1.0)).unwrap().prepasses_run, 0);
+    let mut curve = sharp();
+    curve.primitives[0].height = 0.5;
+    stack[0].params.set("tf", ParamValue::Tf(curve));
+    r.update_stack(&stack, TargetFormat::Rgba32Float).unwrap();
+    assert_eq!(r.render(&at(1.0)).unwrap().prepasses_run, 1);
+    // memory: the classified RGBA volume is counted for the plugin
+    let mem: u64 = r.plugin_memory().iter().map(|m| m.2).sum();
+    let voxels = demo().dims.iter().map(|&d| d as u64).product::<u64>();
+    assert!(mem >= voxels * 8, "{mem} bytes for {voxels} voxels");
+}
+
+#[test]
+fn switching_modes_recomposes_and_keeps_rendering() {
+    let mut r = Renderer::new(gpu(), demo()).unwrap();
+    let mut stack = vec![tf1d("post", sharp())];
+    let mut images = Vec::new();
+    for mode in ["post", "pre", "preintegrated", "post"] {
+        stack[0].params.set("mode", ParamValue::Enum(mode.into()));
+        let change = r.update_stack(&stack, TargetFormat::Rgba32Float).unwrap();
+        if !images.is_empty() {
+            assert_eq!(change, StackChange::Recomposed, "{mode}");
+        }
+        r.render(&at(2.0)).unwrap();
+        let px = r.read_pixels().unwrap().2;
+        assert!(px.iter().flatten().all(|v| v.is_finite()), "{mode}");
+        images.push(px);
+    }
+    // back to post: the same image as the first post frame
+    assert_eq!(images[0], images[3]);
+    // the modes differ
+    assert_ne!(images[0], images[1]);
+    assert_ne!(images[0], images[2]);
+}
+
+/// The classic result (Engel et al. 2001): on a sharp TF at equal slice count,
+/// pre-integration is closer to the continuous integral than post-classification.
+/// The reference is post-classification at 1/16 voxel on the CPU (f64).
+#[test]
+fn preintegration_beats_post_classification_on_a_sharp_tf() {
+    let volume = demo();
+    let fine = at(1.0 / 16.0);
+    let reference = render_reference(
+        &volume,
+        &[tf1d("post", sharp())],
+        &fine,
+        &ReferenceOptions::default(),
+    )
+    .unwrap();
+    for spacing in [1.0, 2.0, 4.0] {
+        let s = at(spacing);
+        let err = |mode: &str| {
+            let mut r = Renderer::new(gpu(), volume.clone()).unwrap();
+            let px = render(
+                &mut r,
+                &[tf1d(mode, sharp())],
+                TargetFormat::Rgba32Float,
+                &s,
+            );
+            delta_e_rms(&px, &reference.pixels, 64, 64)
+        };
+        let (post, pre_int) = (err("post"), err("preintegrated"));
+        eprintln!("spacing {spacing}: post {post:.3}, pre-integrated {pre_int:.3} RMS ΔE*uv");
+        assert!(
+            pre_int < 0.75 * post,
+            "spacing {spacing}: pre-integrated {pre_int} vs post {post}"
+        );
+    }
+}
+
+#[test]
+fn bad_transfer_functions_in_presets_name_the_point_or_primitive() {
+    let reg = registry();
+    let cases = [
+        (
+            r#"(version: 1, plugins: [(id: "classify.tf1d", params: {"tf": (points: [(x: 0.2, color: (1,1,1,1)), (x: 0.2, color: (1,1,1,1))])})])"#,
+            "point 1",
+        ),
+        (
+            r#"(version: 1, plugins: [(id: "classify.tf1d", params: {"tf": (points: [(x: 1.5, color: (1,1,1,1))])})])"#,
+            "point 0",
+        ),
+        (
+            r#"(version: 1, plugins: [(id: "classify.tf1d", params: {"tf": (points: [(x: 0.0, color: (1,1,1,1))], primitives: [(shape: "box", centre: 0.5, width: 0.0, height: 1.0, color: (1,1,1))])})])"#,
+            "primitive 0",
+        ),
+        (
+            r#"(version: 1, plugins: [(id: "classify.tf1d", params: {"tf": (points: [(x: 0.0, color: (1,1,1,1))], primitives: [(shape: "blob", centre: 0.5, width: 0.1, height: 1.0, color: (1,1,1))])})])"#,
+            "unknown primitive shape 'blob'",
+        ),
+        (
+            r#"(version: 1, plugins: [(id: "classify.tf1d", params: {"mode": "sideways"})])"#,
+            "classify.tf1d.mode",
+        ),
+    ];
+    for (text, want) in cases {
+        let msg = Document::parse(text, "tf.ron", &reg)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            msg.starts_with("tf.ron: ") && msg.contains(want),
+            "expected '{want}' in: {msg}"
+        );
+    }
+    // NaN: RON's `NaN` literal reaches the model, which names the point
+    let text = r#"(version: 1, plugins: [(id: "classify.tf1d", params: {"tf": (points: [(x: 0.0, color: (1,1,NaN,1))])})])"#;
+    let msg = Document::parse(text, "nan.ron", &reg)
+        .unwrap_err()
+        .to_string();
+    assert!(msg.contains("point 0"), "{msg}");
+}
