@@ -14,11 +14,28 @@ import json
 import subprocess
 import sys
 import tempfile
+import time
 from pathlib import Path
 
 from doclib import REPO, default_vwb, machine_line, vwb_env, write_block
 
 SCENES = ["presets/demo_preintegrated.ron", "presets/ct_skin.ron"]
+SUGGEST = ["../shared/data/mri_head_volpack_128x128x84_uint8.nhdr",
+           "../shared/data/ct_cranium_256x256x108_int16.nhdr"]
+
+
+def suggest_times(binary, env, tmp):
+    """Wall time of `vwb suggest-tf` (process start, load and suggestion) per volume."""
+    out = []
+    for vol in SUGGEST:
+        start = time.perf_counter()
+        p = subprocess.run([binary, "suggest-tf", "--volume", vol, "-o", str(Path(tmp) / "tf.ron")],
+                           cwd=REPO, env=env, capture_output=True, text=True)
+        secs = time.perf_counter() - start
+        if p.returncode != 0:
+            sys.exit(f"vwb suggest-tf failed:\n{p.stderr}")
+        out.append((vol, secs, p.stderr.strip().splitlines()[-1]))
+    return out
 
 
 def main():
@@ -37,6 +54,7 @@ def main():
         if p.returncode != 0:
             sys.exit(f"vwb classification failed:\n{p.stderr}")
         d = json.loads((Path(tmp) / "classification.json").read_text())
+        suggested = suggest_times(a.vwb, vwb_env(a.gpu), tmp)
 
     lines = [
         f"Machine: {machine_line()}; adapter: {d['adapter']}. Image {a.size}, eye buffer "
@@ -56,6 +74,8 @@ def main():
             f"- Pre-integration table rebuild (256×256 from a 256-entry TF, CPU, one thread), `{b['preset']}`: "
             f"median {t['median']:.2f} ms (min {t['min']:.2f}, max {t['max']:.2f}) over 50 builds."
         )
+    for vol, secs, msg in suggested:
+        lines.append(f"- `vwb suggest-tf --volume {vol}`: {secs:.2f} s wall (load + histogram volume + suggestion); {msg.split(': ', 1)[-1].split('; wrote')[0]}")
     lines += ["", "| scene | spacing (voxels) | slices | mode | time (ms) | RMS ΔE*uv | ΔE > 6 |",
               "|---|---:|---:|---|---:|---:|---:|"]
     rows = sorted(d["rows"], key=lambda r: (r["preset"], r["spacing"], ["post", "pre", "preintegrated"].index(r["mode"])))

@@ -53,6 +53,10 @@ pub enum Command {
     /// post-classification reference for post / pre / pre-integrated classification
     /// at several slice spacings, per preset; writes classification.json.
     Classification(ClassificationArgs),
+    /// Suggest a transfer function from the data (Kindlmann and Durkin 1998): opacity
+    /// on the boundaries found in the histogram volume over value, first and second
+    /// directional derivative. Writes the curve as RON (the `tf` of classify.tf1d).
+    SuggestTf(SuggestTfArgs),
     /// Print the adapter, its limits and the registered plugin ids.
     Info,
 }
@@ -222,6 +226,22 @@ pub struct ClassificationArgs {
     #[arg(long, default_value_t = DEFAULT_TOLERANCE_DELTA_E)]
     pub tolerance: f64,
     /// Output folder.
+    #[arg(short, long)]
+    pub output: PathBuf,
+}
+
+#[derive(Debug, clap::Args)]
+pub struct SuggestTfArgs {
+    /// The volume (NRRD); the demo when absent.
+    #[arg(long)]
+    pub volume: Option<PathBuf>,
+    /// Half width of the boundary emphasis in voxels.
+    #[arg(long, default_value_t = 1.0)]
+    pub thickness: f64,
+    /// Peak opacity.
+    #[arg(long, default_value_t = 0.6)]
+    pub max_opacity: f64,
+    /// Output RON file (a transfer function).
     #[arg(short, long)]
     pub output: PathBuf,
 }
@@ -449,6 +469,41 @@ pub fn run_classification(a: &ClassificationArgs) -> Result<()> {
         a.tolerance,
         &a.output,
     )?;
+    Ok(())
+}
+
+pub fn run_suggest_tf(a: &SuggestTfArgs) -> Result<()> {
+    let volume = match &a.volume {
+        Some(p) => headless::load_volume_file(p)?,
+        None => vwb_render::volume::demo(),
+    };
+    let opts = vwb_render::suggest::SuggestOptions {
+        thickness: a.thickness,
+        max_opacity: a.max_opacity,
+        ..Default::default()
+    };
+    let name = a
+        .volume
+        .as_ref()
+        .map_or("demo".to_string(), |p| p.display().to_string());
+    let s = vwb_render::suggest::suggest(&volume, &opts).with_context(|| name.clone())?;
+    let text = ron::ser::to_string_pretty(&s.curve, ron::ser::PrettyConfig::new())
+        .with_context(|| format!("{}: cannot serialise", a.output.display()))?;
+    vwb_render::preset::write_atomic(&a.output, text.as_bytes())
+        .with_context(|| format!("{}: cannot write", a.output.display()))?;
+    let peak = s
+        .alpha
+        .iter()
+        .enumerate()
+        .max_by(|a, b| a.1.total_cmp(b.1))
+        .map_or(0.0, |(i, _)| (i as f64 + 0.5) / s.alpha.len() as f64);
+    eprintln!(
+        "{name}: boundary blur σ = {:.2} voxels; most opaque value {peak:.3}; {} of {} value bins on a boundary; wrote {}",
+        s.sigma,
+        s.alpha.iter().filter(|&&a| a > 0.0).count(),
+        s.alpha.len(),
+        a.output.display()
+    );
     Ok(())
 }
 

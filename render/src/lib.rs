@@ -12,6 +12,7 @@ pub mod reference;
 pub mod renderer;
 pub mod skipping;
 pub mod slicing;
+pub mod suggest;
 pub mod tf;
 pub mod volume;
 

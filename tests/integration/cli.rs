@@ -312,3 +312,37 @@ fn compare_bench_and_scene() {
         assert!(err.contains(needle), "{args:?}: {err}");
     }
 }
+
+#[test]
+fn suggest_tf_writes_a_valid_transfer_function() {
+    let out = tmp("suggested_tf.ron");
+    let o = vwb().args(["suggest-tf", "-o"]).arg(&out).output().unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("boundary blur"), "{err}");
+    let curve: vwb_render::tf::TfCurve =
+        ron::from_str(&std::fs::read_to_string(&out).unwrap()).unwrap();
+    curve.validate().unwrap();
+    // the demo head has boundaries: some values are opaque, the background is not
+    let alphas: Vec<f64> = (0..=100).map(|i| curve.eval(i as f64 / 100.0)[3]).collect();
+    assert!(alphas.iter().any(|&a| a > 0.2), "{alphas:?}");
+    assert!(
+        alphas[0] < 0.05,
+        "background value is transparent: {}",
+        alphas[0]
+    );
+    // a vector volume is refused with the file named
+    let o = vwb()
+        .args(["suggest-tf", "--volume"])
+        .arg(repo().join("../shared/data/storm_wind_ncsa_25x14x8_float32x3.nhdr"))
+        .arg("-o")
+        .arg(tmp("never.ron"))
+        .output()
+        .unwrap();
+    assert!(!o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("storm_wind") && err.contains("vector volume"),
+        "{err}"
+    );
+}

@@ -1,0 +1,400 @@
+//! Data-driven transfer-function suggestion (Kindlmann and Durkin 1998, "Semi-automatic
+//! generation of transfer functions for direct volume rendering").
+//!
+//! 1. The **histogram volume**: a 3D histogram of every interior voxel over its value
+//!    v, gradient magnitude f' = |∇f| and second directional derivative along the
+//!    gradient f'' = ĝᵀ H ĝ (central differences in voxel index units, on the
+//!    normalised scalar).
+//! 2. Per value bin, the mean first and second derivative g(v) and h(v) from the
+//!    histogram volume.
+//! 3. The **boundary function** p(v) = −σ²·h(v)/g(v): the signed distance (voxels) of a
+//!    sample with value v from the nearest boundary, for boundaries blurred by a
+//!    Gaussian of width σ. σ = g_max/(√e·h_max) (K&D §4, from the ideal boundary
+//!    profile), with g_max and h_max the maxima of g(v) and |h(v)|.
+//! 4. The **opacity** α(v) = α_max·b(p(v)), with the boundary emphasis function b a tent
+//!    of half width `thickness` voxels around p = 0. Values whose mean gradient is below
+//!    `min_gradient`·g_max are not on any boundary and get α = 0.
+//!
+//! Choices where the paper leaves room: derivatives in voxel index units (the spacing
+//! is ignored, as K&D work on the sampled grid); ranges of f' and f'' are clipped at
+//! their 99.5th percentile so that a few outliers do not squeeze the histogram; the
+//! suggested curve has 128 evenly spaced points and a neutral colour ramp.
+
+use rayon::prelude::*;
+
+use crate::tf::{TfCurve, TfPoint};
+use crate::volume::Volume;
+
+/// Options of [`suggest`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SuggestOptions {
+    /// Value bins of the histogram volume.
+    pub value_bins: usize,
+    /// Bins along f' and f''.
+    pub derivative_bins: usize,
+    /// Half width (voxels) of the boundary emphasis tent.
+    pub thickness: f64,
+    /// Peak opacity of the suggestion.
+    pub max_opacity: f64,
+    /// Share of g_max below which a value is not on a boundary.
+    pub min_gradient: f64,
+}
+
+impl Default for SuggestOptions {
+    fn default() -> Self {
+        Self {
+            value_bins: 256,
+            derivative_bins: 64,
+            thickness: 1.0,
+            max_opacity: 0.6,
+            min_gradient: 0.05,
+        }
+    }
+}
+
+/// The histogram volume over (v, f', f'').
+#[derive(Debug, Clone, PartialEq)]
+pub struct HistogramVolume {
+    pub value_bins: usize,
+    pub derivative_bins: usize,
+    /// f' range [0, g_hi] covered by the bins (values above land in the last bin).
+    /// `derivative_bins` is odd, so that f'' = 0 falls on a bin centre.
+    pub g_hi: f64,
+    /// f'' range [−h_hi, h_hi].
+    pub h_hi: f64,
+    /// Counts, value fastest, then f', then f''.
+    pub counts: Vec<u32>,
+}
+
+impl HistogramVolume {
+    fn index(&self, v: usize, g: usize, h: usize) -> usize {
+        (h * self.derivative_bins + g) * self.value_bins + v
+    }
+
+    /// Count in bin (v, g, h).
+    pub fn count(&self, v: usize, g: usize, h: usize) -> u32 {
+        self.counts[self.index(v, g, h)]
+    }
+
+    /// Centre of f' bin `g`.
+    pub fn g_centre(&self, g: usize) -> f64 {
+        (g as f64 + 0.5) / self.derivative_bins as f64 * self.g_hi
+    }
+
+    /// Centre of f'' bin `h`.
+    pub fn h_centre(&self, h: usize) -> f64 {
+        ((h as f64 + 0.5) / self.derivative_bins as f64 * 2.0 - 1.0) * self.h_hi
+    }
+}
+
+/// What [`suggest`] found, for the UI's plots and for tests.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Suggestion {
+    pub histogram: HistogramVolume,
+    /// Mean f' per value bin (0 where the bin is empty).
+    pub g: Vec<f64>,
+    /// Mean f'' per value bin.
+    pub h: Vec<f64>,
+    /// Boundary function p(v) per value bin (voxels; NaN where no boundary).
+    pub p: Vec<f64>,
+    /// Boundary blur σ (voxels).
+    pub sigma: f64,
+    /// Opacity per value bin.
+    pub alpha: Vec<f64>,
+    /// The suggested transfer function.
+    pub curve: TfCurve,
+}
+
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum SuggestError {
+    #[error(
+        "volume '{0}' is smaller than 3 voxels along an axis: no interior voxel has central differences"
+    )]
+    TooSmall(String),
+    #[error("volume '{0}' is a vector volume; suggestions need scalars")]
+    NotScalar(String),
+    #[error("invalid option: {0}")]
+    BadOption(String),
+}
+
+/// Value, f' and f'' of one interior voxel, or None where a neighbour is not finite.
+fn derivatives(s: &[f32], d: [usize; 3], x: usize, y: usize, z: usize) -> Option<[f64; 3]> {
+    let at = |x: usize, y: usize, z: usize| s[(z * d[1] + y) * d[0] + x] as f64;
+    let c = at(x, y, z);
+    let g = [
+        0.5 * (at(x + 1, y, z) - at(x - 1, y, z)),
+        0.5 * (at(x, y + 1, z) - at(x, y - 1, z)),
+        0.5 * (at(x, y, z + 1) - at(x, y, z - 1)),
+    ];
+    let hxx = at(x + 1, y, z) - 2.0 * c + at(x - 1, y, z);
+    let hyy = at(x, y + 1, z) - 2.0 * c + at(x, y - 1, z);
+    let hzz = at(x, y, z + 1) - 2.0 * c + at(x, y, z - 1);
+    let hxy = 0.25
+        * (at(x + 1, y + 1, z) - at(x + 1, y - 1, z) - at(x - 1, y + 1, z) + at(x - 1, y - 1, z));
+    let hxz = 0.25
+        * (at(x + 1, y, z + 1) - at(x + 1, y, z - 1) - at(x - 1, y, z + 1) + at(x - 1, y, z - 1));
+    let hyz = 0.25
+        * (at(x, y + 1, z + 1) - at(x, y + 1, z - 1) - at(x, y - 1, z + 1) + at(x, y - 1, z - 1));
+    let gm2 = g[0] * g[0] + g[1] * g[1] + g[2] * g[2];
+    let hg = [
+        hxx * g[0] + hxy * g[1] + hxz * g[2],
+        hxy * g[0] + hyy * g[1] + hyz * g[2],
+        hxz * g[0] + hyz * g[1] + hzz * g[2],
+    ];
+    let second = if gm2 > 1e-24 {
+        (g[0] * hg[0] + g[1] * hg[1] + g[2] * hg[2]) / gm2
+    } else {
+        0.0
+    };
+    let r = [c, gm2.sqrt(), second];
+    r.iter().all(|v| v.is_finite()).then_some(r)
+}
+
+fn percentile(mut v: Vec<f64>, q: f64) -> f64 {
+    if v.is_empty() {
+        return 0.0;
+    }
+    let k = ((v.len() - 1) as f64 * q).round() as usize;
+    let (_, x, _) = v.select_nth_unstable_by(k, |a, b| a.total_cmp(b));
+    *x
+}
+
+/// Builds the histogram volume and the suggestion for a scalar volume.
+pub fn suggest(volume: &Volume, opts: &SuggestOptions) -> Result<Suggestion, SuggestError> {
+    if volume.components != 1 {
+        return Err(SuggestError::NotScalar(volume.name.clone()));
+    }
+    if opts.value_bins < 2
+        || opts.derivative_bins < 2
+        || !(opts.thickness.is_finite() && opts.thickness > 0.0)
+        || !(0.0..=1.0).contains(&opts.max_opacity)
+        || !(0.0..1.0).contains(&opts.min_gradient)
+    {
+        return Err(SuggestError::BadOption(format!("{opts:?}")));
+    }
+    let d = volume.dims.map(|v| v as usize);
+    if d.iter().any(|&n| n < 3) {
+        return Err(SuggestError::TooSmall(volume.name.clone()));
+    }
+    let s = volume.normalized_scalars();
+    // every interior voxel's (v, f', f''), slab by slab in parallel
+    let samples: Vec<[f64; 3]> = (1..d[2] - 1)
+        .into_par_iter()
+        .flat_map_iter(|z| {
+            let s = &s;
+            (1..d[1] - 1)
+                .flat_map(move |y| (1..d[0] - 1).filter_map(move |x| derivatives(s, d, x, y, z)))
+        })
+        .collect();
+    let raw_g_hi = percentile(samples.iter().map(|r| r[1]).collect(), 0.995);
+    let g_hi = raw_g_hi.max(1e-12);
+    let h_hi = percentile(samples.iter().map(|r| r[2].abs()).collect(), 0.995).max(1e-12);
+    // an odd number of bins puts a bin centre on f'' = 0
+    let (vb, db) = (opts.value_bins, opts.derivative_bins | 1);
+    let mut histogram = HistogramVolume {
+        value_bins: vb,
+        derivative_bins: db,
+        g_hi,
+        h_hi,
+        counts: vec![0; vb * db * db],
+    };
+    let bin = |x: f64, n: usize| ((x * n as f64).floor().max(0.0) as usize).min(n - 1);
+    for r in &samples {
+        let v = bin(r[0], vb);
+        let g = bin(r[1] / g_hi, db);
+        let h = bin((r[2] / h_hi + 1.0) * 0.5, db);
+        let i = histogram.index(v, g, h);
+        histogram.counts[i] = histogram.counts[i].saturating_add(1);
+    }
+    // mean f' and f'' per value bin, from the histogram volume
+    let mut g_mean = vec![0.0; vb];
+    let mut h_mean = vec![0.0; vb];
+    let mut filled = vec![false; vb];
+    for v in 0..vb {
+        let (mut n, mut gs, mut hs) = (0.0, 0.0, 0.0);
+        for h in 0..db {
+            for g in 0..db {
+                let c = histogram.count(v, g, h) as f64;
+                n += c;
+                gs += c * histogram.g_centre(g);
+                hs += c * histogram.h_centre(h);
+            }
+        }
+        if n > 0.0 {
+            g_mean[v] = gs / n;
+            h_mean[v] = hs / n;
+            filled[v] = true;
+        }
+    }
+    // a value bin no voxel fell into (quantised data, e.g. u8 over 256 bins or sparse
+    // f32 values) takes g and h linearly from its nearest filled neighbours
+    fill_gaps(&mut g_mean, &filled);
+    fill_gaps(&mut h_mean, &filled);
+    // no variation at all (a constant volume): no boundary anywhere
+    let g_max = if raw_g_hi > 1e-9 {
+        g_mean.iter().copied().fold(0.0, f64::max)
+    } else {
+        0.0
+    };
+    let h_max = h_mean.iter().map(|h| h.abs()).fold(0.0, f64::max);
+    let sigma = if h_max > 0.0 {
+        g_max / (std::f64::consts::E.sqrt() * h_max)
+    } else {
+        0.0
+    };
+    let p: Vec<f64> = (0..vb)
+        .map(|v| {
+            if g_max > 0.0 && g_mean[v] > opts.min_gradient * g_max {
+                -sigma * sigma * h_mean[v] / g_mean[v]
+            } else {
+                f64::NAN
+            }
+        })
+        .collect();
+    let alpha: Vec<f64> = p
+        .iter()
+        .map(|&p| {
+            if p.is_finite() {
+                opts.max_opacity * (1.0 - p.abs() / opts.thickness).max(0.0)
+            } else {
+                0.0
+            }
+        })
+        .collect();
+    let curve = curve_from(&alpha);
+    Ok(Suggestion {
+        histogram,
+        g: g_mean,
+        h: h_mean,
+        p,
+        sigma,
+        alpha,
+        curve,
+    })
+}
+
+/// Linear interpolation over the bins that are not `filled`, between the nearest filled
+/// bins on either side (bins outside the first/last filled one stay as they are).
+fn fill_gaps(v: &mut [f64], filled: &[bool]) {
+    let known: Vec<usize> = (0..v.len()).filter(|&i| filled[i]).collect();
+    for w in known.windows(2) {
+        let (a, b) = (w[0], w[1]);
+        for i in a + 1..b {
+            let t = (i - a) as f64 / (b - a) as f64;
+            v[i] = v[a] * (1.0 - t) + v[b] * t;
+        }
+    }
+}
+
+/// 128 evenly spaced points over the per-bin opacity, colour a neutral ramp from warm
+/// grey to white.
+fn curve_from(alpha: &[f64]) -> TfCurve {
+    const POINTS: usize = 128;
+    let n = alpha.len();
+    TfCurve::new(
+        (0..POINTS)
+            .map(|i| {
+                let x = i as f64 / (POINTS - 1) as f64;
+                let f = x * n as f64 - 0.5;
+                let j = (f.floor().max(0.0) as usize).min(n - 1);
+                let k = (j + 1).min(n - 1);
+                let t = (f - j as f64).clamp(0.0, 1.0);
+                let a = alpha[j] * (1.0 - t) + alpha[k] * t;
+                let c = (0.75 + 0.25 * x) as f32;
+                TfPoint {
+                    x: x as f32,
+                    color: [
+                        c,
+                        (0.65 + 0.35 * x) as f32,
+                        (0.55 + 0.45 * x) as f32,
+                        a.clamp(0.0, 1.0) as f32,
+                    ],
+                }
+            })
+            .collect(),
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::volume::VoxelData;
+
+    /// A ball of value 0.8 in a background of 0.2, the step blurred (logistic of width
+    /// ~1.5 voxels): one boundary, whose middle value is 0.5.
+    fn blurred_ball() -> Volume {
+        let n = 40u32;
+        let mut v = Vec::new();
+        for z in 0..n {
+            for y in 0..n {
+                for x in 0..n {
+                    let c = (n as f64 - 1.0) / 2.0;
+                    let r =
+                        ((x as f64 - c).powi(2) + (y as f64 - c).powi(2) + (z as f64 - c).powi(2))
+                            .sqrt();
+                    let t = 1.0 / (1.0 + ((r - 12.0) / 1.5).exp());
+                    v.push((0.2 + 0.6 * t) as f32);
+                }
+            }
+        }
+        // pin the normalisation to [0, 1] with two corner voxels
+        v[0] = 0.0;
+        let last = v.len() - 1;
+        v[last] = 1.0;
+        Volume::new("ball", [n; 3], 1, [1.0; 3], VoxelData::F32(v)).unwrap()
+    }
+
+    #[test]
+    fn boundary_gets_the_opacity_and_the_plateaus_do_not() {
+        let s = suggest(&blurred_ball(), &SuggestOptions::default()).unwrap();
+        assert!(s.curve.validate().is_ok());
+        let at = |v: f64| s.curve.eval(v)[3];
+        // the boundary's middle value is the most opaque
+        assert!(at(0.5) > 0.4, "α(0.5) = {}", at(0.5));
+        // inside and outside (constant regions) are transparent
+        assert!(at(0.2) < 0.05 && at(0.8) < 0.05, "{} {}", at(0.2), at(0.8));
+        // p(v) changes sign across the boundary: negative on the low side… per K&D
+        // the sign follows −h/g; on a rising profile h > 0 below the middle
+        let bin = |v: f64| (v * 256.0) as usize;
+        assert!(
+            s.p[bin(0.35)] < 0.0 && s.p[bin(0.65)] > 0.0,
+            "{} {}",
+            s.p[bin(0.35)],
+            s.p[bin(0.65)]
+        );
+        assert!(s.sigma > 0.5 && s.sigma < 5.0, "σ = {}", s.sigma);
+        // the histogram volume holds every interior voxel
+        let total: u64 = s.histogram.counts.iter().map(|&c| c as u64).sum();
+        assert_eq!(total, 38u64.pow(3));
+    }
+
+    #[test]
+    fn constant_and_degenerate_volumes_give_clear_results() {
+        let flat =
+            Volume::new("flat", [8, 8, 8], 1, [1.0; 3], VoxelData::U8(vec![7; 512])).unwrap();
+        let s = suggest(&flat, &SuggestOptions::default()).unwrap();
+        assert!(s.alpha.iter().all(|&a| a == 0.0));
+        assert!(s.curve.validate().is_ok());
+        let thin =
+            Volume::new("thin", [8, 8, 2], 1, [1.0; 3], VoxelData::U8(vec![1; 128])).unwrap();
+        assert_eq!(
+            suggest(&thin, &SuggestOptions::default()).unwrap_err(),
+            SuggestError::TooSmall("thin".into())
+        );
+        let mut nan = vec![0.5f32; 512];
+        nan[100] = f32::NAN;
+        nan[200] = 1.0;
+        let v = Volume::new("nan", [8, 8, 8], 1, [1.0; 3], VoxelData::F32(nan)).unwrap();
+        let s = suggest(&v, &SuggestOptions::default()).unwrap();
+        assert!(s.alpha.iter().all(|a| a.is_finite()));
+        assert!(s.curve.validate().is_ok());
+        let bad = SuggestOptions {
+            thickness: 0.0,
+            ..Default::default()
+        };
+        assert!(matches!(
+            suggest(&flat, &bad),
+            Err(SuggestError::BadOption(_))
+        ));
+    }
+}
