@@ -7,6 +7,7 @@
 pub use vwb_render::params;
 pub use vwb_render::plugin::*;
 
+pub mod classify_labels;
 pub mod classify_tf1d;
 pub mod test_slice_shadow;
 pub mod test_smooth;
@@ -18,6 +19,7 @@ pub fn builtin_registry() -> Registry {
     let mut r = Registry::new();
     let all: Vec<Arc<dyn Plugin>> = vec![
         Arc::new(classify_tf1d::Tf1d::default()),
+        Arc::new(classify_labels::Labels),
         Arc::new(test_slice_shadow::SliceShadow),
         Arc::new(test_smooth::Smooth),
     ];
@@ -38,7 +40,7 @@ mod tests {
     #[test]
     fn builtins_register_without_clash() {
         let r = builtin_registry();
-        assert_eq!(r.plugins().len(), 3);
+        assert_eq!(r.plugins().len(), 4);
         let mut fresh = Registry::new();
         for p in r.plugins() {
             fresh.register(p.clone()).unwrap();

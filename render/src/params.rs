@@ -47,6 +47,11 @@ pub enum ParamKind {
     Tf {
         default: TfCurve,
     },
+    /// A file beside the data (e.g. a label volume); empty = none. Relative paths in a
+    /// preset are relative to the preset file. Not a uniform.
+    Path {
+        default: &'static str,
+    },
 }
 
 #[derive(Debug, Clone, PartialEq)]
@@ -126,6 +131,9 @@ impl ParamSpec {
             },
         )
     }
+    pub fn path(key: &'static str, label: &'static str, default: &'static str) -> Self {
+        Self::new(key, label, ParamKind::Path { default })
+    }
     pub fn tf(key: &'static str, label: &'static str, default: TfCurve) -> Self {
         Self::new(key, label, ParamKind::Tf { default })
     }
@@ -162,6 +170,7 @@ impl ParamSpec {
             ParamKind::Color { default } => ParamValue::Color(*default),
             ParamKind::Vec3 { default, .. } => ParamValue::Vec3(*default),
             ParamKind::Tf { default } => ParamValue::Tf(default.clone()),
+            ParamKind::Path { default } => ParamValue::Path(default.into()),
         }
     }
 
@@ -173,7 +182,7 @@ impl ParamSpec {
             ParamKind::Bool { .. } | ParamKind::Enum { .. } => Some("u32"),
             ParamKind::Color { .. } => Some("vec4<f32>"),
             ParamKind::Vec3 { .. } => Some("vec3<f32>"),
-            ParamKind::Tf { .. } => None,
+            ParamKind::Tf { .. } | ParamKind::Path { .. } => None,
         }
     }
 
@@ -212,6 +221,7 @@ impl ParamSpec {
                 c.iter().try_for_each(|x| range(*x, *min, *max))
             }
             (ParamKind::Tf { .. }, ParamValue::Tf(t)) => t.validate(),
+            (ParamKind::Path { .. }, ParamValue::Path(_)) => Ok(()),
             (_, v) => Err(format!(
                 "expected {}, got {}",
                 self.kind_name(),
@@ -229,6 +239,7 @@ impl ParamSpec {
             ParamKind::Color { .. } => "a colour (r, g, b, a)",
             ParamKind::Vec3 { .. } => "a vec3 (x, y, z)",
             ParamKind::Tf { .. } => "a transfer function",
+            ParamKind::Path { .. } => "a file path string",
         }
     }
 
@@ -272,6 +283,15 @@ impl ParamSpec {
                     .map_err(|e| format!("expected a transfer function (points: [...]): {e}"))?;
                 ParamValue::Tf(t)
             }
+            ParamKind::Path { .. } => match value {
+                ron::Value::String(s) => ParamValue::Path(s.into()),
+                other => {
+                    return Err(format!(
+                        "expected a file path string, got {}",
+                        describe_ron(other)
+                    ));
+                }
+            },
         };
         self.check(&v)?;
         Ok(v)
@@ -310,6 +330,7 @@ pub enum ParamValue {
     Color([f32; 4]),
     Vec3([f32; 3]),
     Tf(TfCurve),
+    Path(std::path::PathBuf),
 }
 
 impl ParamValue {
@@ -322,6 +343,7 @@ impl ParamValue {
             ParamValue::Color(_) => "a colour",
             ParamValue::Vec3(_) => "a vec3",
             ParamValue::Tf(_) => "a transfer function",
+            ParamValue::Path(_) => "a file path",
         }
     }
 
@@ -339,6 +361,7 @@ impl ParamValue {
                 .ok()
                 .and_then(|s| ron::from_str(&s).ok())
                 .unwrap_or(ron::Value::Unit),
+            ParamValue::Path(p) => ron::Value::String(p.display().to_string()),
         }
     }
 }
@@ -399,6 +422,13 @@ impl ParamValues {
         match self.get(key) {
             Some(ParamValue::Vec3(c)) => *c,
             _ => [0.0; 3],
+        }
+    }
+    /// A path parameter; None when unset or empty.
+    pub fn path(&self, key: &str) -> Option<&std::path::Path> {
+        match self.get(key) {
+            Some(ParamValue::Path(p)) if !p.as_os_str().is_empty() => Some(p),
+            _ => None,
         }
     }
     pub fn tf(&self, key: &str) -> Option<&TfCurve> {

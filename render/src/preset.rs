@@ -154,6 +154,19 @@ impl Document {
         {
             *p = dir.join(&*p);
         }
+        // and so are path parameters (e.g. label volumes)
+        if let Some(dir) = path.parent() {
+            for inst in &mut loaded.document.stack {
+                for v in inst.params.values.values_mut() {
+                    if let crate::params::ParamValue::Path(p) = v
+                        && p.is_relative()
+                        && !p.as_os_str().is_empty()
+                    {
+                        *p = dir.join(&*p);
+                    }
+                }
+            }
+        }
         Ok(loaded)
     }
 

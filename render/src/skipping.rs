@@ -90,6 +90,21 @@ impl BrickRanges {
 /// instances' hooks, or `None` when some plugin makes no promise. The last
 /// [`Transparency::ByValue`] classifier decides; without one, the core's grey ramp
 /// (α = value) does.
+/// The promise of a classifier that reads a lookup table over the normalised value
+/// (entries at i/(n − 1), linearly interpolated): `visible[i]` says whether entry i
+/// has α > 0 (for a table per label, in any row). A value range can be visible when
+/// any entry the GPU interpolates for it is, the entries around both ends included.
+pub fn visible_by_table(visible: Vec<bool>) -> Transparency {
+    Transparency::ByValue(Arc::new(move |lo: f64, hi: f64| {
+        let Some(last) = visible.len().checked_sub(1) else {
+            return false;
+        };
+        let index = |v: f64| v.clamp(0.0, 1.0) * last as f64;
+        let (a, b) = (index(lo).floor() as usize, index(hi).ceil() as usize);
+        a <= b && visible[a..=b.min(last)].iter().any(|&v| v)
+    }))
+}
+
 pub fn stack_visibility(stack: &[PluginInstance]) -> Option<Arc<VisibleFn>> {
     let mut visible: Arc<VisibleFn> = Arc::new(|_lo: f64, hi: f64| hi > 0.0);
     for inst in stack.iter().filter(|i| i.enabled) {

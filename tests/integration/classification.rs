@@ -189,3 +189,53 @@ fn bad_transfer_functions_in_presets_name_the_point_or_primitive() {
         .to_string();
     assert!(msg.contains("point 0"), "{msg}");
 }
+
+fn labels_instance(path: &std::path::Path) -> PluginInstance {
+    let mut i = instance("classify.labels");
+    i.params.set("labels", ParamValue::Path(path.to_path_buf()));
+    i
+}
+
+/// A label volume whose dims differ from the data is refused with the file named,
+/// and the last good pipeline keeps rendering.
+#[test]
+fn label_volume_with_other_dims_is_refused_and_the_old_pipeline_renders() {
+    let labels = repo().join("presets/data/demo_labels.nrrd");
+    let other = synthetic([16, 16, 16], |x, _, _| x as f32);
+    let mut r = Renderer::new(gpu(), other).unwrap();
+    r.update_stack(&[tf1d("post", sharp())], TargetFormat::Rgba32Float)
+        .unwrap();
+    r.render(&at(1.0)).unwrap();
+    let before = r.read_pixels().unwrap().2;
+    let e = r
+        .update_stack(&[labels_instance(&labels)], TargetFormat::Rgba32Float)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("demo_labels.nrrd") && e.contains("differ"),
+        "{e}"
+    );
+    r.render(&at(1.0)).unwrap();
+    assert_eq!(r.read_pixels().unwrap().2, before);
+}
+
+/// Hiding a label removes exactly its voxels: all hidden gives an empty image, and
+/// the image with label 3 hidden differs from the full one.
+#[test]
+fn hidden_labels_disappear() {
+    let labels = repo().join("presets/data/demo_labels.nrrd");
+    let mut r = Renderer::new(gpu(), demo()).unwrap();
+    let mut inst = labels_instance(&labels);
+    let full = render(&mut r, &[inst.clone()], TargetFormat::Rgba32Float, &at(1.0));
+    assert!(full.iter().any(|p| p[3] > 0.1));
+    inst.params.set("show_3", ParamValue::Bool(false));
+    let no_dense = render(&mut r, &[inst.clone()], TargetFormat::Rgba32Float, &at(1.0));
+    assert_ne!(full, no_dense);
+    for k in [
+        "show_0", "show_1", "show_2", "show_4", "show_5", "show_6", "show_7",
+    ] {
+        inst.params.set(k, ParamValue::Bool(false));
+    }
+    let none = render(&mut r, &[inst], TargetFormat::Rgba32Float, &at(1.0));
+    assert!(none.iter().all(|p| p[3] == 0.0));
+}

@@ -246,17 +246,13 @@ impl Plugin for Tf1d {
             return Transparency::Unknown;
         }
         let opacity = params.float("opacity");
-        let visible: Vec<bool> = curve(params)
-            .bake(LUT_SIZE)
-            .iter()
-            .map(|c| c[3] * opacity > 0.0)
-            .collect();
-        Transparency::ByValue(Arc::new(move |lo: f64, hi: f64| {
-            let last = visible.len() - 1;
-            let index = |v: f64| v.clamp(0.0, 1.0) * last as f64;
-            let (a, b) = (index(lo).floor() as usize, index(hi).ceil() as usize);
-            a <= b && visible[a..=b.min(last)].iter().any(|&v| v)
-        }))
+        vwb_render::skipping::visible_by_table(
+            curve(params)
+                .bake(LUT_SIZE)
+                .iter()
+                .map(|c| c[3] * opacity > 0.0)
+                .collect(),
+        )
     }
     fn cpu_twin(&self, params: &ParamValues) -> Option<Box<dyn CpuTwin>> {
         let lut = curve(params).bake(LUT_SIZE);

@@ -1,0 +1,344 @@
+//! `classify.labels`: a u8 label volume beside the data (NRRD, same dims), one 1D
+//! transfer function per label, nearest-neighbour label lookup, labels that can be
+//! hidden.
+//!
+//! Parameters: `labels` (the label file; structural: a new file recreates the
+//! resources), `tf_0` … `tf_7` and `show_0` … `show_7` (labels 0–7; labels above 7
+//! use `tf_7` and `show_7`), `opacity` (global scale). The tables are baked into one
+//! 256 × 8 texture, a hidden label's row all zero. Label files are loaded once per
+//! path and modification time and shared by the GPU resources and the CPU twin.
+
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+use std::sync::{Arc, Mutex};
+
+use glam::{DVec3, DVec4};
+use vwb_render::params::{ParamSpec, ParamValues};
+use vwb_render::plugin::{
+    CpuContext, CpuSample, CpuTwin, GpuInit, GpuResource, Plugin, PluginError, ResourceDecl,
+    ResourceKind, ShaderSource, Transparency,
+};
+use vwb_render::tf::{LUT_SIZE, TfCurve, eval_lut};
+use vwb_render::volume::{ScalarType, VoxelData};
+
+#[cfg(test)]
+mod tests;
+
+/// Labels with their own transfer function (0 … MAX_LABELS − 1).
+pub const MAX_LABELS: usize = 8;
+
+const TF_KEYS: [&str; MAX_LABELS] = [
+    "tf_0", "tf_1", "tf_2", "tf_3", "tf_4", "tf_5", "tf_6", "tf_7",
+];
+const SHOW_KEYS: [&str; MAX_LABELS] = [
+    "show_0", "show_1", "show_2", "show_3", "show_4", "show_5", "show_6", "show_7",
+];
+const TF_LABELS: [&str; MAX_LABELS] = [
+    "TF label 0",
+    "TF label 1",
+    "TF label 2",
+    "TF label 3",
+    "TF label 4",
+    "TF label 5",
+    "TF label 6",
+    "TF label 7",
+];
+const SHOW_LABELS: [&str; MAX_LABELS] = [
+    "Show label 0",
+    "Show label 1",
+    "Show label 2",
+    "Show label 3",
+    "Show label 4",
+    "Show label 5",
+    "Show label 6",
+    "Show label 7",
+];
+
+pub struct Labels;
+
+/// A loaded label volume.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LabelGrid {
+    pub file: PathBuf,
+    pub dims: [u32; 3],
+    pub labels: Vec<u8>,
+}
+
+impl LabelGrid {
+    /// Nearest-voxel label at a texture coordinate, as the shader's `floor(tex·dims)`.
+    pub fn at(&self, tex: DVec3) -> u8 {
+        let d = self.dims.map(|n| n.max(1) as usize);
+        let idx = |a: usize| {
+            let f = (tex[a] * d[a] as f64).floor();
+            if f.is_nan() {
+                0
+            } else {
+                (f.max(0.0) as usize).min(d[a] - 1)
+            }
+        };
+        self.labels[(idx(2) * d[1] + idx(1)) * d[0] + idx(0)]
+    }
+}
+
+/// Loads a u8 label volume (cached per path and modification time).
+pub fn load_labels(path: &Path) -> Result<Arc<LabelGrid>, String> {
+    type Cache = Mutex<HashMap<(PathBuf, Option<std::time::SystemTime>), Arc<LabelGrid>>>;
+    static CACHE: std::sync::OnceLock<Cache> = std::sync::OnceLock::new();
+    let modified = std::fs::metadata(path).and_then(|m| m.modified()).ok();
+    let key = (path.to_path_buf(), modified);
+    let cache = CACHE.get_or_init(Default::default);
+    if let Some(g) = cache.lock().ok().and_then(|c| c.get(&key).cloned()) {
+        return Ok(g);
+    }
+    let v = vwb_render::volume::load(path).map_err(|e| e.to_string())?;
+    let file = path.display();
+    if v.components != 1 || v.scalar_type() != ScalarType::U8 {
+        return Err(format!(
+            "{file}: a label volume must hold u8 scalars, found {} × {}",
+            v.components,
+            v.scalar_type().name()
+        ));
+    }
+    let VoxelData::U8(labels) = v.data else {
+        return Err(format!("{file}: a label volume must hold u8 scalars"));
+    };
+    let grid = Arc::new(LabelGrid {
+        file: path.to_path_buf(),
+        dims: v.dims,
+        labels,
+    });
+    if let Ok(mut c) = cache.lock() {
+        c.insert(key, grid.clone());
+    }
+    Ok(grid)
+}
+
+fn error(message: String) -> PluginError {
+    PluginError::Invalid {
+        plugin: "classify.labels".into(),
+        message,
+    }
+}
+
+/// The label grid for the parameters, checked against the data's dims.
+fn grid_for(params: &ParamValues, data_dims: [u32; 3]) -> Result<Arc<LabelGrid>, PluginError> {
+    let path = params
+        .path("labels")
+        .ok_or_else(|| error("no label volume set (parameter `labels`)".into()))?;
+    let grid = load_labels(path).map_err(error)?;
+    if grid.dims != data_dims {
+        return Err(error(format!(
+            "{}: label volume dims {:?} differ from the data's {:?}",
+            path.display(),
+            grid.dims,
+            data_dims
+        )));
+    }
+    Ok(grid)
+}
+
+/// A distinct default colour per label; label 0 (background) transparent.
+pub fn default_curve(label: usize) -> TfCurve {
+    const PALETTE: [[f32; 3]; MAX_LABELS] = [
+        [0.0, 0.0, 0.0],
+        [0.95, 0.6, 0.35],
+        [0.35, 0.6, 0.95],
+        [0.95, 0.95, 0.9],
+        [0.5, 0.9, 0.4],
+        [0.9, 0.4, 0.8],
+        [0.9, 0.85, 0.3],
+        [0.4, 0.9, 0.9],
+    ];
+    let c = PALETTE[label];
+    let alpha = if label == 0 { 0.0 } else { 0.3 };
+    TfCurve::ramp(0.05, 0.5, [c[0], c[1], c[2], alpha])
+}
+
+/// The baked table: one row of LUT_SIZE entries per label, hidden rows zero.
+pub fn bake(params: &ParamValues) -> Vec<[f32; 4]> {
+    (0..MAX_LABELS)
+        .flat_map(|l| {
+            if params.boolean(SHOW_KEYS[l]) {
+                params
+                    .tf(TF_KEYS[l])
+                    .cloned()
+                    .unwrap_or_else(|| default_curve(l))
+                    .bake(LUT_SIZE)
+            } else {
+                vec![[0.0; 4]; LUT_SIZE]
+            }
+        })
+        .collect()
+}
+
+impl Plugin for Labels {
+    fn id(&self) -> &'static str {
+        "classify.labels"
+    }
+    fn display_name(&self) -> &'static str {
+        "Labels"
+    }
+    fn description(&self) -> &'static str {
+        "One 1D transfer function per label of a u8 label volume (nearest-neighbour lookup)"
+    }
+    fn params(&self) -> Vec<ParamSpec> {
+        let mut v = vec![
+            ParamSpec::path("labels", "Label volume", "")
+                .structural()
+                .with_doc("u8 NRRD with the data's dims; relative to the preset"),
+            ParamSpec::float_log("opacity", "Opacity scale", 0.01, 100.0, 1.0),
+        ];
+        for l in 0..MAX_LABELS {
+            v.push(ParamSpec::tf(TF_KEYS[l], TF_LABELS[l], default_curve(l)));
+            v.push(ParamSpec::boolean(SHOW_KEYS[l], SHOW_LABELS[l], true));
+        }
+        v
+    }
+    fn shader(&self) -> ShaderSource {
+        ShaderSource::new_static(
+            "plugins/src/classify_labels/labels.wgsl",
+            include_str!("labels.wgsl"),
+        )
+    }
+    fn resources(&self) -> Vec<ResourceDecl> {
+        vec![
+            ResourceDecl {
+                name: "labels",
+                kind: ResourceKind::Texture3d,
+            },
+            ResourceDecl {
+                name: "lut",
+                kind: ResourceKind::Texture2d,
+            },
+        ]
+    }
+    fn create_resources(
+        &self,
+        gpu: &GpuInit,
+        params: &ParamValues,
+    ) -> Result<Vec<GpuResource>, PluginError> {
+        let grid = grid_for(params, gpu.volume.dims)?;
+        let texture = |label, size: [u32; 3], dimension, format| {
+            gpu.device.create_texture(&wgpu::TextureDescriptor {
+                label: Some(label),
+                size: wgpu::Extent3d {
+                    width: size[0],
+                    height: size[1],
+                    depth_or_array_layers: size[2],
+                },
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension,
+                format,
+                usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+                view_formats: &[],
+            })
+        };
+        let labels = texture(
+            "classify.labels labels",
+            grid.dims,
+            wgpu::TextureDimension::D3,
+            wgpu::TextureFormat::R8Unorm,
+        );
+        gpu.queue.write_texture(
+            labels.as_image_copy(),
+            &grid.labels,
+            wgpu::TexelCopyBufferLayout {
+                offset: 0,
+                bytes_per_row: Some(grid.dims[0]),
+                rows_per_image: Some(grid.dims[1]),
+            },
+            labels.size(),
+        );
+        let lut = texture(
+            "classify.labels lut",
+            [LUT_SIZE as u32, MAX_LABELS as u32, 1],
+            wgpu::TextureDimension::D2,
+            gpu.lut_format(),
+        );
+        let res = [labels, lut].map(|texture| GpuResource {
+            view: texture.create_view(&Default::default()),
+            texture,
+        });
+        self.update_resources(gpu, params, &res)?;
+        Ok(res.to_vec())
+    }
+    fn update_resources(
+        &self,
+        gpu: &GpuInit,
+        params: &ParamValues,
+        resources: &[GpuResource],
+    ) -> Result<(), PluginError> {
+        let Some(lut) = resources.get(1) else {
+            return Err(error("lookup texture missing".into()));
+        };
+        let texels = bake(params);
+        let format = lut.texture.format();
+        let bytes: Vec<u8> = match format {
+            wgpu::TextureFormat::Rgba32Float => bytemuck::cast_slice(&texels).to_vec(),
+            _ => texels
+                .iter()
+                .flat_map(|c| c.iter().flat_map(|v| half::f16::from_f32(*v).to_le_bytes()))
+                .collect(),
+        };
+        let bpp = format.block_copy_size(None).unwrap_or(16);
+        gpu.queue.write_texture(
+            lut.texture.as_image_copy(),
+            &bytes,
+            wgpu::TexelCopyBufferLayout {
+                offset: 0,
+                bytes_per_row: Some(LUT_SIZE as u32 * bpp),
+                rows_per_image: Some(MAX_LABELS as u32),
+            },
+            lut.texture.size(),
+        );
+        Ok(())
+    }
+    /// Visible where the table of any shown label that occurs in the label volume is
+    /// (the label is not known per brick). No promise when the labels cannot be read.
+    fn transparency(&self, params: &ParamValues) -> Transparency {
+        let Some(grid) = params.path("labels").and_then(|p| load_labels(p).ok()) else {
+            return Transparency::Unknown;
+        };
+        let mut present = [false; MAX_LABELS];
+        for &l in &grid.labels {
+            present[(l as usize).min(MAX_LABELS - 1)] = true;
+        }
+        let opacity = params.float("opacity");
+        let table = bake(params);
+        vwb_render::skipping::visible_by_table(
+            (0..LUT_SIZE)
+                .map(|i| {
+                    (0..MAX_LABELS)
+                        .any(|l| present[l] && table[l * LUT_SIZE + i][3] * opacity > 0.0)
+                })
+                .collect(),
+        )
+    }
+    fn cpu_twin(&self, params: &ParamValues) -> Option<Box<dyn CpuTwin>> {
+        let grid = params.path("labels").and_then(|p| load_labels(p).ok())?;
+        Some(Box::new(LabelsTwin {
+            table: bake(params),
+            opacity: params.float("opacity") as f64,
+            grid,
+        }))
+    }
+}
+
+/// CPU twin of `classify`: the same nearest label and the same table row.
+pub struct LabelsTwin {
+    pub table: Vec<[f32; 4]>,
+    pub opacity: f64,
+    pub grid: Arc<LabelGrid>,
+}
+
+impl CpuTwin for LabelsTwin {
+    fn classify(&self, _ctx: &CpuContext, s: &mut CpuSample) {
+        let row = (self.grid.at(s.tex) as usize).min(MAX_LABELS - 1);
+        let c = eval_lut(
+            &self.table[row * LUT_SIZE..(row + 1) * LUT_SIZE],
+            s.value.clamp(0.0, 1.0),
+        );
+        s.color = DVec4::new(c[0], c[1], c[2], (c[3] * self.opacity).clamp(0.0, 1.0));
+    }
+}
