@@ -134,13 +134,19 @@ struct Ray {
     dir: vec3<f32>,
 }
 
+// The ray through a pixel. Built from the camera basis rather than by unprojecting
+// with the inverse view-projection: with the near plane at 1e-3 that inverse is ill
+// conditioned in f32 and put sample positions off by hundredths of a voxel.
 fn pixel_ray(uv: vec2<f32>) -> Ray {
     let ndc = vec2<f32>(uv.x * 2.0 - 1.0, 1.0 - uv.y * 2.0);
-    let near = frame.inv_view_proj * vec4<f32>(ndc, 0.0, 1.0);
-    let far = frame.inv_view_proj * vec4<f32>(ndc, 1.0, 1.0);
     var r: Ray;
-    r.origin = near.xyz / near.w;
-    r.dir = normalize(far.xyz / far.w - r.origin);
+    if (frame.eye.w > 0.5) {
+        r.origin = frame.eye.xyz;
+        r.dir = normalize((frame.ray_basis * vec4<f32>(ndc, 1.0, 0.0)).xyz);
+    } else {
+        r.origin = (frame.ray_basis * vec4<f32>(ndc, 0.0, 1.0)).xyz;
+        r.dir = frame.ray_basis[2].xyz;
+    }
     return r;
 }
 

@@ -9,6 +9,7 @@ pub use vwb_render::plugin::*;
 
 pub mod classify_labels;
 pub mod classify_tf1d;
+pub mod classify_tf2d;
 pub mod test_slice_shadow;
 pub mod test_smooth;
 
@@ -20,6 +21,7 @@ pub fn builtin_registry() -> Registry {
     let all: Vec<Arc<dyn Plugin>> = vec![
         Arc::new(classify_tf1d::Tf1d::default()),
         Arc::new(classify_labels::Labels),
+        Arc::new(classify_tf2d::Tf2dPlugin::default()),
         Arc::new(test_slice_shadow::SliceShadow),
         Arc::new(test_smooth::Smooth),
     ];
@@ -40,7 +42,7 @@ mod tests {
     #[test]
     fn builtins_register_without_clash() {
         let r = builtin_registry();
-        assert_eq!(r.plugins().len(), 4);
+        assert_eq!(r.plugins().len(), 5);
         let mut fresh = Registry::new();
         for p in r.plugins() {
             fresh.register(p.clone()).unwrap();

@@ -14,6 +14,7 @@ pub mod skipping;
 pub mod slicing;
 pub mod suggest;
 pub mod tf;
+pub mod tf2d;
 pub mod volume;
 
 pub use camera::{Camera, Projection};

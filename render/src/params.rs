@@ -47,6 +47,9 @@ pub enum ParamKind {
     Tf {
         default: TfCurve,
     },
+    Tf2d {
+        default: crate::tf2d::Tf2d,
+    },
     /// A file beside the data (e.g. a label volume); empty = none. Relative paths in a
     /// preset are relative to the preset file. Not a uniform.
     Path {
@@ -134,6 +137,9 @@ impl ParamSpec {
     pub fn path(key: &'static str, label: &'static str, default: &'static str) -> Self {
         Self::new(key, label, ParamKind::Path { default })
     }
+    pub fn tf2d(key: &'static str, label: &'static str, default: crate::tf2d::Tf2d) -> Self {
+        Self::new(key, label, ParamKind::Tf2d { default })
+    }
     pub fn tf(key: &'static str, label: &'static str, default: TfCurve) -> Self {
         Self::new(key, label, ParamKind::Tf { default })
     }
@@ -170,6 +176,7 @@ impl ParamSpec {
             ParamKind::Color { default } => ParamValue::Color(*default),
             ParamKind::Vec3 { default, .. } => ParamValue::Vec3(*default),
             ParamKind::Tf { default } => ParamValue::Tf(default.clone()),
+            ParamKind::Tf2d { default } => ParamValue::Tf2d(default.clone()),
             ParamKind::Path { default } => ParamValue::Path(default.into()),
         }
     }
@@ -182,7 +189,7 @@ impl ParamSpec {
             ParamKind::Bool { .. } | ParamKind::Enum { .. } => Some("u32"),
             ParamKind::Color { .. } => Some("vec4<f32>"),
             ParamKind::Vec3 { .. } => Some("vec3<f32>"),
-            ParamKind::Tf { .. } | ParamKind::Path { .. } => None,
+            ParamKind::Tf { .. } | ParamKind::Tf2d { .. } | ParamKind::Path { .. } => None,
         }
     }
 
@@ -221,6 +228,7 @@ impl ParamSpec {
                 c.iter().try_for_each(|x| range(*x, *min, *max))
             }
             (ParamKind::Tf { .. }, ParamValue::Tf(t)) => t.validate(),
+            (ParamKind::Tf2d { .. }, ParamValue::Tf2d(t)) => t.validate(),
             (ParamKind::Path { .. }, ParamValue::Path(_)) => Ok(()),
             (_, v) => Err(format!(
                 "expected {}, got {}",
@@ -239,6 +247,7 @@ impl ParamSpec {
             ParamKind::Color { .. } => "a colour (r, g, b, a)",
             ParamKind::Vec3 { .. } => "a vec3 (x, y, z)",
             ParamKind::Tf { .. } => "a transfer function",
+            ParamKind::Tf2d { .. } => "a 2D transfer function",
             ParamKind::Path { .. } => "a file path string",
         }
     }
@@ -282,6 +291,12 @@ impl ParamSpec {
                     .into_rust()
                     .map_err(|e| format!("expected a transfer function (points: [...]): {e}"))?;
                 ParamValue::Tf(t)
+            }
+            ParamKind::Tf2d { .. } => {
+                let t: crate::tf2d::Tf2d = value.clone().into_rust().map_err(|e| {
+                    format!("expected a 2D transfer function (primitives: [...]): {e}")
+                })?;
+                ParamValue::Tf2d(t)
             }
             ParamKind::Path { .. } => match value {
                 ron::Value::String(s) => ParamValue::Path(s.into()),
@@ -330,6 +345,7 @@ pub enum ParamValue {
     Color([f32; 4]),
     Vec3([f32; 3]),
     Tf(TfCurve),
+    Tf2d(crate::tf2d::Tf2d),
     Path(std::path::PathBuf),
 }
 
@@ -343,6 +359,7 @@ impl ParamValue {
             ParamValue::Color(_) => "a colour",
             ParamValue::Vec3(_) => "a vec3",
             ParamValue::Tf(_) => "a transfer function",
+            ParamValue::Tf2d(_) => "a 2D transfer function",
             ParamValue::Path(_) => "a file path",
         }
     }
@@ -358,6 +375,10 @@ impl ParamValue {
             ParamValue::Color(c) => ron::Value::Seq(c.iter().map(|x| num(*x)).collect()),
             ParamValue::Vec3(c) => ron::Value::Seq(c.iter().map(|x| num(*x)).collect()),
             ParamValue::Tf(t) => ron::to_string(t)
+                .ok()
+                .and_then(|s| ron::from_str(&s).ok())
+                .unwrap_or(ron::Value::Unit),
+            ParamValue::Tf2d(t) => ron::to_string(t)
                 .ok()
                 .and_then(|s| ron::from_str(&s).ok())
                 .unwrap_or(ron::Value::Unit),
@@ -422,6 +443,12 @@ impl ParamValues {
         match self.get(key) {
             Some(ParamValue::Vec3(c)) => *c,
             _ => [0.0; 3],
+        }
+    }
+    pub fn tf2d(&self, key: &str) -> Option<&crate::tf2d::Tf2d> {
+        match self.get(key) {
+            Some(ParamValue::Tf2d(t)) => Some(t),
+            _ => None,
         }
     }
     /// A path parameter; None when unset or empty.

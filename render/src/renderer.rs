@@ -138,7 +138,7 @@ pub struct FrameStats {
 #[derive(Debug, Clone, Copy, Pod, Zeroable)]
 struct FrameUniform {
     view_proj: [f32; 16],
-    inv_view_proj: [f32; 16],
+    ray_basis: [f32; 16],
     eye: [f32; 4],
     forward: [f32; 4],
     box_min: [f32; 4],
@@ -192,6 +192,17 @@ struct Pipelines {
     updates: Vec<(usize, wgpu::ComputePipeline)>,
     /// (instance index, pipeline, group-1 layout) per pre-pass.
     prepasses: Vec<(usize, wgpu::ComputePipeline, wgpu::BindGroupLayout)>,
+}
+
+/// `frame.ray_basis` (shaders/common.wgsl), in f64 and then rounded: columns 0 and 1
+/// step one NDC unit right and up (at unit depth for perspective), column 2 is the view
+/// direction (perspective: the direction at the centre), column 3 the eye.
+fn ray_basis(view: &crate::camera::View) -> Mat4 {
+    let inv = view.view.as_dmat4().inverse();
+    let p = view.proj.as_dmat4();
+    let (sx, sy) = (1.0 / p.x_axis.x, 1.0 / p.y_axis.y);
+    let forward = -inv.z_axis;
+    glam::DMat4::from_cols(inv.x_axis * sx, inv.y_axis * sy, forward, inv.w_axis).as_mat4()
 }
 
 /// The values of an instance's structural parameters.
@@ -1129,7 +1140,7 @@ impl Renderer {
         let span = (range[1] - range[0]) as f32;
         let u = FrameUniform {
             view_proj: vp.to_cols_array(),
-            inv_view_proj: vp.inverse().to_cols_array(),
+            ray_basis: ray_basis(view).to_cols_array(),
             eye: [
                 view.eye.x,
                 view.eye.y,

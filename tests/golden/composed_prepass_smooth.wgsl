@@ -13,7 +13,10 @@
 
 struct Frame {
     view_proj: mat4x4<f32>,
-    inv_view_proj: mat4x4<f32>,
+    // pixel rays, well conditioned (no inverse projection): perspective: direction
+    // = normalize(ray_basis · (ndc, 1, 0)), origin = the eye; orthographic: origin =
+    // ray_basis · (ndc, 0, 1), direction = column 2 (the view direction)
+    ray_basis: mat4x4<f32>,
     // xyz: camera position; w: 1 perspective, 0 orthographic
     eye: vec4<f32>,
     // xyz: unit view direction (slice normal); w: slice spacing Δs in world units

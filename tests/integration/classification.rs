@@ -239,3 +239,32 @@ fn hidden_labels_disappear() {
     let none = render(&mut r, &[inst], TargetFormat::Rgba32Float, &at(1.0));
     assert!(none.iter().all(|p| p[3] == 0.0));
 }
+
+/// The precomputed gradient volume is built once per volume (not per TF change), and
+/// both estimators give close images (RGB RMS over black).
+#[test]
+fn tf2d_gradient_estimators_agree_and_the_prepass_runs_once() {
+    let mut pre = instance("classify.tf2d");
+    pre.params
+        .set("estimator", ParamValue::Enum("precomputed".into()));
+    let mut r = Renderer::new(gpu(), demo()).unwrap();
+    r.update_stack(&[pre.clone()], TargetFormat::Rgba32Float)
+        .unwrap();
+    assert_eq!(r.render(&at(1.0)).unwrap().prepasses_run, 1);
+    let precomputed = r.read_pixels().unwrap().2;
+    pre.params.set("gradient_scale", ParamValue::Float(2.0));
+    r.update_stack(&[pre], TargetFormat::Rgba32Float).unwrap();
+    assert_eq!(r.render(&at(1.0)).unwrap().prepasses_run, 0);
+    let mut r2 = Renderer::new(gpu(), demo()).unwrap();
+    let central = render(
+        &mut r2,
+        &[instance("classify.tf2d")],
+        TargetFormat::Rgba32Float,
+        &at(1.0),
+    );
+    let (rms, _) = diff(&rgb(&central), &rgb(&precomputed));
+    eprintln!("tf2d central vs precomputed gradients: RMS {rms:.4}");
+    // measured 0.051 on lavapipe: |∇f| interpolated from voxels is smoother than the
+    // gradient of the interpolated field
+    assert!(central != precomputed && rms < 0.1, "{rms}");
+}

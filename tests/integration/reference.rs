@@ -61,7 +61,13 @@ fn every_shipped_preset_matches_its_cpu_twins() {
                 "{name} {}: GPU vs CPU twins RMS ΔE*uv {rms:.4}",
                 backend.name()
             );
-            assert!(rms < 0.5, "{name} {}: RMS ΔE*uv {rms}", backend.name());
+            // the compute backend casts the same rays as the twins (0.01–0.09 measured);
+            // raster interpolates positions over proxy polygons
+            let bound = match backend {
+                Backend::Compute => 0.15,
+                Backend::Raster => 0.5,
+            };
+            assert!(rms < bound, "{name} {}: RMS ΔE*uv {rms}", backend.name());
         }
     }
 }

@@ -1,0 +1,85 @@
+use super::*;
+use vwb_render::params::ParamValue;
+use vwb_render::volume::VoxelData;
+
+/// f = x / (n − 1): |∇f| = 1/(n − 1) per voxel everywhere inside.
+fn ramp(n: u32) -> Volume {
+    let data = (0..n * n * n).map(|i| (i % n) as f32).collect();
+    Volume::new("ramp", [n; 3], 1, [1.0; 3], VoxelData::F32(data)).unwrap()
+}
+
+#[test]
+fn both_estimators_measure_a_linear_ramp() {
+    let v = ramp(9);
+    let scalars = v.normalized_scalars();
+    let ctx = CpuContext::new(&v, &scalars);
+    for estimator in [Estimator::Central, Estimator::Precomputed] {
+        let mut params = ParamValues::defaults(&Tf2dPlugin::default().params());
+        params.set("estimator", ParamValue::Enum(estimator.name().into()));
+        let mut twin = Tf2dTwin {
+            table: tf(&params).bake(TABLE_SIZE),
+            gradient_scale: 1.0,
+            opacity: 1.0,
+            estimator,
+            gradients: None,
+        };
+        twin.prepare(&ctx);
+        let g = twin.gradient_magnitude(&ctx, DVec3::splat(0.5));
+        assert!((g - 1.0 / 8.0).abs() < 1e-6, "{estimator:?}: {g}");
+    }
+}
+
+#[test]
+fn twin_reads_the_table_at_value_and_gradient() {
+    let v = ramp(9);
+    let scalars = v.normalized_scalars();
+    let ctx = CpuContext::new(&v, &scalars);
+    // a rectangle that only covers gradient magnitudes around 0.5
+    let tf = Tf2d {
+        primitives: vec![Primitive2d {
+            shape: Shape2d::Rectangle,
+            centre: [0.5, 0.5],
+            size: [1.0, 0.2],
+            color: [0.0, 1.0, 0.0, 0.5],
+        }],
+    };
+    let mut params = ParamValues::defaults(&Tf2dPlugin::default().params());
+    params.set("tf", ParamValue::Tf2d(tf));
+    let classify = |scale: f32| {
+        let mut p = params.clone();
+        p.set("gradient_scale", ParamValue::Float(scale));
+        let twin = Tf2dPlugin::default().cpu_twin(&p).unwrap();
+        let mut s = CpuSample {
+            tex: DVec3::splat(0.5),
+            value: 0.5,
+            ..Default::default()
+        };
+        twin.classify(&ctx, &mut s);
+        s.color
+    };
+    // |∇f| = 1/8: scale 4 puts it at 0.5 (inside), scale 1 at 0.125 (outside)
+    assert!((classify(4.0).w - 0.5).abs() < 1e-6);
+    assert_eq!(classify(1.0).w, 0.0);
+}
+
+#[test]
+fn histogram_puts_a_ramp_in_one_gradient_row() {
+    let v = ramp(9);
+    let h = histogram2d(&v, 4.0, 16);
+    // interior voxels: gradient 0.5 → row 8; border voxels (one-sided) half that
+    let row = |r: usize| h[r * 16..(r + 1) * 16].iter().sum::<f32>();
+    assert!(row(8) > 0.0 && row(4) > 0.0);
+    let total_rows: usize = (0..16).filter(|&r| row(r) > 0.0).count();
+    assert_eq!(total_rows, 2, "{h:?}");
+}
+
+#[test]
+fn estimator_configures_the_prepass() {
+    let base = Tf2dPlugin::default();
+    let mut params = ParamValues::defaults(&base.params());
+    assert!(base.configure(&params).is_none());
+    params.set("estimator", ParamValue::Enum("precomputed".into()));
+    let p = base.configure(&params).unwrap();
+    assert_eq!(p.prepass().unwrap().target, "gradient");
+    assert!(base.prepass().is_none());
+}
