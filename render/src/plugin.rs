@@ -186,6 +186,54 @@ pub struct GpuInit<'a> {
 }
 
 impl GpuInit<'_> {
+    /// A `width` × `height` lookup-table texture in [`GpuInit::lut_format`], sampled by
+    /// hooks with `linear_clamp`; fill it with [`GpuInit::write_table`].
+    pub fn create_table(&self, label: &str, width: u32, height: u32) -> GpuResource {
+        let texture = self.device.create_texture(&wgpu::TextureDescriptor {
+            label: Some(label),
+            size: wgpu::Extent3d {
+                width,
+                height,
+                depth_or_array_layers: 1,
+            },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: self.lut_format(),
+            usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+            view_formats: &[],
+        });
+        GpuResource {
+            view: texture.create_view(&Default::default()),
+            texture,
+        }
+    }
+
+    /// Uploads straight RGBA texels (row by row, the texture's full size) into a table
+    /// texture, converting to its format (rgba32float or rgba16float).
+    pub fn write_table(&self, table: &GpuResource, texels: &[[f32; 4]]) {
+        let format = table.texture.format();
+        let bytes: Vec<u8> = match format {
+            wgpu::TextureFormat::Rgba32Float => bytemuck::cast_slice(texels).to_vec(),
+            _ => texels
+                .iter()
+                .flat_map(|c| c.iter().flat_map(|v| half::f16::from_f32(*v).to_le_bytes()))
+                .collect(),
+        };
+        let size = table.texture.size();
+        let bpp = format.block_copy_size(None).unwrap_or(16);
+        self.queue.write_texture(
+            table.texture.as_image_copy(),
+            &bytes,
+            wgpu::TexelCopyBufferLayout {
+                offset: 0,
+                bytes_per_row: Some(size.width * bpp),
+                rows_per_image: Some(size.height),
+            },
+            size,
+        );
+    }
+
     /// Float format for lookup tables: rgba32float where filterable, else rgba16float.
     pub fn lut_format(&self) -> wgpu::TextureFormat {
         if self.features.contains(wgpu::Features::FLOAT32_FILTERABLE) {

@@ -218,28 +218,20 @@ impl Plugin for Labels {
         params: &ParamValues,
     ) -> Result<Vec<GpuResource>, PluginError> {
         let grid = grid_for(params, gpu.volume.dims)?;
-        let texture = |label, size: [u32; 3], dimension, format| {
-            gpu.device.create_texture(&wgpu::TextureDescriptor {
-                label: Some(label),
-                size: wgpu::Extent3d {
-                    width: size[0],
-                    height: size[1],
-                    depth_or_array_layers: size[2],
-                },
-                mip_level_count: 1,
-                sample_count: 1,
-                dimension,
-                format,
-                usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
-                view_formats: &[],
-            })
-        };
-        let labels = texture(
-            "classify.labels labels",
-            grid.dims,
-            wgpu::TextureDimension::D3,
-            wgpu::TextureFormat::R8Unorm,
-        );
+        let labels = gpu.device.create_texture(&wgpu::TextureDescriptor {
+            label: Some("classify.labels labels"),
+            size: wgpu::Extent3d {
+                width: grid.dims[0],
+                height: grid.dims[1],
+                depth_or_array_layers: grid.dims[2],
+            },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D3,
+            format: wgpu::TextureFormat::R8Unorm,
+            usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+            view_formats: &[],
+        });
         gpu.queue.write_texture(
             labels.as_image_copy(),
             &grid.labels,
@@ -250,16 +242,13 @@ impl Plugin for Labels {
             },
             labels.size(),
         );
-        let lut = texture(
-            "classify.labels lut",
-            [LUT_SIZE as u32, MAX_LABELS as u32, 1],
-            wgpu::TextureDimension::D2,
-            gpu.lut_format(),
-        );
-        let res = [labels, lut].map(|texture| GpuResource {
-            view: texture.create_view(&Default::default()),
-            texture,
-        });
+        let res = [
+            GpuResource {
+                view: labels.create_view(&Default::default()),
+                texture: labels,
+            },
+            gpu.create_table("classify.labels lut", LUT_SIZE as u32, MAX_LABELS as u32),
+        ];
         self.update_resources(gpu, params, &res)?;
         Ok(res.to_vec())
     }
@@ -272,26 +261,7 @@ impl Plugin for Labels {
         let Some(lut) = resources.get(1) else {
             return Err(error("lookup texture missing".into()));
         };
-        let texels = bake(params);
-        let format = lut.texture.format();
-        let bytes: Vec<u8> = match format {
-            wgpu::TextureFormat::Rgba32Float => bytemuck::cast_slice(&texels).to_vec(),
-            _ => texels
-                .iter()
-                .flat_map(|c| c.iter().flat_map(|v| half::f16::from_f32(*v).to_le_bytes()))
-                .collect(),
-        };
-        let bpp = format.block_copy_size(None).unwrap_or(16);
-        gpu.queue.write_texture(
-            lut.texture.as_image_copy(),
-            &bytes,
-            wgpu::TexelCopyBufferLayout {
-                offset: 0,
-                bytes_per_row: Some(LUT_SIZE as u32 * bpp),
-                rows_per_image: Some(MAX_LABELS as u32),
-            },
-            lut.texture.size(),
-        );
+        gpu.write_table(lut, &bake(params));
         Ok(())
     }
     /// Visible where the table of any shown label that occurs in the label volume is

@@ -90,16 +90,6 @@ fn curve(params: &ParamValues) -> TfCurve {
     params.tf("tf").cloned().unwrap_or_else(default_curve)
 }
 
-fn texel_bytes(lut: &[[f32; 4]], format: wgpu::TextureFormat) -> Vec<u8> {
-    match format {
-        wgpu::TextureFormat::Rgba32Float => bytemuck::cast_slice(lut).to_vec(),
-        _ => lut
-            .iter()
-            .flat_map(|c| c.iter().flat_map(|v| half::f16::from_f32(*v).to_le_bytes()))
-            .collect(),
-    }
-}
-
 impl Plugin for Tf1d {
     fn id(&self) -> &'static str {
         "classify.tf1d"
@@ -171,30 +161,14 @@ impl Plugin for Tf1d {
         gpu: &GpuInit,
         params: &ParamValues,
     ) -> Result<Vec<GpuResource>, PluginError> {
-        let (label, width, height) = match self.mode {
-            Mode::Post | Mode::Pre => ("classify.tf1d lut", LUT_SIZE as u32, 1),
-            Mode::Preintegrated => (
+        let res = match self.mode {
+            Mode::Post | Mode::Pre => gpu.create_table("classify.tf1d lut", LUT_SIZE as u32, 1),
+            Mode::Preintegrated => gpu.create_table(
                 "classify.tf1d pre-integration table",
                 LUT_SIZE as u32,
                 LUT_SIZE as u32,
             ),
         };
-        let texture = gpu.device.create_texture(&wgpu::TextureDescriptor {
-            label: Some(label),
-            size: wgpu::Extent3d {
-                width,
-                height,
-                depth_or_array_layers: 1,
-            },
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
-            format: gpu.lut_format(),
-            usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
-            view_formats: &[],
-        });
-        let view = texture.create_view(&Default::default());
-        let res = GpuResource { texture, view };
         self.update_resources(gpu, params, std::slice::from_ref(&res))?;
         Ok(vec![res])
     }
@@ -220,20 +194,7 @@ impl Plugin for Tf1d {
             )
             .texels_f32(),
         };
-        let format = res.texture.format();
-        let bytes = texel_bytes(&texels, format);
-        let bpp = format.block_copy_size(None).unwrap_or(16);
-        let size = res.texture.size();
-        gpu.queue.write_texture(
-            res.texture.as_image_copy(),
-            &bytes,
-            wgpu::TexelCopyBufferLayout {
-                offset: 0,
-                bytes_per_row: Some(size.width * bpp),
-                rows_per_image: Some(size.height),
-            },
-            size,
-        );
+        gpu.write_table(res, &texels);
         Ok(())
     }
     /// Post: colour from the value alone; a value range can be visible when any table

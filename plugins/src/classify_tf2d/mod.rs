@@ -118,16 +118,6 @@ pub fn histogram2d(volume: &Volume, gradient_scale: f64, bins: usize) -> Vec<f32
     counts.iter().map(|&c| (c as f32).ln_1p()).collect()
 }
 
-fn texel_bytes(texels: &[[f32; 4]], format: wgpu::TextureFormat) -> Vec<u8> {
-    match format {
-        wgpu::TextureFormat::Rgba32Float => bytemuck::cast_slice(texels).to_vec(),
-        _ => texels
-            .iter()
-            .flat_map(|c| c.iter().flat_map(|v| half::f16::from_f32(*v).to_le_bytes()))
-            .collect(),
-    }
-}
-
 impl Plugin for Tf2dPlugin {
     fn id(&self) -> &'static str {
         "classify.tf2d"
@@ -188,24 +178,7 @@ impl Plugin for Tf2dPlugin {
         gpu: &GpuInit,
         params: &ParamValues,
     ) -> Result<Vec<GpuResource>, PluginError> {
-        let texture = gpu.device.create_texture(&wgpu::TextureDescriptor {
-            label: Some("classify.tf2d table"),
-            size: wgpu::Extent3d {
-                width: TABLE_SIZE as u32,
-                height: TABLE_SIZE as u32,
-                depth_or_array_layers: 1,
-            },
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
-            format: gpu.lut_format(),
-            usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
-            view_formats: &[],
-        });
-        let res = GpuResource {
-            view: texture.create_view(&Default::default()),
-            texture,
-        };
+        let res = gpu.create_table("classify.tf2d table", TABLE_SIZE as u32, TABLE_SIZE as u32);
         self.update_resources(gpu, params, std::slice::from_ref(&res))?;
         Ok(vec![res])
     }
@@ -221,18 +194,7 @@ impl Plugin for Tf2dPlugin {
                 message: "table texture missing".into(),
             });
         };
-        let format = res.texture.format();
-        let bpp = format.block_copy_size(None).unwrap_or(16);
-        gpu.queue.write_texture(
-            res.texture.as_image_copy(),
-            &texel_bytes(&tf(params).bake(TABLE_SIZE), format),
-            wgpu::TexelCopyBufferLayout {
-                offset: 0,
-                bytes_per_row: Some(TABLE_SIZE as u32 * bpp),
-                rows_per_image: Some(TABLE_SIZE as u32),
-            },
-            res.texture.size(),
-        );
+        gpu.write_table(res, &tf(params).bake(TABLE_SIZE));
         Ok(())
     }
     /// A value range can be visible when the table has α > 0 for some value entry of
