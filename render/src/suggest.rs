@@ -210,6 +210,7 @@ pub fn suggest(volume: &Volume, opts: &SuggestOptions) -> Result<Suggestion, Sug
     let mut g_mean = vec![0.0; vb];
     let mut h_mean = vec![0.0; vb];
     let mut filled = vec![false; vb];
+    let mut bin_counts = vec![0.0f64; vb];
     for v in 0..vb {
         let (mut n, mut gs, mut hs) = (0.0, 0.0, 0.0);
         for h in 0..db {
@@ -225,18 +226,30 @@ pub fn suggest(volume: &Volume, opts: &SuggestOptions) -> Result<Suggestion, Sug
             h_mean[v] = hs / n;
             filled[v] = true;
         }
+        bin_counts[v] = n;
     }
     // a value bin no voxel fell into (quantised data, e.g. u8 over 256 bins or sparse
     // f32 values) takes g and h linearly from its nearest filled neighbours
     fill_gaps(&mut g_mean, &filled);
     fill_gaps(&mut h_mean, &filled);
+    // σ from the maxima over value bins that hold enough voxels for a stable mean
+    // (a twentieth of an even share): sparse bins at the ends of the range would
+    // otherwise set both maxima from a handful of noisy voxels
+    let reliable = (samples.len() as f64 / (vb as f64 * 20.0)).max(8.0);
+    let max_over = |xs: &[f64]| {
+        xs.iter()
+            .zip(&bin_counts)
+            .filter(|(_, n)| **n >= reliable)
+            .map(|(x, _)| x.abs())
+            .fold(0.0, f64::max)
+    };
     // no variation at all (a constant volume): no boundary anywhere
     let g_max = if raw_g_hi > 1e-9 {
-        g_mean.iter().copied().fold(0.0, f64::max)
+        max_over(&g_mean)
     } else {
         0.0
     };
-    let h_max = h_mean.iter().map(|h| h.abs()).fold(0.0, f64::max);
+    let h_max = max_over(&h_mean);
     let sigma = if h_max > 0.0 {
         g_max / (std::f64::consts::E.sqrt() * h_max)
     } else {
