@@ -1780,33 +1780,7 @@ fn upload_occupancy(
     dims: [u32; 3],
     bytes: &[u8],
 ) -> (wgpu::Texture, wgpu::TextureView) {
-    let size = wgpu::Extent3d {
-        width: dims[0],
-        height: dims[1],
-        depth_or_array_layers: dims[2],
-    };
-    let texture = gpu.device.create_texture(&wgpu::TextureDescriptor {
-        label: Some("vwb brick occupancy"),
-        size,
-        mip_level_count: 1,
-        sample_count: 1,
-        dimension: wgpu::TextureDimension::D3,
-        format: wgpu::TextureFormat::R8Unorm,
-        usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
-        view_formats: &[],
-    });
-    gpu.queue.write_texture(
-        texture.as_image_copy(),
-        bytes,
-        wgpu::TexelCopyBufferLayout {
-            offset: 0,
-            bytes_per_row: Some(dims[0]),
-            rows_per_image: Some(dims[1]),
-        },
-        size,
-    );
-    let view = texture.create_view(&Default::default());
-    (texture, view)
+    crate::gpu::upload_r8_3d(&gpu.device, &gpu.queue, "vwb brick occupancy", dims, bytes)
 }
 
 /// Uploads the normalised scalar volume (R32Float where filterable, else R16Float).

@@ -270,11 +270,30 @@ pub fn eval_lut(lut: &[[f32; 4]], x: f64) -> [f64; 4] {
     if n == 0 {
         return [0.0; 4];
     }
-    let f = (x.clamp(0.0, 1.0)) * (n - 1) as f64;
-    let i = (f.floor() as usize).min(n - 1);
-    let j = (i + 1).min(n - 1);
-    let t = f - i as f64;
+    let (i, j, t) = table_coord(x, n);
     std::array::from_fn(|c| lut[i][c] as f64 * (1.0 - t) + lut[j][c] as f64 * t)
+}
+
+/// Where x ∈ [0,1] falls in a table of n ≥ 1 entries at i/(n − 1): the two entries
+/// around it and the weight of the second, as the GPU's linear filter at
+/// (x·(n − 1) + 0.5)/n reads them.
+pub fn table_coord(x: f64, n: usize) -> (usize, usize, f64) {
+    let f = x.clamp(0.0, 1.0) * (n - 1) as f64;
+    let i = (f.floor() as usize).min(n - 1);
+    (i, (i + 1).min(n - 1), f - i as f64)
+}
+
+/// Bilinear lookup of an n × n table (`at(x, y)`, x fastest) at (u, v) ∈ [0,1]², as
+/// `textureSampleLevel(…, linear_clamp, …)` at texel-centre coordinates.
+pub fn bilinear(n: usize, u: f64, v: f64, at: impl Fn(usize, usize) -> [f64; 4]) -> [f64; 4] {
+    let (x0, x1, tx) = table_coord(u, n);
+    let (y0, y1, ty) = table_coord(v, n);
+    let (a, b, c, d) = (at(x0, y0), at(x1, y0), at(x0, y1), at(x1, y1));
+    std::array::from_fn(|k| {
+        let top = a[k] * (1.0 - tx) + b[k] * tx;
+        let bottom = c[k] * (1.0 - tx) + d[k] * tx;
+        top * (1.0 - ty) + bottom * ty
+    })
 }
 
 impl TfCurve {

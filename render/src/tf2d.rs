@@ -161,19 +161,7 @@ pub fn eval_table(table: &[[f32; 4]], n: usize, v: f64, g: f64) -> [f64; 4] {
     if n == 0 || table.len() < n * n {
         return [0.0; 4];
     }
-    let coord = |x: f64| {
-        let f = x.clamp(0.0, 1.0) * (n - 1) as f64;
-        let i = (f.floor() as usize).min(n - 1);
-        (i, (i + 1).min(n - 1), f - i as f64)
-    };
-    let (x0, x1, tx) = coord(v);
-    let (y0, y1, ty) = coord(g);
-    let at = |x: usize, y: usize, c: usize| table[y * n + x][c] as f64;
-    std::array::from_fn(|c| {
-        let top = at(x0, y0, c) * (1.0 - tx) + at(x1, y0, c) * tx;
-        let bottom = at(x0, y1, c) * (1.0 - tx) + at(x1, y1, c) * tx;
-        top * (1.0 - ty) + bottom * ty
-    })
+    crate::tf::bilinear(n, v, g, |x, y| table[y * n + x].map(f64::from))
 }
 
 #[cfg(test)]

@@ -62,6 +62,8 @@ pub struct LabelGrid {
     pub file: PathBuf,
     pub dims: [u32; 3],
     pub labels: Vec<u8>,
+    /// Which of the table rows occur (labels above the last row count for it).
+    pub present: [bool; MAX_LABELS],
 }
 
 impl LabelGrid {
@@ -102,10 +104,15 @@ pub fn load_labels(path: &Path) -> Result<Arc<LabelGrid>, String> {
     let VoxelData::U8(labels) = v.data else {
         return Err(format!("{file}: a label volume must hold u8 scalars"));
     };
+    let mut present = [false; MAX_LABELS];
+    for &l in &labels {
+        present[(l as usize).min(MAX_LABELS - 1)] = true;
+    }
     let grid = Arc::new(LabelGrid {
         file: path.to_path_buf(),
         dims: v.dims,
         labels,
+        present,
     });
     if let Ok(mut c) = cache.lock() {
         c.insert(key, grid.clone());
@@ -218,35 +225,15 @@ impl Plugin for Labels {
         params: &ParamValues,
     ) -> Result<Vec<GpuResource>, PluginError> {
         let grid = grid_for(params, gpu.volume.dims)?;
-        let labels = gpu.device.create_texture(&wgpu::TextureDescriptor {
-            label: Some("classify.labels labels"),
-            size: wgpu::Extent3d {
-                width: grid.dims[0],
-                height: grid.dims[1],
-                depth_or_array_layers: grid.dims[2],
-            },
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D3,
-            format: wgpu::TextureFormat::R8Unorm,
-            usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
-            view_formats: &[],
-        });
-        gpu.queue.write_texture(
-            labels.as_image_copy(),
+        let (texture, view) = vwb_render::gpu::upload_r8_3d(
+            gpu.device,
+            gpu.queue,
+            "classify.labels labels",
+            grid.dims,
             &grid.labels,
-            wgpu::TexelCopyBufferLayout {
-                offset: 0,
-                bytes_per_row: Some(grid.dims[0]),
-                rows_per_image: Some(grid.dims[1]),
-            },
-            labels.size(),
         );
         let res = [
-            GpuResource {
-                view: labels.create_view(&Default::default()),
-                texture: labels,
-            },
+            GpuResource { texture, view },
             gpu.create_table("classify.labels lut", LUT_SIZE as u32, MAX_LABELS as u32),
         ];
         self.update_resources(gpu, params, &res)?;
@@ -270,10 +257,7 @@ impl Plugin for Labels {
         let Some(grid) = params.path("labels").and_then(|p| load_labels(p).ok()) else {
             return Transparency::Unknown;
         };
-        let mut present = [false; MAX_LABELS];
-        for &l in &grid.labels {
-            present[(l as usize).min(MAX_LABELS - 1)] = true;
-        }
+        let present = grid.present;
         let opacity = params.float("opacity");
         let table = bake(params);
         vwb_render::skipping::visible_by_table(

@@ -225,17 +225,9 @@ impl PreintTable {
         if n == 0 {
             return DVec4::ZERO;
         }
-        let coord = |v: f64| {
-            let f = v.clamp(0.0, 1.0) * (n - 1) as f64;
-            let i = (f.floor() as usize).min(n - 1);
-            (i, (i + 1).min(n - 1), f - i as f64)
-        };
-        let (x0, x1, tx) = coord(front);
-        let (y0, y1, ty) = coord(back);
-        let at = |x: usize, y: usize| DVec4::from_array(self.entries[y * n + x]);
-        at(x0, y0)
-            .lerp(at(x1, y0), tx)
-            .lerp(at(x0, y1).lerp(at(x1, y1), tx), ty)
+        DVec4::from_array(vwb_render::tf::bilinear(n, front, back, |x, y| {
+            self.entries[y * n + x]
+        }))
     }
 
     /// Texel data for an rgba32float or rgba16float texture (n × n).
@@ -246,6 +238,7 @@ impl PreintTable {
 
 /// Direct evaluation of one entry by compositing its cells one by one (O(m)): the
 /// definition the diagonal recursion must reproduce (tests).
+#[cfg(test)]
 pub fn entry_direct(lut: &[[f32; 4]], opacity_scale: f64, d: f64, i: usize, j: usize) -> [f64; 4] {
     let n = lut.len();
     let (alpha, kappa, color) = nodes(lut, opacity_scale);
