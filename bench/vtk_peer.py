@@ -159,7 +159,15 @@ def build_vtk(scene, mapper_kind):
 
     prop = vtk.vtkVolumeProperty()
     prop.SetInterpolationTypeToLinear()
-    prop.ShadeOff()
+    shading = scene.get("shading")
+    if shading:  # vwb's shade.blinn_phong: VTK's Phong shading with its head light
+        prop.ShadeOn()
+        prop.SetAmbient(shading["ka"])
+        prop.SetDiffuse(shading["kd"])
+        prop.SetSpecular(shading["ks"])
+        prop.SetSpecularPower(shading["shininess"])
+    else:
+        prop.ShadeOff()
     unit = float(min(vol["spacing"]))  # vwb opacities are per smallest voxel side
     prop.SetScalarOpacityUnitDistance(unit)
     # Without classify.tf1d vwb classifies with the grey ramp (v, v, v, v).
@@ -379,7 +387,8 @@ def main():
         + (f" (LP_NUM_THREADS={lp})" if not a.gpu else ""),
         "- Same scene from `vwb scene`: volume, camera, 256-entry transfer-function table, "
         "background; VTK samples every slice spacing along each ray (linear interpolation, "
-        "no shading, opacity unit distance = smallest voxel side)",
+        "opacity unit distance = smallest voxel side; shading on with the preset's k_a, k_d, "
+        "k_s and shininess where it has shade.blinn_phong, else off)",
         "",
         *table,
     ]

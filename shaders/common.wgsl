@@ -113,3 +113,99 @@ fn correct_opacity(alpha: f32, step: f32) -> f32 {
     let ratio = step / frame.box_min.w;
     return 1.0 - exp2(ratio * log2(1.0 - a));
 }
+
+// ---- Local illumination helpers shared by the shading plugins. CPU twin and the
+// conventions (units, fade rule, light spaces): render/src/shading.rs.
+
+// World size of a voxel along each axis.
+fn voxel_size_world() -> vec3<f32> {
+    return (frame.box_max.xyz - frame.box_min.xyz) / frame.volume_dims.xyz;
+}
+
+// ∇f·Δs0 by central differences one voxel apart (6 trilinear reads).
+fn gradient_central(tex: vec3<f32>) -> vec3<f32> {
+    let d = 1.0 / frame.volume_dims.xyz;
+    let gx = volume_value(tex + vec3<f32>(d.x, 0.0, 0.0)) - volume_value(tex - vec3<f32>(d.x, 0.0, 0.0));
+    let gy = volume_value(tex + vec3<f32>(0.0, d.y, 0.0)) - volume_value(tex - vec3<f32>(0.0, d.y, 0.0));
+    let gz = volume_value(tex + vec3<f32>(0.0, 0.0, d.z)) - volume_value(tex - vec3<f32>(0.0, 0.0, d.z));
+    return vec3<f32>(gx, gy, gz) * 0.5 * frame.box_min.w / voxel_size_world();
+}
+
+// ∇f·Δs0 by the 3×3×3 Sobel operator (26 trilinear reads).
+fn gradient_sobel(tex: vec3<f32>) -> vec3<f32> {
+    let d = 1.0 / frame.volume_dims.xyz;
+    var g = vec3<f32>(0.0);
+    for (var z = -1; z <= 1; z = z + 1) {
+        for (var y = -1; y <= 1; y = y + 1) {
+            for (var x = -1; x <= 1; x = x + 1) {
+                if (x == 0 && y == 0 && z == 0) {
+                    continue;
+                }
+                let o = vec3<f32>(f32(x), f32(y), f32(z));
+                let f = volume_value(tex + o * d);
+                let w = vec3<f32>(2.0) - abs(o);
+                g = g + o * vec3<f32>(w.y * w.z, w.x * w.z, w.x * w.y) * f;
+            }
+        }
+    }
+    return g / 32.0 * frame.box_min.w / voxel_size_world();
+}
+
+fn safe_normalize(v: vec3<f32>) -> vec3<f32> {
+    let l = length(v);
+    if (l > 0.0 && l < 3.0e38) {
+        return v / l;
+    }
+    return vec3<f32>(0.0);
+}
+
+// (n, w): outward unit normal −g/|g| (flipped towards `v` when two-sided) and the lit
+// weight w = clamp(|g|/fade, 0, 1). Zero for a zero or non-finite gradient.
+fn shading_normal(g: vec3<f32>, fade: f32, v: vec3<f32>, two_sided: bool) -> vec4<f32> {
+    let m = length(g);
+    if (!(m > 0.0 && m < 3.0e38)) {
+        return vec4<f32>(0.0);
+    }
+    var n = -g / m;
+    if (two_sided && dot(n, v) < 0.0) {
+        n = -n;
+    }
+    return vec4<f32>(n, clamp(m / max(fade, 1.0e-12), 0.0, 1.0));
+}
+
+fn view_right() -> vec3<f32> {
+    return normalize(frame.ray_basis[0].xyz);
+}
+
+fn view_up() -> vec3<f32> {
+    return normalize(frame.ray_basis[1].xyz);
+}
+
+// Unit direction from `pos` towards a light. kind: 0 directional (vector = direction
+// towards the light), 1 point (vector = position); space: 0 view (x right, y up, z
+// towards the viewer; points relative to the eye), 1 world.
+fn light_dir(kind: u32, space: u32, vector: vec3<f32>, pos: vec3<f32>) -> vec3<f32> {
+    var w = vector;
+    if (space == 0u) {
+        w = view_right() * vector.x + view_up() * vector.y - frame.forward.xyz * vector.z;
+    }
+    if (kind == 1u) {
+        if (space == 0u) {
+            w = w + frame.eye.xyz;
+        }
+        return safe_normalize(w - pos);
+    }
+    return safe_normalize(w);
+}
+
+// (diffuse, specular) Blinn–Phong factors: max(n·l, 0) and max(n·h, 0)^shininess
+// where n·l > 0.
+fn blinn_phong_factors(n: vec3<f32>, v: vec3<f32>, l: vec3<f32>, shininess: f32) -> vec2<f32> {
+    let diff = max(dot(n, l), 0.0);
+    let ndh = dot(n, safe_normalize(l + v));
+    var spec = 0.0;
+    if (diff > 0.0 && ndh > 0.0) {
+        spec = pow(ndh, shininess);
+    }
+    return vec2<f32>(diff, spec);
+}

@@ -468,6 +468,16 @@ pub fn bench_document(
             bytes: None,
         });
     }
+    // the first frame runs the pre-passes; lavapipe's timestamps do not bracket them
+    // reliably, so its wall time is reported too (pre-pass ≈ cold − warm wall)
+    rows.push(BenchRow {
+        kind: "cold_frame",
+        name: "frame".into(),
+        clock: "wall",
+        frames: 1,
+        ms: Summary::of(&[cold.wall_ms]),
+        bytes: None,
+    });
     for (name, ms) in &cold.gpu_passes {
         rows.push(BenchRow {
             kind: "cold_pass",
@@ -1067,6 +1077,18 @@ pub fn scene_json(doc: &Document, volume: &Volume, preset: &Path) -> serde_json:
         ),
         VolumeSource::File(p) => (Some(std::fs::canonicalize(p).unwrap_or(p.clone())), None),
     };
+    // Blinn–Phong material of an enabled shade.blinn_phong (for peers' shading)
+    let shading = doc
+        .stack
+        .iter()
+        .find(|i| i.enabled && i.plugin.id() == "shade.blinn_phong")
+        .map(|i| {
+            let f = |k: &str| i.params.float(k);
+            json!({
+                "model": "blinn_phong", "ka": f("ka"), "kd": f("kd"), "ks": f("ks"),
+                "shininess": f("shininess"),
+            })
+        });
     let (fov, height) = match s.camera.projection {
         Projection::Perspective { fov_y_deg } => (Some(fov_y_deg), None),
         Projection::Orthographic { height } => (None, Some(height)),
@@ -1088,6 +1110,7 @@ pub fn scene_json(doc: &Document, volume: &Volume, preset: &Path) -> serde_json:
         "slice_spacing_voxels": s.slice_spacing,
         "backend": s.backend.name(),
         "tf": lut.map(|l| json!({"lut": l, "domain": "normalized"})),
+        "shading": shading,
     })
 }
 

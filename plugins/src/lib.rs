@@ -10,6 +10,10 @@ pub use vwb_render::plugin::*;
 pub mod classify_labels;
 pub mod classify_tf1d;
 pub mod classify_tf2d;
+pub mod lighting;
+pub mod shade_blinn_phong;
+pub mod shade_envmap;
+pub mod shade_isosurface;
 pub mod test_slice_shadow;
 pub mod test_smooth;
 
@@ -22,6 +26,9 @@ pub fn builtin_registry() -> Registry {
         Arc::new(classify_tf1d::Tf1d::default()),
         Arc::new(classify_labels::Labels),
         Arc::new(classify_tf2d::Tf2dPlugin::default()),
+        Arc::new(shade_blinn_phong::BlinnPhong::default()),
+        Arc::new(shade_isosurface::Isosurface::default()),
+        Arc::new(shade_envmap::EnvMap::default()),
         Arc::new(test_slice_shadow::SliceShadow),
         Arc::new(test_smooth::Smooth),
     ];
@@ -42,7 +49,7 @@ mod tests {
     #[test]
     fn builtins_register_without_clash() {
         let r = builtin_registry();
-        assert_eq!(r.plugins().len(), 5);
+        assert_eq!(r.plugins().len(), 8);
         let mut fresh = Registry::new();
         for p in r.plugins() {
             fresh.register(p.clone()).unwrap();

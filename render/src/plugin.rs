@@ -264,8 +264,42 @@ pub struct CpuSample {
     pub slice: u32,
 }
 
-/// What CPU twins can read: the volume, its normalised scalars and, for a plugin with
-/// per-slice state, its state of the previous slice.
+/// The camera as CPU twins see it (the twin of `frame.eye`, `frame.forward` and the
+/// normalised columns 0 and 1 of `frame.ray_basis`), for view-space lights.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CpuView {
+    pub eye: DVec3,
+    pub right: DVec3,
+    pub up: DVec3,
+    pub forward: DVec3,
+}
+
+impl Default for CpuView {
+    /// A camera on +z looking down −z.
+    fn default() -> Self {
+        Self {
+            eye: DVec3::new(0.0, 0.0, 2.0),
+            right: DVec3::X,
+            up: DVec3::Y,
+            forward: DVec3::NEG_Z,
+        }
+    }
+}
+
+impl CpuView {
+    pub fn from_view(v: &crate::camera::View) -> Self {
+        let inv = v.view.as_dmat4().inverse();
+        Self {
+            eye: v.eye.as_dvec3(),
+            right: inv.x_axis.truncate().normalize(),
+            up: inv.y_axis.truncate().normalize(),
+            forward: v.forward.as_dvec3(),
+        }
+    }
+}
+
+/// What CPU twins can read: the volume, its normalised scalars, the camera and, for a
+/// plugin with per-slice state, its state of the previous slice.
 #[derive(Clone, Copy)]
 pub struct CpuContext<'a> {
     pub volume: &'a Volume,
@@ -275,6 +309,8 @@ pub struct CpuContext<'a> {
     pub state: Option<&'a StateImage>,
     /// Slice spacing of the frame in voxels (Δs/Δs0), as `GpuInit::slice_spacing`.
     pub spacing: f64,
+    /// The frame's camera.
+    pub view: CpuView,
 }
 
 /// A per-slice state image on the CPU (the twin of a `state_prev` texture).
@@ -321,7 +357,13 @@ impl<'a> CpuContext<'a> {
             scalars,
             state: None,
             spacing: 1.0,
+            view: CpuView::default(),
         }
+    }
+
+    /// The same context for a frame seen by `view`.
+    pub fn with_view(self, view: CpuView) -> Self {
+        Self { view, ..self }
     }
 
     /// The same context for a frame with slice spacing `spacing` (voxels).
@@ -333,6 +375,12 @@ impl<'a> CpuContext<'a> {
     pub fn volume_box(&self) -> (DVec3, DVec3) {
         let b = crate::slicing::VolumeBox::new(self.volume.dims, self.volume.spacing);
         (b.min.as_dvec3(), b.max.as_dvec3())
+    }
+
+    /// Δs0: the world length of one voxel along the finest axis (`frame.box_min.w`),
+    /// the step at which opacities are defined.
+    pub fn reference_step(&self) -> f64 {
+        crate::slicing::VolumeBox::new(self.volume.dims, self.volume.spacing).voxel as f64
     }
 
     /// The previous slice's state at `uv` (zero for a plugin without state).

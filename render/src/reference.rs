@@ -286,8 +286,9 @@ impl<'a> Prepared<'a> {
     ) -> Result<ReferenceImage, ReferenceError> {
         check_size(settings)?;
         let frame = Frame::new(self.volume, settings, spacing_voxels, opts.emulate_fp16)?;
-        let ctx =
-            CpuContext::new(self.volume, &self.scalars).with_spacing(frame.spacing / frame.voxel);
+        let ctx = CpuContext::new(self.volume, &self.scalars)
+            .with_spacing(frame.spacing / frame.voxel)
+            .with_view(frame.view);
         for t in &mut self.twins {
             t.prepare(&ctx);
         }
@@ -442,6 +443,7 @@ struct Frame {
     height: u32,
     early: Option<f64>,
     fp16: bool,
+    view: crate::plugin::CpuView,
 }
 
 impl Frame {
@@ -474,6 +476,7 @@ impl Frame {
             height: h,
             early,
             fp16,
+            view: crate::plugin::CpuView::from_view(&view),
         })
     }
 

@@ -11,3 +11,4 @@ mod extremes;
 mod presets;
 mod reference;
 mod render;
+mod shading;

@@ -1,0 +1,138 @@
+//! Parameters shared by the shading plugins (material, lights, gradient fade) and
+//! their conversion for the CPU twins. The maths is in `vwb_render::shading` (CPU) and
+//! at the end of `shaders/common.wgsl` (GPU).
+
+use glam::DVec3;
+use vwb_render::params::{ParamSpec, ParamValues};
+use vwb_render::shading::{Light, LightKind, LightSpace, Material};
+
+/// Keys of light i's parameters: on, type, space, vector, colour.
+pub const LIGHT_KEYS: [[&str; 5]; 4] = [
+    [
+        "light0_on",
+        "light0_type",
+        "light0_space",
+        "light0_vector",
+        "light0_color",
+    ],
+    [
+        "light1_on",
+        "light1_type",
+        "light1_space",
+        "light1_vector",
+        "light1_color",
+    ],
+    [
+        "light2_on",
+        "light2_type",
+        "light2_space",
+        "light2_vector",
+        "light2_color",
+    ],
+    [
+        "light3_on",
+        "light3_type",
+        "light3_space",
+        "light3_vector",
+        "light3_color",
+    ],
+];
+
+/// Default light vectors: a head light slightly up and right, then three fill lights.
+const LIGHT_DEFAULTS: [[f32; 3]; 4] = [
+    [0.3, 0.4, 1.0],
+    [-1.0, 0.2, 0.3],
+    [0.0, -1.0, 0.2],
+    [0.0, 0.0, -1.0],
+];
+
+/// k_a, k_d, k_s and the shininess n (eqs 7.2–7.4; the thesis gives no defaults).
+pub fn material_params(ka: f32, kd: f32, ks: f32, shininess: f32) -> Vec<ParamSpec> {
+    vec![
+        ParamSpec::float("ka", "Ambient k_a", 0.0, 1.0, ka).with_doc("eq 7.2"),
+        ParamSpec::float("kd", "Diffuse k_d", 0.0, 1.0, kd).with_doc("eq 7.3"),
+        ParamSpec::float("ks", "Specular k_s", 0.0, 1.0, ks).with_doc("eq 7.4"),
+        ParamSpec::float_log("shininess", "Shininess n", 1.0, 256.0, shininess)
+            .with_doc("exponent of the specular term (eq 7.4)"),
+    ]
+}
+
+pub fn material(p: &ParamValues) -> Material {
+    Material {
+        ka: p.float("ka") as f64,
+        kd: p.float("kd") as f64,
+        ks: p.float("ks") as f64,
+        shininess: p.float("shininess") as f64,
+    }
+}
+
+/// The fade rule's floor (render/src/shading.rs).
+pub fn fade_param() -> ParamSpec {
+    ParamSpec::float_log("gradient_floor", "Gradient floor", 0.001, 1.0, 0.02)
+        .with_doc("below this |∇f| (normalised value per voxel) shading fades linearly to unlit")
+}
+
+/// Parameters of `n` lights (light 0 on by default, in view space).
+pub fn light_params(n: usize) -> Vec<ParamSpec> {
+    LIGHT_KEYS[..n]
+        .iter()
+        .zip(LIGHT_DEFAULTS)
+        .enumerate()
+        .flat_map(|(i, (k, v))| {
+            vec![
+                ParamSpec::boolean(k[0], "Light on", i == 0),
+                ParamSpec::enumeration(k[1], "Light type", &["directional", "point"], 0),
+                ParamSpec::enumeration(k[2], "Light space", &["view", "world"], 0).with_doc(
+                    "view: x right, y up, z towards the viewer (points relative to the eye)",
+                ),
+                ParamSpec::vec3(k[3], "Light direction / position", -10.0, 10.0, v)
+                    .with_doc("directional: towards the light; point: its position"),
+                ParamSpec::color(k[4], "Light colour", [1.0, 1.0, 1.0, 1.0]),
+            ]
+        })
+        .collect()
+}
+
+/// The lights that are on, for the CPU twin.
+pub fn lights(p: &ParamValues, n: usize) -> Vec<Light> {
+    LIGHT_KEYS[..n]
+        .iter()
+        .filter(|k| p.boolean(k[0]))
+        .map(|k| Light {
+            kind: if p.enumeration(k[1]) == "point" {
+                LightKind::Point
+            } else {
+                LightKind::Directional
+            },
+            space: if p.enumeration(k[2]) == "world" {
+                LightSpace::World
+            } else {
+                LightSpace::View
+            },
+            vector: DVec3::from(p.vec3(k[3]).map(f64::from)),
+            color: DVec3::from([0, 1, 2].map(|c| p.color(k[4])[c] as f64)),
+        })
+        .collect()
+}
+
+/// A single view-space directional light (the head light of the isosurface and
+/// environment-map plugins).
+pub fn head_light_param() -> ParamSpec {
+    ParamSpec::vec3(
+        "light_vector",
+        "Light direction (view)",
+        -10.0,
+        10.0,
+        [0.3, 0.4, 1.0],
+    )
+    .with_doc("directional, in view space: x right, y up, z towards the viewer")
+}
+
+pub fn head_light(p: &ParamValues) -> Light {
+    Light {
+        kind: LightKind::Directional,
+        space: LightSpace::View,
+        vector: DVec3::from(p.vec3("light_vector").map(f64::from)),
+        color: DVec3::ONE,
+    }
+}

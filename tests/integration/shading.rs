@@ -1,0 +1,243 @@
+//! Local illumination on the GPU (issue: gradients, Blinn–Phong, isosurfaces,
+//! environment maps): every model with every gradient estimator against its CPU twin
+//! on both backends, constant and NaN volumes, the gradient pre-pass reruns, the
+//! isosurface opacity's independence of the slice spacing, and bad environment maps.
+
+use vwb_render::params::ParamValue;
+use vwb_render::shading::GradientEstimator;
+use vwb_render::{Backend, FrameSettings, PluginInstance, Renderer, TargetFormat};
+
+use crate::common::*;
+use crate::reference::{delta_e_rms, gpu_and_reference};
+
+const MODELS: [&str; 3] = ["shade.blinn_phong", "shade.isosurface", "shade.envmap"];
+
+fn shader(id: &str, estimator: GradientEstimator) -> PluginInstance {
+    let mut i = instance(id);
+    i.params
+        .set("gradient", ParamValue::Enum(estimator.name().into()));
+    i
+}
+
+fn stack(id: &str, estimator: GradientEstimator) -> Vec<PluginInstance> {
+    vec![instance("classify.tf1d"), shader(id, estimator)]
+}
+
+/// A ball of radius 0.35 (value 1 at the centre falling linearly to 0 at the box edge).
+fn ball(n: u32) -> std::sync::Arc<vwb_render::Volume> {
+    let c = (n as f32 - 1.0) / 2.0;
+    synthetic([n; 3], |x, y, z| {
+        let d = ((x as f32 - c).powi(2) + (y as f32 - c).powi(2) + (z as f32 - c).powi(2)).sqrt();
+        (1.0 - d / c).max(0.0)
+    })
+}
+
+#[test]
+fn every_model_and_estimator_matches_its_cpu_twin() {
+    let mut worst: f64 = 0.0;
+    for id in MODELS {
+        for e in GradientEstimator::ALL {
+            for backend in [Backend::Compute, Backend::Raster] {
+                let s = settings(64, 64, backend);
+                let (px, reference) =
+                    gpu_and_reference(demo(), &stack(id, e), TargetFormat::Rgba32Float, &s);
+                let rms = delta_e_rms(&px, &reference, 64, 64);
+                eprintln!("{id} {} {backend:?}: ΔE RMS {rms:.4}", e.name());
+                assert!(rms < 0.5, "{id} {} {backend:?}: ΔE RMS {rms}", e.name());
+                worst = worst.max(rms);
+            }
+        }
+    }
+    eprintln!("worst ΔE RMS {worst:.4}");
+}
+
+#[test]
+fn shading_changes_the_image_and_lights_matter() {
+    let mut r = Renderer::new(gpu(), demo()).unwrap();
+    let s = settings(64, 64, Backend::Compute);
+    let unlit = rgb(&render(
+        &mut r,
+        &[instance("classify.tf1d")],
+        TargetFormat::Rgba32Float,
+        &s,
+    ));
+    for id in MODELS {
+        let lit = rgb(&render(
+            &mut r,
+            &stack(id, GradientEstimator::Central),
+            TargetFormat::Rgba32Float,
+            &s,
+        ));
+        let (rms, _) = diff(&unlit, &lit);
+        assert!(rms > 0.01, "{id} changes the image: {rms}");
+    }
+    // a second light of a strong red colour reddens the image
+    let mut st = stack("shade.blinn_phong", GradientEstimator::Central);
+    let one = rgb(&render(&mut r, &st, TargetFormat::Rgba32Float, &s));
+    st[1].params.set("light1_on", ParamValue::Bool(true));
+    st[1]
+        .params
+        .set("light1_color", ParamValue::Color([1.0, 0.0, 0.0, 1.0]));
+    let two = rgb(&render(&mut r, &st, TargetFormat::Rgba32Float, &s));
+    let red = |img: &[[f64; 3]]| img.iter().map(|p| p[0] - p[1]).sum::<f64>();
+    assert!(
+        red(&two) > red(&one) + 1.0,
+        "{} vs {}",
+        red(&two),
+        red(&one)
+    );
+}
+
+/// A constant volume has no gradient: every model leaves the classified colour as it
+/// is (the fade rule), bit for bit. NaN and ±Inf voxels give finite images.
+#[test]
+fn constant_and_nan_volumes_give_finite_unlit_images() {
+    let constant = synthetic([16; 3], |_, _, _| 0.5);
+    let nan = synthetic([16; 3], |x, y, z| match (x + 3 * y + 7 * z) % 5 {
+        0 => f32::NAN,
+        1 => f32::INFINITY,
+        _ => (x as f32) / 15.0,
+    });
+    for backend in [Backend::Compute, Backend::Raster] {
+        let s = settings(48, 48, backend);
+        let mut r = Renderer::new(gpu(), constant.clone()).unwrap();
+        let unlit = render(
+            &mut r,
+            &[instance("classify.tf1d")],
+            TargetFormat::Rgba32Float,
+            &s,
+        );
+        for id in MODELS {
+            for e in GradientEstimator::ALL {
+                let px = render(&mut r, &stack(id, e), TargetFormat::Rgba32Float, &s);
+                assert!(px.iter().flatten().all(|c| c.is_finite()));
+                let (rms, max) = diff(&rgb(&px), &rgb(&unlit));
+                assert!(
+                    max < 1e-6,
+                    "{id} {} on a constant volume: {rms} {max}",
+                    e.name()
+                );
+            }
+        }
+        let mut r = Renderer::new(gpu(), nan.clone()).unwrap();
+        for id in MODELS {
+            for e in GradientEstimator::ALL {
+                let px = render(&mut r, &stack(id, e), TargetFormat::Rgba32Float, &s);
+                assert!(
+                    px.iter().flatten().all(|c| c.is_finite()),
+                    "{id} {} with NaN voxels",
+                    e.name()
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn gradient_prepass_runs_once_per_volume() {
+    let mut r = Renderer::new(gpu(), demo()).unwrap();
+    let s = settings(32, 32, Backend::Compute);
+    let mut st = stack("shade.blinn_phong", GradientEstimator::PrecomputedSobel);
+    r.update_stack(&st, TargetFormat::Rgba32Float).unwrap();
+    assert_eq!(r.render(&s).unwrap().prepasses_run, 1);
+    assert_eq!(r.render(&s).unwrap().prepasses_run, 0);
+    st[1].params.set("ks", ParamValue::Float(0.9));
+    r.update_stack(&st, TargetFormat::Rgba32Float).unwrap();
+    assert_eq!(r.render(&s).unwrap().prepasses_run, 0);
+    // its memory is reported: 8 bytes per voxel
+    let mem = r.plugin_memory();
+    let d = demo().dims;
+    let expect = vwb_render::shading::gradient_volume_bytes(d);
+    assert!(
+        mem.iter()
+            .any(|(_, id, bytes)| *id == "shade.blinn_phong" && *bytes >= expect),
+        "{mem:?} has the {expect}-byte gradient volume"
+    );
+}
+
+/// `crossing` composites each surface once per crossing: the image hardly depends on
+/// the slice spacing, unlike `alpha_test`, whose fill grows with the slice count.
+#[test]
+fn crossing_isosurface_opacity_does_not_depend_on_the_slice_spacing() {
+    let vol = ball(32);
+    let mut iso = instance("shade.isosurface");
+    iso.params.set("count", ParamValue::Int(2));
+    iso.params.set("iso0", ParamValue::Float(0.3));
+    iso.params
+        .set("color0", ParamValue::Color([0.2, 0.6, 1.0, 0.4]));
+    iso.params.set("iso1", ParamValue::Float(0.6));
+    iso.params
+        .set("color1", ParamValue::Color([1.0, 0.8, 0.3, 0.8]));
+    // classification that is fully transparent: only the surfaces show
+    let mut tf = instance("classify.tf1d");
+    tf.params.set("opacity", ParamValue::Float(0.0));
+    let mut r = Renderer::new(gpu(), vol.clone()).unwrap();
+    let at = |spacing: f32| FrameSettings {
+        slice_spacing: spacing,
+        ..settings(64, 64, Backend::Compute)
+    };
+    let st = vec![tf.clone(), iso.clone()];
+    let fine = rgb(&render(&mut r, &st, TargetFormat::Rgba32Float, &at(0.5)));
+    let coarse = rgb(&render(&mut r, &st, TargetFormat::Rgba32Float, &at(2.0)));
+    let (rms, _) = diff(&fine, &coarse);
+    eprintln!("crossing: spacing 0.5 vs 2: RGB RMS {rms:.4}");
+    assert!(mean_luma(&fine) > 0.05, "surfaces are visible");
+    assert!(rms < 0.03, "{rms}");
+    let mut alpha = iso.clone();
+    alpha
+        .params
+        .set("method", ParamValue::Enum("alpha_test".into()));
+    let st = vec![tf, alpha];
+    let fine_a = rgb(&render(&mut r, &st, TargetFormat::Rgba32Float, &at(0.5)));
+    let coarse_a = rgb(&render(&mut r, &st, TargetFormat::Rgba32Float, &at(2.0)));
+    let (rms_a, _) = diff(&fine_a, &coarse_a);
+    eprintln!("alpha test: spacing 0.5 vs 2: RGB RMS {rms_a:.4}");
+    assert!(rms_a > 2.0 * rms, "{rms_a} vs {rms}");
+}
+
+#[test]
+fn environment_maps_from_files_and_bad_files() {
+    let dir = std::env::temp_dir().join(format!("vwb-envmap-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    // a red-over-blue lat-long image
+    let png = dir.join("env.png");
+    image::RgbImage::from_fn(64, 32, |_, y| {
+        if y < 16 {
+            image::Rgb([255, 40, 40])
+        } else {
+            image::Rgb([40, 40, 255])
+        }
+    })
+    .save(&png)
+    .unwrap();
+    let mut env = instance("shade.envmap");
+    let mut r = Renderer::new(gpu(), demo()).unwrap();
+    let s = settings(48, 48, Backend::Compute);
+    let sky = rgb(&render(
+        &mut r,
+        &[instance("classify.tf1d"), env.clone()],
+        TargetFormat::Rgba32Float,
+        &s,
+    ));
+    env.params.set("map", ParamValue::Path(png.clone()));
+    let st = vec![instance("classify.tf1d"), env.clone()];
+    let (px, reference) = gpu_and_reference(demo(), &st, TargetFormat::Rgba32Float, &s);
+    let rms = delta_e_rms(&px, &reference, 48, 48);
+    assert!(rms < 0.5, "image map vs twin {rms}");
+    let (change, _) = diff(&sky, &rgb(&px));
+    assert!(change > 0.01, "the map changes the image: {change}");
+    // a file that is not an image: refused with its name, the last pipeline renders
+    r.update_stack(&st, TargetFormat::Rgba32Float).unwrap();
+    let bad = dir.join("not_an_image.png");
+    std::fs::write(&bad, b"this is not a PNG").unwrap();
+    env.params.set("map", ParamValue::Path(bad.clone()));
+    let err = r
+        .update_stack(&[instance("classify.tf1d"), env], TargetFormat::Rgba32Float)
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("not_an_image.png"), "{err}");
+    r.render(&s).unwrap();
+    let still = r.read_pixels().unwrap().2;
+    assert_eq!(still, px, "the last good pipeline keeps rendering");
+    let _ = std::fs::remove_dir_all(&dir);
+}
