@@ -57,6 +57,10 @@ pub enum Command {
     /// on the boundaries found in the histogram volume over value, first and second
     /// directional derivative. Writes the curve as RON (the `tf` of classify.tf1d).
     SuggestTf(SuggestTfArgs),
+    /// Measure directional occlusion shading against its Monte-Carlo reference (θ,
+    /// kernel, slice count, buffer precision, Pareto front, extremes, CT frame time) and
+    /// write the report (docs/dos.md).
+    DosStudy(crate::dos_study::DosStudyArgs),
     /// Print the adapter, its limits and the registered plugin ids.
     Info,
 }
@@ -469,6 +473,14 @@ pub fn run_classification(a: &ClassificationArgs) -> Result<()> {
         a.tolerance,
         &a.output,
     )?;
+    Ok(())
+}
+
+pub fn run_dos_study(a: &crate::dos_study::DosStudyArgs) -> Result<()> {
+    let gpu = GpuContext::new_headless()?;
+    eprintln!("adapter: {}", gpu.describe());
+    crate::dos_study::run(&gpu, a)?;
+    eprintln!("wrote {}", a.output.display());
     Ok(())
 }
 

@@ -3,6 +3,7 @@
 
 pub mod classification;
 pub mod cli;
+pub mod dos_study;
 pub mod headless;
 pub mod measure;
 pub mod window;

@@ -289,6 +289,37 @@ pub fn compare_document(
             });
             (over(&img, doc), info)
         }
+        // directional occlusion's converged reference is its Monte-Carlo integral:
+        // refining the slices converges to the slice algorithm's own limit, not to the
+        // cone integral (docs/dos.md)
+        Against::Converged
+            if doc
+                .stack
+                .iter()
+                .any(|i| i.enabled && i.plugin.id() == "shade.dos") =>
+        {
+            use vwb_plugins::shade_dos::mc::{McOptions, render_mc};
+            let opts = McOptions::default();
+            let start = Instant::now();
+            let mc = render_mc(&volume, &doc.stack, &s, &opts, None).map_err(|e| anyhow!(e))?;
+            let info = json!({
+                "kind": "monte_carlo",
+                "directions": opts.directions,
+                "replicas": opts.replicas,
+                "seed": opts.seed,
+                "eye_step_voxels": opts.eye_step,
+                "cone_step_voxels": opts.cone_step,
+                "rms_std_error": mc.rms_std_error(),
+                "seconds": start.elapsed().as_secs_f64(),
+            });
+            let img = RgbImageF::from_rgba_premultiplied_over(
+                &mc.pixels,
+                mc.width,
+                mc.height,
+                background(doc),
+            );
+            (img, info)
+        }
         Against::Converged => {
             let (img, c, secs) = converged_reference(&volume, doc, &s, tolerance)?;
             let info = json!({

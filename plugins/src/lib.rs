@@ -12,6 +12,7 @@ pub mod classify_tf1d;
 pub mod classify_tf2d;
 pub mod lighting;
 pub mod shade_blinn_phong;
+pub mod shade_dos;
 pub mod shade_envmap;
 pub mod shade_isosurface;
 pub mod test_slice_shadow;
@@ -29,6 +30,7 @@ pub fn builtin_registry() -> Registry {
         Arc::new(shade_blinn_phong::BlinnPhong::default()),
         Arc::new(shade_isosurface::Isosurface::default()),
         Arc::new(shade_envmap::EnvMap::default()),
+        Arc::new(shade_dos::Dos::default()),
         Arc::new(test_slice_shadow::SliceShadow),
         Arc::new(test_smooth::Smooth),
     ];
@@ -49,7 +51,7 @@ mod tests {
     #[test]
     fn builtins_register_without_clash() {
         let r = builtin_registry();
-        assert_eq!(r.plugins().len(), 8);
+        assert_eq!(r.plugins().len(), 9);
         let mut fresh = Registry::new();
         for p in r.plugins() {
             fresh.register(p.clone()).unwrap();

@@ -264,14 +264,23 @@ pub struct CpuSample {
     pub slice: u32,
 }
 
-/// The camera as CPU twins see it (the twin of `frame.eye`, `frame.forward` and the
-/// normalised columns 0 and 1 of `frame.ray_basis`), for view-space lights.
+/// The camera and slice geometry as CPU twins see them (the twin of `frame.eye`,
+/// `frame.forward`, the columns 0 and 1 of `frame.ray_basis` and the slice depths),
+/// for view-space lights and image-space kernels.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct CpuView {
     pub eye: DVec3,
     pub right: DVec3,
     pub up: DVec3,
     pub forward: DVec3,
+    /// Lengths of `ray_basis` columns 0 and 1: world units per NDC unit (at unit
+    /// depth for perspective).
+    pub ray_scale: DVec2,
+    pub perspective: bool,
+    /// Eye depth of slice 0 along `forward` (`frame.box_max.w`) and the slice spacing
+    /// in world units (`frame.forward.w`).
+    pub slice_depth0: f64,
+    pub slice_spacing: f64,
 }
 
 impl Default for CpuView {
@@ -282,19 +291,42 @@ impl Default for CpuView {
             right: DVec3::X,
             up: DVec3::Y,
             forward: DVec3::NEG_Z,
+            ray_scale: DVec2::ONE,
+            perspective: false,
+            slice_depth0: 0.0,
+            slice_spacing: 1.0,
         }
     }
 }
 
 impl CpuView {
-    pub fn from_view(v: &crate::camera::View) -> Self {
+    /// The view of a frame whose slice 0 lies at eye depth `slice_depth0` with
+    /// `slice_spacing` world units between slices (both as uploaded, f32).
+    pub fn from_view(v: &crate::camera::View, slice_depth0: f32, slice_spacing: f32) -> Self {
         let inv = v.view.as_dmat4().inverse();
+        let p = v.proj.as_dmat4();
         Self {
             eye: v.eye.as_dvec3(),
             right: inv.x_axis.truncate().normalize(),
             up: inv.y_axis.truncate().normalize(),
             forward: v.forward.as_dvec3(),
+            ray_scale: DVec2::new(1.0 / p.x_axis.x, 1.0 / p.y_axis.y).abs(),
+            perspective: v.perspective,
+            slice_depth0: slice_depth0 as f64,
+            slice_spacing: slice_spacing as f64,
         }
+    }
+
+    /// Screen-uv units per world unit on the plane of slice `k` (the twin of the
+    /// perspective correction of Schott et al. 2009, eqs 12–15: NDC per world unit
+    /// at the slice's depth, halved for uv).
+    pub fn uv_per_world(&self, k: u32) -> DVec2 {
+        let depth = if self.perspective {
+            (self.slice_depth0 + k as f64 * self.slice_spacing).max(1.0e-9)
+        } else {
+            1.0
+        };
+        0.5 / (self.ray_scale * depth)
     }
 }
 

@@ -476,7 +476,7 @@ impl Frame {
             height: h,
             early,
             fp16,
-            view: crate::plugin::CpuView::from_view(&view),
+            view: crate::plugin::CpuView::from_view(&view, plan.d0, plan.spacing),
         })
     }
 

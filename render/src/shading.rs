@@ -493,6 +493,7 @@ mod tests {
             right: DVec3::X,
             up: DVec3::Y,
             forward: -DVec3::Z,
+            ..CpuView::default()
         };
         let head = Light {
             kind: LightKind::Directional,

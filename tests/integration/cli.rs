@@ -346,3 +346,58 @@ fn suggest_tf_writes_a_valid_transfer_function() {
         "{err}"
     );
 }
+
+/// For a stack with shade.dos, `--against converged` is the Monte-Carlo reference
+/// (`dos-study` and the docs use the same integral); `dos-study` writes its report.
+#[test]
+fn dos_compares_against_monte_carlo_and_the_study_writes_its_report() {
+    gpu();
+    let dir = tmp("compare-dos");
+    let o = vwb()
+        .args([
+            "compare",
+            "--preset",
+            "presets/demo_dos.ron",
+            "--size",
+            "24x24",
+        ])
+        .args(["--against", "converged", "-o"])
+        .arg(&dir)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let m: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("metrics.json")).unwrap()).unwrap();
+    assert_eq!(m["against"]["kind"], "monte_carlo");
+    assert!(m["against"]["rms_std_error"].as_f64().unwrap() < 0.01);
+    let rms = m["metrics"]["rms_delta_e"].as_f64().unwrap();
+    assert!(rms > 0.0 && rms < 20.0, "{rms}");
+
+    let report = tmp("dos.md");
+    let o = vwb()
+        .args([
+            "dos-study",
+            "--size",
+            "12",
+            "--directions",
+            "4",
+            "--frames",
+            "1",
+            "--ct",
+            "skip",
+            "-o",
+        ])
+        .arg(&report)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let text = std::fs::read_to_string(&report).unwrap();
+    for needle in [
+        "## Cone aperture θ",
+        "## Pareto front",
+        "10 000 slices",
+        "θ = 89°",
+    ] {
+        assert!(text.contains(needle), "{needle} in the report");
+    }
+}

@@ -1,0 +1,140 @@
+use super::mc::{McOptions, render_mc};
+use super::*;
+use vwb_render::camera::{Camera, Projection};
+use vwb_render::params::ParamValue;
+use vwb_render::plugin::PluginInstance;
+use vwb_render::renderer::FrameSettings;
+use vwb_render::tf::{TfCurve, TfPoint};
+use vwb_render::volume::{Volume, VoxelData};
+
+#[test]
+fn poisson_disk_is_deterministic_inside_and_spread() {
+    let a = poisson_disk(MAX_POISSON);
+    assert_eq!(a, poisson_disk(MAX_POISSON));
+    assert_eq!(a.len(), MAX_POISSON);
+    assert!(a.iter().all(|p| p.length_squared() <= 1.0));
+    let min = (0..a.len())
+        .flat_map(|i| (0..i).map(move |j| (i, j)))
+        .map(|(i, j)| a[i].distance(a[j]))
+        .fold(f64::INFINITY, f64::min);
+    // a Poisson-disk set: no two points closer than a good fraction of the mean spacing
+    assert!(min > 0.5 / (MAX_POISSON as f64).sqrt(), "{min}");
+}
+
+#[test]
+fn grid_kernels_keep_the_points_inside_the_disk() {
+    let mut p = ParamValues::defaults(&Dos::default().params());
+    for (g, n) in [(2, 4), (3, 9), (4, 12), (13, 137)] {
+        p.set("grid", ParamValue::Int(g));
+        let k = kernel_points(&p);
+        assert!(k.iter().all(|q| q.length_squared() <= 1.0));
+        assert_eq!(k.len(), n, "grid {g}");
+    }
+    p.set("kernel", ParamValue::Enum("poisson".into()));
+    p.set("poisson_count", ParamValue::Int(10));
+    assert_eq!(kernel_points(&p).len(), 10);
+}
+
+#[test]
+fn structural_parameters_choose_the_buffer() {
+    let base = Dos::default();
+    let mut p = ParamValues::defaults(&base.params());
+    assert!(base.configure(&p).is_none());
+    p.set("buffer_scale", ParamValue::Enum("0.5".into()));
+    p.set("buffer_format", ParamValue::Enum("fp16".into()));
+    let c = base.configure(&p).unwrap();
+    let st = c.slice_state().unwrap();
+    assert_eq!((st.scale, st.format), (0.5, StorageFormat::Rgba16Float));
+    assert_eq!(
+        st.clear[0], 1.0,
+        "the occlusion buffers start at full visibility"
+    );
+}
+
+/// Homogeneous slab seen head on, θ = 0: V(s) is the transmittance back to the front
+/// face, so L = ∫₀ᴸ c·σ·e^(−2σs) ds = c·(1 − e^(−2σL))/2 (L_a = 1, no ambient).
+#[test]
+fn monte_carlo_matches_the_closed_form_of_a_slab() {
+    let n = 16u32;
+    let volume = Volume::new(
+        "slab",
+        [n; 3],
+        1,
+        [1.0; 3],
+        VoxelData::F32(vec![0.5; (n * n * n) as usize]),
+    )
+    .unwrap();
+    let (c, a) = (0.8f32, 0.1f32);
+    let mut tf = PluginInstance::new(std::sync::Arc::new(crate::classify_tf1d::Tf1d::default()));
+    let point = |x| TfPoint {
+        x,
+        color: [c, c, c, a],
+    };
+    tf.params.set(
+        "tf",
+        ParamValue::Tf(TfCurve::new(vec![point(0.0), point(1.0)])),
+    );
+    let mut dos = PluginInstance::new(std::sync::Arc::new(Dos::default()));
+    dos.params.set("theta_deg", ParamValue::Float(0.0));
+    let mut camera = Camera {
+        projection: Projection::Orthographic { height: 1.5 },
+        ..Default::default()
+    };
+    camera.axis_view(2, false);
+    let settings = FrameSettings {
+        camera,
+        width: 5,
+        height: 5,
+        ..Default::default()
+    };
+    let opts = McOptions {
+        directions: 4,
+        eye_step: 0.05,
+        ..Default::default()
+    };
+    let img = render_mc(&volume, &[tf, dos], &settings, &opts, None).unwrap();
+    // σ per voxel length; the slab is n voxels thick
+    let sigma = -(1.0 - a as f64).ln();
+    let expect = c as f64 * (1.0 - (-2.0 * sigma * n as f64).exp()) / 2.0;
+    let got = img.pixels[12][0];
+    assert!((got - expect).abs() < 2e-4, "{got} vs {expect}");
+    // θ = 0 draws one direction only: no noise
+    assert_eq!(img.rms_std_error(), 0.0);
+}
+
+#[test]
+fn monte_carlo_noise_falls_as_one_over_root_n() {
+    let n = 12u32;
+    let data = (0..n * n * n)
+        .map(|i| {
+            if (i / n) % n > 5 && (i % n) > 3 {
+                1.0
+            } else {
+                0.2
+            }
+        })
+        .collect();
+    let volume = Volume::new("steps", [n; 3], 1, [1.0; 3], VoxelData::F32(data)).unwrap();
+    let tf = PluginInstance::new(std::sync::Arc::new(crate::classify_tf1d::Tf1d::default()));
+    let dos = PluginInstance::new(std::sync::Arc::new(Dos::default()));
+    let settings = FrameSettings {
+        width: 12,
+        height: 12,
+        ..Default::default()
+    };
+    let noise = |d: usize| {
+        let opts = McOptions {
+            directions: d,
+            ..Default::default()
+        };
+        render_mc(&volume, &[tf.clone(), dos.clone()], &settings, &opts, None)
+            .unwrap()
+            .rms_std_error()
+    };
+    let (n16, n64) = (noise(16), noise(64));
+    assert!(n16 > 0.0);
+    let ratio = n64 / n16;
+    assert!((0.3..0.75).contains(&ratio), "{n16} {n64} {ratio}");
+    // a stack without shade.dos is refused
+    assert!(render_mc(&volume, &[tf], &settings, &McOptions::default(), None).is_err());
+}
