@@ -24,6 +24,7 @@ import sys
 import tempfile
 from pathlib import Path
 
+import perf
 from doclib import REPO, default_vwb, machine_line, vwb_env, write_block
 
 MODELS = [("none", "none"), ("phong", "Blinn–Phong"), ("envmap", "environment map"),
@@ -40,13 +41,9 @@ def run(cmd, env):
 
 
 def render_ms(vwb, preset, backend, size, frames, env):
-    out = Path(tempfile.gettempdir()) / "vwb-shading.png"
-    text = run([vwb, "render", "--preset", preset, "--size", size, "--backend", backend,
-                "--timings", "--frames", str(frames), "-o", str(out)], env)
-    m = re.search(r"gpu_ms median ([\d.]+) min ([\d.]+) max ([\d.]+)", text) or \
-        re.search(r"wall_ms median ([\d.]+) min ([\d.]+) max ([\d.]+)", text)
-    adapter = re.search(r"adapter: (.*)", text)
-    return tuple(float(x) for x in m.groups()), adapter.group(1).strip() if adapter else "?"
+    """(median, min, max) GPU ms (wall without timestamps) and the adapter."""
+    r = perf.run(vwb, preset, backend, size, frames, env)
+    return r["gpu"] or r["wall"], r["adapter"]
 
 
 def estimator_preset(estimator):

@@ -183,20 +183,6 @@ fn pareto(points: &[Point]) -> Vec<Point> {
     front
 }
 
-fn machine() -> String {
-    let cpu = std::fs::read_to_string("/proc/cpuinfo")
-        .ok()
-        .and_then(|t| {
-            t.lines()
-                .find(|l| l.starts_with("model name"))
-                .and_then(|l| l.split(':').nth(1))
-                .map(|m| m.trim().to_string())
-        })
-        .unwrap_or_else(|| "unknown CPU".into());
-    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
-    format!("{cpu}, {cores} cores")
-}
-
 pub fn run(gpu: &GpuContext, a: &DosStudyArgs) -> Result<String> {
     let started = Instant::now();
     let registry = vwb_plugins::builtin_registry();
@@ -377,7 +363,7 @@ pub fn run(gpu: &GpuContext, a: &DosStudyArgs) -> Result<String> {
         started.elapsed().as_secs_f64(),
         st.mc_seconds
     );
-    let _ = writeln!(o, "- Machine: {}", machine());
+    let _ = writeln!(o, "- Machine: {}", crate::measure::machine());
     let _ = writeln!(o, "- Adapter: {}", gpu.describe());
     let _ = writeln!(
         o,

@@ -6,4 +6,5 @@ pub mod cli;
 pub mod dos_study;
 pub mod headless;
 pub mod measure;
+pub mod stack_ui;
 pub mod window;

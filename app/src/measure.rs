@@ -220,6 +220,21 @@ fn over(img: &ReferenceImage, doc: &Document) -> RgbImageF {
     RgbImageF::from_rgba_premultiplied_over(&img.pixels, img.width, img.height, background(doc))
 }
 
+/// CPU model and core count, for the docs.
+pub fn machine() -> String {
+    let cpu = std::fs::read_to_string("/proc/cpuinfo")
+        .ok()
+        .and_then(|t| {
+            t.lines()
+                .find(|l| l.starts_with("model name"))
+                .and_then(|l| l.split(':').nth(1))
+                .map(|m| m.trim().to_string())
+        })
+        .unwrap_or_else(|| "unknown CPU".into());
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    format!("{cpu}, {cores} cores")
+}
+
 /// What `vwb compare` compares against.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Against {

@@ -1,5 +1,6 @@
 //! The workbench window (eframe + wgpu): the viewport with an orbit camera, the plugin
-//! stack with enable switches, slice settings and the frame time. The renderer draws
+//! stack editor with parameter widgets generated from each plugin's spec
+//! ([`crate::stack_ui`]), preset open/save, slice settings and the frame time. The renderer draws
 //! into its own eye buffer on eframe's device; the composited 8-bit image is shown as a
 //! native egui texture.
 //!
@@ -97,6 +98,11 @@ enum Shot {
 
 pub struct Workbench {
     doc: Document,
+    registry: Registry,
+    /// The preset path field (open / save).
+    preset_path: String,
+    /// Result of the last open or save.
+    file_status: Option<Result<String, String>>,
     renderer: Renderer,
     texture: Option<egui::TextureId>,
     texture_size: [u32; 2],
@@ -135,6 +141,9 @@ impl Workbench {
             .map(|e| e.to_string());
         Ok(Self {
             doc,
+            registry: vwb_plugins::builtin_registry(),
+            preset_path: "presets/my_preset.ron".into(),
+            file_status: None,
             renderer,
             texture: None,
             texture_size: [0, 0],
@@ -164,14 +173,20 @@ impl Workbench {
         ));
         ui.label(format!("adapter: {}", self.renderer.gpu().info.name));
         ui.separator();
+        self.files(ui);
+        ui.separator();
         ui.label("Plugins");
         let mut changed = false;
-        for inst in &mut self.doc.stack {
-            changed |= ui
-                .checkbox(&mut inst.enabled, inst.plugin.display_name())
-                .on_hover_text(inst.plugin.id())
-                .changed();
-        }
+        egui::ScrollArea::vertical()
+            .max_height(ui.available_height() * 0.6)
+            .show(ui, |ui| {
+                changed |= crate::stack_ui::stack_editor(
+                    ui,
+                    &self.registry,
+                    &mut self.doc.stack,
+                    self.error.as_deref(),
+                );
+            });
         ui.separator();
         let r = &mut self.doc.render;
         changed |= ui
@@ -202,9 +217,49 @@ impl Workbench {
             Some(ms) => ui.label(format!("frame: {ms:.1} ms")),
             None => ui.label("frame: –"),
         };
-        if let Some(e) = &self.error {
-            ui.colored_label(egui::Color32::RED, e);
+    }
+
+    /// Preset open and save (atomic: a failed save leaves the old file as it was).
+    fn files(&mut self, ui: &mut egui::Ui) {
+        ui.horizontal(|ui| {
+            ui.text_edit_singleline(&mut self.preset_path);
+        });
+        ui.horizontal(|ui| {
+            let path = PathBuf::from(self.preset_path.trim());
+            if ui.button("Open preset").clicked() {
+                self.file_status = Some(self.open(&path).map_err(|e| format!("{e:#}")));
+            }
+            if ui.button("Save preset").clicked() {
+                self.file_status = Some(
+                    self.doc
+                        .save(&path)
+                        .map(|_| format!("saved {}", path.display()))
+                        .map_err(|e| e.to_string()),
+                );
+            }
+        });
+        match &self.file_status {
+            Some(Ok(m)) => {
+                ui.label(m);
+            }
+            Some(Err(e)) => {
+                ui.colored_label(egui::Color32::RED, e);
+            }
+            None => {}
         }
+    }
+
+    /// Loads a preset (and its volume); the current one stays on any error.
+    fn open(&mut self, path: &std::path::Path) -> Result<String> {
+        let doc = Document::load(path, &self.registry)?.document;
+        let volume = headless::load_volume(&doc.volume)?;
+        let mut renderer = Renderer::new(self.renderer.gpu(), volume)?;
+        renderer.update_stack(&doc.stack, doc.render.target)?;
+        self.renderer = renderer;
+        self.doc = doc;
+        self.error = None;
+        self.dirty = true;
+        Ok(format!("opened {}", path.display()))
     }
 
     fn viewport(&mut self, ui: &mut egui::Ui, frame: &eframe::Frame) {

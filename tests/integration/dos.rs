@@ -10,6 +10,30 @@ use vwb_render::{Backend, FrameSettings, PluginInstance, Renderer, TargetFormat}
 use crate::common::*;
 use crate::reference::{delta_e_rms, gpu_and_reference};
 
+/// An opaque-ish block floating in front of a wall (z grows away from an axis view
+/// along +z), and a TF that shows both with colour `rgba`.
+fn block_and_wall(
+    n: u32,
+    block: [std::ops::Range<u32>; 3],
+    wall: std::ops::Range<u32>,
+    rgba: [f32; 4],
+) -> (std::sync::Arc<vwb_render::Volume>, PluginInstance) {
+    let vol = synthetic([n; 3], move |x, y, z| {
+        let in_block = block[0].contains(&x) && block[1].contains(&y) && block[2].contains(&z);
+        if in_block || wall.contains(&z) {
+            1.0
+        } else {
+            0.0
+        }
+    });
+    let mut tf = instance("classify.tf1d");
+    tf.params.set(
+        "tf",
+        ParamValue::Tf(vwb_render::tf::TfCurve::ramp(0.4, 0.6, rgba)),
+    );
+    (vol, tf)
+}
+
 fn dos(theta: f32) -> PluginInstance {
     let mut i = instance("shade.dos");
     i.params.set("theta_deg", ParamValue::Float(theta));
@@ -125,20 +149,7 @@ fn occlusion_darkens_the_ct_head_and_the_nuclei() {
 /// only the silhouette itself (hidden by the block) would be shadowed.
 #[test]
 fn a_block_casts_a_soft_shadow_on_the_wall_behind_it() {
-    let vol = synthetic([32; 3], |x, y, z| {
-        let block = (12..20).contains(&x) && (12..20).contains(&y) && (6..9).contains(&z);
-        let wall = (22..25).contains(&z);
-        if block || wall { 1.0 } else { 0.0 }
-    });
-    let mut tf = instance("classify.tf1d");
-    tf.params.set(
-        "tf",
-        ParamValue::Tf(vwb_render::tf::TfCurve::ramp(
-            0.4,
-            0.6,
-            [0.9, 0.9, 0.9, 0.9],
-        )),
-    );
+    let (vol, tf) = block_and_wall(32, [12..20, 12..20, 6..9], 22..25, [0.9, 0.9, 0.9, 0.9]);
     let s = ortho_axis(64, 64, Backend::Compute);
     let mut r = Renderer::new(gpu(), vol).unwrap();
     let ring = |img: &[[f64; 3]]| {
@@ -176,20 +187,7 @@ fn a_block_casts_a_soft_shadow_on_the_wall_behind_it() {
 #[test]
 fn dos_converges_towards_its_monte_carlo_reference() {
     use vwb_plugins::shade_dos::mc::{McOptions, render_mc};
-    let vol = synthetic([24; 3], |x, y, z| {
-        let block = (8..16).contains(&x) && (8..16).contains(&y) && (4..8).contains(&z);
-        let wall = (14..18).contains(&z);
-        if block || wall { 1.0 } else { 0.0 }
-    });
-    let mut tf = instance("classify.tf1d");
-    tf.params.set(
-        "tf",
-        ParamValue::Tf(vwb_render::tf::TfCurve::ramp(
-            0.4,
-            0.6,
-            [0.9, 0.8, 0.7, 0.3],
-        )),
-    );
+    let (vol, tf) = block_and_wall(24, [8..16, 8..16, 4..8], 14..18, [0.9, 0.8, 0.7, 0.3]);
     let mut s = ortho_axis(32, 32, Backend::Compute);
     s.camera.yaw_deg += 10.0;
     s.camera.pitch_deg += 8.0;

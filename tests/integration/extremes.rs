@@ -428,15 +428,5 @@ fn write_doc(rows: &[Row], drift: &[(Backend, TargetFormat, f64, f64)]) {
 
 /// CPU model and core count, for the docs.
 fn machine() -> String {
-    let cpu = std::fs::read_to_string("/proc/cpuinfo")
-        .ok()
-        .and_then(|t| {
-            t.lines()
-                .find(|l| l.starts_with("model name"))
-                .and_then(|l| l.split(':').nth(1))
-                .map(|m| m.trim().to_string())
-        })
-        .unwrap_or_else(|| "unknown CPU".into());
-    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
-    format!("{cpu}, {cores} cores")
+    vwb_app::measure::machine()
 }
