@@ -7,4 +7,5 @@ pub mod dos_study;
 pub mod headless;
 pub mod measure;
 pub mod stack_ui;
+pub mod tf_editor;
 pub mod window;

@@ -35,13 +35,15 @@ pub fn apply(stack: &mut Vec<PluginInstance>, op: StackOp) -> bool {
     true
 }
 
-/// Widgets for `values` generated from `specs`; true when a value changed.
-/// Transfer functions get a summary line (they are edited in presets).
+/// Widgets for `values` generated from `specs`; true when a value changed. 1D transfer
+/// functions get the curve editor over `histogram` ([`crate::tf_editor`]); 2D ones a
+/// summary line (edited in presets).
 pub fn param_widgets(
     ui: &mut egui::Ui,
     salt: u64,
     specs: &[ParamSpec],
     values: &mut ParamValues,
+    histogram: &[u64],
 ) -> bool {
     let mut changed = false;
     for spec in specs {
@@ -89,12 +91,11 @@ pub fn param_widgets(
                 .response,
             ),
             (ParamKind::Path { .. }, ParamValue::Path(p)) => Some(path_field(ui, salt, spec, p)),
-            (ParamKind::Tf { .. }, ParamValue::Tf(t)) => Some(ui.label(format!(
-                "{}: {} points, {} primitives",
-                spec.label,
-                t.points.len(),
-                t.primitives.len()
-            ))),
+            (ParamKind::Tf { .. }, ParamValue::Tf(t)) => {
+                ui.label(spec.label);
+                crate::tf_editor::tf_editor(ui, salt, t, histogram);
+                None
+            }
             (ParamKind::Tf2d { .. }, ParamValue::Tf2d(t)) => {
                 Some(ui.label(format!("{}: {} primitives", spec.label, t.primitives.len())))
             }
@@ -144,6 +145,7 @@ pub fn stack_editor(
     registry: &Registry,
     stack: &mut Vec<PluginInstance>,
     error: Option<&str>,
+    histogram: &[u64],
 ) -> bool {
     let mut changed = false;
     let mut op = None;
@@ -184,9 +186,10 @@ pub fn stack_editor(
             }
             egui::CollapsingHeader::new("parameters")
                 .id_salt(("params", inst.uid))
+                .default_open(i == 0)
                 .show(ui, |ui| {
                     let specs = inst.plugin.params();
-                    changed |= param_widgets(ui, inst.uid, &specs, &mut inst.params);
+                    changed |= param_widgets(ui, inst.uid, &specs, &mut inst.params, histogram);
                 });
         });
         ui.separator();
@@ -270,7 +273,13 @@ mod tests {
             let mut out = ctx.run_ui(egui::RawInput::default(), |ui| {
                 egui::CentralPanel::default().show(ui, |ui| {
                     egui::ScrollArea::vertical().show(ui, |ui| {
-                        changed |= stack_editor(ui, &r, &mut all, Some("shade.dos: broken"));
+                        changed |= stack_editor(
+                            ui,
+                            &r,
+                            &mut all,
+                            Some("shade.dos: broken"),
+                            &[1, 10, 100],
+                        );
                     });
                 });
             });

@@ -5,7 +5,10 @@
 //! native egui texture.
 //!
 //! Camera: drag = orbit, right/middle drag = pan, wheel = zoom; R resets; 1/2/3 look
-//! along x/y/z (shift: the opposite direction).
+//! along x/y/z (shift: the opposite direction). While the camera moves the image is a
+//! preview (coarser slices, lower resolution, both settable); it is redrawn at full
+//! quality when the camera stops. The timing panel shows the frame time, the GPU time
+//! per pass and a plot of the last 120 frames.
 
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -108,6 +111,16 @@ pub struct Workbench {
     texture_size: [u32; 2],
     dirty: bool,
     frame_ms: Option<f64>,
+    /// Per-pass GPU times of the last frame.
+    passes: Vec<(String, f64)>,
+    /// Frame times (ms) of the last frames, for the timing plot.
+    history: std::collections::VecDeque<f64>,
+    /// Progressive quality: while the camera moves, the slice spacing is multiplied by
+    /// `drag_spacing` and the resolution by `drag_resolution`; full quality when idle.
+    drag_spacing: f32,
+    drag_resolution: f32,
+    /// The image on screen was drawn at preview quality.
+    preview: bool,
     error: Option<String>,
     shot: Shot,
     /// Frames drawn with an image (screenshots wait for one).
@@ -149,6 +162,11 @@ impl Workbench {
             texture_size: [0, 0],
             dirty: true,
             frame_ms: None,
+            passes: Vec::new(),
+            history: std::collections::VecDeque::new(),
+            drag_spacing: 2.0,
+            drag_resolution: 0.5,
+            preview: false,
             error,
             shot: screenshot.map_or(Shot::None, Shot::Pending),
             shown: 0,
@@ -185,6 +203,7 @@ impl Workbench {
                     &self.registry,
                     &mut self.doc.stack,
                     self.error.as_deref(),
+                    &self.renderer.volume().histogram,
                 );
             });
         ui.separator();
@@ -213,10 +232,44 @@ impl Workbench {
             self.dirty = true;
         }
         ui.separator();
+        ui.label("Preview while moving the camera");
+        ui.add(
+            egui::Slider::new(&mut self.drag_spacing, 1.0..=8.0)
+                .logarithmic(true)
+                .text("slice spacing ×"),
+        );
+        ui.add(egui::Slider::new(&mut self.drag_resolution, 0.125..=1.0).text("resolution ×"));
+        ui.separator();
+        self.timing(ui);
+    }
+
+    /// Frame time, per-pass GPU times and a plot of the last frames.
+    fn timing(&self, ui: &mut egui::Ui) {
         match self.frame_ms {
-            Some(ms) => ui.label(format!("frame: {ms:.1} ms")),
+            Some(ms) => ui.label(format!(
+                "frame: {ms:.1} ms{}",
+                if self.preview { " (preview)" } else { "" }
+            )),
             None => ui.label("frame: –"),
         };
+        for (name, ms) in &self.passes {
+            ui.label(format!("  {name}: {ms:.2} ms"));
+        }
+        let points: egui_plot::PlotPoints = self
+            .history
+            .iter()
+            .enumerate()
+            .map(|(i, ms)| [i as f64, *ms])
+            .collect();
+        egui_plot::Plot::new("frame times")
+            .height(90.0)
+            .allow_drag(false)
+            .allow_zoom(false)
+            .allow_scroll(false)
+            .y_axis_label("ms")
+            .show(ui, |plot| {
+                plot.line(egui_plot::Line::new("frame ms", points))
+            });
     }
 
     /// Preset open and save (atomic: a failed save leaves the old file as it was).
@@ -302,18 +355,36 @@ impl Workbench {
             }
         });
         let ppp = ui.ctx().pixels_per_point();
+        let moving = response.dragged()
+            || (response.hovered() && ui.input(|i| i.smooth_scroll_delta.y != 0.0));
+        let scale = if moving {
+            self.drag_resolution.clamp(0.05, 1.0)
+        } else {
+            1.0
+        };
         let size = [
-            ((rect.width() * ppp) as u32).clamp(1, 4096),
-            ((rect.height() * ppp) as u32).clamp(1, 4096),
+            ((rect.width() * ppp * scale) as u32).clamp(1, 4096),
+            ((rect.height() * ppp * scale) as u32).clamp(1, 4096),
         ];
-        if size != self.texture_size {
+        // back to full quality once the camera stops
+        if size != self.texture_size || (self.preview && !moving) {
             self.dirty = true;
         }
         if self.dirty {
-            let settings = self.settings(size);
+            let mut settings = self.settings(size);
+            if moving {
+                settings.slice_spacing *= self.drag_spacing.max(1.0);
+            }
             match self.renderer.render(&settings) {
                 Ok(stats) => {
-                    self.frame_ms = Some(stats.gpu_ms.unwrap_or(stats.wall_ms));
+                    let ms = stats.gpu_ms.unwrap_or(stats.wall_ms);
+                    self.frame_ms = Some(ms);
+                    self.passes = stats.gpu_passes.clone();
+                    self.history.push_back(ms);
+                    while self.history.len() > 120 {
+                        self.history.pop_front();
+                    }
+                    self.preview = moving;
                     self.show(frame, size);
                 }
                 Err(e) => self.error = Some(e.to_string()),

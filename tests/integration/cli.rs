@@ -401,3 +401,41 @@ fn dos_compares_against_monte_carlo_and_the_study_writes_its_report() {
         assert!(text.contains(needle), "{needle} in the report");
     }
 }
+
+/// The real window under Xvfb: `vwb --screenshot` opens it on the embedded demo,
+/// renders, saves a screenshot and exits; the viewport is not blank.
+#[test]
+fn window_screenshot_under_xvfb_is_not_blank() {
+    gpu();
+    let out = tmp("window.png");
+    let o = Command::new("xvfb-run")
+        .args(["-a", env!("CARGO_BIN_EXE_vwb"), "--screenshot"])
+        .arg(&out)
+        .current_dir(repo())
+        .output()
+        .unwrap_or_else(|e| {
+            panic!("the window test needs xvfb-run (scripts/test installs xvfb and xauth): {e}")
+        });
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let img = image::open(&out).unwrap().to_rgb8();
+    let (w, h) = img.dimensions();
+    assert!(w >= 400 && h >= 300, "{w}×{h}");
+    // the viewport (the right half) shows the volume: many distinct colours, and
+    // pixels brighter than the background
+    let mut colours = std::collections::HashSet::new();
+    let mut bright = 0;
+    for y in 0..h {
+        for x in w / 2..w {
+            let p = img.get_pixel(x, y).0;
+            colours.insert(p);
+            if p.iter().map(|&c| c as u32).sum::<u32>() > 150 {
+                bright += 1;
+            }
+        }
+    }
+    eprintln!(
+        "window screenshot {w}×{h}: {} colours, {bright} bright pixels",
+        colours.len()
+    );
+    assert!(colours.len() > 200 && bright > (w / 2 * h / 50) as usize);
+}
