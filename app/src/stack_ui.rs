@@ -93,7 +93,9 @@ pub fn param_widgets(
             (ParamKind::Path { .. }, ParamValue::Path(p)) => Some(path_field(ui, salt, spec, p)),
             (ParamKind::Tf { .. }, ParamValue::Tf(t)) => {
                 ui.label(spec.label);
-                crate::tf_editor::tf_editor(ui, salt, t, histogram);
+                // one editor state per plugin instance and parameter (classify.labels
+                // has eight curves)
+                crate::tf_editor::tf_editor(ui, (salt, spec.key), t, histogram);
                 None
             }
             (ParamKind::Tf2d { .. }, ParamValue::Tf2d(t)) => {

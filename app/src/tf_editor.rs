@@ -49,11 +49,11 @@ fn colour(c: [f64; 4]) -> egui::Color32 {
 /// value range); returns whether the curve changed and the plot's rectangle.
 pub fn tf_editor(
     ui: &mut egui::Ui,
-    salt: u64,
+    salt: impl std::hash::Hash + std::fmt::Debug,
     curve: &mut TfCurve,
     histogram: &[u64],
 ) -> (bool, egui::Rect) {
-    let id = ui.scope_id().with((salt, "tf editor"));
+    let id = ui.scope_id().with(("tf editor", salt));
     let mut selected: Option<usize> = ui.data(|d| d.get_temp(id)).flatten();
     let mut changed = false;
     let width = ui.available_width().max(120.0);
@@ -183,7 +183,7 @@ pub fn tf_editor(
         .changed();
     let mut remove = None;
     for (k, prim) in curve.primitives.iter_mut().enumerate() {
-        ui.push_id((salt, "primitive", k), |ui| {
+        ui.push_id(id.with(k), |ui| {
             ui.horizontal(|ui| {
                 egui::ComboBox::from_id_salt("shape")
                     .selected_text(prim.shape.name())

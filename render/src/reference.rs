@@ -618,8 +618,10 @@ fn clamp_nan_low(x: f64, lo: f64, hi: f64) -> f64 {
     if x.is_nan() { lo } else { x.clamp(lo, hi) }
 }
 
-/// `correct_opacity`: α' = 1 − (1 − α)^(Δs/Δs0), exact at α = 0 and α = 1.
-fn correct_opacity(alpha: f64, ratio: f64) -> f64 {
+/// `correct_opacity` of `shaders/common.wgsl`: α' = 1 − (1 − α)^(Δs/Δs0) with
+/// `ratio` = Δs/Δs0, exact at α = 0 and α = 1; NaN counts as 0. For twins that need
+/// the core's correction inside a hook (e.g. `shade.isosurface`).
+pub fn correct_opacity(alpha: f64, ratio: f64) -> f64 {
     let a = clamp_nan_low(alpha, 0.0, 1.0);
     if a >= 1.0 {
         return 1.0;

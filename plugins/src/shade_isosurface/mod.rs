@@ -31,6 +31,8 @@ use vwb_render::shading::{
     GradientEstimator, Gradients, Light, Material, blinn_phong_factors, shading_normal,
 };
 
+use vwb_render::reference::correct_opacity;
+
 use crate::lighting;
 
 #[cfg(test)]
@@ -205,19 +207,5 @@ impl CpuTwin for IsosurfaceTwin {
         } else if acc.w > 0.0 {
             s.color = (acc.truncate() / acc.w).extend(1.0 - (1.0 - acc.w).powf(1.0 / ratio));
         }
-    }
-}
-
-/// `correct_opacity` of the core: α' = 1 − (1 − α)^ratio.
-fn correct_opacity(alpha: f64, ratio: f64) -> f64 {
-    let a = if alpha.is_nan() {
-        0.0
-    } else {
-        alpha.clamp(0.0, 1.0)
-    };
-    if a >= 1.0 {
-        1.0
-    } else {
-        1.0 - (1.0 - a).powf(ratio)
     }
 }
