@@ -10,7 +10,8 @@
 //!
 //! with σs the classified colour and σt = −ln(1 − α)/Δs0 from the classified opacity
 //! per Δs0 (the stack's CPU twins: clip, sample, classify and the shading of every
-//! other plugin). The visibility `V(x) = ∫ T(x, x₀,ᵢ) Φθ dωᵢ` (eq 10) is estimated with
+//! other plugin; the DOS factor comes after them, which is the GPU's order when
+//! `shade.dos` is the last shading plugin of the stack). The visibility `V(x) = ∫ T(x, x₀,ᵢ) Φθ dωᵢ` (eq 10) is estimated with
 //! `directions` directions drawn uniformly in the cone of aperture θ around the
 //! direction back along the pixel ray (uniform in solid angle, which is what Φθ
 //! weights), each marched to the box exit with step `cone_step`·Δs0. The eye ray stops
