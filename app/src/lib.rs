@@ -3,6 +3,7 @@
 
 pub mod classification;
 pub mod cli;
+pub mod compare_ui;
 pub mod dos_study;
 pub mod headless;
 pub mod measure;

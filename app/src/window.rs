@@ -121,6 +121,10 @@ pub struct Workbench {
     drag_resolution: f32,
     /// The image on screen was drawn at preview quality.
     preview: bool,
+    /// Compare view: image side, the running job, the last result as textures.
+    compare_side: u32,
+    compare_job: Option<crate::compare_ui::CompareJob>,
+    compare: Option<Result<(vwb_render::metrics::Metrics, [egui::TextureHandle; 3]), String>>,
     error: Option<String>,
     shot: Shot,
     /// Frames drawn with an image (screenshots wait for one).
@@ -167,6 +171,9 @@ impl Workbench {
             drag_spacing: 2.0,
             drag_resolution: 0.5,
             preview: false,
+            compare_side: 128,
+            compare_job: None,
+            compare: None,
             error,
             shot: screenshot.map_or(Shot::None, Shot::Pending),
             shown: 0,
@@ -241,6 +248,8 @@ impl Workbench {
         ui.add(egui::Slider::new(&mut self.drag_resolution, 0.125..=1.0).text("resolution ×"));
         ui.separator();
         self.timing(ui);
+        ui.separator();
+        self.compare_view(ui);
     }
 
     /// Frame time, per-pass GPU times and a plot of the last frames.
@@ -270,6 +279,93 @@ impl Workbench {
             .show(ui, |plot| {
                 plot.line(egui_plot::Line::new("frame ms", points))
             });
+    }
+
+    /// The GPU image beside the CPU reference of the same frame, the ΔE*uv heatmap and
+    /// the metrics; the reference runs in a thread (progress, cancel).
+    fn compare_view(&mut self, ui: &mut egui::Ui) {
+        egui::CollapsingHeader::new("Compare with the CPU reference").show(ui, |ui| {
+            ui.add(egui::Slider::new(&mut self.compare_side, 32..=512).text("image side"));
+            if let Some(job) = &self.compare_job {
+                ui.add(egui::ProgressBar::new(job.fraction()).show_percentage());
+                if ui.button("Cancel").clicked() {
+                    job.cancel();
+                }
+                if let Some(result) = job.poll() {
+                    self.compare = Some(result.map(|c| {
+                        let load = |name: &str, img: &image::RgbImage| {
+                            ui.ctx().load_texture(
+                                name,
+                                crate::compare_ui::color_image(img),
+                                egui::TextureOptions::NEAREST,
+                            )
+                        };
+                        let textures = [
+                            load("compare gpu", &c.gpu),
+                            load("compare reference", &c.reference),
+                            load("compare heatmap", &c.heatmap),
+                        ];
+                        (c.metrics, textures)
+                    }));
+                    self.compare_job = None;
+                } else {
+                    ui.ctx().request_repaint();
+                }
+            } else if ui.button("Compute reference").clicked() {
+                self.compare = None;
+                match self.start_compare() {
+                    Ok(job) => self.compare_job = Some(job),
+                    Err(e) => self.compare = Some(Err(format!("{e:#}"))),
+                }
+            }
+            match &self.compare {
+                Some(Ok((m, textures))) => {
+                    ui.label(format!(
+                        "RMS ΔE*uv {:.3}, max {:.2}, > 6: {:.2} %, PSNR {:.1} dB, SSIM {:.4}",
+                        m.rms_delta_e,
+                        m.max_delta_e,
+                        m.share_above_6 * 100.0,
+                        m.psnr_db,
+                        m.ssim
+                    ));
+                    ui.horizontal(|ui| {
+                        for (t, label) in textures.iter().zip(["GPU", "reference", "ΔE"]) {
+                            ui.vertical(|ui| {
+                                ui.label(label);
+                                ui.image((t.id(), egui::vec2(96.0, 96.0)));
+                            });
+                        }
+                    });
+                }
+                Some(Err(e)) => {
+                    ui.colored_label(egui::Color32::RED, e);
+                }
+                None => {}
+            }
+        });
+    }
+
+    /// Renders the frame at the compare size on the GPU and starts its reference.
+    fn start_compare(&mut self) -> Result<crate::compare_ui::CompareJob> {
+        let side = self.compare_side.clamp(8, 4096);
+        let settings = self.settings([side, side]);
+        self.renderer.render(&settings)?;
+        let (w, h, px) = self
+            .renderer
+            .read_pixels()
+            .ok_or_else(|| anyhow!("no GPU image"))?;
+        let bg = crate::measure::background(&self.doc);
+        let gpu = vwb_render::metrics::RgbImageF::from_rgba_f32_premultiplied_over(&px, w, h, bg);
+        // the viewport is redrawn at its own size next frame
+        self.dirty = true;
+        Ok(crate::compare_ui::CompareJob::start(
+            self.renderer.volume().clone(),
+            self.doc.stack.clone(),
+            settings,
+            self.doc.render.target,
+            gpu,
+            bg,
+        ))
     }
 
     /// Preset open and save (atomic: a failed save leaves the old file as it was).

@@ -1,0 +1,163 @@
+//! The window's compare view: the current GPU image beside the CPU reference of the
+//! same stack, camera and slices (`vwb_render::reference`, computed in a background
+//! thread with progress and cancel), the ΔE*uv heatmap and the metrics.
+
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::{Arc, mpsc};
+
+use vwb_render::metrics::{Metrics, RgbImageF, compare, delta_e_map, heatmap};
+use vwb_render::reference::{ReferenceOptions, render_reference};
+use vwb_render::renderer::FrameSettings;
+use vwb_render::{PluginInstance, TargetFormat, Volume};
+
+/// What the compare view shows once the reference is done.
+pub struct Comparison {
+    pub metrics: Metrics,
+    pub gpu: image::RgbImage,
+    pub reference: image::RgbImage,
+    pub heatmap: image::RgbImage,
+}
+
+/// A reference being computed.
+pub struct CompareJob {
+    progress: Arc<AtomicUsize>,
+    cancel: Arc<AtomicBool>,
+    rows: u32,
+    rx: mpsc::Receiver<Result<Comparison, String>>,
+}
+
+impl CompareJob {
+    /// Starts the reference of `stack` for `settings` in a thread; `gpu` is the GPU
+    /// image of the same frame composited over `background`.
+    pub fn start(
+        volume: Arc<Volume>,
+        stack: Vec<PluginInstance>,
+        settings: FrameSettings,
+        target: TargetFormat,
+        gpu: RgbImageF,
+        background: [f64; 3],
+    ) -> Self {
+        let progress = Arc::new(AtomicUsize::new(0));
+        let cancel = Arc::new(AtomicBool::new(false));
+        let opts = ReferenceOptions {
+            emulate_fp16: target == TargetFormat::Rgba16Float,
+            progress: Some(progress.clone()),
+            cancel: Some(cancel.clone()),
+        };
+        let (tx, rx) = mpsc::channel();
+        std::thread::spawn(move || {
+            let result = render_reference(&volume, &stack, &settings, &opts)
+                .map_err(|e| e.to_string())
+                .map(|r| {
+                    let reference = RgbImageF::from_rgba_premultiplied_over(
+                        &r.pixels, r.width, r.height, background,
+                    );
+                    let metrics = compare(&gpu, &reference);
+                    let map = delta_e_map(&gpu, &reference);
+                    Comparison {
+                        heatmap: heatmap(&map, r.width, r.height, metrics.max_delta_e),
+                        gpu: gpu.to_rgb8(),
+                        reference: reference.to_rgb8(),
+                        metrics,
+                    }
+                });
+            let _ = tx.send(result);
+        });
+        Self {
+            progress,
+            cancel,
+            rows: settings.height,
+            rx,
+        }
+    }
+
+    /// Share of the rows done.
+    pub fn fraction(&self) -> f32 {
+        self.progress.load(Ordering::Relaxed) as f32 / self.rows.max(1) as f32
+    }
+
+    pub fn cancel(&self) {
+        self.cancel.store(true, Ordering::Relaxed);
+    }
+
+    /// The result once the thread has finished.
+    pub fn poll(&self) -> Option<Result<Comparison, String>> {
+        match self.rx.try_recv() {
+            Ok(r) => Some(r),
+            Err(mpsc::TryRecvError::Empty) => None,
+            Err(mpsc::TryRecvError::Disconnected) => {
+                Some(Err("the reference thread stopped".into()))
+            }
+        }
+    }
+}
+
+/// An 8-bit image as an egui image.
+pub fn color_image(img: &image::RgbImage) -> egui::ColorImage {
+    egui::ColorImage::from_rgb([img.width() as usize, img.height() as usize], img.as_raw())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use vwb_render::{Backend, GpuContext, Renderer};
+
+    fn wait(job: &CompareJob) -> Result<Comparison, String> {
+        loop {
+            if let Some(r) = job.poll() {
+                return r;
+            }
+            std::thread::sleep(std::time::Duration::from_millis(10));
+        }
+    }
+
+    /// The GPU image of the demo against its reference: the compute backend agrees
+    /// (as the presets test checks); a cancelled job says so.
+    #[test]
+    fn reference_in_the_background_and_cancel() {
+        let gpu = GpuContext::new_headless().expect("a Vulkan adapter (lavapipe is fine)");
+        let volume = Arc::new(vwb_render::volume::demo());
+        let stack = vec![PluginInstance::new(
+            vwb_plugins::builtin_registry()
+                .get("classify.tf1d")
+                .unwrap(),
+        )];
+        let settings = FrameSettings {
+            width: 40,
+            height: 32,
+            backend: Backend::Compute,
+            ..Default::default()
+        };
+        let mut r = Renderer::new(&gpu, volume.clone()).unwrap();
+        r.update_stack(&stack, TargetFormat::Rgba32Float).unwrap();
+        r.render(&settings).unwrap();
+        let (w, h, px) = r.read_pixels().unwrap();
+        let bg = [0.0; 3];
+        let image = RgbImageF::from_rgba_f32_premultiplied_over(&px, w, h, bg);
+        let job = CompareJob::start(
+            volume.clone(),
+            stack.clone(),
+            settings,
+            TargetFormat::Rgba32Float,
+            image.clone(),
+            bg,
+        );
+        let c = wait(&job).unwrap();
+        assert!(c.metrics.rms_delta_e < 0.15, "{}", c.metrics.rms_delta_e);
+        assert!((job.fraction() - 1.0).abs() < 1e-6);
+        // the heatmap carries its colour bar beside the image
+        assert!(c.heatmap.width() > 40 && c.heatmap.height() == 32);
+        assert_eq!(color_image(&c.reference).size, [40, 32]);
+
+        let big = FrameSettings {
+            width: 1024,
+            height: 1024,
+            ..settings
+        };
+        let gpu_big = RgbImageF::new(1024, 1024, vec![[0.0; 3]; 1024 * 1024]);
+        let job = CompareJob::start(volume, stack, big, TargetFormat::Rgba32Float, gpu_big, bg);
+        job.cancel();
+        let e = wait(&job).err().expect("cancelled");
+        assert!(e.to_lowercase().contains("cancel"), "{e}");
+    }
+}
