@@ -1,6 +1,9 @@
-//! The window's compare view: the current GPU image beside the CPU reference of the
-//! same stack, camera and slices (`vwb_render::reference`, computed in a background
-//! thread with progress and cancel), the ΔE*uv heatmap and the metrics.
+//! The window's compare view: the current GPU image beside a CPU reference computed in
+//! a background thread with progress and cancel, the ΔE*uv heatmap and the metrics.
+//! The reference is either the twin of the same stack, camera and slices
+//! (`vwb_render::reference`: is the GPU doing what the plugins say?) or the converged
+//! one (`crate::measure::converged_image`: refined slices, or the Monte-Carlo cone
+//! integral for directional occlusion: how far is this frame from the integral?).
 
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::{Arc, mpsc};
@@ -22,8 +25,30 @@ pub struct Comparison {
 pub struct CompareJob {
     progress: Arc<AtomicUsize>,
     cancel: Arc<AtomicBool>,
-    rows: u32,
+    /// Rows of the same-slices reference; unknown for the converged one.
+    rows: Option<u32>,
     rx: mpsc::Receiver<Result<Comparison, String>>,
+}
+
+/// What the compare view compares against.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Against {
+    /// The CPU twin with the same slices.
+    #[default]
+    SameSlices,
+    /// The converged reference (Monte Carlo for stacks with directional occlusion).
+    Converged,
+}
+
+fn finish(gpu: &RgbImageF, reference: RgbImageF) -> Comparison {
+    let metrics = compare(gpu, &reference);
+    let map = delta_e_map(gpu, &reference);
+    Comparison {
+        heatmap: heatmap(&map, reference.width, reference.height, metrics.max_delta_e),
+        gpu: gpu.to_rgb8(),
+        reference: reference.to_rgb8(),
+        metrics,
+    }
 }
 
 impl CompareJob {
@@ -52,28 +77,55 @@ impl CompareJob {
                     let reference = RgbImageF::from_rgba_premultiplied_over(
                         &r.pixels, r.width, r.height, background,
                     );
-                    let metrics = compare(&gpu, &reference);
-                    let map = delta_e_map(&gpu, &reference);
-                    Comparison {
-                        heatmap: heatmap(&map, r.width, r.height, metrics.max_delta_e),
-                        gpu: gpu.to_rgb8(),
-                        reference: reference.to_rgb8(),
-                        metrics,
-                    }
+                    finish(&gpu, reference)
                 });
             let _ = tx.send(result);
         });
         Self {
             progress,
             cancel,
-            rows: settings.height,
+            rows: Some(settings.height),
             rx,
         }
     }
 
-    /// Share of the rows done.
-    pub fn fraction(&self) -> f32 {
-        self.progress.load(Ordering::Relaxed) as f32 / self.rows.max(1) as f32
+    /// Starts the converged reference of `doc` for `settings` in a thread
+    /// ([`crate::measure::converged_image`], tolerance in RMS ΔE*uv).
+    pub fn start_converged(
+        volume: Arc<Volume>,
+        doc: vwb_render::preset::Document,
+        settings: FrameSettings,
+        gpu: RgbImageF,
+        tolerance: f64,
+    ) -> Self {
+        let progress = Arc::new(AtomicUsize::new(0));
+        let cancel = Arc::new(AtomicBool::new(false));
+        let opts = ReferenceOptions {
+            progress: Some(progress.clone()),
+            cancel: Some(cancel.clone()),
+            ..Default::default()
+        };
+        let (tx, rx) = mpsc::channel();
+        std::thread::spawn(move || {
+            let result =
+                crate::measure::converged_image(&volume, &doc, &settings, tolerance, &opts)
+                    .map_err(|e| format!("{e:#}"))
+                    .map(|(reference, _)| finish(&gpu, reference));
+            let _ = tx.send(result);
+        });
+        Self {
+            progress,
+            cancel,
+            rows: None,
+            rx,
+        }
+    }
+
+    /// Share of the rows done; `None` while converging (the number of refinement
+    /// passes is not known in advance).
+    pub fn fraction(&self) -> Option<f32> {
+        self.rows
+            .map(|rows| self.progress.load(Ordering::Relaxed) as f32 / rows.max(1) as f32)
     }
 
     pub fn cancel(&self) {
@@ -144,7 +196,7 @@ mod tests {
         );
         let c = wait(&job).unwrap();
         assert!(c.metrics.rms_delta_e < 0.15, "{}", c.metrics.rms_delta_e);
-        assert!((job.fraction() - 1.0).abs() < 1e-6);
+        assert!((job.fraction().unwrap() - 1.0).abs() < 1e-6);
         // the heatmap carries its colour bar beside the image
         assert!(c.heatmap.width() > 40 && c.heatmap.height() == 32);
         assert_eq!(color_image(&c.reference).size, [40, 32]);
@@ -155,9 +207,31 @@ mod tests {
             ..settings
         };
         let gpu_big = RgbImageF::new(1024, 1024, vec![[0.0; 3]; 1024 * 1024]);
-        let job = CompareJob::start(volume, stack, big, TargetFormat::Rgba32Float, gpu_big, bg);
+        let job = CompareJob::start(
+            volume.clone(),
+            stack.clone(),
+            big,
+            TargetFormat::Rgba32Float,
+            gpu_big,
+            bg,
+        );
         job.cancel();
         let e = wait(&job).err().expect("cancelled");
         assert!(e.to_lowercase().contains("cancel"), "{e}");
+
+        // against the converged reference the error is larger than against the same
+        // slices (the slices' own discretisation error shows), but still small
+        let mut doc = crate::window::default_document(&vwb_plugins::builtin_registry());
+        doc.stack = stack;
+        doc.render.background = [0.0, 0.0, 0.0, 1.0];
+        let job = CompareJob::start_converged(volume, doc, settings, image, 0.5);
+        assert!(job.fraction().is_none());
+        let conv = wait(&job).unwrap();
+        assert!(
+            conv.metrics.rms_delta_e > c.metrics.rms_delta_e && conv.metrics.rms_delta_e < 10.0,
+            "converged {} vs same slices {}",
+            conv.metrics.rms_delta_e,
+            c.metrics.rms_delta_e
+        );
     }
 }

@@ -4,9 +4,12 @@
 pub mod classification;
 pub mod cli;
 pub mod compare_ui;
+pub mod custom_ui;
 pub mod dos_study;
 pub mod headless;
 pub mod measure;
 pub mod stack_ui;
+pub mod tf2d_editor;
 pub mod tf_editor;
+pub mod tradeoff_ui;
 pub mod window;

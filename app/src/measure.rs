@@ -216,6 +216,83 @@ pub fn converged_reference(
     Ok((img, c, start.elapsed().as_secs_f64()))
 }
 
+/// Whether a stack's converged reference is the Monte-Carlo cone integral (stacks with
+/// directional occlusion: refining the slices converges to the slice algorithm's own
+/// limit, not to the cone integral; docs/dos.md).
+pub fn uses_monte_carlo(doc: &Document) -> bool {
+    doc.stack
+        .iter()
+        .any(|i| i.enabled && i.plugin.id() == "shade.dos")
+}
+
+/// The converged reference of a frame, composited over the document's background, and
+/// a JSON note of how it was made: the Monte-Carlo integral for stacks with directional
+/// occlusion ([`uses_monte_carlo`]), else the refined-slices reference (progress bar on
+/// a terminal). `opts` carries cancellation (and, for Monte Carlo, nothing else).
+pub fn converged_image(
+    volume: &Volume,
+    doc: &Document,
+    s: &FrameSettings,
+    tolerance: f64,
+    opts: &ReferenceOptions,
+) -> Result<(RgbImageF, serde_json::Value)> {
+    let start = Instant::now();
+    if uses_monte_carlo(doc) {
+        use vwb_plugins::shade_dos::mc::{McOptions, render_mc};
+        let mc_opts = McOptions::default();
+        let mc = render_mc(volume, &doc.stack, s, &mc_opts, opts.cancel.as_deref())
+            .map_err(|e| anyhow!(e))?;
+        let info = json!({
+            "kind": "monte_carlo",
+            "directions": mc_opts.directions,
+            "replicas": mc_opts.replicas,
+            "seed": mc_opts.seed,
+            "eye_step_voxels": mc_opts.eye_step,
+            "cone_step_voxels": mc_opts.cone_step,
+            "rms_std_error": mc.rms_std_error(),
+            "seconds": start.elapsed().as_secs_f64(),
+        });
+        let img = RgbImageF::from_rgba_premultiplied_over(
+            &mc.pixels,
+            mc.width,
+            mc.height,
+            background(doc),
+        );
+        return Ok((img, info));
+    }
+    let c = if opts.cancel.is_some() || opts.progress.is_some() {
+        reference::render_converged(
+            volume,
+            &doc.stack,
+            &converged_settings(s),
+            opts,
+            tolerance,
+            background(doc),
+        )?
+    } else {
+        with_progress("converged reference", None, |o| {
+            reference::render_converged(
+                volume,
+                &doc.stack,
+                &converged_settings(s),
+                o,
+                tolerance,
+                background(doc),
+            )
+        })?
+    };
+    let info = json!({
+        "kind": "converged",
+        "spacing_voxels": c.spacing,
+        "converged": c.converged,
+        "last_change_rms_delta_e": c.last_change_rms_delta_e,
+        "tolerance_rms_delta_e": tolerance,
+        "steps": c.steps,
+        "seconds": start.elapsed().as_secs_f64(),
+    });
+    Ok((over(&c.image, doc), info))
+}
+
 fn over(img: &ReferenceImage, doc: &Document) -> RgbImageF {
     RgbImageF::from_rgba_premultiplied_over(&img.pixels, img.width, img.height, background(doc))
 }
@@ -304,48 +381,9 @@ pub fn compare_document(
             });
             (over(&img, doc), info)
         }
-        // directional occlusion's converged reference is its Monte-Carlo integral:
-        // refining the slices converges to the slice algorithm's own limit, not to the
-        // cone integral (docs/dos.md)
-        Against::Converged
-            if doc
-                .stack
-                .iter()
-                .any(|i| i.enabled && i.plugin.id() == "shade.dos") =>
-        {
-            use vwb_plugins::shade_dos::mc::{McOptions, render_mc};
-            let opts = McOptions::default();
-            let start = Instant::now();
-            let mc = render_mc(&volume, &doc.stack, &s, &opts, None).map_err(|e| anyhow!(e))?;
-            let info = json!({
-                "kind": "monte_carlo",
-                "directions": opts.directions,
-                "replicas": opts.replicas,
-                "seed": opts.seed,
-                "eye_step_voxels": opts.eye_step,
-                "cone_step_voxels": opts.cone_step,
-                "rms_std_error": mc.rms_std_error(),
-                "seconds": start.elapsed().as_secs_f64(),
-            });
-            let img = RgbImageF::from_rgba_premultiplied_over(
-                &mc.pixels,
-                mc.width,
-                mc.height,
-                background(doc),
-            );
-            (img, info)
-        }
         Against::Converged => {
-            let (img, c, secs) = converged_reference(&volume, doc, &s, tolerance)?;
-            let info = json!({
-                "kind": "converged",
-                "spacing_voxels": c.spacing,
-                "converged": c.converged,
-                "last_change_rms_delta_e": c.last_change_rms_delta_e,
-                "tolerance_rms_delta_e": tolerance,
-                "steps": c.steps,
-                "seconds": secs,
-            });
+            let o = ReferenceOptions::default();
+            let (img, info) = converged_image(&volume, doc, &s, tolerance, &o)?;
             (img, info)
         }
         Against::Preset(path) => {
@@ -931,9 +969,124 @@ fn escape(s: &str) -> String {
         .replace('>', "&gt;")
 }
 
-/// Runs a sweep: every grid point rendered on the GPU, timed, and compared with the
-/// converged reference of its parameters (one reference per distinct plugin-parameter
-/// point; slice spacing does not change it). Writes `sweep.csv`, `point_NNN.png`,
+/// What a running sweep reports.
+pub enum SweepEvent<'a> {
+    /// A reference is being computed for these plugin parameters.
+    Reference { key: &'a str },
+    /// Grid point `index` of `total` is done.
+    Point {
+        index: usize,
+        total: usize,
+        point: &'a SweepPoint,
+    },
+}
+
+/// A finished sweep: the points (Pareto flags set), their GPU images and the
+/// references with a JSON note each.
+pub struct SweepOutcome {
+    pub points: Vec<SweepPoint>,
+    pub images: Vec<RgbImageF>,
+    pub references: Vec<(RgbImageF, serde_json::Value)>,
+}
+
+/// Every grid point rendered on the GPU, timed, and compared with the converged
+/// reference of its parameters ([`converged_image`]: one per distinct plugin-parameter
+/// point; slice spacing does not change it). `opts.cancel` stops it between steps.
+/// Shared by `vwb sweep` and the window's trade-off view.
+#[allow(clippy::too_many_arguments)]
+pub fn sweep(
+    gpu: &GpuContext,
+    doc: &Document,
+    volume: Arc<Volume>,
+    axes: &[Axis],
+    frames: u32,
+    tolerance: f64,
+    opts: &ReferenceOptions,
+    observer: &mut dyn FnMut(SweepEvent<'_>),
+) -> Result<SweepOutcome> {
+    if axes.is_empty() {
+        bail!("a sweep needs at least one parameter");
+    }
+    let cancelled = || {
+        opts.cancel
+            .as_ref()
+            .is_some_and(|c| c.load(Ordering::Relaxed))
+    };
+    let points = grid(axes);
+    let mut r = headless::renderer_for(gpu, doc, volume.clone())?;
+    let mut references: HashMap<String, usize> = HashMap::new();
+    let mut out = SweepOutcome {
+        points: Vec::new(),
+        images: Vec::new(),
+        references: Vec::new(),
+    };
+    for (n, values) in points.iter().enumerate() {
+        if cancelled() {
+            bail!("cancelled");
+        }
+        let mut d = doc.clone();
+        for (axis, v) in axes.iter().zip(values) {
+            apply_axis(&mut d, axis, *v);
+        }
+        let key = axes
+            .iter()
+            .zip(values)
+            .filter(|(a, _)| a.target.changes_reference())
+            .map(|(a, v)| format!("{}={v}", a.name))
+            .collect::<Vec<_>>()
+            .join(",");
+        let s = d.frame_settings();
+        if !references.contains_key(&key) {
+            observer(SweepEvent::Reference { key: &key });
+            let (img, mut info) = converged_image(&volume, &d, &s, tolerance, opts)?;
+            if info["converged"] == json!(false) {
+                log::warn!(
+                    "the reference for '{key}' did not converge (last change {} ΔE RMS at {} voxels)",
+                    info["last_change_rms_delta_e"],
+                    info["spacing_voxels"]
+                );
+            }
+            info["index"] = json!(out.references.len());
+            info["params"] = json!(key);
+            references.insert(key.clone(), out.references.len());
+            out.references.push((img, info));
+        }
+        r.update_stack(&d.stack, d.render.target)?;
+        let timing = time_frames(&mut r, &s, 1, frames)?;
+        let img = gpu_image(&r, &d)?;
+        let reference = &out.references[references[&key]].0;
+        let metrics = metrics::try_compare(&img, reference).map_err(|e| anyhow!(e))?;
+        let (ms, clock) = timing.frame_ms();
+        out.points.push(SweepPoint {
+            values: values.clone(),
+            slices: timing.slices,
+            ms,
+            clock,
+            wall_ms: timing.wall_ms.median,
+            metrics,
+            image: format!("point_{n:03}.png"),
+            pareto: false,
+        });
+        out.images.push(img);
+        observer(SweepEvent::Point {
+            index: n,
+            total: points.len(),
+            point: out.points.last().expect("just pushed"),
+        });
+    }
+    let front = pareto_front(
+        &out.points
+            .iter()
+            .map(|p| (p.ms, p.metrics.rms_delta_e))
+            .collect::<Vec<_>>(),
+    );
+    for (p, f) in out.points.iter_mut().zip(front) {
+        p.pareto = f;
+    }
+    Ok(out)
+}
+
+/// Runs a sweep ([`sweep`]) and writes `sweep.csv`, `point_NNN.png`,
 /// `reference_NN.png`, `pareto.svg` and `sweep.json` into `dir`.
 pub fn run_sweep(
     doc: &Document,
@@ -949,85 +1102,46 @@ pub fn run_sweep(
     let gpu = GpuContext::new_headless()?;
     eprintln!("adapter: {}", gpu.describe());
     std::fs::create_dir_all(dir).with_context(|| format!("{}: cannot create", dir.display()))?;
-    let points = grid(axes);
-    let mut r = headless::renderer_for(&gpu, doc, volume.clone())?;
-    let bar = indicatif::ProgressBar::new(points.len() as u64);
+    let bar = indicatif::ProgressBar::new(grid(axes).len() as u64);
     bar.set_style(
         indicatif::ProgressStyle::with_template(
             "sweep {bar:30} {pos}/{len} [{elapsed}<{eta}] {msg}",
         )
         .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
     );
-    let mut references: HashMap<String, (RgbImageF, usize)> = HashMap::new();
-    let mut reference_notes = Vec::new();
-    let mut out = Vec::new();
-    for (n, values) in points.iter().enumerate() {
-        let mut d = doc.clone();
-        for (axis, v) in axes.iter().zip(values) {
-            apply_axis(&mut d, axis, *v);
-        }
-        let key = axes
-            .iter()
-            .zip(values)
-            .filter(|(a, _)| a.target.changes_reference())
-            .map(|(a, v)| format!("{}={v}", a.name))
-            .collect::<Vec<_>>()
-            .join(",");
-        let s = d.frame_settings();
-        if !references.contains_key(&key) {
-            bar.set_message(format!("converged reference {key}"));
-            let (img, c, secs) = bar.suspend(|| converged_reference(&volume, &d, &s, tolerance))?;
-            let idx = references.len();
-            headless::save_png(&img.to_rgb8(), &dir.join(format!("reference_{idx:02}.png")))?;
-            reference_notes.push(json!({
-                "index": idx, "params": key, "spacing_voxels": c.spacing,
-                "converged": c.converged, "last_change_rms_delta_e": c.last_change_rms_delta_e,
-                "steps": c.steps, "seconds": secs,
-            }));
-            if !c.converged {
-                eprintln!(
-                    "warning: the reference for '{key}' did not converge (last change {:.3} ΔE RMS at {} voxels)",
-                    c.last_change_rms_delta_e, c.spacing
+    let outcome = sweep(
+        &gpu,
+        doc,
+        volume,
+        axes,
+        frames,
+        tolerance,
+        &ReferenceOptions::default(),
+        &mut |e| match e {
+            SweepEvent::Reference { key } => bar.set_message(format!("reference {key}")),
+            SweepEvent::Point { point, .. } => {
+                bar.set_message(
+                    axes.iter()
+                        .zip(&point.values)
+                        .map(|(a, v)| format!("{}={}", short(&a.name), trim_num(*v)))
+                        .collect::<Vec<_>>()
+                        .join(" "),
                 );
+                bar.inc(1);
             }
-            references.insert(key.clone(), (img, idx));
-        }
-        bar.set_message(
-            axes.iter()
-                .zip(values)
-                .map(|(a, v)| format!("{}={}", short(&a.name), trim_num(*v)))
-                .collect::<Vec<_>>()
-                .join(" "),
-        );
-        r.update_stack(&d.stack, d.render.target)?;
-        let timing = time_frames(&mut r, &s, 1, frames)?;
-        let img = gpu_image(&r, &d)?;
-        let (reference, _) = &references[&key];
-        let metrics = metrics::try_compare(&img, reference).map_err(|e| anyhow!(e))?;
-        let name = format!("point_{n:03}.png");
-        headless::save_png(&img.to_rgb8(), &dir.join(&name))?;
-        let (ms, clock) = timing.frame_ms();
-        out.push(SweepPoint {
-            values: values.clone(),
-            slices: timing.slices,
-            ms,
-            clock,
-            wall_ms: timing.wall_ms.median,
-            metrics,
-            image: name,
-            pareto: false,
-        });
-        bar.inc(1);
-    }
+        },
+    )?;
     bar.finish_and_clear();
-    let front = pareto_front(
-        &out.iter()
-            .map(|p| (p.ms, p.metrics.rms_delta_e))
-            .collect::<Vec<_>>(),
-    );
-    for (p, f) in out.iter_mut().zip(front) {
-        p.pareto = f;
+    for (img, info) in &outcome.references {
+        let idx = info["index"].as_u64().unwrap_or(0);
+        headless::save_png(&img.to_rgb8(), &dir.join(format!("reference_{idx:02}.png")))?;
     }
+    for (p, img) in outcome.points.iter().zip(&outcome.images) {
+        headless::save_png(&img.to_rgb8(), &dir.join(&p.image))?;
+    }
+    let reference_notes: Vec<serde_json::Value> =
+        outcome.references.iter().map(|(_, i)| i.clone()).collect();
+    let out = outcome.points;
     let mut csv = String::new();
     for a in axes {
         let _ = write!(csv, "{},", a.name);

@@ -1,8 +1,10 @@
 //! The plugin-stack editor of the window: parameter widgets generated from each
 //! plugin's declarative spec (log sliders, integer sliders, checkboxes, combo boxes,
 //! colour pickers, vec3 drag values, path fields), and the stack operations (add from
-//! the registry by category, remove, move up/down, duplicate, enable/disable). A
-//! composer or resource error appears under the plugin it names.
+//! the registry by category, remove, reorder by dragging the :: handle or with up/down,
+//! duplicate, enable/disable, open the plugin's WGSL in the editor). A plugin may add
+//! its own widgets above the generated ones ([`crate::custom_ui`]). A composer or
+//! resource error appears under the plugin it names.
 
 use std::path::PathBuf;
 
@@ -16,6 +18,12 @@ pub enum StackOp {
     Down(usize),
     Duplicate(usize),
     Remove(usize),
+    /// Drag and drop: the entry at `from` is inserted before the entry now at `to`
+    /// (`to == len` appends).
+    Move {
+        from: usize,
+        to: usize,
+    },
 }
 
 /// Applies `op`; false when it does nothing (e.g. moving the first entry up).
@@ -30,21 +38,28 @@ pub fn apply(stack: &mut Vec<PluginInstance>, op: StackOp) -> bool {
         StackOp::Remove(i) if i < stack.len() => {
             stack.remove(i);
         }
+        StackOp::Move { from, to }
+            if from < stack.len() && to <= stack.len() && to != from && to != from + 1 =>
+        {
+            let inst = stack.remove(from);
+            stack.insert(if to > from { to - 1 } else { to }, inst);
+        }
         _ => return false,
     }
     true
 }
 
 /// Widgets for `values` generated from `specs`; true when a value changed. 1D transfer
-/// functions get the curve editor over `histogram` ([`crate::tf_editor`]); 2D ones a
-/// summary line (edited in presets).
+/// functions get the curve editor over the histogram ([`crate::tf_editor`]), 2D ones
+/// the 2D editor over the 2D histogram ([`crate::tf2d_editor`]).
 pub fn param_widgets(
     ui: &mut egui::Ui,
     salt: u64,
     specs: &[ParamSpec],
     values: &mut ParamValues,
-    histogram: &[u64],
+    cx: &StackUi<'_>,
 ) -> bool {
+    let gradient_scale = values.float("gradient_scale") as f64;
     let mut changed = false;
     for spec in specs {
         let Some(current) = values.get(spec.key).cloned() else {
@@ -64,8 +79,8 @@ pub fn param_widgets(
             }
             (ParamKind::Bool { .. }, ParamValue::Bool(b)) => Some(ui.checkbox(b, spec.label)),
             (ParamKind::Enum { options, .. }, ParamValue::Enum(s)) => Some(
-                egui::ComboBox::from_id_salt((salt, spec.key))
-                    .selected_text(format!("{}: {s}", spec.label))
+                egui::ComboBox::new((salt, spec.key), spec.label)
+                    .selected_text(s.as_str())
                     .show_ui(ui, |ui| {
                         for o in options.iter() {
                             ui.selectable_value(s, o.to_string(), *o);
@@ -83,8 +98,13 @@ pub fn param_widgets(
             ),
             (ParamKind::Vec3 { min, max, .. }, ParamValue::Vec3(v)) => Some(
                 ui.horizontal(|ui| {
-                    for x in v.iter_mut() {
-                        ui.add(egui::DragValue::new(x).speed(0.01).range(*min..=*max));
+                    for (x, axis) in v.iter_mut().zip(["x ", "y ", "z "]) {
+                        ui.add(
+                            egui::DragValue::new(x)
+                                .speed(0.01)
+                                .range(*min..=*max)
+                                .prefix(axis),
+                        );
                     }
                     ui.label(spec.label)
                 })
@@ -95,11 +115,16 @@ pub fn param_widgets(
                 ui.label(spec.label);
                 // one editor state per plugin instance and parameter (classify.labels
                 // has eight curves)
-                crate::tf_editor::tf_editor(ui, (salt, spec.key), t, histogram);
+                crate::tf_editor::tf_editor(ui, (salt, spec.key), t, cx.histogram);
                 None
             }
             (ParamKind::Tf2d { .. }, ParamValue::Tf2d(t)) => {
-                Some(ui.label(format!("{}: {} primitives", spec.label, t.primitives.len())))
+                ui.label(spec.label);
+                let texture = cx
+                    .volume
+                    .map(|v| crate::tf2d_editor::histogram_texture(ui.ctx(), v, gradient_scale));
+                crate::tf2d_editor::tf2d_editor(ui, (salt, spec.key), t, texture.as_ref());
+                None
             }
             _ => None,
         };
@@ -139,48 +164,90 @@ fn path_field(ui: &mut egui::Ui, salt: u64, spec: &ParamSpec, p: &mut PathBuf) -
     r
 }
 
-/// The stack editor; true when the stack or a parameter changed. `error` (the last
-/// composer or resource error) is shown under the first plugin whose id it names,
-/// else above the stack.
+/// What the stack editor needs besides the stack.
+pub struct StackUi<'a> {
+    pub registry: &'a Registry,
+    /// The last composer or resource error: shown under the first plugin whose id it
+    /// names, else above the stack.
+    pub error: Option<&'a str>,
+    /// The volume's value histogram (1D TF editors).
+    pub histogram: &'a [u64],
+    /// The volume (the 2D TF editor's histogram).
+    pub volume: Option<&'a std::sync::Arc<vwb_render::Volume>>,
+}
+
+/// What happened in the stack editor this frame.
+#[derive(Debug, Default, Clone, Copy, PartialEq, Eq)]
+pub struct StackResponse {
+    /// The stack or a parameter changed.
+    pub changed: bool,
+    /// The "wgsl" button of this stack entry was clicked.
+    pub edit_wgsl: Option<usize>,
+}
+
+/// The stack editor.
 pub fn stack_editor(
     ui: &mut egui::Ui,
-    registry: &Registry,
+    cx: &StackUi<'_>,
     stack: &mut Vec<PluginInstance>,
-    error: Option<&str>,
-    histogram: &[u64],
-) -> bool {
+) -> StackResponse {
     let mut changed = false;
+    let mut edit_wgsl = None;
     let mut op = None;
+    let error = cx.error;
     let at = error.and_then(|e| stack.iter().position(|i| e.contains(i.plugin.id())));
     if let (Some(e), None) = (error, at) {
         ui.colored_label(egui::Color32::RED, e);
     }
     let n = stack.len();
+    let drag_id = ui.scope_id().with("stack drag");
     for (i, inst) in stack.iter_mut().enumerate() {
-        ui.push_id(inst.uid, |ui| {
-            ui.horizontal(|ui| {
-                changed |= ui.checkbox(&mut inst.enabled, "").changed();
-                ui.label(inst.plugin.display_name()).on_hover_text(format!(
-                    "{}\n{}",
-                    inst.plugin.id(),
-                    inst.plugin.description()
-                ));
-                if ui.add_enabled(i > 0, egui::Button::new("up")).clicked() {
-                    op = Some(StackOp::Up(i));
-                }
-                if ui
-                    .add_enabled(i + 1 < n, egui::Button::new("down"))
-                    .clicked()
-                {
-                    op = Some(StackOp::Down(i));
-                }
-                if ui.button("copy").on_hover_text("duplicate").clicked() {
-                    op = Some(StackOp::Duplicate(i));
-                }
-                if ui.button("del").on_hover_text("remove").clicked() {
-                    op = Some(StackOp::Remove(i));
-                }
+        let (_, dropped) = ui.dnd_drop_zone::<usize, _>(egui::Frame::NONE, |ui| {
+            ui.push_id(inst.uid, |ui| {
+                ui.horizontal(|ui| {
+                    ui.dnd_drag_source(drag_id.with(inst.uid), i, |ui| {
+                        // not selectable: the drag moves the plugin, not a text selection
+                        ui.add(egui::Label::new("::").selectable(false))
+                            .on_hover_text("drag onto another plugin to move it there");
+                    });
+                    changed |= ui
+                        .checkbox(&mut inst.enabled, "on")
+                        .on_hover_text("enabled")
+                        .changed();
+                    ui.label(inst.plugin.display_name()).on_hover_text(format!(
+                        "{}\n{}",
+                        inst.plugin.id(),
+                        inst.plugin.description()
+                    ));
+                    if ui.add_enabled(i > 0, egui::Button::new("up")).clicked() {
+                        op = Some(StackOp::Up(i));
+                    }
+                    if ui
+                        .add_enabled(i + 1 < n, egui::Button::new("down"))
+                        .clicked()
+                    {
+                        op = Some(StackOp::Down(i));
+                    }
+                    if ui.button("copy").on_hover_text("duplicate").clicked() {
+                        op = Some(StackOp::Duplicate(i));
+                    }
+                    if ui.button("del").on_hover_text("remove").clicked() {
+                        op = Some(StackOp::Remove(i));
+                    }
+                    if ui
+                        .button("wgsl")
+                        .on_hover_text("edit this plugin's shader")
+                        .clicked()
+                    {
+                        edit_wgsl = Some(i);
+                    }
+                });
             });
+        });
+        if let Some(from) = dropped {
+            op = Some(StackOp::Move { from: *from, to: i });
+        }
+        ui.push_id(inst.uid, |ui| {
             if at == Some(i)
                 && let Some(e) = error
             {
@@ -190,18 +257,28 @@ pub fn stack_editor(
                 .id_salt(("params", inst.uid))
                 .default_open(i == 0)
                 .show(ui, |ui| {
+                    if let Some(custom) = crate::custom_ui::lookup(inst.plugin.id()) {
+                        changed |= custom(ui, &mut inst.params);
+                    }
                     let specs = inst.plugin.params();
-                    changed |= param_widgets(ui, inst.uid, &specs, &mut inst.params, histogram);
+                    changed |= param_widgets(ui, inst.uid, &specs, &mut inst.params, cx);
                 });
         });
         ui.separator();
+    }
+    // dropping below the last plugin moves it to the end
+    let (_, dropped) = ui.dnd_drop_zone::<usize, _>(egui::Frame::NONE, |ui| {
+        ui.weak("drop here to move to the end");
+    });
+    if let Some(from) = dropped {
+        op = Some(StackOp::Move { from: *from, to: n });
     }
     if let Some(op) = op {
         changed |= apply(stack, op);
     }
     ui.menu_button("Add plugin", |ui| {
         for c in Category::ALL {
-            let plugins: Vec<_> = registry.by_category(c).cloned().collect();
+            let plugins: Vec<_> = cx.registry.by_category(c).cloned().collect();
             if plugins.is_empty() {
                 continue;
             }
@@ -220,7 +297,7 @@ pub fn stack_editor(
             });
         }
     });
-    changed
+    StackResponse { changed, edit_wgsl }
 }
 
 #[cfg(test)]
@@ -256,6 +333,17 @@ mod tests {
         assert!(apply(&mut s, StackOp::Remove(0)));
         assert!(!apply(&mut s, StackOp::Remove(9)));
         assert_eq!(ids(&s), ["shade.dos", "shade.dos", "classify.tf1d"]);
+        // drag and drop: before the entry at `to`, or to the end
+        let mut s = stack();
+        assert!(apply(&mut s, StackOp::Move { from: 0, to: 3 }));
+        assert_eq!(ids(&s), ["shade.blinn_phong", "shade.dos", "classify.tf1d"]);
+        assert!(apply(&mut s, StackOp::Move { from: 2, to: 0 }));
+        assert_eq!(ids(&s), ["classify.tf1d", "shade.blinn_phong", "shade.dos"]);
+        assert!(apply(&mut s, StackOp::Move { from: 2, to: 1 }));
+        assert_eq!(ids(&s), ["classify.tf1d", "shade.dos", "shade.blinn_phong"]);
+        for (from, to) in [(1, 1), (1, 2), (0, 4), (5, 0)] {
+            assert!(!apply(&mut s, StackOp::Move { from, to }), "{from}→{to}");
+        }
     }
 
     /// Every built-in plugin's parameters lay out headless without panicking, and
@@ -275,13 +363,13 @@ mod tests {
             let mut out = ctx.run_ui(egui::RawInput::default(), |ui| {
                 egui::CentralPanel::default().show(ui, |ui| {
                     egui::ScrollArea::vertical().show(ui, |ui| {
-                        changed |= stack_editor(
-                            ui,
-                            &r,
-                            &mut all,
-                            Some("shade.dos: broken"),
-                            &[1, 10, 100],
-                        );
+                        let cx = StackUi {
+                            registry: &r,
+                            error: Some("shade.dos: broken"),
+                            histogram: &[1, 10, 100],
+                            volume: None,
+                        };
+                        changed |= stack_editor(ui, &cx, &mut all).changed;
                     });
                 });
             });

@@ -59,6 +59,9 @@ pub fn tf_editor(
     let width = ui.available_width().max(120.0);
     let (rect, response) =
         ui.allocate_exact_size(egui::vec2(width, HEIGHT), egui::Sense::click_and_drag());
+    response.widget_info(|| {
+        egui::WidgetInfo::labeled(egui::Role::Canvas, true, "transfer function editor")
+    });
     let painter = ui.painter_at(rect);
     painter.rect_filled(rect, 2.0, egui::Color32::from_gray(24));
     // log-scaled histogram
@@ -185,7 +188,7 @@ pub fn tf_editor(
     for (k, prim) in curve.primitives.iter_mut().enumerate() {
         ui.push_id(id.with(k), |ui| {
             ui.horizontal(|ui| {
-                egui::ComboBox::from_id_salt("shape")
+                egui::ComboBox::new("shape", "shape")
                     .selected_text(prim.shape.name())
                     .show_ui(ui, |ui| {
                         for s in [

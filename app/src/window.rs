@@ -1,20 +1,24 @@
 //! The workbench window (eframe + wgpu): the viewport with an orbit camera, the plugin
 //! stack editor with parameter widgets generated from each plugin's spec
-//! ([`crate::stack_ui`]), preset open/save, slice settings and the frame time. The renderer draws
-//! into its own eye buffer on eframe's device; the composited 8-bit image is shown as a
-//! native egui texture.
+//! ([`crate::stack_ui`]), a WGSL editor per plugin, volumes and presets (file dialog,
+//! drag and drop, recent files), slice settings, the timing panel, the compare view
+//! ([`crate::compare_ui`]) and the trade-off view ([`crate::tradeoff_ui`]). The
+//! renderer draws into its own eye buffer on eframe's device; the composited 8-bit
+//! image is shown as a native egui texture.
 //!
 //! Camera: drag = orbit, right/middle drag = pan, wheel = zoom; R resets; 1/2/3 look
-//! along x/y/z (shift: the opposite direction). While the camera moves the image is a
-//! preview (coarser slices, lower resolution, both settable); it is redrawn at full
-//! quality when the camera stops. The timing panel shows the frame time, the GPU time
-//! per pass and a plot of the last 120 frames.
+//! along x/y/z (shift: the opposite direction). While the camera moves, or a parameter
+//! is being dragged, the image is a preview (coarser slices, lower resolution, both
+//! settable); it is redrawn at full quality when the interaction stops. The timing
+//! panel shows the frame time, the GPU time per pass and a plot of the last 120
+//! frames. eframe persists the window state; vwb adds the recent files and the path
+//! fields.
 
 use std::path::PathBuf;
 use std::sync::Arc;
 use std::sync::mpsc;
 
-use anyhow::{Result, anyhow};
+use anyhow::{Context as _, Result, anyhow};
 use vwb_render::gpu::{self, GpuContext};
 use vwb_render::plugin::{PluginInstance, Registry};
 use vwb_render::preset::{Document, RenderSection, VolumeSource};
@@ -99,11 +103,50 @@ enum Shot {
     Requested(mpsc::Receiver<Result<(), String>>),
 }
 
+/// What vwb keeps between runs (eframe storage, key [`STORAGE_KEY`]).
+#[derive(Debug, Clone, Default, serde::Serialize, serde::Deserialize)]
+#[serde(default)]
+pub struct Persisted {
+    pub recent: Vec<PathBuf>,
+    pub preset_path: String,
+    pub volume_path: String,
+}
+
+pub const STORAGE_KEY: &str = "vwb";
+/// Recent files kept.
+pub const RECENT: usize = 10;
+
+/// The WGSL editor of one plugin file.
+struct WgslEdit {
+    file: String,
+    plugin: &'static str,
+    text: String,
+}
+
+/// Which file dialog is open.
+enum Dialog {
+    Volume(egui_file::FileDialog),
+    Preset(egui_file::FileDialog),
+}
+
 pub struct Workbench {
     doc: Document,
     registry: Registry,
     /// The preset path field (open / save).
     preset_path: String,
+    /// The volume path field.
+    volume_path: String,
+    recent: Vec<PathBuf>,
+    dialog: Option<Dialog>,
+    wgsl: Option<WgslEdit>,
+    /// WGSL overrides (file → source), carried over to renderers of opened files.
+    shader_overrides: std::collections::BTreeMap<String, String>,
+    /// Full-quality resolution × (below 1 on slow devices and in tests).
+    pub quality_scale: f32,
+    /// A parameter is being dragged (preview quality).
+    editing: bool,
+    compare_against: crate::compare_ui::Against,
+    tradeoff: crate::tradeoff_ui::TradeoffView,
     /// Result of the last open or save.
     file_status: Option<Result<String, String>>,
     renderer: Renderer,
@@ -117,8 +160,8 @@ pub struct Workbench {
     history: std::collections::VecDeque<f64>,
     /// Progressive quality: while the camera moves, the slice spacing is multiplied by
     /// `drag_spacing` and the resolution by `drag_resolution`; full quality when idle.
-    drag_spacing: f32,
-    drag_resolution: f32,
+    pub drag_spacing: f32,
+    pub drag_resolution: f32,
     /// The image on screen was drawn at preview quality.
     preview: bool,
     /// Compare view: image side, the running job, the last result as textures.
@@ -156,10 +199,24 @@ impl Workbench {
             .update_stack(&doc.stack, doc.render.target)
             .err()
             .map(|e| e.to_string());
+        let persisted: Persisted = cc
+            .storage
+            .and_then(|s| eframe::get_value(s, STORAGE_KEY))
+            .unwrap_or_default();
+        let or = |s: String, d: &str| if s.is_empty() { d.to_string() } else { s };
         Ok(Self {
             doc,
             registry: vwb_plugins::builtin_registry(),
-            preset_path: "presets/my_preset.ron".into(),
+            preset_path: or(persisted.preset_path, "presets/my_preset.ron"),
+            volume_path: or(persisted.volume_path, "../shared/data/"),
+            recent: persisted.recent,
+            dialog: None,
+            wgsl: None,
+            shader_overrides: Default::default(),
+            quality_scale: 1.0,
+            editing: false,
+            compare_against: Default::default(),
+            tradeoff: Default::default(),
             file_status: None,
             renderer,
             texture: None,
@@ -179,6 +236,112 @@ impl Workbench {
             shown: 0,
             errors,
         })
+    }
+
+    /// The scene being edited.
+    pub fn document(&self) -> &Document {
+        &self.doc
+    }
+
+    /// The scene, for scripted edits; call [`Workbench::apply_stack`] afterwards.
+    pub fn document_mut(&mut self) -> &mut Document {
+        &mut self.doc
+    }
+
+    pub fn renderer(&self) -> &Renderer {
+        &self.renderer
+    }
+
+    /// The last composer, resource or file error shown in the stack.
+    pub fn error(&self) -> Option<&str> {
+        self.error.as_deref()
+    }
+
+    /// The message of the last file operation (Ok or Err).
+    pub fn file_status(&self) -> Option<&Result<String, String>> {
+        self.file_status.as_ref()
+    }
+
+    pub fn recent(&self) -> &[PathBuf] {
+        &self.recent
+    }
+
+    pub fn tradeoff(&mut self) -> &mut crate::tradeoff_ui::TradeoffView {
+        &mut self.tradeoff
+    }
+
+    /// Whether the image on screen is a preview (camera moving, parameter dragged).
+    pub fn is_preview(&self) -> bool {
+        self.preview
+    }
+
+    /// The last frame's time (GPU when timestamps work, else wall clock), ms.
+    pub fn frame_ms(&self) -> Option<f64> {
+        self.frame_ms
+    }
+
+    /// The viewport's last image (8-bit RGB over the background), as drawn.
+    pub fn image(&self) -> Option<image::RgbImage> {
+        crate::measure::gpu_image(&self.renderer, &self.doc)
+            .ok()
+            .map(|i| i.to_rgb8())
+    }
+
+    /// Brings the renderer in line with the stack; errors are shown at their plugin and
+    /// the last good pipeline keeps rendering.
+    pub fn apply_stack(&mut self) {
+        self.error = self
+            .renderer
+            .update_stack(&self.doc.stack, self.doc.render.target)
+            .err()
+            .map(|e| e.to_string());
+        self.dirty = true;
+    }
+
+    fn remember(&mut self, path: &std::path::Path) {
+        let path = std::fs::canonicalize(path).unwrap_or_else(|_| path.to_path_buf());
+        self.recent.retain(|p| p != &path);
+        self.recent.insert(0, path);
+        self.recent.truncate(RECENT);
+    }
+
+    /// A renderer for `volume` and `doc` on the window's device, with the WGSL
+    /// overrides; nothing changes on screen until it is swapped in.
+    fn fresh_renderer(&self, volume: Arc<vwb_render::Volume>, doc: &Document) -> Result<Renderer> {
+        let mut renderer = Renderer::new(self.renderer.gpu(), volume)?;
+        for (file, source) in &self.shader_overrides {
+            renderer.set_shader_override(file, Some(source.clone()));
+        }
+        renderer.update_stack(&doc.stack, doc.render.target)?;
+        Ok(renderer)
+    }
+
+    /// Opens a volume file into the current scene; the current volume stays on any
+    /// error (unreadable file, lying header, a stack that fails on the new volume).
+    pub fn open_volume(&mut self, path: &std::path::Path) -> Result<String> {
+        let source = VolumeSource::File(path.to_path_buf());
+        let volume = headless::load_volume(&source)?;
+        let renderer = self
+            .fresh_renderer(volume, &self.doc)
+            .with_context(|| format!("{}", path.display()))?;
+        let v = renderer.volume();
+        let msg = format!("opened {} {:?}", path.display(), v.dims);
+        self.renderer = renderer;
+        self.doc.volume = source;
+        self.volume_path = path.display().to_string();
+        self.error = None;
+        self.dirty = true;
+        self.remember(path);
+        Ok(msg)
+    }
+
+    /// Opens a preset (`.ron`) or a volume by its extension.
+    pub fn open_any(&mut self, path: &std::path::Path) -> Result<String> {
+        if path.extension().is_some_and(|e| e == "ron") {
+            self.open(path)
+        } else {
+            self.open_volume(path)
+        }
     }
 
     fn settings(&self, size: [u32; 2]) -> FrameSettings {
@@ -202,17 +365,37 @@ impl Workbench {
         ui.separator();
         ui.label("Plugins");
         let mut changed = false;
-        egui::ScrollArea::vertical()
-            .max_height(ui.available_height() * 0.6)
-            .show(ui, |ui| {
-                changed |= crate::stack_ui::stack_editor(
-                    ui,
-                    &self.registry,
-                    &mut self.doc.stack,
-                    self.error.as_deref(),
-                    &self.renderer.volume().histogram,
-                );
+        let volume = self.renderer.volume().clone();
+        let cx = crate::stack_ui::StackUi {
+            registry: &self.registry,
+            error: self.error.as_deref(),
+            histogram: &volume.histogram,
+            volume: Some(&volume),
+        };
+        let response = crate::stack_ui::stack_editor(ui, &cx, &mut self.doc.stack);
+        changed |= response.changed;
+        if let Some(i) = response.edit_wgsl
+            && let Some(inst) = self.doc.stack.get(i)
+        {
+            let shader = inst.plugin.shader();
+            let text = self
+                .shader_overrides
+                .get(shader.file.as_ref())
+                .cloned()
+                .unwrap_or_else(|| shader.source.to_string());
+            self.wgsl = Some(WgslEdit {
+                file: shader.file.to_string(),
+                plugin: inst.plugin.id(),
+                text,
             });
+        }
+        // a parameter dragged with the pointer held: preview quality until release
+        let pointer_down = ui.input(|i| i.pointer.any_down());
+        if changed && pointer_down {
+            self.editing = true;
+        } else if !pointer_down {
+            self.editing = false;
+        }
         ui.separator();
         let r = &mut self.doc.render;
         changed |= ui
@@ -231,15 +414,19 @@ impl Workbench {
                 .changed();
         });
         if changed {
-            self.error = self
-                .renderer
-                .update_stack(&self.doc.stack, self.doc.render.target)
-                .err()
-                .map(|e| e.to_string());
+            self.apply_stack();
+        }
+        if ui
+            .add(
+                egui::Slider::new(&mut self.quality_scale, 0.125..=1.0)
+                    .text("resolution × (full quality)"),
+            )
+            .changed()
+        {
             self.dirty = true;
         }
         ui.separator();
-        ui.label("Preview while moving the camera");
+        ui.label("Preview while moving the camera or dragging a parameter");
         ui.add(
             egui::Slider::new(&mut self.drag_spacing, 1.0..=8.0)
                 .logarithmic(true)
@@ -247,9 +434,84 @@ impl Workbench {
         );
         ui.add(egui::Slider::new(&mut self.drag_resolution, 0.125..=1.0).text("resolution ×"));
         ui.separator();
-        self.timing(ui);
+        egui::CollapsingHeader::new("Timing")
+            .default_open(true)
+            .show(ui, |ui| self.timing(ui));
         ui.separator();
         self.compare_view(ui);
+        egui::CollapsingHeader::new("Trade-off: sweep and Pareto plot").show(ui, |ui| {
+            let gpu = self.renderer.gpu().clone();
+            if self.tradeoff.ui(ui, &gpu, &mut self.doc, &volume) {
+                self.apply_stack();
+            }
+        });
+    }
+
+    /// The WGSL editor window: Apply composes the edited source (an error appears at the
+    /// plugin with its file and line, and the last good image stays); Revert restores
+    /// the built-in source.
+    fn wgsl_window(&mut self, ctx: &egui::Context) {
+        let Some(edit) = &mut self.wgsl else {
+            return;
+        };
+        let mut open = true;
+        let mut close = false;
+        let mut action = None;
+        egui::Window::new(format!("WGSL: {}", edit.file))
+            .id(egui::Id::unique("wgsl editor"))
+            .open(&mut open)
+            .default_size([520.0, 420.0])
+            .show(ctx, |ui| {
+                ui.label(format!("plugin {}", edit.plugin));
+                ui.horizontal(|ui| {
+                    if ui.button("Apply").clicked() {
+                        action = Some(true);
+                    }
+                    if ui.button("Revert to built-in").clicked() {
+                        action = Some(false);
+                    }
+                    if ui.button("Close editor").clicked() {
+                        close = true;
+                    }
+                });
+                let label = ui.label("source");
+                egui::ScrollArea::vertical().show(ui, |ui| {
+                    ui.add(
+                        egui::TextEdit::multiline(&mut edit.text)
+                            .code_editor()
+                            .desired_width(f32::INFINITY)
+                            .desired_rows(24)
+                            .id_salt("wgsl text"),
+                    )
+                    .labelled_by(label.id);
+                });
+            });
+        let file = edit.file.clone();
+        match action {
+            Some(true) => {
+                let text = edit.text.clone();
+                self.shader_overrides.insert(file.clone(), text.clone());
+                self.renderer.set_shader_override(&file, Some(text));
+                self.apply_stack();
+            }
+            Some(false) => {
+                self.shader_overrides.remove(&file);
+                self.renderer.set_shader_override(&file, None);
+                if let Some(inst) = self
+                    .doc
+                    .stack
+                    .iter()
+                    .find(|i| i.plugin.shader().file == file.as_str())
+                {
+                    edit.text = inst.plugin.shader().source.to_string();
+                }
+                self.apply_stack();
+            }
+            None => {}
+        }
+        if !open || close {
+            self.wgsl = None;
+        }
     }
 
     /// Frame time, per-pass GPU times and a plot of the last frames.
@@ -278,16 +540,35 @@ impl Workbench {
             .y_axis_label("ms")
             .show(ui, |plot| {
                 plot.line(egui_plot::Line::new("frame ms", points))
-            });
+            })
+            .response
+            .widget_info(|| egui::WidgetInfo::labeled(egui::Role::Canvas, true, "frame time plot"));
     }
 
     /// The GPU image beside the CPU reference of the same frame, the ΔE*uv heatmap and
     /// the metrics; the reference runs in a thread (progress, cancel).
     fn compare_view(&mut self, ui: &mut egui::Ui) {
         egui::CollapsingHeader::new("Compare with the CPU reference").show(ui, |ui| {
+            use crate::compare_ui::Against;
             ui.add(egui::Slider::new(&mut self.compare_side, 32..=512).text("image side"));
+            let converged = if crate::measure::uses_monte_carlo(&self.doc) {
+                "converged (Monte Carlo)"
+            } else {
+                "converged"
+            };
+            ui.horizontal(|ui| {
+                ui.radio_value(
+                    &mut self.compare_against,
+                    Against::SameSlices,
+                    "same slices",
+                );
+                ui.radio_value(&mut self.compare_against, Against::Converged, converged);
+            });
             if let Some(job) = &self.compare_job {
-                ui.add(egui::ProgressBar::new(job.fraction()).show_percentage());
+                match job.fraction() {
+                    Some(f) => ui.add(egui::ProgressBar::new(f).show_percentage()),
+                    None => ui.add(egui::ProgressBar::new(0.0).animate(true).text("converging")),
+                };
                 if ui.button("Cancel").clicked() {
                     job.cancel();
                 }
@@ -358,6 +639,15 @@ impl Workbench {
         let gpu = vwb_render::metrics::RgbImageF::from_rgba_f32_premultiplied_over(&px, w, h, bg);
         // the viewport is redrawn at its own size next frame
         self.dirty = true;
+        if self.compare_against == crate::compare_ui::Against::Converged {
+            return Ok(crate::compare_ui::CompareJob::start_converged(
+                self.renderer.volume().clone(),
+                self.doc.clone(),
+                settings,
+                gpu,
+                vwb_render::reference::DEFAULT_TOLERANCE_DELTA_E,
+            ));
+        }
         Ok(crate::compare_ui::CompareJob::start(
             self.renderer.volume().clone(),
             self.doc.stack.clone(),
@@ -368,25 +658,83 @@ impl Workbench {
         ))
     }
 
-    /// Preset open and save (atomic: a failed save leaves the old file as it was).
+    /// Volumes and presets: path fields, file dialogs, recent files; presets are
+    /// saved atomically (a failed save leaves the old file as it was). Files dropped on
+    /// the window open too (`.ron` as a preset, anything else as a volume).
     fn files(&mut self, ui: &mut egui::Ui) {
         ui.horizontal(|ui| {
-            ui.text_edit_singleline(&mut self.preset_path);
+            ui.add(
+                egui::TextEdit::singleline(&mut self.volume_path)
+                    .desired_width(150.0)
+                    .id_salt("volume path"),
+            )
+            .on_hover_text("volume file (.nhdr, .nrrd, .raw + header)");
+            if ui.button("Open volume").clicked() {
+                let path = PathBuf::from(self.volume_path.trim());
+                self.file_status = Some(self.open_volume(&path).map_err(|e| format!("{e:#}")));
+            }
+            if ui.button("…").on_hover_text("choose a volume").clicked() {
+                let mut d = egui_file::FileDialog::open_file()
+                    .initial_path(PathBuf::from(self.volume_path.trim()))
+                    .title("Open volume");
+                d.open();
+                self.dialog = Some(Dialog::Volume(d));
+            }
         });
         ui.horizontal(|ui| {
+            ui.add(
+                egui::TextEdit::singleline(&mut self.preset_path)
+                    .desired_width(150.0)
+                    .id_salt("preset path"),
+            )
+            .on_hover_text("preset file (.ron)");
             let path = PathBuf::from(self.preset_path.trim());
             if ui.button("Open preset").clicked() {
                 self.file_status = Some(self.open(&path).map_err(|e| format!("{e:#}")));
             }
             if ui.button("Save preset").clicked() {
+                let saved = self.doc.save(&path);
+                if saved.is_ok() {
+                    self.remember(&path);
+                }
                 self.file_status = Some(
-                    self.doc
-                        .save(&path)
+                    saved
                         .map(|_| format!("saved {}", path.display()))
                         .map_err(|e| e.to_string()),
                 );
             }
+            if ui.button("…").on_hover_text("choose a preset").clicked() {
+                let mut d = egui_file::FileDialog::open_file()
+                    .initial_path(PathBuf::from("presets"))
+                    .title("Open preset");
+                d.open();
+                self.dialog = Some(Dialog::Preset(d));
+            }
         });
+        if !self.recent.is_empty() {
+            let mut pick = None;
+            egui::ComboBox::new("recent files", "recent files")
+                .selected_text("open…")
+                .width(220.0)
+                .show_ui(ui, |ui| {
+                    for p in &self.recent {
+                        let name = p.file_name().map_or_else(
+                            || p.display().to_string(),
+                            |n| n.to_string_lossy().into(),
+                        );
+                        if ui
+                            .selectable_label(false, name)
+                            .on_hover_text(p.display().to_string())
+                            .clicked()
+                        {
+                            pick = Some(p.clone());
+                        }
+                    }
+                });
+            if let Some(p) = pick {
+                self.file_status = Some(self.open_any(&p).map_err(|e| format!("{e:#}")));
+            }
+        }
         match &self.file_status {
             Some(Ok(m)) => {
                 ui.label(m);
@@ -398,16 +746,50 @@ impl Workbench {
         }
     }
 
+    /// The open file dialog and files dropped on the window.
+    fn file_events(&mut self, ctx: &egui::Context) {
+        let mut chosen = None;
+        if let Some(dialog) = &mut self.dialog {
+            let (d, preset) = match dialog {
+                Dialog::Volume(d) => (d, false),
+                Dialog::Preset(d) => (d, true),
+            };
+            if d.show(ctx).selected() {
+                chosen = d.path().map(|p| (p.to_path_buf(), preset));
+            }
+            if !d.visible() {
+                self.dialog = None;
+            }
+        }
+        if let Some((path, preset)) = chosen {
+            let result = if preset {
+                self.preset_path = path.display().to_string();
+                self.open(&path)
+            } else {
+                self.open_volume(&path)
+            };
+            self.file_status = Some(result.map_err(|e| format!("{e:#}")));
+        }
+        let dropped = ctx.input(|i| i.raw.dropped_files.clone());
+        for f in dropped {
+            let path = f.path().to_path_buf();
+            if !path.as_os_str().is_empty() {
+                self.file_status = Some(self.open_any(&path).map_err(|e| format!("{e:#}")));
+            }
+        }
+    }
+
     /// Loads a preset (and its volume); the current one stays on any error.
-    fn open(&mut self, path: &std::path::Path) -> Result<String> {
+    pub fn open(&mut self, path: &std::path::Path) -> Result<String> {
         let doc = Document::load(path, &self.registry)?.document;
         let volume = headless::load_volume(&doc.volume)?;
-        let mut renderer = Renderer::new(self.renderer.gpu(), volume)?;
-        renderer.update_stack(&doc.stack, doc.render.target)?;
+        let renderer = self.fresh_renderer(volume, &doc)?;
         self.renderer = renderer;
         self.doc = doc;
+        self.preset_path = path.display().to_string();
         self.error = None;
         self.dirty = true;
+        self.remember(path);
         Ok(format!("opened {}", path.display()))
     }
 
@@ -453,10 +835,11 @@ impl Workbench {
         let ppp = ui.ctx().pixels_per_point();
         let moving = response.dragged()
             || (response.hovered() && ui.input(|i| i.smooth_scroll_delta.y != 0.0));
+        let moving = moving || self.editing;
         let scale = if moving {
-            self.drag_resolution.clamp(0.05, 1.0)
+            self.drag_resolution.clamp(0.05, 1.0) * self.quality_scale.clamp(0.05, 1.0)
         } else {
-            1.0
+            self.quality_scale.clamp(0.05, 1.0)
         };
         let size = [
             ((rect.width() * ppp * scale) as u32).clamp(1, 4096),
@@ -567,12 +950,32 @@ impl Workbench {
 }
 
 impl eframe::App for Workbench {
+    fn save(&mut self, storage: &mut dyn eframe::Storage) {
+        let p = Persisted {
+            recent: self.recent.clone(),
+            preset_path: self.preset_path.clone(),
+            volume_path: self.volume_path.clone(),
+        };
+        eframe::set_value(storage, STORAGE_KEY, &p);
+    }
+
     fn ui(&mut self, ui: &mut egui::Ui, frame: &mut eframe::Frame) {
-        egui::Panel::left("side").show(ui, |ui| self.side_panel(ui));
+        let ctx = ui.ctx().clone();
+        self.file_events(&ctx);
+        egui::Panel::left("side").show(ui, |ui| {
+            // wheel and scroll bar only: a drag belongs to the widget under it (stack
+            // handles, TF editors, sliders)
+            egui::ScrollArea::vertical()
+                .scroll_source(egui::containers::scroll_area::ScrollSource {
+                    drag: egui::containers::scroll_area::DragScroll::Never,
+                    ..Default::default()
+                })
+                .show(ui, |ui| self.side_panel(ui));
+        });
         egui::CentralPanel::default()
             .frame(egui::Frame::NONE)
             .show(ui, |ui| self.viewport(ui, frame));
-        let ctx = ui.ctx().clone();
+        self.wgsl_window(&ctx);
         self.screenshot(&ctx);
     }
 }

@@ -743,6 +743,17 @@ pub fn compose(
     target: TargetFormat,
     limits: &wgpu::Limits,
 ) -> Result<Composition, ComposeError> {
+    compose_with(plugins, target, limits, &Default::default())
+}
+
+/// [`compose`] with some plugin files' WGSL replaced (`file` → source): errors in a
+/// replacement name the file and line like those in the built-in source.
+pub fn compose_with(
+    plugins: &[&dyn Plugin],
+    target: TargetFormat,
+    limits: &wgpu::Limits,
+    overrides: &std::collections::BTreeMap<String, String>,
+) -> Result<Composition, ComposeError> {
     let mut bindings = Vec::new();
     let mut instances = Vec::new();
     let mut segments = Vec::new();
@@ -752,7 +763,10 @@ pub fn compose(
         let plugin = *plugin;
         let prefix = instance_prefix(plugin, index);
         let uniform = UniformLayout::new(&plugin.params());
-        let shader = plugin.shader();
+        let mut shader = plugin.shader();
+        if let Some(source) = overrides.get(shader.file.as_ref()) {
+            shader.source = source.clone().into();
+        }
 
         // bindings of the main module
         let inst_bindings = instance_bindings(plugin, index, &uniform, false, &mut g1, &mut g2);

@@ -169,7 +169,7 @@ pub fn delta_e_uv(a: [f64; 3], b: [f64; 3]) -> f64 {
 }
 
 /// Error figures of one image against another.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize)]
 pub struct Metrics {
     pub width: u32,
     pub height: u32,

@@ -28,7 +28,9 @@ use serde::{Deserialize, Serialize};
 use wgpu::util::DeviceExt;
 
 use crate::camera::Camera;
-use crate::composer::{Binding, BindingRole, ComposeError, Composition, TargetFormat, compose};
+use crate::composer::{
+    Binding, BindingRole, ComposeError, Composition, TargetFormat, compose_with,
+};
 use crate::gpu::GpuContext;
 use crate::params::ParamValues;
 use crate::plugin::{GpuInit, GpuResource, Plugin, PluginError, PluginInstance};
@@ -219,6 +221,8 @@ fn structure_of(inst: &PluginInstance) -> Vec<String> {
 struct StructureKey {
     entries: Vec<(u64, &'static str, Vec<String>)>,
     target: TargetFormat,
+    /// Changes whenever a shader override is set or cleared.
+    overrides: u64,
 }
 
 struct Target {
@@ -263,6 +267,9 @@ pub struct Renderer {
     occupancy_bytes: Option<Vec<u8>>,
     /// The user's switch (on by default).
     skipping_enabled: bool,
+    /// WGSL replacing a plugin file's built-in source (the window's shader editor).
+    shader_overrides: std::collections::BTreeMap<String, String>,
+    overrides_generation: u64,
     pipelines: Option<Pipelines>,
     instances: HashMap<u64, InstanceGpu>,
     target: Option<Target>,
@@ -394,6 +401,8 @@ impl Renderer {
             occupancy,
             occupancy_bytes: None,
             skipping_enabled: true,
+            shader_overrides: Default::default(),
+            overrides_generation: 0,
             pipelines: None,
             instances: HashMap::new(),
             target: None,
@@ -463,6 +472,24 @@ impl Renderer {
         self.pipelines = None;
         self.rebuild_g0();
         Ok(())
+    }
+
+    /// Replaces the WGSL of a plugin file (as named by [`crate::plugin::ShaderSource::file`])
+    /// for every instance using it, or restores the built-in source (`None`). Takes
+    /// effect at the next [`Renderer::update_stack`]; if the new source fails to
+    /// compose, that call returns the error (naming the file and line) and the last
+    /// good pipeline stays.
+    pub fn set_shader_override(&mut self, file: &str, source: Option<String>) {
+        match source {
+            Some(s) => self.shader_overrides.insert(file.to_string(), s),
+            None => self.shader_overrides.remove(file),
+        };
+        self.overrides_generation += 1;
+    }
+
+    /// The overriding WGSL of a plugin file, if any.
+    pub fn shader_override(&self, file: &str) -> Option<&str> {
+        self.shader_overrides.get(file).map(String::as_str)
     }
 
     /// Turns empty-space skipping on or off (on by default; it only ever acts when
@@ -574,11 +601,13 @@ impl Renderer {
                 .map(|i| (i.uid, i.plugin.id(), structure_of(i)))
                 .collect(),
             target,
+            overrides: self.overrides_generation,
         };
         let recompose = self.pipelines.as_ref().is_none_or(|p| p.key != key);
         if recompose {
             let plugins: Vec<&dyn Plugin> = enabled.iter().map(|i| i.plugin.as_ref()).collect();
-            let composition = compose(&plugins, target, &self.gpu.limits)?;
+            let composition =
+                compose_with(&plugins, target, &self.gpu.limits, &self.shader_overrides)?;
             self.dump(&composition);
             // resources for new instances (kept for known ones)
             for inst in &enabled {

@@ -12,12 +12,6 @@ fn vwb() -> Command {
     c
 }
 
-fn tmp(name: &str) -> std::path::PathBuf {
-    let d = std::env::temp_dir().join(format!("vwb-cli-{}", std::process::id()));
-    std::fs::create_dir_all(&d).unwrap();
-    d.join(name)
-}
-
 #[test]
 fn render_writes_a_png_for_every_shipped_preset() {
     gpu();

@@ -13,3 +13,4 @@ mod presets;
 mod reference;
 mod render;
 mod shading;
+mod window;

@@ -1,0 +1,561 @@
+//! The workbench window driven as a user drives it (egui_kittest: clicks, drags and
+//! typing through the accessibility tree), rendering on the same Vulkan device as
+//! every other GPU test. Snapshots live in tests/snapshots (`UPDATE_SNAPSHOTS=1`
+//! rewrites them).
+
+use std::path::Path;
+use std::sync::mpsc;
+use std::time::{Duration, Instant};
+
+use egui_kittest::Harness;
+use egui_kittest::kittest::Queryable;
+use vwb_app::window::{Workbench, default_document, wgpu_configuration};
+use vwb_render::preset::{Document, VolumeSource};
+
+use crate::common::{gpu, registry, repo, tmp};
+
+const CT: &str = "../shared/data/ct_cranium_256x256x108_int16.nhdr";
+
+/// The window on `doc` at 1100×800, drawing at `scale` × the viewport's resolution.
+fn window(doc: Document, scale: f32) -> Harness<'static, Workbench> {
+    gpu();
+    let volume = vwb_app::headless::load_volume(&doc.volume).expect("volume");
+    let mut h = Harness::builder()
+        .with_size([1100.0, 800.0])
+        .wgpu_setup(wgpu_configuration().wgpu_setup)
+        .build_eframe(move |cc| {
+            let (tx, _) = mpsc::channel();
+            Workbench::new(cc, doc, volume, None, tx).expect("workbench")
+        });
+    assert_eq!(
+        h.state().renderer().gpu().info.backend,
+        wgpu::Backend::Vulkan,
+        "the window must run on Vulkan"
+    );
+    h.state_mut().quality_scale = scale;
+    h.run_steps(3);
+    h
+}
+
+/// The window on the embedded demo (tests run in the repository root, as cargo
+/// starts them).
+fn demo_window() -> Harness<'static, Workbench> {
+    window(default_document(&registry()), 0.25)
+}
+
+fn ids(h: &Harness<'_, Workbench>) -> Vec<&'static str> {
+    h.state()
+        .document()
+        .stack
+        .iter()
+        .map(|i| i.plugin.id())
+        .collect()
+}
+
+fn image(h: &Harness<'_, Workbench>) -> image::RgbImage {
+    h.state().image().expect("the viewport has drawn")
+}
+
+/// RMS difference of two 8-bit images (0–255).
+fn rms(a: &image::RgbImage, b: &image::RgbImage) -> f64 {
+    assert_eq!(a.dimensions(), b.dimensions());
+    let n = a.as_raw().len() as f64;
+    let sum: f64 = a
+        .as_raw()
+        .iter()
+        .zip(b.as_raw())
+        .map(|(x, y)| (*x as f64 - *y as f64).powi(2))
+        .sum();
+    (sum / n).sqrt()
+}
+
+/// Runs frames until nothing animates (scrolling to a widget is animated).
+fn settle(h: &mut Harness<'_, Workbench>) {
+    if h.run_ok().is_none() {
+        h.run_steps(10);
+    }
+}
+
+/// Scrolls the `n`-th node labelled `label` into view, clicks it and lets the UI settle.
+fn click_nth(h: &mut Harness<'_, Workbench>, label: &str, n: usize) {
+    h.get_all_by_label(label)
+        .nth(n)
+        .unwrap_or_else(|| panic!("no {label} #{n}"))
+        .scroll_to_me();
+    settle(h);
+    // menus open on a click where the pointer already hovers, as with a real mouse
+    h.get_all_by_label(label).nth(n).unwrap().hover();
+    h.run_steps(1);
+    h.get_all_by_label(label).nth(n).unwrap().click();
+    h.run_steps(3);
+}
+
+fn click(h: &mut Harness<'_, Workbench>, label: &str) {
+    click_nth(h, label, 0);
+}
+
+/// Adds a plugin through the "Add plugin" menu.
+fn add_plugin(h: &mut Harness<'_, Workbench>, category: &str, name: &str) {
+    click(h, "Add plugin");
+
+    click(h, category);
+    click(h, name);
+}
+
+/// Replaces the text of the text field now showing `current`.
+fn retype(h: &mut Harness<'_, Workbench>, current: &str, text: &str) {
+    let current = current.to_string();
+    let field = || {
+        let c = current.clone();
+        move |n: &egui_kittest::kittest::AccessKitNode<'_>| {
+            n.role() == egui::Role::TextInput && n.value().as_deref() == Some(c.as_str())
+        }
+    };
+    h.get_by(field()).scroll_to_me();
+    settle(h);
+    h.get_by(field()).click();
+    h.run_steps(1);
+    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::A);
+    h.run_steps(1);
+    h.get_by(field()).type_text(text);
+    h.run_steps(2);
+}
+
+/// Releases the primary button at `pos`, the pointer staying there (kittest's
+/// `drop_at` also removes the pointer, which no mouse does).
+fn release_at(h: &mut Harness<'_, Workbench>, pos: egui::Pos2) {
+    h.event(egui::Event::PointerButton {
+        pos,
+        button: egui::PointerButton::Primary,
+        pressed: false,
+        modifiers: egui::Modifiers::NONE,
+    });
+}
+
+/// A pointer drag from `a` to `b` in `steps` moves, one frame each.
+fn drag(h: &mut Harness<'_, Workbench>, a: egui::Pos2, b: egui::Pos2, steps: usize) {
+    h.hover_at(a);
+    h.step();
+    h.drag_at(a);
+    h.step();
+    for k in 1..=steps {
+        h.hover_at(a + (b - a) * (k as f32 / steps as f32));
+        h.step();
+    }
+    release_at(h, b);
+    h.run_steps(2);
+}
+
+/// Steps the UI until `done` holds or `limit` passes.
+fn step_until(
+    h: &mut Harness<'_, Workbench>,
+    limit: Duration,
+    mut done: impl FnMut(&mut Harness<'_, Workbench>) -> bool,
+) {
+    let start = Instant::now();
+    while !done(h) {
+        assert!(start.elapsed() < limit, "timed out after {limit:?}");
+        h.step();
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
+/// Add a plugin, change one of its parameters, reorder by dragging, break its shader
+/// and see the error at the plugin while the last image stays, revert, save the preset
+/// and reload it to the same image; then a snapshot of the window.
+#[test]
+fn window_edits_a_scene_like_a_user() {
+    let mut h = demo_window();
+    let start = image(&h);
+    assert!(start.pixels().any(|p| p.0.iter().any(|&c| c > 40)), "blank");
+
+    // add a plugin: the image changes
+    add_plugin(&mut h, "shade", "Blinn–Phong");
+    assert_eq!(ids(&h), ["classify.tf1d", "shade.blinn_phong"]);
+    assert!(h.state().error().is_none(), "{:?}", h.state().error());
+    let lit = image(&h);
+    assert!(rms(&start, &lit) > 1.0, "shading changed nothing");
+
+    // change a parameter: the image changes again
+    click_nth(&mut h, "parameters", 1);
+    h.get_by_role_and_label(egui::Role::Slider, "Specular k_s")
+        .scroll_to_me();
+    settle(&mut h);
+    let slider = h.get_by_role_and_label(egui::Role::Slider, "Specular k_s");
+    slider.set_value_accesskit(1.0);
+    h.run_steps(3);
+    let shiny = image(&h);
+    assert_eq!(
+        h.state().document().stack[1].params.float("ks"),
+        1.0,
+        "the slider sets k_s"
+    );
+    assert!(rms(&lit, &shiny) > 0.2, "k_s changed nothing");
+
+    // reorder by dragging Blinn–Phong's handle onto the first plugin, and back
+    h.get_all_by_label("::").next().unwrap().scroll_to_me();
+    settle(&mut h);
+    let handles = h
+        .get_all_by_label("::")
+        .map(|n| n.rect())
+        .collect::<Vec<_>>();
+    assert_eq!(handles.len(), 2);
+    drag(&mut h, handles[1].center(), handles[0].center(), 6);
+    assert_eq!(ids(&h), ["shade.blinn_phong", "classify.tf1d"]);
+    // fold Blinn–Phong's parameters so that both handles are on screen, drag back
+    click_nth(&mut h, "parameters", 0);
+    h.get_all_by_label("::").next().unwrap().scroll_to_me();
+    settle(&mut h);
+    let handles = h
+        .get_all_by_label("::")
+        .map(|n| n.rect())
+        .collect::<Vec<_>>();
+    drag(&mut h, handles[1].center(), handles[0].center(), 6);
+    assert_eq!(ids(&h), ["classify.tf1d", "shade.blinn_phong"]);
+
+    // break the shader: the error names the plugin, its file and line; the last good
+    // pipeline keeps drawing the same image
+    let before_break = image(&h);
+    click_nth(&mut h, "wgsl", 1);
+    let editor = h.get_by_role(egui::Role::MultilineTextInput);
+    editor.focus();
+    h.run_steps(1);
+    h.get_by_role(egui::Role::MultilineTextInput)
+        .type_text("fn broken( { ");
+    h.run_steps(1);
+    click(&mut h, "Apply");
+    let e = h.state().error().expect("a compile error").to_string();
+    assert!(
+        e.contains("shade.blinn_phong") && e.contains("plugins/src/shade_blinn_phong/"),
+        "{e}"
+    );
+    assert!(
+        e.split("blinn_phong.wgsl:")
+            .nth(1)
+            .is_some_and(|r| r.chars().next().is_some_and(|c| c.is_ascii_digit())),
+        "file:line in {e}"
+    );
+    // shown in the stack, under the plugin
+    assert!(h.query_by_label_contains("blinn_phong.wgsl:").is_some());
+    h.state_mut().document_mut().camera.zoom(1.0);
+    h.run_steps(2);
+    assert_eq!(rms(&before_break, &image(&h)), 0.0, "the last image stays");
+    click(&mut h, "Revert to built-in");
+    assert!(h.state().error().is_none(), "{:?}", h.state().error());
+    click(&mut h, "Close editor");
+    assert!(h.query_by_label("Revert to built-in").is_none());
+
+    // save the preset, change the scene, open the preset again: the same image
+    let file = tmp("window_preset.ron");
+    let _ = std::fs::remove_file(&file);
+    retype(&mut h, "presets/my_preset.ron", file.to_str().unwrap());
+    click(&mut h, "Save preset");
+    assert!(
+        matches!(h.state().file_status(), Some(Ok(m)) if m.starts_with("saved")),
+        "{:?}",
+        h.state().file_status()
+    );
+    let saved = image(&h);
+    click_nth(&mut h, "parameters", 1);
+    h.get_by_role_and_label(egui::Role::Slider, "Specular k_s")
+        .scroll_to_me();
+    settle(&mut h);
+    h.get_by_role_and_label(egui::Role::Slider, "Specular k_s")
+        .set_value_accesskit(0.0);
+    h.run_steps(3);
+    assert!(rms(&saved, &image(&h)) > 0.2);
+    click(&mut h, "Open preset");
+    assert_eq!(h.state().document().stack[1].params.float("ks"), 1.0);
+    assert!(
+        rms(&saved, &image(&h)) < 0.01,
+        "reloaded image differs by {}",
+        rms(&saved, &image(&h))
+    );
+    assert!(
+        h.state()
+            .recent()
+            .iter()
+            .any(|p| p.ends_with("window_preset.ron"))
+    );
+
+    // the viewport is deterministic on lavapipe: a snapshot of it
+    egui_kittest::image_snapshot(
+        &image::DynamicImage::ImageRgb8(image(&h)).to_rgba8(),
+        "window_viewport_demo_phong",
+    );
+}
+
+/// The user flow of issue 8: open the app, load the CT head, pick a CT preset, switch
+/// Blinn–Phong ↔ DOS, edit the TF (preview quality while dragging), run a sweep, read
+/// the Pareto plot and apply a point.
+#[test]
+fn window_ct_flow_phong_dos_tf_sweep_pareto() {
+    let ct = repo().join(CT);
+    let mut h = demo_window();
+
+    // load the CT head into the demo scene
+    retype(&mut h, "../shared/data/", ct.to_str().unwrap());
+    click(&mut h, "Open volume");
+    assert!(
+        matches!(h.state().file_status(), Some(Ok(_))),
+        "{:?}",
+        h.state().file_status()
+    );
+    assert_eq!(h.state().renderer().volume().dims, [256, 256, 108]);
+
+    // a bad volume path is refused, naming the file; the CT stays
+    let bad = tmp("no_such_volume.nhdr");
+    retype(&mut h, ct.to_str().unwrap(), bad.to_str().unwrap());
+    click(&mut h, "Open volume");
+    match h.state().file_status() {
+        Some(Err(e)) => assert!(e.contains("no_such_volume.nhdr"), "{e}"),
+        other => panic!("{other:?}"),
+    }
+    assert_eq!(h.state().renderer().volume().dims, [256, 256, 108]);
+
+    // pick the CT preset with Blinn–Phong
+    retype(
+        &mut h,
+        "presets/my_preset.ron",
+        "presets/ct_shade_phong.ron",
+    );
+    click(&mut h, "Open preset");
+    assert!(ids(&h).contains(&"shade.blinn_phong"), "{:?}", ids(&h));
+    assert!(matches!(h.state().document().volume, VolumeSource::File(_)));
+    let phong = image(&h);
+
+    // Blinn–Phong → DOS
+    let at = ids(&h)
+        .iter()
+        .position(|i| *i == "shade.blinn_phong")
+        .unwrap();
+    click_nth(&mut h, "del", at);
+    add_plugin(&mut h, "shade", "Directional occlusion");
+    assert!(ids(&h).contains(&"shade.dos") && !ids(&h).contains(&"shade.blinn_phong"));
+    assert!(h.state().error().is_none(), "{:?}", h.state().error());
+    let dos = image(&h);
+    assert!(rms(&phong, &dos) > 1.0);
+
+    // DOS → Blinn–Phong
+    let at = ids(&h).iter().position(|i| *i == "shade.dos").unwrap();
+    click_nth(&mut h, "del", at);
+    add_plugin(&mut h, "shade", "Blinn–Phong");
+    assert!(ids(&h).contains(&"shade.blinn_phong") && !ids(&h).contains(&"shade.dos"));
+    assert!(rms(&dos, &image(&h)) > 1.0);
+
+    // edit the TF: drag its fifth point (bone) down; preview quality while dragging
+    h.get_by_label("transfer function editor").scroll_to_me();
+    settle(&mut h);
+    let editor = h.get_by_label("transfer function editor").rect();
+    let p = h.state().document().stack[0]
+        .params
+        .get("tf")
+        .cloned()
+        .expect("tf");
+    let vwb_render::params::ParamValue::Tf(curve) = p else {
+        panic!("not a TF")
+    };
+    let q = curve.points[4];
+    let at = egui::pos2(
+        editor.left() + q.x * editor.width(),
+        editor.bottom() - q.color[3] * editor.height(),
+    );
+    let to = at + egui::vec2(0.0, 30.0);
+    h.hover_at(at);
+    h.step();
+    h.drag_at(at);
+    h.step();
+    let mut previewed = false;
+    for k in 1..=4 {
+        h.hover_at(at + (to - at) * (k as f32 / 4.0));
+        h.step();
+        previewed |= h.state().is_preview();
+    }
+    h.drop_at(to);
+    h.run_steps(3);
+    assert!(previewed, "dragging a TF point draws previews");
+    assert!(!h.state().is_preview(), "full quality after the release");
+    let vwb_render::params::ParamValue::Tf(after) = h.state().document().stack[0]
+        .params
+        .get("tf")
+        .cloned()
+        .unwrap()
+    else {
+        panic!()
+    };
+    assert!(
+        after.points[4].color[3] < q.color[3] - 0.05,
+        "{} → {}",
+        q.color[3],
+        after.points[4].color[3]
+    );
+
+    // run a sweep over the slice spacing (small images) and read the Pareto plot
+    click(&mut h, "Trade-off: sweep and Pareto plot");
+    h.get_by_role_and_label(egui::Role::Slider, "sweep image side")
+        .scroll_to_me();
+    settle(&mut h);
+    h.get_by_role_and_label(egui::Role::Slider, "sweep image side")
+        .set_value_accesskit(24.0);
+    h.run_steps(2);
+    retype(&mut h, "0.5..2:3:log", "0.5,1,4");
+    click(&mut h, "Run sweep");
+    assert!(h.state_mut().tradeoff().job.is_some(), "the sweep started");
+    step_until(&mut h, Duration::from_secs(600), |h| {
+        h.state_mut().tradeoff().job.is_none()
+    });
+    if let Some(Err(e)) = &h.state_mut().tradeoff().result {
+        panic!("sweep failed: {e}");
+    }
+    h.get_by_label("Pareto plot").scroll_to_me();
+    settle(&mut h);
+    let (n, front, coarse) = {
+        let t = h.state_mut().tradeoff();
+        let r = t.finished().expect("the sweep finished");
+        let coarse = r
+            .points
+            .iter()
+            .position(|p| p.values[0] == 4.0)
+            .expect("spacing 4");
+        (
+            r.points.len(),
+            r.points.iter().filter(|p| p.pareto).count(),
+            coarse,
+        )
+    };
+    assert_eq!(n, 3);
+    assert!(front >= 1);
+    {
+        let t = h.state_mut().tradeoff();
+        let r = t.finished().unwrap();
+        let fine = r.points.iter().find(|p| p.values[0] == 0.5).unwrap();
+        let coarse_p = &r.points[coarse];
+        assert!(
+            fine.metrics.rms_delta_e < coarse_p.metrics.rms_delta_e,
+            "finer slices are closer to the converged reference: {} vs {}",
+            fine.metrics.rms_delta_e,
+            coarse_p.metrics.rms_delta_e
+        );
+    }
+    assert!(h.query_by_label_contains("on the Pareto front").is_some());
+    // click the coarse point: its slice spacing is applied to the scene
+    // hovering can re-lay out the plot's axes: follow the point until it stays put
+    let mut p = egui::Pos2::ZERO;
+    for _ in 0..5 {
+        let q = h
+            .state_mut()
+            .tradeoff()
+            .point_on_screen(coarse)
+            .expect("drawn");
+        if q == p {
+            break;
+        }
+        p = q;
+        h.hover_at(p);
+        h.step();
+    }
+    h.drag_at(p);
+    h.step();
+    release_at(&mut h, p);
+    h.run_steps(3);
+    assert_eq!(h.state().document().render.slice_spacing, 4.0);
+    assert!(
+        h.query_by_label_contains("applied slice_spacing=4.000")
+            .is_some()
+    );
+}
+
+/// A broken preset is refused with its file name; the scene and its image stay.
+#[test]
+fn window_refuses_a_broken_preset_and_keeps_the_scene() {
+    let mut h = demo_window();
+    let before = image(&h);
+    // a fixed path: it is shown in the snapshot below
+    let bad = std::env::temp_dir().join("vwb_window_bad_preset.ron");
+    std::fs::write(&bad, "(version: 1, plugins: [ (id: \"classify.nope\") ]").unwrap();
+    retype(&mut h, "presets/my_preset.ron", bad.to_str().unwrap());
+    click(&mut h, "Open preset");
+    match h.state().file_status() {
+        Some(Err(e)) => assert!(e.contains("vwb_window_bad_preset.ron"), "{e}"),
+        other => panic!("{other:?}"),
+    }
+    assert_eq!(ids(&h), ["classify.tf1d"]);
+    assert_eq!(rms(&before, &image(&h)), 0.0);
+    assert!(Path::new(&bad).exists(), "nothing is deleted");
+
+    // a snapshot of the whole window, the timing panel (changing numbers) folded
+    assert!(h.query_by_label("frame time plot").is_some());
+    click(&mut h, "Timing");
+    assert!(h.query_by_label("frame time plot").is_none());
+    h.remove_cursor();
+    h.run_steps(2);
+    h.snapshot("window_demo");
+}
+
+/// The UI benchmark of docs/perf.md: frame time of the window (1100×800) with the CT
+/// head (presets/ct_head.ron) while a TF point is dragged, for several preview
+/// settings, and the full-quality frame after the release. Each UI frame lays out
+/// egui and renders the viewport (the renderer waits for its GPU timestamps), without
+/// egui's own paint. Writes docs/ui_bench.json. Run:
+/// `bash bench/ui.sh`.
+#[test]
+#[ignore = "benchmark: bash bench/ui.sh"]
+fn ui_frame_time_benchmark() {
+    let doc = vwb_app::cli::load_document(Some(&repo().join("presets/ct_head.ron")))
+        .expect("presets/ct_head.ron");
+    let mut h = window(doc, 1.0);
+    h.get_by_label("transfer function editor").scroll_to_me();
+    settle(&mut h);
+    let viewport = h.state().renderer().read_pixels().map(|(w, h, _)| [w, h]);
+    let mut rows = Vec::new();
+    for (spacing, resolution) in [(1.0f32, 1.0f32), (2.0, 0.5), (2.0, 0.25), (4.0, 0.25)] {
+        h.state_mut().drag_spacing = spacing;
+        h.state_mut().drag_resolution = resolution;
+        h.run_steps(2);
+        let editor = h.get_by_label("transfer function editor").rect();
+        let at = egui::pos2(
+            editor.left() + 0.36 * editor.width(),
+            editor.bottom() - 0.6 * editor.height(),
+        );
+        h.hover_at(at);
+        h.step();
+        h.drag_at(at);
+        h.step();
+        let mut times = Vec::new();
+        for k in 0..24 {
+            let dy = if k % 2 == 0 { 12.0 } else { -12.0 };
+            h.hover_at(at + egui::vec2(0.0, dy));
+            let t = Instant::now();
+            h.step();
+            times.push(t.elapsed().as_secs_f64() * 1e3);
+            assert!(h.state().is_preview());
+        }
+        h.drop_at(at);
+        let t = Instant::now();
+        h.step();
+        let full = t.elapsed().as_secs_f64() * 1e3;
+        times.sort_by(f64::total_cmp);
+        let median = times[times.len() / 2];
+        let p90 = times[times.len() * 9 / 10];
+        eprintln!(
+            "preview spacing ×{spacing}, resolution ×{resolution}: median {median:.1} ms, p90 {p90:.1} ms; full-quality frame {full:.1} ms"
+        );
+        rows.push(serde_json::json!({
+            "preview_slice_spacing_factor": spacing,
+            "preview_resolution_factor": resolution,
+            "ui_frame_ms_median": median,
+            "ui_frame_ms_p90": p90,
+            "full_quality_frame_ms": full,
+            "frames": times.len(),
+        }));
+    }
+    let out = serde_json::json!({
+        "machine": vwb_app::measure::machine(),
+        "adapter": h.state().renderer().gpu().describe(),
+        "window": [1100, 800],
+        "viewport_pixels_full_quality": viewport,
+        "preset": "presets/ct_head.ron",
+        "rows": rows,
+    });
+    vwb_app::measure::save_json(&repo().join("docs/ui_bench.json"), &out).expect("write");
+}
