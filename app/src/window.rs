@@ -103,6 +103,18 @@ enum Shot {
     Requested(mpsc::Receiver<Result<(), String>>),
 }
 
+/// The preview's slice-spacing and resolution factors: ×2 and ×½ on GPUs; ×4 and ×¼ on
+/// CPU adapters (lavapipe), where dragging a TF point over the CT head takes a median
+/// ~150 ms per UI frame at (×2, ×½), ~45–50 ms at (×2, ×¼) and ~30 ms at (×4, ×¼)
+/// (`bash bench/ui.sh`, docs/perf.md).
+pub fn default_preview(info: &wgpu::AdapterInfo) -> (f32, f32) {
+    if info.device_type == wgpu::DeviceType::Cpu {
+        (4.0, 0.25)
+    } else {
+        (2.0, 0.5)
+    }
+}
+
 /// What vwb keeps between runs (eframe storage, key [`STORAGE_KEY`]).
 #[derive(Debug, Clone, Default, serde::Serialize, serde::Deserialize)]
 #[serde(default)]
@@ -204,6 +216,7 @@ impl Workbench {
             .and_then(|s| eframe::get_value(s, STORAGE_KEY))
             .unwrap_or_default();
         let or = |s: String, d: &str| if s.is_empty() { d.to_string() } else { s };
+        let preview = default_preview(&rs.adapter.get_info());
         Ok(Self {
             doc,
             registry: vwb_plugins::builtin_registry(),
@@ -225,8 +238,8 @@ impl Workbench {
             frame_ms: None,
             passes: Vec::new(),
             history: std::collections::VecDeque::new(),
-            drag_spacing: 2.0,
-            drag_resolution: 0.5,
+            drag_spacing: preview.0,
+            drag_resolution: preview.1,
             preview: false,
             compare_side: 128,
             compare_job: None,

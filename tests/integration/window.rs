@@ -146,6 +146,23 @@ fn drag(h: &mut Harness<'_, Workbench>, a: egui::Pos2, b: egui::Pos2, steps: usi
     h.run_steps(2);
 }
 
+/// The 1D TF of the first plugin.
+fn tf_curve(h: &Harness<'_, Workbench>) -> vwb_render::tf::TfCurve {
+    match h.state().document().stack[0].params.get("tf") {
+        Some(vwb_render::params::ParamValue::Tf(c)) => c.clone(),
+        other => panic!("the first plugin has no 1D TF: {other:?}"),
+    }
+}
+
+/// Where control point `i` of the first plugin's TF is drawn in `editor`.
+fn tf_point_on_screen(h: &Harness<'_, Workbench>, editor: egui::Rect, i: usize) -> egui::Pos2 {
+    let q = tf_curve(h).points[i];
+    egui::pos2(
+        editor.left() + q.x * editor.width(),
+        editor.bottom() - q.color[3] * editor.height(),
+    )
+}
+
 /// Steps the UI until `done` holds or `limit` passes.
 fn step_until(
     h: &mut Harness<'_, Workbench>,
@@ -347,19 +364,8 @@ fn window_ct_flow_phong_dos_tf_sweep_pareto() {
     h.get_by_label("transfer function editor").scroll_to_me();
     settle(&mut h);
     let editor = h.get_by_label("transfer function editor").rect();
-    let p = h.state().document().stack[0]
-        .params
-        .get("tf")
-        .cloned()
-        .expect("tf");
-    let vwb_render::params::ParamValue::Tf(curve) = p else {
-        panic!("not a TF")
-    };
-    let q = curve.points[4];
-    let at = egui::pos2(
-        editor.left() + q.x * editor.width(),
-        editor.bottom() - q.color[3] * editor.height(),
-    );
+    let q = tf_curve(&h).points[4];
+    let at = tf_point_on_screen(&h, editor, 4);
     let to = at + egui::vec2(0.0, 30.0);
     h.hover_at(at);
     h.step();
@@ -507,16 +513,14 @@ fn ui_frame_time_benchmark() {
     h.get_by_label("transfer function editor").scroll_to_me();
     settle(&mut h);
     let viewport = h.state().renderer().read_pixels().map(|(w, h, _)| [w, h]);
+    let default = (h.state().drag_spacing, h.state().drag_resolution);
     let mut rows = Vec::new();
     for (spacing, resolution) in [(1.0f32, 1.0f32), (2.0, 0.5), (2.0, 0.25), (4.0, 0.25)] {
         h.state_mut().drag_spacing = spacing;
         h.state_mut().drag_resolution = resolution;
         h.run_steps(2);
         let editor = h.get_by_label("transfer function editor").rect();
-        let at = egui::pos2(
-            editor.left() + 0.36 * editor.width(),
-            editor.bottom() - 0.6 * editor.height(),
-        );
+        let at = tf_point_on_screen(&h, editor, 5);
         h.hover_at(at);
         h.step();
         h.drag_at(at);
@@ -547,6 +551,7 @@ fn ui_frame_time_benchmark() {
             "ui_frame_ms_p90": p90,
             "full_quality_frame_ms": full,
             "frames": times.len(),
+            "default_on_this_adapter": (spacing, resolution) == default,
         }));
     }
     let out = serde_json::json!({
