@@ -366,14 +366,14 @@ fn editor(
     painter.text(
         rect.right_bottom() + egui::vec2(-4.0, -2.0),
         egui::Align2::RIGHT_BOTTOM,
-        "value →",
+        "value",
         font.clone(),
         weak,
     );
     painter.text(
         rect.left_top() + egui::vec2(4.0, 2.0),
         egui::Align2::LEFT_TOP,
-        "↑ gradient magnitude",
+        "gradient magnitude",
         font,
         weak,
     );
@@ -385,7 +385,7 @@ fn editor(
         let before = *q;
         ui.horizontal(|ui| {
             ui.label(format!("primitive {i}"));
-            egui::ComboBox::from_id_salt(id.with("shape"))
+            egui::ComboBox::new(id.with("shape"), "shape")
                 .selected_text(q.shape.name())
                 .show_ui(ui, |ui| {
                     for s in Shape2d::ALL {

@@ -564,3 +564,65 @@ fn ui_frame_time_benchmark() {
     });
     vwb_app::measure::save_json(&repo().join("docs/ui_bench.json"), &out).expect("write");
 }
+
+/// A file dropped on the window: egui hands the app its path.
+#[derive(Debug)]
+struct Dropped(std::path::PathBuf);
+
+impl egui::DroppedFile for Dropped {
+    fn path(&self) -> &Path {
+        &self.0
+    }
+    fn bytes(&self) -> Result<Vec<u8>, String> {
+        std::fs::read(&self.0).map_err(|e| e.to_string())
+    }
+}
+
+fn drop_file(h: &mut Harness<'_, Workbench>, path: std::path::PathBuf) {
+    h.input_mut()
+        .dropped_files
+        .push(std::sync::Arc::new(Dropped(path)));
+    h.run_steps(3);
+}
+
+/// Drag and drop a preset and a volume onto the window; edit the 2D TF of
+/// `classify.tf2d` in its editor over the 2D histogram; compare with the converged
+/// reference in the background.
+#[test]
+fn window_drop_files_edit_the_2d_tf_and_compare() {
+    let mut h = demo_window();
+    drop_file(&mut h, repo().join("presets/demo_tf2d.ron"));
+    assert!(
+        matches!(h.state().file_status(), Some(Ok(_))),
+        "{:?}",
+        h.state().file_status()
+    );
+    assert_eq!(ids(&h), ["classify.tf2d"]);
+    let primitives = |h: &Harness<'_, Workbench>| {
+        h.state().document().stack[0]
+            .params
+            .tf2d("tf")
+            .map_or(0, |t| t.primitives.len())
+    };
+    let before = (primitives(&h), image(&h));
+    click(&mut h, "Add gaussian");
+    assert_eq!(primitives(&h), before.0 + 1, "a primitive was added");
+    assert!(
+        rms(&before.1, &image(&h)) > 0.1,
+        "the image follows the 2D TF"
+    );
+
+    // the converged reference of this frame, in the background
+    click(&mut h, "Compare with the CPU reference");
+    click(&mut h, "converged");
+    click(&mut h, "Compute reference");
+    step_until(&mut h, Duration::from_secs(300), |h| {
+        h.query_by_label_contains("RMS ΔE*uv").is_some()
+    });
+
+    // a volume dropped on the window replaces the demo, the stack stays
+    drop_file(&mut h, repo().join(CT));
+    assert_eq!(h.state().renderer().volume().dims, [256, 256, 108]);
+    assert_eq!(ids(&h), ["classify.tf2d"]);
+    assert!(h.state().recent().len() >= 2, "{:?}", h.state().recent());
+}
