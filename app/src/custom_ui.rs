@@ -82,6 +82,7 @@ fn dos_cone(ui: &mut egui::Ui, params: &mut ParamValues) -> bool {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::test_input::press;
     use vwb_render::plugin::PluginInstance;
 
     #[test]
@@ -133,12 +134,7 @@ mod tests {
         frame(vec![], 0.0, &mut inst);
         let start = rect.get().center();
         let end = start - egui::vec2(20.0, 0.0);
-        let button = |pos, pressed| egui::Event::PointerButton {
-            pos,
-            button: egui::PointerButton::Primary,
-            pressed,
-            modifiers: egui::Modifiers::NONE,
-        };
+        let button = |pos, pressed| press(pos, pressed, egui::PointerButton::Primary);
         frame(
             vec![egui::Event::PointerMoved(start), button(start, true)],
             0.1,

@@ -9,6 +9,8 @@ pub mod dos_study;
 pub mod headless;
 pub mod measure;
 pub mod stack_ui;
+#[cfg(test)]
+mod test_input;
 pub mod tf2d_editor;
 pub mod tf_editor;
 pub mod tradeoff_ui;

@@ -194,6 +194,24 @@ fn converged_settings(s: &FrameSettings) -> FrameSettings {
     }
 }
 
+/// The refined-slices converged reference of a document's frame.
+fn converged_of(
+    volume: &Volume,
+    doc: &Document,
+    s: &FrameSettings,
+    tolerance: f64,
+    o: &ReferenceOptions,
+) -> Result<Converged, reference::ReferenceError> {
+    reference::render_converged(
+        volume,
+        &doc.stack,
+        &converged_settings(s),
+        o,
+        tolerance,
+        background(doc),
+    )
+}
+
 /// The converged CPU reference of a document's scene, composited over its background.
 pub fn converged_reference(
     volume: &Volume,
@@ -203,14 +221,7 @@ pub fn converged_reference(
 ) -> Result<(RgbImageF, Converged, f64)> {
     let start = Instant::now();
     let c = with_progress("converged reference", None, |o| {
-        reference::render_converged(
-            volume,
-            &doc.stack,
-            &converged_settings(s),
-            o,
-            tolerance,
-            background(doc),
-        )
+        converged_of(volume, doc, s, tolerance, o)
     })?;
     let img = over(&c.image, doc);
     Ok((img, c, start.elapsed().as_secs_f64()))
@@ -261,24 +272,10 @@ pub fn converged_image(
         return Ok((img, info));
     }
     let c = if opts.cancel.is_some() || opts.progress.is_some() {
-        reference::render_converged(
-            volume,
-            &doc.stack,
-            &converged_settings(s),
-            opts,
-            tolerance,
-            background(doc),
-        )?
+        converged_of(volume, doc, s, tolerance, opts)?
     } else {
         with_progress("converged reference", None, |o| {
-            reference::render_converged(
-                volume,
-                &doc.stack,
-                &converged_settings(s),
-                o,
-                tolerance,
-                background(doc),
-            )
+            converged_of(volume, doc, s, tolerance, o)
         })?
     };
     let info = json!({

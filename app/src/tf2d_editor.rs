@@ -544,6 +544,7 @@ pub fn histogram_texture(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::test_input::press;
 
     fn rectangle(centre: [f32; 2], size: [f32; 2]) -> Primitive2d {
         Primitive2d {
@@ -611,15 +612,6 @@ mod tests {
             self.frame(tf, vec![egui::Event::PointerMoved(at)]);
             self.frame(tf, vec![press(at, true, button)]);
             self.frame(tf, vec![press(at, false, button)])
-        }
-    }
-
-    fn press(p: egui::Pos2, pressed: bool, button: egui::PointerButton) -> egui::Event {
-        egui::Event::PointerButton {
-            pos: p,
-            button,
-            pressed,
-            modifiers: Default::default(),
         }
     }
 

@@ -240,6 +240,7 @@ pub fn tf_editor(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::test_input::press;
 
     fn curve() -> TfCurve {
         TfCurve::new(vec![
@@ -276,15 +277,6 @@ mod tests {
         });
         out.textures_delta.clear();
         result
-    }
-
-    fn press(p: egui::Pos2, pressed: bool, button: egui::PointerButton) -> egui::Event {
-        egui::Event::PointerButton {
-            pos: p,
-            button,
-            pressed,
-            modifiers: Default::default(),
-        }
     }
 
     /// Dragging the middle point moves it; right-clicking removes it; a click on

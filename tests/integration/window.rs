@@ -163,6 +163,15 @@ fn tf_point_on_screen(h: &Harness<'_, Workbench>, editor: egui::Rect, i: usize) 
     )
 }
 
+/// Drags the second plugin's handle onto the first plugin.
+fn drag_second_onto_first(h: &mut Harness<'_, Workbench>) {
+    h.get_all_by_label("::").next().unwrap().scroll_to_me();
+    settle(h);
+    let handles: Vec<egui::Rect> = h.get_all_by_label("::").map(|n| n.rect()).collect();
+    assert_eq!(handles.len(), 2);
+    drag(h, handles[1].center(), handles[0].center(), 6);
+}
+
 /// Steps the UI until `done` holds or `limit` passes.
 fn step_until(
     h: &mut Harness<'_, Workbench>,
@@ -210,24 +219,11 @@ fn window_edits_a_scene_like_a_user() {
     assert!(rms(&lit, &shiny) > 0.2, "k_s changed nothing");
 
     // reorder by dragging Blinn–Phong's handle onto the first plugin, and back
-    h.get_all_by_label("::").next().unwrap().scroll_to_me();
-    settle(&mut h);
-    let handles = h
-        .get_all_by_label("::")
-        .map(|n| n.rect())
-        .collect::<Vec<_>>();
-    assert_eq!(handles.len(), 2);
-    drag(&mut h, handles[1].center(), handles[0].center(), 6);
+    drag_second_onto_first(&mut h);
     assert_eq!(ids(&h), ["shade.blinn_phong", "classify.tf1d"]);
     // fold Blinn–Phong's parameters so that both handles are on screen, drag back
     click_nth(&mut h, "parameters", 0);
-    h.get_all_by_label("::").next().unwrap().scroll_to_me();
-    settle(&mut h);
-    let handles = h
-        .get_all_by_label("::")
-        .map(|n| n.rect())
-        .collect::<Vec<_>>();
-    drag(&mut h, handles[1].center(), handles[0].center(), 6);
+    drag_second_onto_first(&mut h);
     assert_eq!(ids(&h), ["classify.tf1d", "shade.blinn_phong"]);
 
     // break the shader: the error names the plugin, its file and line; the last good
