@@ -158,6 +158,10 @@ pub struct Workbench {
     /// A parameter is being dragged (preview quality).
     editing: bool,
     compare_against: crate::compare_ui::Against,
+    /// Per-plugin cost by ablation (`vwb bench`'s engine) running in a thread, and its
+    /// last result.
+    ablation: Option<mpsc::Receiver<Result<Vec<crate::measure::BenchRow>, String>>>,
+    ablation_rows: Option<Result<Vec<crate::measure::BenchRow>, String>>,
     tradeoff: crate::tradeoff_ui::TradeoffView,
     /// Result of the last open or save.
     file_status: Option<Result<String, String>>,
@@ -229,6 +233,8 @@ impl Workbench {
             quality_scale: 1.0,
             editing: false,
             compare_against: Default::default(),
+            ablation: None,
+            ablation_rows: None,
             tradeoff: Default::default(),
             file_status: None,
             renderer,
@@ -528,7 +534,7 @@ impl Workbench {
     }
 
     /// Frame time, per-pass GPU times and a plot of the last frames.
-    fn timing(&self, ui: &mut egui::Ui) {
+    fn timing(&mut self, ui: &mut egui::Ui) {
         match self.frame_ms {
             Some(ms) => ui.label(format!(
                 "frame: {ms:.1} ms{}",
@@ -539,6 +545,7 @@ impl Workbench {
         for (name, ms) in &self.passes {
             ui.label(format!("  {name}: {ms:.2} ms"));
         }
+        self.per_plugin(ui);
         let points: egui_plot::PlotPoints = self
             .history
             .iter()
@@ -556,6 +563,70 @@ impl Workbench {
             })
             .response
             .widget_info(|| egui::WidgetInfo::labeled(egui::Role::Canvas, true, "frame time plot"));
+    }
+
+    /// Per-plugin GPU time: the hooks run inside one composed shader, so each plugin's
+    /// cost is the frame time with it minus the frame time without it (ablation, the
+    /// engine of `vwb bench`), measured in a thread at 256² over 5 frames; pre-passes
+    /// and memory per plugin come with it.
+    fn per_plugin(&mut self, ui: &mut egui::Ui) {
+        if let Some(rx) = &self.ablation {
+            match rx.try_recv() {
+                Ok(r) => {
+                    self.ablation_rows = Some(r);
+                    self.ablation = None;
+                }
+                Err(mpsc::TryRecvError::Empty) => {
+                    ui.add(egui::Spinner::new());
+                    ui.ctx().request_repaint();
+                }
+                Err(mpsc::TryRecvError::Disconnected) => {
+                    self.ablation_rows = Some(Err("the measurement stopped".into()));
+                    self.ablation = None;
+                }
+            }
+        } else if ui
+            .button("Measure per-plugin cost")
+            .on_hover_text("frame time with each plugin minus without it, 256², 5 frames")
+            .clicked()
+        {
+            let (tx, rx) = mpsc::channel();
+            let gpu = self.renderer.gpu().clone();
+            let volume = self.renderer.volume().clone();
+            let mut doc = self.doc.clone();
+            doc.render.size = [256, 256];
+            std::thread::spawn(move || {
+                let rows = crate::measure::bench_document(&gpu, &doc, volume, 1, 5)
+                    .map_err(|e| format!("{e:#}"));
+                let _ = tx.send(rows);
+            });
+            self.ablation = Some(rx);
+        }
+        match &self.ablation_rows {
+            Some(Ok(rows)) => {
+                for r in rows
+                    .iter()
+                    .filter(|r| r.kind == "plugin" || r.kind == "cold_pass")
+                {
+                    if let Some(ms) = &r.ms {
+                        ui.label(format!("  {} ({}): {:.2} ms", r.name, r.kind, ms.median));
+                    }
+                }
+                for r in rows.iter().filter(|r| r.kind == "memory") {
+                    if let Some(b) = r.bytes {
+                        ui.label(format!(
+                            "  {} memory: {:.1} MiB",
+                            r.name,
+                            b as f64 / 1048576.0
+                        ));
+                    }
+                }
+            }
+            Some(Err(e)) => {
+                ui.colored_label(egui::Color32::RED, e);
+            }
+            None => {}
+        }
     }
 
     /// The GPU image beside the CPU reference of the same frame, the ΔE*uv heatmap and

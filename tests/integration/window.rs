@@ -218,6 +218,13 @@ fn window_edits_a_scene_like_a_user() {
     );
     assert!(rms(&lit, &shiny) > 0.2, "k_s changed nothing");
 
+    // per-plugin GPU time by ablation, in the background
+    click(&mut h, "Measure per-plugin cost");
+    step_until(&mut h, Duration::from_secs(300), |h| {
+        h.query_by_label_contains("shade.blinn_phong#1 (plugin)")
+            .is_some()
+    });
+
     // reorder by dragging Blinn–Phong's handle onto the first plugin, and back
     drag_second_onto_first(&mut h);
     assert_eq!(ids(&h), ["shade.blinn_phong", "classify.tf1d"]);
