@@ -18,10 +18,16 @@ const CT: &str = "../shared/data/ct_cranium_256x256x108_int16.nhdr";
 
 /// The window on `doc` at 1100×800, drawing at `scale` × the viewport's resolution.
 fn window(doc: Document, scale: f32) -> Harness<'static, Workbench> {
+    window_checked(doc, scale, true)
+}
+
+/// [`window`], with kittest's check that every widget has an accessible name on or off.
+fn window_checked(doc: Document, scale: f32, accessibility: bool) -> Harness<'static, Workbench> {
     gpu();
     let volume = vwb_app::headless::load_volume(&doc.volume).expect("volume");
     let mut h = Harness::builder()
         .with_size([1100.0, 800.0])
+        .with_accessibility_check(accessibility)
         .wgpu_setup(wgpu_configuration().wgpu_setup)
         .build_eframe(move |cc| {
             let (tx, _) = mpsc::channel();
@@ -628,4 +634,34 @@ fn window_drop_files_edit_the_2d_tf_and_compare() {
     assert_eq!(h.state().renderer().volume().dims, [256, 256, 108]);
     assert_eq!(ids(&h), ["classify.tf2d"]);
     assert!(h.state().recent().len() >= 2, "{:?}", h.state().recent());
+}
+
+/// The file dialog (egui_file) opens on the presets folder and lists them; choosing
+/// one opens it; Cancel closes the dialog. egui_file's own path fields have no
+/// accessible names, so kittest's accessibility check is off here only.
+#[test]
+fn window_file_dialog_opens_a_preset() {
+    let mut h = window_checked(default_document(&registry()), 0.25, false);
+    click_nth(&mut h, "…", 1);
+    assert!(
+        h.query_by_label_contains("ct_head.ron").is_some(),
+        "presets listed"
+    );
+    click(&mut h, "Cancel");
+    assert!(h.query_by_label_contains("ct_head.ron").is_none(), "closed");
+    click_nth(&mut h, "…", 1);
+    // entries carry an icon before the name
+    h.get_by_label_contains("demo_tf2d.ron").scroll_to_me();
+    settle(&mut h);
+    h.get_by_label_contains("demo_tf2d.ron").hover();
+    h.run_steps(1);
+    h.get_by_label_contains("demo_tf2d.ron").click();
+    h.run_steps(2);
+    click(&mut h, "Open");
+    assert!(
+        matches!(h.state().file_status(), Some(Ok(m)) if m.contains("demo_tf2d.ron")),
+        "{:?}",
+        h.state().file_status()
+    );
+    assert_eq!(ids(&h), ["classify.tf2d"]);
 }
