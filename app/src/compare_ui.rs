@@ -5,13 +5,15 @@
 //! one (`crate::measure::converged_image`: refined slices, or the Monte-Carlo cone
 //! integral for directional occlusion: how far is this frame from the integral?).
 
+use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
-use std::sync::{Arc, mpsc};
 
 use vwb_render::metrics::{Metrics, RgbImageF, compare, delta_e_map, heatmap};
 use vwb_render::reference::{ReferenceOptions, render_reference};
 use vwb_render::renderer::FrameSettings;
 use vwb_render::{PluginInstance, TargetFormat, Volume};
+
+use crate::job::Job;
 
 /// What the compare view shows once the reference is done.
 pub struct Comparison {
@@ -27,7 +29,7 @@ pub struct CompareJob {
     cancel: Arc<AtomicBool>,
     /// Rows of the same-slices reference; unknown for the converged one.
     rows: Option<u32>,
-    rx: mpsc::Receiver<Result<Comparison, String>>,
+    job: Job<Comparison>,
 }
 
 /// What the compare view compares against.
@@ -69,23 +71,21 @@ impl CompareJob {
             progress: Some(progress.clone()),
             cancel: Some(cancel.clone()),
         };
-        let (tx, rx) = mpsc::channel();
-        std::thread::spawn(move || {
-            let result = render_reference(&volume, &stack, &settings, &opts)
+        let job = Job::spawn("reference", move || {
+            render_reference(&volume, &stack, &settings, &opts)
                 .map_err(|e| e.to_string())
                 .map(|r| {
                     let reference = RgbImageF::from_rgba_premultiplied_over(
                         &r.pixels, r.width, r.height, background,
                     );
                     finish(&gpu, reference)
-                });
-            let _ = tx.send(result);
+                })
         });
         Self {
             progress,
             cancel,
             rows: Some(settings.height),
-            rx,
+            job,
         }
     }
 
@@ -105,19 +105,16 @@ impl CompareJob {
             cancel: Some(cancel.clone()),
             ..Default::default()
         };
-        let (tx, rx) = mpsc::channel();
-        std::thread::spawn(move || {
-            let result =
-                crate::measure::converged_image(&volume, &doc, &settings, tolerance, &opts)
-                    .map_err(|e| format!("{e:#}"))
-                    .map(|(reference, _)| finish(&gpu, reference));
-            let _ = tx.send(result);
+        let job = Job::spawn("reference", move || {
+            crate::measure::converged_image(&volume, &doc, &settings, tolerance, &opts)
+                .map_err(|e| format!("{e:#}"))
+                .map(|(reference, _)| finish(&gpu, reference))
         });
         Self {
             progress,
             cancel,
             rows: None,
-            rx,
+            job,
         }
     }
 
@@ -134,13 +131,7 @@ impl CompareJob {
 
     /// The result once the thread has finished.
     pub fn poll(&self) -> Option<Result<Comparison, String>> {
-        match self.rx.try_recv() {
-            Ok(r) => Some(r),
-            Err(mpsc::TryRecvError::Empty) => None,
-            Err(mpsc::TryRecvError::Disconnected) => {
-                Some(Err("the reference thread stopped".into()))
-            }
-        }
+        self.job.poll()
     }
 }
 

@@ -7,6 +7,7 @@ pub mod compare_ui;
 pub mod custom_ui;
 pub mod dos_study;
 pub mod headless;
+pub mod job;
 pub mod measure;
 pub mod stack_ui;
 #[cfg(test)]

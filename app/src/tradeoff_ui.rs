@@ -5,13 +5,14 @@
 //! converged reference. Clicking a point applies its settings to the scene.
 
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
-use std::sync::{Arc, Mutex, mpsc};
+use std::sync::{Arc, Mutex};
 
 use vwb_render::params::ParamKind;
 use vwb_render::preset::Document;
 use vwb_render::reference::ReferenceOptions;
 use vwb_render::{GpuContext, Volume};
 
+use crate::job::Job;
 use crate::measure::{self, Axis, SweepEvent, SweepPoint};
 
 /// One axis as the user types it: a name from [`candidates`] and values
@@ -60,7 +61,7 @@ pub struct SweepJob {
     total: usize,
     cancel: Arc<AtomicBool>,
     status: Arc<Mutex<String>>,
-    rx: mpsc::Receiver<Result<SweepResult, String>>,
+    job: Job<SweepResult>,
 }
 
 impl SweepJob {
@@ -77,9 +78,8 @@ impl SweepJob {
         let cancel = Arc::new(AtomicBool::new(false));
         let status = Arc::new(Mutex::new("starting".to_string()));
         let total = measure::grid(&axes).len();
-        let (tx, rx) = mpsc::channel();
         let (d, c, st) = (done.clone(), cancel.clone(), status.clone());
-        std::thread::spawn(move || {
+        let job = Job::spawn("sweep", move || {
             let opts = ReferenceOptions {
                 cancel: Some(c),
                 ..Default::default()
@@ -89,7 +89,7 @@ impl SweepJob {
                     *s = m;
                 }
             };
-            let result = measure::sweep(
+            measure::sweep(
                 &gpu,
                 &doc,
                 volume,
@@ -114,15 +114,14 @@ impl SweepJob {
                 points: o.points,
                 stack_ids: doc.stack.iter().map(|i| i.plugin.id()).collect(),
             })
-            .map_err(|e| format!("{e:#}"));
-            let _ = tx.send(result);
+            .map_err(|e| format!("{e:#}"))
         });
         Self {
             done,
             total,
             cancel,
             status,
-            rx,
+            job,
         }
     }
 
@@ -142,11 +141,7 @@ impl SweepJob {
 
     /// The result once the thread has finished.
     pub fn poll(&self) -> Option<Result<SweepResult, String>> {
-        match self.rx.try_recv() {
-            Ok(r) => Some(r),
-            Err(mpsc::TryRecvError::Empty) => None,
-            Err(mpsc::TryRecvError::Disconnected) => Some(Err("the sweep thread stopped".into())),
-        }
+        self.job.poll()
     }
 }
 

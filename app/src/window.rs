@@ -105,7 +105,7 @@ enum Shot {
 
 /// The preview's slice-spacing and resolution factors: ×2 and ×½ on GPUs; ×4 and ×¼ on
 /// CPU adapters (lavapipe), where dragging a TF point over the CT head takes a median
-/// ~150 ms per UI frame at (×2, ×½), ~45–50 ms at (×2, ×¼) and ~30 ms at (×4, ×¼)
+/// 150–175 ms per UI frame at (×2, ×½), 45–53 ms at (×2, ×¼) and ~32 ms at (×4, ×¼)
 /// (`bash bench/ui.sh`, docs/perf.md).
 pub fn default_preview(info: &wgpu::AdapterInfo) -> (f32, f32) {
     if info.device_type == wgpu::DeviceType::Cpu {
@@ -151,8 +151,6 @@ pub struct Workbench {
     recent: Vec<PathBuf>,
     dialog: Option<Dialog>,
     wgsl: Option<WgslEdit>,
-    /// WGSL overrides (file → source), carried over to renderers of opened files.
-    shader_overrides: std::collections::BTreeMap<String, String>,
     /// Full-quality resolution × (below 1 on slow devices and in tests).
     pub quality_scale: f32,
     /// A parameter is being dragged (preview quality).
@@ -160,7 +158,7 @@ pub struct Workbench {
     compare_against: crate::compare_ui::Against,
     /// Per-plugin cost by ablation (`vwb bench`'s engine) running in a thread, and its
     /// last result.
-    ablation: Option<mpsc::Receiver<Result<Vec<crate::measure::BenchRow>, String>>>,
+    ablation: Option<crate::job::Job<Vec<crate::measure::BenchRow>>>,
     ablation_rows: Option<Result<Vec<crate::measure::BenchRow>, String>>,
     tradeoff: crate::tradeoff_ui::TradeoffView,
     /// Result of the last open or save.
@@ -229,7 +227,6 @@ impl Workbench {
             recent: persisted.recent,
             dialog: None,
             wgsl: None,
-            shader_overrides: Default::default(),
             quality_scale: 1.0,
             editing: false,
             compare_against: Default::default(),
@@ -317,6 +314,11 @@ impl Workbench {
         self.dirty = true;
     }
 
+    /// Shows the outcome of a file operation.
+    fn report(&mut self, outcome: Result<String>) {
+        self.file_status = Some(outcome.map_err(|e| format!("{e:#}")));
+    }
+
     fn remember(&mut self, path: &std::path::Path) {
         let path = std::fs::canonicalize(path).unwrap_or_else(|_| path.to_path_buf());
         self.recent.retain(|p| p != &path);
@@ -324,12 +326,12 @@ impl Workbench {
         self.recent.truncate(RECENT);
     }
 
-    /// A renderer for `volume` and `doc` on the window's device, with the WGSL
-    /// overrides; nothing changes on screen until it is swapped in.
+    /// A renderer for `volume` and `doc` on the window's device, with the current
+    /// renderer's WGSL overrides; nothing changes on screen until it is swapped in.
     fn fresh_renderer(&self, volume: Arc<vwb_render::Volume>, doc: &Document) -> Result<Renderer> {
         let mut renderer = Renderer::new(self.renderer.gpu(), volume)?;
-        for (file, source) in &self.shader_overrides {
-            renderer.set_shader_override(file, Some(source.clone()));
+        for (file, source) in self.renderer.shader_overrides() {
+            renderer.set_shader_override(file, Some(source.to_string()));
         }
         renderer.update_stack(&doc.stack, doc.render.target)?;
         Ok(renderer)
@@ -398,10 +400,9 @@ impl Workbench {
         {
             let shader = inst.plugin.shader();
             let text = self
-                .shader_overrides
-                .get(shader.file.as_ref())
-                .cloned()
-                .unwrap_or_else(|| shader.source.to_string());
+                .renderer
+                .shader_override(&shader.file)
+                .map_or_else(|| shader.source.to_string(), str::to_string);
             self.wgsl = Some(WgslEdit {
                 file: shader.file.to_string(),
                 plugin: inst.plugin.id(),
@@ -508,13 +509,11 @@ impl Workbench {
         let file = edit.file.clone();
         match action {
             Some(true) => {
-                let text = edit.text.clone();
-                self.shader_overrides.insert(file.clone(), text.clone());
-                self.renderer.set_shader_override(&file, Some(text));
+                self.renderer
+                    .set_shader_override(&file, Some(edit.text.clone()));
                 self.apply_stack();
             }
             Some(false) => {
-                self.shader_overrides.remove(&file);
                 self.renderer.set_shader_override(&file, None);
                 if let Some(inst) = self
                     .doc
@@ -570,37 +569,27 @@ impl Workbench {
     /// engine of `vwb bench`), measured in a thread at 256² over 5 frames; pre-passes
     /// and memory per plugin come with it.
     fn per_plugin(&mut self, ui: &mut egui::Ui) {
-        if let Some(rx) = &self.ablation {
-            match rx.try_recv() {
-                Ok(r) => {
-                    self.ablation_rows = Some(r);
-                    self.ablation = None;
-                }
-                Err(mpsc::TryRecvError::Empty) => {
-                    ui.add(egui::Spinner::new());
-                    ui.ctx().request_repaint();
-                }
-                Err(mpsc::TryRecvError::Disconnected) => {
-                    self.ablation_rows = Some(Err("the measurement stopped".into()));
-                    self.ablation = None;
-                }
+        if let Some(job) = &self.ablation {
+            if let Some(r) = job.poll() {
+                self.ablation_rows = Some(r);
+                self.ablation = None;
+            } else {
+                ui.add(egui::Spinner::new());
+                ui.ctx().request_repaint();
             }
         } else if ui
             .button("Measure per-plugin cost")
             .on_hover_text("frame time with each plugin minus without it, 256², 5 frames")
             .clicked()
         {
-            let (tx, rx) = mpsc::channel();
             let gpu = self.renderer.gpu().clone();
             let volume = self.renderer.volume().clone();
             let mut doc = self.doc.clone();
             doc.render.size = [256, 256];
-            std::thread::spawn(move || {
-                let rows = crate::measure::bench_document(&gpu, &doc, volume, 1, 5)
-                    .map_err(|e| format!("{e:#}"));
-                let _ = tx.send(rows);
-            });
-            self.ablation = Some(rx);
+            self.ablation = Some(crate::job::Job::spawn("measurement", move || {
+                crate::measure::bench_document(&gpu, &doc, volume, 1, 5)
+                    .map_err(|e| format!("{e:#}"))
+            }));
         }
         match &self.ablation_rows {
             Some(Ok(rows)) => {
@@ -755,7 +744,8 @@ impl Workbench {
             .on_hover_text("volume file (.nhdr, .nrrd, .raw + header)");
             if ui.button("Open volume").clicked() {
                 let path = PathBuf::from(self.volume_path.trim());
-                self.file_status = Some(self.open_volume(&path).map_err(|e| format!("{e:#}")));
+                let outcome = self.open_volume(&path);
+                self.report(outcome);
             }
             if ui.button("…").on_hover_text("choose a volume").clicked() {
                 let mut d = egui_file::FileDialog::open_file()
@@ -774,7 +764,8 @@ impl Workbench {
             .on_hover_text("preset file (.ron)");
             let path = PathBuf::from(self.preset_path.trim());
             if ui.button("Open preset").clicked() {
-                self.file_status = Some(self.open(&path).map_err(|e| format!("{e:#}")));
+                let outcome = self.open(&path);
+                self.report(outcome);
             }
             if ui.button("Save preset").clicked() {
                 let saved = self.doc.save(&path);
@@ -816,7 +807,8 @@ impl Workbench {
                     }
                 });
             if let Some(p) = pick {
-                self.file_status = Some(self.open_any(&p).map_err(|e| format!("{e:#}")));
+                let outcome = self.open_any(&p);
+                self.report(outcome);
             }
         }
         match &self.file_status {
@@ -846,19 +838,19 @@ impl Workbench {
             }
         }
         if let Some((path, preset)) = chosen {
-            let result = if preset {
-                self.preset_path = path.display().to_string();
+            let outcome = if preset {
                 self.open(&path)
             } else {
                 self.open_volume(&path)
             };
-            self.file_status = Some(result.map_err(|e| format!("{e:#}")));
+            self.report(outcome);
         }
         let dropped = ctx.input(|i| i.raw.dropped_files.clone());
         for f in dropped {
             let path = f.path().to_path_buf();
             if !path.as_os_str().is_empty() {
-                self.file_status = Some(self.open_any(&path).map_err(|e| format!("{e:#}")));
+                let outcome = self.open_any(&path);
+                self.report(outcome);
             }
         }
     }

@@ -492,6 +492,13 @@ impl Renderer {
         self.shader_overrides.get(file).map(String::as_str)
     }
 
+    /// Every override, as (file, source).
+    pub fn shader_overrides(&self) -> impl Iterator<Item = (&str, &str)> {
+        self.shader_overrides
+            .iter()
+            .map(|(f, s)| (f.as_str(), s.as_str()))
+    }
+
     /// Turns empty-space skipping on or off (on by default; it only ever acts when
     /// every enabled plugin promises how it treats transparent samples). Takes effect
     /// at the next [`Renderer::update_stack`].
