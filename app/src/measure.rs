@@ -15,7 +15,7 @@ use serde::Serialize;
 use serde_json::json;
 use vwb_render::metrics::{self, HEATMAP_DEFAULT_MAX, Metrics, RgbImageF};
 use vwb_render::params::{ParamKind, ParamValue};
-use vwb_render::plugin::{CpuContext, CpuSample};
+use vwb_render::plugin::{ConvergedReference, CpuContext, CpuSample};
 use vwb_render::preset::{Document, VolumeSource};
 use vwb_render::reference::{self, Converged, ReferenceImage, ReferenceOptions};
 use vwb_render::slicing::VolumeBox;
@@ -227,19 +227,21 @@ pub fn converged_reference(
     Ok((img, c, start.elapsed().as_secs_f64()))
 }
 
-/// Whether a stack's converged reference is the Monte-Carlo cone integral (stacks with
-/// directional occlusion: refining the slices converges to the slice algorithm's own
-/// limit, not to the cone integral; docs/dos.md).
-pub fn uses_monte_carlo(doc: &Document) -> bool {
+/// The converged reference that an enabled plugin of the stack supplies itself
+/// ([`vwb_render::plugin::ConvergedReference`]; directional occlusion's Monte-Carlo cone
+/// integral, since refining its slices converges to the slice algorithm's own limit,
+/// docs/dos.md), or `None` when the refined-slices reference is the converged one.
+pub fn supplied_reference(doc: &Document) -> Option<Arc<dyn ConvergedReference>> {
     doc.stack
         .iter()
-        .any(|i| i.enabled && i.plugin.id() == "shade.dos")
+        .filter(|i| i.enabled)
+        .find_map(|i| i.configured().converged_reference())
 }
 
 /// The converged reference of a frame, composited over the document's background, and
-/// a JSON note of how it was made: the Monte-Carlo integral for stacks with directional
-/// occlusion ([`uses_monte_carlo`]), else the refined-slices reference (progress bar on
-/// a terminal). `opts` carries cancellation (and, for Monte Carlo, nothing else).
+/// a JSON note of how it was made: the reference a plugin of the stack supplies
+/// ([`supplied_reference`]), else the refined-slices reference (progress bar on a
+/// terminal). `opts` carries cancellation (and, for a supplied reference, nothing else).
 pub fn converged_image(
     volume: &Volume,
     doc: &Document,
@@ -248,28 +250,19 @@ pub fn converged_image(
     opts: &ReferenceOptions,
 ) -> Result<(RgbImageF, serde_json::Value)> {
     let start = Instant::now();
-    if uses_monte_carlo(doc) {
-        use vwb_plugins::shade_dos::mc::{McOptions, render_mc};
-        let mc_opts = McOptions::default();
-        let mc = render_mc(volume, &doc.stack, s, &mc_opts, opts.cancel.as_deref())
+    if let Some(supplier) = supplied_reference(doc) {
+        let r = supplier
+            .render(volume, &doc.stack, s, opts.cancel.as_deref())
             .map_err(|e| anyhow!(e))?;
-        let info = json!({
-            "kind": "monte_carlo",
-            "directions": mc_opts.directions,
-            "replicas": mc_opts.replicas,
-            "seed": mc_opts.seed,
-            "eye_step_voxels": mc_opts.eye_step,
-            "cone_step_voxels": mc_opts.cone_step,
-            "rms_std_error": mc.rms_std_error(),
-            "seconds": start.elapsed().as_secs_f64(),
-        });
-        let img = RgbImageF::from_rgba_premultiplied_over(
-            &mc.pixels,
-            mc.width,
-            mc.height,
-            background(doc),
-        );
-        return Ok((img, info));
+        let mut info = serde_json::Map::new();
+        info.insert("kind".into(), json!(supplier.kind()));
+        for (k, v) in &r.notes {
+            info.insert((*k).into(), json!(v));
+        }
+        info.insert("seconds".into(), json!(start.elapsed().as_secs_f64()));
+        let img =
+            RgbImageF::from_rgba_premultiplied_over(&r.pixels, r.width, r.height, background(doc));
+        return Ok((img, serde_json::Value::Object(info)));
     }
     let c = if opts.cancel.is_some() || opts.progress.is_some() {
         converged_of(volume, doc, s, tolerance, opts)?

@@ -624,10 +624,9 @@ impl Workbench {
         egui::CollapsingHeader::new("Compare with the CPU reference").show(ui, |ui| {
             use crate::compare_ui::Against;
             ui.add(egui::Slider::new(&mut self.compare_side, 32..=512).text("image side"));
-            let converged = if crate::measure::uses_monte_carlo(&self.doc) {
-                "converged (Monte Carlo)"
-            } else {
-                "converged"
+            let converged = match crate::measure::supplied_reference(&self.doc) {
+                Some(r) => format!("converged ({})", r.label()),
+                None => "converged".to_string(),
             };
             ui.horizontal(|ui| {
                 ui.radio_value(

@@ -1,39 +1,51 @@
 //! vwb plugins: the plugin API (re-exported from the renderer core) and the built-in
 //! plugins, one folder each (`mod.rs`, its `.wgsl`, its CPU twin and tests).
 //!
-//! Adding a plugin: copy a folder, change its id, and add one line to
-//! [`builtin_registry`]. The pipeline is never edited.
+//! Adding a plugin: copy a folder, change its id, and add one line to the
+//! `builtin_plugins!` list below (docs/plugins.md). The pipeline is never edited.
 
 pub use vwb_render::params;
 pub use vwb_render::plugin::*;
 
-pub mod classify_labels;
-pub mod classify_tf1d;
-pub mod classify_tf2d;
 pub mod lighting;
-pub mod shade_blinn_phong;
-pub mod shade_dos;
-pub mod shade_envmap;
-pub mod shade_isosurface;
-pub mod test_slice_shadow;
-pub mod test_smooth;
 
 use std::sync::Arc;
 
-/// Every built-in plugin. One line per plugin.
+use params::{ParamKind, ParamValue, ParamValues};
+
+/// Declares each plugin folder as a module and lists its plugin in
+/// [`builtin_registry`], so that a new plugin is one line here.
+macro_rules! builtin_plugins {
+    ($($folder:ident => $plugin:expr,)*) => {
+        $(pub mod $folder;)*
+
+        /// Every built-in plugin, in registration order.
+        fn builtin_plugins() -> Vec<Arc<dyn Plugin>> {
+            vec![$(Arc::new($plugin)),*]
+        }
+    };
+}
+
+// One line per plugin: its folder and its value.
+builtin_plugins! {
+    classify_tf1d => classify_tf1d::Tf1d::default(),
+    classify_labels => classify_labels::Labels,
+    classify_tf2d => classify_tf2d::Tf2dPlugin::default(),
+    shade_blinn_phong => shade_blinn_phong::BlinnPhong::default(),
+    shade_isosurface => shade_isosurface::Isosurface::default(),
+    shade_envmap => shade_envmap::EnvMap::default(),
+    shade_dos => shade_dos::Dos::default(),
+    shade_cook_torrance => shade_cook_torrance::CookTorrance::default(),
+    shade_oren_nayar => shade_oren_nayar::OrenNayar::default(),
+    shade_toon => shade_toon::Toon::default(),
+    test_slice_shadow => test_slice_shadow::SliceShadow,
+    test_smooth => test_smooth::Smooth,
+}
+
+/// Every built-in plugin.
 pub fn builtin_registry() -> Registry {
     let mut r = Registry::new();
-    let all: Vec<Arc<dyn Plugin>> = vec![
-        Arc::new(classify_tf1d::Tf1d::default()),
-        Arc::new(classify_labels::Labels),
-        Arc::new(classify_tf2d::Tf2dPlugin::default()),
-        Arc::new(shade_blinn_phong::BlinnPhong::default()),
-        Arc::new(shade_isosurface::Isosurface::default()),
-        Arc::new(shade_envmap::EnvMap::default()),
-        Arc::new(shade_dos::Dos::default()),
-        Arc::new(test_slice_shadow::SliceShadow),
-        Arc::new(test_smooth::Smooth),
-    ];
+    let all = builtin_plugins();
     for p in all {
         // built-ins are unique by construction; a clash is a programming error caught by tests
         if let Err(e) = r.register(p) {
@@ -41,6 +53,33 @@ pub fn builtin_registry() -> Registry {
         }
     }
     r
+}
+
+/// Every structural mode of a plugin: its defaults (its demo parameters where it has
+/// them, [`Plugin::demo_params`]), then each option of each structural enum parameter in
+/// turn (the others as in the first), as (label, values). The tests use it to cover every registered plugin in every
+/// mode without a hand-kept list.
+pub fn structural_modes(p: &dyn Plugin) -> Vec<(String, ParamValues)> {
+    let specs = p.params();
+    let defaults = p
+        .demo_params()
+        .unwrap_or_else(|| ParamValues::defaults(&specs));
+    let mut modes = vec![("defaults".to_string(), defaults.clone())];
+    for spec in specs.iter().filter(|s| s.structural) {
+        if let ParamKind::Enum { options, default } = &spec.kind {
+            for o in options
+                .iter()
+                .enumerate()
+                .filter(|(i, _)| i != default)
+                .map(|(_, o)| o)
+            {
+                let mut values = defaults.clone();
+                values.set(spec.key, ParamValue::Enum(o.to_string()));
+                modes.push((format!("{}={o}", spec.key), values));
+            }
+        }
+    }
+    modes
 }
 
 #[cfg(test)]
@@ -51,7 +90,7 @@ mod tests {
     #[test]
     fn builtins_register_without_clash() {
         let r = builtin_registry();
-        assert_eq!(r.plugins().len(), 9);
+        assert_eq!(r.plugins().len(), 12);
         let mut fresh = Registry::new();
         for p in r.plugins() {
             fresh.register(p.clone()).unwrap();
@@ -59,27 +98,18 @@ mod tests {
         assert!(fresh.register(r.plugins()[0].clone()).is_err());
     }
 
-    /// Every configuration a structural enum parameter selects, per built-in.
-    fn configurations(p: &Arc<dyn Plugin>) -> Vec<Arc<dyn Plugin>> {
-        let mut all = vec![p.clone()];
-        for spec in p.params().iter().filter(|s| s.structural) {
-            if let params::ParamKind::Enum { options, .. } = &spec.kind {
-                for o in options {
-                    let mut values = params::ParamValues::defaults(&p.params());
-                    values.set(spec.key, params::ParamValue::Enum(o.to_string()));
-                    if let Some(c) = p.configure(&values) {
-                        all.push(c);
-                    }
-                }
-            }
-        }
-        all
-    }
-
     #[test]
     fn every_builtin_composes_alone_and_twice() {
         let r = builtin_registry();
-        let all: Vec<_> = r.plugins().iter().flat_map(configurations).collect();
+        let all: Vec<_> = r
+            .plugins()
+            .iter()
+            .flat_map(|p| {
+                structural_modes(p.as_ref())
+                    .into_iter()
+                    .map(|(_, values)| p.configure(&values).unwrap_or_else(|| p.clone()))
+            })
+            .collect();
         assert!(all.len() >= 5, "tf1d's three modes are composed");
         for p in &all {
             let one: Vec<&dyn Plugin> = vec![p.as_ref()];

@@ -136,3 +136,68 @@ pub fn head_light(p: &ParamValues) -> Light {
         color: DVec3::ONE,
     }
 }
+
+/// Fixtures for the shading plugins' CPU tests.
+#[cfg(test)]
+pub mod testing {
+    use glam::{DVec3, DVec4};
+    use vwb_render::params::{ParamValue, ParamValues};
+    use vwb_render::plugin::{CpuContext, CpuSample, Plugin};
+    use vwb_render::volume::{Volume, VoxelData};
+
+    /// f = x/(n − 1): ∇f points along +x, so the outward normal is −x.
+    pub fn ramp_x(n: u32) -> Volume {
+        let data = (0..n * n * n).map(|i| (i % n) as f32).collect();
+        Volume::new("ramp", [n; 3], 1, [1.0; 3], VoxelData::F32(data)).unwrap()
+    }
+
+    /// A constant volume (no gradient).
+    pub fn constant(n: u32) -> Volume {
+        Volume::new(
+            "c",
+            [n; 3],
+            1,
+            [1.0; 3],
+            VoxelData::F32(vec![3.0; (n * n * n) as usize]),
+        )
+        .unwrap()
+    }
+
+    /// The base colour the fixtures shade.
+    pub const BASE: DVec4 = DVec4::new(0.8, 0.4, 0.2, 0.5);
+
+    /// The plugin's twin (as configured by `params`) shading [`BASE`] at the centre of
+    /// `vol`, seen along `ray_dir`.
+    pub fn shaded(
+        plugin: &dyn Plugin,
+        vol: &Volume,
+        params: &ParamValues,
+        ray_dir: DVec3,
+    ) -> DVec4 {
+        let scalars = vol.normalized_scalars();
+        let ctx = CpuContext::new(vol, &scalars);
+        let mut twin = plugin.configure(params).map_or_else(
+            || plugin.cpu_twin(params).unwrap(),
+            |p| p.cpu_twin(params).unwrap(),
+        );
+        twin.prepare(&ctx);
+        let mut s = CpuSample {
+            tex: DVec3::splat(0.5),
+            ray_dir,
+            color: BASE,
+            ..Default::default()
+        };
+        twin.shade(&ctx, &mut s);
+        s.color
+    }
+
+    /// The plugin's defaults with light 0 as a world-space directional light along
+    /// `towards_light` and a fade floor low enough for [`ramp_x`]'s gradient.
+    pub fn world_light(plugin: &dyn Plugin, towards_light: [f32; 3]) -> ParamValues {
+        let mut p = ParamValues::defaults(&plugin.params());
+        p.set("light0_space", ParamValue::Enum("world".into()));
+        p.set("light0_vector", ParamValue::Vec3(towards_light));
+        p.set("gradient_floor", ParamValue::Float(0.001));
+        p
+    }
+}

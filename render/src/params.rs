@@ -411,58 +411,94 @@ impl ParamValues {
         self.values.insert(key.to_string(), v);
     }
 
+    /// The value of `key` as a float (an int is converted).
+    ///
+    /// The typed accessors never hide a misspelt key or a wrong kind behind a default:
+    /// in debug builds (every test) they panic naming the key, in release builds they
+    /// log an error and return zero/false/empty.
+    #[track_caller]
     pub fn float(&self, key: &str) -> f32 {
         match self.get(key) {
             Some(ParamValue::Float(x)) => *x,
             Some(ParamValue::Int(x)) => *x as f32,
-            _ => 0.0,
+            got => self.misread(key, "a float", got, 0.0),
         }
     }
+    #[track_caller]
     pub fn int(&self, key: &str) -> i32 {
         match self.get(key) {
             Some(ParamValue::Int(x)) => *x,
-            _ => 0,
+            got => self.misread(key, "an int", got, 0),
         }
     }
+    #[track_caller]
     pub fn boolean(&self, key: &str) -> bool {
-        matches!(self.get(key), Some(ParamValue::Bool(true)))
+        match self.get(key) {
+            Some(ParamValue::Bool(b)) => *b,
+            got => self.misread(key, "a bool", got, false),
+        }
     }
+    #[track_caller]
     pub fn enumeration(&self, key: &str) -> &str {
         match self.get(key) {
             Some(ParamValue::Enum(s)) => s,
-            _ => "",
+            got => self.misread(key, "an enum name", got, ""),
         }
     }
+    #[track_caller]
     pub fn color(&self, key: &str) -> [f32; 4] {
         match self.get(key) {
             Some(ParamValue::Color(c)) => *c,
-            _ => [0.0; 4],
+            got => self.misread(key, "a colour", got, [0.0; 4]),
         }
     }
+    #[track_caller]
     pub fn vec3(&self, key: &str) -> [f32; 3] {
         match self.get(key) {
             Some(ParamValue::Vec3(c)) => *c,
-            _ => [0.0; 3],
+            got => self.misread(key, "a vec3", got, [0.0; 3]),
         }
     }
+    #[track_caller]
     pub fn tf2d(&self, key: &str) -> Option<&crate::tf2d::Tf2d> {
         match self.get(key) {
             Some(ParamValue::Tf2d(t)) => Some(t),
-            _ => None,
+            got => self.misread(key, "a 2D transfer function", got, None),
         }
     }
-    /// A path parameter; None when unset or empty.
+    /// A path parameter; None when empty.
+    #[track_caller]
     pub fn path(&self, key: &str) -> Option<&std::path::Path> {
         match self.get(key) {
-            Some(ParamValue::Path(p)) if !p.as_os_str().is_empty() => Some(p),
-            _ => None,
+            Some(ParamValue::Path(p)) => (!p.as_os_str().is_empty()).then_some(p.as_path()),
+            got => self.misread(key, "a file path", got, None),
         }
     }
+    #[track_caller]
     pub fn tf(&self, key: &str) -> Option<&TfCurve> {
         match self.get(key) {
             Some(ParamValue::Tf(t)) => Some(t),
-            _ => None,
+            got => self.misread(key, "a transfer function", got, None),
         }
+    }
+
+    /// A read of an absent key or of the wrong kind: a programming error (a misspelt
+    /// key), so debug builds panic; release builds log it and go on with `fallback`.
+    #[track_caller]
+    fn misread<T>(&self, key: &str, want: &str, got: Option<&ParamValue>, fallback: T) -> T {
+        let what = match got {
+            None => {
+                let known: Vec<&str> = self.values.keys().map(String::as_str).collect();
+                format!("there is no such parameter (known: {})", known.join(", "))
+            }
+            Some(v) => format!("it holds {}", v.kind_name()),
+        };
+        let message = format!("parameter '{key}' read as {want}, but {what}");
+        if cfg!(debug_assertions) {
+            panic!("{message}");
+        }
+        log::error!("{message}");
+        fallback
     }
 }
 
@@ -603,6 +639,20 @@ mod tests {
             ParamSpec::tf("tf", "TF", TfCurve::ramp(0.0, 1.0, [1.0; 4])),
             ParamSpec::int("n", "N", 1, 13, 4),
         ]
+    }
+
+    #[test]
+    #[should_panic(
+        expected = "parameter 'mdoe' read as an enum name, but there is no such parameter"
+    )]
+    fn a_misspelt_key_is_an_error_not_a_default() {
+        ParamValues::defaults(&specs()).enumeration("mdoe");
+    }
+
+    #[test]
+    #[should_panic(expected = "parameter 'on' read as a float, but it holds a bool")]
+    fn a_read_of_the_wrong_kind_is_an_error() {
+        ParamValues::defaults(&specs()).float("on");
     }
 
     #[test]

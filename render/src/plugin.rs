@@ -496,6 +496,36 @@ pub enum Transparency {
     ByValue(Arc<VisibleFn>),
 }
 
+/// A converged reference that a plugin supplies itself, because refining the slices
+/// converges to the slice algorithm's own limit rather than to the model the plugin
+/// approximates (directional occlusion: the Monte-Carlo cone integral). The measurement
+/// code asks the stack's plugins for one ([`Plugin::converged_reference`]) and never
+/// names a plugin.
+pub trait ConvergedReference: Send + Sync {
+    /// Its name in reports (`metrics.json`'s `against.kind`), e.g. `monte_carlo`.
+    fn kind(&self) -> &'static str;
+    /// Its name for people, e.g. `Monte Carlo`.
+    fn label(&self) -> &'static str;
+    /// The reference image of the frame (premultiplied RGBA, rows top to bottom).
+    fn render(
+        &self,
+        volume: &Volume,
+        stack: &[PluginInstance],
+        settings: &crate::renderer::FrameSettings,
+        cancel: Option<&std::sync::atomic::AtomicBool>,
+    ) -> Result<SuppliedReference, String>;
+}
+
+/// An image from a [`ConvergedReference`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct SuppliedReference {
+    pub width: u32,
+    pub height: u32,
+    pub pixels: Vec<[f64; 4]>,
+    /// How it was made (sample counts, seed, steps, statistical error), for reports.
+    pub notes: Vec<(&'static str, f64)>,
+}
+
 /// A plugin type. Instances (with their own parameter values) live in a stack.
 pub trait Plugin: Send + Sync + 'static {
     /// Stable id `category.name`, e.g. `classify.tf1d`.
@@ -554,6 +584,19 @@ pub trait Plugin: Send + Sync + 'static {
     /// Everything structural (composition, resources, pre-pass, twin, transparency) is
     /// asked of the configured plugin ([`PluginInstance::configured`]).
     fn configure(&self, _params: &ParamValues) -> Option<Arc<dyn Plugin>> {
+        None
+    }
+    /// Parameter values under which the plugin renders the embedded demo volume when its
+    /// defaults cannot (e.g. it needs a label volume beside the data). The test suite
+    /// renders every registered plugin from these (`vwb_plugins::structural_modes`);
+    /// `None` (the default): the defaults render.
+    fn demo_params(&self) -> Option<ParamValues> {
+        None
+    }
+    /// Its own converged reference, where refined slices do not converge to the model
+    /// it approximates ([`ConvergedReference`]); `None` (the default): the refined-slices
+    /// reference of the CPU twins is the converged reference.
+    fn converged_reference(&self) -> Option<Arc<dyn ConvergedReference>> {
         None
     }
     /// Whether [`Plugin::update_resources`] must run again when the slice spacing

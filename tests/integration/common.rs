@@ -99,6 +99,17 @@ pub fn ortho_axis(w: u32, h: u32, backend: Backend) -> FrameSettings {
     }
 }
 
+/// `classify.tf1d` with one colour for every value.
+pub fn tf_constant(color: [f32; 4]) -> PluginInstance {
+    use vwb_render::params::ParamValue;
+    use vwb_render::tf::{TfCurve, TfPoint};
+    let mut tf = instance("classify.tf1d");
+    let p = |x| TfPoint { x, color };
+    tf.params
+        .set("tf", ParamValue::Tf(TfCurve::new(vec![p(0.0), p(1.0)])));
+    tf
+}
+
 /// Renders and returns premultiplied pixels.
 pub fn render(
     r: &mut Renderer,

@@ -10,7 +10,6 @@ use std::fmt::Write as _;
 use std::sync::Arc;
 
 use vwb_render::params::ParamValue;
-use vwb_render::tf::{TfCurve, TfPoint};
 use vwb_render::{
     Backend, Camera, FrameSettings, PluginInstance, Projection, TargetFormat, Volume,
 };
@@ -29,14 +28,6 @@ struct Row {
     rms: f64,
     bound: f64,
     note: String,
-}
-
-fn tf_constant(color: [f32; 4]) -> PluginInstance {
-    let mut tf = instance("classify.tf1d");
-    let p = |x| TfPoint { x, color };
-    tf.params
-        .set("tf", ParamValue::Tf(TfCurve::new(vec![p(0.0), p(1.0)])));
-    tf
 }
 
 fn ortho(axis: usize, size: u32, spacing: f32, backend: Backend) -> FrameSettings {

@@ -314,27 +314,57 @@ fn early_termination_stops_opaque_rays_without_visible_change() {
     assert!(rms < ONE_LEVEL);
 }
 
+/// An orthographic camera of height h maps the volume box to its exact footprint:
+/// seen along z with h = 1.2, the unit cube covers 40 of 48 rows and, at the 4:3
+/// aspect, 40 of 64 columns, centred, whatever the camera's distance. A perspective
+/// camera's footprint is larger (the near face is closer) and changes with distance. A
+/// wrong projection (a perspective divide, a wrong height, aspect or centre) fails.
 #[test]
-fn orthographic_and_perspective_both_render() {
-    let mut r = Renderer::new(gpu(), demo()).unwrap();
-    let stack = vec![instance("classify.tf1d")];
-    let ortho = rgb(&render(
-        &mut r,
-        &stack,
-        TargetFormat::Rgba16Float,
-        &ortho_axis(48, 48, Backend::Raster),
-    ));
-    let persp = rgb(&render(
-        &mut r,
-        &stack,
-        TargetFormat::Rgba16Float,
-        &settings(48, 48, Backend::Raster),
-    ));
-    assert!(mean_luma(&ortho) > 0.01 && mean_luma(&persp) > 0.01);
-    assert!(
-        diff(&ortho, &persp).0 > 0.01,
-        "different cameras give different images"
-    );
+fn orthographic_projection_maps_the_box_to_its_exact_footprint() {
+    let cube = synthetic([16; 3], |x, _, _| x as f32);
+    let stack = [tf_constant([1.0, 1.0, 1.0, 0.5])];
+    // the covered pixels' row and column ranges, and their count
+    let footprint = |px: &[[f32; 4]]| {
+        let covered: Vec<(usize, usize)> = (0..px.len())
+            .filter(|&i| px[i][3] > 0.01)
+            .map(|i| (i % 64, i / 64))
+            .collect();
+        let cols = covered.iter().map(|c| c.0);
+        let rows = covered.iter().map(|c| c.1);
+        (
+            (cols.clone().min().unwrap(), cols.max().unwrap()),
+            (rows.clone().min().unwrap(), rows.max().unwrap()),
+            covered.len(),
+        )
+    };
+    for backend in [Backend::Raster, Backend::Compute] {
+        let mut r = Renderer::new(gpu(), cube.clone()).unwrap();
+        let mut s = ortho_axis(64, 48, backend);
+        let near = render(&mut r, &stack, TargetFormat::Rgba32Float, &s);
+        assert_eq!(
+            footprint(&near),
+            ((12, 51), (4, 43), 1600),
+            "{backend:?}: the unit cube's orthographic footprint"
+        );
+        s.camera.distance *= 2.5;
+        let far = render(&mut r, &stack, TargetFormat::Rgba32Float, &s);
+        let (rms, max) = diff(&rgb(&near), &rgb(&far));
+        assert!(
+            max < 1e-5,
+            "{backend:?}: the distance changes nothing: {rms} {max}"
+        );
+
+        let mut p = s;
+        p.camera.projection = vwb_render::Projection::Perspective { fov_y_deg: 45.0 };
+        p.camera.distance = 1.6;
+        let persp_near = footprint(&render(&mut r, &stack, TargetFormat::Rgba32Float, &p));
+        p.camera.distance = 4.0;
+        let persp_far = footprint(&render(&mut r, &stack, TargetFormat::Rgba32Float, &p));
+        assert!(
+            persp_near.2 > persp_far.2,
+            "{backend:?}: {persp_near:?} {persp_far:?}"
+        );
+    }
 }
 
 #[test]

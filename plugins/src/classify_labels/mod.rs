@@ -13,7 +13,7 @@ use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex};
 
 use glam::{DVec3, DVec4};
-use vwb_render::params::{ParamSpec, ParamValues};
+use vwb_render::params::{ParamSpec, ParamValue, ParamValues};
 use vwb_render::plugin::{
     CpuContext, CpuSample, CpuTwin, GpuInit, GpuResource, Plugin, PluginError, ResourceDecl,
     ResourceKind, ShaderSource, Transparency,
@@ -268,6 +268,13 @@ impl Plugin for Labels {
                 })
                 .collect(),
         )
+    }
+    /// The demo's label volume (`presets/data/demo_labels.nrrd`, in this checkout).
+    fn demo_params(&self) -> Option<ParamValues> {
+        let mut p = ParamValues::defaults(&self.params());
+        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../presets/data/demo_labels.nrrd");
+        p.set("labels", ParamValue::Path(path.into()));
+        Some(p)
     }
     fn cpu_twin(&self, params: &ParamValues) -> Option<Box<dyn CpuTwin>> {
         let grid = params.path("labels").and_then(|p| load_labels(p).ok())?;

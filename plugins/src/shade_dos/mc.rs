@@ -27,7 +27,9 @@ use std::sync::atomic::{AtomicBool, Ordering};
 
 use glam::{DMat4, DVec2, DVec3, DVec4};
 use rayon::prelude::*;
-use vwb_render::plugin::{CpuContext, CpuSample, CpuTwin, PluginInstance};
+use vwb_render::plugin::{
+    ConvergedReference, CpuContext, CpuSample, CpuTwin, PluginInstance, SuppliedReference,
+};
 use vwb_render::renderer::FrameSettings;
 use vwb_render::slicing::VolumeBox;
 use vwb_render::volume::Volume;
@@ -53,6 +55,43 @@ impl Default for McOptions {
             eye_step: 0.5,
             cone_step: 1.0,
         }
+    }
+}
+
+/// The Monte-Carlo cone integral as `shade.dos`'s converged reference
+/// ([`vwb_render::plugin::ConvergedReference`]), with these options.
+#[derive(Debug, Clone, Default)]
+pub struct MonteCarloReference(pub McOptions);
+
+impl ConvergedReference for MonteCarloReference {
+    fn kind(&self) -> &'static str {
+        "monte_carlo"
+    }
+    fn label(&self) -> &'static str {
+        "Monte Carlo"
+    }
+    fn render(
+        &self,
+        volume: &Volume,
+        stack: &[PluginInstance],
+        settings: &FrameSettings,
+        cancel: Option<&AtomicBool>,
+    ) -> Result<SuppliedReference, String> {
+        let o = &self.0;
+        let mc = render_mc(volume, stack, settings, o, cancel)?;
+        Ok(SuppliedReference {
+            notes: vec![
+                ("directions", o.directions as f64),
+                ("replicas", o.replicas as f64),
+                ("seed", o.seed as f64),
+                ("eye_step_voxels", o.eye_step),
+                ("cone_step_voxels", o.cone_step),
+                ("rms_std_error", mc.rms_std_error()),
+            ],
+            width: mc.width,
+            height: mc.height,
+            pixels: mc.pixels,
+        })
     }
 }
 

@@ -37,7 +37,7 @@ use std::sync::Arc;
 use glam::{DVec2, DVec4};
 use vwb_render::params::{ParamSpec, ParamValues};
 use vwb_render::plugin::{
-    CpuContext, CpuSample, CpuTwin, GpuInit, GpuResource, Plugin, PluginError, ResourceDecl,
+    ConvergedReference, CpuContext, CpuSample, CpuTwin, GpuInit, GpuResource, Plugin, PluginError, ResourceDecl,
     ResourceKind, ShaderSource, SliceStateDecl, StorageFormat, Transparency,
 };
 
@@ -197,6 +197,11 @@ impl Plugin for Dos {
     /// `shade` scales colours and the occlusion pass reads only the sample's opacity.
     fn transparency(&self, _params: &ParamValues) -> Transparency {
         Transparency::Keeps
+    }
+    /// Refined slices converge to the slice algorithm's own limit, not to the cone
+    /// integral: the converged reference is the Monte-Carlo integral (`mc.rs`).
+    fn converged_reference(&self) -> Option<Arc<dyn ConvergedReference>> {
+        Some(Arc::new(mc::MonteCarloReference::default()))
     }
     fn cpu_twin(&self, params: &ParamValues) -> Option<Box<dyn CpuTwin>> {
         Some(Box::new(DosTwin {

@@ -1,0 +1,81 @@
+//! Coverage by construction: every registered plugin, in every structural mode its
+//! enum parameters select ([`vwb_plugins::structural_modes`]), is composed and
+//! naga-validated, rendered on both backends and compared with its CPU twin. There is
+//! no hand-kept list: a plugin added to the registry is covered here, and one without
+//! a twin fails.
+
+use vwb_render::params::ParamValues;
+use vwb_render::plugin::Category;
+use vwb_render::{Backend, PluginInstance, TargetFormat};
+
+use crate::common::*;
+use crate::reference::{delta_e_rms, gpu_and_reference};
+
+/// The stack that shows `id` in the mode `values`: a classifier alone, anything else
+/// after the default 1D transfer function.
+fn stack_for(id: &str, values: &ParamValues) -> Vec<PluginInstance> {
+    let mut p = instance(id);
+    p.params = values.clone();
+    if p.plugin.category() == Category::Classify {
+        vec![p]
+    } else {
+        vec![instance("classify.tf1d"), p]
+    }
+}
+
+#[test]
+fn every_registered_plugin_in_every_mode_matches_its_cpu_twin() {
+    let registry = registry();
+    let mut covered = Vec::new();
+    let mut worst = (0.0f64, String::new());
+    for plugin in registry.plugins() {
+        let id = plugin.id();
+        for (mode, values) in vwb_plugins::structural_modes(plugin.as_ref()) {
+            let configured = plugin.configure(&values).unwrap_or_else(|| plugin.clone());
+            assert!(
+                configured.cpu_twin(&values).is_some(),
+                "{id} ({mode}) has no CPU twin"
+            );
+            let per_slice = configured.slice_state().is_some();
+            for backend in [Backend::Compute, Backend::Raster] {
+                let s = settings(48, 48, backend);
+                let stack = stack_for(id, &values);
+                let (px, reference) =
+                    gpu_and_reference(demo(), &stack, TargetFormat::Rgba32Float, &s);
+                assert!(
+                    reference.iter().filter(|p| p[3] > 0.05).count() > 48 * 48 / 20,
+                    "{id} ({mode}): the volume is visible"
+                );
+                let rms = delta_e_rms(&px, &reference, 48, 48);
+                eprintln!("{id} ({mode}) {}: ΔE*uv RMS {rms:.4}", backend.name());
+                // the bounds of every_shipped_preset_matches_its_cpu_twins
+                let bound = match (backend, per_slice) {
+                    (Backend::Compute, _) => 0.15,
+                    (Backend::Raster, false) => 0.5,
+                    (Backend::Raster, true) => 1.0,
+                };
+                assert!(
+                    rms < bound,
+                    "{id} ({mode}) {}: ΔE*uv RMS {rms}",
+                    backend.name()
+                );
+                if rms > worst.0 {
+                    worst = (rms, format!("{id} ({mode}) {}", backend.name()));
+                }
+            }
+            covered.push(format!("{id} ({mode})"));
+        }
+    }
+    eprintln!(
+        "{} plugin modes covered; worst ΔE*uv RMS {:.4} ({})",
+        covered.len(),
+        worst.0,
+        worst.1
+    );
+    for id in registry.ids() {
+        assert!(
+            covered.iter().any(|c| c.starts_with(&format!("{id} ("))),
+            "{id} is covered"
+        );
+    }
+}
