@@ -365,7 +365,48 @@ fn dos_compares_against_monte_carlo_and_the_study_writes_its_report() {
     assert_eq!(m["against"]["kind"], "monte_carlo");
     assert!(m["against"]["rms_std_error"].as_f64().unwrap() < 0.01);
     let rms = m["metrics"]["rms_delta_e"].as_f64().unwrap();
-    assert!(rms > 0.0 && rms < 20.0, "{rms}");
+    // measured 8.07 on lavapipe: at spacing 1 and θ = 60° the slice algorithm lags the
+    // cone integral by one slice and spreads occlusion by its kernel
+    // (dos::dos_converges_towards_its_monte_carlo_reference, docs/dos.md)
+    assert!(rms > 6.0 && rms < 10.0, "{rms}");
+
+    // per-plugin cost by ablation: DOS's per-slice passes are most of the frame, so its
+    // cost is positive and below the frame time; the classifier's magnitude is bounded
+    // by the frame (it may be negative: it enables empty-space skipping)
+    let csv = tmp("bench-dos.csv");
+    let o = vwb()
+        .args([
+            "bench",
+            "--preset",
+            "presets/demo_dos.ron",
+            "--size",
+            "32x32",
+        ])
+        .args(["--frames", "3", "--warmup", "1", "-o"])
+        .arg(&csv)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let text = std::fs::read_to_string(&csv).unwrap();
+    let median = |kind: &str, name: &str| -> f64 {
+        text.lines()
+            .map(|l| l.split(',').collect::<Vec<_>>())
+            .find(|c| c[0] == kind && c[1] == name)
+            .unwrap_or_else(|| panic!("{kind},{name} in\n{text}"))[5]
+            .parse()
+            .unwrap()
+    };
+    let frame = median("frame", "frame");
+    let dos = median("plugin", "shade.dos#1");
+    let tf = median("plugin", "classify.tf1d#0");
+    assert!(
+        dos > 0.5 * frame && dos < 1.1 * frame,
+        "shade.dos costs {dos} ms of a {frame} ms frame\n{text}"
+    );
+    assert!(
+        tf.abs() < frame,
+        "classify.tf1d: {tf} ms of {frame}\n{text}"
+    );
 
     let report = tmp("dos.md");
     let o = vwb()
