@@ -583,10 +583,19 @@ pub fn bench_document(
     }
     r.update_stack(&doc.stack, doc.render.target)?;
     r.render(&s)?;
-    for (uid, id, bytes) in r.plugin_memory() {
+    let held = r
+        .disabled_memory()
+        .into_iter()
+        .map(|m| ("memory_disabled", m));
+    for (kind, (uid, id, bytes)) in r
+        .plugin_memory()
+        .into_iter()
+        .map(|m| ("memory", m))
+        .chain(held)
+    {
         let index = doc.stack.iter().position(|i| i.uid == uid).unwrap_or(0);
         rows.push(BenchRow {
-            kind: "memory",
+            kind,
             name: format!("{id}#{index}"),
             clock: "",
             frames: 0,

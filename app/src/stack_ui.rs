@@ -59,7 +59,12 @@ pub fn param_widgets(
     values: &mut ParamValues,
     cx: &StackUi<'_>,
 ) -> bool {
-    let gradient_scale = values.float("gradient_scale") as f64;
+    // the y axis of a 2D TF's histogram (classify.tf2d's `gradient_scale`; plugins
+    // without one have no 2D TF)
+    let gradient_scale = match values.get("gradient_scale") {
+        Some(ParamValue::Float(x)) => *x as f64,
+        _ => 1.0,
+    };
     let mut changed = false;
     for spec in specs {
         let Some(current) = values.get(spec.key).cloned() else {

@@ -616,6 +616,13 @@ impl Workbench {
             }
             None => {}
         }
+        // disabled plugins keep their resources (no rebuild or pre-pass on re-enabling)
+        for (_, id, bytes) in self.renderer.disabled_memory() {
+            ui.label(format!(
+                "  {id} (disabled) holds {:.1} MiB",
+                bytes as f64 / 1048576.0
+            ));
+        }
     }
 
     /// The GPU image beside the CPU reference of the same frame, the ΔE*uv heatmap and
@@ -856,10 +863,18 @@ impl Workbench {
 
     /// Loads a preset (and its volume); the current one stays on any error.
     pub fn open(&mut self, path: &std::path::Path) -> Result<String> {
-        let doc = Document::load(path, &self.registry)?.document;
+        let mut doc = Document::load(path, &self.registry)?.document;
         let volume = headless::load_volume(&doc.volume)?;
-        let renderer = self.fresh_renderer(volume, &doc)?;
-        self.renderer = renderer;
+        if *volume == **self.renderer.volume() {
+            // the same data (e.g. the same preset again): keep the renderer, so that the
+            // volume is not uploaded again, and carry the instances' identities, so
+            // that their resources and pre-pass results stay; on an error the last good
+            // pipeline keeps drawing
+            vwb_render::plugin::carry_identities(&self.doc.stack, &mut doc.stack);
+            self.renderer.update_stack(&doc.stack, doc.render.target)?;
+        } else {
+            self.renderer = self.fresh_renderer(volume, &doc)?;
+        }
         self.doc = doc;
         self.preset_path = path.display().to_string();
         self.error = None;

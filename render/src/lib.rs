@@ -22,5 +22,7 @@ pub use camera::{Camera, Projection};
 pub use composer::{ComposeError, TargetFormat};
 pub use gpu::GpuContext;
 pub use plugin::{Plugin, PluginInstance, Registry};
-pub use renderer::{Backend, FrameSettings, FrameStats, RenderError, Renderer, StackChange};
+pub use renderer::{
+    Backend, FrameSettings, FrameStats, RenderCounters, RenderError, Renderer, StackChange,
+};
 pub use volume::Volume;

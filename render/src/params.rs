@@ -364,6 +364,25 @@ impl ParamValue {
         }
     }
 
+    /// Feeds the value to a hasher (floats by their bits), for structure keys.
+    pub fn hash_into(&self, h: &mut impl std::hash::Hasher) {
+        use std::hash::Hash;
+        std::mem::discriminant(self).hash(h);
+        match self {
+            ParamValue::Float(x) => x.to_bits().hash(h),
+            ParamValue::Int(x) => x.hash(h),
+            ParamValue::Bool(b) => b.hash(h),
+            ParamValue::Enum(s) => s.hash(h),
+            ParamValue::Color(c) => c.map(f32::to_bits).hash(h),
+            ParamValue::Vec3(c) => c.map(f32::to_bits).hash(h),
+            ParamValue::Path(p) => p.hash(h),
+            // tables are never structural today; hash their RON text
+            ParamValue::Tf(_) | ParamValue::Tf2d(_) => {
+                ron::to_string(&self.to_ron()).unwrap_or_default().hash(h)
+            }
+        }
+    }
+
     /// RON value as written in presets (plain numbers, strings, tuples).
     pub fn to_ron(&self) -> ron::Value {
         let num = |x: f32| ron::Value::Number(ron::Number::F32((x).into()));

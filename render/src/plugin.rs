@@ -27,7 +27,7 @@ use std::sync::Arc;
 
 use glam::{DVec2, DVec3, DVec4};
 
-use crate::params::{ParamSpec, ParamValues, validate_specs};
+use crate::params::{ParamSpec, ParamValue, ParamValues, validate_specs};
 use crate::volume::Volume;
 
 /// Plugin category: the part before the dot of the id.
@@ -742,6 +742,26 @@ impl PluginInstance {
         Self {
             uid: NEXT_UID.fetch_add(1, std::sync::atomic::Ordering::Relaxed),
             ..self.clone()
+        }
+    }
+}
+
+/// Gives the instances of `new` the identities of their counterparts in `old` (the
+/// same position, plugin id and structural parameter values), so that a renderer
+/// drawing `old` keeps their GPU resources and pre-pass results when it switches to
+/// `new` (e.g. the same preset opened again); only what differs is rebuilt.
+pub fn carry_identities(old: &[PluginInstance], new: &mut [PluginInstance]) {
+    let structure = |i: &PluginInstance| -> Vec<Option<ParamValue>> {
+        i.plugin
+            .params()
+            .iter()
+            .filter(|s| s.structural)
+            .map(|s| i.params.get(s.key).cloned())
+            .collect()
+    };
+    for (o, n) in old.iter().zip(new.iter_mut()) {
+        if o.plugin.id() == n.plugin.id() && structure(o) == structure(n) {
+            n.uid = o.uid;
         }
     }
 }

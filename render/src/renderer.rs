@@ -168,19 +168,57 @@ struct InstanceGpu {
     prepass_target: Option<(wgpu::Texture, wgpu::TextureView)>,
     /// Parameters the last pre-pass ran with (None: never ran).
     prepass_done: Option<ParamValues>,
-    /// Values of the structural parameters the resources were made for.
-    structure: Vec<String>,
+    /// Hash of the structural parameters the resources were made for.
+    structure: u64,
     /// Slice spacing (voxels) the resources were last updated for, for plugins that
     /// use it.
     spacing: f32,
     state: Option<[(wgpu::Texture, wgpu::TextureView); 2]>,
 }
 
+impl InstanceGpu {
+    /// Bytes of its uniforms, resources, pre-pass target and per-slice state.
+    fn bytes(&self) -> u64 {
+        let tex = |t: &wgpu::Texture| {
+            let s = t.size();
+            s.width as u64
+                * s.height as u64
+                * s.depth_or_array_layers as u64
+                * t.format().block_copy_size(None).unwrap_or(4) as u64
+        };
+        self.uniform_size
+            + self.resources.iter().map(GpuResource::bytes).sum::<u64>()
+            + self.prepass_target.as_ref().map_or(0, |(t, _)| tex(t))
+            + self
+                .state
+                .as_ref()
+                .map_or(0, |s| s.iter().map(|(t, _)| tex(t)).sum())
+    }
+}
+
+/// The stack in use: its compiled pipelines (shared through the compiled-stack cache)
+/// and the instances they draw.
 struct Pipelines {
-    composition: Composition,
+    compiled: Arc<CompiledStack>,
     /// (uid, plugin) of the enabled instances, in stack order.
     stack: Vec<(u64, Arc<dyn Plugin>)>,
     key: StructureKey,
+}
+
+impl std::ops::Deref for Pipelines {
+    type Target = CompiledStack;
+    fn deref(&self) -> &CompiledStack {
+        &self.compiled
+    }
+}
+
+/// An immutable compiled stack: the composition, its layouts and pipelines. It depends
+/// only on the stack's structure ([`structure_hash`]), not on which instances or
+/// parameter values use it, so the renderer keeps the recent ones
+/// ([`COMPILED_CACHE_SIZE`]) and toggling a plugin, an ablation or a duplicated
+/// instance does not compile again.
+struct CompiledStack {
+    composition: Composition,
     g1_layout: wgpu::BindGroupLayout,
     g2_layout: wgpu::BindGroupLayout,
     g3_layout: wgpu::BindGroupLayout,
@@ -207,22 +245,65 @@ fn ray_basis(view: &crate::camera::View) -> Mat4 {
     glam::DMat4::from_cols(inv.x_axis * sx, inv.y_axis * sy, forward, inv.w_axis).as_mat4()
 }
 
-/// The values of an instance's structural parameters.
-fn structure_of(inst: &PluginInstance) -> Vec<String> {
-    inst.plugin
-        .params()
-        .iter()
-        .filter(|s| s.structural)
-        .map(|s| format!("{:?}", inst.params.get(s.key)))
-        .collect()
+/// A hash of an instance's structural parameter values: what, beside its id, decides
+/// its code, resources and passes.
+fn structure_of(inst: &PluginInstance) -> u64 {
+    use std::hash::{Hash, Hasher};
+    let mut h = std::collections::hash_map::DefaultHasher::new();
+    for spec in inst.plugin.params().iter().filter(|s| s.structural) {
+        spec.key.hash(&mut h);
+        match inst.params.get(spec.key) {
+            None => 0u8.hash(&mut h),
+            Some(v) => v.hash_into(&mut h),
+        }
+    }
+    h.finish()
 }
+
+/// The hash that keys a compiled stack: the enabled plugins' ids and structural values
+/// in stack order, the eye-buffer format and the shader overrides.
+fn structure_hash(
+    entries: &[(u64, &'static str, u64)],
+    target: TargetFormat,
+    overrides: &std::collections::BTreeMap<String, String>,
+) -> u64 {
+    use std::hash::{Hash, Hasher};
+    let mut h = std::collections::hash_map::DefaultHasher::new();
+    for (_, id, structure) in entries {
+        id.hash(&mut h);
+        structure.hash(&mut h);
+    }
+    target.wgsl().hash(&mut h);
+    overrides.hash(&mut h);
+    h.finish()
+}
+
+/// How many compiled stacks the renderer keeps.
+pub const COMPILED_CACHE_SIZE: usize = 32;
 
 #[derive(Debug, Clone, PartialEq)]
 struct StructureKey {
-    entries: Vec<(u64, &'static str, Vec<String>)>,
+    /// (uid, id, structural hash) of the enabled instances, in stack order.
+    entries: Vec<(u64, &'static str, u64)>,
     target: TargetFormat,
     /// Changes whenever a shader override is set or cleared.
     overrides: u64,
+}
+
+/// Work the renderer has done since it was made, for tests and benchmarks that check
+/// it does only what changed.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct RenderCounters {
+    /// Stacks composed and compiled into pipelines.
+    pub compiles: u64,
+    /// Stack changes served from the compiled-stack cache.
+    pub compile_cache_hits: u64,
+    /// Volume uploads to the GPU.
+    pub volume_uploads: u64,
+    /// Plugin instances whose GPU resources were created.
+    pub instance_creations: u64,
+    /// Pre-pass runs.
+    pub prepass_runs: u64,
 }
 
 struct Target {
@@ -271,6 +352,9 @@ pub struct Renderer {
     shader_overrides: std::collections::BTreeMap<String, String>,
     overrides_generation: u64,
     pipelines: Option<Pipelines>,
+    /// Recently compiled stacks by [`structure_hash`], oldest first.
+    compiled: Vec<(u64, Arc<CompiledStack>)>,
+    counters: RenderCounters,
     instances: HashMap<u64, InstanceGpu>,
     target: Option<Target>,
     vertices: Option<(wgpu::Buffer, u64)>,
@@ -404,6 +488,11 @@ impl Renderer {
             shader_overrides: Default::default(),
             overrides_generation: 0,
             pipelines: None,
+            compiled: Vec::new(),
+            counters: RenderCounters {
+                volume_uploads: 1,
+                ..Default::default()
+            },
             instances: HashMap::new(),
             target: None,
             vertices: None,
@@ -444,6 +533,11 @@ impl Renderer {
         &self.gpu
     }
 
+    /// The work done since the renderer was made ([`RenderCounters`]).
+    pub fn counters(&self) -> RenderCounters {
+        self.counters
+    }
+
     pub fn volume(&self) -> &Arc<Volume> {
         &self.volume
     }
@@ -452,8 +546,13 @@ impl Renderer {
         &self.vbox
     }
 
-    /// Replaces the volume; pre-passes rerun, plugin resources are recreated.
+    /// Replaces the volume; pre-passes rerun, plugin resources are recreated (compiled
+    /// stacks are kept: they do not depend on the volume). The same volume (the same
+    /// `Arc`) is not uploaded again and changes nothing.
     pub fn set_volume(&mut self, volume: Arc<Volume>) -> Result<(), RenderError> {
+        if Arc::ptr_eq(&volume, &self.volume) {
+            return Ok(());
+        }
         let limit = self.gpu.limits.max_texture_dimension_3d;
         if volume.dims.iter().any(|&d| d == 0 || d > limit) {
             return Err(RenderError::VolumeTooLarge {
@@ -464,6 +563,7 @@ impl Renderer {
         }
         self.vbox = VolumeBox::new(volume.dims, volume.spacing);
         self.volume_view = upload_volume(&self.gpu, &volume);
+        self.counters.volume_uploads += 1;
         self.bricks = BrickRanges::new(volume.dims, &volume.normalized_scalars());
         self.occupancy = upload_occupancy(&self.gpu, [1, 1, 1], &[255]);
         self.occupancy_bytes = None;
@@ -559,8 +659,8 @@ impl Renderer {
             .unwrap_or_default()
     }
 
-    /// GPU memory each enabled instance holds (uniforms, resources, pre-pass target,
-    /// state), by uid.
+    /// GPU memory per enabled instance in stack order: (uid, plugin id, bytes) of its
+    /// uniforms, resources, pre-pass target and per-slice state.
     pub fn plugin_memory(&self) -> Vec<(u64, &'static str, u64)> {
         let Some(p) = &self.pipelines else {
             return Vec::new();
@@ -569,23 +669,28 @@ impl Renderer {
             .iter()
             .filter_map(|(uid, _)| {
                 let g = self.instances.get(uid)?;
-                let tex = |t: &wgpu::Texture| {
-                    let s = t.size();
-                    s.width as u64
-                        * s.height as u64
-                        * s.depth_or_array_layers as u64
-                        * t.format().block_copy_size(None).unwrap_or(4) as u64
-                };
-                let mut bytes = g.uniform_size;
-                bytes += g.resources.iter().map(GpuResource::bytes).sum::<u64>();
-                bytes += g.prepass_target.as_ref().map_or(0, |(t, _)| tex(t));
-                bytes += g
-                    .state
-                    .as_ref()
-                    .map_or(0, |s| s.iter().map(|(t, _)| tex(t)).sum());
-                Some((*uid, g.plugin_id, bytes))
+                Some((*uid, g.plugin_id, g.bytes()))
             })
             .collect()
+    }
+
+    /// GPU memory the renderer keeps for instances of the stack that are disabled
+    /// (uid, plugin id, bytes), so that enabling them again neither recreates their
+    /// resources nor reruns their pre-passes. Reported by `vwb bench` and the window.
+    pub fn disabled_memory(&self) -> Vec<(u64, &'static str, u64)> {
+        let enabled: std::collections::HashSet<u64> = self
+            .pipelines
+            .as_ref()
+            .map(|p| p.stack.iter().map(|(uid, _)| *uid).collect())
+            .unwrap_or_default();
+        let mut held: Vec<_> = self
+            .instances
+            .iter()
+            .filter(|(uid, _)| !enabled.contains(uid))
+            .map(|(uid, g)| (*uid, g.plugin_id, g.bytes()))
+            .collect();
+        held.sort_unstable();
+        held
     }
 
     /// Brings the pipeline in line with the plugin stack. On a composition error the
@@ -612,16 +717,38 @@ impl Renderer {
         };
         let recompose = self.pipelines.as_ref().is_none_or(|p| p.key != key);
         if recompose {
-            let plugins: Vec<&dyn Plugin> = enabled.iter().map(|i| i.plugin.as_ref()).collect();
-            let composition =
-                compose_with(&plugins, target, &self.gpu.limits, &self.shader_overrides)?;
-            self.dump(&composition);
+            let hash = structure_hash(&key.entries, target, &self.shader_overrides);
+            let compiled = match self.compiled.iter().position(|(h, _)| *h == hash) {
+                Some(i) => {
+                    // most recently used last
+                    let hit = self.compiled.remove(i);
+                    self.counters.compile_cache_hits += 1;
+                    hit.1
+                }
+                None => {
+                    let plugins: Vec<&dyn Plugin> =
+                        enabled.iter().map(|i| i.plugin.as_ref()).collect();
+                    let composition =
+                        compose_with(&plugins, target, &self.gpu.limits, &self.shader_overrides)?;
+                    self.dump(&composition);
+                    let compiled = Arc::new(self.build_pipelines(composition, target)?);
+                    self.counters.compiles += 1;
+                    compiled
+                }
+            };
+            if self.compiled.len() >= COMPILED_CACHE_SIZE {
+                self.compiled.remove(0);
+            }
+            self.compiled.push((hash, compiled.clone()));
             // resources for new instances (kept for known ones)
             for inst in &enabled {
                 self.ensure_instance(inst)?;
             }
-            let pipelines = self.build_pipelines(composition, &enabled, key)?;
-            self.pipelines = Some(pipelines);
+            self.pipelines = Some(Pipelines {
+                compiled,
+                stack: enabled.iter().map(|i| (i.uid, i.plugin.clone())).collect(),
+                key,
+            });
             let live: std::collections::HashSet<u64> = stack.iter().map(|i| i.uid).collect();
             self.instances.retain(|uid, _| live.contains(uid));
         }
@@ -760,6 +887,7 @@ impl Renderer {
             let view = texture.create_view(&Default::default());
             (texture, view)
         });
+        self.counters.instance_creations += 1;
         self.instances.insert(
             inst.uid,
             InstanceGpu {
@@ -802,9 +930,8 @@ impl Renderer {
     fn build_pipelines(
         &self,
         composition: Composition,
-        enabled: &[&PluginInstance],
-        key: StructureKey,
-    ) -> Result<Pipelines, RenderError> {
+        target: TargetFormat,
+    ) -> Result<CompiledStack, RenderError> {
         let device = &self.gpu.device;
         let fc = wgpu::ShaderStages::FRAGMENT | wgpu::ShaderStages::COMPUTE;
         let layout_for = |group: u32, bindings: &[Binding], label: &str| {
@@ -821,7 +948,6 @@ impl Renderer {
         let scope = device.push_error_scope(wgpu::ErrorFilter::Validation);
         let g1_layout = layout_for(1, &composition.bindings, "vwb group 1 (plugins)");
         let g2_layout = layout_for(2, &composition.bindings, "vwb group 2 (slice state)");
-        let target = key.target;
         let g3_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("vwb group 3 (compute output)"),
             entries: &[
@@ -957,10 +1083,8 @@ impl Renderer {
                 message: format!("the device rejected the composed pipeline: {err}"),
             }));
         }
-        Ok(Pipelines {
-            stack: enabled.iter().map(|i| (i.uid, i.plugin.clone())).collect(),
+        Ok(CompiledStack {
             composition,
-            key,
             g1_layout,
             g2_layout,
             g3_layout,
@@ -1585,6 +1709,7 @@ impl Renderer {
                 g.prepass_done = Some(g.params.clone());
             }
         }
+        self.counters.prepass_runs += prepasses_run as u64;
         let mut stats = FrameStats {
             slices: plan.count,
             per_slice_mode: per_slice,

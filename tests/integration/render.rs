@@ -437,3 +437,110 @@ fn empty_space_skipping_leaves_images_unchanged() {
         }
     }
 }
+
+/// Model only what the scene needs: compiled stacks are cached by their structure, so
+/// toggling a plugin off and on, removing a duplicate again or changing a volume does
+/// not compile again; a parameter change compiles nothing; the same volume is not
+/// uploaded again; pre-passes run once per volume and instance.
+#[test]
+fn compiled_stacks_are_cached_and_nothing_is_redone() {
+    let t = TargetFormat::Rgba32Float;
+    let s = settings(24, 24, Backend::Compute);
+    let mut r = Renderer::new(gpu(), demo()).unwrap();
+    let mut phong = instance("shade.blinn_phong");
+    phong
+        .params
+        .set("gradient", ParamValue::Enum("precomputed_central".into()));
+    let mut stack = vec![instance("classify.tf1d"), phong];
+    use vwb_render::PluginInstance;
+    let step = |r: &mut Renderer, stack: &[PluginInstance]| {
+        let change = r.update_stack(stack, t).unwrap();
+        r.render(&s).unwrap();
+        (change, r.counters())
+    };
+    let (_, c) = step(&mut r, &stack);
+    assert_eq!(
+        (c.compiles, c.volume_uploads, c.prepass_runs),
+        (1, 1, 1),
+        "{c:?}"
+    );
+
+    // off: another structure, compiled once
+    stack[1].enabled = false;
+    let (_, c) = step(&mut r, &stack);
+    assert_eq!((c.compiles, c.prepass_runs), (2, 1), "{c:?}");
+    // its gradient volume (8 bytes per voxel) stays allocated, and is reported
+    let held = r.disabled_memory();
+    assert_eq!(held.len(), 1, "{held:?}");
+    assert_eq!(held[0].1, "shade.blinn_phong");
+    assert!(held[0].2 >= 128 * 128 * 84 * 8, "{held:?}");
+    assert!(r.plugin_memory().iter().all(|m| m.1 != "shade.blinn_phong"));
+    // on again: the cached pipelines, the instance's resources and pre-pass result kept
+    stack[1].enabled = true;
+    let (change, c) = step(&mut r, &stack);
+    assert_eq!(change, vwb_render::StackChange::Recomposed);
+    assert_eq!(
+        (
+            c.compiles,
+            c.compile_cache_hits,
+            c.instance_creations,
+            c.prepass_runs
+        ),
+        (2, 1, 2, 1),
+        "{c:?}"
+    );
+    // a parameter: no compile, no pre-pass (the gradient does not depend on it)
+    stack[1].params.set("ks", ParamValue::Float(0.9));
+    let (change, c) = step(&mut r, &stack);
+    assert_eq!(change, vwb_render::StackChange::Params);
+    assert_eq!((c.compiles, c.prepass_runs), (2, 1), "{c:?}");
+    // a duplicate is a new structure and a new instance (its own pre-pass); removing it
+    // returns to a cached structure
+    stack.push(stack[1].duplicate());
+    let (_, c) = step(&mut r, &stack);
+    assert_eq!(
+        (c.compiles, c.instance_creations, c.prepass_runs),
+        (3, 3, 2),
+        "{c:?}"
+    );
+    stack.pop();
+    let (_, c) = step(&mut r, &stack);
+    assert_eq!((c.compiles, c.compile_cache_hits), (3, 2), "{c:?}");
+
+    // the same stack opened again as new instances (a preset reopened): with the old
+    // identities carried over, nothing is created, compiled or rerun
+    let mut reopened: Vec<_> = stack
+        .iter()
+        .map(|i| {
+            let mut n = PluginInstance::new(i.plugin.clone());
+            n.params = i.params.clone();
+            n
+        })
+        .collect();
+    vwb_render::plugin::carry_identities(&stack, &mut reopened);
+    let (change, c) = step(&mut r, &reopened);
+    assert_eq!(change, vwb_render::StackChange::None);
+    assert_eq!(
+        (c.compiles, c.instance_creations, c.prepass_runs),
+        (3, 3, 2),
+        "{c:?}"
+    );
+
+    // the same volume again: nothing uploaded, nothing rerun
+    r.set_volume(demo()).unwrap();
+    let (_, c) = step(&mut r, &stack);
+    assert_eq!(
+        (c.volume_uploads, c.prepass_runs, c.compiles),
+        (1, 2, 3),
+        "{c:?}"
+    );
+    // another volume: uploaded, the pre-pass reruns, the compiled stack is reused
+    r.set_volume(synthetic([12; 3], |x, y, z| (x + y + z) as f32))
+        .unwrap();
+    let (_, c) = step(&mut r, &stack);
+    assert_eq!(
+        (c.volume_uploads, c.prepass_runs, c.compiles),
+        (2, 3, 3),
+        "{c:?}"
+    );
+}

@@ -348,6 +348,25 @@ fn window_ct_flow_phong_dos_tf_sweep_pareto() {
     click(&mut h, "Open preset");
     assert!(ids(&h).contains(&"shade.blinn_phong"), "{:?}", ids(&h));
     assert!(matches!(h.state().document().volume, VolumeSource::File(_)));
+    // opening it again uploads nothing, creates and compiles nothing
+    let before = h.state().renderer().counters();
+    click(&mut h, "Open preset");
+    let after = h.state().renderer().counters();
+    assert_eq!(
+        (
+            after.volume_uploads,
+            after.instance_creations,
+            after.compiles,
+            after.prepass_runs
+        ),
+        (
+            before.volume_uploads,
+            before.instance_creations,
+            before.compiles,
+            before.prepass_runs
+        ),
+        "{before:?} → {after:?}"
+    );
     let phong = image(&h);
 
     // Blinn–Phong → DOS
