@@ -38,6 +38,9 @@ use crate::skipping::{BRICK, BrickRanges, stack_visibility};
 use crate::slicing::{SliceError, SlicePlan, VolumeBox};
 use crate::volume::Volume;
 
+mod atlas;
+pub use atlas::{Atlas, AtlasTile};
+
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
 pub enum Backend {
     #[default]
@@ -115,6 +118,8 @@ pub enum RenderError {
     TooManyPerSliceSlices { count: u32, max: u32 },
     #[error("GPU error: {0}")]
     Gpu(String),
+    #[error("atlas: {0}")]
+    Atlas(String),
 }
 
 /// Timings of one frame.
@@ -203,6 +208,13 @@ struct Pipelines {
     /// (uid, plugin) of the enabled instances, in stack order.
     stack: Vec<(u64, Arc<dyn Plugin>)>,
     key: StructureKey,
+}
+
+impl Pipelines {
+    /// The uids of the instances, in stack order.
+    fn uids(&self) -> Vec<u64> {
+        self.stack.iter().map(|(uid, _)| *uid).collect()
+    }
 }
 
 impl std::ops::Deref for Pipelines {
@@ -355,6 +367,8 @@ pub struct Renderer {
     /// Recently compiled stacks by [`structure_hash`], oldest first.
     compiled: Vec<(u64, Arc<CompiledStack>)>,
     counters: RenderCounters,
+    /// Instances created for the last atlas's tiles ([`Renderer::render_atlas`]).
+    atlas_uids: std::collections::HashSet<u64>,
     instances: HashMap<u64, InstanceGpu>,
     target: Option<Target>,
     vertices: Option<(wgpu::Buffer, u64)>,
@@ -489,6 +503,7 @@ impl Renderer {
             overrides_generation: 0,
             pipelines: None,
             compiled: Vec::new(),
+            atlas_uids: Default::default(),
             counters: RenderCounters {
                 volume_uploads: 1,
                 ..Default::default()
@@ -1228,12 +1243,17 @@ impl Renderer {
 
     /// Bind group of group 1 (plugins) for the main pipeline.
     fn group1(&self, p: &Pipelines) -> wgpu::BindGroup {
+        self.group1_for(p, &p.uids())
+    }
+
+    /// Bind group 1 of a compiled stack drawn by the instances `uids` (in stack order).
+    fn group1_for(&self, p: &CompiledStack, uids: &[u64]) -> wgpu::BindGroup {
         let entries: Vec<wgpu::BindGroupEntry> = p
             .composition
             .bindings
             .iter()
             .filter(|b| b.group == 1)
-            .filter_map(|b| self.bind_entry(p, b, None))
+            .filter_map(|b| self.bind_entry(uids, b, None))
             .collect();
         self.gpu
             .device
@@ -1246,13 +1266,14 @@ impl Renderer {
 
     /// Bind groups of group 2 for even and odd slices.
     fn group2(&self, p: &Pipelines) -> [wgpu::BindGroup; 2] {
+        let uids = p.uids();
         [0usize, 1].map(|parity| {
             let entries: Vec<wgpu::BindGroupEntry> = p
                 .composition
                 .bindings
                 .iter()
                 .filter(|b| b.group == 2)
-                .filter_map(|b| self.bind_entry(p, b, Some(parity)))
+                .filter_map(|b| self.bind_entry(&uids, b, Some(parity)))
                 .collect();
             self.gpu
                 .device
@@ -1266,11 +1287,11 @@ impl Renderer {
 
     fn bind_entry<'a>(
         &'a self,
-        p: &Pipelines,
+        uids: &[u64],
         b: &Binding,
         parity: Option<usize>,
     ) -> Option<wgpu::BindGroupEntry<'a>> {
-        let uid = p.stack.get(b.instance)?.0;
+        let uid = *uids.get(b.instance)?;
         let g = self.instances.get(&uid)?;
         let resource = match b.role {
             BindingRole::Params => g.uniform.as_entire_binding(),
@@ -1294,11 +1315,26 @@ impl Renderer {
     }
 
     fn write_frame(&self, s: &FrameSettings, plan: &SlicePlan, view: &crate::camera::View) {
-        let vp: Mat4 = view.view_proj();
         let t = self.target.as_ref().expect("target exists");
+        let u = self.frame_uniform(s, plan, view, [t.width, t.height], t.format);
+        self.gpu
+            .queue
+            .write_buffer(&self.frame_buf, 0, bytemuck::bytes_of(&u));
+    }
+
+    /// The core uniform of a frame drawn into a `size` eye buffer of `format`.
+    fn frame_uniform(
+        &self,
+        s: &FrameSettings,
+        plan: &SlicePlan,
+        view: &crate::camera::View,
+        size: [u32; 2],
+        format: TargetFormat,
+    ) -> FrameUniform {
+        let vp: Mat4 = view.view_proj();
         let range = self.volume.range;
         let span = (range[1] - range[0]) as f32;
-        let u = FrameUniform {
+        FrameUniform {
             view_proj: vp.to_cols_array(),
             ray_basis: ray_basis(view).to_cols_array(),
             eye: [
@@ -1316,10 +1352,10 @@ impl Renderer {
             ],
             box_max: [self.vbox.max.x, self.vbox.max.y, self.vbox.max.z, plan.d0],
             viewport: [
-                t.width as f32,
-                t.height as f32,
-                1.0 / t.width as f32,
-                1.0 / t.height as f32,
+                size[0] as f32,
+                size[1] as f32,
+                1.0 / size[0] as f32,
+                1.0 / size[1] as f32,
             ],
             volume_dims: [
                 self.volume.dims[0] as f32,
@@ -1335,7 +1371,7 @@ impl Renderer {
             ],
             counts: [
                 plan.count,
-                (t.format == TargetFormat::Rgba16Float) as u32,
+                (format == TargetFormat::Rgba16Float) as u32,
                 (s.backend == Backend::Compute && s.early_termination.is_some()) as u32,
                 0,
             ],
@@ -1349,10 +1385,103 @@ impl Renderer {
                 0.0,
                 0.0,
             ],
-        };
-        self.gpu
-            .queue
-            .write_buffer(&self.frame_buf, 0, bytemuck::bytes_of(&u));
+        }
+    }
+
+    /// Indices (in the stack) of the instances whose pre-pass is out of date: never run,
+    /// or run with other values of the parameters it depends on.
+    fn dirty_prepasses(&self, p: &CompiledStack, stack: &[(u64, Arc<dyn Plugin>)]) -> Vec<usize> {
+        p.prepasses
+            .iter()
+            .filter(|(i, _, _)| {
+                let (uid, plugin) = &stack[*i];
+                let deps = plugin.prepass().map(|d| d.depends_on).unwrap_or_default();
+                self.instances
+                    .get(uid)
+                    .is_some_and(|g| match &g.prepass_done {
+                        None => true,
+                        Some(done) => deps.iter().any(|k| done.get(k) != g.params.get(k)),
+                    })
+            })
+            .map(|(i, _, _)| *i)
+            .collect()
+    }
+
+    /// Encodes the pre-passes of the instances at `dirty` (indices into `stack`), each
+    /// after a `stamp`; returns how many.
+    fn encode_prepasses(
+        &self,
+        enc: &mut wgpu::CommandEncoder,
+        p: &CompiledStack,
+        stack: &[(u64, Arc<dyn Plugin>)],
+        dirty: &[usize],
+        stamp: &mut dyn FnMut(&mut wgpu::CommandEncoder, Option<String>),
+    ) -> usize {
+        let device = &self.gpu.device;
+        let mut prepasses_run = 0;
+        for (i, pipeline, layout) in &p.prepasses {
+            if !dirty.contains(i) {
+                continue;
+            }
+            stamp(enc, Some(format!("prepass {}", stack[*i].1.id())));
+            let uid = stack[*i].0;
+            let g = &self.instances[&uid];
+            let Some((_, bindings)) = &p.composition.instances[*i].prepass else {
+                continue;
+            };
+            let Some((tex, _)) = &g.prepass_target else {
+                continue;
+            };
+            let storage_view = tex.create_view(&Default::default());
+            let entries: Vec<wgpu::BindGroupEntry> = bindings
+                .iter()
+                .filter_map(|b| {
+                    let resource = match b.role {
+                        BindingRole::Params => g.uniform.as_entire_binding(),
+                        BindingRole::Resource(r) => {
+                            wgpu::BindingResource::TextureView(&g.resources.get(r)?.view)
+                        }
+                        BindingRole::PrepassTarget => {
+                            wgpu::BindingResource::TextureView(&storage_view)
+                        }
+                        _ => return None,
+                    };
+                    Some(wgpu::BindGroupEntry {
+                        binding: b.binding,
+                        resource,
+                    })
+                })
+                .collect();
+            let bg = device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("vwb prepass group 1"),
+                layout,
+                entries: &entries,
+            });
+            let size = tex.size();
+            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("vwb prepass"),
+                timestamp_writes: None,
+            });
+            pass.set_pipeline(pipeline);
+            pass.set_bind_group(0, &self.g0, &[0]);
+            pass.set_bind_group(1, &bg, &[]);
+            pass.dispatch_workgroups(
+                size.width.div_ceil(4),
+                size.height.div_ceil(4),
+                size.depth_or_array_layers.div_ceil(4),
+            );
+            prepasses_run += 1;
+        }
+        prepasses_run
+    }
+
+    /// Records that the pre-passes of `uids` ran with their instances' parameters.
+    fn mark_prepasses_done(&mut self, uids: impl IntoIterator<Item = u64>) {
+        for uid in uids {
+            if let Some(g) = self.instances.get_mut(&uid) {
+                g.prepass_done = Some(g.params.clone());
+            }
+        }
     }
 
     /// The slice plan for settings (what the frame will draw).
@@ -1459,78 +1588,8 @@ impl Renderer {
         };
 
         // pre-passes that are out of date
-        let mut prepasses_run = 0;
-        let dirty: Vec<usize> = p
-            .prepasses
-            .iter()
-            .filter(|(i, _, _)| {
-                let uid = p.stack[*i].0;
-                let plugin = &p.stack[*i].1;
-                let deps = plugin.prepass().map(|d| d.depends_on).unwrap_or_default();
-                self.instances
-                    .get(&uid)
-                    .is_some_and(|g| match &g.prepass_done {
-                        None => true,
-                        Some(done) => deps.iter().any(|k| done.get(k) != g.params.get(k)),
-                    })
-            })
-            .map(|(i, _, _)| *i)
-            .collect();
-        if !dirty.is_empty() {
-            for (i, pipeline, layout) in &p.prepasses {
-                if !dirty.contains(i) {
-                    continue;
-                }
-                stamp(&mut enc, Some(format!("prepass {}", p.stack[*i].1.id())));
-                let uid = p.stack[*i].0;
-                let g = &self.instances[&uid];
-                let Some((_, bindings)) = &p.composition.instances[*i].prepass else {
-                    continue;
-                };
-                let Some((tex, _)) = &g.prepass_target else {
-                    continue;
-                };
-                let storage_view = tex.create_view(&Default::default());
-                let entries: Vec<wgpu::BindGroupEntry> = bindings
-                    .iter()
-                    .filter_map(|b| {
-                        let resource = match b.role {
-                            BindingRole::Params => g.uniform.as_entire_binding(),
-                            BindingRole::Resource(r) => {
-                                wgpu::BindingResource::TextureView(&g.resources.get(r)?.view)
-                            }
-                            BindingRole::PrepassTarget => {
-                                wgpu::BindingResource::TextureView(&storage_view)
-                            }
-                            _ => return None,
-                        };
-                        Some(wgpu::BindGroupEntry {
-                            binding: b.binding,
-                            resource,
-                        })
-                    })
-                    .collect();
-                let bg = device.create_bind_group(&wgpu::BindGroupDescriptor {
-                    label: Some("vwb prepass group 1"),
-                    layout,
-                    entries: &entries,
-                });
-                let size = tex.size();
-                let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                    label: Some("vwb prepass"),
-                    timestamp_writes: None,
-                });
-                pass.set_pipeline(pipeline);
-                pass.set_bind_group(0, &self.g0, &[0]);
-                pass.set_bind_group(1, &bg, &[]);
-                pass.dispatch_workgroups(
-                    size.width.div_ceil(4),
-                    size.height.div_ceil(4),
-                    size.depth_or_array_layers.div_ceil(4),
-                );
-                prepasses_run += 1;
-            }
-        }
+        let dirty = self.dirty_prepasses(p, &p.stack);
+        let prepasses_run = self.encode_prepasses(&mut enc, p, &p.stack, &dirty, &mut stamp);
 
         let g1 = self.group1(p);
         let g2 = self.group2(p);
@@ -1702,13 +1761,8 @@ impl Renderer {
             enc.copy_buffer_to_buffer(resolve, 0, read, 0, n_stamps as u64 * 8);
         }
         self.gpu.queue.submit([enc.finish()]);
-        // mark pre-passes done
         let done: Vec<u64> = dirty.iter().map(|i| p.stack[*i].0).collect();
-        for uid in done {
-            if let Some(g) = self.instances.get_mut(&uid) {
-                g.prepass_done = Some(g.params.clone());
-            }
-        }
+        self.mark_prepasses_done(done);
         self.counters.prepass_runs += prepasses_run as u64;
         let mut stats = FrameStats {
             slices: plan.count,
@@ -1748,24 +1802,11 @@ impl Renderer {
             TargetFormat::Rgba32Float => 16,
         };
         let bytes = read_texture(&self.gpu, &t.texture, bpp);
-        let row = (t.width * bpp).div_ceil(256) * 256;
-        let mut out = Vec::with_capacity((t.width * t.height) as usize);
-        for y in 0..t.height {
-            let line = &bytes[(y * row) as usize..(y * row + t.width * bpp) as usize];
-            for px in line.chunks_exact(bpp as usize) {
-                let v: [f32; 4] = if bpp == 8 {
-                    std::array::from_fn(|c| {
-                        half::f16::from_le_bytes([px[2 * c], px[2 * c + 1]]).to_f32()
-                    })
-                } else {
-                    std::array::from_fn(|c| {
-                        f32::from_le_bytes(px[4 * c..4 * c + 4].try_into().expect("4 bytes"))
-                    })
-                };
-                out.push(v);
-            }
-        }
-        Some((t.width, t.height, out))
+        Some((
+            t.width,
+            t.height,
+            decode_rgba(&bytes, t.width, t.height, bpp),
+        ))
     }
 
     /// Composites the eye buffer over `background` into an 8-bit RGBA texture (for
@@ -1886,6 +1927,28 @@ impl Renderer {
         }
         Some(([s.width, s.height, s.depth_or_array_layers], out))
     }
+}
+
+/// RGBA texels read back with rows padded to 256 bytes, `bpp` 8 (rgba16float) or 16.
+fn decode_rgba(bytes: &[u8], width: u32, height: u32, bpp: u32) -> Vec<[f32; 4]> {
+    let row = (width * bpp).div_ceil(256) * 256;
+    let mut out = Vec::with_capacity((width * height) as usize);
+    for y in 0..height {
+        let line = &bytes[(y * row) as usize..(y * row + width * bpp) as usize];
+        for px in line.chunks_exact(bpp as usize) {
+            let v: [f32; 4] = if bpp == 8 {
+                std::array::from_fn(|c| {
+                    half::f16::from_le_bytes([px[2 * c], px[2 * c + 1]]).to_f32()
+                })
+            } else {
+                std::array::from_fn(|c| {
+                    f32::from_le_bytes(px[4 * c..4 * c + 4].try_into().expect("4 bytes"))
+                })
+            };
+            out.push(v);
+        }
+    }
+    out
 }
 
 #[allow(clippy::too_many_arguments)]

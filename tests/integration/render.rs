@@ -15,6 +15,7 @@ use vwb_render::renderer::{Backend, FrameSettings};
 use vwb_render::tf::{TfCurve, TfPoint};
 
 use crate::common::*;
+use crate::reference::delta_e_rms;
 
 const ONE_LEVEL: f64 = 1.0 / 255.0;
 
@@ -543,4 +544,173 @@ fn compiled_stacks_are_cached_and_nothing_is_redone() {
         (2, 3, 3),
         "{c:?}"
     );
+}
+
+/// `n` transfer-function variants of `classify.tf1d` (ramps of varying position,
+/// width, colour and opacity), each with its own instance, and a camera per variant
+/// from four viewpoints.
+pub fn tf_variants(n: usize) -> Vec<(vwb_render::Camera, Vec<vwb_render::PluginInstance>)> {
+    (0..n)
+        .map(|i| {
+            let f = i as f32 / n as f32;
+            let mut tf = instance("classify.tf1d");
+            let color = [0.4 + 0.6 * f, 1.0 - 0.5 * f, 0.3 + 0.4 * (1.0 - f), 0.6];
+            let lo = 0.05 + 0.35 * f;
+            tf.params.set(
+                "tf",
+                ParamValue::Tf(TfCurve::ramp(lo, lo + 0.1 + 0.3 * (1.0 - f), color)),
+            );
+            tf.params.set("opacity", ParamValue::Float(0.5 + 2.0 * f));
+            let mut camera = settings(8, 8, Backend::Compute).camera;
+            camera.yaw_deg += 30.0 * (i % 4) as f32;
+            (camera, vec![tf])
+        })
+        .collect()
+}
+
+/// Many views in one submission: 64 TF variants from four viewpoints at 128², one
+/// atlas, one command encoder. Each tile is its single render (ΔE*uv RMS ≤ 0.01); the
+/// speed against 64 single renders is `bash bench/atlas.sh`'s (docs/perf.md).
+#[test]
+fn an_atlas_of_64_variants_matches_their_single_renders() {
+    use vwb_render::renderer::AtlasTile;
+    let variants = tf_variants(64);
+    let s = settings(128, 128, Backend::Compute);
+    let t = TargetFormat::Rgba32Float;
+    let mut r = Renderer::new(gpu(), demo()).unwrap();
+    let tiles: Vec<AtlasTile> = variants
+        .iter()
+        .map(|(camera, stack)| AtlasTile {
+            camera: *camera,
+            stack,
+        })
+        .collect();
+    let atlas = r.render_atlas(&tiles, &s, t, 8).unwrap();
+    assert_eq!((atlas.cols, atlas.rows, atlas.tiles), (8, 8, 64));
+    assert_eq!(
+        r.counters().compiles,
+        1,
+        "one compiled stack serves every tile"
+    );
+    let mut worst = 0.0f64;
+    let mut single_r = Renderer::new(gpu(), demo()).unwrap();
+    for (i, (camera, stack)) in variants.iter().enumerate() {
+        let single = render(
+            &mut single_r,
+            stack,
+            t,
+            &FrameSettings {
+                camera: *camera,
+                ..s
+            },
+        );
+        let tile = atlas.tile_pixels(i);
+        let reference: Vec<[f64; 4]> = single.iter().map(|p| p.map(f64::from)).collect();
+        let rms = delta_e_rms(&tile, &reference, 128, 128);
+        assert!(rms <= 0.01, "tile {i}: ΔE*uv RMS {rms}");
+        worst = worst.max(rms);
+        // the variants differ from one another
+        if i > 0 {
+            let (d, _) = diff(&rgb(&tile), &rgb(&atlas.tile_pixels(i - 1)));
+            assert!(d > 1e-3, "tiles {} and {i} differ", i - 1);
+        }
+    }
+    eprintln!(
+        "atlas of 64 at 128²: worst tile ΔE*uv RMS {worst:.5}, {:.1} ms",
+        atlas.wall_ms
+    );
+
+    // a tile of another structure is refused, naming it
+    let mut odd = variants[3].1.clone();
+    odd.push(instance("shade.blinn_phong"));
+    let mut bad = tiles.clone();
+    bad[3] = AtlasTile {
+        camera: variants[3].0,
+        stack: &odd,
+    };
+    let e = r.render_atlas(&bad, &s, t, 8).unwrap_err().to_string();
+    assert!(e.contains("tile 3"), "{e}");
+}
+
+/// The atlas against a loop of single renders (update the stack, render, read back
+/// each), 64 TF variants from four viewpoints at 64² and 128² on the demo, median of 3
+/// rounds, interleaved. Writes docs/atlas_bench.json. Run: `bash bench/atlas.sh`.
+#[test]
+#[ignore = "benchmark: bash bench/atlas.sh"]
+fn atlas_benchmark() {
+    use std::time::Instant;
+    use vwb_render::renderer::AtlasTile;
+    let variants = tf_variants(64);
+    let t = TargetFormat::Rgba32Float;
+    let mut rows = Vec::new();
+    for side in [64u32, 128] {
+        let s = settings(side, side, Backend::Compute);
+        let tiles: Vec<AtlasTile> = variants
+            .iter()
+            .map(|(camera, stack)| AtlasTile {
+                camera: *camera,
+                stack,
+            })
+            .collect();
+        let mut r = Renderer::new(gpu(), demo()).unwrap();
+        // warm: compile, instances and tables
+        r.render_atlas(&tiles, &s, t, 8).unwrap();
+        for (camera, stack) in &variants {
+            render(
+                &mut r,
+                stack,
+                t,
+                &FrameSettings {
+                    camera: *camera,
+                    ..s
+                },
+            );
+        }
+        let (mut atlas_ms, mut single_ms) = (Vec::new(), Vec::new());
+        for _ in 0..3 {
+            let start = Instant::now();
+            r.render_atlas(&tiles, &s, t, 8).unwrap();
+            atlas_ms.push(start.elapsed().as_secs_f64() * 1e3);
+            let start = Instant::now();
+            for (camera, stack) in &variants {
+                render(
+                    &mut r,
+                    stack,
+                    t,
+                    &FrameSettings {
+                        camera: *camera,
+                        ..s
+                    },
+                );
+            }
+            single_ms.push(start.elapsed().as_secs_f64() * 1e3);
+        }
+        let median = |v: &mut Vec<f64>| {
+            v.sort_by(f64::total_cmp);
+            v[v.len() / 2]
+        };
+        let (a, b) = (median(&mut atlas_ms), median(&mut single_ms));
+        eprintln!(
+            "{side}²: atlas {a:.1} ms ({:.2} ms/tile), 64 single renders {b:.1} ms ({:.2} ms/tile): ratio {:.3}",
+            a / 64.0,
+            b / 64.0,
+            a / b
+        );
+        rows.push(serde_json::json!({
+            "tile": side,
+            "tiles": 64,
+            "atlas_ms": a,
+            "single_renders_ms": b,
+            "atlas_ms_per_tile": a / 64.0,
+            "single_ms_per_tile": b / 64.0,
+            "atlas_over_single": a / b,
+        }));
+    }
+    let out = serde_json::json!({
+        "machine": vwb_app::measure::machine(),
+        "adapter": gpu().describe(),
+        "scene": "embedded demo, classify.tf1d ramps (64 variants, 4 viewpoints), compute, rgba32float, spacing 1",
+        "rows": rows,
+    });
+    vwb_app::measure::save_json(&repo().join("docs/atlas_bench.json"), &out).expect("write");
 }

@@ -1,0 +1,321 @@
+//! Many views or variants in one submission: an atlas of tiles, each a camera and a
+//! plugin stack of the same structure (e.g. transfer-function variants seen from a few
+//! viewpoints, for galleries and genetic search).
+//!
+//! All tiles share the compiled stack (one composition, one set of pipelines); each
+//! tile's instances keep their own uniforms and resources (a variant's lookup table),
+//! each tile gets its own frame uniform and group-0 bind group, and the tiles are drawn
+//! one after another into the eye buffer and copied into the atlas texture inside one
+//! command encoder, submitted once. The images are those of [`Renderer::render`] with
+//! the same settings, tile by tile (tested).
+
+use super::*;
+
+/// One tile of an atlas: the camera it is seen from and the stack that draws it.
+#[derive(Clone, Copy)]
+pub struct AtlasTile<'a> {
+    pub camera: Camera,
+    pub stack: &'a [PluginInstance],
+}
+
+/// An atlas of `cols` × `rows` tiles of `tile` pixels, tile i at column i % cols and
+/// row i / cols; premultiplied RGBA, row-major over the whole atlas.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Atlas {
+    pub cols: u32,
+    pub rows: u32,
+    pub tile: [u32; 2],
+    pub tiles: usize,
+    pub pixels: Vec<[f32; 4]>,
+    /// Wall time from encoding to the GPU finishing, ms.
+    pub wall_ms: f64,
+    /// Pre-passes the atlas ran.
+    pub prepasses_run: usize,
+}
+
+impl Atlas {
+    /// The premultiplied pixels of tile `i`, row-major.
+    pub fn tile_pixels(&self, i: usize) -> Vec<[f32; 4]> {
+        let [tw, th] = self.tile.map(|v| v as usize);
+        let width = tw * self.cols as usize;
+        let (x0, y0) = ((i % self.cols as usize) * tw, (i / self.cols as usize) * th);
+        (0..th)
+            .flat_map(|y| {
+                let start = (y0 + y) * width + x0;
+                self.pixels[start..start + tw].iter().copied()
+            })
+            .collect()
+    }
+}
+
+impl Renderer {
+    /// Renders every tile into one atlas with one command encoder and one submission.
+    /// `s` gives the tile size, slice spacing and early termination (its camera is each
+    /// tile's); the backend must be compute and the stack without per-slice state. The
+    /// tiles' stacks must share one structure: the same enabled plugins with the same
+    /// structural values in the same order; their parameter values and instances
+    /// differ. Afterwards the renderer draws the first tile's stack.
+    pub fn render_atlas(
+        &mut self,
+        tiles: &[AtlasTile],
+        s: &FrameSettings,
+        target: TargetFormat,
+        cols: u32,
+    ) -> Result<Atlas, RenderError> {
+        let atlas_error = |m: String| RenderError::Atlas(m);
+        if tiles.is_empty() || cols == 0 {
+            return Err(atlas_error(
+                "an atlas needs at least one tile and one column".into(),
+            ));
+        }
+        if s.backend != Backend::Compute {
+            return Err(atlas_error(
+                "atlases render on the compute backend (--backend compute)".into(),
+            ));
+        }
+        let rows = tiles.len().div_ceil(cols as usize) as u32;
+        let (tw, th) = (s.width, s.height);
+        let max = self.gpu.limits.max_texture_dimension_2d;
+        if tw == 0 || th == 0 || cols.saturating_mul(tw) > max || rows.saturating_mul(th) > max {
+            return Err(RenderError::BadSize(
+                cols.saturating_mul(tw),
+                rows.saturating_mul(th),
+                max,
+            ));
+        }
+        self.update_stack(tiles[0].stack, target)?;
+        let p = self.pipelines.as_ref().expect("pipeline exists");
+        if !p.updates.is_empty() {
+            return Err(atlas_error(
+                "stacks with per-slice state render one view per submission".into(),
+            ));
+        }
+        let structure: Vec<(&'static str, u64)> =
+            p.key.entries.iter().map(|(_, id, h)| (*id, *h)).collect();
+        let compiled = p.compiled.clone();
+
+        // every tile's enabled instances, configured, with their GPU data
+        let mut stacks: Vec<Vec<(u64, Arc<dyn Plugin>)>> = Vec::with_capacity(tiles.len());
+        for (t, tile) in tiles.iter().enumerate() {
+            let enabled: Vec<PluginInstance> = tile
+                .stack
+                .iter()
+                .filter(|i| i.enabled)
+                .map(PluginInstance::with_configured_plugin)
+                .collect();
+            let mine: Vec<(&'static str, u64)> = enabled
+                .iter()
+                .map(|i| (i.plugin.id(), structure_of(i)))
+                .collect();
+            if mine != structure {
+                return Err(atlas_error(format!(
+                    "tile {t}: its stack's structure differs from tile 0's (the plugins, their order and their structural parameters must be the same)"
+                )));
+            }
+            for inst in &enabled {
+                self.ensure_instance(inst)?;
+                self.sync_params(inst)?;
+            }
+            stacks.push(enabled.iter().map(|i| (i.uid, i.plugin.clone())).collect());
+        }
+        // instances of an earlier atlas that this one does not use are dropped
+        let live: std::collections::HashSet<u64> =
+            stacks.iter().flatten().map(|(u, _)| *u).collect();
+        let stale: Vec<u64> = self.atlas_uids.difference(&live).copied().collect();
+        let main: std::collections::HashSet<u64> = self
+            .pipelines
+            .as_ref()
+            .map(|p| p.uids().into_iter().collect())
+            .unwrap_or_default();
+        for uid in stale {
+            if !main.contains(&uid) {
+                self.instances.remove(&uid);
+            }
+        }
+        self.atlas_uids = live;
+
+        // the plans (one per camera) and spacing-dependent resources
+        let views: Vec<_> = tiles
+            .iter()
+            .map(|t| t.camera.view(tw as f32 / th as f32))
+            .collect();
+        let plans = views
+            .iter()
+            .map(|v| SlicePlan::new(v, &self.vbox, s.slice_spacing))
+            .collect::<Result<Vec<_>, _>>()?;
+        let spacing = plans[0].spacing / self.vbox.voxel;
+        self.slice_spacing = spacing;
+        for (uid, plugin) in stacks.iter().flatten() {
+            if !plugin.uses_slice_spacing() {
+                continue;
+            }
+            let Some(g) = self.instances.get(uid) else {
+                continue;
+            };
+            if g.spacing != spacing {
+                plugin.update_resources(&self.gpu_init(), &g.params, &g.resources)?;
+                if let Some(g) = self.instances.get_mut(uid) {
+                    g.spacing = spacing;
+                }
+            }
+        }
+        self.ensure_target(tw, th, target);
+        // pre-passes read the volume through the frame uniform
+        self.write_frame(
+            &FrameSettings {
+                camera: tiles[0].camera,
+                ..*s
+            },
+            &plans[0],
+            &views[0],
+        );
+
+        let start = Instant::now();
+        let device = &self.gpu.device;
+        let t = self.target.as_ref().expect("target exists");
+        let atlas = device.create_texture(&wgpu::TextureDescriptor {
+            label: Some("vwb atlas"),
+            size: wgpu::Extent3d {
+                width: cols * tw,
+                height: rows * th,
+                depth_or_array_layers: 1,
+            },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: target.wgpu(),
+            usage: wgpu::TextureUsages::COPY_DST | wgpu::TextureUsages::COPY_SRC,
+            view_formats: &[],
+        });
+        let mut enc = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
+            label: Some("vwb atlas"),
+        });
+        let mut prepasses_run = 0;
+        let mut done = Vec::new();
+        for stack in &stacks {
+            let dirty: Vec<usize> = self
+                .dirty_prepasses(&compiled, stack)
+                .into_iter()
+                .filter(|i| !done.contains(&stack[*i].0))
+                .collect();
+            prepasses_run +=
+                self.encode_prepasses(&mut enc, &compiled, stack, &dirty, &mut |_, _| {});
+            done.extend(dirty.iter().map(|i| stack[*i].0));
+        }
+        let g3 = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("vwb group 3"),
+            layout: &compiled.g3_layout,
+            entries: &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: wgpu::BindingResource::TextureView(&t.view),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: t.accum.as_entire_binding(),
+                },
+            ],
+        });
+        let uids0: Vec<u64> = stacks[0].iter().map(|(u, _)| *u).collect();
+        let g2 = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("vwb group 2"),
+            layout: &compiled.g2_layout,
+            entries: &compiled
+                .composition
+                .bindings
+                .iter()
+                .filter(|b| b.group == 2)
+                .filter_map(|b| self.bind_entry(&uids0, b, Some(0)))
+                .collect::<Vec<_>>(),
+        });
+        for (i, (stack, (view, plan))) in stacks.iter().zip(views.iter().zip(&plans)).enumerate() {
+            let settings = FrameSettings {
+                camera: tiles[i].camera,
+                ..*s
+            };
+            // empty-space skipping by each tile's own classification, as its single
+            // render would skip
+            let occupancy = self
+                .skipping_enabled
+                .then(|| stack_visibility(tiles[i].stack).map(|v| self.bricks.occupancy(&*v)))
+                .flatten();
+            let mut u = self.frame_uniform(&settings, plan, view, [tw, th], target);
+            u.settings[1] = if occupancy.is_some() {
+                BRICK as f32
+            } else {
+                0.0
+            };
+            let occupancy_texture = occupancy
+                .as_ref()
+                .map(|b| upload_occupancy(&self.gpu, self.bricks.dims, b));
+            let frame = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("vwb atlas frame"),
+                contents: bytemuck::bytes_of(&u),
+                usage: wgpu::BufferUsages::UNIFORM,
+            });
+            let g0 = make_g0(
+                device,
+                &self.g0_layout,
+                &frame,
+                &self.volume_view,
+                &self.linear,
+                &self.nearest,
+                &self.slice_info,
+                occupancy_texture
+                    .as_ref()
+                    .map_or(&self.occupancy.1, |o| &o.1),
+            );
+            let uids: Vec<u64> = stack.iter().map(|(u, _)| *u).collect();
+            let g1 = self.group1_for(&compiled, &uids);
+            {
+                let mut pass = enc.begin_compute_pass(&Default::default());
+                pass.set_pipeline(if occupancy.is_some() {
+                    &compiled.cs_main_skip
+                } else {
+                    &compiled.cs_main
+                });
+                pass.set_bind_group(0, &g0, &[0]);
+                pass.set_bind_group(1, &g1, &[]);
+                pass.set_bind_group(2, &g2, &[]);
+                pass.set_bind_group(3, &g3, &[]);
+                pass.dispatch_workgroups(tw.div_ceil(8), th.div_ceil(8), 1);
+            }
+            enc.copy_texture_to_texture(
+                t.texture.as_image_copy(),
+                wgpu::TexelCopyTextureInfo {
+                    texture: &atlas,
+                    mip_level: 0,
+                    origin: wgpu::Origin3d {
+                        x: (i as u32 % cols) * tw,
+                        y: (i as u32 / cols) * th,
+                        z: 0,
+                    },
+                    aspect: wgpu::TextureAspect::All,
+                },
+                wgpu::Extent3d {
+                    width: tw,
+                    height: th,
+                    depth_or_array_layers: 1,
+                },
+            );
+        }
+        self.gpu.queue.submit([enc.finish()]);
+        let bpp = match target {
+            TargetFormat::Rgba16Float => 8,
+            TargetFormat::Rgba32Float => 16,
+        };
+        let bytes = read_texture(&self.gpu, &atlas, bpp);
+        let wall_ms = start.elapsed().as_secs_f64() * 1e3;
+        self.mark_prepasses_done(done);
+        self.counters.prepass_runs += prepasses_run as u64;
+        Ok(Atlas {
+            cols,
+            rows,
+            tile: [tw, th],
+            tiles: tiles.len(),
+            pixels: decode_rgba(&bytes, cols * tw, rows * th, bpp),
+            wall_ms,
+            prepasses_run,
+        })
+    }
+}
