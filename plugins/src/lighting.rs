@@ -2,9 +2,17 @@
 //! their conversion for the CPU twins. The maths is in `vwb_render::shading` (CPU) and
 //! at the end of `shaders/common.wgsl` (GPU).
 
-use glam::DVec3;
+use std::marker::PhantomData;
+use std::sync::Arc;
+
+use glam::{DVec3, DVec4};
 use vwb_render::params::{ParamSpec, ParamValues};
-use vwb_render::shading::{Light, LightKind, LightSpace, Material};
+use vwb_render::plugin::{
+    CpuContext, CpuSample, CpuTwin, Plugin, PrepassDecl, ShaderSource, Transparency,
+};
+use vwb_render::shading::{
+    GradientEstimator, Gradients, Light, LightKind, LightSpace, Material, shading_normal,
+};
 
 /// Keys of light i's parameters: on, type, space, vector, colour.
 pub const LIGHT_KEYS: [[&str; 5]; 4] = [
@@ -134,6 +142,135 @@ pub fn head_light(p: &ParamValues) -> Light {
         space: LightSpace::View,
         vector: DVec3::from(p.vec3("light_vector").map(f64::from)),
         color: DVec3::ONE,
+    }
+}
+
+/// A local-illumination model on the shared gradient estimators, fade rule and four
+/// lights: what differs between such models is their id, their own parameters, their
+/// hook file and the lit colour their twin computes; [`Lit`] is the plugin around it.
+/// The hook file's `shade` reads `params.two_sided`, `params.gradient_floor` and the
+/// lights `params.light{0..3}_*`, which [`Lit`] declares after the model's own.
+pub trait LightingModel: Send + Sync + 'static {
+    const ID: &'static str;
+    const NAME: &'static str;
+    const DESCRIPTION: &'static str;
+    /// The hook file, as a path from the repository root, and its source.
+    const FILE: &'static str;
+    const SOURCE: &'static str;
+    /// The CPU twin of the model's lighting.
+    type Twin: LitColour;
+    /// The model's own parameters.
+    fn params() -> Vec<ParamSpec>;
+    fn twin(params: &ParamValues) -> Self::Twin;
+}
+
+/// The lit colour of a model's CPU twin.
+pub trait LitColour: Send + Sync + 'static {
+    /// The lit colour of `base` at unit normal `n` (zero where there is no gradient)
+    /// seen from `v` (unit, towards the viewer) at `pos`, under `lights`.
+    fn lit(
+        &self,
+        ctx: &CpuContext,
+        lights: &[Light],
+        base: DVec3,
+        n: DVec3,
+        v: DVec3,
+        pos: DVec3,
+    ) -> DVec3;
+}
+
+/// The shading plugin of a [`LightingModel`]: the gradient estimator (structural), the
+/// model's parameters, `two_sided`, `gradient_floor` and four lights; opacity is kept.
+pub struct Lit<M> {
+    pub gradient: GradientEstimator,
+    model: PhantomData<fn() -> M>,
+}
+
+impl<M> Lit<M> {
+    pub fn new(gradient: GradientEstimator) -> Self {
+        Self {
+            gradient,
+            model: PhantomData,
+        }
+    }
+}
+
+impl<M> Default for Lit<M> {
+    fn default() -> Self {
+        Self::new(GradientEstimator::default())
+    }
+}
+
+impl<M: LightingModel> Plugin for Lit<M> {
+    fn id(&self) -> &'static str {
+        M::ID
+    }
+    fn display_name(&self) -> &'static str {
+        M::NAME
+    }
+    fn description(&self) -> &'static str {
+        M::DESCRIPTION
+    }
+    fn params(&self) -> Vec<ParamSpec> {
+        let mut p = vec![GradientEstimator::param()];
+        p.extend(M::params());
+        p.extend([
+            ParamSpec::boolean("two_sided", "Two-sided", true)
+                .with_doc("flip normals towards the viewer (else n = −∇f/|∇f|)"),
+            fade_param(),
+        ]);
+        p.extend(light_params(4));
+        p
+    }
+    fn shader(&self) -> ShaderSource {
+        self.gradient.hook_source(M::FILE, M::SOURCE)
+    }
+    fn prepass(&self) -> Option<PrepassDecl> {
+        self.gradient.prepass()
+    }
+    fn configure(&self, params: &ParamValues) -> Option<Arc<dyn Plugin>> {
+        let gradient = GradientEstimator::from_params(params);
+        (gradient != self.gradient).then(|| Arc::new(Self::new(gradient)) as Arc<dyn Plugin>)
+    }
+    /// Shading changes colours only.
+    fn transparency(&self, _params: &ParamValues) -> Transparency {
+        Transparency::Keeps
+    }
+    fn cpu_twin(&self, params: &ParamValues) -> Option<Box<dyn CpuTwin>> {
+        Some(Box::new(LitTwin {
+            gradients: Gradients::new(self.gradient),
+            model: M::twin(params),
+            lights: lights(params, 4),
+            two_sided: params.boolean("two_sided"),
+            floor: params.float("gradient_floor") as f64,
+        }))
+    }
+}
+
+/// CPU twin of a [`Lit`] plugin: the shading normal and fade weight, then the model.
+pub struct LitTwin<T> {
+    pub gradients: Gradients,
+    pub model: T,
+    pub lights: Vec<Light>,
+    pub two_sided: bool,
+    pub floor: f64,
+}
+
+impl<T: LitColour> CpuTwin for LitTwin<T> {
+    fn prepare(&mut self, ctx: &CpuContext) {
+        self.gradients.prepare(ctx);
+    }
+    fn shade(&self, ctx: &CpuContext, s: &mut CpuSample) {
+        if s.color.w <= 0.0 {
+            return;
+        }
+        let v = -s.ray_dir;
+        let g = self.gradients.at(ctx, s.tex);
+        let (n, w) = shading_normal(g, self.floor, v, self.two_sided);
+        let base = s.color.truncate();
+        let lit = self.model.lit(ctx, &self.lights, base, n, v, s.pos);
+        s.color = DVec4::from((base.lerp(lit, w), s.color.w));
+        s.normal = n;
     }
 }
 

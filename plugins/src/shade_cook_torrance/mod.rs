@@ -14,38 +14,31 @@
 //! the normal (shared estimators and fade rule, `vwb_render::shading`); opacity is
 //! unchanged.
 
-use std::sync::Arc;
-
-use glam::{DVec3, DVec4};
+use glam::DVec3;
 use vwb_render::params::{ParamSpec, ParamValues};
-use vwb_render::plugin::{
-    CpuContext, CpuSample, CpuTwin, Plugin, PrepassDecl, ShaderSource, Transparency,
-};
-use vwb_render::shading::{GradientEstimator, Gradients, Light, safe_normalize, shading_normal};
+use vwb_render::plugin::CpuContext;
+use vwb_render::shading::{Light, safe_normalize};
 
-use crate::lighting;
+use crate::lighting::{Lit, LightingModel, LitColour};
 
 #[cfg(test)]
 mod tests;
 
-#[derive(Debug, Clone, Copy, Default)]
-pub struct CookTorrance {
-    pub gradient: GradientEstimator,
-}
+/// The plugin: the model on the shared gradients, fade rule and lights.
+pub type CookTorrance = Lit<CookTorranceModel>;
 
-impl Plugin for CookTorrance {
-    fn id(&self) -> &'static str {
-        "shade.cook_torrance"
-    }
-    fn display_name(&self) -> &'static str {
-        "Cook–Torrance (GGX)"
-    }
-    fn description(&self) -> &'static str {
-        "Microfacet reflection: GGX distribution, Smith masking, Schlick Fresnel"
-    }
-    fn params(&self) -> Vec<ParamSpec> {
-        let mut p = vec![
-            GradientEstimator::param(),
+pub struct CookTorranceModel;
+
+impl LightingModel for CookTorranceModel {
+    const ID: &'static str = "shade.cook_torrance";
+    const NAME: &'static str = "Cook–Torrance (GGX)";
+    const DESCRIPTION: &'static str =
+        "Microfacet reflection: GGX distribution, Smith masking, Schlick Fresnel";
+    const FILE: &'static str = "plugins/src/shade_cook_torrance/cook_torrance.wgsl";
+    const SOURCE: &'static str = include_str!("cook_torrance.wgsl");
+    type Twin = Brdf;
+    fn params() -> Vec<ParamSpec> {
+        vec![
             ParamSpec::float("ka", "Ambient k_a", 0.0, 1.0, 0.2),
             ParamSpec::float("kd", "Diffuse k_d", 0.0, 1.0, 0.75)
                 .with_doc("weight of the Lambertian base"),
@@ -55,38 +48,10 @@ impl Plugin for CookTorrance {
                 .with_doc("GGX α = roughness²; small values give sharp highlights"),
             ParamSpec::float("f0", "Fresnel F0", 0.0, 1.0, 0.04)
                 .with_doc("reflectance at normal incidence (Schlick): 0.02–0.05 for dielectrics"),
-            ParamSpec::boolean("two_sided", "Two-sided", true)
-                .with_doc("flip normals towards the viewer (else n = −∇f/|∇f|)"),
-            lighting::fade_param(),
-        ];
-        p.extend(lighting::light_params(4));
-        p
+        ]
     }
-    fn shader(&self) -> ShaderSource {
-        self.gradient.hook_source(
-            "plugins/src/shade_cook_torrance/cook_torrance.wgsl",
-            include_str!("cook_torrance.wgsl"),
-        )
-    }
-    fn prepass(&self) -> Option<PrepassDecl> {
-        self.gradient.prepass()
-    }
-    fn configure(&self, params: &ParamValues) -> Option<Arc<dyn Plugin>> {
-        let gradient = GradientEstimator::from_params(params);
-        (gradient != self.gradient).then(|| Arc::new(CookTorrance { gradient }) as Arc<dyn Plugin>)
-    }
-    /// Shading changes colours only.
-    fn transparency(&self, _params: &ParamValues) -> Transparency {
-        Transparency::Keeps
-    }
-    fn cpu_twin(&self, params: &ParamValues) -> Option<Box<dyn CpuTwin>> {
-        Some(Box::new(CookTorranceTwin {
-            gradients: Gradients::new(self.gradient),
-            brdf: Brdf::from_params(params),
-            lights: lighting::lights(params, 4),
-            two_sided: params.boolean("two_sided"),
-            floor: params.float("gradient_floor") as f64,
-        }))
+    fn twin(params: &ParamValues) -> Brdf {
+        Brdf::from_params(params)
     }
 }
 
@@ -148,34 +113,23 @@ impl Brdf {
     }
 }
 
-/// CPU twin of `cook_torrance.wgsl`.
-pub struct CookTorranceTwin {
-    pub gradients: Gradients,
-    pub brdf: Brdf,
-    pub lights: Vec<Light>,
-    pub two_sided: bool,
-    pub floor: f64,
-}
-
-impl CpuTwin for CookTorranceTwin {
-    fn prepare(&mut self, ctx: &CpuContext) {
-        self.gradients.prepare(ctx);
-    }
-    fn shade(&self, ctx: &CpuContext, s: &mut CpuSample) {
-        if s.color.w <= 0.0 {
-            return;
-        }
-        let v = -s.ray_dir;
-        let (n, w) = shading_normal(self.gradients.at(ctx, s.tex), self.floor, v, self.two_sided);
+/// The lit colour of `cook_torrance.wgsl`'s `shade`.
+impl LitColour for Brdf {
+    fn lit(
+        &self,
+        ctx: &CpuContext,
+        lights: &[Light],
+        base: DVec3,
+        n: DVec3,
+        v: DVec3,
+        pos: DVec3,
+    ) -> DVec3 {
         let (mut diffuse, mut specular) = (DVec3::ZERO, DVec3::ZERO);
-        for l in &self.lights {
-            let (d, sp) = self.brdf.factors(n, v, l.dir(ctx, s.pos));
-            diffuse += l.color * (self.brdf.kd * d);
-            specular += l.color * (self.brdf.ks * sp);
+        for l in lights {
+            let (d, sp) = self.factors(n, v, l.dir(ctx, pos));
+            diffuse += l.color * (self.kd * d);
+            specular += l.color * (self.ks * sp);
         }
-        let base = s.color.truncate();
-        let lit = base * (DVec3::splat(self.brdf.ka) + diffuse) + specular;
-        s.color = DVec4::from((base.lerp(lit, w), s.color.w));
-        s.normal = n;
+        base * (DVec3::splat(self.ka) + diffuse) + specular
     }
 }

@@ -8,76 +8,43 @@
 //! plane; tan β divides by max(cos β, 10⁻⁴) (our guard for grazing views). The gradient
 //! is the normal (shared estimators and fade rule); opacity is unchanged.
 
-use std::sync::Arc;
-
-use glam::{DVec3, DVec4};
+use glam::DVec3;
 use vwb_render::params::{ParamSpec, ParamValues};
-use vwb_render::plugin::{
-    CpuContext, CpuSample, CpuTwin, Plugin, PrepassDecl, ShaderSource, Transparency,
-};
-use vwb_render::shading::{GradientEstimator, Gradients, Light, safe_normalize, shading_normal};
+use vwb_render::plugin::CpuContext;
+use vwb_render::shading::{Light, safe_normalize};
 
-use crate::lighting;
+use crate::lighting::{Lit, LightingModel, LitColour};
 
 #[cfg(test)]
 mod tests;
 
-#[derive(Debug, Clone, Copy, Default)]
-pub struct OrenNayar {
-    pub gradient: GradientEstimator,
-}
+/// The plugin: the model on the shared gradients, fade rule and lights.
+pub type OrenNayar = Lit<OrenNayarModel>;
 
-impl Plugin for OrenNayar {
-    fn id(&self) -> &'static str {
-        "shade.oren_nayar"
-    }
-    fn display_name(&self) -> &'static str {
-        "Oren–Nayar (rough diffuse)"
-    }
-    fn description(&self) -> &'static str {
-        "Rough diffuse reflection: flatter shading and back-scatter as σ grows"
-    }
-    fn params(&self) -> Vec<ParamSpec> {
-        let mut p = vec![
-            GradientEstimator::param(),
+pub struct OrenNayarModel;
+
+impl LightingModel for OrenNayarModel {
+    const ID: &'static str = "shade.oren_nayar";
+    const NAME: &'static str = "Oren–Nayar (rough diffuse)";
+    const DESCRIPTION: &'static str =
+        "Rough diffuse reflection: flatter shading and back-scatter as σ grows";
+    const FILE: &'static str = "plugins/src/shade_oren_nayar/oren_nayar.wgsl";
+    const SOURCE: &'static str = include_str!("oren_nayar.wgsl");
+    type Twin = RoughDiffuse;
+    fn params() -> Vec<ParamSpec> {
+        vec![
             ParamSpec::float("ka", "Ambient k_a", 0.0, 1.0, 0.25),
             ParamSpec::float("kd", "Diffuse k_d", 0.0, 1.0, 0.8),
             ParamSpec::float("sigma", "Roughness σ (rad)", 0.0, 1.5, 0.5)
                 .with_doc("standard deviation of the facet slopes in radians; 0 is Lambert"),
-            ParamSpec::boolean("two_sided", "Two-sided", true)
-                .with_doc("flip normals towards the viewer (else n = −∇f/|∇f|)"),
-            lighting::fade_param(),
-        ];
-        p.extend(lighting::light_params(4));
-        p
+        ]
     }
-    fn shader(&self) -> ShaderSource {
-        self.gradient.hook_source(
-            "plugins/src/shade_oren_nayar/oren_nayar.wgsl",
-            include_str!("oren_nayar.wgsl"),
-        )
-    }
-    fn prepass(&self) -> Option<PrepassDecl> {
-        self.gradient.prepass()
-    }
-    fn configure(&self, params: &ParamValues) -> Option<Arc<dyn Plugin>> {
-        let gradient = GradientEstimator::from_params(params);
-        (gradient != self.gradient).then(|| Arc::new(OrenNayar { gradient }) as Arc<dyn Plugin>)
-    }
-    /// Shading changes colours only.
-    fn transparency(&self, _params: &ParamValues) -> Transparency {
-        Transparency::Keeps
-    }
-    fn cpu_twin(&self, params: &ParamValues) -> Option<Box<dyn CpuTwin>> {
-        Some(Box::new(OrenNayarTwin {
-            gradients: Gradients::new(self.gradient),
+    fn twin(params: &ParamValues) -> RoughDiffuse {
+        RoughDiffuse {
             ka: params.float("ka") as f64,
             kd: params.float("kd") as f64,
             sigma: params.float("sigma") as f64,
-            lights: lighting::lights(params, 4),
-            two_sided: params.boolean("two_sided"),
-            floor: params.float("gradient_floor") as f64,
-        }))
+        }
     }
 }
 
@@ -100,35 +67,29 @@ pub fn oren_nayar_factor(sigma: f64, n: DVec3, v: DVec3, l: DVec3) -> f64 {
     ndl * (a + b * cos_phi * sin_alpha * tan_beta)
 }
 
-/// CPU twin of `oren_nayar.wgsl`.
-pub struct OrenNayarTwin {
-    pub gradients: Gradients,
+/// The material of `oren_nayar.wgsl`, in f64.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RoughDiffuse {
     pub ka: f64,
     pub kd: f64,
     pub sigma: f64,
-    pub lights: Vec<Light>,
-    pub two_sided: bool,
-    pub floor: f64,
 }
 
-impl CpuTwin for OrenNayarTwin {
-    fn prepare(&mut self, ctx: &CpuContext) {
-        self.gradients.prepare(ctx);
-    }
-    fn shade(&self, ctx: &CpuContext, s: &mut CpuSample) {
-        if s.color.w <= 0.0 {
-            return;
-        }
-        let v = -s.ray_dir;
-        let (n, w) = shading_normal(self.gradients.at(ctx, s.tex), self.floor, v, self.two_sided);
-        let d: DVec3 = self
-            .lights
+/// The lit colour of `oren_nayar.wgsl`'s `shade`.
+impl LitColour for RoughDiffuse {
+    fn lit(
+        &self,
+        ctx: &CpuContext,
+        lights: &[Light],
+        base: DVec3,
+        n: DVec3,
+        v: DVec3,
+        pos: DVec3,
+    ) -> DVec3 {
+        let d: DVec3 = lights
             .iter()
-            .map(|l| l.color * (self.kd * oren_nayar_factor(self.sigma, n, v, l.dir(ctx, s.pos))))
+            .map(|l| l.color * (self.kd * oren_nayar_factor(self.sigma, n, v, l.dir(ctx, pos))))
             .sum();
-        let base = s.color.truncate();
-        let lit = base * (DVec3::splat(self.ka) + d);
-        s.color = DVec4::from((base.lerp(lit, w), s.color.w));
-        s.normal = n;
+        base * (DVec3::splat(self.ka) + d)
     }
 }

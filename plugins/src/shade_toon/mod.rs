@@ -9,38 +9,31 @@
 //! depend on f32 rounding at the thresholds. The gradient is the normal (shared
 //! estimators and fade rule); opacity is unchanged.
 
-use std::sync::Arc;
-
 use glam::{DVec3, DVec4};
 use vwb_render::params::{ParamSpec, ParamValues};
-use vwb_render::plugin::{
-    CpuContext, CpuSample, CpuTwin, Plugin, PrepassDecl, ShaderSource, Transparency,
-};
-use vwb_render::shading::{GradientEstimator, Gradients, Light, shading_normal};
+use vwb_render::plugin::CpuContext;
+use vwb_render::shading::Light;
 
-use crate::lighting;
+use crate::lighting::{Lit, LightingModel, LitColour};
 
 #[cfg(test)]
 mod tests;
 
-#[derive(Debug, Clone, Copy, Default)]
-pub struct Toon {
-    pub gradient: GradientEstimator,
-}
+/// The plugin: the model on the shared gradients, fade rule and lights.
+pub type Toon = Lit<ToonModel>;
 
-impl Plugin for Toon {
-    fn id(&self) -> &'static str {
-        "shade.toon"
-    }
-    fn display_name(&self) -> &'static str {
-        "Toon (cel shading)"
-    }
-    fn description(&self) -> &'static str {
-        "Banded diffuse light with an outline where surfaces are seen edge-on"
-    }
-    fn params(&self) -> Vec<ParamSpec> {
-        let mut p = vec![
-            GradientEstimator::param(),
+pub struct ToonModel;
+
+impl LightingModel for ToonModel {
+    const ID: &'static str = "shade.toon";
+    const NAME: &'static str = "Toon (cel shading)";
+    const DESCRIPTION: &'static str =
+        "Banded diffuse light with an outline where surfaces are seen edge-on";
+    const FILE: &'static str = "plugins/src/shade_toon/toon.wgsl";
+    const SOURCE: &'static str = include_str!("toon.wgsl");
+    type Twin = ToonStyle;
+    fn params() -> Vec<ParamSpec> {
+        vec![
             ParamSpec::float("ka", "Ambient k_a", 0.0, 1.0, 0.3),
             ParamSpec::float("kd", "Diffuse k_d", 0.0, 1.0, 0.7),
             ParamSpec::int("bands", "Bands", 2, 8, 3)
@@ -51,36 +44,10 @@ impl Plugin for Toon {
                 .with_doc("outline where |n·v| is below this (the surface is seen edge-on)"),
             ParamSpec::color("outline_color", "Outline colour", [0.05, 0.05, 0.08, 1.0])
                 .with_doc("its alpha is the outline's strength; 0 turns the outline off"),
-            ParamSpec::boolean("two_sided", "Two-sided", true)
-                .with_doc("flip normals towards the viewer (else n = −∇f/|∇f|)"),
-            lighting::fade_param(),
-        ];
-        p.extend(lighting::light_params(4));
-        p
+        ]
     }
-    fn shader(&self) -> ShaderSource {
-        self.gradient
-            .hook_source("plugins/src/shade_toon/toon.wgsl", include_str!("toon.wgsl"))
-    }
-    fn prepass(&self) -> Option<PrepassDecl> {
-        self.gradient.prepass()
-    }
-    fn configure(&self, params: &ParamValues) -> Option<Arc<dyn Plugin>> {
-        let gradient = GradientEstimator::from_params(params);
-        (gradient != self.gradient).then(|| Arc::new(Toon { gradient }) as Arc<dyn Plugin>)
-    }
-    /// Shading changes colours only.
-    fn transparency(&self, _params: &ParamValues) -> Transparency {
-        Transparency::Keeps
-    }
-    fn cpu_twin(&self, params: &ParamValues) -> Option<Box<dyn CpuTwin>> {
-        Some(Box::new(ToonTwin {
-            gradients: Gradients::new(self.gradient),
-            style: ToonStyle::from_params(params),
-            lights: lighting::lights(params, 4),
-            two_sided: params.boolean("two_sided"),
-            floor: params.float("gradient_floor") as f64,
-        }))
+    fn twin(params: &ParamValues) -> ToonStyle {
+        ToonStyle::from_params(params)
     }
 }
 
@@ -132,35 +99,22 @@ impl ToonStyle {
     }
 }
 
-/// CPU twin of `toon.wgsl`.
-pub struct ToonTwin {
-    pub gradients: Gradients,
-    pub style: ToonStyle,
-    pub lights: Vec<Light>,
-    pub two_sided: bool,
-    pub floor: f64,
-}
-
-impl CpuTwin for ToonTwin {
-    fn prepare(&mut self, ctx: &CpuContext) {
-        self.gradients.prepare(ctx);
-    }
-    fn shade(&self, ctx: &CpuContext, s: &mut CpuSample) {
-        if s.color.w <= 0.0 {
-            return;
-        }
-        let st = &self.style;
-        let v = -s.ray_dir;
-        let (n, w) = shading_normal(self.gradients.at(ctx, s.tex), self.floor, v, self.two_sided);
-        let d: DVec3 = self
-            .lights
+/// The lit colour of `toon.wgsl`'s `shade`.
+impl LitColour for ToonStyle {
+    fn lit(
+        &self,
+        ctx: &CpuContext,
+        lights: &[Light],
+        base: DVec3,
+        n: DVec3,
+        v: DVec3,
+        pos: DVec3,
+    ) -> DVec3 {
+        let d: DVec3 = lights
             .iter()
-            .map(|l| l.color * (st.kd * st.level(n.dot(l.dir(ctx, s.pos)).max(0.0))))
+            .map(|l| l.color * (self.kd * self.level(n.dot(l.dir(ctx, pos)).max(0.0))))
             .sum();
-        let base = s.color.truncate();
-        let banded = base * (DVec3::splat(st.ka) + d);
-        let toon = banded.lerp(st.outline.truncate(), st.edge(n.dot(v)) * st.outline.w);
-        s.color = DVec4::from((base.lerp(toon, w), s.color.w));
-        s.normal = n;
+        let banded = base * (DVec3::splat(self.ka) + d);
+        banded.lerp(self.outline.truncate(), self.edge(n.dot(v)) * self.outline.w)
     }
 }

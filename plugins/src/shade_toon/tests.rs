@@ -1,4 +1,5 @@
 use super::*;
+use vwb_render::plugin::Plugin;
 use crate::lighting::testing::{BASE, constant, ramp_x, shaded, world_light};
 use vwb_render::params::ParamValue;
 
