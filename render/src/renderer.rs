@@ -39,7 +39,7 @@ use crate::slicing::{SliceError, SlicePlan, VolumeBox};
 use crate::volume::Volume;
 
 mod atlas;
-pub use atlas::{Atlas, AtlasTile};
+pub use atlas::{Atlas, AtlasTile, EncodedAtlas};
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
 pub enum Backend {

@@ -620,6 +620,30 @@ fn an_atlas_of_64_variants_matches_their_single_renders() {
         atlas.wall_ms
     );
 
+    // two atlases encoded into the caller's one command encoder, one submission
+    let mut enc = gpu().device.create_command_encoder(&Default::default());
+    let first = r.encode_atlas(&mut enc, &tiles[..8], &s, t, 4).unwrap();
+    let second = r.encode_atlas(&mut enc, &tiles[8..16], &s, t, 4).unwrap();
+    gpu().queue.submit([enc.finish()]);
+    for (k, encoded) in [first, second].iter().enumerate() {
+        let part = vwb_render::renderer::Atlas {
+            cols: encoded.cols,
+            rows: encoded.rows,
+            tile: encoded.tile,
+            tiles: 8,
+            pixels: r.read_atlas(encoded),
+            wall_ms: 0.0,
+            prepasses_run: 0,
+        };
+        for j in 0..8 {
+            let (d, _) = diff(
+                &rgb(&part.tile_pixels(j)),
+                &rgb(&atlas.tile_pixels(8 * k + j)),
+            );
+            assert!(d < 1e-6, "atlas {k} tile {j}: {d}");
+        }
+    }
+
     // a tile of another structure is refused, naming it
     let mut odd = variants[3].1.clone();
     odd.push(instance("shade.blinn_phong"));

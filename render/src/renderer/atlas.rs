@@ -33,6 +33,24 @@ pub struct Atlas {
     pub prepasses_run: usize,
 }
 
+/// An atlas encoded into a caller's command encoder ([`Renderer::encode_atlas`]).
+#[derive(Debug)]
+pub struct EncodedAtlas {
+    /// `cols·tile[0]` × `rows·tile[1]`, the eye buffer's format; COPY_SRC.
+    pub texture: wgpu::Texture,
+    pub cols: u32,
+    pub rows: u32,
+    pub tile: [u32; 2],
+    pub prepasses_run: usize,
+}
+
+impl EncodedAtlas {
+    /// The atlas size in pixels.
+    pub fn size(&self) -> [u32; 2] {
+        [self.cols * self.tile[0], self.rows * self.tile[1]]
+    }
+}
+
 impl Atlas {
     /// The premultiplied pixels of tile `i`, row-major.
     pub fn tile_pixels(&self, i: usize) -> Vec<[f32; 4]> {
@@ -62,6 +80,47 @@ impl Renderer {
         target: TargetFormat,
         cols: u32,
     ) -> Result<Atlas, RenderError> {
+        let start = Instant::now();
+        let mut enc = self
+            .gpu
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("vwb atlas"),
+            });
+        let encoded = self.encode_atlas(&mut enc, tiles, s, target, cols)?;
+        self.gpu.queue.submit([enc.finish()]);
+        Ok(Atlas {
+            cols: encoded.cols,
+            rows: encoded.rows,
+            tile: encoded.tile,
+            tiles: tiles.len(),
+            pixels: self.read_atlas(&encoded),
+            wall_ms: start.elapsed().as_secs_f64() * 1e3,
+            prepasses_run: encoded.prepasses_run,
+        })
+    }
+
+    /// Reads an encoded atlas back (after its encoder was submitted): premultiplied
+    /// RGBA, row-major over the whole atlas.
+    pub fn read_atlas(&self, a: &EncodedAtlas) -> Vec<[f32; 4]> {
+        let bpp = a.texture.format().block_copy_size(None).unwrap_or(16);
+        let bytes = read_texture(&self.gpu, &a.texture, bpp);
+        let [w, h] = a.size();
+        decode_rgba(&bytes, w, h, bpp)
+    }
+
+    /// Encodes the atlas of [`Renderer::render_atlas`] into the caller's command
+    /// encoder (which may hold other work: several atlases or views per submission) and
+    /// returns its texture (COPY_SRC). The caller submits the encoder before the
+    /// renderer encodes or renders again: the pre-passes it encodes count as run.
+    pub fn encode_atlas(
+        &mut self,
+        enc: &mut wgpu::CommandEncoder,
+        tiles: &[AtlasTile],
+        s: &FrameSettings,
+        target: TargetFormat,
+        cols: u32,
+    ) -> Result<EncodedAtlas, RenderError> {
         let atlas_error = |m: String| RenderError::Atlas(m);
         if tiles.is_empty() || cols == 0 {
             return Err(atlas_error(
@@ -170,7 +229,6 @@ impl Renderer {
             &views[0],
         );
 
-        let start = Instant::now();
         let device = &self.gpu.device;
         let t = self.target.as_ref().expect("target exists");
         let atlas = device.create_texture(&wgpu::TextureDescriptor {
@@ -187,9 +245,6 @@ impl Renderer {
             usage: wgpu::TextureUsages::COPY_DST | wgpu::TextureUsages::COPY_SRC,
             view_formats: &[],
         });
-        let mut enc = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
-            label: Some("vwb atlas"),
-        });
         let mut prepasses_run = 0;
         let mut done = Vec::new();
         for stack in &stacks {
@@ -198,8 +253,7 @@ impl Renderer {
                 .into_iter()
                 .filter(|i| !done.contains(&stack[*i].0))
                 .collect();
-            prepasses_run +=
-                self.encode_prepasses(&mut enc, &compiled, stack, &dirty, &mut |_, _| {});
+            prepasses_run += self.encode_prepasses(enc, &compiled, stack, &dirty, &mut |_, _| {});
             done.extend(dirty.iter().map(|i| stack[*i].0));
         }
         let g3 = device.create_bind_group(&wgpu::BindGroupDescriptor {
@@ -299,22 +353,13 @@ impl Renderer {
                 },
             );
         }
-        self.gpu.queue.submit([enc.finish()]);
-        let bpp = match target {
-            TargetFormat::Rgba16Float => 8,
-            TargetFormat::Rgba32Float => 16,
-        };
-        let bytes = read_texture(&self.gpu, &atlas, bpp);
-        let wall_ms = start.elapsed().as_secs_f64() * 1e3;
         self.mark_prepasses_done(done);
         self.counters.prepass_runs += prepasses_run as u64;
-        Ok(Atlas {
+        Ok(EncodedAtlas {
+            texture: atlas,
             cols,
             rows,
             tile: [tw, th],
-            tiles: tiles.len(),
-            pixels: decode_rgba(&bytes, cols * tw, rows * th, bpp),
-            wall_ms,
             prepasses_run,
         })
     }
