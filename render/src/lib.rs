@@ -3,6 +3,7 @@
 
 pub mod camera;
 pub mod composer;
+pub mod flow;
 pub mod gpu;
 pub mod metrics;
 pub mod params;
@@ -10,6 +11,7 @@ pub mod plugin;
 pub mod preset;
 pub mod reference;
 pub mod renderer;
+pub mod rng;
 pub mod shading;
 pub mod skipping;
 pub mod slicing;

@@ -10,6 +10,7 @@ mod composer;
 mod coverage;
 mod dos;
 mod extremes;
+mod flow;
 mod presets;
 mod reference;
 mod render;

@@ -31,6 +31,7 @@ use vwb_render::plugin::{
     ConvergedReference, CpuContext, CpuSample, CpuTwin, PluginInstance, SuppliedReference,
 };
 use vwb_render::renderer::FrameSettings;
+use vwb_render::rng::{Rng, mix};
 use vwb_render::slicing::VolumeBox;
 use vwb_render::volume::Volume;
 
@@ -202,23 +203,6 @@ fn slab(origin: DVec3, dir: DVec3, lo: DVec3, hi: DVec3) -> Option<(f64, f64)> {
     let t_in = ta.min(tb).max_element().max(0.0);
     let t_out = ta.max(tb).min_element();
     (t_in.is_finite() && t_out.is_finite() && t_out > t_in).then_some((t_in, t_out))
-}
-
-/// splitmix64
-fn mix(mut z: u64) -> u64 {
-    z = z.wrapping_add(0x9E37_79B9_7F4A_7C15);
-    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    z ^ (z >> 31)
-}
-
-struct Rng(u64);
-
-impl Rng {
-    fn uniform(&mut self) -> f64 {
-        self.0 = mix(self.0);
-        (self.0 >> 11) as f64 / (1u64 << 53) as f64
-    }
 }
 
 /// A direction uniform in solid angle within angle θ of the unit `axis`.
