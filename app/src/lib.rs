@@ -9,6 +9,7 @@ pub mod dos_study;
 pub mod headless;
 pub mod job;
 pub mod measure;
+pub mod outputs;
 pub mod stack_ui;
 #[cfg(test)]
 mod test_input;

@@ -67,12 +67,43 @@ pub fn wgpu_configuration() -> egui_wgpu::WgpuConfiguration {
     }
 }
 
-pub fn run(cli: &Cli) -> Result<()> {
-    let mut doc = load_document(cli.preset.as_deref())?;
-    if let Some(v) = &cli.volume {
-        doc.volume = VolumeSource::File(v.clone());
+/// The document and volume the window opens on. When the preset or the volume fails
+/// to load, the window still opens, on the demo scene, with the error shown (the
+/// returned message); only a `--screenshot` run fails instead, so scripts see it.
+pub fn startup(
+    cli: &Cli,
+) -> Result<(Document, Arc<vwb_render::Volume>, Option<String>)> {
+    let loaded = (|| {
+        let mut doc = load_document(cli.preset.as_deref())?;
+        if let Some(v) = &cli.volume {
+            doc.volume = VolumeSource::File(v.clone());
+        }
+        let volume = headless::load_volume(&doc.volume)?;
+        anyhow::Ok((doc, volume))
+    })();
+    match loaded {
+        Ok((doc, volume)) => Ok((doc, volume, None)),
+        Err(e) if cli.screenshot.is_none() => {
+            let registry = vwb_plugins::builtin_registry();
+            let doc = default_document(&registry);
+            let volume = headless::load_volume(&doc.volume)?;
+            Ok((doc, volume, Some(format!("{e:#} (showing the demo scene)"))))
+        }
+        Err(e) => Err(e),
     }
-    let volume = headless::load_volume(&doc.volume)?;
+}
+
+pub fn run(cli: &Cli) -> Result<()> {
+    if let Some(shot) = &cli.screenshot {
+        crate::outputs::image_format(shot)?;
+    }
+    let (doc, volume, startup_error) = startup(cli)?;
+    if let Some(e) = &startup_error {
+        eprintln!("error: {e}");
+    }
+    if let Some(shot) = &cli.screenshot {
+        crate::outputs::check_output(shot)?;
+    }
     let screenshot = cli.screenshot.clone();
     let options = eframe::NativeOptions {
         wgpu_options: wgpu_configuration(),
@@ -86,7 +117,10 @@ pub fn run(cli: &Cli) -> Result<()> {
         "vwb",
         options,
         Box::new(move |cc| {
-            let app = Workbench::new(cc, doc, volume, screenshot, err_tx)?;
+            let mut app = Workbench::new(cc, doc, volume, screenshot, err_tx)?;
+            if let Some(e) = startup_error {
+                app.show_error(e);
+            }
             Ok(Box::new(app))
         }),
     )
@@ -314,6 +348,11 @@ impl Workbench {
         self.dirty = true;
     }
 
+    /// Shows an error under the file fields (e.g. a preset that failed at start-up).
+    pub fn show_error(&mut self, message: String) {
+        self.file_status = Some(Err(message));
+    }
+
     /// Shows the outcome of a file operation.
     fn report(&mut self, outcome: Result<String>) {
         self.file_status = Some(outcome.map_err(|e| format!("{e:#}")));
@@ -381,6 +420,9 @@ impl Workbench {
             self.renderer.volume().dims
         ));
         ui.label(format!("adapter: {}", self.renderer.gpu().info.name));
+        for w in headless::frame_warnings(&self.doc, self.renderer.volume()) {
+            ui.colored_label(egui::Color32::from_rgb(230, 160, 40), format!("⚠ {w}"));
+        }
         ui.separator();
         self.files(ui);
         ui.separator();

@@ -3,6 +3,7 @@
 
 pub mod camera;
 pub mod composer;
+pub mod files;
 pub mod gpu;
 pub mod metrics;
 pub mod params;
@@ -16,6 +17,7 @@ pub mod slicing;
 pub mod suggest;
 pub mod tf;
 pub mod tf2d;
+pub mod validate;
 pub mod volume;
 
 pub use camera::{Camera, Projection};

@@ -115,6 +115,8 @@ pub enum RenderError {
     TooManyPerSliceSlices { count: u32, max: u32 },
     #[error("GPU error: {0}")]
     Gpu(String),
+    #[error(transparent)]
+    Camera(#[from] crate::validate::FieldError),
 }
 
 /// Timings of one frame.
@@ -1260,6 +1262,7 @@ impl Renderer {
         {
             return Err(RenderError::NoFloat32Blending);
         }
+        crate::validate::check_camera(&s.camera)?;
         let view = s.camera.view(s.width as f32 / s.height as f32);
         let plan = SlicePlan::new(&view, &self.vbox, s.slice_spacing)?;
         let spacing_updates = self.sync_spacing(plan.spacing / self.vbox.voxel)?;
