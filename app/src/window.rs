@@ -81,6 +81,11 @@ pub fn startup(
         let volume = headless::load_volume(&doc.volume)?;
         anyhow::Ok((doc, volume))
     })();
+    // the window edits its preset: *Save preset* may write over it (volumes stay
+    // protected; a screenshot run saves no preset)
+    if let Some(p) = cli.preset.as_ref().filter(|_| cli.screenshot.is_none()) {
+        vwb_render::files::unprotect_input(p);
+    }
     match loaded {
         Ok((doc, volume)) => Ok((doc, volume, None)),
         Err(e) if cli.screenshot.is_none() => {

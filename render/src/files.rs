@@ -19,6 +19,13 @@ pub fn protect_input(role: &str, path: &Path) {
     }
 }
 
+/// Removes a file from the inputs (the window's preset: saving over it is the point).
+pub fn unprotect_input(path: &Path) {
+    if let Ok(mut inputs) = INPUTS.lock() {
+        inputs.retain(|(_, p)| !same_file(p, path) && p != path);
+    }
+}
+
 /// An error when `output` is one of the registered inputs (the same file after
 /// following links: same device and inode), naming both.
 pub fn check_not_input(output: &Path) -> std::io::Result<()> {

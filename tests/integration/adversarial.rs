@@ -548,7 +548,15 @@ fn a_failing_start_up_opens_the_demo_with_the_error() {
     assert_eq!(volume.name, "demo");
     let error = error.unwrap();
     assert!(error.contains("presets/missing.ron"), "{error}");
-    // a screenshot run still fails, so scripts notice
+    // the window may save over the preset it opened (its volume stays protected)
+    let d = scratch("startup");
+    let p = d.join("p.ron");
+    std::fs::copy(repo().join("presets/demo.ron"), &p).unwrap();
+    let cli = vwb_app::cli::Cli::parse_from(["vwb".as_ref(), "--preset".as_ref(), p.as_os_str()]);
+    let (doc, _, error) = vwb_app::window::startup(&cli).unwrap();
+    assert!(error.is_none());
+    doc.save(&p).unwrap();
+        // a screenshot run still fails, so scripts notice
     let cli = vwb_app::cli::Cli::parse_from([
         "vwb",
         "--preset",
