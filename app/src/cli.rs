@@ -536,12 +536,15 @@ pub fn run_suggest_tf(a: &SuggestTfArgs) -> Result<()> {
         .enumerate()
         .filter(|(_, a)| **a > 0.0)
         .max_by(|a, b| a.1.total_cmp(b.1))
-        .map_or("no boundary found: the transfer function is transparent".to_string(), |(i, _)| {
-            format!(
-                "most opaque value {:.3}",
-                (i as f64 + 0.5) / s.alpha.len() as f64
-            )
-        });
+        .map_or(
+            "no boundary found: the transfer function is transparent".to_string(),
+            |(i, _)| {
+                format!(
+                    "most opaque value {:.3}",
+                    (i as f64 + 0.5) / s.alpha.len() as f64
+                )
+            },
+        );
     eprintln!(
         "{name}: boundary blur σ = {:.2} voxels; {peak}; {} of {} value bins on a boundary; wrote {}",
         s.sigma,

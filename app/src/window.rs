@@ -70,9 +70,7 @@ pub fn wgpu_configuration() -> egui_wgpu::WgpuConfiguration {
 /// The document and volume the window opens on. When the preset or the volume fails
 /// to load, the window still opens, on the demo scene, with the error shown (the
 /// returned message); only a `--screenshot` run fails instead, so scripts see it.
-pub fn startup(
-    cli: &Cli,
-) -> Result<(Document, Arc<vwb_render::Volume>, Option<String>)> {
+pub fn startup(cli: &Cli) -> Result<(Document, Arc<vwb_render::Volume>, Option<String>)> {
     let loaded = (|| {
         let mut doc = load_document(cli.preset.as_deref())?;
         if let Some(v) = &cli.volume {

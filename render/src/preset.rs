@@ -329,9 +329,11 @@ impl Document {
     /// folder or absolute, are written relative to the preset's own folder, as
     /// [`Document::load`] reads them (absolute where no relative path exists).
     pub fn save(&self, path: &Path) -> Result<(), PresetError> {
-        write_atomic(path, self.relative_to_preset(path).to_ron().as_bytes()).map_err(|cause| PresetError::Io {
-            file: path.display().to_string(),
-            cause,
+        write_atomic(path, self.relative_to_preset(path).to_ron().as_bytes()).map_err(|cause| {
+            PresetError::Io {
+                file: path.display().to_string(),
+                cause,
+            }
         })
     }
 }

@@ -260,8 +260,7 @@ pub fn suggest(volume: &Volume, opts: &SuggestOptions) -> Result<Suggestion, Sug
     }
     let s = volume.normalized_scalars();
     // every interior voxel's (v, f', f''), slab by slab in parallel
-    let mut samples: Vec<[f64; 3]> =
-        try_with_capacity(interior as usize).ok_or_else(|| oom(0))?;
+    let mut samples: Vec<[f64; 3]> = try_with_capacity(interior as usize).ok_or_else(|| oom(0))?;
     samples.par_extend((1..d[2] - 1).into_par_iter().flat_map_iter(|z| {
         let s = &s;
         (1..d[1] - 1)
@@ -473,8 +472,14 @@ mod tests {
         let e = suggest(&flat, &SuggestOptions::default()).unwrap_err();
         assert!(matches!(e, SuggestError::Degenerate { .. }), "{e}");
         assert!(e.to_string().contains("same value 7"), "{e}");
-        let thin =
-            Volume::new("thin", [8, 8, 2], 1, [1.0; 3], VoxelData::U8((0..128).collect())).unwrap();
+        let thin = Volume::new(
+            "thin",
+            [8, 8, 2],
+            1,
+            [1.0; 3],
+            VoxelData::U8((0..128).collect()),
+        )
+        .unwrap();
         assert_eq!(
             suggest(&thin, &SuggestOptions::default()).unwrap_err(),
             SuggestError::TooSmall("thin".into())

@@ -211,7 +211,11 @@ mod tests {
     fn fp16_stall_matches_the_measured_one() {
         // docs/accuracy.md: α' = 1 − 0.95^0.0016 stalls at 0.25 with round to nearest
         let a = 1.0 - 0.95f64.powf(0.0016);
-        assert!((fp16_stall_coverage(a) - 0.25).abs() < 0.02, "{}", fp16_stall_coverage(a));
+        assert!(
+            (fp16_stall_coverage(a) - 0.25).abs() < 0.02,
+            "{}",
+            fp16_stall_coverage(a)
+        );
         assert!(fp16_stall_coverage(0.5) > 0.999);
         assert_eq!(fp16_stall_coverage(0.0), 0.0);
     }
@@ -232,7 +236,11 @@ mod tests {
             Volume::new("t", dims, 1, [1.0; 3], VoxelData::F32(v)).unwrap()
         };
         let constant = vol([2, 2, 2], vec![7.0; 8]);
-        assert!(degenerate_reason(&constant).unwrap().contains("same value 7"));
+        assert!(
+            degenerate_reason(&constant)
+                .unwrap()
+                .contains("same value 7")
+        );
         let nan = vol([2, 1, 1], vec![f32::NAN, f32::INFINITY]);
         assert!(degenerate_reason(&nan).unwrap().contains("NaN"));
         let one = vol([1, 1, 1], vec![3.0]);

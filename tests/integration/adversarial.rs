@@ -3,6 +3,7 @@
 //! frames, degenerate volumes, corrupt gzip, pipes and FIFOs, misleading option errors,
 //! memory limits. Every case here failed or misbehaved before issue 22.
 
+use std::borrow::BorrowMut;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
@@ -18,6 +19,31 @@ fn vwb() -> Command {
     c
 }
 
+/// `vwb` with these arguments.
+fn cmd(args: &[&dyn AsRef<std::ffi::OsStr>]) -> Command {
+    let mut c = vwb();
+    c.args(args.iter().map(|a| a.as_ref()));
+    c
+}
+
+/// `vwb render --size 16x16` with these arguments.
+fn render_16(args: &[&dyn AsRef<std::ffi::OsStr>]) -> Command {
+    let mut c = cmd(&[&"render", &"--size", &"16x16"]);
+    c.args(args.iter().map(|a| a.as_ref()));
+    c
+}
+
+/// `vwb scene` of the demo preset on another volume (no GPU needed).
+fn scene_on(volume: &Path) -> Command {
+    cmd(&[
+        &"scene",
+        &"--preset",
+        &"presets/demo.ron",
+        &"--volume",
+        &volume,
+    ])
+}
+
 /// A fresh scratch folder for one test.
 fn scratch(name: &str) -> PathBuf {
     let d = tmp(&format!("adv-{name}"));
@@ -27,7 +53,7 @@ fn scratch(name: &str) -> PathBuf {
 }
 
 /// Runs a command, killing it (and failing) if it has not ended within 60 s.
-fn run(mut c: Command) -> Output {
+fn run(c: &mut Command) -> Output {
     let mut child = c
         .stdin(Stdio::null())
         .stdout(Stdio::piped())
@@ -48,8 +74,8 @@ fn run(mut c: Command) -> Output {
 }
 
 /// Stderr of a run that must fail cleanly (non-zero, no panic).
-fn fails(c: Command) -> String {
-    let o = run(c);
+fn fails(mut c: impl BorrowMut<Command>) -> String {
+    let o = run(c.borrow_mut());
     let stderr = String::from_utf8_lossy(&o.stderr).to_string();
     assert!(!o.status.success(), "succeeded: {stderr}");
     assert_ne!(o.status.code(), Some(101), "panicked: {stderr}");
@@ -58,8 +84,8 @@ fn fails(c: Command) -> String {
 }
 
 /// Stderr of a run that must succeed.
-fn succeeds(c: Command) -> String {
-    let o = run(c);
+fn succeeds(mut c: impl BorrowMut<Command>) -> String {
+    let o = run(c.borrow_mut());
     let stderr = String::from_utf8_lossy(&o.stderr).to_string();
     assert!(o.status.success(), "failed: {stderr}");
     stderr
@@ -94,7 +120,11 @@ fn crc32(data: &[u8]) -> u32 {
     for &b in data {
         c ^= u32::from(b);
         for _ in 0..8 {
-            c = if c & 1 != 0 { (c >> 1) ^ 0xEDB8_8320 } else { c >> 1 };
+            c = if c & 1 != 0 {
+                (c >> 1) ^ 0xEDB8_8320
+            } else {
+                c >> 1
+            };
         }
     }
     !c
@@ -153,48 +183,41 @@ fn outputs_never_overwrite_inputs() {
     // the preset itself, through a symbolic link with an image name
     let link = d.join("out.png");
     std::os::unix::fs::symlink(&preset, &link).unwrap();
-    let mut c = vwb();
-    c.args(["render", "--size", "16x16", "--preset"])
-        .arg(&preset)
-        .arg("-o")
-        .arg(&link);
-    let e = fails(c);
+    let e = fails(render_16(&[&"--preset", &preset, &"-o", &link]));
     assert!(
         e.contains("refusing to overwrite the preset") && e.contains("p.ron"),
         "{e}"
     );
     // bench -o the preset
-    let mut c = vwb();
-    c.args(["bench", "--preset"]).arg(&preset).arg("-o").arg(&preset);
-    let e = fails(c);
+    let e = fails(cmd(&[&"bench", &"--preset", &preset, &"-o", &preset]));
     assert!(e.contains("refusing to overwrite the preset"), "{e}");
     // suggest-tf -o the detached header's data file, and -o the header
     for out in [&raw, &nhdr] {
-        let mut c = vwb();
-        c.args(["suggest-tf", "--volume"])
-            .arg(&nhdr)
-            .arg("-o")
-            .arg(out);
-        let e = fails(c);
+        let e = fails(cmd(&[&"suggest-tf", &"--volume", &nhdr, &"-o", out]));
         assert!(e.contains("refusing to overwrite the volume"), "{e}");
     }
     // a hard link to the data file given as the render volume
     let hard = d.join("hard.png");
     std::fs::hard_link(&raw, &hard).unwrap();
-    let mut c = vwb();
-    c.args(["render", "--size", "16x16", "--preset"])
-        .arg(&preset)
-        .arg("--volume")
-        .arg(&nhdr)
-        .arg("-o")
-        .arg(&hard);
-    let e = fails(c);
-    assert!(e.contains("volume's data file") && e.contains("vol.raw"), "{e}");
+    let e = fails(render_16(&[
+        &"--preset",
+        &preset,
+        &"--volume",
+        &nhdr,
+        &"-o",
+        &hard,
+    ]));
+    assert!(
+        e.contains("volume's data file") && e.contains("vol.raw"),
+        "{e}"
+    );
     // the image format comes from the extension; unknown ones are refused
-    let mut c = vwb();
-    c.args(["render", "--preset", "presets/demo.ron", "-o"])
-        .arg(d.join("x.tiff"));
-    let e = fails(c);
+    let e = fails(render_16(&[
+        &"--preset",
+        &"presets/demo.ron",
+        &"-o",
+        &d.join("x.tiff"),
+    ]));
     assert!(e.contains("cannot write .tiff images"), "{e}");
     assert_eq!(std::fs::read(&preset).unwrap(), before);
     assert_eq!(std::fs::read(&raw).unwrap(), raw_before);
@@ -204,10 +227,15 @@ fn outputs_never_overwrite_inputs() {
 fn jpg_outputs_hold_jpeg_bytes() {
     let d = scratch("jpg");
     let out = d.join("x.jpg");
-    let mut c = vwb();
-    c.args(["render", "--preset", "presets/demo.ron", "--size", "32x32", "-o"])
-        .arg(&out);
-    succeeds(c);
+    succeeds(cmd(&[
+        &"render",
+        &"--preset",
+        &"presets/demo.ron",
+        &"--size",
+        &"32x32",
+        &"-o",
+        &out,
+    ]));
     let bytes = std::fs::read(&out).unwrap();
     assert_eq!(&bytes[..3], &[0xFF, 0xD8, 0xFF], "not a JPEG");
 }
@@ -255,7 +283,10 @@ fn presets_saved_elsewhere_reopen_with_the_same_files() {
     }
     // the saved text holds paths relative to the preset's folder
     let text = std::fs::read_to_string(rel_dir.join("sub/saved.ron")).unwrap();
-    let labels = relative_to(&repo().join("presets/data/demo_labels.nrrd"), &d.join("sub"));
+    let labels = relative_to(
+        &repo().join("presets/data/demo_labels.nrrd"),
+        &d.join("sub"),
+    );
     assert!(
         text.contains(&labels.unwrap().display().to_string()),
         "{text}"
@@ -284,8 +315,14 @@ fn bad_cameras_name_the_file_and_the_field() {
     let reg = registry();
     let cases = [
         ("Perspective(fov_y_deg: 0.0)", "camera.projection.fov_y_deg"),
-        ("Perspective(fov_y_deg: -20.0)", "camera.projection.fov_y_deg"),
-        ("Perspective(fov_y_deg: 180.0)", "camera.projection.fov_y_deg"),
+        (
+            "Perspective(fov_y_deg: -20.0)",
+            "camera.projection.fov_y_deg",
+        ),
+        (
+            "Perspective(fov_y_deg: 180.0)",
+            "camera.projection.fov_y_deg",
+        ),
         ("Perspective(fov_y_deg: NaN)", "camera.projection.fov_y_deg"),
         ("Orthographic(height: 0.0)", "camera.projection.height"),
         ("Orthographic(height: NaN)", "camera.projection.height"),
@@ -321,10 +358,7 @@ fn spacings_name_the_file_and_the_cause() {
         .into_bytes();
         b.extend_from_slice(&[0, 1, 2, 3, 4, 5, 6, 7]);
         std::fs::write(&vol, b).unwrap();
-        let mut c = vwb();
-        c.args(["scene", "--preset", "presets/demo.ron", "--volume"])
-            .arg(&vol);
-        let e = fails(c);
+        let e = fails(scene_on(&vol));
         assert!(
             e.contains("thin.nrrd") && e.contains("spacings") && e.contains(cause),
             "{e}"
@@ -334,9 +368,7 @@ fn spacings_name_the_file_and_the_cause() {
     // a preset spacing of 1e-9 voxels
     let p = d.join("fine.ron");
     std::fs::write(&p, "(version: 1, render: (slice_spacing: 1e-9))").unwrap();
-    let mut c = vwb();
-    c.args(["scene", "--preset"]).arg(&p);
-    let e = fails(c);
+    let e = fails(cmd(&[&"scene", &"--preset", &p]));
     assert!(
         e.contains("fine.ron") && e.contains("render.slice_spacing") && e.contains("slices"),
         "{e}"
@@ -345,35 +377,25 @@ fn spacings_name_the_file_and_the_cause() {
 
 #[test]
 fn a_coarse_eye_buffer_is_warned_about() {
-    let mut c = vwb();
-    c.args([
-        "scene",
-        "--preset",
-        "presets/demo.ron",
-        "--spacing",
-        "0.002",
-    ]);
-    let e = succeeds(c);
+    let demo_at = |spacing: &str| {
+        cmd(&[
+            &"scene",
+            &"--preset",
+            &"presets/demo.ron",
+            &"--spacing",
+            &spacing,
+        ])
+    };
+    let e = succeeds(demo_at("0.002"));
     assert!(
         e.contains("warning") && e.contains("rgba16float") && e.contains("rgba32float"),
         "{e}"
     );
-    let mut c = vwb();
-    c.args([
-        "scene",
-        "--preset",
-        "presets/demo.ron",
-        "--spacing",
-        "0.002",
-        "--target",
-        "rgba32float",
-    ]);
-    let e = succeeds(c);
+    let e = succeeds(demo_at("0.002").args(["--target", "rgba32float"]));
     assert!(!e.contains("rgba16float"), "{e}");
     // the shipped demo at its own spacing stays quiet
-    let mut c = vwb();
-    c.args(["scene", "--preset", "presets/demo.ron"]);
-    assert!(!succeeds(c).contains("warning"));
+    let e = succeeds(cmd(&[&"scene", &"--preset", &"presets/demo.ron"]));
+    assert!(!e.contains("warning"), "{e}");
 }
 
 #[test]
@@ -393,15 +415,10 @@ fn degenerate_volumes_are_warned_about_and_suggest_tf_says_so() {
         (&nan, "NaN"),
         (&one, "degenerate"),
     ] {
-        let mut c = vwb();
-        c.args(["scene", "--preset", "presets/demo.ron", "--volume"])
-            .arg(v);
-        let e = succeeds(c);
+        let e = succeeds(scene_on(&v));
         assert!(e.contains("warning") && e.contains(want), "{v:?}: {e}");
         let out = d.join("tf.ron");
-        let mut c = vwb();
-        c.args(["suggest-tf", "--volume"]).arg(v).arg("-o").arg(&out);
-        let e = fails(c);
+        let e = fails(cmd(&[&"suggest-tf", &"--volume", v, &"-o", &out]));
         assert!(e.contains("degenerate"), "{v:?}: {e}");
         assert!(!e.contains("most opaque value"), "{e}");
         assert!(!out.exists());
@@ -425,11 +442,11 @@ fn corrupt_gzip_is_blamed_on_the_gzip_data() {
     b.extend_from_slice(&gz);
     let path = d.join("bad.nrrd");
     std::fs::write(&path, b).unwrap();
-    let mut c = vwb();
-    c.args(["scene", "--preset", "presets/demo.ron", "--volume"])
-        .arg(&path);
-    let e = fails(c);
-    assert!(e.contains("bad.nrrd") && e.contains("gzip data is corrupt"), "{e}");
+    let e = fails(scene_on(&path));
+    assert!(
+        e.contains("bad.nrrd") && e.contains("gzip data is corrupt"),
+        "{e}"
+    );
     assert!(!e.contains("probably wrong"), "{e}");
 }
 
@@ -463,10 +480,7 @@ fn pipes_are_read_once_and_fifos_never_hang() {
     let fifo = d.join("fifo.nrrd");
     let st = Command::new("mkfifo").arg(&fifo).status().unwrap();
     assert!(st.success());
-    let mut c = vwb();
-    c.args(["scene", "--preset", "presets/demo.ron", "--volume"])
-        .arg(&fifo);
-    let e = fails(c);
+    let e = fails(scene_on(&fifo));
     assert!(e.contains("fifo.nrrd") && e.contains("gave no data"), "{e}");
     let nhdr = d.join("h.nhdr");
     std::fs::write(
@@ -474,20 +488,18 @@ fn pipes_are_read_once_and_fifos_never_hang() {
         "NRRD0004\ntype: uint8\ndimension: 3\nsizes: 2 2 2\nencoding: raw\ndata file: fifo.nrrd\n",
     )
     .unwrap();
-    let mut c = vwb();
-    c.args(["scene", "--preset", "presets/demo.ron", "--volume"])
-        .arg(&nhdr);
-    let e = fails(c);
-    assert!(e.contains("not a regular file") && e.contains("h.nhdr"), "{e}");
+    let e = fails(scene_on(&nhdr));
+    assert!(
+        e.contains("not a regular file") && e.contains("h.nhdr"),
+        "{e}"
+    );
 }
 
 #[test]
 fn option_and_format_errors_say_what_is_wrong() {
     let d = scratch("options");
     for (opt, value) in [("--thickness", "0"), ("--max-opacity", "2")] {
-        let mut c = vwb();
-        c.args(["suggest-tf", opt, value, "-o"]).arg(d.join("t.ron"));
-        let e = fails(c);
+        let e = fails(cmd(&[&"suggest-tf", &opt, &value, &"-o", &d.join("t.ron")]));
         assert!(e.contains(opt), "{e}");
         assert!(!e.contains("SuggestOptions {"), "Debug dump: {e}");
     }
@@ -497,19 +509,20 @@ fn option_and_format_errors_say_what_is_wrong() {
     nii[344..348].copy_from_slice(b"n+1\0");
     let path = d.join("brain.nii");
     std::fs::write(&path, nii).unwrap();
-    let mut c = vwb();
-    c.args(["scene", "--preset", "presets/demo.ron", "--volume"])
-        .arg(&path);
-    let e = fails(c);
+    let e = fails(scene_on(&path));
     assert!(e.contains("brain.nii") && e.contains("NIfTI"), "{e}");
     assert!(!e.contains("load_raw"), "{e}");
     // --frames 0 is refused, not silently 1
-    for cmd in ["render", "bench", "compare"] {
-        let mut c = vwb();
-        c.args([cmd, "--preset", "presets/demo.ron", "--frames", "0", "-o"])
-            .arg(d.join("f.png"));
-        let e = fails(c);
-        assert!(e.contains("--frames"), "{cmd}: {e}");
+    for command in ["render", "bench", "compare"] {
+        let mut c = cmd(&[
+            &command,
+            &"--preset",
+            &"presets/demo.ron",
+            &"--frames",
+            &"0",
+        ]);
+        let e = fails(c.arg("-o").arg(d.join("f.png")));
+        assert!(e.contains("--frames"), "{command}: {e}");
     }
 }
 
@@ -518,23 +531,19 @@ fn memory_limits_fail_cleanly() {
     let d = scratch("memory");
     let path = d.join("big.nrrd");
     std::fs::write(&path, nrrd_u8([64, 64, 64], &vec![1u8; 64 * 64 * 64])).unwrap();
-    let mut c = vwb();
-    c.env("VWB_MEMORY_LIMIT", "100000")
-        .args(["scene", "--preset", "presets/demo.ron", "--volume"])
-        .arg(&path);
+    let mut c = scene_on(&path);
+    c.env("VWB_MEMORY_LIMIT", "100000");
     let e = fails(c);
     assert!(e.contains("big.nrrd") && e.contains("available"), "{e}");
     // suggest-tf's working memory is checked before it is allocated
     let small = d.join("small.nrrd");
     let mut v = vec![0u8; 16 * 16 * 16];
-    v.iter_mut().enumerate().for_each(|(i, x)| *x = (i % 7) as u8);
+    v.iter_mut()
+        .enumerate()
+        .for_each(|(i, x)| *x = (i % 7) as u8);
     std::fs::write(&small, nrrd_u8([16, 16, 16], &v)).unwrap();
-    let mut c = vwb();
-    c.env("VWB_MEMORY_LIMIT", "100000")
-        .args(["suggest-tf", "--volume"])
-        .arg(&small)
-        .arg("-o")
-        .arg(d.join("t.ron"));
+    let mut c = cmd(&[&"suggest-tf", &"--volume", &small, &"-o", &d.join("t.ron")]);
+    c.env("VWB_MEMORY_LIMIT", "100000");
     let e = fails(c);
     assert!(e.contains("working memory"), "{e}");
 }
@@ -556,7 +565,7 @@ fn a_failing_start_up_opens_the_demo_with_the_error() {
     let (doc, _, error) = vwb_app::window::startup(&cli).unwrap();
     assert!(error.is_none());
     doc.save(&p).unwrap();
-        // a screenshot run still fails, so scripts notice
+    // a screenshot run still fails, so scripts notice
     let cli = vwb_app::cli::Cli::parse_from([
         "vwb",
         "--preset",
@@ -567,8 +576,7 @@ fn a_failing_start_up_opens_the_demo_with_the_error() {
     assert!(vwb_app::window::startup(&cli).is_err());
 }
 
-const GZIP_HEADER: &[u8] =
-    b"NRRD0004\ntype: uint8\ndimension: 3\nsizes: 8 8 8\nencoding: gzip\n\n";
+const GZIP_HEADER: &[u8] = b"NRRD0004\ntype: uint8\ndimension: 3\nsizes: 8 8 8\nencoding: gzip\n\n";
 
 /// Bit flips, truncations and splices of valid NRRD files and presets: never a
 /// panic, every error names its file. A quick smoke here; `VWB_FUZZ_CASES=N cargo test
@@ -586,7 +594,23 @@ fn fuzz_run(cases: usize) -> FuzzCounts {
     };
     let seeds_nrrd = [
         nrrd_u8([8, 8, 8], &ball()),
-        nrrd_f32([3, 2, 2], &[0.0, 1.0, f32::NAN, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0, 9.0, 1.5]),
+        nrrd_f32(
+            [3, 2, 2],
+            &[
+                0.0,
+                1.0,
+                f32::NAN,
+                2.0,
+                3.0,
+                4.0,
+                5.0,
+                6.0,
+                7.0,
+                8.0,
+                9.0,
+                1.5,
+            ],
+        ),
         {
             let mut b = GZIP_HEADER.to_vec();
             b.extend(gzip_stored(&ball(), true));
@@ -633,9 +657,13 @@ fn fuzz_run(cases: usize) -> FuzzCounts {
         std::fs::write(&path, &b).unwrap();
         let outcome = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
             if nrrd {
-                vwb_render::volume::load(&path).map(|_| ()).map_err(|e| e.to_string())
+                vwb_render::volume::load(&path)
+                    .map(|_| ())
+                    .map_err(|e| e.to_string())
             } else {
-                Document::load(&path, &reg).map(|_| ()).map_err(|e| e.to_string())
+                Document::load(&path, &reg)
+                    .map(|_| ())
+                    .map_err(|e| e.to_string())
             }
         }));
         counts.cases += 1;
@@ -672,7 +700,11 @@ fn fuzz_smoke() {
     let c = fuzz_run(200);
     assert_eq!(c.panics, 0, "{c:?}");
     assert_eq!(c.header_blamed_for_gzip, 0, "{c:?}");
-    assert!(c.unnamed.is_empty(), "errors without the file name: {:?}", c.unnamed);
+    assert!(
+        c.unnamed.is_empty(),
+        "errors without the file name: {:?}",
+        c.unnamed
+    );
     assert!(c.errors > 0 && c.loaded > 0, "{c:?}");
 }
 
@@ -697,4 +729,33 @@ fn fuzz() {
     assert_eq!(c.panics, 0);
     assert_eq!(c.header_blamed_for_gzip, 0);
     assert!(c.unnamed.is_empty(), "{:?}", c.unnamed);
+}
+
+/// The window: open a preset by a relative path, press *Save preset*, reopen it (the
+/// flow of issue 22, which failed with `…/…: cannot open`); a degenerate volume shows
+/// its warning in the side panel.
+#[test]
+fn the_window_saves_presets_that_reopen_and_warns() {
+    use egui_kittest::kittest::Queryable;
+    let d = scratch("window");
+    std::fs::write(d.join("flat.nrrd"), nrrd_u8([4, 4, 4], &[7; 64])).unwrap();
+    std::fs::write(
+        d.join("p.ron"),
+        "(version: 1, volume: File(\"flat.nrrd\"), plugins: [(id: \"classify.tf1d\")])",
+    )
+    .unwrap();
+    let rel = relative_to(&d.join("p.ron"), &std::env::current_dir().unwrap()).unwrap();
+    let demo = vwb_app::window::default_document(&registry());
+    let mut h = crate::window::window(demo, 0.25);
+    h.state_mut().open(&rel).unwrap();
+    h.run_steps(2);
+    assert!(h.query_by_label_contains("is degenerate").is_some());
+    crate::window::click(&mut h, "Save preset");
+    assert!(
+        matches!(h.state().file_status(), Some(Ok(m)) if m.starts_with("saved")),
+        "{:?}",
+        h.state().file_status()
+    );
+    h.state_mut().open(&rel).expect("the saved preset reopens");
+    assert_eq!(h.state().renderer().volume().dims, [4, 4, 4]);
 }

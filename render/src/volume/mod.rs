@@ -454,7 +454,9 @@ fn skip_note(skip: u64) -> String {
 /// FIFOs are read as streams; a FIFO nobody writes to gives an error, not a hang.
 pub fn load(path: &Path) -> Result<Volume, VolumeError> {
     let input = nrrd::Input::open(path)?;
-    let head = input.head(348).map_err(|e| raw::io_error(path, "cannot read", e))?;
+    let head = input
+        .head(348)
+        .map_err(|e| raw::io_error(path, "cannot read", e))?;
     if head.starts_with(b"NRRD000") {
         return nrrd::load_input(input, path);
     }

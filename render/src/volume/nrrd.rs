@@ -1210,8 +1210,8 @@ fn read_data<R: BufRead + Seek>(
                 // checksum decides between a corrupt stream and a wrong header.
                 let mut rest = limited.into_inner();
                 let bound = compressed.saturating_mul(MAX_DEFLATE_RATIO);
-                let more = io::copy(&mut rest.by_ref().take(bound), &mut io::sink())
-                    .map_err(corrupt)?;
+                let more =
+                    io::copy(&mut rest.by_ref().take(bound), &mut io::sink()).map_err(corrupt)?;
                 return Err(VolumeError::Compressed {
                     file: file.to_path_buf(),
                     message: format!(

@@ -867,7 +867,11 @@ fn load_raw_plain_files() {
 fn load_refuses_headerless_files() {
     let dir = TempDir::new("sniff");
     let path = dir.write("plain.raw", &[1, 2, 3, 4, 5, 6, 7, 8, 9]);
-    let e = assert_err(load(&path), &path, &["not an NRRD file", "detached NRRD header"]);
+    let e = assert_err(
+        load(&path),
+        &path,
+        &["not an NRRD file", "detached NRRD header"],
+    );
     assert!(matches!(e, VolumeError::NotNrrd { .. }));
     let empty = dir.write("empty.nrrd", b"");
     assert_err(load(&empty), &empty, &["not an NRRD file"]);
