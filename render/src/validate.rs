@@ -90,12 +90,9 @@ pub const EYE_BUFFER_REFERENCE_ALPHA: f64 = 0.05;
 /// that rounds to nearest: the increment α·(1 − A) falls below half an ulp of A.
 /// 1.0 when it never stalls below full coverage.
 pub fn fp16_stall_coverage(alpha_slice: f64) -> f64 {
-    if !(alpha_slice > 0.0) {
-        return 0.0;
-    }
     // binade [2^e, 2^(e+1)) of fp16 (10 mantissa bits): half an ulp is 2^(e−11);
-    // subnormals (below 2^-14) have the fixed ulp 2^-24
-    if alpha_slice < 2f64.powi(-25) {
+    // subnormals (below 2^-14) have the fixed ulp 2^-24 (NaN also ends here)
+    if alpha_slice.is_nan() || alpha_slice < 2f64.powi(-25) {
         return 0.0;
     }
     for e in -14..0 {
@@ -202,8 +199,10 @@ mod tests {
         assert_eq!(bad(&|c| c.yaw_deg = f32::INFINITY), "camera.yaw_deg");
         assert_eq!(bad(&|c| c.distance = 0.0), "camera.distance");
         assert_eq!(bad(&|c| c.target[1] = f32::NAN), "camera.target[1]");
-        let mut c = Camera::default();
-        c.projection = Projection::Perspective { fov_y_deg: 179.0 };
+        let c = Camera {
+            projection: Projection::Perspective { fov_y_deg: 179.0 },
+            ..Default::default()
+        };
         assert!(check_camera(&c).is_ok());
     }
 

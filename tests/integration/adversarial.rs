@@ -415,7 +415,7 @@ fn degenerate_volumes_are_warned_about_and_suggest_tf_says_so() {
         (&nan, "NaN"),
         (&one, "degenerate"),
     ] {
-        let e = succeeds(scene_on(&v));
+        let e = succeeds(scene_on(v));
         assert!(e.contains("warning") && e.contains(want), "{v:?}: {e}");
         let out = d.join("tf.ron");
         let e = fails(cmd(&[&"suggest-tf", &"--volume", v, &"-o", &out]));
