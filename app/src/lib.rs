@@ -8,6 +8,7 @@ pub mod custom_ui;
 pub mod dos_study;
 pub mod headless;
 pub mod job;
+pub mod loading;
 pub mod measure;
 pub mod outputs;
 pub mod stack_ui;

@@ -200,6 +200,10 @@ pub struct Workbench {
     tradeoff: crate::tradeoff_ui::TradeoffView,
     /// Result of the last open or save.
     file_status: Option<Result<String, String>>,
+    /// A volume loading in the background (app/src/loading.rs).
+    loading: Option<crate::loading::VolumeLoad>,
+    /// Volume files of at least this many bytes (and streams) load in the background.
+    pub async_load_bytes: u64,
     renderer: Renderer,
     texture: Option<egui::TextureId>,
     texture_size: [u32; 2],
@@ -271,6 +275,8 @@ impl Workbench {
             ablation_rows: None,
             tradeoff: Default::default(),
             file_status: None,
+            loading: None,
+            async_load_bytes: crate::loading::DEFAULT_ASYNC_LOAD_BYTES,
             renderer,
             texture: None,
             texture_size: [0, 0],
@@ -382,8 +388,53 @@ impl Workbench {
     /// Opens a volume file into the current scene; the current volume stays on any
     /// error (unreadable file, lying header, a stack that fails on the new volume).
     pub fn open_volume(&mut self, path: &std::path::Path) -> Result<String> {
+        let volume = headless::load_volume(&VolumeSource::File(path.to_path_buf()))?;
+        self.install_volume(path, volume)
+    }
+
+    /// Opens a volume from the UI: large files and streams load in the background
+    /// (progress and Cancel under the path field), small ones at once.
+    pub fn start_open_volume(&mut self, path: &std::path::Path) {
+        if crate::loading::VolumeLoad::wanted(path, self.async_load_bytes) {
+            self.loading = Some(crate::loading::VolumeLoad::start(path));
+            self.file_status = None;
+        } else {
+            let outcome = self.open_volume(path);
+            self.report(outcome);
+        }
+    }
+
+    /// A volume is loading in the background.
+    pub fn is_loading(&self) -> bool {
+        self.loading.is_some()
+    }
+
+    /// The background load's progress bar and Cancel; installs its volume when done.
+    fn loading_ui(&mut self, ui: &mut egui::Ui) {
+        let Some(load) = self.loading.take() else {
+            return;
+        };
+        if load.ui(ui) {
+            load.cancel();
+            self.report(Ok(format!("cancelled loading {}", load.path.display())));
+        } else if let Some(result) = load.poll() {
+            let outcome = result
+                .map_err(|e| anyhow!(e))
+                .and_then(|v| self.install_volume(&load.path, v));
+            self.report(outcome);
+        } else {
+            ui.ctx().request_repaint();
+            self.loading = Some(load);
+        }
+    }
+
+    /// Puts a loaded volume into the current scene (see [`Workbench::open_volume`]).
+    fn install_volume(
+        &mut self,
+        path: &std::path::Path,
+        volume: Arc<vwb_render::Volume>,
+    ) -> Result<String> {
         let source = VolumeSource::File(path.to_path_buf());
-        let volume = headless::load_volume(&source)?;
         let renderer = self
             .fresh_renderer(volume, &self.doc)
             .with_context(|| format!("{}", path.display()))?;
@@ -789,8 +840,7 @@ impl Workbench {
             .on_hover_text("volume file (.nhdr, .nrrd, .raw + header)");
             if ui.button("Open volume").clicked() {
                 let path = PathBuf::from(self.volume_path.trim());
-                let outcome = self.open_volume(&path);
-                self.report(outcome);
+                self.start_open_volume(&path);
             }
             if ui.button("…").on_hover_text("choose a volume").clicked() {
                 let mut d = egui_file::FileDialog::open_file()
@@ -800,6 +850,7 @@ impl Workbench {
                 self.dialog = Some(Dialog::Volume(d));
             }
         });
+        self.loading_ui(ui);
         ui.horizontal(|ui| {
             ui.add(
                 egui::TextEdit::singleline(&mut self.preset_path)
@@ -883,12 +934,12 @@ impl Workbench {
             }
         }
         if let Some((path, preset)) = chosen {
-            let outcome = if preset {
-                self.open(&path)
+            if preset {
+                let outcome = self.open(&path);
+                self.report(outcome);
             } else {
-                self.open_volume(&path)
-            };
-            self.report(outcome);
+                self.start_open_volume(&path);
+            }
         }
         let dropped = ctx.input(|i| i.raw.dropped_files.clone());
         for f in dropped {

@@ -759,3 +759,70 @@ fn the_window_saves_presets_that_reopen_and_warns() {
     h.state_mut().open(&rel).expect("the saved preset reopens");
     assert_eq!(h.state().renderer().volume().dims, [4, 4, 4]);
 }
+
+/// Steps the window until `done` or 10 s.
+fn step_while(h: &mut egui_kittest::Harness<'_, vwb_app::window::Workbench>, busy: bool) {
+    let start = Instant::now();
+    while h.state().is_loading() == busy {
+        assert!(start.elapsed() < Duration::from_secs(10), "timed out");
+        h.step();
+        std::thread::sleep(Duration::from_millis(10));
+    }
+}
+
+/// Large volumes and streams load off the UI thread with a progress bar and Cancel: the
+/// window keeps drawing while a stalled FIFO is read, and Cancel keeps the old volume.
+#[test]
+fn the_window_loads_volumes_in_the_background_and_cancels() {
+    let d = scratch("background");
+    let vol = d.join("ball.nrrd");
+    std::fs::write(&vol, nrrd_u8([8, 8, 8], &ball())).unwrap();
+    let demo = vwb_app::window::default_document(&registry());
+    let mut h = crate::window::window(demo, 0.25);
+    h.state_mut().async_load_bytes = 0;
+    h.state_mut().start_open_volume(&vol);
+    assert!(h.state().is_loading());
+    step_while(&mut h, true);
+    assert_eq!(h.state().renderer().volume().dims, [8, 8, 8]);
+    assert!(
+        matches!(h.state().file_status(), Some(Ok(m)) if m.starts_with("opened")),
+        "{:?}",
+        h.state().file_status()
+    );
+    // a FIFO that gives its header and then stalls (opened read-write here, so it
+    // has a writer before the window opens it)
+    let fifo = d.join("stalled.nrrd");
+    assert!(
+        Command::new("mkfifo")
+            .arg(&fifo)
+            .status()
+            .unwrap()
+            .success()
+    );
+    let mut writer = std::fs::OpenOptions::new()
+        .read(true)
+        .write(true)
+        .open(&fifo)
+        .unwrap();
+    writer
+        .write_all(b"NRRD0004\ntype: uint8\ndimension: 3\nsizes: 8 8 8\nencoding: raw\n\n")
+        .unwrap();
+    h.state_mut().start_open_volume(&fifo);
+    for _ in 0..20 {
+        h.step();
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    assert!(
+        h.state().is_loading(),
+        "the stalled stream is still loading"
+    );
+    crate::window::click(&mut h, "Cancel");
+    assert!(!h.state().is_loading());
+    assert!(
+        matches!(h.state().file_status(), Some(Ok(m)) if m.starts_with("cancelled")),
+        "{:?}",
+        h.state().file_status()
+    );
+    assert_eq!(h.state().renderer().volume().dims, [8, 8, 8]);
+    drop(writer);
+}

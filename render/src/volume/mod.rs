@@ -475,6 +475,59 @@ pub fn load(path: &Path) -> Result<Volume, VolumeError> {
     })
 }
 
+/// Progress of a volume load, shared with the thread that runs it: bytes of samples
+/// decoded so far and in all, and a cancel request (checked between chunks).
+#[derive(Debug, Default)]
+pub struct LoadProgress {
+    pub done: std::sync::atomic::AtomicU64,
+    pub total: std::sync::atomic::AtomicU64,
+    pub cancel: std::sync::atomic::AtomicBool,
+}
+
+impl LoadProgress {
+    /// Share of the samples decoded, in [0, 1].
+    pub fn fraction(&self) -> f32 {
+        use std::sync::atomic::Ordering::Relaxed;
+        let total = self.total.load(Relaxed);
+        if total == 0 {
+            0.0
+        } else {
+            (self.done.load(Relaxed) as f64 / total as f64).min(1.0) as f32
+        }
+    }
+}
+
+thread_local! {
+    /// The progress of the load running on this thread, if one was asked for.
+    static PROGRESS: std::cell::RefCell<Option<std::sync::Arc<LoadProgress>>> =
+        const { std::cell::RefCell::new(None) };
+}
+
+/// [`load`], reporting progress to `progress` and stopping with an error once
+/// `progress.cancel` is set.
+pub fn load_with_progress(
+    path: &Path,
+    progress: std::sync::Arc<LoadProgress>,
+) -> Result<Volume, VolumeError> {
+    PROGRESS.with(|p| *p.borrow_mut() = Some(progress));
+    let result = load(path);
+    PROGRESS.with(|p| *p.borrow_mut() = None);
+    result
+}
+
+/// Reports decoded bytes to this thread's load progress; `false` when cancelled.
+pub(crate) fn report_progress(done: u64, total: u64) -> bool {
+    use std::sync::atomic::Ordering::Relaxed;
+    PROGRESS.with(|p| match &*p.borrow() {
+        Some(p) => {
+            p.total.store(total, Relaxed);
+            p.done.store(done, Relaxed);
+            !p.cancel.load(Relaxed)
+        }
+        None => true,
+    })
+}
+
 /// The files a volume path reads: the path itself and, for a detached NRRD header,
 /// its data file (for checks that an output never overwrites an input). Unreadable or
 /// non-regular files list only themselves.

@@ -1688,3 +1688,30 @@ fn public_types_have_their_traits() {
     send_sync::<Volume>();
     send_sync::<VolumeError>();
 }
+
+#[test]
+fn progress_is_reported_and_cancel_stops_the_load() {
+    use std::sync::Arc;
+    use std::sync::atomic::Ordering::Relaxed;
+    let dir = TempDir::new("progress");
+    let fields = [
+        "type: uint16",
+        "dimension: 3",
+        "sizes: 64 64 40",
+        "endian: little",
+        "encoding: raw",
+    ];
+    let path = dir.write("p.nrrd", &nrrd(&fields, &vec![3u8; 64 * 64 * 40 * 2]));
+    let progress = Arc::new(LoadProgress::default());
+    let v = load_with_progress(&path, progress.clone()).unwrap();
+    assert_eq!(v.dims, [64, 64, 40]);
+    // reported before each chunk: the last report is the start of the last chunk
+    assert_eq!(progress.total.load(Relaxed), 64 * 64 * 40 * 2);
+    assert!(progress.done.load(Relaxed) > 0 && progress.fraction() > 0.5);
+    let cancelled = Arc::new(LoadProgress::default());
+    cancelled.cancel.store(true, Relaxed);
+    let e = load_with_progress(&path, cancelled).unwrap_err();
+    assert!(e.to_string().contains("cancelled"), "{e}");
+    // without a progress object, loads on this thread are not affected
+    assert!(load(&path).is_ok());
+}
