@@ -440,6 +440,7 @@ pub fn run_compare(preset: Option<&std::path::Path>, a: &CompareArgs) -> Result<
 }
 
 pub fn run_bench(preset: Option<&std::path::Path>, a: &BenchArgs) -> Result<()> {
+    crate::outputs::check_extension(&a.output, "csv", "CSV")?;
     let (path, doc) = preset_document(preset, &a.frame, "bench")?;
     let volume = headless::load_volume(&doc.volume)?;
     crate::outputs::check_output(&a.output)?;
@@ -515,6 +516,7 @@ pub fn run_suggest_tf(a: &SuggestTfArgs) -> Result<()> {
         ..Default::default()
     };
     opts.check()?;
+    crate::outputs::check_extension(&a.output, "ron", "a transfer function in RON")?;
     let volume = match &a.volume {
         Some(p) => headless::load_volume_file(p)?,
         None => vwb_render::volume::demo(),

@@ -69,6 +69,22 @@ pub fn image_format(path: &Path) -> Result<image::ImageFormat> {
     }
 }
 
+/// Text outputs are named for what they hold: an output whose extension is not
+/// `ext` (e.g. `bench -o out.png`) is refused rather than filled with CSV.
+pub fn check_extension(path: &Path, ext: &str, what: &str) -> Result<()> {
+    let got = path
+        .extension()
+        .map(|e| e.to_string_lossy().to_ascii_lowercase());
+    if got.as_deref() == Some(ext) {
+        Ok(())
+    } else {
+        bail!(
+            "{}: this command writes {what}; name the output .{ext}",
+            path.display()
+        )
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -86,5 +102,10 @@ mod tests {
         let e = image_format(Path::new("p.ron")).unwrap_err().to_string();
         assert!(e.contains("p.ron") && e.contains(".ron images"), "{e}");
         assert!(image_format(Path::new("noext")).is_err());
+        assert!(check_extension(Path::new("b.CSV"), "csv", "CSV").is_ok());
+        let e = check_extension(Path::new("b.png"), "csv", "CSV")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("b.png") && e.contains(".csv"), "{e}");
     }
 }

@@ -188,12 +188,18 @@ fn outputs_never_overwrite_inputs() {
         e.contains("refusing to overwrite the preset") && e.contains("p.ron"),
         "{e}"
     );
-    // bench -o the preset
-    let e = fails(cmd(&[&"bench", &"--preset", &preset, &"-o", &preset]));
+    // bench -o the preset: refused for its extension, and through a .csv link for
+    // being the preset
+    fails(cmd(&[&"bench", &"--preset", &preset, &"-o", &preset]));
+    let csv = d.join("out.csv");
+    std::os::unix::fs::symlink(&preset, &csv).unwrap();
+    let e = fails(cmd(&[&"bench", &"--preset", &preset, &"-o", &csv]));
     assert!(e.contains("refusing to overwrite the preset"), "{e}");
-    // suggest-tf -o the detached header's data file, and -o the header
-    for out in [&raw, &nhdr] {
-        let e = fails(cmd(&[&"suggest-tf", &"--volume", &nhdr, &"-o", out]));
+    // suggest-tf -o (a link to) the detached header's data file, and the header
+    for (i, target) in [&raw, &nhdr].into_iter().enumerate() {
+        let out = d.join(format!("tf{i}.ron"));
+        std::os::unix::fs::symlink(target, &out).unwrap();
+        let e = fails(cmd(&[&"suggest-tf", &"--volume", &nhdr, &"-o", &out]));
         assert!(e.contains("refusing to overwrite the volume"), "{e}");
     }
     // a hard link to the data file given as the render volume
@@ -219,6 +225,17 @@ fn outputs_never_overwrite_inputs() {
         &d.join("x.tiff"),
     ]));
     assert!(e.contains("cannot write .tiff images"), "{e}");
+    // text outputs too: bench writes CSV, suggest-tf RON
+    let e = fails(cmd(&[
+        &"bench",
+        &"--preset",
+        &"presets/demo.ron",
+        &"-o",
+        &d.join("b.png"),
+    ]));
+    assert!(e.contains("writes CSV"), "{e}");
+    let e = fails(cmd(&[&"suggest-tf", &"-o", &d.join("tf.png")]));
+    assert!(e.contains("name the output .ron"), "{e}");
     assert_eq!(std::fs::read(&preset).unwrap(), before);
     assert_eq!(std::fs::read(&raw).unwrap(), raw_before);
 }
