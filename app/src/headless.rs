@@ -81,10 +81,9 @@ pub fn frame_warnings(doc: &Document, volume: &Volume) -> Vec<String> {
     w
 }
 
-/// Checks a document's frame against its volume before any GPU work (camera, slice
-/// count) with errors naming the preset and the field, and prints the warnings of
-/// [`frame_warnings`].
-pub fn preflight(preset: Option<&Path>, doc: &Document, volume: &Volume) -> Result<()> {
+/// Checks a document's camera and slice count against its volume, with an error
+/// naming the preset and the field (`p.ron: render.slice_spacing: …`).
+pub fn check_frame(preset: Option<&Path>, doc: &Document, volume: &Volume) -> Result<()> {
     let name = preset.map_or_else(|| "the scene".to_string(), |p| p.display().to_string());
     vwb_render::validate::check_slices(
         &doc.camera,
@@ -92,7 +91,16 @@ pub fn preflight(preset: Option<&Path>, doc: &Document, volume: &Volume) -> Resu
         doc.render.slice_spacing,
         volume,
     )
-    .with_context(|| name.clone())?;
+    .with_context(|| name)?;
+    Ok(())
+}
+
+/// Checks a document's frame against its volume before any GPU work (camera, slice
+/// count) with errors naming the preset and the field, and prints the warnings of
+/// [`frame_warnings`].
+pub fn preflight(preset: Option<&Path>, doc: &Document, volume: &Volume) -> Result<()> {
+    check_frame(preset, doc, volume)?;
+    let name = preset.map_or_else(|| "the scene".to_string(), |p| p.display().to_string());
     for w in frame_warnings(doc, volume) {
         eprintln!("warning: {name}: {w}");
     }

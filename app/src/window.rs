@@ -77,6 +77,7 @@ pub fn startup(cli: &Cli) -> Result<(Document, Arc<vwb_render::Volume>, Option<S
             doc.volume = VolumeSource::File(v.clone());
         }
         let volume = headless::load_volume(&doc.volume)?;
+        headless::check_frame(cli.preset.as_deref(), &doc, &volume)?;
         anyhow::Ok((doc, volume))
     })();
     // the window edits its preset: *Save preset* may write over it (volumes stay
@@ -955,6 +956,7 @@ impl Workbench {
     pub fn open(&mut self, path: &std::path::Path) -> Result<String> {
         let doc = Document::load(path, &self.registry)?.document;
         let volume = headless::load_volume(&doc.volume)?;
+        headless::check_frame(Some(path), &doc, &volume)?;
         let renderer = self.fresh_renderer(volume, &doc)?;
         self.renderer = renderer;
         self.doc = doc;

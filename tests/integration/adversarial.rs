@@ -390,6 +390,13 @@ fn spacings_name_the_file_and_the_cause() {
         e.contains("fine.ron") && e.contains("render.slice_spacing") && e.contains("slices"),
         "{e}"
     );
+    // the window refuses to open it, naming the file and the field
+    let mut h = crate::window::window(vwb_app::window::default_document(&registry()), 0.25);
+    let e = format!("{:#}", h.state_mut().open(&p).unwrap_err());
+    assert!(
+        e.contains("fine.ron") && e.contains("render.slice_spacing"),
+        "{e}"
+    );
 }
 
 #[test]
