@@ -17,6 +17,8 @@ pub const DEFAULT_ASYNC_LOAD_BYTES: u64 = 64 << 20;
 
 pub struct VolumeLoad {
     pub path: PathBuf,
+    /// The preset being opened with this volume (its path and document), if any.
+    pub preset: Option<(PathBuf, vwb_render::preset::Document)>,
     job: Job<Arc<Volume>>,
     progress: Arc<LoadProgress>,
     started: Instant,
@@ -55,6 +57,7 @@ impl VolumeLoad {
         });
         Self {
             path: path.to_path_buf(),
+            preset: None,
             job,
             progress,
             started: Instant::now(),

@@ -412,7 +412,7 @@ impl Workbench {
 
     /// The background load's progress bar and Cancel; installs its volume when done.
     fn loading_ui(&mut self, ui: &mut egui::Ui) {
-        let Some(load) = self.loading.take() else {
+        let Some(mut load) = self.loading.take() else {
             return;
         };
         if load.ui(ui) {
@@ -421,7 +421,10 @@ impl Workbench {
         } else if let Some(result) = load.poll() {
             let outcome = result
                 .map_err(|e| anyhow!(e))
-                .and_then(|v| self.install_volume(&load.path, v));
+                .and_then(|v| match load.preset.take() {
+                    Some((preset, doc)) => self.install_preset(&preset, doc, v),
+                    None => self.install_volume(&load.path, v),
+                });
             self.report(outcome);
         } else {
             ui.ctx().request_repaint();
@@ -861,8 +864,7 @@ impl Workbench {
             .on_hover_text("preset file (.ron)");
             let path = PathBuf::from(self.preset_path.trim());
             if ui.button("Open preset").clicked() {
-                let outcome = self.open(&path);
-                self.report(outcome);
+                self.start_open(&path);
             }
             if ui.button("Save preset").clicked() {
                 let saved = self.doc.save(&path);
@@ -936,8 +938,7 @@ impl Workbench {
         }
         if let Some((path, preset)) = chosen {
             if preset {
-                let outcome = self.open(&path);
-                self.report(outcome);
+                self.start_open(&path);
             } else {
                 self.start_open_volume(&path);
             }
@@ -956,6 +957,38 @@ impl Workbench {
     pub fn open(&mut self, path: &std::path::Path) -> Result<String> {
         let doc = Document::load(path, &self.registry)?.document;
         let volume = headless::load_volume(&doc.volume)?;
+        self.install_preset(path, doc, volume)
+    }
+
+    /// Opens a preset from the UI; a large volume (or a stream) loads in the background.
+    pub fn start_open(&mut self, path: &std::path::Path) {
+        let doc = match Document::load(path, &self.registry) {
+            Ok(loaded) => loaded.document,
+            Err(e) => return self.report(Err(e.into())),
+        };
+        match &doc.volume {
+            VolumeSource::File(v)
+                if crate::loading::VolumeLoad::wanted(v, self.async_load_bytes) =>
+            {
+                let mut load = crate::loading::VolumeLoad::start(v);
+                load.preset = Some((path.to_path_buf(), doc));
+                self.loading = Some(load);
+                self.file_status = None;
+            }
+            _ => {
+                let outcome = self.open(path);
+                self.report(outcome);
+            }
+        }
+    }
+
+    /// Puts an opened preset and its loaded volume on screen (see [`Workbench::open`]).
+    fn install_preset(
+        &mut self,
+        path: &std::path::Path,
+        doc: Document,
+        volume: Arc<vwb_render::Volume>,
+    ) -> Result<String> {
         headless::check_frame(Some(path), &doc, &volume)?;
         let renderer = self.fresh_renderer(volume, &doc)?;
         self.renderer = renderer;

@@ -823,6 +823,22 @@ fn the_window_loads_volumes_in_the_background_and_cancels() {
         "{:?}",
         h.state().file_status()
     );
+    // a preset whose volume is large enough loads it in the background too
+    let preset = d.join("p.ron");
+    std::fs::write(
+        &preset,
+        "(version: 1, volume: File(\"ball.nrrd\"), plugins: [(id: \"classify.tf1d\")])",
+    )
+    .unwrap();
+    h.state_mut().start_open(&preset);
+    assert!(h.state().is_loading());
+    step_while(&mut h, true);
+    assert!(
+        matches!(h.state().file_status(), Some(Ok(m)) if m.starts_with("opened")),
+        "{:?}",
+        h.state().file_status()
+    );
+    assert!(matches!(h.state().document().volume, VolumeSource::File(_)));
     // a FIFO that gives its header and then stalls (opened read-write here, so it
     // has a writer before the window opens it)
     let fifo = d.join("stalled.nrrd");

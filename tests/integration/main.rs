@@ -3,6 +3,7 @@
 //!
 //! `VWB_BLESS=1 cargo test --test integration` regenerates the golden files.
 
+#[cfg(unix)]
 mod adversarial;
 mod classification;
 mod cli;
