@@ -453,6 +453,15 @@ impl Workbench {
         Ok(msg)
     }
 
+    /// [`Workbench::open_any`] from the UI: large volumes load in the background.
+    fn start_open_any(&mut self, path: &std::path::Path) {
+        if path.extension().is_some_and(|e| e == "ron") {
+            self.start_open(path)
+        } else {
+            self.start_open_volume(path)
+        }
+    }
+
     /// Opens a preset (`.ron`) or a volume by its extension.
     pub fn open_any(&mut self, path: &std::path::Path) -> Result<String> {
         if path.extension().is_some_and(|e| e == "ron") {
@@ -906,8 +915,7 @@ impl Workbench {
                     }
                 });
             if let Some(p) = pick {
-                let outcome = self.open_any(&p);
-                self.report(outcome);
+                self.start_open_any(&p);
             }
         }
         match &self.file_status {
@@ -947,8 +955,7 @@ impl Workbench {
         for f in dropped {
             let path = f.path().to_path_buf();
             if !path.as_os_str().is_empty() {
-                let outcome = self.open_any(&path);
-                self.report(outcome);
+                self.start_open_any(&path);
             }
         }
     }
