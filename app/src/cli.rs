@@ -150,8 +150,8 @@ pub struct RenderArgs {
     /// Print per-frame timings (median of --frames after warm-up).
     #[arg(long)]
     pub timings: bool,
-    /// Frames to time with --timings.
-    #[arg(long, default_value_t = 10)]
+    /// Frames to time with --timings (at least 1).
+    #[arg(long, default_value_t = 10, value_parser = clap::value_parser!(u32).range(1..))]
     pub frames: u32,
     /// Output PNG.
     #[arg(short, long)]
@@ -169,8 +169,8 @@ pub struct CompareArgs {
     /// Convergence tolerance of the converged reference (RMS ΔE*uv between halvings).
     #[arg(long, default_value_t = DEFAULT_TOLERANCE_DELTA_E)]
     pub tolerance: f64,
-    /// Frames to time.
-    #[arg(long, default_value_t = 5)]
+    /// Frames to time (at least 1).
+    #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(1..))]
     pub frames: u32,
     /// Output folder.
     #[arg(short, long)]
@@ -181,8 +181,8 @@ pub struct CompareArgs {
 pub struct BenchArgs {
     #[command(flatten)]
     pub frame: FrameArgs,
-    /// Timed frames per measurement.
-    #[arg(long, default_value_t = 20)]
+    /// Timed frames per measurement (at least 1).
+    #[arg(long, default_value_t = 20, value_parser = clap::value_parser!(u32).range(1..))]
     pub frames: u32,
     /// Untimed warm-up frames per measurement.
     #[arg(long, default_value_t = 3)]
@@ -201,8 +201,8 @@ pub struct SweepArgs {
     /// for a grid.
     #[arg(long = "param", required = true)]
     pub params: Vec<String>,
-    /// Timed frames per point.
-    #[arg(long, default_value_t = 5)]
+    /// Timed frames per point (at least 1).
+    #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(1..))]
     pub frames: u32,
     /// Convergence tolerance of the references (RMS ΔE*uv between halvings).
     #[arg(long, default_value_t = DEFAULT_TOLERANCE_DELTA_E)]
@@ -223,8 +223,8 @@ pub struct ClassificationArgs {
     /// Image size WxH.
     #[arg(long, value_parser = parse_size, default_value = "256x256")]
     pub size: [u32; 2],
-    /// Timed frames per point.
-    #[arg(long, default_value_t = 5)]
+    /// Timed frames per point (at least 1).
+    #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(1..))]
     pub frames: u32,
     /// Convergence tolerance of the references (RMS ΔE*uv between halvings).
     #[arg(long, default_value_t = DEFAULT_TOLERANCE_DELTA_E)]
@@ -239,11 +239,11 @@ pub struct SuggestTfArgs {
     /// The volume (NRRD); the demo when absent.
     #[arg(long)]
     pub volume: Option<PathBuf>,
-    /// Half width of the boundary emphasis in voxels.
-    #[arg(long, default_value_t = 1.0)]
+    /// Half width of the boundary emphasis in voxels (> 0).
+    #[arg(long, default_value_t = 1.0, value_parser = parse_positive)]
     pub thickness: f64,
-    /// Peak opacity.
-    #[arg(long, default_value_t = 0.6)]
+    /// Peak opacity (0 to 1).
+    #[arg(long, default_value_t = 0.6, value_parser = parse_unit)]
     pub max_opacity: f64,
     /// Output RON file (a transfer function).
     #[arg(short, long)]
@@ -270,6 +270,24 @@ pub fn parse_size(s: &str) -> Result<[u32; 2], String> {
     Ok([p(w)?, p(h)?])
 }
 
+/// A finite number > 0.
+pub fn parse_positive(s: &str) -> Result<f64, String> {
+    s.trim()
+        .parse::<f64>()
+        .ok()
+        .filter(|v| v.is_finite() && *v > 0.0)
+        .ok_or_else(|| format!("'{s}' is not a finite number > 0"))
+}
+
+/// A number in [0, 1].
+pub fn parse_unit(s: &str) -> Result<f64, String> {
+    s.trim()
+        .parse::<f64>()
+        .ok()
+        .filter(|v| (0.0..=1.0).contains(v))
+        .ok_or_else(|| format!("'{s}' is not a number in [0, 1]"))
+}
+
 pub fn parse_target(s: &str) -> Result<TargetFormat, String> {
     match s {
         "rgba16float" => Ok(TargetFormat::Rgba16Float),
@@ -288,6 +306,7 @@ pub fn load_document(preset: Option<&std::path::Path>) -> Result<Document> {
     for w in &loaded.warnings {
         eprintln!("warning: {w}");
     }
+    crate::outputs::protect_document(Some(path), &loaded.document);
     Ok(loaded.document)
 }
 
@@ -297,7 +316,10 @@ pub fn run_render(preset: Option<&std::path::Path>, a: &RenderArgs) -> Result<()
     };
     let mut doc = load_document(Some(preset))?;
     a.frame.apply(&mut doc)?;
+    crate::outputs::image_format(&a.output)?;
     let volume = headless::load_volume(&doc.volume)?;
+    crate::outputs::check_output(&a.output)?;
+    headless::preflight(Some(preset), &doc, &volume)?;
     let gpu = GpuContext::new_headless()?;
     eprintln!("adapter: {}", gpu.describe());
     let mut r = headless::renderer_for(&gpu, &doc, volume.clone())
@@ -418,8 +440,11 @@ pub fn run_compare(preset: Option<&std::path::Path>, a: &CompareArgs) -> Result<
 }
 
 pub fn run_bench(preset: Option<&std::path::Path>, a: &BenchArgs) -> Result<()> {
-    let (_, doc) = preset_document(preset, &a.frame, "bench")?;
+    crate::outputs::check_extension(&a.output, "csv", "CSV")?;
+    let (path, doc) = preset_document(preset, &a.frame, "bench")?;
     let volume = headless::load_volume(&doc.volume)?;
+    crate::outputs::check_output(&a.output)?;
+    headless::preflight(Some(&path), &doc, &volume)?;
     let gpu = GpuContext::new_headless()?;
     eprintln!("adapter: {}", gpu.describe());
     let rows = measure::bench_document(&gpu, &doc, volume, a.warmup, a.frames)?;
@@ -485,20 +510,24 @@ pub fn run_dos_study(a: &crate::dos_study::DosStudyArgs) -> Result<()> {
 }
 
 pub fn run_suggest_tf(a: &SuggestTfArgs) -> Result<()> {
-    let volume = match &a.volume {
-        Some(p) => headless::load_volume_file(p)?,
-        None => vwb_render::volume::demo(),
-    };
     let opts = vwb_render::suggest::SuggestOptions {
         thickness: a.thickness,
         max_opacity: a.max_opacity,
         ..Default::default()
     };
+    opts.check()?;
+    crate::outputs::check_extension(&a.output, "ron", "a transfer function in RON")?;
+    let volume = match &a.volume {
+        Some(p) => headless::load_volume_file(p)?,
+        None => vwb_render::volume::demo(),
+    };
+    crate::outputs::check_output(&a.output)?;
     let name = a
         .volume
         .as_ref()
         .map_or("demo".to_string(), |p| p.display().to_string());
-    let s = vwb_render::suggest::suggest(&volume, &opts).with_context(|| name.clone())?;
+    let s = vwb_render::suggest::suggest(&volume, &opts)
+        .with_context(|| format!("{name}: nothing written"))?;
     let text = ron::ser::to_string_pretty(&s.curve, ron::ser::PrettyConfig::new())
         .with_context(|| format!("{}: cannot serialise", a.output.display()))?;
     vwb_render::preset::write_atomic(&a.output, text.as_bytes())
@@ -507,10 +536,19 @@ pub fn run_suggest_tf(a: &SuggestTfArgs) -> Result<()> {
         .alpha
         .iter()
         .enumerate()
+        .filter(|(_, a)| **a > 0.0)
         .max_by(|a, b| a.1.total_cmp(b.1))
-        .map_or(0.0, |(i, _)| (i as f64 + 0.5) / s.alpha.len() as f64);
+        .map_or(
+            "no boundary found: the transfer function is transparent".to_string(),
+            |(i, _)| {
+                format!(
+                    "most opaque value {:.3}",
+                    (i as f64 + 0.5) / s.alpha.len() as f64
+                )
+            },
+        );
     eprintln!(
-        "{name}: boundary blur σ = {:.2} voxels; most opaque value {peak:.3}; {} of {} value bins on a boundary; wrote {}",
+        "{name}: boundary blur σ = {:.2} voxels; {peak}; {} of {} value bins on a boundary; wrote {}",
         s.sigma,
         s.alpha.iter().filter(|&&a| a > 0.0).count(),
         s.alpha.len(),
@@ -522,6 +560,7 @@ pub fn run_suggest_tf(a: &SuggestTfArgs) -> Result<()> {
 pub fn run_scene(preset: Option<&std::path::Path>, a: &SceneArgs) -> Result<()> {
     let (path, doc) = preset_document(preset, &a.frame, "scene")?;
     let volume = headless::load_volume(&doc.volume)?;
+    headless::preflight(Some(&path), &doc, &volume)?;
     let json = measure::scene_json(&doc, &volume, &path);
     println!("{}", serde_json::to_string_pretty(&json)?);
     Ok(())

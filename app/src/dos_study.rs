@@ -37,8 +37,8 @@ pub struct DosStudyArgs {
     /// Monte-Carlo cone directions per eye sample.
     #[arg(long, default_value_t = 48)]
     pub directions: usize,
-    /// Timed frames per point.
-    #[arg(long, default_value_t = 3)]
+    /// Timed frames per point (at least 1).
+    #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u32).range(1..))]
     pub frames: u32,
     /// Output Markdown file.
     #[arg(short, long, default_value = "docs/dos.md")]
@@ -185,11 +185,14 @@ fn pareto(points: &[Point]) -> Vec<Point> {
 
 pub fn run(gpu: &GpuContext, a: &DosStudyArgs) -> Result<String> {
     let started = Instant::now();
+    crate::outputs::check_extension(&a.output, "md", "a Markdown report")?;
     let registry = vwb_plugins::builtin_registry();
     let doc = Document::load(&a.scene, &registry)
         .with_context(|| a.scene.display().to_string())?
         .document;
+    crate::outputs::protect_document(Some(&a.scene), &doc);
     let volume = headless::load_volume(&doc.volume)?;
+    crate::outputs::check_output(&a.output)?;
     let settings = FrameSettings {
         width: a.size,
         height: a.size,
@@ -324,6 +327,7 @@ pub fn run(gpu: &GpuContext, a: &DosStudyArgs) -> Result<String> {
         let ct = Document::load(Path::new(&a.ct), &registry)
             .with_context(|| a.ct.clone())?
             .document;
+        crate::outputs::protect_document(Some(Path::new(&a.ct)), &ct);
         let vol = headless::load_volume(&ct.volume)?;
         for backend in [Backend::Compute, Backend::Raster] {
             let mut r = headless::renderer_for(gpu, &ct, vol.clone())?;

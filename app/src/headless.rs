@@ -18,8 +18,10 @@ pub fn load_volume(src: &VolumeSource) -> Result<Arc<Volume>> {
     }))
 }
 
-/// Loads a volume file (NRRD, attached or detached header).
+/// Loads a volume file (NRRD, attached or detached header) and registers it (and its
+/// data file) as an input no output may overwrite.
 pub fn load_volume_file(path: &Path) -> Result<Volume> {
+    crate::outputs::protect_volume(path);
     Ok(vwb_render::volume::load(path)?)
 }
 
@@ -43,14 +45,13 @@ pub fn to_image(w: u32, h: u32, rgb: &[[f64; 3]]) -> image::RgbImage {
     RgbImageF::new(w, h, rgb.to_vec()).to_rgb8()
 }
 
-/// Writes a PNG atomically (the old file survives a failure).
+/// Writes an image atomically (the old file survives a failure) in the format of its
+/// extension (`.png`, `.jpg`); other extensions are refused.
 pub fn save_png(img: &image::RgbImage, path: &Path) -> Result<()> {
+    let format = crate::outputs::image_format(path)?;
     let mut bytes = Vec::new();
-    img.write_to(
-        &mut std::io::Cursor::new(&mut bytes),
-        image::ImageFormat::Png,
-    )
-    .with_context(|| format!("{}: cannot encode PNG", path.display()))?;
+    img.write_to(&mut std::io::Cursor::new(&mut bytes), format)
+        .with_context(|| format!("{}: cannot encode the image", path.display()))?;
     vwb_render::preset::write_atomic(path, &bytes)
         .with_context(|| format!("{}: cannot write", path.display()))
 }
@@ -67,4 +68,41 @@ pub fn render_image(
     };
     let img = to_image(w, h, &composite_over(&px, background));
     Ok((img, px, stats))
+}
+
+/// What a user should know before looking at a document's image: an eye buffer too
+/// coarse for the slice spacing, a volume with nothing to show.
+pub fn frame_warnings(doc: &Document, volume: &Volume) -> Vec<String> {
+    let mut w = vwb_render::validate::volume_warnings(volume);
+    w.extend(vwb_render::validate::eye_buffer_warning(
+        doc.render.target,
+        doc.render.slice_spacing,
+    ));
+    w
+}
+
+/// Checks a document's camera and slice count against its volume, with an error
+/// naming the preset and the field (`p.ron: render.slice_spacing: …`).
+pub fn check_frame(preset: Option<&Path>, doc: &Document, volume: &Volume) -> Result<()> {
+    let name = preset.map_or_else(|| "the scene".to_string(), |p| p.display().to_string());
+    vwb_render::validate::check_slices(
+        &doc.camera,
+        doc.render.size,
+        doc.render.slice_spacing,
+        volume,
+    )
+    .with_context(|| name)?;
+    Ok(())
+}
+
+/// Checks a document's frame against its volume before any GPU work (camera, slice
+/// count) with errors naming the preset and the field, and prints the warnings of
+/// [`frame_warnings`].
+pub fn preflight(preset: Option<&Path>, doc: &Document, volume: &Volume) -> Result<()> {
+    check_frame(preset, doc, volume)?;
+    let name = preset.map_or_else(|| "the scene".to_string(), |p| p.display().to_string());
+    for w in frame_warnings(doc, volume) {
+        eprintln!("warning: {name}: {w}");
+    }
+    Ok(())
 }

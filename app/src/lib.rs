@@ -8,7 +8,9 @@ pub mod custom_ui;
 pub mod dos_study;
 pub mod headless;
 pub mod job;
+pub mod loading;
 pub mod measure;
+pub mod outputs;
 pub mod stack_ui;
 #[cfg(test)]
 mod test_input;

@@ -440,6 +440,7 @@ pub fn run_compare(
     tolerance: f64,
 ) -> Result<Metrics> {
     let volume = headless::load_volume(&doc.volume)?;
+    headless::preflight(Some(preset), doc, &volume)?;
     let gpu = GpuContext::new_headless()?;
     eprintln!("adapter: {}", gpu.describe());
     let c = compare_document(&gpu, doc, volume, against, frames, tolerance)?;
@@ -571,7 +572,10 @@ pub fn bench_document(
         r.update_stack(&stack, doc.render.target)?;
         let without = time_frames(&mut r, &s, warmup, frames)?;
         let (ms, _) = without.frame_ms();
-        let marginal = full_ms - ms;
+        let (marginal, note) = plugin_cost(full_ms, ms);
+        if let Some(note) = note {
+            eprintln!("note: {}#{i}: {note}", inst.plugin.id());
+        }
         rows.push(BenchRow {
             kind: "plugin",
             name: format!("{}#{i}", inst.plugin.id()),
@@ -604,6 +608,24 @@ pub fn bench_document(
         });
     }
     Ok(rows)
+}
+
+/// A plugin's cost by ablation: the frame time with it minus the time without,
+/// clamped at 0 with a note when timing noise makes the difference negative (a plugin
+/// cannot make a frame faster by running).
+pub fn plugin_cost(with_ms: f64, without_ms: f64) -> (f64, Option<String>) {
+    let d = with_ms - without_ms;
+    if d >= 0.0 {
+        (d, None)
+    } else {
+        (
+            0.0,
+            Some(format!(
+                "the frame took {without_ms:.3} ms without the plugin and {with_ms:.3} ms with \
+                 it: its cost is below the timing noise ({d:.3} ms), reported as 0"
+            )),
+        )
+    }
 }
 
 /// A sweep axis: what varies and its values.
@@ -1276,6 +1298,14 @@ pub fn scene_json(doc: &Document, volume: &Volume, preset: &Path) -> serde_json:
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn plugin_cost_is_never_negative() {
+        assert_eq!(plugin_cost(3.0, 2.5), (0.5, None));
+        let (ms, note) = plugin_cost(2.0, 2.2);
+        assert_eq!(ms, 0.0);
+        assert!(note.unwrap().contains("below the timing noise"));
+    }
 
     #[test]
     fn values_ranges_and_lists() {

@@ -67,12 +67,47 @@ pub fn wgpu_configuration() -> egui_wgpu::WgpuConfiguration {
     }
 }
 
-pub fn run(cli: &Cli) -> Result<()> {
-    let mut doc = load_document(cli.preset.as_deref())?;
-    if let Some(v) = &cli.volume {
-        doc.volume = VolumeSource::File(v.clone());
+/// The document and volume the window opens on. When the preset or the volume fails
+/// to load, the window still opens, on the demo scene, with the error shown (the
+/// returned message); only a `--screenshot` run fails instead, so scripts see it.
+pub fn startup(cli: &Cli) -> Result<(Document, Arc<vwb_render::Volume>, Option<String>)> {
+    let loaded = (|| {
+        let mut doc = load_document(cli.preset.as_deref())?;
+        if let Some(v) = &cli.volume {
+            doc.volume = VolumeSource::File(v.clone());
+        }
+        let volume = headless::load_volume(&doc.volume)?;
+        headless::check_frame(cli.preset.as_deref(), &doc, &volume)?;
+        anyhow::Ok((doc, volume))
+    })();
+    // the window edits its preset: *Save preset* may write over it (volumes stay
+    // protected; a screenshot run saves no preset)
+    if let Some(p) = cli.preset.as_ref().filter(|_| cli.screenshot.is_none()) {
+        vwb_render::files::unprotect_input(p);
     }
-    let volume = headless::load_volume(&doc.volume)?;
+    match loaded {
+        Ok((doc, volume)) => Ok((doc, volume, None)),
+        Err(e) if cli.screenshot.is_none() => {
+            let registry = vwb_plugins::builtin_registry();
+            let doc = default_document(&registry);
+            let volume = headless::load_volume(&doc.volume)?;
+            Ok((doc, volume, Some(format!("{e:#} (showing the demo scene)"))))
+        }
+        Err(e) => Err(e),
+    }
+}
+
+pub fn run(cli: &Cli) -> Result<()> {
+    if let Some(shot) = &cli.screenshot {
+        crate::outputs::image_format(shot)?;
+    }
+    let (doc, volume, startup_error) = startup(cli)?;
+    if let Some(e) = &startup_error {
+        eprintln!("error: {e}");
+    }
+    if let Some(shot) = &cli.screenshot {
+        crate::outputs::check_output(shot)?;
+    }
     let screenshot = cli.screenshot.clone();
     let options = eframe::NativeOptions {
         wgpu_options: wgpu_configuration(),
@@ -86,7 +121,10 @@ pub fn run(cli: &Cli) -> Result<()> {
         "vwb",
         options,
         Box::new(move |cc| {
-            let app = Workbench::new(cc, doc, volume, screenshot, err_tx)?;
+            let mut app = Workbench::new(cc, doc, volume, screenshot, err_tx)?;
+            if let Some(e) = startup_error {
+                app.show_error(e);
+            }
             Ok(Box::new(app))
         }),
     )
@@ -163,6 +201,10 @@ pub struct Workbench {
     tradeoff: crate::tradeoff_ui::TradeoffView,
     /// Result of the last open or save.
     file_status: Option<Result<String, String>>,
+    /// A volume loading in the background (app/src/loading.rs).
+    loading: Option<crate::loading::VolumeLoad>,
+    /// Volume files of at least this many bytes (and streams) load in the background.
+    pub async_load_bytes: u64,
     renderer: Renderer,
     texture: Option<egui::TextureId>,
     texture_size: [u32; 2],
@@ -234,6 +276,8 @@ impl Workbench {
             ablation_rows: None,
             tradeoff: Default::default(),
             file_status: None,
+            loading: None,
+            async_load_bytes: crate::loading::DEFAULT_ASYNC_LOAD_BYTES,
             renderer,
             texture: None,
             texture_size: [0, 0],
@@ -314,6 +358,11 @@ impl Workbench {
         self.dirty = true;
     }
 
+    /// Shows an error under the file fields (e.g. a preset that failed at start-up).
+    pub fn show_error(&mut self, message: String) {
+        self.file_status = Some(Err(message));
+    }
+
     /// Shows the outcome of a file operation.
     fn report(&mut self, outcome: Result<String>) {
         self.file_status = Some(outcome.map_err(|e| format!("{e:#}")));
@@ -340,8 +389,56 @@ impl Workbench {
     /// Opens a volume file into the current scene; the current volume stays on any
     /// error (unreadable file, lying header, a stack that fails on the new volume).
     pub fn open_volume(&mut self, path: &std::path::Path) -> Result<String> {
+        let volume = headless::load_volume(&VolumeSource::File(path.to_path_buf()))?;
+        self.install_volume(path, volume)
+    }
+
+    /// Opens a volume from the UI: large files and streams load in the background
+    /// (progress and Cancel under the path field), small ones at once.
+    pub fn start_open_volume(&mut self, path: &std::path::Path) {
+        if crate::loading::VolumeLoad::wanted(path, self.async_load_bytes) {
+            self.loading = Some(crate::loading::VolumeLoad::start(path));
+            self.file_status = None;
+        } else {
+            let outcome = self.open_volume(path);
+            self.report(outcome);
+        }
+    }
+
+    /// A volume is loading in the background.
+    pub fn is_loading(&self) -> bool {
+        self.loading.is_some()
+    }
+
+    /// The background load's progress bar and Cancel; installs its volume when done.
+    fn loading_ui(&mut self, ui: &mut egui::Ui) {
+        let Some(mut load) = self.loading.take() else {
+            return;
+        };
+        if load.ui(ui) {
+            load.cancel();
+            self.report(Ok(format!("cancelled loading {}", load.path.display())));
+        } else if let Some(result) = load.poll() {
+            let outcome = result
+                .map_err(|e| anyhow!(e))
+                .and_then(|v| match load.preset.take() {
+                    Some((preset, doc)) => self.install_preset(&preset, doc, v),
+                    None => self.install_volume(&load.path, v),
+                });
+            self.report(outcome);
+        } else {
+            ui.ctx().request_repaint();
+            self.loading = Some(load);
+        }
+    }
+
+    /// Puts a loaded volume into the current scene (see [`Workbench::open_volume`]).
+    fn install_volume(
+        &mut self,
+        path: &std::path::Path,
+        volume: Arc<vwb_render::Volume>,
+    ) -> Result<String> {
         let source = VolumeSource::File(path.to_path_buf());
-        let volume = headless::load_volume(&source)?;
         let renderer = self
             .fresh_renderer(volume, &self.doc)
             .with_context(|| format!("{}", path.display()))?;
@@ -354,6 +451,15 @@ impl Workbench {
         self.dirty = true;
         self.remember(path);
         Ok(msg)
+    }
+
+    /// [`Workbench::open_any`] from the UI: large volumes load in the background.
+    fn start_open_any(&mut self, path: &std::path::Path) {
+        if path.extension().is_some_and(|e| e == "ron") {
+            self.start_open(path)
+        } else {
+            self.start_open_volume(path)
+        }
     }
 
     /// Opens a preset (`.ron`) or a volume by its extension.
@@ -381,6 +487,9 @@ impl Workbench {
             self.renderer.volume().dims
         ));
         ui.label(format!("adapter: {}", self.renderer.gpu().info.name));
+        for w in headless::frame_warnings(&self.doc, self.renderer.volume()) {
+            ui.colored_label(egui::Color32::from_rgb(230, 160, 40), format!("⚠ {w}"));
+        }
         ui.separator();
         self.files(ui);
         ui.separator();
@@ -750,8 +859,7 @@ impl Workbench {
             .on_hover_text("volume file (.nhdr, .nrrd, .raw + header)");
             if ui.button("Open volume").clicked() {
                 let path = PathBuf::from(self.volume_path.trim());
-                let outcome = self.open_volume(&path);
-                self.report(outcome);
+                self.start_open_volume(&path);
             }
             if ui.button("…").on_hover_text("choose a volume").clicked() {
                 let mut d = egui_file::FileDialog::open_file()
@@ -761,6 +869,7 @@ impl Workbench {
                 self.dialog = Some(Dialog::Volume(d));
             }
         });
+        self.loading_ui(ui);
         ui.horizontal(|ui| {
             ui.add(
                 egui::TextEdit::singleline(&mut self.preset_path)
@@ -770,8 +879,7 @@ impl Workbench {
             .on_hover_text("preset file (.ron)");
             let path = PathBuf::from(self.preset_path.trim());
             if ui.button("Open preset").clicked() {
-                let outcome = self.open(&path);
-                self.report(outcome);
+                self.start_open(&path);
             }
             if ui.button("Save preset").clicked() {
                 let saved = self.doc.save(&path);
@@ -813,8 +921,7 @@ impl Workbench {
                     }
                 });
             if let Some(p) = pick {
-                let outcome = self.open_any(&p);
-                self.report(outcome);
+                self.start_open_any(&p);
             }
         }
         match &self.file_status {
@@ -844,27 +951,58 @@ impl Workbench {
             }
         }
         if let Some((path, preset)) = chosen {
-            let outcome = if preset {
-                self.open(&path)
+            if preset {
+                self.start_open(&path);
             } else {
-                self.open_volume(&path)
-            };
-            self.report(outcome);
+                self.start_open_volume(&path);
+            }
         }
         let dropped = ctx.input(|i| i.raw.dropped_files.clone());
         for f in dropped {
             let path = f.path().to_path_buf();
             if !path.as_os_str().is_empty() {
-                let outcome = self.open_any(&path);
-                self.report(outcome);
+                self.start_open_any(&path);
             }
         }
     }
 
     /// Loads a preset (and its volume); the current one stays on any error.
     pub fn open(&mut self, path: &std::path::Path) -> Result<String> {
-        let mut doc = Document::load(path, &self.registry)?.document;
+        let doc = Document::load(path, &self.registry)?.document;
         let volume = headless::load_volume(&doc.volume)?;
+        self.install_preset(path, doc, volume)
+    }
+
+    /// Opens a preset from the UI; a large volume (or a stream) loads in the background.
+    pub fn start_open(&mut self, path: &std::path::Path) {
+        let doc = match Document::load(path, &self.registry) {
+            Ok(loaded) => loaded.document,
+            Err(e) => return self.report(Err(e.into())),
+        };
+        match &doc.volume {
+            VolumeSource::File(v)
+                if crate::loading::VolumeLoad::wanted(v, self.async_load_bytes) =>
+            {
+                let mut load = crate::loading::VolumeLoad::start(v);
+                load.preset = Some((path.to_path_buf(), doc));
+                self.loading = Some(load);
+                self.file_status = None;
+            }
+            _ => {
+                let outcome = self.open(path);
+                self.report(outcome);
+            }
+        }
+    }
+
+    /// Puts an opened preset and its loaded volume on screen (see [`Workbench::open`]).
+    fn install_preset(
+        &mut self,
+        path: &std::path::Path,
+        mut doc: Document,
+        volume: Arc<vwb_render::Volume>,
+    ) -> Result<String> {
+        headless::check_frame(Some(path), &doc, &volume)?;
         if *volume == **self.renderer.volume() {
             // the same data (e.g. the same preset again): keep the renderer, so that the
             // volume is not uploaded again, and carry the instances' identities, so

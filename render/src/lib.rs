@@ -3,6 +3,7 @@
 
 pub mod camera;
 pub mod composer;
+pub mod files;
 pub mod flow;
 pub mod gpu;
 pub mod metrics;
@@ -18,6 +19,7 @@ pub mod slicing;
 pub mod suggest;
 pub mod tf;
 pub mod tf2d;
+pub mod validate;
 pub mod volume;
 
 pub use camera::{Camera, Projection};

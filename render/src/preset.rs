@@ -224,17 +224,7 @@ impl Document {
                 "components must be finite".into(),
             ));
         }
-        let c = &raw.camera;
-        let finite = [c.distance, c.yaw_deg, c.pitch_deg, c.near]
-            .iter()
-            .chain(c.target.iter())
-            .all(|v| v.is_finite());
-        if !finite || c.distance <= 0.0 || c.near <= 0.0 {
-            return Err(value_err(
-                "camera".into(),
-                "distance and near must be > 0 and all values finite".into(),
-            ));
-        }
+        crate::validate::check_camera(&raw.camera).map_err(|e| value_err(e.field, e.message))?;
         let mut stack = Vec::new();
         for (i, entry) in raw.plugins.iter().enumerate() {
             let plugin = registry
@@ -302,6 +292,29 @@ impl Document {
         }
     }
 
+    /// This document with its file paths relative to the folder of the preset `path`.
+    pub fn relative_to_preset(&self, path: &Path) -> Document {
+        let dir = crate::files::absolute(path);
+        let dir = dir.parent().unwrap_or(Path::new("/"));
+        let rel = |p: &Path| {
+            crate::files::relative_to(p, dir).unwrap_or_else(|| crate::files::absolute(p))
+        };
+        let mut doc = self.clone();
+        if let VolumeSource::File(p) = &mut doc.volume {
+            *p = rel(p);
+        }
+        for inst in &mut doc.stack {
+            for v in inst.params.values.values_mut() {
+                if let crate::params::ParamValue::Path(p) = v
+                    && !p.as_os_str().is_empty()
+                {
+                    *p = rel(p);
+                }
+            }
+        }
+        doc
+    }
+
     pub fn to_ron(&self) -> String {
         let cfg = ron::ser::PrettyConfig::new()
             .depth_limit(6)
@@ -311,35 +324,18 @@ impl Document {
             .unwrap_or_else(|e| format!("// serialisation failed: {e}\n"))
     }
 
-    /// Saves atomically (temporary file + rename in the same folder).
+    /// Saves atomically (temporary file + rename in the same folder). File paths (the
+    /// volume, path parameters such as label volumes), held relative to the working
+    /// folder or absolute, are written relative to the preset's own folder, as
+    /// [`Document::load`] reads them (absolute where no relative path exists).
     pub fn save(&self, path: &Path) -> Result<(), PresetError> {
-        write_atomic(path, self.to_ron().as_bytes()).map_err(|cause| PresetError::Io {
-            file: path.display().to_string(),
-            cause,
+        write_atomic(path, self.relative_to_preset(path).to_ron().as_bytes()).map_err(|cause| {
+            PresetError::Io {
+                file: path.display().to_string(),
+                cause,
+            }
         })
     }
 }
 
-/// Writes `bytes` to `path` atomically: the old file stays intact if anything fails.
-pub fn write_atomic(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
-    use std::io::Write;
-    let dir = path
-        .parent()
-        .filter(|d| !d.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
-    let name = path
-        .file_name()
-        .map(|n| n.to_string_lossy().to_string())
-        .unwrap_or_else(|| "out".into());
-    let tmp = dir.join(format!(".{name}.tmp{}", std::process::id()));
-    let result = (|| {
-        let mut f = std::fs::File::create(&tmp)?;
-        f.write_all(bytes)?;
-        f.sync_all()?;
-        std::fs::rename(&tmp, path)
-    })();
-    if result.is_err() {
-        let _ = std::fs::remove_file(&tmp);
-    }
-    result
-}
+pub use crate::files::write_atomic;

@@ -120,6 +120,8 @@ pub enum RenderError {
     Gpu(String),
     #[error("atlas: {0}")]
     Atlas(String),
+    #[error(transparent)]
+    Camera(#[from] crate::validate::FieldError),
 }
 
 /// Timings of one frame.
@@ -1513,6 +1515,7 @@ impl Renderer {
         {
             return Err(RenderError::NoFloat32Blending);
         }
+        crate::validate::check_camera(&s.camera)?;
         let view = s.camera.view(s.width as f32 / s.height as f32);
         let plan = SlicePlan::new(&view, &self.vbox, s.slice_spacing)?;
         let spacing_updates = self.sync_spacing(plan.spacing / self.vbox.voxel)?;

@@ -103,9 +103,19 @@ pub enum SliceError {
     #[error("slice spacing must be finite and > 0 voxels, got {0}")]
     BadSpacing(f32),
     #[error(
-        "slice spacing {spacing} voxels needs {count} slices, more than the limit of {MAX_SLICES}"
+        "slice spacing {spacing} voxels needs {} slices, more than the limit of {MAX_SLICES}",
+        slice_count_text(*.count)
     )]
     TooMany { spacing: f32, count: u64 },
+}
+
+/// A slice count for messages: exact, or "more than 10^15" where it saturated.
+fn slice_count_text(count: u64) -> String {
+    if count >= 1_000_000_000_000_000 {
+        "more than 10^15".to_string()
+    } else {
+        count.to_string()
+    }
 }
 
 /// The slice planes of one frame.
@@ -351,5 +361,8 @@ mod tests {
         let half = SlicePlan::new(&view, &vbox, 0.5).unwrap();
         let one = SlicePlan::new(&view, &vbox, 1.0).unwrap();
         assert!(half.count.abs_diff(one.count * 2) <= 2);
+        // a spacing so fine that the count saturates says so, not 18446744073709551615
+        let e = SlicePlan::new(&view, &vbox, 1e-30).unwrap_err().to_string();
+        assert!(e.contains("more than 10^15 slices"), "{e}");
     }
 }

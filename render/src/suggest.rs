@@ -113,8 +113,73 @@ pub enum SuggestError {
     TooSmall(String),
     #[error("volume '{0}' is a vector volume; suggestions need scalars")]
     NotScalar(String),
-    #[error("invalid option: {0}")]
+    #[error("invalid option {0}")]
     BadOption(String),
+    #[error(
+        "volume '{name}' is degenerate: {reason}; it has no boundaries to suggest a transfer \
+         function from"
+    )]
+    Degenerate { name: String, reason: String },
+    #[error(
+        "volume '{name}': the suggestion needs about {bytes} bytes of working memory \
+         ({voxels} interior voxels), more than {available} bytes are available"
+    )]
+    OutOfMemory {
+        name: String,
+        bytes: u64,
+        voxels: u64,
+        available: u64,
+    },
+}
+
+impl SuggestOptions {
+    /// Checks every option; the error names the option, its value and the valid range.
+    pub fn check(&self) -> Result<(), SuggestError> {
+        let bad = |name: &str, value: String, want: &str| {
+            Err(SuggestError::BadOption(format!(
+                "{name} = {value}: must be {want}"
+            )))
+        };
+        if self.value_bins < 2 {
+            return bad("value_bins", self.value_bins.to_string(), "at least 2");
+        }
+        if self.derivative_bins < 2 {
+            return bad(
+                "derivative_bins",
+                self.derivative_bins.to_string(),
+                "at least 2",
+            );
+        }
+        if !(self.thickness.is_finite() && self.thickness > 0.0) {
+            return bad(
+                "thickness",
+                self.thickness.to_string(),
+                "a finite number > 0 (voxels)",
+            );
+        }
+        if !(0.0..=1.0).contains(&self.max_opacity) {
+            return bad(
+                "max_opacity",
+                self.max_opacity.to_string(),
+                "a number in [0, 1]",
+            );
+        }
+        if !(0.0..1.0).contains(&self.min_gradient) {
+            return bad(
+                "min_gradient",
+                self.min_gradient.to_string(),
+                "a number in [0, 1)",
+            );
+        }
+        Ok(())
+    }
+}
+
+/// An empty vector with room for `n` values, or `None` when it cannot be allocated.
+fn try_with_capacity<T>(n: usize) -> Option<Vec<T>> {
+    let mut v = Vec::new();
+    v.try_reserve_exact(n).ok()?;
+    Some(v)
 }
 
 /// Value, f' and f'' of one interior voxel, or None where a neighbour is not finite.
@@ -164,31 +229,50 @@ pub fn suggest(volume: &Volume, opts: &SuggestOptions) -> Result<Suggestion, Sug
     if volume.components != 1 {
         return Err(SuggestError::NotScalar(volume.name.clone()));
     }
-    if opts.value_bins < 2
-        || opts.derivative_bins < 2
-        || !(opts.thickness.is_finite() && opts.thickness > 0.0)
-        || !(0.0..=1.0).contains(&opts.max_opacity)
-        || !(0.0..1.0).contains(&opts.min_gradient)
-    {
-        return Err(SuggestError::BadOption(format!("{opts:?}")));
+    opts.check()?;
+    if let Some(reason) = crate::validate::degenerate_reason(volume) {
+        return Err(SuggestError::Degenerate {
+            name: volume.name.clone(),
+            reason,
+        });
     }
     let d = volume.dims.map(|v| v as usize);
     if d.iter().any(|&n| n < 3) {
         return Err(SuggestError::TooSmall(volume.name.clone()));
     }
+    // working memory: the normalised scalars (4 bytes per voxel), (v, f', f'') per
+    // interior voxel (24 bytes, built in parallel parts and then joined: twice) and one
+    // percentile column (8 bytes)
+    let interior = d.iter().map(|&n| (n - 2) as u64).product::<u64>();
+    let need = (volume.voxel_count() as u64)
+        .saturating_mul(4)
+        .saturating_add(interior.saturating_mul(2 * 24 + 8));
+    let oom = |available: u64| SuggestError::OutOfMemory {
+        name: volume.name.clone(),
+        bytes: need,
+        voxels: interior,
+        available,
+    };
+    if let Some(available) = crate::volume::available_memory()
+        && need > available
+    {
+        return Err(oom(available));
+    }
     let s = volume.normalized_scalars();
     // every interior voxel's (v, f', f''), slab by slab in parallel
-    let samples: Vec<[f64; 3]> = (1..d[2] - 1)
-        .into_par_iter()
-        .flat_map_iter(|z| {
-            let s = &s;
-            (1..d[1] - 1)
-                .flat_map(move |y| (1..d[0] - 1).filter_map(move |x| derivatives(s, d, x, y, z)))
-        })
-        .collect();
-    let raw_g_hi = percentile(samples.iter().map(|r| r[1]).collect(), 0.995);
+    let mut samples: Vec<[f64; 3]> = try_with_capacity(interior as usize).ok_or_else(|| oom(0))?;
+    samples.par_extend((1..d[2] - 1).into_par_iter().flat_map_iter(|z| {
+        let s = &s;
+        (1..d[1] - 1)
+            .flat_map(move |y| (1..d[0] - 1).filter_map(move |x| derivatives(s, d, x, y, z)))
+    }));
+    let mut column = try_with_capacity(samples.len()).ok_or_else(|| oom(0))?;
+    column.extend(samples.iter().map(|r| r[1]));
+    let raw_g_hi = percentile(column, 0.995);
     let g_hi = raw_g_hi.max(1e-12);
-    let h_hi = percentile(samples.iter().map(|r| r[2].abs()).collect(), 0.995).max(1e-12);
+    let mut column = try_with_capacity(samples.len()).ok_or_else(|| oom(0))?;
+    column.extend(samples.iter().map(|r| r[2].abs()));
+    let h_hi = percentile(column, 0.995).max(1e-12);
     // an odd number of bins puts a bin centre on f'' = 0
     let (vb, db) = (opts.value_bins, opts.derivative_bins | 1);
     let mut histogram = HistogramVolume {
@@ -385,11 +469,17 @@ mod tests {
     fn constant_and_degenerate_volumes_give_clear_results() {
         let flat =
             Volume::new("flat", [8, 8, 8], 1, [1.0; 3], VoxelData::U8(vec![7; 512])).unwrap();
-        let s = suggest(&flat, &SuggestOptions::default()).unwrap();
-        assert!(s.alpha.iter().all(|&a| a == 0.0));
-        assert!(s.curve.validate().is_ok());
-        let thin =
-            Volume::new("thin", [8, 8, 2], 1, [1.0; 3], VoxelData::U8(vec![1; 128])).unwrap();
+        let e = suggest(&flat, &SuggestOptions::default()).unwrap_err();
+        assert!(matches!(e, SuggestError::Degenerate { .. }), "{e}");
+        assert!(e.to_string().contains("same value 7"), "{e}");
+        let thin = Volume::new(
+            "thin",
+            [8, 8, 2],
+            1,
+            [1.0; 3],
+            VoxelData::U8((0..128).collect()),
+        )
+        .unwrap();
         assert_eq!(
             suggest(&thin, &SuggestOptions::default()).unwrap_err(),
             SuggestError::TooSmall("thin".into())
@@ -405,9 +495,11 @@ mod tests {
             thickness: 0.0,
             ..Default::default()
         };
-        assert!(matches!(
-            suggest(&flat, &bad),
-            Err(SuggestError::BadOption(_))
-        ));
+        let e = suggest(&flat, &bad).unwrap_err();
+        assert!(matches!(e, SuggestError::BadOption(_)));
+        assert_eq!(
+            e.to_string(),
+            "invalid option thickness = 0: must be a finite number > 0 (voxels)"
+        );
     }
 }

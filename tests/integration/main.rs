@@ -3,6 +3,8 @@
 //!
 //! `VWB_BLESS=1 cargo test --test integration` regenerates the golden files.
 
+#[cfg(unix)]
+mod adversarial;
 mod classification;
 mod cli;
 mod common;

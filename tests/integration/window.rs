@@ -17,7 +17,7 @@ use crate::common::{gpu, registry, repo, tmp};
 const CT: &str = "../shared/data/ct_cranium_256x256x108_int16.nhdr";
 
 /// The window on `doc` at 1100×800, drawing at `scale` × the viewport's resolution.
-fn window(doc: Document, scale: f32) -> Harness<'static, Workbench> {
+pub(crate) fn window(doc: Document, scale: f32) -> Harness<'static, Workbench> {
     window_checked(doc, scale, true)
 }
 
@@ -96,7 +96,7 @@ fn click_nth(h: &mut Harness<'_, Workbench>, label: &str, n: usize) {
     h.run_steps(3);
 }
 
-fn click(h: &mut Harness<'_, Workbench>, label: &str) {
+pub(crate) fn click(h: &mut Harness<'_, Workbench>, label: &str) {
     click_nth(h, label, 0);
 }
 

@@ -329,10 +329,16 @@ pub enum VolumeError {
     /// [`load`] was given a file without the NRRD magic.
     #[error(
         "{}: not an NRRD file (it does not start with \"NRRD000\"); headerless raw data \
-         does not record its layout, so load it with load_raw and give dims, type and endianness",
+         does not record its layout: describe it with a detached NRRD header (.nhdr) whose \
+         'data file:' names it, with its sizes, type and endianness",
         .file.display()
     )]
     NotNrrd { file: PathBuf },
+
+    /// A format vwb recognises but does not read (NIfTI), or a file that is not a
+    /// regular file where one is needed.
+    #[error("{}: {message}", .file.display())]
+    Unsupported { file: PathBuf, message: String },
 
     /// The NRRD header is malformed, incomplete or asks for something unsupported.
     #[error("{}{}: {message}", file_prefix(.file), header_location(*.line))]
@@ -393,6 +399,7 @@ impl VolumeError {
         match self {
             VolumeError::Io { file, .. }
             | VolumeError::NotNrrd { file }
+            | VolumeError::Unsupported { file, .. }
             | VolumeError::DataSize { file, .. }
             | VolumeError::Compressed { file, .. } => Some(file),
             VolumeError::Header { file, .. }
@@ -443,20 +450,110 @@ fn skip_note(skip: u64) -> String {
 
 /// Loads a volume, recognising the format by content. Only NRRD (magic
 /// `NRRD000x`) is self-describing; headerless raw data must go through
-/// [`load_raw`].
+/// [`load_raw`]. The path is opened once, so pipes (`--volume <(cat x.nrrd)`) and
+/// FIFOs are read as streams; a FIFO nobody writes to gives an error, not a hang.
 pub fn load(path: &Path) -> Result<Volume, VolumeError> {
-    let mut file =
-        std::fs::File::open(path).map_err(|cause| raw::io_error(path, "cannot open", cause))?;
-    let mut magic = [0u8; 7];
-    let got = raw::read_fully(&mut file, &mut magic)
-        .map_err(|cause| raw::io_error(path, "cannot read", cause))?;
-    if &magic[..got] == b"NRRD000" {
-        load_nrrd(path)
-    } else {
-        Err(VolumeError::NotNrrd {
-            file: path.to_path_buf(),
-        })
+    let input = nrrd::Input::open(path)?;
+    let head = input
+        .head(348)
+        .map_err(|e| raw::io_error(path, "cannot read", e))?;
+    if head.starts_with(b"NRRD000") {
+        return nrrd::load_input(input, path);
     }
+    if head.len() >= 348 && matches!(&head[344..348], b"n+1\0" | b"ni1\0" | b"n+2\0" | b"ni2\0")
+        || head.len() >= 8 && matches!(&head[4..8], b"n+2\0" | b"ni2\0")
+    {
+        return Err(VolumeError::Unsupported {
+            file: path.to_path_buf(),
+            message: "a NIfTI file; vwb reads NRRD only: convert it to NRRD (e.g. with 3D Slicer, \
+                      ITK or `c3d in.nii -o out.nrrd`)"
+                .to_owned(),
+        });
+    }
+    Err(VolumeError::NotNrrd {
+        file: path.to_path_buf(),
+    })
+}
+
+/// Progress of a volume load, shared with the thread that runs it: bytes of samples
+/// decoded so far and in all, and a cancel request (checked between chunks).
+#[derive(Debug, Default)]
+pub struct LoadProgress {
+    pub done: std::sync::atomic::AtomicU64,
+    pub total: std::sync::atomic::AtomicU64,
+    pub cancel: std::sync::atomic::AtomicBool,
+}
+
+impl LoadProgress {
+    /// Share of the samples decoded, in [0, 1].
+    pub fn fraction(&self) -> f32 {
+        use std::sync::atomic::Ordering::Relaxed;
+        let total = self.total.load(Relaxed);
+        if total == 0 {
+            0.0
+        } else {
+            (self.done.load(Relaxed) as f64 / total as f64).min(1.0) as f32
+        }
+    }
+}
+
+thread_local! {
+    /// The progress of the load running on this thread, if one was asked for.
+    static PROGRESS: std::cell::RefCell<Option<std::sync::Arc<LoadProgress>>> =
+        const { std::cell::RefCell::new(None) };
+}
+
+/// [`load`], reporting progress to `progress` and stopping with an error once
+/// `progress.cancel` is set.
+pub fn load_with_progress(
+    path: &Path,
+    progress: std::sync::Arc<LoadProgress>,
+) -> Result<Volume, VolumeError> {
+    PROGRESS.with(|p| *p.borrow_mut() = Some(progress));
+    let result = load(path);
+    PROGRESS.with(|p| *p.borrow_mut() = None);
+    result
+}
+
+/// Reports decoded bytes to this thread's load progress; `false` when cancelled.
+pub(crate) fn report_progress(done: u64, total: u64) -> bool {
+    use std::sync::atomic::Ordering::Relaxed;
+    PROGRESS.with(|p| match &*p.borrow() {
+        Some(p) => {
+            p.total.store(total, Relaxed);
+            p.done.store(done, Relaxed);
+            !p.cancel.load(Relaxed)
+        }
+        None => true,
+    })
+}
+
+/// The files a volume path reads: the path itself and, for a detached NRRD header,
+/// its data file (for checks that an output never overwrites an input). Unreadable or
+/// non-regular files list only themselves.
+pub fn input_files(path: &Path) -> Vec<PathBuf> {
+    let mut files = vec![path.to_path_buf()];
+    if let Some(data) = nrrd::detached_data_file(path) {
+        files.push(data);
+    }
+    files
+}
+
+/// The memory a volume may take: `MemAvailable` of `/proc/meminfo` (Linux), or the
+/// `VWB_MEMORY_LIMIT` environment variable (bytes) when set; `None` when unknown.
+pub fn available_memory() -> Option<u64> {
+    if let Some(v) = std::env::var_os("VWB_MEMORY_LIMIT") {
+        return v.to_str().and_then(|s| s.trim().parse().ok());
+    }
+    let text = std::fs::read_to_string("/proc/meminfo").ok()?;
+    meminfo_available(&text)
+}
+
+/// `MemAvailable` of `/proc/meminfo` text, in bytes.
+fn meminfo_available(text: &str) -> Option<u64> {
+    let line = text.lines().find(|l| l.starts_with("MemAvailable:"))?;
+    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    kib.checked_mul(1024)
 }
 
 /// A checked volume layout.
@@ -515,6 +612,18 @@ pub(crate) fn check_layout(
              above the limit of {MAX_BYTES} bytes (16 GiB)"
         )));
     }
+    // in memory: the samples plus the normalised f32 scalars uploaded to the GPU
+    let resident = bytes.saturating_add(voxels.saturating_mul(4));
+    if let Some(available) = available_memory()
+        && resident > available
+    {
+        return Err(too_large(format!(
+            "need about {resident} bytes in memory ({bytes} for the samples, {} for the \
+             scalars uploaded to the GPU), more than the {available} bytes this machine has \
+             available",
+            voxels * 4
+        )));
+    }
     let values = usize::try_from(values)
         .map_err(|_| too_large("do not fit in this platform's address space".to_owned()))?;
     // Each dim is <= MAX_VOXELS < u32::MAX here, so the conversions are exact.
@@ -526,18 +635,47 @@ pub(crate) fn check_layout(
     })
 }
 
-/// Checks that every spacing is finite and positive.
+/// The largest ratio between the voxel sizes of two axes. Slices are spaced in units
+/// of the smallest voxel, so a larger ratio asks for millions of slices along the
+/// long axes; real scans stay far below it.
+pub const MAX_SPACING_RATIO: f64 = 1000.0;
+
+/// Checks that every spacing is finite and positive, within 1e-12..=1e12 and within
+/// [`MAX_SPACING_RATIO`] of the others.
 pub(crate) fn check_spacing(spacing: [f64; 3], file: Option<&Path>) -> Result<(), VolumeError> {
-    if spacing.iter().all(|s| s.is_finite() && *s > 0.0) {
-        Ok(())
-    } else {
-        Err(VolumeError::Invalid {
+    match spacing_problem(spacing) {
+        None => Ok(()),
+        Some(message) => Err(VolumeError::Invalid {
             file: file.map(Path::to_path_buf),
-            message: format!(
-                "spacing {spacing:?}: every spacing must be finite and greater than 0"
-            ),
-        })
+            message,
+        }),
     }
+}
+
+/// What is wrong with a spacing (see [`check_spacing`]), if anything.
+pub(crate) fn spacing_problem(spacing: [f64; 3]) -> Option<String> {
+    if !spacing.iter().all(|s| s.is_finite() && *s > 0.0) {
+        return Some(format!(
+            "spacing {spacing:?}: every spacing must be finite and greater than 0"
+        ));
+    }
+    if !spacing.iter().all(|s| (1e-12..=1e12).contains(s)) {
+        return Some(format!(
+            "spacing {spacing:?}: every voxel size must lie within 1e-12..=1e12 (the spacings \
+             or space directions are probably in the wrong unit or corrupt)"
+        ));
+    }
+    let lo = spacing.iter().copied().fold(f64::INFINITY, f64::min);
+    let hi = spacing.iter().copied().fold(0.0, f64::max);
+    (hi / lo > MAX_SPACING_RATIO).then(|| {
+        format!(
+            "spacing {spacing:?}: voxels are {:.3e} times longer along one axis than along \
+             another (at most {MAX_SPACING_RATIO} is accepted; slices are spaced by the \
+             smallest voxel, so this would need billions of slices); the spacings or space \
+             directions are probably wrong",
+            hi / lo
+        )
+    })
 }
 
 /// Human description of a layout, e.g. `256x256x108 int16` or `128x64x14 x2 float32`.

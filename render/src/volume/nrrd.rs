@@ -318,9 +318,11 @@ pub fn parse_nrrd_header(text: &str, file: Option<&Path>) -> Result<NrrdHeader, 
     let encoding = fields.encoding()?;
     let endian = fields.endian(data_type)?;
     let spacing = if let Some((line, value)) = fields.get(Field::SpaceDirections) {
-        spacing_from_directions(&errs, line, value, dimension)?
+        let s = spacing_from_directions(&errs, line, value, dimension)?;
+        check_spacing_line(&errs, line, "space directions", s)?
     } else if let Some((line, value)) = fields.get(Field::Spacings) {
-        spacing_from_spacings(&errs, line, value, dimension)?
+        let s = spacing_from_spacings(&errs, line, value, dimension)?;
+        check_spacing_line(&errs, line, "spacings", s)?
     } else {
         [1.0; 3]
     };
@@ -645,6 +647,19 @@ fn is_spatial_kind(kind: &str) -> bool {
     )
 }
 
+/// The spacing of a header line, checked as a whole (range and axis ratio).
+fn check_spacing_line(
+    errs: &Errs<'_>,
+    line: usize,
+    field: &str,
+    spacing: [f64; 3],
+) -> Result<[f64; 3], VolumeError> {
+    match super::spacing_problem(spacing) {
+        None => Ok(spacing),
+        Some(m) => Err(errs.at(line, format!("{field}: {m}"))),
+    }
+}
+
 fn check_spacing_value(
     errs: &Errs<'_>,
     line: usize,
@@ -782,20 +797,146 @@ fn shorten(s: &str) -> String {
     }
 }
 
-/// Loads an NRRD file (attached or detached header).
+/// Loads an NRRD file (attached or detached header). The path is opened once; pipes
+/// and FIFOs are read as streams.
 pub fn load_nrrd(path: &Path) -> Result<Volume, VolumeError> {
-    let file = File::open(path).map_err(|e| io_error(path, "cannot open", e))?;
-    let len = file
-        .metadata()
-        .map_err(|e| io_error(path, "cannot read metadata", e))?
-        .len();
+    load_input(Input::open(path)?, path)
+}
+
+/// A volume path, opened once: a regular file, or the whole content of a pipe, FIFO
+/// or device read as a stream.
+pub(crate) enum Input {
+    File { file: File, len: u64 },
+    Stream(Vec<u8>),
+}
+
+impl Input {
+    pub(crate) fn open(path: &Path) -> Result<Input, VolumeError> {
+        let meta = std::fs::metadata(path).map_err(|e| io_error(path, "cannot open", e))?;
+        if meta.is_dir() {
+            return Err(VolumeError::Unsupported {
+                file: path.to_path_buf(),
+                message: "is a folder, not a volume file".to_owned(),
+            });
+        }
+        if meta.is_file() {
+            let file = File::open(path).map_err(|e| io_error(path, "cannot open", e))?;
+            let len = file
+                .metadata()
+                .map_err(|e| io_error(path, "cannot read metadata", e))?
+                .len();
+            return Ok(Input::File { file, len });
+        }
+        let mut stream = open_stream(path).map_err(|e| io_error(path, "cannot open", e))?;
+        let limit = super::MAX_BYTES + MAX_HEADER_BYTES;
+        let mut bytes = Vec::new();
+        let mut chunk = vec![0u8; 1 << 20];
+        loop {
+            let n = match stream.read(&mut chunk) {
+                Ok(n) => n,
+                Err(e) if e.kind() == io::ErrorKind::Interrupted => continue,
+                Err(e) => return Err(io_error(path, "cannot read the stream", e)),
+            };
+            if n == 0 {
+                break;
+            }
+            if bytes.len() as u64 + n as u64 > limit {
+                return Err(VolumeError::Unsupported {
+                    file: path.to_path_buf(),
+                    message: format!("the stream is longer than {limit} bytes"),
+                });
+            }
+            bytes.try_reserve(n).map_err(|_| VolumeError::OutOfMemory {
+                file: Some(path.to_path_buf()),
+                bytes: bytes.len() as u64 + n as u64,
+            })?;
+            bytes.extend_from_slice(&chunk[..n]);
+        }
+        if bytes.is_empty() {
+            return Err(VolumeError::Unsupported {
+                file: path.to_path_buf(),
+                message: "is a pipe, FIFO or device that gave no data (is anything writing to \
+                          it?)"
+                    .to_owned(),
+            });
+        }
+        Ok(Input::Stream(bytes))
+    }
+
+    /// Up to `n` bytes from the start, leaving the input at its start.
+    pub(crate) fn head(&self, n: usize) -> io::Result<Vec<u8>> {
+        match self {
+            Input::File { file, .. } => {
+                let mut f = file;
+                let mut buf = vec![0u8; n];
+                let got = super::raw::read_fully(&mut f, &mut buf)?;
+                f.seek(SeekFrom::Start(0))?;
+                buf.truncate(got);
+                Ok(buf)
+            }
+            Input::Stream(bytes) => Ok(bytes[..n.min(bytes.len())].to_vec()),
+        }
+    }
+}
+
+/// Opens a FIFO or device without blocking (a FIFO nobody writes to would block
+/// `open` forever), then switches it back to blocking reads: with no writer, reads end
+/// at once.
+fn open_stream(path: &Path) -> io::Result<File> {
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::OpenOptionsExt;
+        use std::os::unix::io::AsRawFd;
+        let f = std::fs::OpenOptions::new()
+            .read(true)
+            .custom_flags(libc::O_NONBLOCK)
+            .open(path)?;
+        let fd = f.as_raw_fd();
+        // SAFETY: fcntl on a file descriptor this function owns.
+        let flags = unsafe { libc::fcntl(fd, libc::F_GETFL) };
+        if flags < 0 || unsafe { libc::fcntl(fd, libc::F_SETFL, flags & !libc::O_NONBLOCK) } < 0 {
+            return Err(io::Error::last_os_error());
+        }
+        Ok(f)
+    }
+    #[cfg(not(unix))]
+    {
+        File::open(path)
+    }
+}
+
+/// Loads an opened NRRD input.
+pub(crate) fn load_input(input: Input, path: &Path) -> Result<Volume, VolumeError> {
     let base_dir = match path.parent() {
         Some(p) if !p.as_os_str().is_empty() => p,
         _ => Path::new("."),
     };
-    let mut volume = load_stream(BufReader::new(file), len, path, Some(base_dir))?;
+    let mut volume = match input {
+        Input::File { file, len } => load_stream(BufReader::new(file), len, path, Some(base_dir))?,
+        Input::Stream(bytes) => load_stream(
+            Cursor::new(bytes.as_slice()),
+            bytes.len() as u64,
+            path,
+            Some(base_dir),
+        )?,
+    };
     volume.source = Some(path.to_path_buf());
     Ok(volume)
+}
+
+/// The detached data file a regular NRRD header names, if it names one.
+pub(crate) fn detached_data_file(path: &Path) -> Option<PathBuf> {
+    if !std::fs::metadata(path).ok()?.is_file() {
+        return None;
+    }
+    let mut r = BufReader::new(File::open(path).ok()?);
+    let text = read_header(&mut r, path).ok()?;
+    let header = parse_nrrd_header(&text.text, Some(path)).ok()?;
+    let base = match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    };
+    header.data_file.map(|d| base.join(d))
 }
 
 /// Loads an NRRD held in memory. `name` labels errors and gives the volume its
@@ -836,6 +977,18 @@ fn load_stream<R: BufRead + Seek>(
             })?;
             let path = base.join(data_file);
             let context = format!("cannot open the data file named in {}", file.display());
+            if let Ok(m) = std::fs::metadata(&path)
+                && !m.is_file()
+            {
+                return Err(VolumeError::Unsupported {
+                    file: path,
+                    message: format!(
+                        "the data file named in {} is not a regular file (a folder, FIFO or \
+                         device); detached data must be a regular file",
+                        file.display()
+                    ),
+                });
+            }
             let f = File::open(&path).map_err(|e| io_error(&path, &context, e))?;
             let len = f
                 .metadata()
@@ -1009,7 +1162,7 @@ fn read_data<R: BufRead + Seek>(
             };
             let corrupt = |e: io::Error| VolumeError::Compressed {
                 file: file.to_path_buf(),
-                message: format!("cannot decompress the gzip data: {e}"),
+                message: format!("the gzip data is corrupt: {e}"),
             };
             // Peeks at the stream type first, so that empty data gets its own message.
             let mut decoder = open_decoder(r, file)?;
@@ -1045,18 +1198,27 @@ fn read_data<R: BufRead + Seek>(
                         file: file.to_path_buf(),
                         message: format!(
                             "gzip data ends after {got} bytes but the header needs {needed} \
-                             ({layout})"
+                             ({layout}): the gzip stream is truncated or the header's sizes \
+                             or type are wrong"
                         ),
                     },
                 },
             )?;
             let mut extra = [0u8; 1];
             if super::raw::read_fully(&mut limited, &mut extra).map_err(corrupt)? > 0 {
+                // Decompress the rest (bounded by deflate's ratio) so that the stream's
+                // checksum decides between a corrupt stream and a wrong header.
+                let mut rest = limited.into_inner();
+                let bound = compressed.saturating_mul(MAX_DEFLATE_RATIO);
+                let more =
+                    io::copy(&mut rest.by_ref().take(bound), &mut io::sink()).map_err(corrupt)?;
                 return Err(VolumeError::Compressed {
                     file: file.to_path_buf(),
                     message: format!(
-                        "gzip data is longer than the {needed} bytes the header needs ({layout}); \
-                         the sizes or the type are probably wrong"
+                        "the gzip data is intact but decompresses to {} bytes, more than the \
+                         {needed} bytes the header needs ({layout}); the header's sizes or \
+                         type are probably wrong",
+                        skip + needed + 1 + more
                     ),
                 });
             }

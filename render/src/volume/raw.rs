@@ -201,7 +201,14 @@ fn read_vec<R: Read, T, const N: usize>(
     let mut buf = vec![0u8; CHUNK_VALUES.min(count) * N];
     let mut remaining = count;
     let mut total: u64 = 0;
+    let all = (count as u64).saturating_mul(N as u64);
     while remaining > 0 {
+        if !super::report_progress(total, all) {
+            return Err(ReadFail::Io(io::Error::new(
+                io::ErrorKind::Interrupted,
+                "cancelled",
+            )));
+        }
         let want = remaining.min(CHUNK_VALUES) * N;
         let got = read_fully(r, &mut buf[..want]).map_err(ReadFail::Io)?;
         total += got as u64;

@@ -867,13 +867,17 @@ fn load_raw_plain_files() {
 fn load_refuses_headerless_files() {
     let dir = TempDir::new("sniff");
     let path = dir.write("plain.raw", &[1, 2, 3, 4, 5, 6, 7, 8, 9]);
-    let e = assert_err(load(&path), &path, &["not an NRRD file", "load_raw"]);
+    let e = assert_err(
+        load(&path),
+        &path,
+        &["not an NRRD file", "detached NRRD header"],
+    );
     assert!(matches!(e, VolumeError::NotNrrd { .. }));
     let empty = dir.write("empty.nrrd", b"");
     assert_err(load(&empty), &empty, &["not an NRRD file"]);
     assert_err(load_nrrd(&empty), &empty, &["not an NRRD file"]);
     let shared_raw = shared("mri_head_volpack_128x128x84_uint8.raw");
-    assert_err(load(&shared_raw), &shared_raw, &["load_raw"]);
+    assert_err(load(&shared_raw), &shared_raw, &[".nhdr"]);
     assert_err(
         load(&dir.0.join("nope.nrrd")),
         Path::new("nope.nrrd"),
@@ -1348,7 +1352,14 @@ fn short_and_lying_data_give_clear_errors() {
         "glong.nrrd",
         &nrrd(&fields("encoding: gzip"), &gzip(&longer)),
     );
-    assert_err(load(&path), &path, &["longer than the 48 bytes"]);
+    assert_err(load(&path), &path, &["intact", "more than the 48 bytes"]);
+    // a longer stream whose checksum fails is corrupt, not a header mistake
+    let mut long_bad = gzip(&longer);
+    let n = long_bad.len();
+    long_bad[n - 6] ^= 0xFF; // the CRC-32 of the trailer
+    let path = dir.write("glongbad.nrrd", &nrrd(&fields("encoding: gzip"), &long_bad));
+    let e = assert_err(load(&path), &path, &["gzip data is corrupt"]);
+    assert!(!e.to_string().contains("header"), "{e}");
     let mut corrupt = gzip(&data);
     let mid = corrupt.len() / 2;
     corrupt[mid..].iter_mut().for_each(|b| *b ^= 0x5A);
@@ -1676,4 +1687,31 @@ fn public_types_have_their_traits() {
     fn send_sync<T: Send + Sync>() {}
     send_sync::<Volume>();
     send_sync::<VolumeError>();
+}
+
+#[test]
+fn progress_is_reported_and_cancel_stops_the_load() {
+    use std::sync::Arc;
+    use std::sync::atomic::Ordering::Relaxed;
+    let dir = TempDir::new("progress");
+    let fields = [
+        "type: uint16",
+        "dimension: 3",
+        "sizes: 64 64 40",
+        "endian: little",
+        "encoding: raw",
+    ];
+    let path = dir.write("p.nrrd", &nrrd(&fields, &vec![3u8; 64 * 64 * 40 * 2]));
+    let progress = Arc::new(LoadProgress::default());
+    let v = load_with_progress(&path, progress.clone()).unwrap();
+    assert_eq!(v.dims, [64, 64, 40]);
+    // reported before each chunk: the last report is the start of the last chunk
+    assert_eq!(progress.total.load(Relaxed), 64 * 64 * 40 * 2);
+    assert!(progress.done.load(Relaxed) > 0 && progress.fraction() > 0.5);
+    let cancelled = Arc::new(LoadProgress::default());
+    cancelled.cancel.store(true, Relaxed);
+    let e = load_with_progress(&path, cancelled).unwrap_err();
+    assert!(e.to_string().contains("cancelled"), "{e}");
+    // without a progress object, loads on this thread are not affected
+    assert!(load(&path).is_ok());
 }
