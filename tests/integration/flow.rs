@@ -269,3 +269,91 @@ fn flow_study() {
     .unwrap();
     std::fs::write(repo().join("docs/flow.md"), o).unwrap();
 }
+
+/// A 3-component volume of `field` sampled at the voxel centres of `dims`.
+fn vector_volume(field: &dyn Field, dims: [u32; 3]) -> Volume {
+    let g = GridField::sample(field, dims);
+    Volume::new("field", dims, 3, [1.0; 3], VoxelData::F32(g.data)).unwrap()
+}
+
+/// `flow.lic3d`'s pre-pass against its f64 twin with the same noise and field, for
+/// every integrator and kernel and at twice the frequency: RMS ≤ 0.5/255; rendered,
+/// the image matches the twin's on both backends; the pre-pass reruns only when an
+/// integration parameter changes.
+#[test]
+fn lic_prepass_matches_its_twin() {
+    use vwb_render::params::ParamValue;
+    let dims = [24, 20, 12];
+    let vol = std::sync::Arc::new(vector_volume(
+        &Abc {
+            period: 16.0,
+            ..Default::default()
+        },
+        dims,
+    ));
+    let mut r = Renderer::new(gpu(), vol.clone()).unwrap();
+    let s = settings(48, 48, Backend::Compute);
+    let mut worst: f64 = 0.0;
+    for (integrator, kernel, frequency) in [
+        ("rk4", "tent", "1"),
+        ("rk2", "gaussian", "1"),
+        ("euler", "box", "1"),
+        ("rk4", "tent", "2"),
+    ] {
+        let mut lic = instance("flow.lic3d");
+        for (k, v) in [
+            ("integrator", integrator),
+            ("kernel", kernel),
+            ("frequency", frequency),
+        ] {
+            lic.params.set(k, ParamValue::Enum(v.into()));
+        }
+        let stack = vec![lic.clone(), instance("classify.tf1d")];
+        render(&mut r, &stack, TargetFormat::Rgba32Float, &s);
+        let (got_dims, gpu_lic) = r.read_prepass(lic.uid).expect("the LIC volume");
+        let f: u32 = frequency.parse().unwrap();
+        let twin = vwb_plugins::flow_lic3d::lic_of(&vol, f, &lic.params);
+        assert_eq!(got_dims, twin.dims);
+        let rms = (gpu_lic
+            .chunks_exact(1)
+            .zip(&twin.data)
+            .map(|(g, c)| ((g[0] - c) as f64 * 255.0).powi(2))
+            .sum::<f64>()
+            / twin.data.len() as f64)
+            .sqrt();
+        // the convolution did something: the LIC is not the noise
+        let noise = vwb_render::flow::noise_volume(twin.dims, Noise::White, 1);
+        let smoothing = (noise
+            .data
+            .iter()
+            .zip(&twin.data)
+            .map(|(n, c)| ((n - c) as f64 * 255.0).powi(2))
+            .sum::<f64>()
+            / twin.data.len() as f64)
+            .sqrt();
+        assert!(smoothing > 20.0, "LIC vs its noise: {smoothing}/255");
+        eprintln!(
+            "flow.lic3d {integrator} {kernel} ×{frequency}: GPU vs f64 twin LIC RMS {rms:.2e}/255 (LIC vs noise {smoothing:.1}/255)"
+        );
+        assert!(rms <= 0.5, "{integrator} {kernel} ×{frequency}: {rms}/255");
+        worst = worst.max(rms);
+    }
+    // the pre-pass reruns for an integration parameter, not for modulate or the camera
+    let mut lic = instance("flow.lic3d");
+    let mut stack = vec![lic.clone(), instance("classify.tf1d")];
+    let runs = |r: &mut Renderer, stack: &[vwb_render::PluginInstance], s| {
+        r.update_stack(stack, TargetFormat::Rgba32Float).unwrap();
+        r.render(s).unwrap().prepasses_run
+    };
+    assert_eq!(runs(&mut r, &stack, &s), 1);
+    let mut moved = s;
+    moved.camera.yaw_deg += 40.0;
+    assert_eq!(runs(&mut r, &stack, &moved), 0);
+    lic.params.set("modulate", ParamValue::Float(0.5));
+    stack[0] = lic.clone();
+    assert_eq!(runs(&mut r, &stack, &s), 0);
+    lic.params.set("length", ParamValue::Float(4.0));
+    stack[0] = lic;
+    assert_eq!(runs(&mut r, &stack, &s), 1);
+    eprintln!("worst LIC volume RMS {worst:.2e}/255");
+}

@@ -1,0 +1,335 @@
+//! `flow.lic3d`: 3D line integral convolution of a vector volume (Rezk-Salama 2001
+//! §9.3, eqs 9.9–9.10), precomputed: a pre-pass integrates the streamline through every
+//! voxel of the LIC grid (`frequency` × the data's resolution) over a seeded noise
+//! volume and writes the intensity to `lic` (r32float); the `sample` hook replaces the
+//! sample's value by it (optionally modulated by the field's normalised magnitude), for
+//! the classification after it. The pre-pass reruns only when the volume or an
+//! integration or noise parameter changes.
+//!
+//! The field is the volume's 2 or 3 components in voxels per unit time (each divided by
+//! the voxel size along its axis, `vwb_render::flow::GridField::from_volume`), uploaded
+//! as the plugin's own rgba32float texture; a scalar volume has no flow (a zero field:
+//! the LIC is the noise). Streamlines use unit speed; the choices and their measured
+//! trade are in docs/flow.md. The CPU twin computes the same LIC volume with
+//! `vwb_render::flow::lic_volume` in f64 over the same noise.
+
+use std::sync::Arc;
+
+use glam::DVec3;
+use vwb_render::flow::{
+    Field, GridField, Integrator, Kernel, LicParams, Noise, Scaled, Speed, lic_volume,
+    noise_volume,
+};
+use vwb_render::params::{ParamSpec, ParamValues};
+use vwb_render::plugin::{
+    CpuContext, CpuSample, CpuTwin, GpuInit, GpuResource, Plugin, PluginError, PrepassDecl,
+    ResourceDecl, ResourceKind, ShaderSource, StorageFormat,
+};
+use vwb_render::volume::Volume;
+
+#[cfg(test)]
+mod tests;
+
+const KERNELS: [&str; 3] = ["box", "tent", "gaussian"];
+const INTEGRATORS: [&str; 3] = ["euler", "rk2", "rk4"];
+const NOISES: [&str; 3] = ["white", "gaussian", "sparse"];
+const FREQUENCIES: [&str; 2] = ["1", "2"];
+
+/// The plugin, configured by its LIC grid's `frequency` (the pre-pass target's scale).
+#[derive(Debug, Clone, Copy)]
+pub struct Lic3d {
+    pub frequency: u32,
+}
+
+impl Default for Lic3d {
+    fn default() -> Self {
+        Self { frequency: 1 }
+    }
+}
+
+fn error(message: String) -> PluginError {
+    PluginError::Invalid {
+        plugin: "flow.lic3d".into(),
+        message,
+    }
+}
+
+/// The LIC parameters the values select.
+pub fn lic_params(p: &ParamValues) -> LicParams {
+    LicParams {
+        kernel: match p.enumeration("kernel") {
+            "box" => Kernel::Box,
+            "gaussian" => Kernel::Gaussian,
+            _ => Kernel::Tent,
+        },
+        length: p.float("length") as f64,
+        step: p.float("step") as f64,
+        integrator: match p.enumeration("integrator") {
+            "euler" => Integrator::Euler,
+            "rk2" => Integrator::Rk2,
+            _ => Integrator::Rk4,
+        },
+        speed: Speed::Normalized,
+    }
+}
+
+/// The noise the values select.
+pub fn noise_kind(p: &ParamValues) -> Noise {
+    match p.enumeration("noise") {
+        "gaussian" => Noise::Gaussian,
+        "sparse" => Noise::Sparse {
+            density: p.float("density") as f64,
+        },
+        _ => Noise::White,
+    }
+}
+
+/// The LIC grid of a volume at `frequency`.
+pub fn lic_dims(volume: &Volume, frequency: u32) -> [u32; 3] {
+    volume.dims.map(|d| d * frequency)
+}
+
+/// The field as the pre-pass samples it: the volume's vectors, or none for a scalar
+/// volume.
+fn field_of(volume: &Volume) -> Option<GridField> {
+    GridField::from_volume(volume).ok()
+}
+
+/// No flow: the LIC of a scalar volume is its noise.
+struct NoFlow;
+
+impl Field for NoFlow {
+    fn at(&self, _p: DVec3) -> Option<DVec3> {
+        Some(DVec3::ZERO)
+    }
+}
+
+/// The LIC volume on the LIC grid (the twin of the pre-pass), x fastest.
+pub fn lic_of(volume: &Volume, frequency: u32, params: &ParamValues) -> GridField {
+    let dims = lic_dims(volume, frequency);
+    let noise = noise_volume(dims, noise_kind(params), params.int("seed") as u64);
+    let p = lic_params(params);
+    let data = match field_of(volume) {
+        Some(f) => lic_volume(
+            &Scaled {
+                inner: &f,
+                factor: frequency as f64,
+            },
+            &noise,
+            &p,
+        ),
+        None => lic_volume(&NoFlow, &noise, &p),
+    };
+    GridField {
+        dims,
+        components: 1,
+        data,
+    }
+}
+
+/// A filterable 3D float texture: four channels (the field) or one (the noise), 32-bit
+/// where the device filters them, else 16-bit.
+fn create_3d(gpu: &GpuInit, label: &str, dims: [u32; 3], channels: u32) -> GpuResource {
+    let f32_ok = gpu
+        .features
+        .contains(wgpu::Features::FLOAT32_FILTERABLE);
+    let format = match (channels, f32_ok) {
+        (1, true) => wgpu::TextureFormat::R32Float,
+        (1, false) => wgpu::TextureFormat::R16Float,
+        (_, true) => wgpu::TextureFormat::Rgba32Float,
+        (_, false) => wgpu::TextureFormat::Rgba16Float,
+    };
+    let texture = gpu.device.create_texture(&wgpu::TextureDescriptor {
+        label: Some(label),
+        size: wgpu::Extent3d {
+            width: dims[0],
+            height: dims[1],
+            depth_or_array_layers: dims[2],
+        },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D3,
+        format,
+        usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+        view_formats: &[],
+    });
+    GpuResource {
+        view: texture.create_view(&Default::default()),
+        texture,
+    }
+}
+
+/// Uploads texel values (x fastest, as many channels per texel as the texture has) into
+/// a texture of [`create_3d`].
+fn write_3d(gpu: &GpuInit, r: &GpuResource, values: &[f32]) {
+    let format = r.texture.format();
+    let bytes: Vec<u8> = match format {
+        wgpu::TextureFormat::Rgba32Float | wgpu::TextureFormat::R32Float => {
+            values.iter().flat_map(|v| v.to_le_bytes()).collect()
+        }
+        _ => values
+            .iter()
+            .flat_map(|v| half::f16::from_f32(*v).to_le_bytes())
+            .collect(),
+    };
+    let size = r.texture.size();
+    let bpp = format.block_copy_size(None).unwrap_or(16);
+    gpu.queue.write_texture(
+        r.texture.as_image_copy(),
+        &bytes,
+        wgpu::TexelCopyBufferLayout {
+            offset: 0,
+            bytes_per_row: Some(size.width * bpp),
+            rows_per_image: Some(size.height),
+        },
+        size,
+    );
+}
+
+impl Plugin for Lic3d {
+    fn id(&self) -> &'static str {
+        "flow.lic3d"
+    }
+    fn display_name(&self) -> &'static str {
+        "3D LIC (precomputed)"
+    }
+    fn description(&self) -> &'static str {
+        "Line integral convolution of the vector volume over seeded noise, for the classification after it"
+    }
+    fn params(&self) -> Vec<ParamSpec> {
+        vec![
+            ParamSpec::enumeration("frequency", "Noise frequency", &FREQUENCIES, 0)
+                .structural()
+                .with_doc("LIC grid (and noise) resolution per data voxel and axis"),
+            ParamSpec::enumeration("noise", "Noise", &NOISES, 0)
+                .with_doc("white: uniform; gaussian: N(½, ⅙); sparse: spots at the density"),
+            ParamSpec::float("density", "Spot density", 0.005, 0.05, 0.02)
+                .with_doc("share of lit voxels of sparse noise"),
+            ParamSpec::int("seed", "Seed", 0, 1_000_000, 1),
+            ParamSpec::enumeration("kernel", "Kernel", &KERNELS, 1)
+                .with_doc("box, tent 1 − |s|/L, or Gaussian with σ = L/3"),
+            ParamSpec::float("length", "Half length L (voxels)", 1.0, 32.0, 8.0)
+                .with_doc("streamline length each way, in voxels of the LIC grid"),
+            ParamSpec::float_log("step", "Step h (voxels)", 0.1, 2.0, 0.5),
+            ParamSpec::enumeration("integrator", "Integrator", &INTEGRATORS, 2)
+                .with_doc("RK4 at half a voxel drifts < 10⁻⁶ voxels per turn (docs/flow.md)"),
+            ParamSpec::float("modulate", "Modulate by |v|", 0.0, 1.0, 0.0)
+                .with_doc("0: LIC intensity; 1: LIC × normalised field magnitude"),
+        ]
+    }
+    fn shader(&self) -> ShaderSource {
+        ShaderSource::new_static("plugins/src/flow_lic3d/lic.wgsl", include_str!("lic.wgsl"))
+    }
+    fn resources(&self) -> Vec<ResourceDecl> {
+        vec![
+            ResourceDecl {
+                name: "field",
+                kind: ResourceKind::Texture3d,
+            },
+            ResourceDecl {
+                name: "noise",
+                kind: ResourceKind::Texture3d,
+            },
+        ]
+    }
+    fn prepass(&self) -> Option<PrepassDecl> {
+        Some(PrepassDecl {
+            target: "lic",
+            format: StorageFormat::R32Float,
+            scale: self.frequency as f32,
+            shader: ShaderSource::new_static(
+                "plugins/src/flow_lic3d/prepass.wgsl",
+                include_str!("prepass.wgsl"),
+            ),
+            depends_on: vec!["noise", "density", "seed", "kernel", "length", "step", "integrator"],
+        })
+    }
+    fn configure(&self, params: &ParamValues) -> Option<Arc<dyn Plugin>> {
+        let frequency = params.enumeration("frequency").parse().unwrap_or(1);
+        (frequency != self.frequency).then(|| Arc::new(Lic3d { frequency }) as Arc<dyn Plugin>)
+    }
+    fn create_resources(
+        &self,
+        gpu: &GpuInit,
+        params: &ParamValues,
+    ) -> Result<Vec<GpuResource>, PluginError> {
+        let dims = lic_dims(gpu.volume, self.frequency);
+        if dims
+            .iter()
+            .any(|&d| d > gpu.device.limits().max_texture_dimension_3d)
+        {
+            return Err(error(format!(
+                "the LIC grid {dims:?} exceeds the device's 3D texture limit; lower the frequency"
+            )));
+        }
+        let field = match field_of(gpu.volume) {
+            Some(f) => {
+                let c = f.components as usize;
+                let texels: Vec<f32> = f
+                    .data
+                    .chunks_exact(c)
+                    .flat_map(|v| [v[0], v[1], if c > 2 { v[2] } else { 0.0 }, 0.0])
+                    .collect();
+                let r = create_3d(gpu, "flow.lic3d field", f.dims, 4);
+                write_3d(gpu, &r, &texels);
+                r
+            }
+            None => {
+                let r = create_3d(gpu, "flow.lic3d field (none)", [1, 1, 1], 4);
+                write_3d(gpu, &r, &[0.0; 4]);
+                r
+            }
+        };
+        let res = vec![field, create_3d(gpu, "flow.lic3d noise", dims, 1)];
+        self.update_resources(gpu, params, &res)?;
+        Ok(res)
+    }
+    /// The noise volume, seeded (the same values the twin convolves).
+    fn update_resources(
+        &self,
+        gpu: &GpuInit,
+        params: &ParamValues,
+        resources: &[GpuResource],
+    ) -> Result<(), PluginError> {
+        let Some(noise) = resources.get(1) else {
+            return Err(error("noise texture missing".into()));
+        };
+        let dims = lic_dims(gpu.volume, self.frequency);
+        let n = noise_volume(dims, noise_kind(params), params.int("seed") as u64);
+        write_3d(gpu, noise, &n.data);
+        Ok(())
+    }
+    fn cpu_twin(&self, params: &ParamValues) -> Option<Box<dyn CpuTwin>> {
+        Some(Box::new(Lic3dTwin {
+            frequency: self.frequency,
+            params: params.clone(),
+            modulate: params.float("modulate") as f64,
+            lic: None,
+        }))
+    }
+}
+
+/// CPU twin: the LIC volume computed once (`prepare`), sampled trilinearly as the GPU
+/// samples `lic`.
+pub struct Lic3dTwin {
+    pub frequency: u32,
+    pub params: ParamValues,
+    pub modulate: f64,
+    pub lic: Option<Arc<GridField>>,
+}
+
+impl CpuTwin for Lic3dTwin {
+    fn prepare(&mut self, ctx: &CpuContext) {
+        if self.lic.is_none() {
+            self.lic = Some(Arc::new(lic_of(ctx.volume, self.frequency, &self.params)));
+        }
+    }
+    fn sample(&self, _ctx: &CpuContext, s: &mut CpuSample) {
+        let Some(lic) = &self.lic else { return };
+        let d = DVec3::from(lic.dims.map(f64::from));
+        // texture coordinates to LIC-grid voxel coordinates, clamped into the box
+        let p = (s.tex * d - DVec3::splat(0.5)).clamp(DVec3::splat(-0.5), d - DVec3::splat(0.5));
+        let i = lic.at(p).map_or(0.0, |v| v.x);
+        s.value = i + (i * s.value - i) * self.modulate;
+    }
+}
