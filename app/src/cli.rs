@@ -5,7 +5,7 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result, bail};
 use clap::{Parser, Subcommand};
-use vwb_render::preset::{Document, VolumeSource};
+use vwb_render::preset::Document;
 use vwb_render::renderer::Backend;
 use vwb_render::{GpuContext, TargetFormat};
 
@@ -25,7 +25,7 @@ pub struct Cli {
     /// Preset to open in the window.
     #[arg(long, global = true)]
     pub preset: Option<PathBuf>,
-    /// Volume to open in the window (NRRD).
+    /// Volume to open in the window: a file (NRRD) or a sample name (`vwb data list`).
     #[arg(long)]
     pub volume: Option<PathBuf>,
     /// Open the window, render, save a screenshot to this PNG and exit.
@@ -63,12 +63,16 @@ pub enum Command {
     DosStudy(crate::dos_study::DosStudyArgs),
     /// Print the adapter, its limits and the registered plugin ids.
     Info,
+    /// Sample data sets that presets name (`volume: Sample("ct_head")`): list them,
+    /// fetch them into the data directory ($VWB_DATA_DIR, else the user's cache).
+    #[command(subcommand)]
+    Data(crate::data_cmd::DataCommand),
 }
 
 /// Overrides of the preset's volume and frame settings, shared by the subcommands.
 #[derive(Debug, Clone, Default, clap::Args)]
 pub struct FrameArgs {
-    /// Volume file overriding the preset's (NRRD).
+    /// Volume overriding the preset's: a file (NRRD) or a sample name (`vwb data list`).
     #[arg(long)]
     pub volume: Option<PathBuf>,
     /// Image size WxH (default: the preset's).
@@ -116,7 +120,7 @@ pub fn parse_early_termination(s: &str) -> Result<EarlyTermination, String> {
 impl FrameArgs {
     pub fn apply(&self, doc: &mut Document) -> Result<()> {
         if let Some(v) = &self.volume {
-            doc.volume = VolumeSource::File(v.clone());
+            doc.volume = headless::volume_arg(v);
         }
         if let Some(s) = self.size {
             doc.render.size = s;
@@ -236,7 +240,8 @@ pub struct ClassificationArgs {
 
 #[derive(Debug, clap::Args)]
 pub struct SuggestTfArgs {
-    /// The volume (NRRD); the demo when absent.
+    /// The volume: a file (NRRD) or a sample name (`vwb data list`); the demo when
+    /// absent.
     #[arg(long)]
     pub volume: Option<PathBuf>,
     /// Half width of the boundary emphasis in voxels.
@@ -486,8 +491,8 @@ pub fn run_dos_study(a: &crate::dos_study::DosStudyArgs) -> Result<()> {
 
 pub fn run_suggest_tf(a: &SuggestTfArgs) -> Result<()> {
     let volume = match &a.volume {
-        Some(p) => headless::load_volume_file(p)?,
-        None => vwb_render::volume::demo(),
+        Some(p) => headless::load_volume(&headless::volume_arg(p))?,
+        None => std::sync::Arc::new(vwb_render::volume::demo()),
     };
     let opts = vwb_render::suggest::SuggestOptions {
         thickness: a.thickness,

@@ -5,6 +5,7 @@ pub mod classification;
 pub mod cli;
 pub mod compare_ui;
 pub mod custom_ui;
+pub mod data_cmd;
 pub mod dos_study;
 pub mod headless;
 pub mod job;

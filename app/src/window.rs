@@ -70,7 +70,7 @@ pub fn wgpu_configuration() -> egui_wgpu::WgpuConfiguration {
 pub fn run(cli: &Cli) -> Result<()> {
     let mut doc = load_document(cli.preset.as_deref())?;
     if let Some(v) = &cli.volume {
-        doc.volume = VolumeSource::File(v.clone());
+        doc.volume = headless::volume_arg(v);
     }
     let volume = headless::load_volume(&doc.volume)?;
     let screenshot = cli.screenshot.clone();

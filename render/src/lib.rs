@@ -10,6 +10,7 @@ pub mod plugin;
 pub mod preset;
 pub mod reference;
 pub mod renderer;
+pub mod samples;
 pub mod shading;
 pub mod skipping;
 pub mod slicing;
