@@ -104,8 +104,6 @@ pub fn fetch(
             .map(|n| manifest.get(n))
             .collect::<Result<_, _>>()?
     };
-    std::fs::create_dir_all(dir)
-        .with_context(|| format!("{}: cannot create the data directory", dir.display()))?;
     Ok(chosen
         .into_iter()
         .map(|s| fetch_sample(s, dir, source).map_err(|e| format!("{e:#}")))
@@ -114,6 +112,8 @@ pub fn fetch(
 
 /// Fetches one sample's files.
 pub fn fetch_sample(s: &Sample, dir: &Path, source: Option<&Source>) -> Result<String> {
+    std::fs::create_dir_all(dir)
+        .with_context(|| format!("{}: cannot create the data directory", dir.display()))?;
     let mut fetched = 0;
     for f in &s.files {
         let state = samples::check_file(dir, f, true)

@@ -6,6 +6,7 @@ pub mod cli;
 pub mod compare_ui;
 pub mod custom_ui;
 pub mod data_cmd;
+pub mod data_ui;
 pub mod dos_study;
 pub mod headless;
 pub mod job;

@@ -72,7 +72,19 @@ pub fn run(cli: &Cli) -> Result<()> {
     if let Some(v) = &cli.volume {
         doc.volume = headless::volume_arg(v);
     }
-    let volume = headless::load_volume(&doc.volume)?;
+    // a preset whose sample is missing opens the demo, with the error and its fetch
+    // button in the window
+    let (doc, volume, failed) = match headless::load_volume(&doc.volume) {
+        Ok(volume) => (doc, volume, None),
+        Err(e) if crate::data_ui::missing_sample(&e).is_some() => {
+            eprintln!("error: {e:#}");
+            let demo = default_document(&vwb_plugins::builtin_registry());
+            let volume = headless::load_volume(&demo.volume)?;
+            let opening = cli.preset.clone().or(cli.volume.clone()).unwrap_or_default();
+            (demo, volume, Some((e, opening)))
+        }
+        Err(e) => return Err(e),
+    };
     let screenshot = cli.screenshot.clone();
     let options = eframe::NativeOptions {
         wgpu_options: wgpu_configuration(),
@@ -86,7 +98,10 @@ pub fn run(cli: &Cli) -> Result<()> {
         "vwb",
         options,
         Box::new(move |cc| {
-            let app = Workbench::new(cc, doc, volume, screenshot, err_tx)?;
+            let mut app = Workbench::new(cc, doc, volume, screenshot, err_tx)?;
+            if let Some((e, opening)) = failed {
+                app.report_failed_open(e, &opening);
+            }
             Ok(Box::new(app))
         }),
     )
@@ -163,6 +178,8 @@ pub struct Workbench {
     tradeoff: crate::tradeoff_ui::TradeoffView,
     /// Result of the last open or save.
     file_status: Option<Result<String, String>>,
+    /// A missing sample's fetch button.
+    fetch: crate::data_ui::FetchOffer,
     renderer: Renderer,
     texture: Option<egui::TextureId>,
     texture_size: [u32; 2],
@@ -234,6 +251,7 @@ impl Workbench {
             ablation_rows: None,
             tradeoff: Default::default(),
             file_status: None,
+            fetch: Default::default(),
             renderer,
             texture: None,
             texture_size: [0, 0],
@@ -271,6 +289,18 @@ impl Workbench {
     /// The last composer, resource or file error shown in the stack.
     pub fn error(&self) -> Option<&str> {
         self.error.as_deref()
+    }
+
+    /// The folder samples are looked up in and fetched into (default: the data
+    /// directory, `VWB_DATA_DIR`).
+    pub fn set_data_dir(&mut self, dir: PathBuf) {
+        self.fetch.dir = Some(dir);
+    }
+
+    /// Shows a failed open (a missing sample gets its fetch button).
+    pub fn report_failed_open(&mut self, error: anyhow::Error, path: &std::path::Path) {
+        self.fetch.offer(&error, path);
+        self.report(Err(error));
     }
 
     /// The message of the last file operation (Ok or Err).
@@ -340,8 +370,8 @@ impl Workbench {
     /// Opens a volume file into the current scene; the current volume stays on any
     /// error (unreadable file, lying header, a stack that fails on the new volume).
     pub fn open_volume(&mut self, path: &std::path::Path) -> Result<String> {
-        let source = VolumeSource::File(path.to_path_buf());
-        let volume = headless::load_volume(&source)?;
+        let source = headless::volume_arg(path);
+        let volume = self.fetch.load(&source, path)?;
         let renderer = self
             .fresh_renderer(volume, &self.doc)
             .with_context(|| format!("{}", path.display()))?;
@@ -820,6 +850,10 @@ impl Workbench {
             }
             None => {}
         }
+        if let Some(path) = self.fetch.ui(ui) {
+            let outcome = self.open_any(&path);
+            self.report(outcome);
+        }
     }
 
     /// The open file dialog and files dropped on the window.
@@ -858,7 +892,7 @@ impl Workbench {
     /// Loads a preset (and its volume); the current one stays on any error.
     pub fn open(&mut self, path: &std::path::Path) -> Result<String> {
         let doc = Document::load(path, &self.registry)?.document;
-        let volume = headless::load_volume(&doc.volume)?;
+        let volume = self.fetch.load(&doc.volume, path)?;
         let renderer = self.fresh_renderer(volume, &doc)?;
         self.renderer = renderer;
         self.doc = doc;

@@ -8,7 +8,7 @@ use crate::presets::shipped_presets;
 
 fn vwb() -> Command {
     let mut c = Command::new(env!("CARGO_BIN_EXE_vwb"));
-    c.current_dir(repo());
+    c.current_dir(repo()).env("VWB_DATA_DIR", data_dir());
     c
 }
 

@@ -7,6 +7,7 @@ mod classification;
 mod cli;
 mod common;
 mod composer;
+mod data;
 mod dos;
 mod extremes;
 mod presets;
