@@ -55,8 +55,11 @@ impl FetchOffer {
             })(),
             other => headless::load_volume(other),
         };
-        if let Err(e) = &result {
-            self.offer(e, opening);
+        match &result {
+            Err(e) => self.offer(e, opening),
+            // an older offer is moot once something else opened
+            Ok(_) if self.job.is_none() => self.pending = None,
+            Ok(_) => {}
         }
         result
     }

@@ -28,6 +28,10 @@ use vwb_render::{Camera, Renderer};
 use crate::cli::{Cli, load_document};
 use crate::headless;
 
+/// The camera controls, shown on the viewport.
+pub const CAMERA_HINT: &str =
+    "drag: orbit · right-drag: pan · wheel: zoom · R: reset · 1/2/3: look along x/y/z";
+
 /// The preset the workbench opens on (embedded, so it runs anywhere).
 pub const DEMO_PRESET: &str = include_str!("../../presets/demo.ron");
 
@@ -101,6 +105,8 @@ pub fn run(cli: &Cli) -> Result<()> {
             let mut app = Workbench::new(cc, doc, volume, screenshot, err_tx)?;
             if let Some((e, opening)) = failed {
                 app.report_failed_open(e, &opening);
+            } else if cli.preset.is_none() && cli.volume.is_none() && cli.screenshot.is_none() {
+                app.restore_last_session();
             }
             Ok(Box::new(app))
         }),
@@ -110,6 +116,20 @@ pub fn run(cli: &Cli) -> Result<()> {
         return Err(anyhow!(e));
     }
     Ok(())
+}
+
+/// Where a file dialog starts: the path field when it names something, else
+/// `fallback` (relative to the working directory) when it exists, else the user's home.
+fn start_folder(field: &str, fallback: Option<&str>) -> PathBuf {
+    let field = field.trim();
+    if !field.is_empty() {
+        return PathBuf::from(field);
+    }
+    fallback
+        .map(PathBuf::from)
+        .filter(|p| p.is_dir())
+        .or_else(dirs::home_dir)
+        .unwrap_or_else(|| PathBuf::from("."))
 }
 
 enum Shot {
@@ -137,6 +157,9 @@ pub struct Persisted {
     pub recent: Vec<PathBuf>,
     pub preset_path: String,
     pub volume_path: String,
+    /// The last scene (preset document: volume, camera, settings, stack) in RON, file
+    /// paths absolute; reopened when vwb starts without --preset or --volume.
+    pub session: Option<String>,
 }
 
 pub const STORAGE_KEY: &str = "vwb";
@@ -164,6 +187,8 @@ pub struct Workbench {
     /// The volume path field.
     volume_path: String,
     recent: Vec<PathBuf>,
+    /// The last run's scene (see [`Persisted::session`]).
+    last_session: Option<String>,
     dialog: Option<Dialog>,
     wgsl: Option<WgslEdit>,
     /// Full-quality resolution × (below 1 on slow devices and in tests).
@@ -234,14 +259,14 @@ impl Workbench {
             .storage
             .and_then(|s| eframe::get_value(s, STORAGE_KEY))
             .unwrap_or_default();
-        let or = |s: String, d: &str| if s.is_empty() { d.to_string() } else { s };
         let preview = default_preview(&rs.adapter.get_info());
         Ok(Self {
             doc,
             registry: vwb_plugins::builtin_registry(),
-            preset_path: or(persisted.preset_path, "presets/my_preset.ron"),
-            volume_path: or(persisted.volume_path, "../shared/data/"),
+            preset_path: persisted.preset_path,
+            volume_path: persisted.volume_path,
             recent: persisted.recent,
+            last_session: persisted.session,
             dialog: None,
             wgsl: None,
             quality_scale: 1.0,
@@ -301,6 +326,54 @@ impl Workbench {
     pub fn report_failed_open(&mut self, error: anyhow::Error, path: &std::path::Path) {
         self.fetch.offer(&error, path);
         self.report(Err(error));
+    }
+
+    /// The scene as preset RON with absolute file paths (what [`Persisted::session`]
+    /// keeps).
+    pub fn session(&self) -> String {
+        let mut doc = self.doc.clone();
+        let absolute = |p: &mut PathBuf| {
+            if let Ok(a) = std::fs::canonicalize(&*p) {
+                *p = a;
+            }
+        };
+        if let VolumeSource::File(p) = &mut doc.volume {
+            absolute(p);
+        }
+        for inst in &mut doc.stack {
+            for v in inst.params.values.values_mut() {
+                if let vwb_render::params::ParamValue::Path(p) = v
+                    && !p.as_os_str().is_empty()
+                {
+                    absolute(p);
+                }
+            }
+        }
+        doc.to_ron()
+    }
+
+    /// Reopens a scene saved by [`Workbench::session`]; on any error the current scene
+    /// stays and the error is shown (a missing sample with its fetch button).
+    pub fn restore_session(&mut self, text: &str) -> Result<String> {
+        let doc = Document::parse(text, "last session", &self.registry)?.document;
+        let volume = self.fetch.load(&doc.volume, std::path::Path::new(""))?;
+        self.renderer = self.fresh_renderer(volume, &doc)?;
+        self.doc = doc;
+        self.error = None;
+        self.dirty = true;
+        Ok("reopened the last session".into())
+    }
+
+    /// Reopens the last run's scene, if there is one.
+    pub fn restore_last_session(&mut self) {
+        if let Some(text) = self.last_session.take() {
+            let outcome = self.restore_session(&text);
+            if outcome.is_err() {
+                // kept for the fetch button's retry
+                self.last_session = Some(text);
+            }
+            self.report(outcome.context("last session"));
+        }
     }
 
     /// The message of the last file operation (Ok or Err).
@@ -377,6 +450,8 @@ impl Workbench {
             .with_context(|| format!("{}", path.display()))?;
         let v = renderer.volume();
         let msg = format!("opened {} {:?}", path.display(), v.dims);
+        let vbox = *renderer.volume_box();
+        self.doc.camera.fit(vbox.min, vbox.max);
         self.renderer = renderer;
         self.doc.volume = source;
         self.volume_path = path.display().to_string();
@@ -454,13 +529,22 @@ impl Workbench {
                     .logarithmic(true)
                     .text("slice spacing (voxels)"),
             )
+            .on_hover_text(
+                "distance between the slices through the volume, in voxels: smaller is \
+                 sharper and slower; above 1 shows wood-grain rings",
+            )
             .changed();
         ui.horizontal(|ui| {
             changed |= ui
                 .radio_value(&mut r.backend, Backend::Raster, "raster")
+                .on_hover_text("draws each slice as a polygon and blends it (the GPU's rasteriser)")
                 .changed();
             changed |= ui
                 .radio_value(&mut r.backend, Backend::Compute, "compute")
+                .on_hover_text(
+                    "one thread per pixel steps through the same slices; can stop early once \
+                     a pixel is opaque",
+                )
                 .changed();
         });
         if changed {
@@ -470,6 +554,10 @@ impl Workbench {
             .add(
                 egui::Slider::new(&mut self.quality_scale, 0.125..=1.0)
                     .text("resolution × (full quality)"),
+            )
+            .on_hover_text(
+                "renders the still image at this fraction of the viewport's pixels and \
+                 scales it up: below 1 is faster and blurrier (for slow devices)",
             )
             .changed()
         {
@@ -481,8 +569,10 @@ impl Workbench {
             egui::Slider::new(&mut self.drag_spacing, 1.0..=8.0)
                 .logarithmic(true)
                 .text("slice spacing ×"),
-        );
-        ui.add(egui::Slider::new(&mut self.drag_resolution, 0.125..=1.0).text("resolution ×"));
+        )
+        .on_hover_text("while moving, slices are this many times farther apart (faster, coarser)");
+        ui.add(egui::Slider::new(&mut self.drag_resolution, 0.125..=1.0).text("resolution ×"))
+            .on_hover_text("while moving, the image has this fraction of the pixels");
         ui.separator();
         egui::CollapsingHeader::new("Timing")
             .default_open(true)
@@ -769,9 +859,12 @@ impl Workbench {
             ui.add(
                 egui::TextEdit::singleline(&mut self.volume_path)
                     .desired_width(150.0)
+                    .hint_text("volume file or sample")
                     .id_salt("volume path"),
             )
-            .on_hover_text("volume file (.nhdr, .nrrd, .raw + header)");
+            .on_hover_text(
+                "volume file (.nhdr, .nrrd, .raw + header) or a sample name such as ct_head (vwb data list)",
+            );
             if ui.button("Open volume").clicked() {
                 let path = PathBuf::from(self.volume_path.trim());
                 let outcome = self.open_volume(&path);
@@ -779,7 +872,7 @@ impl Workbench {
             }
             if ui.button("…").on_hover_text("choose a volume").clicked() {
                 let mut d = egui_file::FileDialog::open_file()
-                    .initial_path(PathBuf::from(self.volume_path.trim()))
+                    .initial_path(start_folder(&self.volume_path, None))
                     .title("Open volume");
                 d.open();
                 self.dialog = Some(Dialog::Volume(d));
@@ -789,9 +882,10 @@ impl Workbench {
             ui.add(
                 egui::TextEdit::singleline(&mut self.preset_path)
                     .desired_width(150.0)
+                    .hint_text("preset file (.ron)")
                     .id_salt("preset path"),
             )
-            .on_hover_text("preset file (.ron)");
+            .on_hover_text("preset file (.ron): open it, or save the scene to it");
             let path = PathBuf::from(self.preset_path.trim());
             if ui.button("Open preset").clicked() {
                 let outcome = self.open(&path);
@@ -810,7 +904,7 @@ impl Workbench {
             }
             if ui.button("…").on_hover_text("choose a preset").clicked() {
                 let mut d = egui_file::FileDialog::open_file()
-                    .initial_path(PathBuf::from("presets"))
+                    .initial_path(start_folder(&self.preset_path, Some("presets")))
                     .title("Open preset");
                 d.open();
                 self.dialog = Some(Dialog::Preset(d));
@@ -851,8 +945,13 @@ impl Workbench {
             None => {}
         }
         if let Some(path) = self.fetch.ui(ui) {
-            let outcome = self.open_any(&path);
-            self.report(outcome);
+            // an empty path: the last session was waiting for the sample
+            if path.as_os_str().is_empty() {
+                self.restore_last_session();
+            } else {
+                let outcome = self.open_any(&path);
+                self.report(outcome);
+            }
         }
     }
 
@@ -906,6 +1005,7 @@ impl Workbench {
     fn viewport(&mut self, ui: &mut egui::Ui, frame: &eframe::Frame) {
         let avail = ui.available_size();
         let (rect, response) = ui.allocate_exact_size(avail, egui::Sense::drag());
+        let vbox = *self.renderer.volume_box();
         let cam = &mut self.doc.camera;
         if response.dragged_by(egui::PointerButton::Primary) {
             let d = response.drag_delta();
@@ -929,6 +1029,7 @@ impl Workbench {
         ui.input(|i| {
             if i.key_pressed(egui::Key::R) {
                 *cam = Camera::default();
+                cam.fit(vbox.min, vbox.max);
                 self.dirty = true;
             }
             for (k, axis) in [
@@ -989,6 +1090,19 @@ impl Workbench {
             );
             self.shown += 1;
         }
+        let hint = egui::Rect::from_min_size(
+            rect.left_bottom() + egui::vec2(8.0, -22.0),
+            egui::vec2(rect.width() - 16.0, 18.0),
+        );
+        ui.put(
+            hint,
+            egui::Label::new(
+                egui::RichText::new(CAMERA_HINT)
+                    .small()
+                    .color(egui::Color32::from_gray(170)),
+            )
+            .selectable(false),
+        );
     }
 
     fn show(&mut self, frame: &eframe::Frame, size: [u32; 2]) {
@@ -1065,6 +1179,7 @@ impl eframe::App for Workbench {
             recent: self.recent.clone(),
             preset_path: self.preset_path.clone(),
             volume_path: self.volume_path.clone(),
+            session: Some(self.session()),
         };
         eframe::set_value(storage, STORAGE_KEY, &p);
     }

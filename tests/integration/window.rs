@@ -108,13 +108,20 @@ fn add_plugin(h: &mut Harness<'_, Workbench>, category: &str, name: &str) {
     click(h, name);
 }
 
-/// Replaces the text of the text field now showing `current`.
+/// The path fields' hint texts (they start empty).
+const PRESET_FIELD: &str = "preset file (.ron)";
+const VOLUME_FIELD: &str = "volume file or sample";
+
+/// Replaces the text of the text field now showing `current` (or with the hint text
+/// `current`).
 fn retype(h: &mut Harness<'_, Workbench>, current: &str, text: &str) {
     let current = current.to_string();
     let field = || {
         let c = current.clone();
         move |n: &egui_kittest::kittest::AccessKitNode<'_>| {
-            n.role() == egui::Role::TextInput && n.value().as_deref() == Some(c.as_str())
+            n.role() == egui::Role::TextInput
+                && (n.value().as_deref() == Some(c.as_str())
+                    || n.placeholder() == Some(c.as_str()))
         }
     };
     h.get_by(field()).scroll_to_me();
@@ -274,7 +281,7 @@ fn window_edits_a_scene_like_a_user() {
     // save the preset, change the scene, open the preset again: the same image
     let file = tmp("window_preset.ron");
     let _ = std::fs::remove_file(&file);
-    retype(&mut h, "presets/my_preset.ron", file.to_str().unwrap());
+    retype(&mut h, PRESET_FIELD, file.to_str().unwrap());
     click(&mut h, "Save preset");
     assert!(
         matches!(h.state().file_status(), Some(Ok(m)) if m.starts_with("saved")),
@@ -320,7 +327,7 @@ fn window_ct_flow_phong_dos_tf_sweep_pareto() {
     let mut h = demo_window();
 
     // load the CT head into the demo scene
-    retype(&mut h, "../shared/data/", ct.to_str().unwrap());
+    retype(&mut h, VOLUME_FIELD, ct.to_str().unwrap());
     click(&mut h, "Open volume");
     assert!(
         matches!(h.state().file_status(), Some(Ok(_))),
@@ -328,6 +335,7 @@ fn window_ct_flow_phong_dos_tf_sweep_pareto() {
         h.state().file_status()
     );
     assert_eq!(h.state().renderer().volume().dims, [256, 256, 108]);
+    assert_fitted(&h);
 
     // a bad volume path is refused, naming the file; the CT stays
     let bad = tmp("no_such_volume.nhdr");
@@ -340,14 +348,13 @@ fn window_ct_flow_phong_dos_tf_sweep_pareto() {
     assert_eq!(h.state().renderer().volume().dims, [256, 256, 108]);
 
     // pick the CT preset with Blinn–Phong
-    retype(
-        &mut h,
-        "presets/my_preset.ron",
-        "presets/ct_shade_phong.ron",
-    );
+    retype(&mut h, PRESET_FIELD, "presets/ct_shade_phong.ron");
     click(&mut h, "Open preset");
     assert!(ids(&h).contains(&"shade.blinn_phong"), "{:?}", ids(&h));
-    assert!(matches!(h.state().document().volume, VolumeSource::File(_)));
+    assert_eq!(
+        h.state().document().volume,
+        VolumeSource::Sample("ct_head".into())
+    );
     let phong = image(&h);
 
     // Blinn–Phong → DOS
@@ -488,7 +495,15 @@ fn window_refuses_a_broken_preset_and_keeps_the_scene() {
     // a fixed path: it is shown in the snapshot below
     let bad = std::env::temp_dir().join("vwb_window_bad_preset.ron");
     std::fs::write(&bad, "(version: 1, plugins: [ (id: \"classify.nope\") ]").unwrap();
-    retype(&mut h, "presets/my_preset.ron", bad.to_str().unwrap());
+    // the path fields start empty, not in a development checkout
+    for hint in [PRESET_FIELD, VOLUME_FIELD] {
+        let field = h.get_by(|n| n.placeholder() == Some(hint));
+        assert_eq!(field.value().as_deref(), Some(""), "{hint}");
+    }
+    // the viewport explains the camera; the TF editor its axes
+    assert!(h.query_by_label(vwb_app::window::CAMERA_HINT).is_some());
+    assert!(h.query_by_label_contains("y: opacity 0 … 1").is_some());
+    retype(&mut h, PRESET_FIELD, bad.to_str().unwrap());
     click(&mut h, "Open preset");
     match h.state().file_status() {
         Some(Err(e)) => assert!(e.contains("vwb_window_bad_preset.ron"), "{e}"),
@@ -505,6 +520,53 @@ fn window_refuses_a_broken_preset_and_keeps_the_scene() {
     h.remove_cursor();
     h.run_steps(2);
     h.snapshot("window_demo");
+
+    // the session (what the window reopens next time) restores the scene and camera
+    let session = h.state().session();
+    let camera = h.state().document().camera;
+    h.state_mut().document_mut().camera.orbit(40.0, 10.0);
+    h.state_mut().restore_session(&session).unwrap();
+    assert_eq!(h.state().document().camera, camera);
+
+    // a preset naming a sample that the data directory lacks: the error names the
+    // fetch command and the button fetches it in the background, then opens the preset
+    let data = tmp("window-data");
+    let _ = std::fs::remove_dir_all(&data);
+    h.state_mut().set_data_dir(data.clone());
+    let preset = tmp("window_sample.ron");
+    std::fs::write(&preset, r#"(version: 1, volume: Sample("mri_head"))"#).unwrap();
+    retype(&mut h, bad.to_str().unwrap(), preset.to_str().unwrap());
+    click(&mut h, "Open preset");
+    match h.state().file_status() {
+        Some(Err(e)) => assert!(e.contains("run `vwb data fetch mri_head`"), "{e}"),
+        other => panic!("{other:?}"),
+    }
+    click(&mut h, "Fetch mri_head");
+    step_until(&mut h, Duration::from_secs(60), |h| {
+        h.state().document().volume == VolumeSource::Sample("mri_head".into())
+    });
+    assert_eq!(h.state().renderer().volume().dims, [128, 128, 84]);
+    assert!(data.join("mri_head_volpack_128x128x84_uint8.raw").exists());
+    assert!(h.query_by_label("Fetch mri_head").is_none());
+}
+
+/// Every corner of the volume's box is inside the (square) view, the widest near the
+/// edge: the camera was fitted to the volume.
+fn assert_fitted(h: &Harness<'_, Workbench>) {
+    let b = *h.state().renderer().volume_box();
+    let v = h.state().document().camera.view(1.0);
+    let mut widest = 0.0f32;
+    for i in 0..8 {
+        let p = glam::Vec3::new(
+            if i & 1 == 0 { b.min.x } else { b.max.x },
+            if i & 2 == 0 { b.min.y } else { b.max.y },
+            if i & 4 == 0 { b.min.z } else { b.max.z },
+        );
+        let ndc = (v.proj * v.view).project_point3(p);
+        assert!(ndc.x.abs() <= 1.0 && ndc.y.abs() <= 1.0, "corner {i} cropped: {ndc}");
+        widest = widest.max(ndc.x.abs()).max(ndc.y.abs());
+    }
+    assert!(widest > 0.8, "the volume fills the view ({widest})");
 }
 
 /// The UI benchmark of docs/perf.md: frame time of the window (1100×800) with the CT
