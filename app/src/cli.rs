@@ -17,7 +17,8 @@ use vwb_render::reference::DEFAULT_TOLERANCE_DELTA_E;
 #[command(
     name = "vwb",
     version,
-    about = "Exploration workbench for GPU slice-based direct volume rendering"
+    about = "Exploration workbench for GPU slice-based direct volume rendering",
+    after_help = crate::cli_help::VWB
 )]
 pub struct Cli {
     #[command(subcommand)]
@@ -36,36 +37,45 @@ pub struct Cli {
 #[derive(Debug, Subcommand)]
 pub enum Command {
     /// Render a preset headless to a PNG.
+    #[command(after_help = crate::cli_help::RENDER)]
     Render(RenderArgs),
     /// Render a preset on the GPU and compare it with the CPU reference, the converged
     /// reference or another preset: writes image.png, against.png, heatmap.png and
     /// metrics.json into the output folder.
+    #[command(after_help = crate::cli_help::COMPARE)]
     Compare(CompareArgs),
     /// Time a preset per pass and per plugin (ablation) and list GPU memory per plugin.
+    #[command(after_help = crate::cli_help::BENCH)]
     Bench(BenchArgs),
     /// Sweep parameters over a grid; time every point and measure its error against the
     /// converged reference; write sweep.csv, the images and a Pareto plot.
+    #[command(after_help = crate::cli_help::SWEEP)]
     Sweep(SweepArgs),
     /// Print the scene (volume, camera, classification, slices) as JSON for peer
     /// renderers such as bench/vtk_peer.py.
+    #[command(after_help = crate::cli_help::SCENE)]
     Scene(SceneArgs),
     /// Measure classification modes: GPU time and error against the converged
     /// post-classification reference for post / pre / pre-integrated classification
     /// at several slice spacings, per preset; writes classification.json.
+    #[command(after_help = crate::cli_help::CLASSIFICATION)]
     Classification(ClassificationArgs),
     /// Suggest a transfer function from the data (Kindlmann and Durkin 1998): opacity
     /// on the boundaries found in the histogram volume over value, first and second
     /// directional derivative. Writes the curve as RON (the `tf` of classify.tf1d).
+    #[command(after_help = crate::cli_help::SUGGEST_TF)]
     SuggestTf(SuggestTfArgs),
     /// Measure directional occlusion shading against its Monte-Carlo reference (θ,
     /// kernel, slice count, buffer precision, Pareto front, extremes, CT frame time) and
     /// write the report (docs/dos.md).
+    #[command(after_help = crate::cli_help::DOS_STUDY)]
     DosStudy(crate::dos_study::DosStudyArgs),
     /// Print the adapter, its limits and the registered plugin ids.
+    #[command(after_help = crate::cli_help::INFO)]
     Info,
     /// Sample data sets that presets name (`volume: Sample("ct_head")`): list them,
     /// fetch them into the data directory ($VWB_DATA_DIR, else the user's cache).
-    #[command(subcommand)]
+    #[command(subcommand, after_help = crate::cli_help::DATA)]
     Data(crate::data_cmd::DataCommand),
 }
 

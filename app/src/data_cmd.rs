@@ -284,9 +284,11 @@ pub fn download(url: &str, part: &Path, size: u64) -> Result<()> {
 pub enum DataCommand {
     /// List the samples: size, and whether the data directory holds them with the
     /// manifest's checksums.
+    #[command(after_help = crate::cli_help::DATA_LIST)]
     List,
     /// Download samples into the data directory (all when no NAME is given), verify
     /// their SHA-256 and resume interrupted downloads.
+    #[command(after_help = crate::cli_help::DATA_FETCH)]
     Fetch(FetchArgs),
 }
 

@@ -3,6 +3,7 @@
 
 pub mod classification;
 pub mod cli;
+pub mod cli_help;
 pub mod compare_ui;
 pub mod custom_ui;
 pub mod data_cmd;
