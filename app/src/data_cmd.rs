@@ -169,13 +169,18 @@ fn accept(part: &Path, dest: &Path, f: &SampleFile) -> Result<()> {
         Some(format!("has {len} bytes, the manifest says {}", f.size))
     } else {
         let sum = samples::sha256_file(part).with_context(|| format!("{}", part.display()))?;
-        (sum != f.sha256).then(|| format!("SHA-256 {sum} does not match the manifest's {}", f.sha256))
+        (sum != f.sha256)
+            .then(|| format!("SHA-256 {sum} does not match the manifest's {}", f.sha256))
     };
     if let Some(problem) = problem {
         let _ = std::fs::remove_file(part);
-        bail!("{}: {problem}; the download was refused and deleted", f.name);
+        bail!(
+            "{}: {problem}; the download was refused and deleted",
+            f.name
+        );
     }
-    std::fs::rename(part, dest).with_context(|| format!("{}: cannot move into place", dest.display()))
+    std::fs::rename(part, dest)
+        .with_context(|| format!("{}: cannot move into place", dest.display()))
 }
 
 /// An HTTP agent; loopback hosts bypass any proxy from the environment.
@@ -236,10 +241,9 @@ pub fn download(url: &str, part: &Path, size: u64) -> Result<()> {
         indicatif::ProgressStyle::with_template("{msg} {bar:30} {bytes}/{total_bytes} [{eta}]")
             .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
     );
-    bar.set_message(
-        part.file_name()
-            .map_or(String::new(), |n| n.to_string_lossy().trim_end_matches(".part").to_string()),
-    );
+    bar.set_message(part.file_name().map_or(String::new(), |n| {
+        n.to_string_lossy().trim_end_matches(".part").to_string()
+    }));
     bar.set_position(have);
     let mut reader = response.body_mut().as_reader();
     let mut buf = vec![0u8; 1 << 16];

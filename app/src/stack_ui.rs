@@ -217,7 +217,11 @@ pub fn stack_editor(
                         .changed();
                     // enabled: drawn strong; disabled: weak
                     let name = egui::RichText::new(inst.plugin.display_name());
-                    let name = if inst.enabled { name.strong() } else { name.weak() };
+                    let name = if inst.enabled {
+                        name.strong()
+                    } else {
+                        name.weak()
+                    };
                     ui.label(name).on_hover_text(format!(
                         "{}\n{}",
                         inst.plugin.id(),

@@ -84,7 +84,11 @@ pub fn run(cli: &Cli) -> Result<()> {
             eprintln!("error: {e:#}");
             let demo = default_document(&vwb_plugins::builtin_registry());
             let volume = headless::load_volume(&demo.volume)?;
-            let opening = cli.preset.clone().or(cli.volume.clone()).unwrap_or_default();
+            let opening = cli
+                .preset
+                .clone()
+                .or(cli.volume.clone())
+                .unwrap_or_default();
             (demo, volume, Some((e, opening)))
         }
         Err(e) => return Err(e),

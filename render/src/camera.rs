@@ -181,9 +181,8 @@ impl Camera {
                 self.distance = d.clamp(1.0e-3, 100.0);
             }
             Projection::Orthographic { height } => {
-                let (along, lateral) = corners.fold((0.0f32, 0.0f32), |(a, l), (pa, pl)| {
-                    (a.max(pa), l.max(pl))
-                });
+                let (along, lateral) =
+                    corners.fold((0.0f32, 0.0f32), |(a, l), (pa, pl)| (a.max(pa), l.max(pl)));
                 *height = (2.0 * lateral * MARGIN).clamp(1.0e-3, 100.0);
                 self.distance = (along + 1.0).clamp(1.0e-3, 100.0);
             }
@@ -238,7 +237,8 @@ mod tests {
             Projection::Perspective { fov_y_deg: 35.0 },
             Projection::Orthographic { height: 0.2 },
         ] {
-            for (yaw, pitch, roll) in [(235.0, -10.0, 180.0), (0.0, 90.0, 0.0), (30.0, 20.0, 45.0)] {
+            for (yaw, pitch, roll) in [(235.0, -10.0, 180.0), (0.0, 90.0, 0.0), (30.0, 20.0, 45.0)]
+            {
                 let mut c = Camera {
                     distance: 0.3,
                     yaw_deg: yaw,

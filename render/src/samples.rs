@@ -88,10 +88,7 @@ impl Manifest {
     pub fn parse(text: &str) -> Result<Self, String> {
         let m: Manifest = ron::from_str(text).map_err(|e| format!("samples.ron: {e}"))?;
         for s in &m.samples {
-            let ok = s
-                .files
-                .first()
-                .is_some_and(|f| f.name.ends_with(".nhdr"))
+            let ok = s.files.first().is_some_and(|f| f.name.ends_with(".nhdr"))
                 && s.files.iter().all(|f| {
                     f.sha256.len() == 64 && f.sha256.bytes().all(|b| b.is_ascii_hexdigit())
                 });
@@ -276,7 +273,11 @@ mod tests {
         assert_eq!(names.len(), m.samples.len(), "duplicate sample names");
         for s in &m.samples {
             assert!(s.source.starts_with("http"), "{}: source URL", s.name);
-            assert!(!s.licence.is_empty() && !s.converted.is_empty(), "{}", s.name);
+            assert!(
+                !s.licence.is_empty() && !s.converted.is_empty(),
+                "{}",
+                s.name
+            );
         }
         assert!(matches!(m.get("nope"), Err(SampleError::Unknown { .. })));
     }
@@ -308,7 +309,10 @@ mod tests {
         let s = manifest().get("storm_wind").unwrap();
         let e = resolve_in(s, &dir).unwrap_err().to_string();
         assert!(e.contains("run `vwb data fetch storm_wind`"), "{e}");
-        assert!(e.contains(&s.header().name) && e.contains("is missing"), "{e}");
+        assert!(
+            e.contains(&s.header().name) && e.contains("is missing"),
+            "{e}"
+        );
         // a truncated file is named with its size
         std::fs::write(dir.join(&s.files[0].name), b"NRRD").unwrap();
         std::fs::write(dir.join(&s.files[1].name), b"").unwrap();

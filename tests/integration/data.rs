@@ -186,7 +186,10 @@ fn fetch_over_http_resumes_an_interrupted_download() {
         "{seen:?}"
     );
     // the header was not fetched twice
-    assert_eq!(seen.iter().filter(|(n, _)| n == &s.header().name).count(), 1);
+    assert_eq!(
+        seen.iter().filter(|(n, _)| n == &s.header().name).count(),
+        1
+    );
     // a verified sample is kept: no request at all
     let n = seen.len();
     assert!(data_cmd::fetch(&names, &dir, Some(&source)).unwrap()[0].is_ok());
@@ -213,8 +216,7 @@ fn fetch_refuses_and_deletes_a_corrupt_download() {
     assert!(!dir.join(format!("{raw}.part")).exists());
     // a missing file on the server is an error naming the URL
     plan.lock().unwrap().corrupt = None;
-    let e = data_cmd::download(&format!("{url}/nope.raw"), &dir.join("nope.part"), 10)
-        .unwrap_err();
+    let e = data_cmd::download(&format!("{url}/nope.raw"), &dir.join("nope.part"), 10).unwrap_err();
     let e = format!("{e:#}");
     assert!(e.contains("nope.raw") && e.contains("404"), "{e}");
 }
@@ -248,16 +250,25 @@ fn a_hidden_data_directory_names_the_fetch_command() {
     let o = vwb(&dir).args(["data", "list"]).output().unwrap();
     let stdout = String::from_utf8_lossy(&o.stdout);
     assert!(o.status.success());
-    assert!(stdout.contains("missing (vwb data fetch nuclei)"), "{stdout}");
+    assert!(
+        stdout.contains("missing (vwb data fetch nuclei)"),
+        "{stdout}"
+    );
 
     // no source for a converted sample: an honest refusal naming --from
-    let o = vwb(&dir).args(["data", "fetch", "ct_head"]).output().unwrap();
+    let o = vwb(&dir)
+        .args(["data", "fetch", "ct_head"])
+        .output()
+        .unwrap();
     let stderr = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(1), "{stderr}");
     assert!(stderr.contains("--from URL_OR_DIR ct_head"), "{stderr}");
 
     // mri_head from the binary, storm_wind from a folder mirror
-    let o = vwb(&dir).args(["data", "fetch", "mri_head"]).output().unwrap();
+    let o = vwb(&dir)
+        .args(["data", "fetch", "mri_head"])
+        .output()
+        .unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let o = vwb(&dir)
         .args(["data", "fetch", "storm_wind", "--from"])

@@ -120,8 +120,7 @@ fn retype(h: &mut Harness<'_, Workbench>, current: &str, text: &str) {
         let c = current.clone();
         move |n: &egui_kittest::kittest::AccessKitNode<'_>| {
             n.role() == egui::Role::TextInput
-                && (n.value().as_deref() == Some(c.as_str())
-                    || n.placeholder() == Some(c.as_str()))
+                && (n.value().as_deref() == Some(c.as_str()) || n.placeholder() == Some(c.as_str()))
         }
     };
     h.get_by(field()).scroll_to_me();
@@ -563,7 +562,10 @@ fn assert_fitted(h: &Harness<'_, Workbench>) {
             if i & 4 == 0 { b.min.z } else { b.max.z },
         );
         let ndc = (v.proj * v.view).project_point3(p);
-        assert!(ndc.x.abs() <= 1.0 && ndc.y.abs() <= 1.0, "corner {i} cropped: {ndc}");
+        assert!(
+            ndc.x.abs() <= 1.0 && ndc.y.abs() <= 1.0,
+            "corner {i} cropped: {ndc}"
+        );
         widest = widest.max(ndc.x.abs()).max(ndc.y.abs());
     }
     assert!(widest > 0.8, "the volume fills the view ({widest})");
