@@ -23,10 +23,20 @@ fn window(doc: Document, scale: f32) -> Harness<'static, Workbench> {
 
 /// [`window`], with kittest's check that every widget has an accessible name on or off.
 fn window_checked(doc: Document, scale: f32, accessibility: bool) -> Harness<'static, Workbench> {
+    window_sized(doc, scale, accessibility, [1100.0, 800.0])
+}
+
+/// [`window_checked`] at a window size.
+fn window_sized(
+    doc: Document,
+    scale: f32,
+    accessibility: bool,
+    size: [f32; 2],
+) -> Harness<'static, Workbench> {
     gpu();
     let volume = vwb_app::headless::load_volume(&doc.volume).expect("volume");
     let mut h = Harness::builder()
-        .with_size([1100.0, 800.0])
+        .with_size(size)
         .with_accessibility_check(accessibility)
         .wgpu_setup(wgpu_configuration().wgpu_setup)
         .build_eframe(move |cc| {
@@ -728,4 +738,24 @@ fn window_file_dialog_opens_a_preset() {
         h.state().file_status()
     );
     assert_eq!(ids(&h), ["classify.tf2d"]);
+}
+
+/// At the default window size (1000×720) the side panel scrolls: the Compare and
+/// Trade-off sections at its bottom can be reached and opened.
+#[test]
+fn window_side_panel_scrolls_at_the_default_size() {
+    let mut h = window_sized(default_document(&registry()), 0.25, true, [1000.0, 720.0]);
+    click(&mut h, "Trade-off: sweep and Pareto plot");
+    h.get_by_label("Run sweep").scroll_to_me();
+    settle(&mut h);
+    let run = h.get_by_label("Run sweep").rect();
+    assert!(run.max.y <= 720.0, "Run sweep is off screen: {run:?}");
+    click(&mut h, "Compare with the CPU reference");
+    h.get_by_label("Compute reference").scroll_to_me();
+    settle(&mut h);
+    let compute = h.get_by_label("Compute reference").rect();
+    assert!(
+        compute.max.y <= 720.0,
+        "Compute reference is off screen: {compute:?}"
+    );
 }
