@@ -1,6 +1,7 @@
 //! The `vwb` application: command-line interface and the workbench window.
 //! Everything here drives the renderer crate; no rendering logic lives in the app.
 
+pub mod browser_ui;
 pub mod classification;
 pub mod cli;
 pub mod cli_help;

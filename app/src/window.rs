@@ -209,6 +209,8 @@ pub struct Workbench {
     file_status: Option<Result<String, String>>,
     /// A missing sample's fetch button.
     fetch: crate::data_ui::FetchOffer,
+    /// The preset browser (thumbnails).
+    browser: crate::browser_ui::PresetBrowser,
     renderer: Renderer,
     texture: Option<egui::TextureId>,
     texture_size: [u32; 2],
@@ -281,6 +283,7 @@ impl Workbench {
             tradeoff: Default::default(),
             file_status: None,
             fetch: Default::default(),
+            browser: Default::default(),
             renderer,
             texture: None,
             texture_size: [0, 0],
@@ -330,6 +333,11 @@ impl Workbench {
     pub fn report_failed_open(&mut self, error: anyhow::Error, path: &std::path::Path) {
         self.fetch.offer(&error, path);
         self.report(Err(error));
+    }
+
+    /// The preset browser.
+    pub fn browser(&mut self) -> &mut crate::browser_ui::PresetBrowser {
+        &mut self.browser
     }
 
     /// The scene as preset RON with absolute file paths (what [`Persisted::session`]
@@ -492,6 +500,19 @@ impl Workbench {
         ui.label(format!("adapter: {}", self.renderer.gpu().info.name));
         ui.separator();
         self.files(ui);
+        let picked = egui::CollapsingHeader::new("Preset browser")
+            .show(ui, |ui| {
+                if self.browser.names().is_empty() {
+                    self.browser.refresh(&self.recent);
+                }
+                self.browser.ui(ui, self.renderer.gpu())
+            })
+            .body_returned
+            .flatten();
+        if let Some(path) = picked {
+            let outcome = self.open(&path);
+            self.report(outcome);
+        }
         ui.separator();
         ui.label("Plugins");
         let mut changed = false;
@@ -899,6 +920,14 @@ impl Workbench {
                 let saved = self.doc.save(&path);
                 if saved.is_ok() {
                     self.remember(&path);
+                    // its thumbnail beside it, for the preset browser
+                    if let Some(img) = self.image() {
+                        let thumb = crate::browser_ui::thumbnail_path(&path, None);
+                        if let Err(e) = crate::browser_ui::save_thumbnail(&img, &thumb) {
+                            log::warn!("{e:#}");
+                        }
+                    }
+                    self.browser.refresh(&self.recent);
                 }
                 self.file_status = Some(
                     saved

@@ -34,6 +34,8 @@ fn window_sized(
     size: [f32; 2],
 ) -> Harness<'static, Workbench> {
     gpu();
+    // the sample data directory of the tests
+    repo();
     let volume = vwb_app::headless::load_volume(&doc.volume).expect("volume");
     let mut h = Harness::builder()
         .with_size(size)
@@ -297,6 +299,12 @@ fn window_edits_a_scene_like_a_user() {
         "{:?}",
         h.state().file_status()
     );
+    // its thumbnail beside it, for the preset browser
+    let thumb = image::open(file.with_file_name("window_preset.thumb.png")).unwrap();
+    assert_eq!(
+        thumb.width().max(thumb.height()),
+        vwb_app::browser_ui::THUMB
+    );
     let saved = image(&h);
     click_nth(&mut h, "parameters", 1);
     h.get_by_role_and_label(egui::Role::Slider, "Specular k_s")
@@ -557,6 +565,41 @@ fn window_refuses_a_broken_preset_and_keeps_the_scene() {
     assert_eq!(h.state().renderer().volume().dims, [128, 128, 84]);
     assert!(data.join("mri_head_volpack_128x128x84_uint8.raw").exists());
     assert!(h.query_by_label("Fetch mri_head").is_none());
+
+    // the preset browser: shipped presets and the user's, thumbnails rendered in the
+    // background and cached; a click opens one
+    let cache = tmp("thumbnails");
+    let _ = std::fs::remove_dir_all(&cache);
+    h.state_mut().browser().cache = Some(cache.clone());
+    click(&mut h, "Preset browser");
+    let names: Vec<String> = h
+        .state_mut()
+        .browser()
+        .names()
+        .iter()
+        .map(|n| n.to_string())
+        .collect();
+    for n in ["ct_head", "demo", "demo_preintegrated", "window_sample"] {
+        assert!(names.iter().any(|m| m == n), "{n} in {names:?}");
+    }
+    step_until(&mut h, Duration::from_secs(120), |h| {
+        let b = h.state_mut().browser();
+        assert_eq!(b.failure("ct_bone"), None);
+        b.ready("ct_bone")
+    });
+    assert!(cache.join("ct_bone.png").exists());
+    assert!(h.query_by_label("thumbnail of ct_bone").is_some());
+    let n = h.get_all_by_label("demo_preintegrated").count();
+    assert_eq!(n, 1);
+    h.get_by_label("demo_preintegrated").scroll_to_me();
+    h.run_steps(5);
+    h.get_by_label("demo_preintegrated").click_accesskit();
+    h.run_steps(3);
+    assert!(
+        h.state().document().description.contains("pre-integrated"),
+        "{:?}",
+        h.state().file_status()
+    );
 }
 
 /// Every corner of the volume's box is inside the (square) view, the widest near the
