@@ -14,7 +14,8 @@ use vwb_render::preset::{Document, VolumeSource};
 
 use crate::common::{gpu, registry, repo, tmp};
 
-const CT: &str = "../shared/data/ct_cranium_256x256x108_int16.nhdr";
+/// The CT head's header file in the sample data directory.
+const CT: &str = "ct_cranium_256x256x108_int16.nhdr";
 
 /// The window on `doc` at 1100×800, drawing at `scale` × the viewport's resolution.
 fn window(doc: Document, scale: f32) -> Harness<'static, Workbench> {
@@ -340,7 +341,7 @@ fn window_edits_a_scene_like_a_user() {
 /// the Pareto plot and apply a point.
 #[test]
 fn window_ct_flow_phong_dos_tf_sweep_pareto() {
-    let ct = repo().join(CT);
+    let ct = crate::common::data_dir().join(CT);
     let mut h = demo_window();
 
     // load the CT head into the demo scene
@@ -747,7 +748,7 @@ fn window_drop_files_edit_the_2d_tf_and_compare() {
     });
 
     // a volume dropped on the window replaces the demo, the stack stays
-    drop_file(&mut h, repo().join(CT));
+    drop_file(&mut h, crate::common::data_dir().join(CT));
     assert_eq!(h.state().renderer().volume().dims, [256, 256, 108]);
     assert_eq!(ids(&h), ["classify.tf2d"]);
     assert!(h.state().recent().len() >= 2, "{:?}", h.state().recent());
