@@ -20,8 +20,8 @@ from pathlib import Path
 from doclib import REPO, default_vwb, machine_line, vwb_env, write_block
 
 SCENES = ["presets/demo_preintegrated.ron", "presets/ct_skin.ron"]
-SUGGEST = ["../shared/data/mri_head_volpack_128x128x84_uint8.nhdr",
-           "../shared/data/ct_cranium_256x256x108_int16.nhdr"]
+# sample names (`vwb data list`), found in the data directory ($VWB_DATA_DIR)
+SUGGEST = ["mri_head", "ct_head"]
 
 
 def suggest_times(binary, env, tmp):

@@ -5,7 +5,7 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result, bail};
 use clap::{Parser, Subcommand};
-use vwb_render::preset::{Document, VolumeSource};
+use vwb_render::preset::Document;
 use vwb_render::renderer::Backend;
 use vwb_render::{GpuContext, TargetFormat};
 
@@ -17,7 +17,8 @@ use vwb_render::reference::DEFAULT_TOLERANCE_DELTA_E;
 #[command(
     name = "vwb",
     version,
-    about = "Exploration workbench for GPU slice-based direct volume rendering"
+    about = "Exploration workbench for GPU slice-based direct volume rendering",
+    after_help = crate::cli_help::VWB
 )]
 pub struct Cli {
     #[command(subcommand)]
@@ -25,7 +26,7 @@ pub struct Cli {
     /// Preset to open in the window.
     #[arg(long, global = true)]
     pub preset: Option<PathBuf>,
-    /// Volume to open in the window (NRRD).
+    /// Volume to open in the window: a file (NRRD) or a sample name (`vwb data list`).
     #[arg(long)]
     pub volume: Option<PathBuf>,
     /// Open the window, render, save a screenshot to this PNG and exit.
@@ -36,39 +37,52 @@ pub struct Cli {
 #[derive(Debug, Subcommand)]
 pub enum Command {
     /// Render a preset headless to a PNG.
+    #[command(after_help = crate::cli_help::RENDER)]
     Render(RenderArgs),
     /// Render a preset on the GPU and compare it with the CPU reference, the converged
     /// reference or another preset: writes image.png, against.png, heatmap.png and
     /// metrics.json into the output folder.
+    #[command(after_help = crate::cli_help::COMPARE)]
     Compare(CompareArgs),
     /// Time a preset per pass and per plugin (ablation) and list GPU memory per plugin.
+    #[command(after_help = crate::cli_help::BENCH)]
     Bench(BenchArgs),
     /// Sweep parameters over a grid; time every point and measure its error against the
     /// converged reference; write sweep.csv, the images and a Pareto plot.
+    #[command(after_help = crate::cli_help::SWEEP)]
     Sweep(SweepArgs),
     /// Print the scene (volume, camera, classification, slices) as JSON for peer
     /// renderers such as bench/vtk_peer.py.
+    #[command(after_help = crate::cli_help::SCENE)]
     Scene(SceneArgs),
     /// Measure classification modes: GPU time and error against the converged
     /// post-classification reference for post / pre / pre-integrated classification
     /// at several slice spacings, per preset; writes classification.json.
+    #[command(after_help = crate::cli_help::CLASSIFICATION)]
     Classification(ClassificationArgs),
     /// Suggest a transfer function from the data (Kindlmann and Durkin 1998): opacity
     /// on the boundaries found in the histogram volume over value, first and second
     /// directional derivative. Writes the curve as RON (the `tf` of classify.tf1d).
+    #[command(after_help = crate::cli_help::SUGGEST_TF)]
     SuggestTf(SuggestTfArgs),
     /// Measure directional occlusion shading against its Monte-Carlo reference (θ,
     /// kernel, slice count, buffer precision, Pareto front, extremes, CT frame time) and
     /// write the report (docs/dos.md).
+    #[command(after_help = crate::cli_help::DOS_STUDY)]
     DosStudy(crate::dos_study::DosStudyArgs),
     /// Print the adapter, its limits and the registered plugin ids.
+    #[command(after_help = crate::cli_help::INFO)]
     Info,
+    /// Sample data sets that presets name (`volume: Sample("ct_head")`): list them,
+    /// fetch them into the data directory ($VWB_DATA_DIR, else the user's cache).
+    #[command(subcommand, after_help = crate::cli_help::DATA)]
+    Data(crate::data_cmd::DataCommand),
 }
 
 /// Overrides of the preset's volume and frame settings, shared by the subcommands.
 #[derive(Debug, Clone, Default, clap::Args)]
 pub struct FrameArgs {
-    /// Volume file overriding the preset's (NRRD).
+    /// Volume overriding the preset's: a file (NRRD) or a sample name (`vwb data list`).
     #[arg(long)]
     pub volume: Option<PathBuf>,
     /// Image size WxH (default: the preset's).
@@ -116,7 +130,7 @@ pub fn parse_early_termination(s: &str) -> Result<EarlyTermination, String> {
 impl FrameArgs {
     pub fn apply(&self, doc: &mut Document) -> Result<()> {
         if let Some(v) = &self.volume {
-            doc.volume = VolumeSource::File(v.clone());
+            doc.volume = headless::volume_arg(v);
         }
         if let Some(s) = self.size {
             doc.render.size = s;
@@ -236,7 +250,8 @@ pub struct ClassificationArgs {
 
 #[derive(Debug, clap::Args)]
 pub struct SuggestTfArgs {
-    /// The volume (NRRD); the demo when absent.
+    /// The volume: a file (NRRD) or a sample name (`vwb data list`); the demo when
+    /// absent.
     #[arg(long)]
     pub volume: Option<PathBuf>,
     /// Half width of the boundary emphasis in voxels (> 0).
@@ -518,8 +533,8 @@ pub fn run_suggest_tf(a: &SuggestTfArgs) -> Result<()> {
     opts.check()?;
     crate::outputs::check_extension(&a.output, "ron", "a transfer function in RON")?;
     let volume = match &a.volume {
-        Some(p) => headless::load_volume_file(p)?,
-        None => vwb_render::volume::demo(),
+        Some(p) => headless::load_volume(&headless::volume_arg(p))?,
+        None => std::sync::Arc::new(vwb_render::volume::demo()),
     };
     crate::outputs::check_output(&a.output)?;
     let name = a

@@ -10,12 +10,25 @@ use vwb_render::preset::{Document, VolumeSource};
 use vwb_render::renderer::{FrameSettings, FrameStats};
 use vwb_render::{GpuContext, Renderer, Volume};
 
-/// Loads the volume a document names (the embedded demo or a file).
+/// Loads the volume a document names (the embedded demo, a file or a sample in the
+/// data directory).
 pub fn load_volume(src: &VolumeSource) -> Result<Arc<Volume>> {
     Ok(Arc::new(match src {
         VolumeSource::Demo => vwb_render::volume::demo(),
         VolumeSource::File(p) => load_volume_file(p)?,
+        VolumeSource::Sample(name) => load_volume_file(&vwb_render::samples::resolve(name)?)?,
     }))
+}
+
+/// A `--volume` argument: a sample name (`ct_head`, see `vwb data list`) unless a file
+/// of that name exists, else a file.
+pub fn volume_arg(arg: &Path) -> VolumeSource {
+    match arg.to_str() {
+        Some(n) if vwb_render::samples::manifest().get(n).is_ok() && !arg.exists() => {
+            VolumeSource::Sample(n.to_string())
+        }
+        _ => VolumeSource::File(arg.to_path_buf()),
+    }
 }
 
 /// Loads a volume file (NRRD, attached or detached header) and registers it (and its

@@ -1,10 +1,14 @@
 //! The `vwb` application: command-line interface and the workbench window.
 //! Everything here drives the renderer crate; no rendering logic lives in the app.
 
+pub mod browser_ui;
 pub mod classification;
 pub mod cli;
+pub mod cli_help;
 pub mod compare_ui;
 pub mod custom_ui;
+pub mod data_cmd;
+pub mod data_ui;
 pub mod dos_study;
 pub mod headless;
 pub mod job;

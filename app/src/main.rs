@@ -17,6 +17,7 @@ fn main() {
         Some(Command::SuggestTf(a)) => run_suggest_tf(a),
         Some(Command::DosStudy(a)) => run_dos_study(a),
         Some(Command::Info) => run_info(),
+        Some(Command::Data(a)) => vwb_app::data_cmd::run(a),
         None => vwb_app::window::run(&cli),
     };
     if let Err(e) = result {

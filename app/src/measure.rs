@@ -1257,6 +1257,12 @@ pub fn scene_json(doc: &Document, volume: &Volume, preset: &Path) -> serde_json:
             )),
         ),
         VolumeSource::File(p) => (Some(std::fs::canonicalize(p).unwrap_or(p.clone())), None),
+        VolumeSource::Sample(name) => (
+            vwb_render::samples::resolve(name)
+                .ok()
+                .map(|p| std::fs::canonicalize(&p).unwrap_or(p)),
+            None,
+        ),
     };
     // Blinn–Phong material of an enabled shade.blinn_phong (for peers' shading)
     let shading = doc

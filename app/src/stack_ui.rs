@@ -121,6 +121,7 @@ pub fn param_widgets(
                 // one editor state per plugin instance and parameter (classify.labels
                 // has eight curves)
                 crate::tf_editor::tf_editor(ui, (salt, spec.key), t, cx.histogram);
+                ui.small(crate::tf_editor::axes_caption(cx.volume.map(|v| v.range)));
                 None
             }
             (ParamKind::Tf2d { .. }, ParamValue::Tf2d(t)) => {
@@ -219,7 +220,14 @@ pub fn stack_editor(
                         .checkbox(&mut inst.enabled, "on")
                         .on_hover_text("enabled")
                         .changed();
-                    ui.label(inst.plugin.display_name()).on_hover_text(format!(
+                    // enabled: drawn strong; disabled: weak
+                    let name = egui::RichText::new(inst.plugin.display_name());
+                    let name = if inst.enabled {
+                        name.strong()
+                    } else {
+                        name.weak()
+                    };
+                    ui.label(name).on_hover_text(format!(
                         "{}\n{}",
                         inst.plugin.id(),
                         inst.plugin.description()

@@ -45,6 +45,15 @@ fn colour(c: [f64; 4]) -> egui::Color32 {
     egui::Color32::from_rgb(b(c[0]), b(c[1]), b(c[2]))
 }
 
+/// The caption under a TF plot: what its axes are, with the data range when known.
+pub fn axes_caption(range: Option<[f64; 2]>) -> String {
+    let x = match range {
+        Some([lo, hi]) => format!("x: value, 0 = {lo:.4} … 1 = {hi:.4} (data range)"),
+        None => "x: value, 0 … 1 over the data range".to_string(),
+    };
+    format!("{x}; y: opacity 0 … 1; grey bars: log histogram")
+}
+
 /// Draws and edits `curve` over `histogram` (counts per equal bin of the normalised
 /// value range); returns whether the curve changed and the plot's rectangle.
 pub fn tf_editor(
@@ -101,6 +110,21 @@ pub fn tf_editor(
             egui::pos2(rect.left() + w[1].0 * rect.width(), rect.bottom()),
         );
         painter.rect_filled(strip, 0.0, colour(w[0].1));
+    }
+    // axis values: opacity on the left, the normalised value along the bottom
+    let font = egui::FontId::proportional(10.0);
+    let grey = egui::Color32::from_gray(150);
+    for (a, text) in [(1.0, "1"), (0.5, "0.5")] {
+        let at = to_screen(rect, 0.0, a) + egui::vec2(2.0, 1.0);
+        painter.text(at, egui::Align2::LEFT_TOP, text, font.clone(), grey);
+    }
+    for (x, align) in [
+        (0.0, egui::Align2::LEFT_BOTTOM),
+        (0.5, egui::Align2::CENTER_BOTTOM),
+        (1.0, egui::Align2::RIGHT_BOTTOM),
+    ] {
+        let at = to_screen(rect, x, 0.0) + egui::vec2(0.0, -7.0);
+        painter.text(at, align, format!("{x}"), font.clone(), grey);
     }
     for (i, p) in curve.points.iter().enumerate() {
         let c = colour(p.color.map(f64::from));

@@ -28,6 +28,10 @@ use vwb_render::{Camera, Renderer};
 use crate::cli::{Cli, load_document};
 use crate::headless;
 
+/// The camera controls, shown on the viewport.
+pub const CAMERA_HINT: &str =
+    "drag: orbit · right-drag: pan · wheel: zoom · R: reset · 1/2/3: look along x/y/z";
+
 /// The preset the workbench opens on (embedded, so it runs anywhere).
 pub const DEMO_PRESET: &str = include_str!("../../presets/demo.ron");
 
@@ -71,10 +75,22 @@ pub fn wgpu_configuration() -> egui_wgpu::WgpuConfiguration {
 /// to load, the window still opens, on the demo scene, with the error shown (the
 /// returned message); only a `--screenshot` run fails instead, so scripts see it.
 pub fn startup(cli: &Cli) -> Result<(Document, Arc<vwb_render::Volume>, Option<String>)> {
+    let (doc, volume, error) = startup_or_demo(cli)?;
+    Ok((
+        doc,
+        volume,
+        error.map(|e| format!("{e:#} (showing the demo scene)")),
+    ))
+}
+
+/// [`startup`] with the error itself (a missing sample gets a fetch button).
+fn startup_or_demo(
+    cli: &Cli,
+) -> Result<(Document, Arc<vwb_render::Volume>, Option<anyhow::Error>)> {
     let loaded = (|| {
         let mut doc = load_document(cli.preset.as_deref())?;
         if let Some(v) = &cli.volume {
-            doc.volume = VolumeSource::File(v.clone());
+            doc.volume = headless::volume_arg(v);
         }
         let volume = headless::load_volume(&doc.volume)?;
         headless::check_frame(cli.preset.as_deref(), &doc, &volume)?;
@@ -91,7 +107,7 @@ pub fn startup(cli: &Cli) -> Result<(Document, Arc<vwb_render::Volume>, Option<S
             let registry = vwb_plugins::builtin_registry();
             let doc = default_document(&registry);
             let volume = headless::load_volume(&doc.volume)?;
-            Ok((doc, volume, Some(format!("{e:#} (showing the demo scene)"))))
+            Ok((doc, volume, Some(e)))
         }
         Err(e) => Err(e),
     }
@@ -101,9 +117,9 @@ pub fn run(cli: &Cli) -> Result<()> {
     if let Some(shot) = &cli.screenshot {
         crate::outputs::image_format(shot)?;
     }
-    let (doc, volume, startup_error) = startup(cli)?;
+    let (doc, volume, startup_error) = startup_or_demo(cli)?;
     if let Some(e) = &startup_error {
-        eprintln!("error: {e}");
+        eprintln!("error: {e:#} (showing the demo scene)");
     }
     if let Some(shot) = &cli.screenshot {
         crate::outputs::check_output(shot)?;
@@ -123,7 +139,15 @@ pub fn run(cli: &Cli) -> Result<()> {
         Box::new(move |cc| {
             let mut app = Workbench::new(cc, doc, volume, screenshot, err_tx)?;
             if let Some(e) = startup_error {
-                app.show_error(e);
+                // where it came from, for a missing sample's fetch button
+                let opening = cli
+                    .preset
+                    .clone()
+                    .or(cli.volume.clone())
+                    .unwrap_or_default();
+                app.report_failed_open(e, &opening);
+            } else if cli.preset.is_none() && cli.volume.is_none() && cli.screenshot.is_none() {
+                app.restore_last_session();
             }
             Ok(Box::new(app))
         }),
@@ -133,6 +157,20 @@ pub fn run(cli: &Cli) -> Result<()> {
         return Err(anyhow!(e));
     }
     Ok(())
+}
+
+/// Where a file dialog starts: the path field when it names something, else
+/// `fallback` (relative to the working directory) when it exists, else the user's home.
+fn start_folder(field: &str, fallback: Option<&str>) -> PathBuf {
+    let field = field.trim();
+    if !field.is_empty() {
+        return PathBuf::from(field);
+    }
+    fallback
+        .map(PathBuf::from)
+        .filter(|p| p.is_dir())
+        .or_else(dirs::home_dir)
+        .unwrap_or_else(|| PathBuf::from("."))
 }
 
 enum Shot {
@@ -160,6 +198,9 @@ pub struct Persisted {
     pub recent: Vec<PathBuf>,
     pub preset_path: String,
     pub volume_path: String,
+    /// The last scene (preset document: volume, camera, settings, stack) in RON, file
+    /// paths absolute; reopened when vwb starts without --preset or --volume.
+    pub session: Option<String>,
 }
 
 pub const STORAGE_KEY: &str = "vwb";
@@ -187,6 +228,8 @@ pub struct Workbench {
     /// The volume path field.
     volume_path: String,
     recent: Vec<PathBuf>,
+    /// The last run's scene (see [`Persisted::session`]).
+    last_session: Option<String>,
     dialog: Option<Dialog>,
     wgsl: Option<WgslEdit>,
     /// Full-quality resolution × (below 1 on slow devices and in tests).
@@ -205,6 +248,10 @@ pub struct Workbench {
     loading: Option<crate::loading::VolumeLoad>,
     /// Volume files of at least this many bytes (and streams) load in the background.
     pub async_load_bytes: u64,
+    /// A missing sample's fetch button.
+    fetch: crate::data_ui::FetchOffer,
+    /// The preset browser (thumbnails).
+    browser: crate::browser_ui::PresetBrowser,
     renderer: Renderer,
     texture: Option<egui::TextureId>,
     texture_size: [u32; 2],
@@ -259,14 +306,14 @@ impl Workbench {
             .storage
             .and_then(|s| eframe::get_value(s, STORAGE_KEY))
             .unwrap_or_default();
-        let or = |s: String, d: &str| if s.is_empty() { d.to_string() } else { s };
         let preview = default_preview(&rs.adapter.get_info());
         Ok(Self {
             doc,
             registry: vwb_plugins::builtin_registry(),
-            preset_path: or(persisted.preset_path, "presets/my_preset.ron"),
-            volume_path: or(persisted.volume_path, "../shared/data/"),
+            preset_path: persisted.preset_path,
+            volume_path: persisted.volume_path,
             recent: persisted.recent,
+            last_session: persisted.session,
             dialog: None,
             wgsl: None,
             quality_scale: 1.0,
@@ -278,6 +325,8 @@ impl Workbench {
             file_status: None,
             loading: None,
             async_load_bytes: crate::loading::DEFAULT_ASYNC_LOAD_BYTES,
+            fetch: Default::default(),
+            browser: Default::default(),
             renderer,
             texture: None,
             texture_size: [0, 0],
@@ -315,6 +364,71 @@ impl Workbench {
     /// The last composer, resource or file error shown in the stack.
     pub fn error(&self) -> Option<&str> {
         self.error.as_deref()
+    }
+
+    /// The folder samples are looked up in and fetched into (default: the data
+    /// directory, `VWB_DATA_DIR`).
+    pub fn set_data_dir(&mut self, dir: PathBuf) {
+        self.fetch.dir = Some(dir);
+    }
+
+    /// Shows a failed open (a missing sample gets its fetch button).
+    pub fn report_failed_open(&mut self, error: anyhow::Error, path: &std::path::Path) {
+        self.fetch.offer(&error, path);
+        self.report(Err(error));
+    }
+
+    /// The preset browser.
+    pub fn browser(&mut self) -> &mut crate::browser_ui::PresetBrowser {
+        &mut self.browser
+    }
+
+    /// The scene as preset RON with absolute file paths (what [`Persisted::session`]
+    /// keeps).
+    pub fn session(&self) -> String {
+        let mut doc = self.doc.clone();
+        let absolute = |p: &mut PathBuf| {
+            if let Ok(a) = std::fs::canonicalize(&*p) {
+                *p = a;
+            }
+        };
+        if let VolumeSource::File(p) = &mut doc.volume {
+            absolute(p);
+        }
+        for inst in &mut doc.stack {
+            for v in inst.params.values.values_mut() {
+                if let vwb_render::params::ParamValue::Path(p) = v
+                    && !p.as_os_str().is_empty()
+                {
+                    absolute(p);
+                }
+            }
+        }
+        doc.to_ron()
+    }
+
+    /// Reopens a scene saved by [`Workbench::session`]; on any error the current scene
+    /// stays and the error is shown (a missing sample with its fetch button).
+    pub fn restore_session(&mut self, text: &str) -> Result<String> {
+        let doc = Document::parse(text, "last session", &self.registry)?.document;
+        let volume = self.fetch.load(&doc.volume, std::path::Path::new(""))?;
+        self.renderer = self.fresh_renderer(volume, &doc)?;
+        self.doc = doc;
+        self.error = None;
+        self.dirty = true;
+        Ok("reopened the last session".into())
+    }
+
+    /// Reopens the last run's scene, if there is one.
+    pub fn restore_last_session(&mut self) {
+        if let Some(text) = self.last_session.take() {
+            let outcome = self.restore_session(&text);
+            if outcome.is_err() {
+                // kept for the fetch button's retry
+                self.last_session = Some(text);
+            }
+            self.report(outcome.context("last session"));
+        }
     }
 
     /// The message of the last file operation (Ok or Err).
@@ -389,7 +503,8 @@ impl Workbench {
     /// Opens a volume file into the current scene; the current volume stays on any
     /// error (unreadable file, lying header, a stack that fails on the new volume).
     pub fn open_volume(&mut self, path: &std::path::Path) -> Result<String> {
-        let volume = headless::load_volume(&VolumeSource::File(path.to_path_buf()))?;
+        let source = headless::volume_arg(path);
+        let volume = self.fetch.load(&source, path)?;
         self.install_volume(path, volume)
     }
 
@@ -438,12 +553,14 @@ impl Workbench {
         path: &std::path::Path,
         volume: Arc<vwb_render::Volume>,
     ) -> Result<String> {
-        let source = VolumeSource::File(path.to_path_buf());
+        let source = headless::volume_arg(path);
         let renderer = self
             .fresh_renderer(volume, &self.doc)
             .with_context(|| format!("{}", path.display()))?;
         let v = renderer.volume();
         let msg = format!("opened {} {:?}", path.display(), v.dims);
+        let vbox = *renderer.volume_box();
+        self.doc.camera.fit(vbox.min, vbox.max);
         self.renderer = renderer;
         self.doc.volume = source;
         self.volume_path = path.display().to_string();
@@ -492,6 +609,19 @@ impl Workbench {
         }
         ui.separator();
         self.files(ui);
+        let picked = egui::CollapsingHeader::new("Preset browser")
+            .show(ui, |ui| {
+                if self.browser.names().is_empty() {
+                    self.browser.refresh(&self.recent);
+                }
+                self.browser.ui(ui, self.renderer.gpu())
+            })
+            .body_returned
+            .flatten();
+        if let Some(path) = picked {
+            let outcome = self.open(&path);
+            self.report(outcome);
+        }
         ui.separator();
         ui.label("Plugins");
         let mut changed = false;
@@ -533,13 +663,22 @@ impl Workbench {
                     .logarithmic(true)
                     .text("slice spacing (voxels)"),
             )
+            .on_hover_text(
+                "distance between the slices through the volume, in voxels: smaller is \
+                 sharper and slower; above 1 shows wood-grain rings",
+            )
             .changed();
         ui.horizontal(|ui| {
             changed |= ui
                 .radio_value(&mut r.backend, Backend::Raster, "raster")
+                .on_hover_text("draws each slice as a polygon and blends it (the GPU's rasteriser)")
                 .changed();
             changed |= ui
                 .radio_value(&mut r.backend, Backend::Compute, "compute")
+                .on_hover_text(
+                    "one thread per pixel steps through the same slices; can stop early once \
+                     a pixel is opaque",
+                )
                 .changed();
         });
         if changed {
@@ -549,6 +688,10 @@ impl Workbench {
             .add(
                 egui::Slider::new(&mut self.quality_scale, 0.125..=1.0)
                     .text("resolution × (full quality)"),
+            )
+            .on_hover_text(
+                "renders the still image at this fraction of the viewport's pixels and \
+                 scales it up: below 1 is faster and blurrier (for slow devices)",
             )
             .changed()
         {
@@ -560,8 +703,10 @@ impl Workbench {
             egui::Slider::new(&mut self.drag_spacing, 1.0..=8.0)
                 .logarithmic(true)
                 .text("slice spacing ×"),
-        );
-        ui.add(egui::Slider::new(&mut self.drag_resolution, 0.125..=1.0).text("resolution ×"));
+        )
+        .on_hover_text("while moving, slices are this many times farther apart (faster, coarser)");
+        ui.add(egui::Slider::new(&mut self.drag_resolution, 0.125..=1.0).text("resolution ×"))
+            .on_hover_text("while moving, the image has this fraction of the pixels");
         ui.separator();
         egui::CollapsingHeader::new("Timing")
             .default_open(true)
@@ -854,16 +999,19 @@ impl Workbench {
             ui.add(
                 egui::TextEdit::singleline(&mut self.volume_path)
                     .desired_width(150.0)
+                    .hint_text("volume file or sample")
                     .id_salt("volume path"),
             )
-            .on_hover_text("volume file (.nhdr, .nrrd, .raw + header)");
+            .on_hover_text(
+                "volume file (.nhdr, .nrrd, .raw + header) or a sample name such as ct_head (vwb data list)",
+            );
             if ui.button("Open volume").clicked() {
                 let path = PathBuf::from(self.volume_path.trim());
                 self.start_open_volume(&path);
             }
             if ui.button("…").on_hover_text("choose a volume").clicked() {
                 let mut d = egui_file::FileDialog::open_file()
-                    .initial_path(PathBuf::from(self.volume_path.trim()))
+                    .initial_path(start_folder(&self.volume_path, None))
                     .title("Open volume");
                 d.open();
                 self.dialog = Some(Dialog::Volume(d));
@@ -874,9 +1022,10 @@ impl Workbench {
             ui.add(
                 egui::TextEdit::singleline(&mut self.preset_path)
                     .desired_width(150.0)
+                    .hint_text("preset file (.ron)")
                     .id_salt("preset path"),
             )
-            .on_hover_text("preset file (.ron)");
+            .on_hover_text("preset file (.ron): open it, or save the scene to it");
             let path = PathBuf::from(self.preset_path.trim());
             if ui.button("Open preset").clicked() {
                 self.start_open(&path);
@@ -885,6 +1034,14 @@ impl Workbench {
                 let saved = self.doc.save(&path);
                 if saved.is_ok() {
                     self.remember(&path);
+                    // its thumbnail beside it, for the preset browser
+                    if let Some(img) = self.image() {
+                        let thumb = crate::browser_ui::thumbnail_path(&path, None);
+                        if let Err(e) = crate::browser_ui::save_thumbnail(&img, &thumb) {
+                            log::warn!("{e:#}");
+                        }
+                    }
+                    self.browser.refresh(&self.recent);
                 }
                 self.file_status = Some(
                     saved
@@ -894,7 +1051,7 @@ impl Workbench {
             }
             if ui.button("…").on_hover_text("choose a preset").clicked() {
                 let mut d = egui_file::FileDialog::open_file()
-                    .initial_path(PathBuf::from("presets"))
+                    .initial_path(start_folder(&self.preset_path, Some("presets")))
                     .title("Open preset");
                 d.open();
                 self.dialog = Some(Dialog::Preset(d));
@@ -933,6 +1090,15 @@ impl Workbench {
             }
             None => {}
         }
+        if let Some(path) = self.fetch.ui(ui) {
+            // an empty path: the last session was waiting for the sample
+            if path.as_os_str().is_empty() {
+                self.restore_last_session();
+            } else {
+                let outcome = self.open_any(&path);
+                self.report(outcome);
+            }
+        }
     }
 
     /// The open file dialog and files dropped on the window.
@@ -969,7 +1135,7 @@ impl Workbench {
     /// Loads a preset (and its volume); the current one stays on any error.
     pub fn open(&mut self, path: &std::path::Path) -> Result<String> {
         let doc = Document::load(path, &self.registry)?.document;
-        let volume = headless::load_volume(&doc.volume)?;
+        let volume = self.fetch.load(&doc.volume, path)?;
         self.install_preset(path, doc, volume)
     }
 
@@ -1024,6 +1190,7 @@ impl Workbench {
     fn viewport(&mut self, ui: &mut egui::Ui, frame: &eframe::Frame) {
         let avail = ui.available_size();
         let (rect, response) = ui.allocate_exact_size(avail, egui::Sense::drag());
+        let vbox = *self.renderer.volume_box();
         let cam = &mut self.doc.camera;
         if response.dragged_by(egui::PointerButton::Primary) {
             let d = response.drag_delta();
@@ -1047,6 +1214,7 @@ impl Workbench {
         ui.input(|i| {
             if i.key_pressed(egui::Key::R) {
                 *cam = Camera::default();
+                cam.fit(vbox.min, vbox.max);
                 self.dirty = true;
             }
             for (k, axis) in [
@@ -1107,6 +1275,19 @@ impl Workbench {
             );
             self.shown += 1;
         }
+        let hint = egui::Rect::from_min_size(
+            rect.left_bottom() + egui::vec2(8.0, -22.0),
+            egui::vec2(rect.width() - 16.0, 18.0),
+        );
+        ui.put(
+            hint,
+            egui::Label::new(
+                egui::RichText::new(CAMERA_HINT)
+                    .small()
+                    .color(egui::Color32::from_gray(170)),
+            )
+            .selectable(false),
+        );
     }
 
     fn show(&mut self, frame: &eframe::Frame, size: [u32; 2]) {
@@ -1183,6 +1364,7 @@ impl eframe::App for Workbench {
             recent: self.recent.clone(),
             preset_path: self.preset_path.clone(),
             volume_path: self.volume_path.clone(),
+            session: Some(self.session()),
         };
         eframe::set_value(storage, STORAGE_KEY, &p);
     }

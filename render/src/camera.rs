@@ -155,6 +155,40 @@ impl Camera {
         self.target = t.into();
     }
 
+    /// Frames the box `[min, max]` from the current direction: the target moves to its
+    /// centre and the distance (orthographic: the height) becomes the smallest at which
+    /// all eight corners lie in a square image, plus a 5 % margin.
+    pub fn fit(&mut self, min: Vec3, max: Vec3) {
+        let centre = (min + max) * 0.5;
+        self.target = centre.into();
+        let (_, right, up) = self.basis();
+        let o = self.offset_dir();
+        let corners = (0..8).map(|i| {
+            let p = Vec3::new(
+                if i & 1 == 0 { min.x } else { max.x },
+                if i & 2 == 0 { min.y } else { max.y },
+                if i & 4 == 0 { min.z } else { max.z },
+            ) - centre;
+            (p.dot(o), p.dot(right).abs().max(p.dot(up).abs()))
+        });
+        const MARGIN: f32 = 1.05;
+        match &mut self.projection {
+            Projection::Perspective { fov_y_deg } => {
+                let t = (fov_y_deg.clamp(1.0, 170.0).to_radians() * 0.5).tan();
+                let d = corners
+                    .map(|(along, lateral)| along + lateral * MARGIN / t)
+                    .fold(0.0f32, f32::max);
+                self.distance = d.clamp(1.0e-3, 100.0);
+            }
+            Projection::Orthographic { height } => {
+                let (along, lateral) =
+                    corners.fold((0.0f32, 0.0f32), |(a, l), (pa, pl)| (a.max(pa), l.max(pl)));
+                *height = (2.0 * lateral * MARGIN).clamp(1.0e-3, 100.0);
+                self.distance = (along + 1.0).clamp(1.0e-3, 100.0);
+            }
+        }
+    }
+
     /// Looking along an axis: 0 = +x, 1 = +y, 2 = +z; `negative` flips the direction.
     pub fn axis_view(&mut self, axis: usize, negative: bool) {
         // The eye sits opposite the viewing direction.
@@ -192,6 +226,43 @@ mod tests {
                 assert!(f.dot(r).abs() < 1e-5 && f.dot(u).abs() < 1e-5 && r.dot(u).abs() < 1e-5);
                 // right-handed: right × up = −forward
                 assert!((r.cross(u) + f).length() < 1e-5);
+            }
+        }
+    }
+
+    #[test]
+    fn fit_frames_every_corner_tightly() {
+        let (min, max) = (Vec3::new(-0.5, -0.25, -0.05), Vec3::new(0.5, 0.25, 0.05));
+        for projection in [
+            Projection::Perspective { fov_y_deg: 35.0 },
+            Projection::Orthographic { height: 0.2 },
+        ] {
+            for (yaw, pitch, roll) in [(235.0, -10.0, 180.0), (0.0, 90.0, 0.0), (30.0, 20.0, 45.0)]
+            {
+                let mut c = Camera {
+                    distance: 0.3,
+                    yaw_deg: yaw,
+                    pitch_deg: pitch,
+                    roll_deg: roll,
+                    projection,
+                    ..Default::default()
+                };
+                c.fit(min, max);
+                let v = c.view(1.0);
+                let mut widest = 0.0f32;
+                for i in 0..8 {
+                    let p = Vec3::new(
+                        if i & 1 == 0 { min.x } else { max.x },
+                        if i & 2 == 0 { min.y } else { max.y },
+                        if i & 4 == 0 { min.z } else { max.z },
+                    );
+                    let ndc = (v.proj * v.view).project_point3(p);
+                    assert!(ndc.x.abs() <= 1.0 && ndc.y.abs() <= 1.0, "{c:?}: {ndc}");
+                    assert!((0.0..=1.0).contains(&ndc.z), "{c:?}: behind: {ndc}");
+                    widest = widest.max(ndc.x.abs()).max(ndc.y.abs());
+                }
+                // tight: the widest corner is near the edge, not lost in a small image
+                assert!(widest > 0.8, "{c:?}: {widest}");
             }
         }
     }

@@ -13,6 +13,7 @@ pub mod preset;
 pub mod reference;
 pub mod renderer;
 pub mod rng;
+pub mod samples;
 pub mod shading;
 pub mod skipping;
 pub mod slicing;

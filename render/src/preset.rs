@@ -28,6 +28,9 @@ pub enum VolumeSource {
     Demo,
     /// A volume file; relative paths are relative to the preset's folder.
     File(PathBuf),
+    /// A sample data set by name (`render/data/samples.ron`), found in the data
+    /// directory ([`crate::samples::data_dir`]).
+    Sample(String),
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -223,6 +226,11 @@ impl Document {
                 "render.background".into(),
                 "components must be finite".into(),
             ));
+        }
+        if let VolumeSource::Sample(name) = &raw.volume {
+            crate::samples::manifest()
+                .get(name)
+                .map_err(|e| value_err("volume".into(), e.to_string()))?;
         }
         crate::validate::check_camera(&raw.camera).map_err(|e| value_err(e.field, e.message))?;
         let mut stack = Vec::new();

@@ -8,7 +8,7 @@ use crate::presets::shipped_presets;
 
 fn vwb() -> Command {
     let mut c = Command::new(env!("CARGO_BIN_EXE_vwb"));
-    c.current_dir(repo());
+    c.current_dir(repo()).env("VWB_DATA_DIR", data_dir());
     c
 }
 
@@ -328,7 +328,7 @@ fn suggest_tf_writes_a_valid_transfer_function() {
     // a vector volume is refused with the file named
     let o = vwb()
         .args(["suggest-tf", "--volume"])
-        .arg(repo().join("../shared/data/storm_wind_ncsa_25x14x8_float32x3.nhdr"))
+        .arg(data_dir().join("storm_wind_ncsa_25x14x8_float32x3.nhdr"))
         .arg("-o")
         .arg(tmp("never.ron"))
         .output()

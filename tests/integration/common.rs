@@ -6,8 +6,19 @@ use vwb_render::renderer::{Backend, FrameSettings};
 use vwb_render::volume::{Volume, VoxelData};
 use vwb_render::{Camera, GpuContext, Projection, Renderer, TargetFormat};
 
+/// The repository root. Also points the sample data directory at the shared copy of
+/// the sample files beside the repository when `VWB_DATA_DIR` is unset, so that
+/// `cargo test` alone finds them (scripts/test sets `VWB_DATA_DIR` the same way).
 pub fn repo() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+    let root = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
+    vwb_render::samples::set_default_data_dir(root.join("../shared/data"));
+    root
+}
+
+/// The sample data directory the tests use (for child processes).
+pub fn data_dir() -> PathBuf {
+    repo();
+    vwb_render::samples::data_dir().expect("a data directory")
 }
 
 /// A path in this test run's scratch directory.

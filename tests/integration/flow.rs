@@ -15,11 +15,11 @@ use vwb_render::{Backend, Renderer, TargetFormat};
 
 use crate::common::*;
 
-const STORM: &str = "../shared/data/storm_wind_ncsa_25x14x8_float32x3.nhdr";
-
 /// The storm's LIC volume at `factor` times its resolution, and its field on that grid.
 fn storm_lic(factor: u32, p: &LicParams, kind: Noise) -> (Volume, GridField) {
-    let storm = vwb_render::volume::load(&repo().join(STORM)).expect("storm volume");
+    let storm =
+        vwb_render::volume::load(&data_dir().join("storm_wind_ncsa_25x14x8_float32x3.nhdr"))
+            .expect("storm volume");
     let field = GridField::from_volume(&storm).unwrap();
     let dims = storm.dims.map(|d| d * factor);
     let noise = noise_volume(dims, kind, 11);

@@ -10,6 +10,7 @@ mod cli;
 mod common;
 mod composer;
 mod coverage;
+mod data;
 mod dos;
 mod extremes;
 mod flow;

@@ -32,13 +32,24 @@ fn every_shipped_preset_loads_and_composes() {
             loaded.warnings
         );
         let doc = loaded.document;
-        if let VolumeSource::File(f) = &doc.volume {
-            assert!(
-                f.exists(),
-                "{}: volume {} missing",
-                path.display(),
-                f.display()
-            );
+        match &doc.volume {
+            VolumeSource::File(f) => {
+                // a shipped preset names no path outside the repository
+                let f = f
+                    .canonicalize()
+                    .unwrap_or_else(|e| panic!("{}: volume {}: {e}", path.display(), f.display()));
+                assert!(
+                    f.starts_with(repo().canonicalize().unwrap()),
+                    "{}: volume {} is outside the repository (name a Sample)",
+                    path.display(),
+                    f.display()
+                );
+            }
+            VolumeSource::Sample(name) => {
+                vwb_render::samples::resolve(name)
+                    .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+            }
+            VolumeSource::Demo => {}
         }
         let configured: Vec<_> = doc
             .stack
@@ -123,6 +134,10 @@ fn bad_values_fail_with_their_path() {
         (
             r#"(version: 1, plugins: [(id: "test.smooth", params: {"radius": 1.5})])"#,
             "test.smooth.radius",
+        ),
+        (
+            r#"(version: 1, volume: Sample("ct_hed"))"#,
+            "volume: unknown sample 'ct_hed' (known: ct_head,",
         ),
     ];
     for (text, want) in cases {

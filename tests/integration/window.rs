@@ -14,7 +14,8 @@ use vwb_render::preset::{Document, VolumeSource};
 
 use crate::common::{gpu, registry, repo, tmp};
 
-const CT: &str = "../shared/data/ct_cranium_256x256x108_int16.nhdr";
+/// The CT head's header file in the sample data directory.
+const CT: &str = "ct_cranium_256x256x108_int16.nhdr";
 
 /// The window on `doc` at 1100×800, drawing at `scale` × the viewport's resolution.
 pub(crate) fn window(doc: Document, scale: f32) -> Harness<'static, Workbench> {
@@ -23,10 +24,22 @@ pub(crate) fn window(doc: Document, scale: f32) -> Harness<'static, Workbench> {
 
 /// [`window`], with kittest's check that every widget has an accessible name on or off.
 fn window_checked(doc: Document, scale: f32, accessibility: bool) -> Harness<'static, Workbench> {
+    window_sized(doc, scale, accessibility, [1100.0, 800.0])
+}
+
+/// [`window_checked`] at a window size.
+fn window_sized(
+    doc: Document,
+    scale: f32,
+    accessibility: bool,
+    size: [f32; 2],
+) -> Harness<'static, Workbench> {
     gpu();
+    // the sample data directory of the tests
+    repo();
     let volume = vwb_app::headless::load_volume(&doc.volume).expect("volume");
     let mut h = Harness::builder()
-        .with_size([1100.0, 800.0])
+        .with_size(size)
         .with_accessibility_check(accessibility)
         .wgpu_setup(wgpu_configuration().wgpu_setup)
         .build_eframe(move |cc| {
@@ -108,13 +121,19 @@ fn add_plugin(h: &mut Harness<'_, Workbench>, category: &str, name: &str) {
     click(h, name);
 }
 
-/// Replaces the text of the text field now showing `current`.
+/// The path fields' hint texts (they start empty).
+const PRESET_FIELD: &str = "preset file (.ron)";
+const VOLUME_FIELD: &str = "volume file or sample";
+
+/// Replaces the text of the text field now showing `current` (or with the hint text
+/// `current`).
 fn retype(h: &mut Harness<'_, Workbench>, current: &str, text: &str) {
     let current = current.to_string();
     let field = || {
         let c = current.clone();
         move |n: &egui_kittest::kittest::AccessKitNode<'_>| {
-            n.role() == egui::Role::TextInput && n.value().as_deref() == Some(c.as_str())
+            n.role() == egui::Role::TextInput
+                && (n.value().as_deref() == Some(c.as_str()) || n.placeholder() == Some(c.as_str()))
         }
     };
     h.get_by(field()).scroll_to_me();
@@ -274,12 +293,18 @@ fn window_edits_a_scene_like_a_user() {
     // save the preset, change the scene, open the preset again: the same image
     let file = tmp("window_preset.ron");
     let _ = std::fs::remove_file(&file);
-    retype(&mut h, "presets/my_preset.ron", file.to_str().unwrap());
+    retype(&mut h, PRESET_FIELD, file.to_str().unwrap());
     click(&mut h, "Save preset");
     assert!(
         matches!(h.state().file_status(), Some(Ok(m)) if m.starts_with("saved")),
         "{:?}",
         h.state().file_status()
+    );
+    // its thumbnail beside it, for the preset browser
+    let thumb = image::open(file.with_file_name("window_preset.thumb.png")).unwrap();
+    assert_eq!(
+        thumb.width().max(thumb.height()),
+        vwb_app::browser_ui::THUMB
     );
     let saved = image(&h);
     click_nth(&mut h, "parameters", 1);
@@ -316,11 +341,11 @@ fn window_edits_a_scene_like_a_user() {
 /// the Pareto plot and apply a point.
 #[test]
 fn window_ct_flow_phong_dos_tf_sweep_pareto() {
-    let ct = repo().join(CT);
+    let ct = crate::common::data_dir().join(CT);
     let mut h = demo_window();
 
     // load the CT head into the demo scene
-    retype(&mut h, "../shared/data/", ct.to_str().unwrap());
+    retype(&mut h, VOLUME_FIELD, ct.to_str().unwrap());
     click(&mut h, "Open volume");
     assert!(
         matches!(h.state().file_status(), Some(Ok(_))),
@@ -328,6 +353,7 @@ fn window_ct_flow_phong_dos_tf_sweep_pareto() {
         h.state().file_status()
     );
     assert_eq!(h.state().renderer().volume().dims, [256, 256, 108]);
+    assert_fitted(&h);
 
     // a bad volume path is refused, naming the file; the CT stays
     let bad = tmp("no_such_volume.nhdr");
@@ -340,14 +366,13 @@ fn window_ct_flow_phong_dos_tf_sweep_pareto() {
     assert_eq!(h.state().renderer().volume().dims, [256, 256, 108]);
 
     // pick the CT preset with Blinn–Phong
-    retype(
-        &mut h,
-        "presets/my_preset.ron",
-        "presets/ct_shade_phong.ron",
-    );
+    retype(&mut h, PRESET_FIELD, "presets/ct_shade_phong.ron");
     click(&mut h, "Open preset");
     assert!(ids(&h).contains(&"shade.blinn_phong"), "{:?}", ids(&h));
-    assert!(matches!(h.state().document().volume, VolumeSource::File(_)));
+    assert_eq!(
+        h.state().document().volume,
+        VolumeSource::Sample("ct_head".into())
+    );
     // opening it again uploads nothing, creates and compiles nothing
     let before = h.state().renderer().counters();
     click(&mut h, "Open preset");
@@ -507,7 +532,15 @@ fn window_refuses_a_broken_preset_and_keeps_the_scene() {
     // a fixed path: it is shown in the snapshot below
     let bad = std::env::temp_dir().join("vwb_window_bad_preset.ron");
     std::fs::write(&bad, "(version: 1, plugins: [ (id: \"classify.nope\") ]").unwrap();
-    retype(&mut h, "presets/my_preset.ron", bad.to_str().unwrap());
+    // the path fields start empty, not in a development checkout
+    for hint in [PRESET_FIELD, VOLUME_FIELD] {
+        let field = h.get_by(|n| n.placeholder() == Some(hint));
+        assert_eq!(field.value().as_deref(), Some(""), "{hint}");
+    }
+    // the viewport explains the camera; the TF editor its axes
+    assert!(h.query_by_label(vwb_app::window::CAMERA_HINT).is_some());
+    assert!(h.query_by_label_contains("y: opacity 0 … 1").is_some());
+    retype(&mut h, PRESET_FIELD, bad.to_str().unwrap());
     click(&mut h, "Open preset");
     match h.state().file_status() {
         Some(Err(e)) => assert!(e.contains("vwb_window_bad_preset.ron"), "{e}"),
@@ -524,6 +557,91 @@ fn window_refuses_a_broken_preset_and_keeps_the_scene() {
     h.remove_cursor();
     h.run_steps(2);
     h.snapshot("window_demo");
+
+    // the session (what the window reopens next time) restores the scene and camera
+    let session = h.state().session();
+    let camera = h.state().document().camera;
+    h.state_mut().document_mut().camera.orbit(40.0, 10.0);
+    h.state_mut().restore_session(&session).unwrap();
+    assert_eq!(h.state().document().camera, camera);
+
+    // a preset naming a sample that the data directory lacks: the error names the
+    // fetch command and the button fetches it in the background, then opens the preset
+    let data = tmp("window-data");
+    let _ = std::fs::remove_dir_all(&data);
+    h.state_mut().set_data_dir(data.clone());
+    let preset = tmp("window_sample.ron");
+    std::fs::write(&preset, r#"(version: 1, volume: Sample("mri_head"))"#).unwrap();
+    retype(&mut h, bad.to_str().unwrap(), preset.to_str().unwrap());
+    click(&mut h, "Open preset");
+    match h.state().file_status() {
+        Some(Err(e)) => assert!(e.contains("run `vwb data fetch mri_head`"), "{e}"),
+        other => panic!("{other:?}"),
+    }
+    click(&mut h, "Fetch mri_head");
+    step_until(&mut h, Duration::from_secs(60), |h| {
+        h.state().document().volume == VolumeSource::Sample("mri_head".into())
+    });
+    assert_eq!(h.state().renderer().volume().dims, [128, 128, 84]);
+    assert!(data.join("mri_head_volpack_128x128x84_uint8.raw").exists());
+    assert!(h.query_by_label("Fetch mri_head").is_none());
+
+    // the preset browser: shipped presets and the user's, thumbnails rendered in the
+    // background and cached; a click opens one
+    let cache = tmp("thumbnails");
+    let _ = std::fs::remove_dir_all(&cache);
+    h.state_mut().browser().cache = Some(cache.clone());
+    click(&mut h, "Preset browser");
+    let names: Vec<String> = h
+        .state_mut()
+        .browser()
+        .names()
+        .iter()
+        .map(|n| n.to_string())
+        .collect();
+    for n in ["ct_head", "demo", "demo_preintegrated", "window_sample"] {
+        assert!(names.iter().any(|m| m == n), "{n} in {names:?}");
+    }
+    step_until(&mut h, Duration::from_secs(120), |h| {
+        let b = h.state_mut().browser();
+        assert_eq!(b.failure("ct_bone"), None);
+        b.ready("ct_bone")
+    });
+    assert!(cache.join("ct_bone.png").exists());
+    assert!(h.query_by_label("thumbnail of ct_bone").is_some());
+    let n = h.get_all_by_label("demo_preintegrated").count();
+    assert_eq!(n, 1);
+    h.get_by_label("demo_preintegrated").scroll_to_me();
+    h.run_steps(5);
+    h.get_by_label("demo_preintegrated").click_accesskit();
+    h.run_steps(3);
+    assert!(
+        h.state().document().description.contains("pre-integrated"),
+        "{:?}",
+        h.state().file_status()
+    );
+}
+
+/// Every corner of the volume's box is inside the (square) view, the widest near the
+/// edge: the camera was fitted to the volume.
+fn assert_fitted(h: &Harness<'_, Workbench>) {
+    let b = *h.state().renderer().volume_box();
+    let v = h.state().document().camera.view(1.0);
+    let mut widest = 0.0f32;
+    for i in 0..8 {
+        let p = glam::Vec3::new(
+            if i & 1 == 0 { b.min.x } else { b.max.x },
+            if i & 2 == 0 { b.min.y } else { b.max.y },
+            if i & 4 == 0 { b.min.z } else { b.max.z },
+        );
+        let ndc = (v.proj * v.view).project_point3(p);
+        assert!(
+            ndc.x.abs() <= 1.0 && ndc.y.abs() <= 1.0,
+            "corner {i} cropped: {ndc}"
+        );
+        widest = widest.max(ndc.x.abs()).max(ndc.y.abs());
+    }
+    assert!(widest > 0.8, "the volume fills the view ({widest})");
 }
 
 /// The UI benchmark of docs/perf.md: frame time of the window (1100×800) with the CT
@@ -649,7 +767,7 @@ fn window_drop_files_edit_the_2d_tf_and_compare() {
     });
 
     // a volume dropped on the window replaces the demo, the stack stays
-    drop_file(&mut h, repo().join(CT));
+    drop_file(&mut h, crate::common::data_dir().join(CT));
     assert_eq!(h.state().renderer().volume().dims, [256, 256, 108]);
     assert_eq!(ids(&h), ["classify.tf2d"]);
     assert!(h.state().recent().len() >= 2, "{:?}", h.state().recent());
@@ -683,4 +801,24 @@ fn window_file_dialog_opens_a_preset() {
         h.state().file_status()
     );
     assert_eq!(ids(&h), ["classify.tf2d"]);
+}
+
+/// At the default window size (1000×720) the side panel scrolls: the Compare and
+/// Trade-off sections at its bottom can be reached and opened.
+#[test]
+fn window_side_panel_scrolls_at_the_default_size() {
+    let mut h = window_sized(default_document(&registry()), 0.25, true, [1000.0, 720.0]);
+    click(&mut h, "Trade-off: sweep and Pareto plot");
+    h.get_by_label("Run sweep").scroll_to_me();
+    settle(&mut h);
+    let run = h.get_by_label("Run sweep").rect();
+    assert!(run.max.y <= 720.0, "Run sweep is off screen: {run:?}");
+    click(&mut h, "Compare with the CPU reference");
+    h.get_by_label("Compute reference").scroll_to_me();
+    settle(&mut h);
+    let compute = h.get_by_label("Compute reference").rect();
+    assert!(
+        compute.max.y <= 720.0,
+        "Compute reference is off screen: {compute:?}"
+    );
 }

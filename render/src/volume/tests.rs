@@ -12,13 +12,18 @@ use super::*;
 
 // ---------------------------------------------------------------- helpers
 
-/// The shared test volumes (`shared/data` beside the repository).
+/// The sample data files: `VWB_DATA_DIR`, else the shared copy beside the repository.
 fn shared(name: &str) -> PathBuf {
-    let dir = Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/data"));
+    let dir = std::env::var_os(crate::samples::DATA_DIR_ENV)
+        .filter(|d| !d.is_empty())
+        .map(PathBuf::from)
+        .unwrap_or_else(|| {
+            Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/data")).to_path_buf()
+        });
     let path = dir.join(name);
     assert!(
         path.is_file(),
-        "test data {} is missing (expected shared/data beside the repository)",
+        "test data {} is missing (set VWB_DATA_DIR to the sample files: vwb data list)",
         path.display()
     );
     path

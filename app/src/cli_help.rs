@@ -1,0 +1,131 @@
+//! Worked examples shown under `vwb --help` and each subcommand's help (clap
+//! `after_help`). Every line that starts with `vwb ` is a complete command that the
+//! tests parse with the real argument parser.
+
+pub const VWB: &str = "\
+Examples:
+  # the window on the embedded demo (an MRI head)
+  vwb
+  # the window on a preset; its sample data set comes from `vwb data fetch ct_head`
+  vwb --preset presets/ct_head.ron
+  # headless: render a preset to a PNG
+  vwb render --preset presets/demo.ron -o demo.png
+  # which sample data sets are present
+  vwb data list";
+
+pub const RENDER: &str = "\
+Examples:
+  vwb render --preset presets/demo.ron --size 256x256 -o demo.png
+  # the CT head on the compute backend, with per-frame timings
+  vwb render --preset presets/ct_head.ron --backend compute --timings -o ct.png
+  # another volume (a file or a sample name) under the same preset
+  vwb render --preset presets/nuclei.ron --volume nuclei --spacing 0.5 -o nuclei.png";
+
+pub const COMPARE: &str = "\
+Examples:
+  # against the CPU reference with the same slices
+  vwb compare --preset presets/demo.ron -o out/compare
+  # against the converged reference (how far from the exact image)
+  vwb compare --preset presets/demo.ron --against converged --size 128x128 -o out/converged";
+
+pub const BENCH: &str = "\
+Example:
+  vwb bench --preset presets/ct_shade_phong.ron --frames 10 -o bench.csv";
+
+pub const SWEEP: &str = "\
+Example:
+  # three slice spacings and two opacity scales: time and error of each
+  vwb sweep --preset presets/demo.ron --param render.slice_spacing=0.5..2:3:log --param classify.tf1d.opacity=0.5,1 -o out/sweep";
+
+pub const SCENE: &str = "\
+Example:
+  vwb scene --preset presets/ct_head.ron --size 256x256";
+
+pub const CLASSIFICATION: &str = "\
+Example:
+  vwb classification --scene presets/demo_preintegrated.ron --spacings 0.5,1,2 -o out/classification";
+
+pub const SUGGEST_TF: &str = "\
+Examples:
+  # a sample by name, or a volume file
+  vwb suggest-tf --volume ct_head -o ct_tf.ron
+  vwb suggest-tf --max-opacity 0.3 -o demo_tf.ron";
+
+pub const DOS_STUDY: &str = "\
+Example:
+  # a quick, small study (the default writes docs/dos.md at 48x48)
+  vwb dos-study --size 24 --directions 8 --ct skip -o out/dos.md";
+
+pub const INFO: &str = "\
+Example:
+  vwb info";
+
+pub const DATA: &str = "\
+Examples:
+  vwb data list
+  # mri_head comes from the binary itself
+  vwb data fetch mri_head
+  # the others from a mirror of the sample files: a URL or a folder
+  vwb data fetch --from https://mirror.example.org/vwb-data ct_head nuclei
+  vwb data fetch --from /mnt/lab/vwb-data";
+
+pub const DATA_LIST: &str = "\
+Example:
+  # the data directory is $VWB_DATA_DIR, else the user's cache + vwb/data
+  vwb data list";
+
+pub const DATA_FETCH: &str = "\
+Examples:
+  vwb data fetch mri_head
+  vwb data fetch --from https://mirror.example.org/vwb-data ct_head
+  # an interrupted download resumes when the same command runs again
+  vwb data fetch --from /mnt/lab/vwb-data";
+
+#[cfg(test)]
+mod tests {
+    use clap::{CommandFactory, Parser};
+
+    use crate::cli::Cli;
+
+    /// The commands of a help text's example lines.
+    fn examples(help: &str) -> Vec<Vec<String>> {
+        help.lines()
+            .map(str::trim)
+            .filter(|l| l.starts_with("vwb"))
+            .map(|l| l.split_whitespace().map(str::to_string).collect())
+            .collect()
+    }
+
+    #[test]
+    fn every_command_shows_examples_that_parse() {
+        let mut cmd = Cli::command();
+        let mut helps = vec![("vwb".to_string(), cmd.render_long_help().to_string())];
+        cmd.build();
+        for sub in cmd.get_subcommands_mut().filter(|s| s.get_name() != "help") {
+            let name = sub.get_name().to_string();
+            helps.push((name.clone(), sub.render_long_help().to_string()));
+            for inner in sub.get_subcommands_mut().filter(|s| s.get_name() != "help") {
+                let inner_name = format!("{name} {}", inner.get_name());
+                helps.push((inner_name, inner.render_long_help().to_string()));
+            }
+        }
+        assert!(helps.len() >= 13, "{}", helps.len());
+        for (name, help) in helps {
+            let cmds = examples(&help);
+            assert!(
+                help.contains("Example") && !cmds.is_empty(),
+                "`vwb {name} --help` shows no example:\n{help}"
+            );
+            let prefix = format!("vwb {name}");
+            assert!(
+                name == "vwb" || cmds.iter().any(|c| c.join(" ").starts_with(&prefix)),
+                "`vwb {name} --help`: no example runs {prefix}"
+            );
+            for c in cmds {
+                if let Err(e) = Cli::try_parse_from(&c) {
+                    panic!("{name}: example `{}` does not parse: {e}", c.join(" "));
+                }
+            }
+        }
+    }
+}
