@@ -212,18 +212,57 @@ impl GpuInit<'_> {
     /// Uploads straight RGBA texels (row by row, the texture's full size) into a table
     /// texture, converting to its format (rgba32float or rgba16float).
     pub fn write_table(&self, table: &GpuResource, texels: &[[f32; 4]]) {
-        let format = table.texture.format();
+        self.write_floats(table, texels.as_flattened());
+    }
+
+    /// A filterable `dims` 3D float texture with 1 or 4 channels, sampled by hooks with
+    /// `linear_clamp`: 32-bit where the device filters those, else 16-bit. Fill it with
+    /// [`GpuInit::write_floats`].
+    pub fn create_volume_texture(&self, label: &str, dims: [u32; 3], channels: u32) -> GpuResource {
+        let f32_ok = self.features.contains(wgpu::Features::FLOAT32_FILTERABLE);
+        let format = match (channels, f32_ok) {
+            (1, true) => wgpu::TextureFormat::R32Float,
+            (1, false) => wgpu::TextureFormat::R16Float,
+            (_, true) => wgpu::TextureFormat::Rgba32Float,
+            (_, false) => wgpu::TextureFormat::Rgba16Float,
+        };
+        let texture = self.device.create_texture(&wgpu::TextureDescriptor {
+            label: Some(label),
+            size: wgpu::Extent3d {
+                width: dims[0],
+                height: dims[1],
+                depth_or_array_layers: dims[2],
+            },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D3,
+            format,
+            usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+            view_formats: &[],
+        });
+        GpuResource {
+            view: texture.create_view(&Default::default()),
+            texture,
+        }
+    }
+
+    /// Uploads float values (x fastest, as many per texel as the texture has channels,
+    /// the texture's full size, 2D or 3D), converting to its 32- or 16-bit float format.
+    pub fn write_floats(&self, r: &GpuResource, values: &[f32]) {
+        let format = r.texture.format();
         let bytes: Vec<u8> = match format {
-            wgpu::TextureFormat::Rgba32Float => bytemuck::cast_slice(texels).to_vec(),
-            _ => texels
+            wgpu::TextureFormat::Rgba32Float | wgpu::TextureFormat::R32Float => {
+                bytemuck::cast_slice(values).to_vec()
+            }
+            _ => values
                 .iter()
-                .flat_map(|c| c.iter().flat_map(|v| half::f16::from_f32(*v).to_le_bytes()))
+                .flat_map(|v| half::f16::from_f32(*v).to_le_bytes())
                 .collect(),
         };
-        let size = table.texture.size();
+        let size = r.texture.size();
         let bpp = format.block_copy_size(None).unwrap_or(16);
         self.queue.write_texture(
-            table.texture.as_image_copy(),
+            r.texture.as_image_copy(),
             &bytes,
             wgpu::TexelCopyBufferLayout {
                 offset: 0,

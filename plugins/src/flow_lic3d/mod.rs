@@ -127,65 +127,6 @@ pub fn lic_of(volume: &Volume, frequency: u32, params: &ParamValues) -> GridFiel
     }
 }
 
-/// A filterable 3D float texture: four channels (the field) or one (the noise), 32-bit
-/// where the device filters them, else 16-bit.
-fn create_3d(gpu: &GpuInit, label: &str, dims: [u32; 3], channels: u32) -> GpuResource {
-    let f32_ok = gpu
-        .features
-        .contains(wgpu::Features::FLOAT32_FILTERABLE);
-    let format = match (channels, f32_ok) {
-        (1, true) => wgpu::TextureFormat::R32Float,
-        (1, false) => wgpu::TextureFormat::R16Float,
-        (_, true) => wgpu::TextureFormat::Rgba32Float,
-        (_, false) => wgpu::TextureFormat::Rgba16Float,
-    };
-    let texture = gpu.device.create_texture(&wgpu::TextureDescriptor {
-        label: Some(label),
-        size: wgpu::Extent3d {
-            width: dims[0],
-            height: dims[1],
-            depth_or_array_layers: dims[2],
-        },
-        mip_level_count: 1,
-        sample_count: 1,
-        dimension: wgpu::TextureDimension::D3,
-        format,
-        usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
-        view_formats: &[],
-    });
-    GpuResource {
-        view: texture.create_view(&Default::default()),
-        texture,
-    }
-}
-
-/// Uploads texel values (x fastest, as many channels per texel as the texture has) into
-/// a texture of [`create_3d`].
-fn write_3d(gpu: &GpuInit, r: &GpuResource, values: &[f32]) {
-    let format = r.texture.format();
-    let bytes: Vec<u8> = match format {
-        wgpu::TextureFormat::Rgba32Float | wgpu::TextureFormat::R32Float => {
-            values.iter().flat_map(|v| v.to_le_bytes()).collect()
-        }
-        _ => values
-            .iter()
-            .flat_map(|v| half::f16::from_f32(*v).to_le_bytes())
-            .collect(),
-    };
-    let size = r.texture.size();
-    let bpp = format.block_copy_size(None).unwrap_or(16);
-    gpu.queue.write_texture(
-        r.texture.as_image_copy(),
-        &bytes,
-        wgpu::TexelCopyBufferLayout {
-            offset: 0,
-            bytes_per_row: Some(size.width * bpp),
-            rows_per_image: Some(size.height),
-        },
-        size,
-    );
-}
-
 impl Plugin for Lic3d {
     fn id(&self) -> &'static str {
         "flow.lic3d"
@@ -270,17 +211,17 @@ impl Plugin for Lic3d {
                     .chunks_exact(c)
                     .flat_map(|v| [v[0], v[1], if c > 2 { v[2] } else { 0.0 }, 0.0])
                     .collect();
-                let r = create_3d(gpu, "flow.lic3d field", f.dims, 4);
-                write_3d(gpu, &r, &texels);
+                let r = gpu.create_volume_texture("flow.lic3d field", f.dims, 4);
+                gpu.write_floats(&r, &texels);
                 r
             }
             None => {
-                let r = create_3d(gpu, "flow.lic3d field (none)", [1, 1, 1], 4);
-                write_3d(gpu, &r, &[0.0; 4]);
+                let r = gpu.create_volume_texture("flow.lic3d field (none)", [1, 1, 1], 4);
+                gpu.write_floats(&r, &[0.0; 4]);
                 r
             }
         };
-        let res = vec![field, create_3d(gpu, "flow.lic3d noise", dims, 1)];
+        let res = vec![field, gpu.create_volume_texture("flow.lic3d noise", dims, 1)];
         self.update_resources(gpu, params, &res)?;
         Ok(res)
     }
@@ -296,7 +237,7 @@ impl Plugin for Lic3d {
         };
         let dims = lic_dims(gpu.volume, self.frequency);
         let n = noise_volume(dims, noise_kind(params), params.int("seed") as u64);
-        write_3d(gpu, noise, &n.data);
+        gpu.write_floats(noise, &n.data);
         Ok(())
     }
     fn cpu_twin(&self, params: &ParamValues) -> Option<Box<dyn CpuTwin>> {
