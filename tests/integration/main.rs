@@ -5,6 +5,7 @@
 
 mod classification;
 mod cli;
+mod clipping;
 mod common;
 mod composer;
 mod coverage;
