@@ -4,6 +4,7 @@
 pub mod classification;
 pub mod cli;
 pub mod compare_ui;
+pub mod crop;
 pub mod custom_ui;
 pub mod dos_study;
 pub mod headless;

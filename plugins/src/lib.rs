@@ -29,6 +29,7 @@ macro_rules! builtin_plugins {
 // One line per plugin: its folder and its value.
 builtin_plugins! {
     clip_shapes => clip_shapes::Shapes,
+    clip_labels => clip_labels::ClipLabels,
     classify_tf1d => classify_tf1d::Tf1d::default(),
     classify_labels => classify_labels::Labels,
     classify_tf2d => classify_tf2d::Tf2dPlugin::default(),
@@ -91,7 +92,7 @@ mod tests {
     #[test]
     fn builtins_register_without_clash() {
         let r = builtin_registry();
-        assert_eq!(r.plugins().len(), 13);
+        assert_eq!(r.plugins().len(), 14);
         let mut fresh = Registry::new();
         for p in r.plugins() {
             fresh.register(p.clone()).unwrap();

@@ -69,17 +69,23 @@ pub struct LabelGrid {
 impl LabelGrid {
     /// Nearest-voxel label at a texture coordinate, as the shader's `floor(tex·dims)`.
     pub fn at(&self, tex: DVec3) -> u8 {
-        let d = self.dims.map(|n| n.max(1) as usize);
-        let idx = |a: usize| {
-            let f = (tex[a] * d[a] as f64).floor();
-            if f.is_nan() {
-                0
-            } else {
-                (f.max(0.0) as usize).min(d[a] - 1)
-            }
-        };
-        self.labels[(idx(2) * d[1] + idx(1)) * d[0] + idx(0)]
+        self.labels[nearest_voxel(self.dims, tex)]
     }
+}
+
+/// Linear index (x fastest) of the voxel nearest to a texture coordinate, as the
+/// shaders' `clamp(floor(tex·dims), 0, dims − 1)`.
+pub fn nearest_voxel(dims: [u32; 3], tex: DVec3) -> usize {
+    let d = dims.map(|n| n.max(1) as usize);
+    let idx = |a: usize| {
+        let f = (tex[a] * d[a] as f64).floor();
+        if f.is_nan() {
+            0
+        } else {
+            (f.max(0.0) as usize).min(d[a] - 1)
+        }
+    };
+    (idx(2) * d[1] + idx(1)) * d[0] + idx(0)
 }
 
 /// Loads a u8 label volume (cached per path and modification time).

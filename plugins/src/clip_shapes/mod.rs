@@ -182,7 +182,7 @@ impl Plugin for Shapes {
         p.set(k[0].axis, ParamValue::Vec3([1.0, 0.3, 0.2]));
         p.set(k[0].center, ParamValue::Vec3([0.1, 0.0, 0.0]));
         p.set(k[1].kind, ParamValue::Enum("sphere".into()));
-        p.set(k[1].size, ParamValue::Vec3([0.45, 0.0, 0.0]));
+        p.set(k[1].size, ParamValue::Vec3([0.3, 0.0, 0.0]));
         p.set("soft_edge", ParamValue::Float(1.0));
         Some(p)
     }
