@@ -9,6 +9,12 @@ pub use vwb_render::plugin::*;
 
 pub mod lighting;
 
+/// A generated parameter key or label as `&'static str` (parameter specs need them);
+/// callers make each once, in a `OnceLock`.
+pub(crate) fn static_str(s: String) -> &'static str {
+    Box::leak(s.into_boxed_str())
+}
+
 use std::sync::Arc;
 
 use params::{ParamKind, ParamValue, ParamValues};

@@ -8,9 +8,8 @@
 //! byte per voxel (255 = kept), the GPU resource `kept`, re-uploaded when the
 //! selection changes; the twin reads the same bytes.
 
-use std::collections::HashMap;
-use std::path::{Path, PathBuf};
-use std::sync::{Arc, Mutex, OnceLock};
+use std::path::Path;
+use std::sync::{Arc, OnceLock};
 
 use vwb_render::params::{ParamSpec, ParamValue, ParamValues};
 use vwb_render::plugin::{
@@ -19,7 +18,8 @@ use vwb_render::plugin::{
 };
 use vwb_render::volume::VoxelData;
 
-use crate::classify_labels::nearest_voxel;
+use crate::classify_labels::{cached_load, label_file, nearest_voxel};
+use crate::static_str;
 
 #[cfg(test)]
 mod tests;
@@ -31,8 +31,7 @@ pub const RANGES: usize = 8;
 pub fn range_keys() -> &'static [(&'static str, &'static str); RANGES] {
     static KEYS: OnceLock<[(&'static str, &'static str); RANGES]> = OnceLock::new();
     KEYS.get_or_init(|| {
-        let leak = |s: String| -> &'static str { Box::leak(s.into_boxed_str()) };
-        std::array::from_fn(|i| (leak(format!("range{i}_from")), leak(format!("range{i}_to"))))
+        std::array::from_fn(|i| (static_str(format!("range{i}_from")), static_str(format!("range{i}_to"))))
     })
 }
 
@@ -45,36 +44,24 @@ pub struct LabelVolume {
 
 /// Loads a u8 or u16 label volume (cached per path and modification time).
 pub fn load_label_volume(path: &Path) -> Result<Arc<LabelVolume>, String> {
-    type Cache = Mutex<HashMap<(PathBuf, Option<std::time::SystemTime>), Arc<LabelVolume>>>;
-    static CACHE: OnceLock<Cache> = OnceLock::new();
-    let key = (
-        path.to_path_buf(),
-        std::fs::metadata(path).and_then(|m| m.modified()).ok(),
-    );
-    let cache = CACHE.get_or_init(Default::default);
-    if let Some(v) = cache.lock().ok().and_then(|c| c.get(&key).cloned()) {
-        return Ok(v);
-    }
-    let v = vwb_render::volume::load(path).map_err(|e| e.to_string())?;
-    let labels = match (v.components, v.data) {
-        (1, VoxelData::U8(l)) => l.into_iter().map(u16::from).collect(),
-        (1, VoxelData::U16(l)) => l,
-        (c, d) => {
-            return Err(format!(
-                "{}: a label volume must hold one u8 or u16 scalar per voxel, found {c} × {}",
-                path.display(),
-                VoxelData::scalar_type(&d).name()
-            ));
-        }
-    };
-    let grid = Arc::new(LabelVolume {
-        dims: v.dims,
-        labels,
-    });
-    if let Ok(mut c) = cache.lock() {
-        c.insert(key, grid.clone());
-    }
-    Ok(grid)
+    cached_load(path, |path| {
+        let v = vwb_render::volume::load(path).map_err(|e| e.to_string())?;
+        let labels = match (v.components, v.data) {
+            (1, VoxelData::U8(l)) => l.into_iter().map(u16::from).collect(),
+            (1, VoxelData::U16(l)) => l,
+            (c, d) => {
+                return Err(format!(
+                    "{}: a label volume must hold one u8 or u16 scalar per voxel, found {c} × {}",
+                    path.display(),
+                    d.scalar_type().name()
+                ));
+            }
+        };
+        Ok(LabelVolume {
+            dims: v.dims,
+            labels,
+        })
+    })
 }
 
 /// The selection of a parameter set: whether `label` is kept.
@@ -118,19 +105,7 @@ fn error(message: String) -> PluginError {
 
 /// The label volume of the parameters, checked against the data's dims.
 fn volume_for(params: &ParamValues, data_dims: [u32; 3]) -> Result<Arc<LabelVolume>, PluginError> {
-    let path = params
-        .path("labels")
-        .ok_or_else(|| error("no label volume set (parameter `labels`)".into()))?;
-    let v = load_label_volume(path).map_err(error)?;
-    if v.dims != data_dims {
-        return Err(error(format!(
-            "{}: label volume dims {:?} differ from the data's {:?}",
-            path.display(),
-            v.dims,
-            data_dims
-        )));
-    }
-    Ok(v)
+    label_file("clip.labels", params, data_dims, load_label_volume, |v| v.dims)
 }
 
 pub struct ClipLabels;

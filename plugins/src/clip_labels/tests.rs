@@ -1,3 +1,5 @@
+use std::path::PathBuf;
+
 use glam::DVec3;
 use vwb_render::params::{ParamValue, ParamValues};
 use vwb_render::plugin::{CpuSample, CpuTwin, Plugin};

@@ -35,6 +35,8 @@ use vwb_render::plugin::{
 };
 use vwb_render::shading::{safe_normalize, set_cut_gradient};
 
+use crate::static_str;
+
 #[cfg(test)]
 mod tests;
 
@@ -59,13 +61,12 @@ pub struct SlotKeys {
 pub fn slot_keys() -> &'static [SlotKeys; SLOTS] {
     static KEYS: OnceLock<[SlotKeys; SLOTS]> = OnceLock::new();
     KEYS.get_or_init(|| {
-        let leak = |s: String| -> &'static str { Box::leak(s.into_boxed_str()) };
         std::array::from_fn(|i| SlotKeys {
-            kind: leak(format!("shape{i}_kind")),
-            center: leak(format!("shape{i}_center")),
-            axis: leak(format!("shape{i}_axis")),
-            size: leak(format!("shape{i}_size")),
-            invert: leak(format!("shape{i}_invert")),
+            kind: static_str(format!("shape{i}_kind")),
+            center: static_str(format!("shape{i}_center")),
+            axis: static_str(format!("shape{i}_axis")),
+            size: static_str(format!("shape{i}_size")),
+            invert: static_str(format!("shape{i}_invert")),
         })
     })
 }
@@ -74,10 +75,9 @@ pub fn slot_keys() -> &'static [SlotKeys; SLOTS] {
 fn slot_labels() -> &'static [[&'static str; 5]; SLOTS] {
     static LABELS: OnceLock<[[&'static str; 5]; SLOTS]> = OnceLock::new();
     LABELS.get_or_init(|| {
-        let leak = |s: String| -> &'static str { Box::leak(s.into_boxed_str()) };
         std::array::from_fn(|i| {
             ["kind", "centre", "axis / normal", "size", "invert"]
-                .map(|what| leak(format!("Shape {i} {what}")))
+                .map(|what| static_str(format!("Shape {i} {what}")))
         })
     })
 }
