@@ -34,7 +34,7 @@ macro_rules! builtin_plugins {
 
 // One line per plugin: its folder and its value.
 builtin_plugins! {
-    clip_shapes => clip_shapes::Shapes,
+    clip_shapes => clip_shapes::Shapes::default(),
     clip_labels => clip_labels::ClipLabels,
     classify_tf1d => classify_tf1d::Tf1d::default(),
     classify_labels => classify_labels::Labels,

@@ -274,6 +274,7 @@ fn clipped_matter_casts_no_occlusion_in_dos() {
 
 /// Planes tangent to a sphere of radius `r` around the centre (normals on a spiral).
 fn planes(c: &mut PluginInstance, count: usize, r: f32) {
+    c.params.set("slots", ParamValue::Enum(count.to_string()));
     for i in 0..count {
         let z = 1.0 - (2.0 * i as f32 + 1.0) / count as f32;
         let rr = (1.0 - z * z).sqrt();
@@ -388,7 +389,8 @@ fn clipping_benchmark() {
          ## Overhead of clip planes\n\n\
          Embedded demo volume, `classify.tf1d`, compute backend, 128², spacing 1, \
          rgba16float, median of 15 frames (render and read back). The planes lie \
-         outside the volume (nothing is clipped; every plane is evaluated per sample). \
+         outside the volume (nothing is clipped; every plane is evaluated per sample); \
+         `slots` is set to the plane count, so the code visits exactly those slots. \
          No planes: {none:.2} ms.\n\n\
          | planes | frame ms | overhead |\n|---|---|---|\n{overhead}\n\
          The target of the issue is ≤ 5 % at 16 planes on the compute backend. On \
@@ -415,7 +417,19 @@ fn clipping_benchmark() {
          ## Open\n\n\
          - Clipped-value substitution (VTK/Slicer style) is not implemented; the \
          Weiskopf layer is.\n\
-         - `clip.mesh`, `clip.labels`, `vwb crop` and the window handles are not built yet.\n",
+         - `clip.mesh` and the window handles are not built yet.\n\
+         \n\
+         ## Also\n\n\
+         - `clip.labels`: hides or shows label ranges of a u8 or u16 label volume \
+         (nearest voxel; a per-voxel mask baked on the CPU), preset \
+         `presets/demo_clip_labels.ron`.\n\
+         - `vwb crop --preset P [--box x0,y0,z0,x1,y1,z1] -o sub.nhdr`: the bounding box of \
+         the voxels the preset's `clip.shapes` keep (or the box; upper bounds exclusive) \
+         as a detached NRRD with the source's type, spacing and `space origin` shifted \
+         by the box's offset.\n\
+         - Presets: `ct_clip_quadrant.ron` (cut-away octant, shading at the cut), \
+         `mri_clip_sphere.ron` (sphere, soft edge), `ct_dos_clip.ron` (DOS with a clip \
+         plane).\n",
         machine = vwb_app::measure::machine(),
         adapter = gpu().describe(),
     );

@@ -7,7 +7,8 @@ use super::*;
 use crate::lighting::testing::ramp_x;
 
 fn params(f: impl FnOnce(&mut ParamValues)) -> ParamValues {
-    let mut p = ParamValues::defaults(&Shapes.params());
+    let mut p = ParamValues::defaults(&Shapes::default().params());
+    p.set("slots", ParamValue::Enum("16".into()));
     f(&mut p);
     p
 }
@@ -29,19 +30,30 @@ fn kept(p: &ParamValues, pos: DVec3) -> bool {
 
 #[test]
 fn slots_and_generated_code_cover_sixteen_shapes() {
-    let specs = Shapes.params();
-    for k in slot_keys() {
+    let specs = Shapes::default().params();
+    let all = Shapes::default()
+        .configure(&params(|_| {}))
+        .expect("16 slots configure another plugin");
+    for (i, k) in slot_keys().iter().enumerate() {
         for key in [k.kind, k.center, k.axis, k.size, k.invert] {
             assert!(specs.iter().any(|s| s.key == key), "{key}");
-            assert!(Shapes.shader().source.contains(&format!("params.{key}")), "{key}");
+            assert!(all.shader().source.contains(&format!("params.{key}")), "{key}");
+            // the default four slots visit only their own
+            let four = Shapes::default().shader().source.contains(&format!("params.{key}"));
+            assert_eq!(four, i < 4, "{key}");
         }
     }
     assert_eq!(slot_keys().len(), 16);
+    // the twin reads as many slots as the code
+    let mut p = params(|p| set_shape(p, 5, "sphere", [0.0; 3], [1.0, 0.0, 0.0], [0.1; 3]));
+    assert_eq!(ClipRegion::from_params(&p).shapes.len(), 2);
+    p.set("slots", ParamValue::Enum("4".into()));
+    assert_eq!(ClipRegion::from_params(&p).shapes.len(), 1);
 }
 
 #[test]
 fn default_plane_keeps_the_side_away_from_its_normal() {
-    let p = ParamValues::defaults(&Shapes.params());
+    let p = ParamValues::defaults(&Shapes::default().params());
     assert!(kept(&p, DVec3::new(-0.1, 0.2, 0.3)));
     assert!(!kept(&p, DVec3::new(0.1, 0.2, 0.3)));
 }
@@ -170,7 +182,7 @@ fn soft_edge_ramps_alpha_over_its_width() {
     assert!((alpha(-voxel) - 0.4).abs() < 1e-9, "{}", alpha(-voxel));
     assert!((alpha(-3.0 * voxel) - 0.8).abs() < 1e-12);
     // without a soft edge α is unchanged
-    let mut hard = ShapesTwin::new(&ParamValues::defaults(&Shapes.params()));
+    let mut hard = ShapesTwin::new(&ParamValues::defaults(&Shapes::default().params()));
     hard.prepare(&ctx);
     let mut s = CpuSample {
         pos: DVec3::new(-1e-3, 0.0, 0.0),
@@ -244,6 +256,6 @@ fn bricks_wholly_clipped_are_reported_and_no_kept_point_is_lost() {
     assert!(clipped > 100, "{clipped}");
     // with the camera slab the promise is view-independent only
     let slab = params(|p| p.set("follow_camera", ParamValue::Bool(true)));
-    assert!(matches!(Shapes.transparency(&slab), Transparency::Keeps));
-    assert!(matches!(Shapes.transparency(&p), Transparency::Region(_)));
+    assert!(matches!(Shapes::default().transparency(&slab), Transparency::Keeps));
+    assert!(matches!(Shapes::default().transparency(&p), Transparency::Region(_)));
 }
