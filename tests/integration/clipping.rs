@@ -274,7 +274,6 @@ fn clipped_matter_casts_no_occlusion_in_dos() {
 
 /// Planes tangent to a sphere of radius `r` around the centre (normals on a spiral).
 fn planes(c: &mut PluginInstance, count: usize, r: f32) {
-    c.params.set("slots", ParamValue::Enum(count.to_string()));
     for i in 0..count {
         let z = 1.0 - (2.0 * i as f32 + 1.0) / count as f32;
         let rr = (1.0 - z * z).sqrt();
@@ -390,7 +389,7 @@ fn clipping_benchmark() {
          Embedded demo volume, `classify.tf1d`, compute backend, 128², spacing 1, \
          rgba16float, median of 15 frames (render and read back). The planes lie \
          outside the volume (nothing is clipped; every plane is evaluated per sample); \
-         `slots` is set to the plane count, so the code visits exactly those slots. \
+         the shape kinds are structural, so the code holds exactly those planes. \
          No planes: {none:.2} ms.\n\n\
          | planes | frame ms | overhead |\n|---|---|---|\n{overhead}\n\
          The target of the issue is ≤ 5 % at 16 planes on the compute backend. On \

@@ -18,31 +18,38 @@ fn basis_u(a: vec3<f32>) -> vec3<f32> {
     return safe_normalize(cross(h, a));
 }
 
-// Signed distance of `p` to one primitive. kind: 1 plane (normal `axis` points to the
-// outside), 2 box (half extents `size` along u, v, axis), 3 sphere (radius size.x),
-// 4 cylinder (radius size.x, half length size.z along `axis`).
-fn shape_sd(kind: u32, center: vec3<f32>, axis: vec3<f32>, size: vec3<f32>, invert: u32, p: vec3<f32>) -> f32 {
+// Signed distances of `p` to the primitives (negative inside, world units). A plane's
+// normal `axis` points to its outside; a box has half extents `size` along u, v and
+// `axis`; a sphere radius size.x; a cylinder radius size.x and half length size.z
+// along `axis`. The generated `clip_sd` calls the one of each slot's kind.
+fn sd_plane(center: vec3<f32>, axis: vec3<f32>, p: vec3<f32>) -> f32 {
+    return dot(p - center, safe_normalize(axis));
+}
+
+fn sd_box(center: vec3<f32>, axis: vec3<f32>, size: vec3<f32>, p: vec3<f32>) -> f32 {
     let a = safe_normalize(axis);
     let q = p - center;
-    var d = 0.0;
-    if (kind == 1u) {
-        d = dot(q, a);
-    } else if (kind == 2u) {
-        let u = basis_u(a);
-        let v = cross(a, u);
-        let e = abs(vec3<f32>(dot(q, u), dot(q, v), dot(q, a))) - size;
-        d = length(max(e, vec3<f32>(0.0))) + min(max(e.x, max(e.y, e.z)), 0.0);
-    } else if (kind == 3u) {
-        d = length(q) - size.x;
-    } else if (kind == 4u) {
-        let h = dot(q, a);
-        let e = vec2<f32>(length(q - a * h) - size.x, abs(h) - size.z);
-        d = length(max(e, vec2<f32>(0.0))) + min(max(e.x, e.y), 0.0);
-    }
-    if (invert != 0u) {
-        d = -d;
-    }
-    return d;
+    let u = basis_u(a);
+    let v = cross(a, u);
+    let e = abs(vec3<f32>(dot(q, u), dot(q, v), dot(q, a))) - size;
+    return length(max(e, vec3<f32>(0.0))) + min(max(e.x, max(e.y, e.z)), 0.0);
+}
+
+fn sd_sphere(center: vec3<f32>, size: vec3<f32>, p: vec3<f32>) -> f32 {
+    return length(p - center) - size.x;
+}
+
+fn sd_cylinder(center: vec3<f32>, axis: vec3<f32>, size: vec3<f32>, p: vec3<f32>) -> f32 {
+    let a = safe_normalize(axis);
+    let q = p - center;
+    let h = dot(q, a);
+    let e = vec2<f32>(length(q - a * h) - size.x, abs(h) - size.z);
+    return length(max(e, vec2<f32>(0.0))) + min(max(e.x, e.y), 0.0);
+}
+
+// An inverted primitive uses its outside.
+fn inverted(d: f32, invert: u32) -> f32 {
+    return select(d, -d, invert != 0u);
 }
 
 // The combination of the primitives' distances (0 intersection, 1 union, 2 complement),

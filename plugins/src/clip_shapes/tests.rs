@@ -8,7 +8,6 @@ use crate::lighting::testing::ramp_x;
 
 fn params(f: impl FnOnce(&mut ParamValues)) -> ParamValues {
     let mut p = ParamValues::defaults(&Shapes::default().params());
-    p.set("slots", ParamValue::Enum("16".into()));
     f(&mut p);
     p
 }
@@ -31,24 +30,31 @@ fn kept(p: &ParamValues, pos: DVec3) -> bool {
 #[test]
 fn slots_and_generated_code_cover_sixteen_shapes() {
     let specs = Shapes::default().params();
+    // every slot a sphere: the configured code reads every slot's parameters
+    let all_on = params(|p| {
+        for i in 0..SLOTS {
+            set_shape(p, i, "sphere", [0.0; 3], [1.0, 0.0, 0.0], [0.1; 3]);
+        }
+    });
     let all = Shapes::default()
-        .configure(&params(|_| {}))
-        .expect("16 slots configure another plugin");
+        .configure(&all_on)
+        .expect("other kinds configure another plugin");
+    let default_code = Shapes::default().shader().source;
     for (i, k) in slot_keys().iter().enumerate() {
-        for key in [k.kind, k.center, k.axis, k.size, k.invert] {
+        for key in [k.kind, k.center, k.size, k.invert] {
             assert!(specs.iter().any(|s| s.key == key), "{key}");
+        }
+        for key in [k.center, k.size, k.invert] {
             assert!(all.shader().source.contains(&format!("params.{key}")), "{key}");
-            // the default four slots visit only their own
-            let four = Shapes::default().shader().source.contains(&format!("params.{key}"));
-            assert_eq!(four, i < 4, "{key}");
+            // the defaults emit slot 0 (a plane) only
+            let emitted = default_code.contains(&format!("params.{key}"));
+            assert_eq!(emitted, i == 0 && key != k.size, "{key}");
         }
     }
     assert_eq!(slot_keys().len(), 16);
-    // the twin reads as many slots as the code
-    let mut p = params(|p| set_shape(p, 5, "sphere", [0.0; 3], [1.0, 0.0, 0.0], [0.1; 3]));
-    assert_eq!(ClipRegion::from_params(&p).shapes.len(), 2);
-    p.set("slots", ParamValue::Enum("4".into()));
-    assert_eq!(ClipRegion::from_params(&p).shapes.len(), 1);
+    assert_eq!(ClipRegion::from_params(&all_on).shapes.len(), 16);
+    // the configured kinds are what the twin reads
+    assert!(Shapes::default().configure(&ParamValues::defaults(&specs)).is_none());
 }
 
 #[test]
