@@ -2,7 +2,7 @@ use std::path::PathBuf;
 
 use glam::DVec3;
 use vwb_render::params::{ParamValue, ParamValues};
-use vwb_render::plugin::{CpuSample, CpuTwin, Plugin};
+use vwb_render::plugin::{CpuSample, Plugin};
 
 use super::*;
 
