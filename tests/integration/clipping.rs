@@ -515,10 +515,10 @@ fn clipping_benchmark() {
          phantom cropped at that voxel boundary (no shading at the cut: DOS reads no \
          gradient):\n\n\
          | view | with DOS | without DOS |\n|---|---|---|\n\
-         | yaw −35° (the cut faces the viewer) | {m_dos:.4} | {m_plain:.4} |\n\
-         | yaw +35° (the cut face edge-on) | {e_dos:.4} | {e_plain:.4} |\n\n\
-         The issue's target is ≤ 2. Edge-on, the difference lies in the one pixel \
-         column of the cut face (the clipped data keeps full opacity up to the plane, \
+         | yaw −35° | {m_dos:.4} | {m_plain:.4} |\n\
+         | yaw +35° | {e_dos:.4} | {e_plain:.4} |\n\n\
+         The issue's target is ≤ 2. At +35° the difference lies in the one pixel \
+         column along the cut at the silhouette of the remaining half (the clipped data keeps full opacity up to the plane, \
          the cropped data ramps over the half voxel before it) and is the same \
          without DOS: it is sampling at the cut, not occlusion. The test \
          `a_cut_through_matter_matches_the_cropped_phantom` holds the first row.\n\n\
