@@ -49,6 +49,7 @@ fn evaluate(s_in: Sample) -> Evaluated {
     var e: Evaluated;
     e.s = s_in;
     e.c = vec4<f32>(0.0);
+    clip_cut_gradient = vec4<f32>(0.0);
     if (!run_clip(s_in)) {
         e.s.color = vec4<f32>(0.0);
         return e;

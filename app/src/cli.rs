@@ -39,6 +39,8 @@ pub enum Command {
     /// Render a preset headless to a PNG.
     #[command(after_help = crate::cli_help::RENDER)]
     Render(RenderArgs),
+    /// Write the region inside the preset's clip shapes (or --box) as NRRD.
+    Crop(crate::crop::CropArgs),
     /// Render a preset on the GPU and compare it with the CPU reference, the converged
     /// reference or another preset: writes image.png, against.png, heatmap.png and
     /// metrics.json into the output folder.

@@ -6,6 +6,7 @@ pub mod classification;
 pub mod cli;
 pub mod cli_help;
 pub mod compare_ui;
+pub mod crop;
 pub mod custom_ui;
 pub mod data_cmd;
 pub mod data_ui;

@@ -13,6 +13,7 @@ fn main() {
         Some(Command::Bench(a)) => run_bench(cli.preset.as_deref(), a),
         Some(Command::Sweep(a)) => run_sweep(cli.preset.as_deref(), a),
         Some(Command::Scene(a)) => run_scene(cli.preset.as_deref(), a),
+        Some(Command::Crop(a)) => vwb_app::crop::run_crop(cli.preset.as_deref(), a),
         Some(Command::Classification(a)) => run_classification(a),
         Some(Command::SuggestTf(a)) => run_suggest_tf(a),
         Some(Command::DosStudy(a)) => run_dos_study(a),

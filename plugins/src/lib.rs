@@ -9,6 +9,12 @@ pub use vwb_render::plugin::*;
 
 pub mod lighting;
 
+/// A generated parameter key or label as `&'static str` (parameter specs need them);
+/// callers make each once, in a `OnceLock`.
+pub(crate) fn static_str(s: String) -> &'static str {
+    Box::leak(s.into_boxed_str())
+}
+
 use std::sync::Arc;
 
 use params::{ParamKind, ParamValue, ParamValues};
@@ -28,6 +34,8 @@ macro_rules! builtin_plugins {
 
 // One line per plugin: its folder and its value.
 builtin_plugins! {
+    clip_shapes => clip_shapes::Shapes::default(),
+    clip_labels => clip_labels::ClipLabels,
     classify_tf1d => classify_tf1d::Tf1d::default(),
     classify_labels => classify_labels::Labels,
     classify_tf2d => classify_tf2d::Tf2dPlugin::default(),
@@ -91,7 +99,7 @@ mod tests {
     #[test]
     fn builtins_register_without_clash() {
         let r = builtin_registry();
-        assert_eq!(r.plugins().len(), 13);
+        assert_eq!(r.plugins().len(), 15);
         let mut fresh = Registry::new();
         for p in r.plugins() {
             fresh.register(p.clone()).unwrap();

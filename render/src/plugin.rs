@@ -533,7 +533,15 @@ pub enum Transparency {
     /// whether some value in the range gets α > 0. It must be conservative (answer
     /// true when unsure).
     ByValue(Arc<VisibleFn>),
+    /// Keeps (as [`Transparency::Keeps`]), and drops every sample outside a region of
+    /// world space (clipping): the function says whether some point of the world box
+    /// (min, max) can be kept. It must be conservative (answer true when unsure).
+    /// Bricks wholly outside are skipped.
+    Region(Arc<RegionFn>),
 }
+
+/// Whether some point of a world box (min, max) can lie in a plugin's region.
+pub type RegionFn = dyn Fn(DVec3, DVec3) -> bool + Send + Sync;
 
 /// A converged reference that a plugin supplies itself, because refining the slices
 /// converges to the slice algorithm's own limit rather than to the model the plugin

@@ -638,6 +638,7 @@ fn evaluate(
     sample: CpuSample,
     ratio: f64,
 ) -> (CpuSample, DVec4) {
+    crate::shading::set_cut_gradient(None);
     if !twins.iter().all(|t| t.clip(&sample)) {
         let mut s = sample;
         s.color = DVec4::ZERO;

@@ -34,7 +34,7 @@ use crate::composer::{
 use crate::gpu::GpuContext;
 use crate::params::ParamValues;
 use crate::plugin::{GpuInit, GpuResource, Plugin, PluginError, PluginInstance};
-use crate::skipping::{BRICK, BrickRanges, stack_visibility};
+use crate::skipping::{BRICK, BrickRanges, clear_outside_regions, stack_regions, stack_visibility};
 use crate::slicing::{SliceError, SlicePlan, VolumeBox};
 use crate::volume::Volume;
 
@@ -633,7 +633,18 @@ impl Renderer {
     /// Recomputes the occupancy for the stack and uploads it when it changed.
     fn update_occupancy(&mut self, stack: &[PluginInstance]) {
         let bytes = if self.skipping_enabled {
-            stack_visibility(stack).map(|visible| self.bricks.occupancy(&*visible))
+            stack_visibility(stack).map(|visible| {
+                let mut bytes = self.bricks.occupancy(&*visible);
+                let vbox = crate::slicing::VolumeBox::new(self.volume.dims, self.volume.spacing);
+                clear_outside_regions(
+                    &mut bytes,
+                    self.bricks.dims,
+                    self.volume.dims,
+                    (vbox.min.as_dvec3(), vbox.max.as_dvec3()),
+                    &stack_regions(stack),
+                );
+                bytes
+            })
         } else {
             None
         };

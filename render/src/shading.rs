@@ -99,13 +99,14 @@ impl GradientEstimator {
     }
 
     /// The plugin's hook file with `fn gradient_at(tex: vec3<f32>) -> vec3<f32>` appended
+    /// (the estimator's gradient, or the clip cut's where a clip hook set one: `cut_gradient`)
     /// (appended, so that the file's own line numbers stay those of the file).
     pub fn hook_source(self, file: &'static str, source: &'static str) -> ShaderSource {
         let body = match self {
-            Self::Central => "return gradient_central(tex);",
-            Self::Sobel => "return gradient_sobel(tex);",
+            Self::Central => "return cut_gradient(gradient_central(tex));",
+            Self::Sobel => "return cut_gradient(gradient_sobel(tex));",
             Self::PrecomputedCentral | Self::PrecomputedSobel => {
-                "return textureSampleLevel(gradient, linear_clamp, tex, 0.0).xyz;"
+                "return cut_gradient(textureSampleLevel(gradient, linear_clamp, tex, 0.0).xyz);"
             }
         };
         ShaderSource {
@@ -211,6 +212,22 @@ pub fn gradient_volume(ctx: &CpuContext, sobel: bool) -> Vec<[f32; 4]> {
         .collect()
 }
 
+thread_local! {
+    static CUT_GRADIENT: std::cell::Cell<Option<DVec3>> = const { std::cell::Cell::new(None) };
+}
+
+/// Twin of `clip_cut_gradient` (shaders/common.wgsl): the gradient a clip twin sets for
+/// the sample being evaluated on this thread (shading at the cut); the reference
+/// renderer resets it to `None` before each sample's clip hooks.
+pub fn set_cut_gradient(g: Option<DVec3>) {
+    CUT_GRADIENT.with(|c| c.set(g));
+}
+
+/// The cut gradient of the current sample, if a clip twin set one.
+pub fn cut_gradient() -> Option<DVec3> {
+    CUT_GRADIENT.with(|c| c.get())
+}
+
 /// CPU twin of a shading plugin's `gradient_at`: the estimator plus, for the
 /// precomputed ones, the pre-pass volume (built in [`Gradients::prepare`]).
 #[derive(Debug, Clone, Default)]
@@ -232,8 +249,12 @@ impl Gradients {
             self.volume = Some(gradient_volume(ctx, self.estimator.is_sobel()));
         }
     }
-    /// `gradient_at(tex)`.
+    /// `gradient_at(tex)`: the clip cut's gradient where a clip twin set one for the
+    /// current sample ([`set_cut_gradient`]), else the estimator's.
     pub fn at(&self, ctx: &CpuContext, tex: DVec3) -> DVec3 {
+        if let Some(g) = cut_gradient() {
+            return g;
+        }
         match (self.estimator, &self.volume) {
             (GradientEstimator::Central, _) => gradient_central(ctx, tex),
             (GradientEstimator::Sobel, _) => gradient_sobel(ctx, tex),

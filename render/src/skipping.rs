@@ -19,7 +19,9 @@ use std::sync::Arc;
 
 use rayon::prelude::*;
 
-use crate::plugin::{PluginInstance, Transparency, VisibleFn};
+use glam::DVec3;
+
+use crate::plugin::{PluginInstance, RegionFn, Transparency, VisibleFn};
 
 /// Side of a brick in voxels.
 pub const BRICK: u32 = 8;
@@ -105,12 +107,60 @@ pub fn visible_by_table(visible: Vec<bool>) -> Transparency {
     }))
 }
 
+/// The regions of the enabled instances that drop samples outside them
+/// ([`Transparency::Region`]).
+pub fn stack_regions(stack: &[PluginInstance]) -> Vec<Arc<RegionFn>> {
+    stack
+        .iter()
+        .filter(|i| i.enabled)
+        .filter_map(|i| match i.configured().transparency(&i.params) {
+            Transparency::Region(f) => Some(f),
+            _ => None,
+        })
+        .collect()
+}
+
+/// Marks empty (0) every brick of `occupancy` that lies wholly outside one of the
+/// `regions`: a brick of a volume of `dims` voxels in the world box `(lo, hi)` covers
+/// the samples whose `tex · dims` lies in it, widened by [`REGION_MARGIN`] of the box.
+pub fn clear_outside_regions(
+    occupancy: &mut [u8],
+    bricks: [u32; 3],
+    dims: [u32; 3],
+    (lo, hi): (DVec3, DVec3),
+    regions: &[Arc<RegionFn>],
+) {
+    if regions.is_empty() {
+        return;
+    }
+    let extent = hi - lo;
+    let margin = extent * REGION_MARGIN;
+    let d = DVec3::from(dims.map(|n| n.max(1) as f64));
+    occupancy.par_iter_mut().enumerate().for_each(|(i, o)| {
+        let b = DVec3::new(
+            (i % bricks[0] as usize) as f64,
+            ((i / bricks[0] as usize) % bricks[1] as usize) as f64,
+            (i / (bricks[0] as usize * bricks[1] as usize)) as f64,
+        );
+        let t0 = (b * BRICK as f64 / d).min(DVec3::ONE);
+        let t1 = ((b + 1.0) * BRICK as f64 / d).min(DVec3::ONE);
+        let (a, z) = (lo + extent * t0 - margin, lo + extent * t1 + margin);
+        if !regions.iter().all(|r| r(a, z)) {
+            *o = 0;
+        }
+    });
+}
+
+/// Widening of a brick's world box against f32 rounding of sample positions, as a
+/// share of the volume box.
+pub const REGION_MARGIN: f64 = 1.0e-4;
+
 pub fn stack_visibility(stack: &[PluginInstance]) -> Option<Arc<VisibleFn>> {
     let mut visible: Arc<VisibleFn> = Arc::new(|_lo: f64, hi: f64| hi > 0.0);
     for inst in stack.iter().filter(|i| i.enabled) {
         match inst.configured().transparency(&inst.params) {
             Transparency::Unknown => return None,
-            Transparency::Keeps => {}
+            Transparency::Keeps | Transparency::Region(_) => {}
             Transparency::ByValue(f) => visible = f,
         }
     }

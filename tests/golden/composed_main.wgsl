@@ -75,6 +75,19 @@ struct Sample {
     slice: u32,
 }
 
+// Shading at a clip cut (Weiskopf, Engel & Ertl 2003): a clip hook may set xyz to the
+// gradient (∇f·Δs0 units) the cut has at the current sample, with w = 1; every shading
+// plugin's `gradient_at` then returns it (`cut_gradient`). Reset before each sample's
+// clip hooks (`evaluate` in shaders/slice.wgsl). CPU twin: vwb_render::shading.
+var<private> clip_cut_gradient: vec4<f32>;
+
+fn cut_gradient(g: vec3<f32>) -> vec3<f32> {
+    if (clip_cut_gradient.w > 0.5) {
+        return clip_cut_gradient.xyz;
+    }
+    return g;
+}
+
 // False where the brick holding `tex` cannot produce a visible sample (its hooks can
 // be skipped: the contribution would be exactly zero). Always true while skipping is
 // off (frame.settings.y = 0).
@@ -330,6 +343,7 @@ fn evaluate(s_in: Sample) -> Evaluated {
     var e: Evaluated;
     e.s = s_in;
     e.c = vec4<f32>(0.0);
+    clip_cut_gradient = vec4<f32>(0.0);
     if (!run_clip(s_in)) {
         e.s.color = vec4<f32>(0.0);
         return e;

@@ -7,6 +7,7 @@
 mod adversarial;
 mod classification;
 mod cli;
+mod clipping;
 mod common;
 mod composer;
 mod coverage;

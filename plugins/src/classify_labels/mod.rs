@@ -69,53 +69,102 @@ pub struct LabelGrid {
 impl LabelGrid {
     /// Nearest-voxel label at a texture coordinate, as the shader's `floor(tex·dims)`.
     pub fn at(&self, tex: DVec3) -> u8 {
-        let d = self.dims.map(|n| n.max(1) as usize);
-        let idx = |a: usize| {
-            let f = (tex[a] * d[a] as f64).floor();
-            if f.is_nan() {
-                0
-            } else {
-                (f.max(0.0) as usize).min(d[a] - 1)
-            }
-        };
-        self.labels[(idx(2) * d[1] + idx(1)) * d[0] + idx(0)]
+        self.labels[nearest_voxel(self.dims, tex)]
     }
+}
+
+/// Linear index (x fastest) of the voxel nearest to a texture coordinate, as the
+/// shaders' `clamp(floor(tex·dims), 0, dims − 1)`.
+pub fn nearest_voxel(dims: [u32; 3], tex: DVec3) -> usize {
+    let d = dims.map(|n| n.max(1) as usize);
+    let idx = |a: usize| {
+        let f = (tex[a] * d[a] as f64).floor();
+        if f.is_nan() {
+            0
+        } else {
+            (f.max(0.0) as usize).min(d[a] - 1)
+        }
+    };
+    (idx(2) * d[1] + idx(1)) * d[0] + idx(0)
+}
+
+/// `load(path)`, cached per value type, path and modification time (label volumes are
+/// read once and shared by the GPU resources and the CPU twin).
+pub fn cached_load<T: Send + Sync + 'static>(
+    path: &Path,
+    load: impl FnOnce(&Path) -> Result<T, String>,
+) -> Result<Arc<T>, String> {
+    type Key = (std::any::TypeId, PathBuf, Option<std::time::SystemTime>);
+    type Cache = Mutex<HashMap<Key, Arc<dyn std::any::Any + Send + Sync>>>;
+    static CACHE: std::sync::OnceLock<Cache> = std::sync::OnceLock::new();
+    let modified = std::fs::metadata(path).and_then(|m| m.modified()).ok();
+    let key = (std::any::TypeId::of::<T>(), path.to_path_buf(), modified);
+    let cache = CACHE.get_or_init(Default::default);
+    if let Some(v) = cache.lock().ok().and_then(|c| c.get(&key).cloned())
+        && let Ok(v) = v.downcast::<T>()
+    {
+        return Ok(v);
+    }
+    let v = Arc::new(load(path)?);
+    if let Ok(mut c) = cache.lock() {
+        c.insert(key, v.clone());
+    }
+    Ok(v)
 }
 
 /// Loads a u8 label volume (cached per path and modification time).
 pub fn load_labels(path: &Path) -> Result<Arc<LabelGrid>, String> {
-    type Cache = Mutex<HashMap<(PathBuf, Option<std::time::SystemTime>), Arc<LabelGrid>>>;
-    static CACHE: std::sync::OnceLock<Cache> = std::sync::OnceLock::new();
-    let modified = std::fs::metadata(path).and_then(|m| m.modified()).ok();
-    let key = (path.to_path_buf(), modified);
-    let cache = CACHE.get_or_init(Default::default);
-    if let Some(g) = cache.lock().ok().and_then(|c| c.get(&key).cloned()) {
-        return Ok(g);
-    }
-    let v = vwb_render::volume::load(path).map_err(|e| e.to_string())?;
-    let file = path.display();
-    if v.components != 1 || v.scalar_type() != ScalarType::U8 {
-        return Err(format!(
-            "{file}: a label volume must hold u8 scalars, found {} × {}",
-            v.components,
-            v.scalar_type().name()
-        ));
-    }
-    let VoxelData::U8(labels) = v.data else {
-        return Err(format!("{file}: a label volume must hold u8 scalars"));
+    cached_load(path, |path| {
+        let v = vwb_render::volume::load(path).map_err(|e| e.to_string())?;
+        let file = path.display();
+        if v.components != 1 || v.scalar_type() != ScalarType::U8 {
+            return Err(format!(
+                "{file}: a label volume must hold u8 scalars, found {} × {}",
+                v.components,
+                v.scalar_type().name()
+            ));
+        }
+        let VoxelData::U8(labels) = v.data else {
+            return Err(format!("{file}: a label volume must hold u8 scalars"));
+        };
+        let mut present = [false; MAX_LABELS];
+        for &l in &labels {
+            present[(l as usize).min(MAX_LABELS - 1)] = true;
+        }
+        Ok(LabelGrid {
+            file: path.to_path_buf(),
+            dims: v.dims,
+            labels,
+            present,
+        })
+    })
+}
+
+/// The label file named by the `labels` parameter, loaded by `load` and checked
+/// against the data's dims; errors name `plugin` and the file.
+pub fn label_file<T>(
+    plugin: &str,
+    params: &ParamValues,
+    data_dims: [u32; 3],
+    load: impl FnOnce(&Path) -> Result<Arc<T>, String>,
+    dims_of: impl FnOnce(&T) -> [u32; 3],
+) -> Result<Arc<T>, PluginError> {
+    let error = |message: String| PluginError::Invalid {
+        plugin: plugin.into(),
+        message,
     };
-    let mut present = [false; MAX_LABELS];
-    for &l in &labels {
-        present[(l as usize).min(MAX_LABELS - 1)] = true;
-    }
-    let grid = Arc::new(LabelGrid {
-        file: path.to_path_buf(),
-        dims: v.dims,
-        labels,
-        present,
-    });
-    if let Ok(mut c) = cache.lock() {
-        c.insert(key, grid.clone());
+    let path = params
+        .path("labels")
+        .ok_or_else(|| error("no label volume set (parameter `labels`)".into()))?;
+    let grid = load(path).map_err(error)?;
+    let dims = dims_of(&grid);
+    if dims != data_dims {
+        return Err(error(format!(
+            "{}: label volume dims {:?} differ from the data's {:?}",
+            path.display(),
+            dims,
+            data_dims
+        )));
     }
     Ok(grid)
 }
@@ -129,19 +178,7 @@ fn error(message: String) -> PluginError {
 
 /// The label grid for the parameters, checked against the data's dims.
 fn grid_for(params: &ParamValues, data_dims: [u32; 3]) -> Result<Arc<LabelGrid>, PluginError> {
-    let path = params
-        .path("labels")
-        .ok_or_else(|| error("no label volume set (parameter `labels`)".into()))?;
-    let grid = load_labels(path).map_err(error)?;
-    if grid.dims != data_dims {
-        return Err(error(format!(
-            "{}: label volume dims {:?} differ from the data's {:?}",
-            path.display(),
-            grid.dims,
-            data_dims
-        )));
-    }
-    Ok(grid)
+    label_file("classify.labels", params, data_dims, load_labels, |g| g.dims)
 }
 
 /// A distinct default colour per label; label 0 (background) transparent.

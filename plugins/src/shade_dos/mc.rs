@@ -165,6 +165,7 @@ impl Scene {
             ray_dir: dir,
             ..Default::default()
         };
+        vwb_render::shading::set_cut_gradient(None);
         if !self.twins.iter().all(|t| t.clip(&s)) {
             return (DVec3::ZERO, 0.0);
         }
