@@ -40,6 +40,7 @@ pub enum Command {
     #[command(after_help = crate::cli_help::RENDER)]
     Render(RenderArgs),
     /// Write the region inside the preset's clip shapes (or --box) as NRRD.
+    #[command(after_help = crate::cli_help::CROP)]
     Crop(crate::crop::CropArgs),
     /// Render a preset on the GPU and compare it with the CPU reference, the converged
     /// reference or another preset: writes image.png, against.png, heatmap.png and

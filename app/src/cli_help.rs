@@ -21,6 +21,13 @@ Examples:
   # another volume (a file or a sample name) under the same preset
   vwb render --preset presets/nuclei.ron --volume nuclei --spacing 0.5 -o nuclei.png";
 
+pub const CROP: &str = "\
+Examples:
+  # the part of the CT head the preset's clip shapes keep
+  vwb crop --preset presets/ct_clip_quadrant.ron -o ct_part.nhdr
+  # a voxel box x0,y0,z0,x1,y1,z1 (upper bounds exclusive)
+  vwb crop --preset presets/ct_head.ron --box 64,64,20,192,192,90 -o ct_box.nhdr";
+
 pub const COMPARE: &str = "\
 Examples:
   # against the CPU reference with the same slices
