@@ -630,24 +630,28 @@ impl Renderer {
             .map(|b| b.iter().filter(|&&v| v == 0).count() as f64 / b.len().max(1) as f64)
     }
 
+    /// The occupancy byte per brick a stack allows: bricks no value of which any
+    /// classification shows, or wholly outside its clip regions, are 0. `None` when
+    /// skipping is off or a plugin promises nothing.
+    fn occupancy_of(&self, stack: &[PluginInstance]) -> Option<Vec<u8>> {
+        if !self.skipping_enabled {
+            return None;
+        }
+        let visible = stack_visibility(stack)?;
+        let mut bytes = self.bricks.occupancy(&*visible);
+        clear_outside_regions(
+            &mut bytes,
+            self.bricks.dims,
+            self.volume.dims,
+            (self.vbox.min.as_dvec3(), self.vbox.max.as_dvec3()),
+            &stack_regions(stack),
+        );
+        Some(bytes)
+    }
+
     /// Recomputes the occupancy for the stack and uploads it when it changed.
     fn update_occupancy(&mut self, stack: &[PluginInstance]) {
-        let bytes = if self.skipping_enabled {
-            stack_visibility(stack).map(|visible| {
-                let mut bytes = self.bricks.occupancy(&*visible);
-                let vbox = crate::slicing::VolumeBox::new(self.volume.dims, self.volume.spacing);
-                clear_outside_regions(
-                    &mut bytes,
-                    self.bricks.dims,
-                    self.volume.dims,
-                    (vbox.min.as_dvec3(), vbox.max.as_dvec3()),
-                    &stack_regions(stack),
-                );
-                bytes
-            })
-        } else {
-            None
-        };
+        let bytes = self.occupancy_of(stack);
         if bytes == self.occupancy_bytes {
             return;
         }

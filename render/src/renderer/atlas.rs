@@ -121,14 +121,13 @@ impl Renderer {
         target: TargetFormat,
         cols: u32,
     ) -> Result<EncodedAtlas, RenderError> {
-        let atlas_error = |m: String| RenderError::Atlas(m);
         if tiles.is_empty() || cols == 0 {
-            return Err(atlas_error(
+            return Err(RenderError::Atlas(
                 "an atlas needs at least one tile and one column".into(),
             ));
         }
         if s.backend != Backend::Compute {
-            return Err(atlas_error(
+            return Err(RenderError::Atlas(
                 "atlases render on the compute backend (--backend compute)".into(),
             ));
         }
@@ -145,7 +144,7 @@ impl Renderer {
         self.update_stack(tiles[0].stack, target)?;
         let p = self.pipelines.as_ref().expect("pipeline exists");
         if !p.updates.is_empty() {
-            return Err(atlas_error(
+            return Err(RenderError::Atlas(
                 "stacks with per-slice state render one view per submission".into(),
             ));
         }
@@ -167,7 +166,7 @@ impl Renderer {
                 .map(|i| (i.plugin.id(), structure_of(i)))
                 .collect();
             if mine != structure {
-                return Err(atlas_error(format!(
+                return Err(RenderError::Atlas(format!(
                     "tile {t}: its stack's structure differs from tile 0's (the plugins, their order and their structural parameters must be the same)"
                 )));
             }
@@ -289,10 +288,7 @@ impl Renderer {
             };
             // empty-space skipping by each tile's own classification, as its single
             // render would skip
-            let occupancy = self
-                .skipping_enabled
-                .then(|| stack_visibility(tiles[i].stack).map(|v| self.bricks.occupancy(&*v)))
-                .flatten();
+            let occupancy = self.occupancy_of(tiles[i].stack);
             let mut u = self.frame_uniform(&settings, plan, view, [tw, th], target);
             u.settings[1] = if occupancy.is_some() {
                 BRICK as f32
