@@ -3,7 +3,7 @@
 //! one-line descriptions; a click opens one.
 //!
 //! Thumbnails are rendered in the background, one at a time, on the window's device
-//! ([`crate::job::Job`]) and cached as PNGs: a user preset's beside it
+//! ([`vwb_lab::job::Job`]) and cached as PNGs: a user preset's beside it
 //! (`NAME.thumb.png`, also written when the window saves a preset), a shipped preset's
 //! in the user's cache (`vwb/thumbnails/`). A cached thumbnail older than its preset
 //! is rendered again.
@@ -14,8 +14,8 @@ use anyhow::{Context, Result};
 use vwb_render::GpuContext;
 use vwb_render::preset::Document;
 
-use crate::headless;
-use crate::job::Job;
+use vwb_lab::headless;
+use vwb_lab::job::Job;
 
 /// Thumbnail side in pixels.
 pub const THUMB: u32 = 96;

@@ -9,8 +9,8 @@ use vwb_render::preset::Document;
 use vwb_render::renderer::Backend;
 use vwb_render::{GpuContext, TargetFormat};
 
-use crate::headless;
-use crate::measure::{self, Against};
+use vwb_lab::headless;
+use vwb_lab::measure::{self, Against};
 use vwb_render::reference::DEFAULT_TOLERANCE_DELTA_E;
 
 #[derive(Debug, Parser)]
@@ -72,7 +72,7 @@ pub enum Command {
     /// kernel, slice count, buffer precision, Pareto front, extremes, CT frame time) and
     /// write the report (docs/dos.md).
     #[command(after_help = crate::cli_help::DOS_STUDY)]
-    DosStudy(crate::dos_study::DosStudyArgs),
+    DosStudy(vwb_lab::studies::dos::DosStudyArgs),
     /// Print the adapter, its limits and the registered plugin ids.
     #[command(after_help = crate::cli_help::INFO)]
     Info,
@@ -314,19 +314,7 @@ pub fn parse_target(s: &str) -> Result<TargetFormat, String> {
     }
 }
 
-/// Loads a preset (or the built-in default document) and prints its warnings.
-pub fn load_document(preset: Option<&std::path::Path>) -> Result<Document> {
-    let registry = vwb_plugins::builtin_registry();
-    let Some(path) = preset else {
-        return Ok(crate::window::default_document(&registry));
-    };
-    let loaded = Document::load(path, &registry)?;
-    for w in &loaded.warnings {
-        eprintln!("warning: {w}");
-    }
-    crate::outputs::protect_document(Some(path), &loaded.document);
-    Ok(loaded.document)
-}
+pub use vwb_lab::document::load_document;
 
 pub fn run_render(preset: Option<&std::path::Path>, a: &RenderArgs) -> Result<()> {
     let Some(preset) = preset else {
@@ -334,9 +322,9 @@ pub fn run_render(preset: Option<&std::path::Path>, a: &RenderArgs) -> Result<()
     };
     let mut doc = load_document(Some(preset))?;
     a.frame.apply(&mut doc)?;
-    crate::outputs::image_format(&a.output)?;
+    vwb_lab::outputs::image_format(&a.output)?;
     let volume = headless::load_volume(&doc.volume)?;
-    crate::outputs::check_output(&a.output)?;
+    vwb_lab::outputs::check_output(&a.output)?;
     headless::preflight(Some(preset), &doc, &volume)?;
     let gpu = GpuContext::new_headless()?;
     eprintln!("adapter: {}", gpu.describe());
@@ -458,10 +446,10 @@ pub fn run_compare(preset: Option<&std::path::Path>, a: &CompareArgs) -> Result<
 }
 
 pub fn run_bench(preset: Option<&std::path::Path>, a: &BenchArgs) -> Result<()> {
-    crate::outputs::check_extension(&a.output, "csv", "CSV")?;
+    vwb_lab::outputs::check_extension(&a.output, "csv", "CSV")?;
     let (path, doc) = preset_document(preset, &a.frame, "bench")?;
     let volume = headless::load_volume(&doc.volume)?;
-    crate::outputs::check_output(&a.output)?;
+    vwb_lab::outputs::check_output(&a.output)?;
     headless::preflight(Some(&path), &doc, &volume)?;
     let gpu = GpuContext::new_headless()?;
     eprintln!("adapter: {}", gpu.describe());
@@ -507,7 +495,7 @@ pub fn run_sweep(preset: Option<&std::path::Path>, a: &SweepArgs) -> Result<()> 
 pub fn run_classification(a: &ClassificationArgs) -> Result<()> {
     let gpu = GpuContext::new_headless()?;
     eprintln!("adapter: {}", gpu.describe());
-    crate::classification::run(
+    vwb_lab::studies::classification::run(
         &gpu,
         &a.scenes,
         &a.spacings,
@@ -519,10 +507,10 @@ pub fn run_classification(a: &ClassificationArgs) -> Result<()> {
     Ok(())
 }
 
-pub fn run_dos_study(a: &crate::dos_study::DosStudyArgs) -> Result<()> {
+pub fn run_dos_study(a: &vwb_lab::studies::dos::DosStudyArgs) -> Result<()> {
     let gpu = GpuContext::new_headless()?;
     eprintln!("adapter: {}", gpu.describe());
-    crate::dos_study::run(&gpu, a)?;
+    vwb_lab::studies::dos::run(&gpu, a)?;
     eprintln!("wrote {}", a.output.display());
     Ok(())
 }
@@ -534,12 +522,12 @@ pub fn run_suggest_tf(a: &SuggestTfArgs) -> Result<()> {
         ..Default::default()
     };
     opts.check()?;
-    crate::outputs::check_extension(&a.output, "ron", "a transfer function in RON")?;
+    vwb_lab::outputs::check_extension(&a.output, "ron", "a transfer function in RON")?;
     let volume = match &a.volume {
         Some(p) => headless::load_volume(&headless::volume_arg(p))?,
         None => std::sync::Arc::new(vwb_render::volume::demo()),
     };
-    crate::outputs::check_output(&a.output)?;
+    vwb_lab::outputs::check_output(&a.output)?;
     let name = a
         .volume
         .as_ref()
@@ -605,5 +593,53 @@ mod tests {
         };
         args.apply(&mut doc).unwrap();
         assert_eq!(doc.render.early_termination, Some(0.5));
+    }
+
+    mod help {
+        use super::super::Cli;
+        // Every subcommand's help (its text in crate::cli_help) shows examples that parse.
+        use clap::{CommandFactory, Parser};
+
+        /// The commands of a help text's example lines.
+        fn examples(help: &str) -> Vec<Vec<String>> {
+            help.lines()
+                .map(str::trim)
+                .filter(|l| l.starts_with("vwb"))
+                .map(|l| l.split_whitespace().map(str::to_string).collect())
+                .collect()
+        }
+
+        #[test]
+        fn every_command_shows_examples_that_parse() {
+            let mut cmd = Cli::command();
+            let mut helps = vec![("vwb".to_string(), cmd.render_long_help().to_string())];
+            cmd.build();
+            for sub in cmd.get_subcommands_mut().filter(|s| s.get_name() != "help") {
+                let name = sub.get_name().to_string();
+                helps.push((name.clone(), sub.render_long_help().to_string()));
+                for inner in sub.get_subcommands_mut().filter(|s| s.get_name() != "help") {
+                    let inner_name = format!("{name} {}", inner.get_name());
+                    helps.push((inner_name, inner.render_long_help().to_string()));
+                }
+            }
+            assert!(helps.len() >= 13, "{}", helps.len());
+            for (name, help) in helps {
+                let cmds = examples(&help);
+                assert!(
+                    help.contains("Example") && !cmds.is_empty(),
+                    "`vwb {name} --help` shows no example:\n{help}"
+                );
+                let prefix = format!("vwb {name}");
+                assert!(
+                    name == "vwb" || cmds.iter().any(|c| c.join(" ").starts_with(&prefix)),
+                    "`vwb {name} --help`: no example runs {prefix}"
+                );
+                for c in cmds {
+                    if let Err(e) = Cli::try_parse_from(&c) {
+                        panic!("{name}: example `{}` does not parse: {e}", c.join(" "));
+                    }
+                }
+            }
+        }
     }
 }

@@ -2,7 +2,7 @@
 //! a background thread with progress and cancel, the ΔE*uv heatmap and the metrics.
 //! The reference is either the twin of the same stack, camera and slices
 //! (`vwb_render::reference`: is the GPU doing what the plugins say?) or the converged
-//! one (`crate::measure::converged_image`: refined slices, or the Monte-Carlo cone
+//! one (`vwb_lab::measure::converged_image`: refined slices, or the Monte-Carlo cone
 //! integral for directional occlusion: how far is this frame from the integral?).
 
 use std::sync::Arc;
@@ -13,7 +13,7 @@ use vwb_render::reference::{ReferenceOptions, render_reference};
 use vwb_render::renderer::FrameSettings;
 use vwb_render::{PluginInstance, TargetFormat, Volume};
 
-use crate::job::Job;
+use vwb_lab::job::Job;
 
 /// What the compare view shows once the reference is done.
 pub struct Comparison {
@@ -90,7 +90,7 @@ impl CompareJob {
     }
 
     /// Starts the converged reference of `doc` for `settings` in a thread
-    /// ([`crate::measure::converged_image`], tolerance in RMS ΔE*uv).
+    /// ([`vwb_lab::measure::converged_image`], tolerance in RMS ΔE*uv).
     pub fn start_converged(
         volume: Arc<Volume>,
         doc: vwb_render::preset::Document,
@@ -106,7 +106,7 @@ impl CompareJob {
             ..Default::default()
         };
         let job = Job::spawn("reference", move || {
-            crate::measure::converged_image(&volume, &doc, &settings, tolerance, &opts)
+            vwb_lab::measure::converged_image(&volume, &doc, &settings, tolerance, &opts)
                 .map_err(|e| format!("{e:#}"))
                 .map(|(reference, _)| finish(&gpu, reference))
         });
@@ -212,7 +212,7 @@ mod tests {
 
         // against the converged reference the error is larger than against the same
         // slices (the slices' own discretisation error shows), but still small
-        let mut doc = crate::window::default_document(&vwb_plugins::builtin_registry());
+        let mut doc = vwb_lab::document::default_document(&vwb_plugins::builtin_registry());
         doc.stack = stack;
         doc.render.background = [0.0, 0.0, 0.0, 1.0];
         let job = CompareJob::start_converged(volume, doc, settings, image, 0.5);

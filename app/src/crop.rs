@@ -44,8 +44,8 @@ pub fn run_crop(preset: Option<&Path>, a: &CropArgs) -> Result<()> {
     let Some(preset) = preset else {
         bail!("vwb crop needs --preset P.ron");
     };
-    let doc = crate::cli::load_document(Some(preset))?;
-    let volume = crate::headless::load_volume(&doc.volume)?;
+    let doc = vwb_lab::document::load_document(Some(preset))?;
+    let volume = vwb_lab::headless::load_volume(&doc.volume)?;
     let b = match a.region {
         Some(b) => check_box(b, volume.dims)?,
         None => kept_bounds(&volume, &doc.stack).with_context(|| {

@@ -1,6 +1,6 @@
 //! The window's side of sample data: volumes are loaded through [`FetchOffer::load`],
 //! which remembers a missing sample; the side panel then offers a button that runs
-//! `vwb data fetch NAME` in the background ([`crate::job::Job`]) and opens the preset
+//! `vwb data fetch NAME` in the background ([`vwb_lab::job::Job`]) and opens the preset
 //! again once the files are there and verified.
 
 use std::path::{Path, PathBuf};
@@ -12,8 +12,8 @@ use vwb_render::preset::VolumeSource;
 use vwb_render::samples::{self, SampleError};
 
 use crate::data_cmd::{self, Source};
-use crate::headless;
-use crate::job::Job;
+use vwb_lab::headless;
+use vwb_lab::job::Job;
 
 /// The sample a load failed for, if a missing sample was the cause.
 pub fn missing_sample(err: &anyhow::Error) -> Option<String> {

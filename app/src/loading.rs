@@ -10,7 +10,7 @@ use std::time::Instant;
 use vwb_render::Volume;
 use vwb_render::volume::LoadProgress;
 
-use crate::job::Job;
+use vwb_lab::job::Job;
 
 /// Files at least this large (with a detached NRRD's data file) load in the background.
 pub const DEFAULT_ASYNC_LOAD_BYTES: u64 = 64 << 20;
@@ -46,7 +46,7 @@ impl VolumeLoad {
 
     /// Starts loading `path` in a thread (registered as an input, like every volume).
     pub fn start(path: &Path) -> Self {
-        crate::outputs::protect_volume(path);
+        vwb_lab::outputs::protect_volume(path);
         let progress = Arc::new(LoadProgress::default());
         let p = progress.clone();
         let owned = path.to_path_buf();

@@ -3,7 +3,7 @@
 //! colour pickers, vec3 drag values, path fields), and the stack operations (add from
 //! the registry by category, remove, reorder by dragging the :: handle or with up/down,
 //! duplicate, enable/disable, open the plugin's WGSL in the editor). A plugin may add
-//! its own widgets above the generated ones ([`crate::custom_ui`]). A composer or
+//! its own widgets above the generated ones ([`vwb_plugins::ui`], declared beside the plugin). A composer or
 //! resource error appears under the plugin it names.
 
 use std::path::PathBuf;
@@ -270,7 +270,7 @@ pub fn stack_editor(
                 .id_salt(("params", inst.uid))
                 .default_open(i == 0)
                 .show(ui, |ui| {
-                    if let Some(custom) = crate::custom_ui::lookup(inst.plugin.id()) {
+                    if let Some(custom) = vwb_plugins::ui::custom_ui(inst.plugin.id()) {
                         changed |= custom(ui, &mut inst.params);
                     }
                     let specs = inst.plugin.params();

@@ -1,6 +1,6 @@
 //! The window's trade-off view: set up a sweep over any numeric parameters (slice
 //! spacing and every float or int parameter in the stack), run it in a background
-//! thread with progress and cancel ([`crate::measure::sweep`], the engine of
+//! thread with progress and cancel ([`vwb_lab::measure::sweep`], the engine of
 //! `vwb sweep`), and read the Pareto plot of frame time against RMS ΔE*uv from the
 //! converged reference. Clicking a point applies its settings to the scene.
 
@@ -12,8 +12,8 @@ use vwb_render::preset::Document;
 use vwb_render::reference::ReferenceOptions;
 use vwb_render::{GpuContext, Volume};
 
-use crate::job::Job;
-use crate::measure::{self, Axis, SweepEvent, SweepPoint};
+use vwb_lab::job::Job;
+use vwb_lab::measure::{self, Axis, SweepEvent, SweepPoint};
 
 /// One axis as the user types it: a name from [`candidates`] and values
 /// (`A..B:N`, `A..B:N:log` or `a,b,c`).
@@ -465,7 +465,7 @@ mod tests {
 
     fn doc() -> Document {
         let r = vwb_plugins::builtin_registry();
-        crate::window::default_document(&r)
+        vwb_lab::document::default_document(&r)
     }
 
     #[test]

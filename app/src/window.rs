@@ -20,40 +20,19 @@ use std::sync::mpsc;
 
 use anyhow::{Context as _, Result, anyhow};
 use vwb_render::gpu::{self, GpuContext};
-use vwb_render::plugin::{PluginInstance, Registry};
-use vwb_render::preset::{Document, RenderSection, VolumeSource};
+use vwb_render::plugin::Registry;
+use vwb_render::preset::{Document, VolumeSource};
 use vwb_render::renderer::{Backend, FrameSettings};
 use vwb_render::{Camera, Renderer};
 
 use crate::cli::{Cli, load_document};
-use crate::headless;
+use vwb_lab::headless;
 
 /// The camera controls, shown on the viewport.
 pub const CAMERA_HINT: &str =
     "drag: orbit · right-drag: pan · wheel: zoom · R: reset · 1/2/3: look along x/y/z";
 
-/// The preset the workbench opens on (embedded, so it runs anywhere).
-pub const DEMO_PRESET: &str = include_str!("../../presets/demo.ron");
-
-/// The document shown when no preset is given: `presets/demo.ron` (the embedded demo
-/// volume with a 1D transfer function).
-pub fn default_document(registry: &Registry) -> Document {
-    match Document::parse(DEMO_PRESET, "presets/demo.ron", registry) {
-        Ok(loaded) => return loaded.document,
-        Err(e) => log::error!("{e}"),
-    }
-    let stack = registry
-        .get("classify.tf1d")
-        .map(|p| vec![PluginInstance::new(p)])
-        .unwrap_or_default();
-    Document {
-        description: "demo: MRI head with the default 1D transfer function".into(),
-        volume: VolumeSource::Demo,
-        camera: Camera::default(),
-        render: RenderSection::default(),
-        stack,
-    }
-}
+pub use vwb_lab::document::{DEMO_PRESET, default_document};
 
 /// eframe's wgpu setup: vwb's backends (never GL) and features.
 pub fn wgpu_configuration() -> egui_wgpu::WgpuConfiguration {
@@ -115,14 +94,14 @@ fn startup_or_demo(
 
 pub fn run(cli: &Cli) -> Result<()> {
     if let Some(shot) = &cli.screenshot {
-        crate::outputs::image_format(shot)?;
+        vwb_lab::outputs::image_format(shot)?;
     }
     let (doc, volume, startup_error) = startup_or_demo(cli)?;
     if let Some(e) = &startup_error {
         eprintln!("error: {e:#} (showing the demo scene)");
     }
     if let Some(shot) = &cli.screenshot {
-        crate::outputs::check_output(shot)?;
+        vwb_lab::outputs::check_output(shot)?;
     }
     let screenshot = cli.screenshot.clone();
     let options = eframe::NativeOptions {
@@ -239,8 +218,8 @@ pub struct Workbench {
     compare_against: crate::compare_ui::Against,
     /// Per-plugin cost by ablation (`vwb bench`'s engine) running in a thread, and its
     /// last result.
-    ablation: Option<crate::job::Job<Vec<crate::measure::BenchRow>>>,
-    ablation_rows: Option<Result<Vec<crate::measure::BenchRow>, String>>,
+    ablation: Option<vwb_lab::job::Job<Vec<vwb_lab::measure::BenchRow>>>,
+    ablation_rows: Option<Result<Vec<vwb_lab::measure::BenchRow>, String>>,
     tradeoff: crate::tradeoff_ui::TradeoffView,
     /// Result of the last open or save.
     file_status: Option<Result<String, String>>,
@@ -456,7 +435,7 @@ impl Workbench {
 
     /// The viewport's last image (8-bit RGB over the background), as drawn.
     pub fn image(&self) -> Option<image::RgbImage> {
-        crate::measure::gpu_image(&self.renderer, &self.doc)
+        vwb_lab::measure::gpu_image(&self.renderer, &self.doc)
             .ok()
             .map(|i| i.to_rgb8())
     }
@@ -840,8 +819,8 @@ impl Workbench {
             let volume = self.renderer.volume().clone();
             let mut doc = self.doc.clone();
             doc.render.size = [256, 256];
-            self.ablation = Some(crate::job::Job::spawn("measurement", move || {
-                crate::measure::bench_document(&gpu, &doc, volume, 1, 5)
+            self.ablation = Some(vwb_lab::job::Job::spawn("measurement", move || {
+                vwb_lab::measure::bench_document(&gpu, &doc, volume, 1, 5)
                     .map_err(|e| format!("{e:#}"))
             }));
         }
@@ -885,7 +864,7 @@ impl Workbench {
         egui::CollapsingHeader::new("Compare with the CPU reference").show(ui, |ui| {
             use crate::compare_ui::Against;
             ui.add(egui::Slider::new(&mut self.compare_side, 32..=512).text("image side"));
-            let converged = match crate::measure::supplied_reference(&self.doc) {
+            let converged = match vwb_lab::measure::supplied_reference(&self.doc) {
                 Some(r) => format!("converged ({})", r.label()),
                 None => "converged".to_string(),
             };
@@ -968,7 +947,7 @@ impl Workbench {
             .renderer
             .read_pixels()
             .ok_or_else(|| anyhow!("no GPU image"))?;
-        let bg = crate::measure::background(&self.doc);
+        let bg = vwb_lab::measure::background(&self.doc);
         let gpu = vwb_render::metrics::RgbImageF::from_rgba_f32_premultiplied_over(&px, w, h, bg);
         // the viewport is redrawn at its own size next frame
         self.dirty = true;

@@ -8,6 +8,8 @@ pub use vwb_render::params;
 pub use vwb_render::plugin::*;
 
 pub mod lighting;
+#[cfg(feature = "ui")]
+pub mod ui;
 
 /// A generated parameter key or label as `&'static str` (parameter specs need them);
 /// callers make each once, in a `OnceLock`.
@@ -20,19 +22,33 @@ use std::sync::Arc;
 use params::{ParamKind, ParamValue, ParamValues};
 
 /// Declares each plugin folder as a module and lists its plugin in
-/// [`builtin_registry`], so that a new plugin is one line here.
+/// [`builtin_registry`], so that a new plugin is one line here. A plugin with widgets of
+/// its own (drawn above the generated ones in the window) names them on the same line
+/// after `; ui`: a function in its folder, compiled with the `ui` feature only, so the
+/// plugins stay free of egui for headless users.
 macro_rules! builtin_plugins {
-    ($($folder:ident => $plugin:expr,)*) => {
+    ($($folder:ident => $plugin:expr $(; ui $widgets:path)?,)*) => {
         $(pub mod $folder;)*
 
         /// Every built-in plugin, in registration order.
         fn builtin_plugins() -> Vec<Arc<dyn Plugin>> {
             vec![$(Arc::new($plugin)),*]
         }
+
+        /// The plugins' own widgets, by plugin id.
+        #[cfg(feature = "ui")]
+        fn builtin_widgets() -> Vec<(String, ui::CustomUi)> {
+            let mut all: Vec<(String, ui::CustomUi)> = Vec::new();
+            $($(
+                let p: Arc<dyn Plugin> = Arc::new($plugin);
+                all.push((p.id().to_string(), $widgets));
+            )?)*
+            all
+        }
     };
 }
 
-// One line per plugin: its folder and its value.
+// One line per plugin: its folder and its value (and its own widgets, if any).
 builtin_plugins! {
     clip_shapes => clip_shapes::Shapes::default(),
     clip_labels => clip_labels::ClipLabels,
@@ -42,7 +58,7 @@ builtin_plugins! {
     shade_blinn_phong => shade_blinn_phong::BlinnPhong::default(),
     shade_isosurface => shade_isosurface::Isosurface::default(),
     shade_envmap => shade_envmap::EnvMap::default(),
-    shade_dos => shade_dos::Dos::default(),
+    shade_dos => shade_dos::Dos::default(); ui shade_dos::ui::cone,
     shade_cook_torrance => shade_cook_torrance::CookTorrance::default(),
     shade_oren_nayar => shade_oren_nayar::OrenNayar::default(),
     shade_toon => shade_toon::Toon::default(),

@@ -453,8 +453,8 @@ fn degenerate_volumes_are_warned_about_and_suggest_tf_says_so() {
 
 fn headless_warnings(volume: &Path) -> Vec<String> {
     let doc = vwb_app::cli::load_document(None).unwrap();
-    let v = vwb_app::headless::load_volume_file(volume).unwrap();
-    vwb_app::headless::frame_warnings(&doc, &v)
+    let v = vwb_lab::headless::load_volume_file(volume).unwrap();
+    vwb_lab::headless::frame_warnings(&doc, &v)
 }
 
 #[test]

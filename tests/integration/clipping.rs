@@ -543,7 +543,7 @@ fn clipping_benchmark() {
          - Presets: `ct_clip_quadrant.ron` (cut-away octant, shading at the cut), \
          `mri_clip_sphere.ron` (sphere, soft edge), `ct_dos_clip.ron` (DOS with a clip \
          plane).\n",
-        machine = vwb_app::measure::machine(),
+        machine = vwb_lab::measure::machine(),
         adapter = gpu().describe(),
     );
     vwb_render::preset::write_atomic(&repo().join("docs/clipping.md"), md.as_bytes()).unwrap();

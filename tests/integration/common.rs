@@ -135,7 +135,7 @@ pub fn render(
 
 /// Composites over black, in [0,1].
 pub fn rgb(px: &[[f32; 4]]) -> Vec<[f64; 3]> {
-    vwb_app::headless::composite_over(px, [0.0, 0.0, 0.0, 1.0])
+    vwb_lab::headless::composite_over(px, [0.0, 0.0, 0.0, 1.0])
 }
 
 /// RMS and max difference over all channels.

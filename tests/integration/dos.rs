@@ -114,7 +114,7 @@ fn occlusion_darkens_the_ct_head_and_the_nuclei() {
         let doc = Document::load(&repo().join(preset), &registry)
             .unwrap()
             .document;
-        let volume = vwb_app::headless::load_volume(&doc.volume).unwrap();
+        let volume = vwb_lab::headless::load_volume(&doc.volume).unwrap();
         let s = FrameSettings {
             width: 64,
             height: 64,

@@ -455,5 +455,5 @@ fn write_doc(rows: &[Row], drift: &[(Backend, TargetFormat, f64, f64)]) {
 
 /// CPU model and core count, for the docs.
 fn machine() -> String {
-    vwb_app::measure::machine()
+    vwb_lab::measure::machine()
 }

@@ -104,7 +104,7 @@ fn storm_lic_shows_structure_along_the_flow() {
 #[ignore = "study: bash bench/flow.sh"]
 fn flow_study() {
     let mut o = String::new();
-    let machine = vwb_app::measure::machine();
+    let machine = vwb_lab::measure::machine();
     let _ = writeln!(o, "# Flow: streamlines and 3D LIC\n");
     let _ = writeln!(
         o,
@@ -254,7 +254,7 @@ fn flow_study() {
     s.camera.roll_deg = 0.0;
     render(&mut r, &[tf], TargetFormat::Rgba32Float, &s);
     let (w, h, px) = r.read_pixels().unwrap();
-    let rgb = vwb_app::headless::composite_over(&px, [0.0, 0.0, 0.0, 1.0]);
+    let rgb = vwb_lab::headless::composite_over(&px, [0.0, 0.0, 0.0, 1.0]);
     let bytes: Vec<u8> = rgb
         .iter()
         .flat_map(|p| p.map(|c| (c.clamp(0.0, 1.0) * 255.0).round() as u8))

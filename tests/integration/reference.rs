@@ -42,7 +42,7 @@ fn every_shipped_preset_matches_its_cpu_twins() {
         let doc = Document::load(&path, &registry)
             .unwrap_or_else(|e| panic!("{e}"))
             .document;
-        let volume = vwb_app::headless::load_volume(&doc.volume).unwrap();
+        let volume = vwb_lab::headless::load_volume(&doc.volume).unwrap();
         for backend in [Backend::Raster, Backend::Compute] {
             let s = FrameSettings {
                 width: 64,

@@ -65,7 +65,7 @@ fn png_rgb(path: &Path) -> Vec<[f64; 3]> {
 fn check_reference(preset: &str, name: &str, backend: Backend) {
     let loaded = Document::load(&repo().join("presets").join(preset), &registry()).unwrap();
     let doc = loaded.document;
-    let volume = vwb_app::headless::load_volume(&doc.volume).unwrap();
+    let volume = vwb_lab::headless::load_volume(&doc.volume).unwrap();
     let mut r = Renderer::new(gpu(), volume).unwrap();
     let mut s = doc.frame_settings();
     s.width = 128;
@@ -73,13 +73,13 @@ fn check_reference(preset: &str, name: &str, backend: Backend) {
     s.backend = backend;
     let (img, _, _) = {
         r.update_stack(&doc.stack, doc.render.target).unwrap();
-        vwb_app::headless::render_image(&mut r, &s, doc.render.background).unwrap()
+        vwb_lab::headless::render_image(&mut r, &s, doc.render.background).unwrap()
     };
     let path = repo()
         .join("tests/reference_images")
         .join(format!("{name}.png"));
     if bless() || !path.exists() {
-        vwb_app::headless::save_png(&img, &path).unwrap();
+        vwb_lab::headless::save_png(&img, &path).unwrap();
         assert!(
             bless(),
             "{} did not exist; wrote it — rerun",
@@ -392,7 +392,7 @@ fn empty_space_skipping_leaves_images_unchanged() {
     for path in crate::presets::shipped_presets() {
         let name = path.file_name().unwrap().to_string_lossy().to_string();
         let doc = Document::load(&path, &registry).unwrap().document;
-        let volume = vwb_app::headless::load_volume(&doc.volume).unwrap();
+        let volume = vwb_lab::headless::load_volume(&doc.volume).unwrap();
         for (backend, early_termination) in [
             (Backend::Raster, None),
             (Backend::Compute, None),
@@ -737,10 +737,10 @@ fn atlas_benchmark() {
         }));
     }
     let out = serde_json::json!({
-        "machine": vwb_app::measure::machine(),
+        "machine": vwb_lab::measure::machine(),
         "adapter": gpu().describe(),
         "scene": "embedded demo, classify.tf1d ramps (64 variants, 4 viewpoints), compute, rgba32float, spacing 1",
         "rows": rows,
     });
-    vwb_app::measure::save_json(&repo().join("docs/atlas_bench.json"), &out).expect("write");
+    vwb_lab::measure::save_json(&repo().join("docs/atlas_bench.json"), &out).expect("write");
 }

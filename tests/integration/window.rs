@@ -37,7 +37,7 @@ fn window_sized(
     gpu();
     // the sample data directory of the tests
     repo();
-    let volume = vwb_app::headless::load_volume(&doc.volume).expect("volume");
+    let volume = vwb_lab::headless::load_volume(&doc.volume).expect("volume");
     let mut h = Harness::builder()
         .with_size(size)
         .with_accessibility_check(accessibility)
@@ -701,14 +701,14 @@ fn ui_frame_time_benchmark() {
         }));
     }
     let out = serde_json::json!({
-        "machine": vwb_app::measure::machine(),
+        "machine": vwb_lab::measure::machine(),
         "adapter": h.state().renderer().gpu().describe(),
         "window": [1100, 800],
         "viewport_pixels_full_quality": viewport,
         "preset": "presets/ct_head.ron",
         "rows": rows,
     });
-    vwb_app::measure::save_json(&repo().join("docs/ui_bench.json"), &out).expect("write");
+    vwb_lab::measure::save_json(&repo().join("docs/ui_bench.json"), &out).expect("write");
 }
 
 /// A file dropped on the window: egui hands the app its path.

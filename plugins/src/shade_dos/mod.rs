@@ -31,6 +31,8 @@
 //!   with L_a = 1 and no ambient.
 
 pub mod mc;
+#[cfg(feature = "ui")]
+pub mod ui;
 
 use std::sync::Arc;
 

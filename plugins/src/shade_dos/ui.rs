@@ -1,20 +1,6 @@
-//! Custom parameter UI per plugin: widgets a plugin shows above the ones generated from
-//! its spec. The renderer and plugin crates know nothing of egui, so the hooks live
-//! here, one line per plugin in [`lookup`]; a plugin without one gets only the
-//! generated widgets.
+//! The directional-occlusion plugin's own widget in the window (feature `ui`).
 
-use vwb_render::params::ParamValues;
-
-/// Draws extra widgets for a plugin's parameters; true when a value changed.
-pub type CustomUi = fn(&mut egui::Ui, &mut ParamValues) -> bool;
-
-/// The custom UI of a plugin id, if it has one.
-pub fn lookup(plugin_id: &str) -> Option<CustomUi> {
-    match plugin_id {
-        "shade.dos" => Some(dos_cone),
-        _ => None,
-    }
-}
+use crate::params::ParamValues;
 
 /// Height of the cone diagram in points.
 const CONE_HEIGHT: f32 = 70.0;
@@ -22,7 +8,7 @@ const CONE_HEIGHT: f32 = 70.0;
 /// Directional occlusion: the backward cone of aperture θ drawn to scale over a few
 /// slices (Schott et al. 2009, Fig. 3): the occlusion extent d·tan θ grows with the
 /// slice distance d. Dragging sideways on the diagram sets θ.
-fn dos_cone(ui: &mut egui::Ui, params: &mut ParamValues) -> bool {
+pub fn cone(ui: &mut egui::Ui, params: &mut ParamValues) -> bool {
     let theta = params.float("theta_deg");
     let width = ui.available_width().clamp(120.0, 260.0);
     let (rect, response) =
@@ -72,7 +58,7 @@ fn dos_cone(ui: &mut egui::Ui, params: &mut ParamValues) -> bool {
     if dx != 0.0 {
         let new = (theta - dx * 0.5).clamp(0.0, 89.9);
         if new != theta {
-            params.set("theta_deg", vwb_render::params::ParamValue::Float(new));
+            params.set("theta_deg", crate::params::ParamValue::Float(new));
             return true;
         }
     }
@@ -82,30 +68,25 @@ fn dos_cone(ui: &mut egui::Ui, params: &mut ParamValues) -> bool {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::test_input::press;
-    use vwb_render::plugin::PluginInstance;
+    use crate::PluginInstance;
 
-    #[test]
-    fn only_plugins_with_a_hook_have_one() {
-        let r = vwb_plugins::builtin_registry();
-        let with: Vec<&str> = r
-            .plugins()
-            .iter()
-            .map(|p| p.id())
-            .filter(|id| lookup(id).is_some())
-            .collect();
-        assert_eq!(with, ["shade.dos"]);
-        assert!(lookup("no.such.plugin").is_none());
+    fn press(pos: egui::Pos2, pressed: bool, button: egui::PointerButton) -> egui::Event {
+        egui::Event::PointerButton {
+            pos,
+            button,
+            pressed,
+            modifiers: egui::Modifiers::NONE,
+        }
     }
 
     /// Dragging left on the cone diagram widens the cone.
     #[test]
     fn dragging_the_cone_sets_theta() {
-        let r = vwb_plugins::builtin_registry();
+        let r = crate::builtin_registry();
         let mut inst = PluginInstance::new(r.get("shade.dos").unwrap());
         let before = inst.params.float("theta_deg");
         let ctx = egui::Context::default();
-        let hook = lookup("shade.dos").unwrap();
+        let hook: crate::ui::CustomUi = cone;
         let rect = std::cell::Cell::new(egui::Rect::NOTHING);
         let frame = |events: Vec<egui::Event>, t: f64, inst: &mut PluginInstance| {
             let input = egui::RawInput {

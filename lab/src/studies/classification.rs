@@ -93,7 +93,7 @@ pub fn run(
             .file_stem()
             .map(|s| s.to_string_lossy().to_string())
             .unwrap_or_default();
-        let mut doc = crate::cli::load_document(Some(path))?;
+        let mut doc = crate::document::load_document(Some(path))?;
         doc.render.size = size;
         doc.render.target = TargetFormat::Rgba32Float;
         doc.render.early_termination = None;

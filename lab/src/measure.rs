@@ -377,7 +377,7 @@ pub fn compare_document(
             (img, info)
         }
         Against::Preset(path) => {
-            let mut other = crate::cli::load_document(Some(path))?;
+            let mut other = crate::document::load_document(Some(path))?;
             other.render.size = doc.render.size;
             let v = headless::load_volume(&other.volume)?;
             let mut r2 = headless::renderer_for(gpu, &other, v)

@@ -1,0 +1,47 @@
+//! Loading documents (presets) for headless use, and the built-in default document.
+
+use std::path::Path;
+
+use anyhow::Result;
+use vwb_render::Camera;
+use vwb_render::plugin::{PluginInstance, Registry};
+use vwb_render::preset::{Document, RenderSection, VolumeSource};
+
+/// The preset the workbench opens on (embedded, so it runs anywhere).
+pub const DEMO_PRESET: &str = include_str!("../../presets/demo.ron");
+
+/// The document shown when no preset is given: `presets/demo.ron` (the embedded demo
+/// volume with a 1D transfer function).
+pub fn default_document(registry: &Registry) -> Document {
+    match Document::parse(DEMO_PRESET, "presets/demo.ron", registry) {
+        Ok(loaded) => return loaded.document,
+        Err(e) => log::error!("{e}"),
+    }
+    let stack = registry
+        .get("classify.tf1d")
+        .map(|p| vec![PluginInstance::new(p)])
+        .unwrap_or_default();
+    Document {
+        description: "demo: MRI head with the default 1D transfer function".into(),
+        volume: VolumeSource::Demo,
+        camera: Camera::default(),
+        render: RenderSection::default(),
+        stack,
+    }
+}
+
+/// Loads a preset (or the built-in default document) with the built-in plugins and
+/// prints its warnings; the volume it names is protected from being overwritten by
+/// outputs.
+pub fn load_document(preset: Option<&Path>) -> Result<Document> {
+    let registry = vwb_plugins::builtin_registry();
+    let Some(path) = preset else {
+        return Ok(default_document(&registry));
+    };
+    let loaded = Document::load(path, &registry)?;
+    for w in &loaded.warnings {
+        eprintln!("warning: {w}");
+    }
+    crate::outputs::protect_document(Some(path), &loaded.document);
+    Ok(loaded.document)
+}

@@ -1,0 +1,16 @@
+//! `vwb-lab`: everything the workbench does without a window. Headless rendering
+//! ([`headless`]), the measurement engine (timing, comparison against converged
+//! references, per-plugin cost, sweeps with Pareto fronts, scene JSON: [`measure`]),
+//! the studies that regenerate the docs ([`studies`]), background jobs ([`job`]),
+//! document loading ([`document`]) and the output-path rules ([`outputs`]).
+//!
+//! It depends on the renderer and the built-in plugins, never on egui: the app's CLI
+//! and window are thin layers over it, and scripts or other front ends (a Python
+//! binding, an experiment runner) can use it directly. No module here imports the app.
+
+pub mod document;
+pub mod headless;
+pub mod job;
+pub mod measure;
+pub mod outputs;
+pub mod studies;
