@@ -73,6 +73,11 @@ pub enum Command {
     /// write the report (docs/dos.md).
     #[command(after_help = crate::cli_help::DOS_STUDY)]
     DosStudy(vwb_lab::studies::dos::DosStudyArgs),
+    /// Run an experiment file: scenes × variants × a parameter grid, each image timed and
+    /// compared with its reference; writes a report (Markdown, Pareto plots, images,
+    /// CSV, JSON, JUnit XML) and fails when an assertion fails.
+    #[command(after_help = crate::cli_help::RUN)]
+    Run(RunArgs),
     /// Print the adapter, its limits and the registered plugin ids.
     #[command(after_help = crate::cli_help::INFO)]
     Info,
@@ -80,6 +85,22 @@ pub enum Command {
     /// fetch them into the data directory ($VWB_DATA_DIR, else the user's cache).
     #[command(subcommand, after_help = crate::cli_help::DATA)]
     Data(crate::data_cmd::DataCommand),
+}
+
+/// `vwb run`'s arguments.
+#[derive(Debug, Clone, clap::Args)]
+pub struct RunArgs {
+    /// The experiment file (RON; see experiments/ and docs/experiments.md).
+    pub experiment: PathBuf,
+    /// Folder for the report (default reports/<experiment name>).
+    #[arg(short, long)]
+    pub output: Option<PathBuf>,
+}
+
+/// `vwb run FILE`: runs the experiment; an error when an assertion fails.
+pub fn run_experiment(a: &RunArgs) -> Result<()> {
+    vwb_lab::experiment::run_file(&a.experiment, a.output.as_deref())?;
+    Ok(())
 }
 
 /// Overrides of the preset's volume and frame settings, shared by the subcommands.

@@ -63,6 +63,13 @@ Example:
   # a quick, small study (the default writes docs/dos.md at 48x48)
   vwb dos-study --size 24 --directions 8 --ct skip -o out/dos.md";
 
+pub const RUN: &str = "\
+Examples:
+  # regenerate the classification table in docs/classification.md
+  vwb run experiments/classification.ron
+  # a quick check of the illumination models, report into a chosen folder
+  vwb run experiments/shading_switchboard.ron -o out/shading";
+
 pub const INFO: &str = "\
 Example:
   vwb info";

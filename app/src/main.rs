@@ -1,7 +1,7 @@
 use clap::Parser;
 use vwb_app::cli::{
-    Cli, Command, run_bench, run_classification, run_compare, run_dos_study, run_info, run_render,
-    run_scene, run_suggest_tf, run_sweep,
+    Cli, Command, run_bench, run_classification, run_compare, run_dos_study, run_experiment,
+    run_info, run_render, run_scene, run_suggest_tf, run_sweep,
 };
 
 fn main() {
@@ -17,6 +17,7 @@ fn main() {
         Some(Command::Classification(a)) => run_classification(a),
         Some(Command::SuggestTf(a)) => run_suggest_tf(a),
         Some(Command::DosStudy(a)) => run_dos_study(a),
+        Some(Command::Run(a)) => run_experiment(a),
         Some(Command::Info) => run_info(),
         Some(Command::Data(a)) => vwb_app::data_cmd::run(a),
         None => vwb_app::window::run(&cli),

@@ -2,13 +2,15 @@
 //! ([`headless`]), the measurement engine (timing, comparison against converged
 //! references, per-plugin cost, sweeps with Pareto fronts, scene JSON: [`measure`]),
 //! the studies that regenerate the docs ([`studies`]), background jobs ([`job`]),
-//! document loading ([`document`]) and the output-path rules ([`outputs`]).
+//! document loading ([`document`]), the output-path rules ([`outputs`]) and experiment
+//! files, studies declared in RON ([`experiment`], `vwb run`).
 //!
 //! It depends on the renderer and the built-in plugins, never on egui: the app's CLI
 //! and window are thin layers over it, and scripts or other front ends (a Python
 //! binding, an experiment runner) can use it directly. No module here imports the app.
 
 pub mod document;
+pub mod experiment;
 pub mod headless;
 pub mod job;
 pub mod measure;

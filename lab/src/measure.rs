@@ -354,22 +354,15 @@ pub fn compare_document(
     let ours = gpu_image(&r, doc)?;
     let (theirs, info) = match against {
         Against::Reference => {
-            let emulate_fp16 = doc.render.target == TargetFormat::Rgba16Float;
             let start = Instant::now();
-            let img = with_progress("reference", Some(s.height as u64), |o| {
-                let o = ReferenceOptions {
-                    emulate_fp16,
-                    ..o.clone()
-                };
-                reference::render_reference(&volume, &doc.stack, &s, &o)
-            })?;
+            let (img, slices) = twin_render(&volume, doc, &s)?;
             let info = json!({
                 "kind": "reference",
-                "emulate_fp16": emulate_fp16,
-                "slices": img.slices,
+                "emulate_fp16": doc.render.target == TargetFormat::Rgba16Float,
+                "slices": slices,
                 "seconds": start.elapsed().as_secs_f64(),
             });
-            (over(&img, doc), info)
+            (img, info)
         }
         Against::Converged => {
             let o = ReferenceOptions::default();
@@ -399,6 +392,26 @@ pub fn compare_document(
         timing,
         against: info,
     })
+}
+
+/// The CPU twin's image of a frame with the GPU's slices (fp16 accumulation emulated
+/// for an rgba16float target), composited over the document's background, and its
+/// slice count; a progress bar on a terminal.
+pub fn twin_render(volume: &Volume, doc: &Document, s: &FrameSettings) -> Result<(RgbImageF, u32)> {
+    let emulate_fp16 = doc.render.target == TargetFormat::Rgba16Float;
+    let img = with_progress("reference", Some(s.height as u64), |o| {
+        let o = ReferenceOptions {
+            emulate_fp16,
+            ..o.clone()
+        };
+        reference::render_reference(volume, &doc.stack, s, &o)
+    })?;
+    Ok((over(&img, doc), img.slices))
+}
+
+/// [`twin_render`]'s image.
+pub fn twin_image(volume: &Volume, doc: &Document, s: &FrameSettings) -> Result<RgbImageF> {
+    Ok(twin_render(volume, doc, s)?.0)
 }
 
 /// Writes JSON atomically.
@@ -712,30 +725,37 @@ pub fn parse_axis(spec: &str, doc: &Document) -> Result<Axis> {
         .ok_or_else(|| anyhow!("--param '{spec}': expected name=A..B:N"))?;
     let name = name.trim();
     let values = parse_values(values).map_err(|e| anyhow!("--param {name}: {e}"))?;
+    axis_for(name, values, doc).map_err(|e| anyhow!("--param {e}"))
+}
+
+/// The axis that varies `name` (`render.slice_spacing` or `<plugin id>.<key>`, a float
+/// or int parameter of the plugin's first instance) over `values`, checked against the
+/// document; errors start with the name.
+pub fn axis_for(name: &str, values: Vec<f64>, doc: &Document) -> Result<Axis> {
     let target = if name == "render.slice_spacing" {
         if let Some(v) = values.iter().find(|v| **v <= 0.0) {
-            bail!("--param {name}: slice spacing must be > 0, got {v}");
+            bail!("{name}: slice spacing must be > 0, got {v}");
         }
         AxisTarget::Spacing
     } else {
-        let (id, key) = name.rsplit_once('.').ok_or_else(|| {
-            anyhow!("--param {name}: expected render.slice_spacing or <plugin id>.<key>")
-        })?;
+        let (id, key) = name
+            .rsplit_once('.')
+            .ok_or_else(|| anyhow!("{name}: expected render.slice_spacing or <plugin id>.<key>"))?;
         let index = doc
             .stack
             .iter()
             .position(|i| i.plugin.id() == id)
-            .ok_or_else(|| anyhow!("--param {name}: the preset has no plugin '{id}'"))?;
+            .ok_or_else(|| anyhow!("{name}: the preset has no plugin '{id}'"))?;
         let specs = doc.stack[index].plugin.params();
         let spec = specs
             .iter()
             .find(|p| p.key == key)
-            .ok_or_else(|| anyhow!("--param {name}: plugin '{id}' has no parameter '{key}'"))?;
+            .ok_or_else(|| anyhow!("{name}: plugin '{id}' has no parameter '{key}'"))?;
         let int = match spec.kind {
             ParamKind::Float { .. } => false,
             ParamKind::Int { .. } => true,
             _ => bail!(
-                "--param {name}: only float and int parameters can be swept ('{key}' is {})",
+                "{name}: only float and int parameters can be swept ('{key}' is {})",
                 spec.kind_name()
             ),
         };
@@ -745,8 +765,7 @@ pub fn parse_axis(spec: &str, doc: &Document) -> Result<Axis> {
             } else {
                 ParamValue::Float(*v as f32)
             };
-            spec.check(&value)
-                .map_err(|e| anyhow!("--param {name}: {e}"))?;
+            spec.check(&value).map_err(|e| anyhow!("{name}: {e}"))?;
         }
         AxisTarget::Param {
             index,

@@ -13,6 +13,7 @@ mod composer;
 mod coverage;
 mod data;
 mod dos;
+mod experiment;
 mod extremes;
 mod flow;
 mod presets;

@@ -1,0 +1,1564 @@
+//! Experiment files: a study declared in RON and run by `vwb run FILE` (or
+//! [`run_file`]), so that "this plugin over these scenes and spacings, against the
+//! converged reference, error below X" needs no Rust.
+//!
+//! An experiment names its **scenes** (presets or sample volumes), its **variants**
+//! (parameter settings, plugin swaps, plugins switched off or on, over each scene's
+//! stack), a **grid** of any float/int parameter or the slice spacing (lists, linear or
+//! log ranges), the **reference** each image is compared with (the converged reference
+//! of the image's own stack or of a named variant, the CPU twin with the same slices, or
+//! another variant's GPU image), the **metrics** its tables show, **assertions** checked
+//! over the rows, and a **seed**. Running it renders every scene × variant × grid point
+//! on the GPU, times it and compares it, then writes a report (Markdown with tables and
+//! the Pareto plot per scene, images, CSV, JSON with the machine, adapter, version and
+//! seed) and a JUnit XML file with one test case per assertion. A failed assertion makes
+//! the run fail. With `doc_block` the Markdown also replaces a marked block of a doc, so
+//! the docs are regenerated from experiment files.
+//!
+//! Assertions (one per string): `METRIC OP NUMBER` holds when every row satisfies it;
+//! `METRIC(VARIANT) OP NUMBER` when every row of that variant does; and
+//! `METRIC(A) / METRIC(B) OP NUMBER` compares the medians of the two variants' rows,
+//! measured in the same run (e.g. `time(pre) / time(post) < 0.8`). OP is one of
+//! `<`, `<=`, `>`, `>=`. METRIC is one of [`Metric::ALL`] (`time` is `frame_ms`).
+
+use std::collections::{BTreeMap, HashMap};
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use anyhow::{Context, Result, anyhow, bail};
+use serde::{Deserialize, Serialize};
+use serde_json::json;
+use vwb_render::metrics::{self, Metrics, RgbImageF};
+use vwb_render::params::{ParamKind, ParamValue};
+use vwb_render::plugin::PluginInstance;
+use vwb_render::preset::{Document, VolumeSource};
+use vwb_render::reference::ReferenceOptions;
+use vwb_render::renderer::Backend;
+use vwb_render::slicing::VolumeBox;
+use vwb_render::{GpuContext, TargetFormat, Volume};
+
+use crate::headless;
+use crate::measure::{self, Axis, SweepPoint};
+
+/// A study declared in an experiment file.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Experiment {
+    /// Names the report and its files.
+    pub name: String,
+    #[serde(default)]
+    pub description: String,
+    pub scenes: Vec<Scene>,
+    /// Empty: one variant, each scene as it is.
+    #[serde(default)]
+    pub variants: Vec<Variant>,
+    #[serde(default)]
+    pub grid: Vec<GridAxis>,
+    #[serde(default)]
+    pub reference: ReferenceSpec,
+    /// The columns of the report's tables (all metrics are in the CSV and JSON).
+    #[serde(default = "default_metrics")]
+    pub metrics: Vec<Metric>,
+    #[serde(default)]
+    pub assertions: Vec<String>,
+    /// Written into every plugin parameter named `seed` (noise volumes, Monte-Carlo
+    /// references) unless a variant sets it; `None` keeps the presets' seeds.
+    #[serde(default)]
+    pub seed: Option<u64>,
+    #[serde(default)]
+    pub render: RenderOverrides,
+    /// Timed frames per image (after one untimed frame).
+    #[serde(default = "default_frames")]
+    pub frames: u32,
+    /// Convergence tolerance of converged references (RMS ΔE*uv of the last halving).
+    #[serde(default = "default_tolerance")]
+    pub tolerance: f64,
+    /// Also write the report into the block between `<!-- BEGIN <block> -->` and
+    /// `<!-- END <block> -->` of this file (relative to the experiment file's folder).
+    #[serde(default)]
+    pub doc_block: Option<DocBlock>,
+}
+
+fn default_metrics() -> Vec<Metric> {
+    vec![Metric::FrameMs, Metric::RmsDeltaE, Metric::ShareAbove6]
+}
+fn default_frames() -> u32 {
+    3
+}
+fn default_tolerance() -> f64 {
+    0.1
+}
+
+/// A scene: a preset file (relative to the experiment file's folder) or a sample data
+/// set by name (`vwb data list`) under the demo preset's stack, with the camera fitted.
+#[derive(Debug, Clone, Deserialize)]
+pub enum Scene {
+    Preset(PathBuf),
+    Sample(String),
+}
+
+/// One variant of every scene's stack.
+#[derive(Debug, Clone, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Variant {
+    pub name: String,
+    /// `"<plugin id>.<key>"` (its first instance) or `render.slice_spacing`,
+    /// `render.backend` (raster, compute), `render.target`, `render.early_termination`.
+    #[serde(default)]
+    pub set: BTreeMap<String, SetValue>,
+    /// (from, to): the first instance of plugin `from` is replaced by plugin `to` with
+    /// its default parameters.
+    #[serde(default)]
+    pub swap: Vec<(String, String)>,
+    /// Plugin ids whose instances are switched off.
+    #[serde(default)]
+    pub disable: Vec<String>,
+    /// Plugin ids whose instances are switched on.
+    #[serde(default)]
+    pub enable: Vec<String>,
+}
+
+/// A value in a variant's `set`: checked against the parameter's spec.
+#[derive(Debug, Clone, PartialEq, Deserialize, Serialize)]
+#[serde(untagged)]
+pub enum SetValue {
+    Bool(bool),
+    Number(f64),
+    Text(String),
+}
+
+/// One axis of the grid: `values: [..]` or `range: "A..B:N"` (`:log` for geometric).
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GridAxis {
+    /// `render.slice_spacing` or `<plugin id>.<key>` (a float or int parameter).
+    pub param: String,
+    #[serde(default)]
+    pub values: Option<Vec<f64>>,
+    #[serde(default)]
+    pub range: Option<String>,
+}
+
+/// What each image is compared with.
+#[derive(Debug, Clone, Default, PartialEq, Deserialize)]
+pub enum ReferenceSpec {
+    /// The converged reference of the image's own stack (the one a plugin supplies, else
+    /// refined slices), one per distinct plugin-parameter point.
+    #[default]
+    Converged,
+    /// The converged reference of the named variant at the same grid point (e.g. every
+    /// classification mode against the converged post-classification integral).
+    ConvergedOf(String),
+    /// The CPU twin renderer with the same slices.
+    Twin,
+    /// The named variant's GPU image at the same grid point.
+    Variant(String),
+}
+
+/// A measured quantity of one row.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Metric {
+    RmsDeltaE,
+    MeanDeltaE,
+    MaxDeltaE,
+    #[serde(rename = "share_above_6")]
+    ShareAbove6,
+    Ssim,
+    PsnrDb,
+    FrameMs,
+    Slices,
+    GpuMemoryMib,
+}
+
+impl Metric {
+    pub const ALL: [Metric; 9] = [
+        Metric::RmsDeltaE,
+        Metric::MeanDeltaE,
+        Metric::MaxDeltaE,
+        Metric::ShareAbove6,
+        Metric::Ssim,
+        Metric::PsnrDb,
+        Metric::FrameMs,
+        Metric::Slices,
+        Metric::GpuMemoryMib,
+    ];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Metric::RmsDeltaE => "rms_delta_e",
+            Metric::MeanDeltaE => "mean_delta_e",
+            Metric::MaxDeltaE => "max_delta_e",
+            Metric::ShareAbove6 => "share_above_6",
+            Metric::Ssim => "ssim",
+            Metric::PsnrDb => "psnr_db",
+            Metric::FrameMs => "frame_ms",
+            Metric::Slices => "slices",
+            Metric::GpuMemoryMib => "gpu_memory_mib",
+        }
+    }
+
+    fn header(self) -> &'static str {
+        match self {
+            Metric::RmsDeltaE => "RMS ΔE*uv",
+            Metric::MeanDeltaE => "mean ΔE*uv",
+            Metric::MaxDeltaE => "max ΔE*uv",
+            Metric::ShareAbove6 => "ΔE > 6",
+            Metric::Ssim => "SSIM",
+            Metric::PsnrDb => "PSNR (dB)",
+            Metric::FrameMs => "time (ms)",
+            Metric::Slices => "slices",
+            Metric::GpuMemoryMib => "GPU memory (MiB)",
+        }
+    }
+
+    fn parse(s: &str) -> Option<Metric> {
+        if s == "time" {
+            return Some(Metric::FrameMs);
+        }
+        Metric::ALL.into_iter().find(|m| m.name() == s)
+    }
+
+    fn of(self, row: &Row) -> f64 {
+        let m = &row.metrics;
+        match self {
+            Metric::RmsDeltaE => m.rms_delta_e,
+            Metric::MeanDeltaE => m.mean_delta_e,
+            Metric::MaxDeltaE => m.max_delta_e,
+            Metric::ShareAbove6 => m.share_above_6,
+            Metric::Ssim => m.ssim,
+            Metric::PsnrDb => m.psnr_db,
+            Metric::FrameMs => row.frame_ms,
+            Metric::Slices => row.slices as f64,
+            Metric::GpuMemoryMib => row.gpu_memory_bytes as f64 / (1u64 << 20) as f64,
+        }
+    }
+
+    fn cell(self, row: &Row) -> String {
+        let v = self.of(row);
+        match self {
+            Metric::ShareAbove6 => format!("{:.1} %", 100.0 * v),
+            Metric::Slices => format!("{v}"),
+            Metric::Ssim => format!("{v:.4}"),
+            Metric::GpuMemoryMib => format!("{v:.1}"),
+            _ => format!("{v:.2}"),
+        }
+    }
+}
+
+/// Overrides of every scene's `render:` section.
+#[derive(Debug, Clone, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RenderOverrides {
+    pub size: Option<(u32, u32)>,
+    /// `rgba16float` or `rgba32float`.
+    pub target: Option<String>,
+    /// 0 switches early ray termination off.
+    pub early_termination: Option<f32>,
+    /// `raster` or `compute`.
+    pub backend: Option<String>,
+}
+
+/// A marked block of a doc that the report replaces.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DocBlock {
+    pub file: PathBuf,
+    pub block: String,
+}
+
+/// One measured image.
+#[derive(Debug, Clone, Serialize)]
+pub struct Row {
+    pub scene: String,
+    pub variant: String,
+    /// The grid values, in the order of [`Experiment::grid`].
+    pub values: Vec<f64>,
+    pub slices: u32,
+    pub frame_ms: f64,
+    /// `gpu` (timestamps) or `wall`.
+    pub clock: &'static str,
+    pub gpu_memory_bytes: u64,
+    pub metrics: Metrics,
+    /// The image file, relative to the report's folder.
+    pub image: String,
+    /// Which reference it was compared with (an index into the report's references).
+    pub reference: usize,
+    pub pareto: bool,
+}
+
+/// An assertion's outcome.
+#[derive(Debug, Clone, Serialize)]
+pub struct Checked {
+    pub assertion: String,
+    pub passed: bool,
+    /// What was measured, in words.
+    pub detail: String,
+}
+
+/// A finished run.
+#[derive(Debug, Clone, Serialize)]
+pub struct Outcome {
+    pub name: String,
+    pub rows: Vec<Row>,
+    pub references: Vec<serde_json::Value>,
+    pub assertions: Vec<Checked>,
+    /// The report's Markdown.
+    pub markdown: String,
+}
+
+impl Outcome {
+    pub fn failed(&self) -> Vec<&Checked> {
+        self.assertions.iter().filter(|a| !a.passed).collect()
+    }
+}
+
+/// Reads and checks an experiment file (every assertion parses; at least one scene;
+/// variant names are unique; references name existing variants; grid axes have
+/// values), naming the file in every error.
+pub fn load(path: &Path) -> Result<Experiment> {
+    let text = std::fs::read_to_string(path)
+        .with_context(|| format!("{}: cannot read the experiment file", path.display()))?;
+    parse(&text, path)
+}
+
+/// [`load`] from text; `path` names the file in errors.
+pub fn parse(text: &str, path: &Path) -> Result<Experiment> {
+    // `Some(..)` may be left out around optional fields
+    let options =
+        ron::Options::default().with_default_extension(ron::extensions::Extensions::IMPLICIT_SOME);
+    let e: Experiment = options
+        .from_str(text)
+        .map_err(|err| anyhow!("{}: {err}", path.display()))?;
+    let file = path.display();
+    if e.scenes.is_empty() {
+        bail!("{file}: an experiment needs at least one scene");
+    }
+    if !(1..=1000).contains(&e.frames) {
+        bail!("{file}: frames must be in 1..=1000, got {}", e.frames);
+    }
+    if !(e.tolerance.is_finite() && e.tolerance > 0.0) {
+        bail!("{file}: tolerance must be a finite number > 0");
+    }
+    let mut names = std::collections::HashSet::new();
+    for v in &e.variants {
+        if !names.insert(v.name.as_str()) {
+            bail!("{file}: two variants are named '{}'", v.name);
+        }
+    }
+    let named = |n: &str| e.variants.iter().any(|v| v.name == n);
+    match &e.reference {
+        ReferenceSpec::ConvergedOf(n) | ReferenceSpec::Variant(n) if !named(n) => {
+            bail!(
+                "{file}: the reference names variant '{n}', which the experiment does not declare"
+            )
+        }
+        _ => {}
+    }
+    for a in &e.grid {
+        axis_values(a).map_err(|err| anyhow!("{file}: grid axis '{}': {err}", a.param))?;
+    }
+    for a in &e.assertions {
+        let parsed =
+            Assertion::parse(a).map_err(|err| anyhow!("{file}: assertion '{a}': {err}"))?;
+        for v in parsed.variants() {
+            if !named(v) {
+                bail!(
+                    "{file}: assertion '{a}' names variant '{v}', which the experiment does not declare"
+                );
+            }
+        }
+    }
+    if let Some((w, h)) = e.render.size
+        && !((1..=16384).contains(&w) && (1..=16384).contains(&h))
+    {
+        bail!("{file}: render size {w}x{h} is outside 1..=16384");
+    }
+    Ok(e)
+}
+
+fn axis_values(a: &GridAxis) -> Result<Vec<f64>, String> {
+    match (&a.values, &a.range) {
+        (Some(v), None) if !v.is_empty() => {
+            if let Some(x) = v.iter().find(|x| !x.is_finite()) {
+                return Err(format!("{x} is not a finite number"));
+            }
+            Ok(v.clone())
+        }
+        (None, Some(r)) => measure::parse_values(r),
+        (Some(_), Some(_)) => Err("give either values or range, not both".into()),
+        _ => Err("needs values: [..] or range: \"A..B:N\"".into()),
+    }
+}
+
+/// A comparison operator.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Op {
+    Lt,
+    Le,
+    Gt,
+    Ge,
+}
+
+impl Op {
+    fn holds(self, a: f64, b: f64) -> bool {
+        match self {
+            Op::Lt => a < b,
+            Op::Le => a <= b,
+            Op::Gt => a > b,
+            Op::Ge => a >= b,
+        }
+    }
+}
+
+/// A metric over all rows or over one variant's rows.
+#[derive(Debug, Clone, PartialEq)]
+struct Term {
+    metric: Metric,
+    variant: Option<String>,
+}
+
+/// A parsed assertion.
+#[derive(Debug, Clone, PartialEq)]
+enum Assertion {
+    /// Every row (of the variant) satisfies `term op bound`.
+    Each { term: Term, op: Op, bound: f64 },
+    /// median(a) / median(b) op bound.
+    Ratio {
+        a: Term,
+        b: Term,
+        op: Op,
+        bound: f64,
+    },
+}
+
+impl Assertion {
+    fn parse(s: &str) -> Result<Assertion, String> {
+        let ops = [("<=", Op::Le), (">=", Op::Ge), ("<", Op::Lt), (">", Op::Gt)];
+        let (lhs, op, rhs) = ops
+            .iter()
+            .find_map(|(tok, op)| s.split_once(tok).map(|(l, r)| (l, *op, r)))
+            .ok_or("expected METRIC < NUMBER (or <=, >, >=)")?;
+        let bound: f64 = rhs
+            .trim()
+            .parse()
+            .ok()
+            .filter(|b: &f64| b.is_finite())
+            .ok_or_else(|| format!("'{}' is not a finite number", rhs.trim()))?;
+        let term = |t: &str| -> Result<Term, String> {
+            let t = t.trim();
+            let (name, variant) = match t.split_once('(') {
+                Some((n, rest)) => {
+                    let v = rest
+                        .strip_suffix(')')
+                        .ok_or_else(|| format!("'{t}': missing ')'"))?
+                        .trim();
+                    if v.is_empty() {
+                        return Err(format!("'{t}': empty variant name"));
+                    }
+                    (n.trim(), Some(v.to_string()))
+                }
+                None => (t, None),
+            };
+            let metric = Metric::parse(name).ok_or_else(|| {
+                let all: Vec<&str> = Metric::ALL.iter().map(|m| m.name()).collect();
+                format!("unknown metric '{name}' (one of time, {})", all.join(", "))
+            })?;
+            Ok(Term { metric, variant })
+        };
+        Ok(match lhs.split_once('/') {
+            Some((a, b)) => {
+                let (a, b) = (term(a)?, term(b)?);
+                if a.variant.is_none() || b.variant.is_none() {
+                    return Err("a ratio compares two variants: METRIC(A) / METRIC(B)".into());
+                }
+                Assertion::Ratio { a, b, op, bound }
+            }
+            None => Assertion::Each {
+                term: term(lhs)?,
+                op,
+                bound,
+            },
+        })
+    }
+
+    fn variants(&self) -> Vec<&str> {
+        let terms: Vec<&Term> = match self {
+            Assertion::Each { term, .. } => vec![term],
+            Assertion::Ratio { a, b, .. } => vec![a, b],
+        };
+        terms.iter().filter_map(|t| t.variant.as_deref()).collect()
+    }
+
+    fn check(&self, text: &str, rows: &[Row]) -> Checked {
+        let of = |t: &Term| -> Vec<&Row> {
+            rows.iter()
+                .filter(|r| t.variant.as_ref().is_none_or(|v| &r.variant == v))
+                .collect()
+        };
+        let (passed, detail) = match self {
+            Assertion::Each { term, op, bound } => {
+                let rs = of(term);
+                if rs.is_empty() {
+                    (false, "no rows to check".to_string())
+                } else {
+                    let failing: Vec<&&Row> = rs
+                        .iter()
+                        .filter(|r| !op.holds(term.metric.of(r), *bound))
+                        .collect();
+                    // the worst row: the failing one furthest from the bound, else the closest
+                    let worst = rs
+                        .iter()
+                        .max_by(|a, b| {
+                            let (x, y) = (term.metric.of(a), term.metric.of(b));
+                            match op {
+                                Op::Lt | Op::Le => x.total_cmp(&y),
+                                Op::Gt | Op::Ge => y.total_cmp(&x),
+                            }
+                        })
+                        .expect("not empty");
+                    (
+                        failing.is_empty(),
+                        format!(
+                            "{} of {} rows fail; worst {} = {:.4} ({})",
+                            failing.len(),
+                            rs.len(),
+                            term.metric.name(),
+                            term.metric.of(worst),
+                            worst.label()
+                        ),
+                    )
+                }
+            }
+            Assertion::Ratio { a, b, op, bound } => {
+                let med = |t: &Term| {
+                    let v: Vec<f64> = of(t).iter().map(|r| t.metric.of(r)).collect();
+                    measure::Summary::of(&v).map(|s| s.median)
+                };
+                match (med(a), med(b)) {
+                    (Some(x), Some(y)) if y != 0.0 => {
+                        let ratio = x / y;
+                        (
+                            op.holds(ratio, *bound),
+                            format!(
+                                "median {} {:.4} / median {} {:.4} = {:.4}",
+                                a.metric.name(),
+                                x,
+                                b.metric.name(),
+                                y,
+                                ratio
+                            ),
+                        )
+                    }
+                    _ => (false, "no rows, or a zero denominator".to_string()),
+                }
+            }
+        };
+        Checked {
+            assertion: text.to_string(),
+            passed,
+            detail,
+        }
+    }
+}
+
+impl Row {
+    fn label(&self) -> String {
+        let values: Vec<String> = self.values.iter().map(|v| format!("{v}")).collect();
+        if values.is_empty() {
+            format!("{}, {}", self.scene, self.variant)
+        } else {
+            format!("{}, {}, {}", self.scene, self.variant, values.join(", "))
+        }
+    }
+}
+
+/// Applies a `set` entry to a document.
+fn set_value(doc: &mut Document, key: &str, value: &SetValue) -> Result<()> {
+    let num = |what: &str| match value {
+        SetValue::Number(x) => Ok(*x),
+        _ => Err(anyhow!("'{key}' needs a number ({what})")),
+    };
+    let text = || match value {
+        SetValue::Text(t) => Ok(t.as_str()),
+        _ => Err(anyhow!("'{key}' needs a string")),
+    };
+    match key {
+        "render.slice_spacing" => {
+            let v = num("slice spacing in voxels")?;
+            if !(v.is_finite() && v > 0.0) {
+                bail!("'{key}' must be > 0, got {v}");
+            }
+            doc.render.slice_spacing = v as f32;
+        }
+        "render.early_termination" => {
+            let v = num("opacity in (0, 1]; 0 switches it off")?;
+            if !(0.0..=1.0).contains(&v) {
+                bail!("'{key}' must be in [0, 1], got {v}");
+            }
+            doc.render.early_termination = (v > 0.0).then_some(v as f32);
+        }
+        "render.backend" => doc.render.backend = parse_backend(text()?)?,
+        "render.target" => doc.render.target = parse_target(text()?)?,
+        _ => {
+            let (id, k) = key.rsplit_once('.').ok_or_else(|| {
+                anyhow!("'{key}': expected <plugin id>.<key> or render.slice_spacing")
+            })?;
+            let inst = doc
+                .stack
+                .iter_mut()
+                .find(|i| i.plugin.id() == id)
+                .ok_or_else(|| anyhow!("'{key}': the scene has no plugin '{id}'"))?;
+            let specs = inst.plugin.params();
+            let spec = specs
+                .iter()
+                .find(|s| s.key == k)
+                .ok_or_else(|| anyhow!("'{key}': plugin '{id}' has no parameter '{k}'"))?;
+            let v = match (&spec.kind, value) {
+                (ParamKind::Float { .. }, SetValue::Number(x)) => ParamValue::Float(*x as f32),
+                (ParamKind::Int { .. }, SetValue::Number(x)) if x.fract() == 0.0 => {
+                    ParamValue::Int(*x as i32)
+                }
+                (ParamKind::Bool { .. }, SetValue::Bool(b)) => ParamValue::Bool(*b),
+                (ParamKind::Enum { .. }, SetValue::Text(t)) => ParamValue::Enum(t.clone()),
+                (ParamKind::Path { .. }, SetValue::Text(t)) => ParamValue::Path(t.into()),
+                (kind, v) => bail!(
+                    "'{key}' is a {} parameter; {v:?} does not fit it",
+                    kind_name(kind)
+                ),
+            };
+            spec.check(&v).map_err(|e| anyhow!("'{key}': {e}"))?;
+            inst.params.set(k, v);
+        }
+    }
+    Ok(())
+}
+
+fn kind_name(kind: &ParamKind) -> &'static str {
+    match kind {
+        ParamKind::Float { .. } => "float",
+        ParamKind::Int { .. } => "int",
+        ParamKind::Bool { .. } => "bool",
+        ParamKind::Enum { .. } => "enum",
+        ParamKind::Color { .. } => "colour",
+        ParamKind::Vec3 { .. } => "vec3",
+        ParamKind::Tf { .. } => "transfer-function",
+        ParamKind::Tf2d { .. } => "2D transfer-function",
+        ParamKind::Path { .. } => "path",
+    }
+}
+
+fn parse_backend(s: &str) -> Result<Backend> {
+    match s {
+        "raster" => Ok(Backend::Raster),
+        "compute" => Ok(Backend::Compute),
+        _ => bail!("unknown backend '{s}' (raster or compute)"),
+    }
+}
+
+fn parse_target(s: &str) -> Result<TargetFormat> {
+    match s {
+        "rgba16float" => Ok(TargetFormat::Rgba16Float),
+        "rgba32float" => Ok(TargetFormat::Rgba32Float),
+        _ => bail!("unknown target '{s}' (rgba16float or rgba32float)"),
+    }
+}
+
+impl Variant {
+    /// The variant of a scene's document.
+    fn apply(&self, base: &Document) -> Result<Document> {
+        let registry = vwb_plugins::builtin_registry();
+        let mut doc = base.clone();
+        for (from, to) in &self.swap {
+            let plugin = registry
+                .get(to)
+                .map_err(|err| anyhow!("swap '{from}' → '{to}': {err}"))?;
+            let at = doc
+                .stack
+                .iter()
+                .position(|i| i.plugin.id() == from)
+                .ok_or_else(|| {
+                    anyhow!("swap '{from}' → '{to}': the scene has no plugin '{from}'")
+                })?;
+            let enabled = doc.stack[at].enabled;
+            let mut inst = PluginInstance::new(plugin);
+            inst.enabled = enabled;
+            doc.stack[at] = inst;
+        }
+        for (list, on) in [(&self.disable, false), (&self.enable, true)] {
+            for id in list {
+                let mut found = false;
+                for inst in doc.stack.iter_mut().filter(|i| i.plugin.id() == id) {
+                    inst.enabled = on;
+                    found = true;
+                }
+                if !found {
+                    bail!("'{id}': the scene has no plugin '{id}' to switch");
+                }
+            }
+        }
+        for (key, value) in &self.set {
+            set_value(&mut doc, key, value)?;
+        }
+        Ok(doc)
+    }
+}
+
+/// A loaded scene.
+struct SceneDoc {
+    name: String,
+    doc: Document,
+    volume: Arc<Volume>,
+}
+
+fn load_scene(scene: &Scene, dir: &Path, e: &Experiment) -> Result<SceneDoc> {
+    let (name, mut doc) = match scene {
+        Scene::Preset(p) => {
+            let path = dir.join(p);
+            let name = path.file_stem().map_or_else(
+                || path.display().to_string(),
+                |s| s.to_string_lossy().into(),
+            );
+            (name, crate::document::load_document(Some(&path))?)
+        }
+        Scene::Sample(s) => {
+            let mut doc = crate::document::load_document(None)?;
+            doc.volume = VolumeSource::Sample(s.clone());
+            (s.clone(), doc)
+        }
+    };
+    let volume = headless::load_volume(&doc.volume).with_context(|| format!("scene '{name}'"))?;
+    if matches!(scene, Scene::Sample(_)) {
+        let b = VolumeBox::new(volume.dims, volume.spacing);
+        doc.camera.fit(b.min, b.max);
+    }
+    if let Some((w, h)) = e.render.size {
+        doc.render.size = [w, h];
+    }
+    if let Some(t) = &e.render.target {
+        doc.render.target = parse_target(t)?;
+    }
+    if let Some(b) = &e.render.backend {
+        doc.render.backend = parse_backend(b)?;
+    }
+    if let Some(t) = e.render.early_termination {
+        doc.render.early_termination = (t > 0.0).then_some(t);
+    }
+    if let Some(seed) = e.seed {
+        for inst in &mut doc.stack {
+            let has_seed = inst
+                .plugin
+                .params()
+                .iter()
+                .any(|s| s.key == "seed" && matches!(s.kind, ParamKind::Int { .. }));
+            if has_seed {
+                inst.params
+                    .set("seed", ParamValue::Int((seed % i32::MAX as u64) as i32));
+            }
+        }
+    }
+    Ok(SceneDoc { name, doc, volume })
+}
+
+/// The key of a converged reference: the plugin stack and frame without the spacing.
+fn reference_key(scene: &str, doc: &Document) -> String {
+    let mut d = doc.clone();
+    d.render.slice_spacing = 1.0;
+    d.render.early_termination = None;
+    let stack: Vec<String> = d
+        .stack
+        .iter()
+        .filter(|i| i.enabled)
+        .map(|i| format!("{}:{:?}", i.plugin.id(), i.params))
+        .collect();
+    format!(
+        "{scene}|{:?}|{:?}|{:?}|{}",
+        d.render.size,
+        d.camera,
+        d.render.background,
+        stack.join(";")
+    )
+}
+
+/// What [`run`] reports while it runs.
+pub enum Event<'a> {
+    Reference { scene: &'a str, what: &'a str },
+    Row { index: usize, row: &'a Row },
+}
+
+/// Runs an experiment; `dir` resolves its relative paths, `out` receives the report.
+/// Errors in the setup name the experiment file; a failed assertion is not an error
+/// here (see [`Outcome::failed`]).
+pub fn run(
+    gpu: &GpuContext,
+    e: &Experiment,
+    file: &Path,
+    out: &Path,
+    observer: &mut dyn FnMut(Event<'_>),
+) -> Result<Outcome> {
+    let dir = file.parent().unwrap_or(Path::new("."));
+    let fname = file.display();
+    let default_variant = [Variant {
+        name: "as is".into(),
+        ..Default::default()
+    }];
+    let variants: &[Variant] = if e.variants.is_empty() {
+        &default_variant
+    } else {
+        &e.variants
+    };
+    std::fs::create_dir_all(out.join("images"))
+        .with_context(|| format!("{}: cannot create", out.display()))?;
+    let grid_values: Vec<Vec<f64>> = e
+        .grid
+        .iter()
+        .map(|a| axis_values(a).map_err(|err| anyhow!("{fname}: grid '{}': {err}", a.param)))
+        .collect::<Result<_>>()?;
+    let mut rows: Vec<Row> = Vec::new();
+    let mut references: Vec<serde_json::Value> = Vec::new();
+    let mut images: Vec<RgbImageF> = Vec::new();
+    let mut converged: HashMap<String, (usize, RgbImageF)> = HashMap::new();
+    let mut gpu_images: HashMap<String, RgbImageF> = HashMap::new();
+    for scene in &e.scenes {
+        let sc = load_scene(scene, dir, e).with_context(|| format!("{fname}"))?;
+        // every variant's document and axes, checked before anything renders
+        let mut docs = Vec::new();
+        for v in variants {
+            let d = v.apply(&sc.doc).map_err(|err| {
+                anyhow!(
+                    "{fname}: variant '{}' on scene '{}': {err}",
+                    v.name,
+                    sc.name
+                )
+            })?;
+            let axes: Vec<Axis> = e
+                .grid
+                .iter()
+                .zip(&grid_values)
+                .map(|(a, vals)| measure::axis_for(&a.param, vals.clone(), &d))
+                .collect::<Result<_>>()
+                .map_err(|err| {
+                    anyhow!(
+                        "{fname}: variant '{}' on scene '{}': {err}",
+                        v.name,
+                        sc.name
+                    )
+                })?;
+            headless::preflight(None, &d, &sc.volume)
+                .map_err(|err| anyhow!("{fname}: scene '{}': {err}", sc.name))?;
+            docs.push((v, d, axes));
+        }
+        let points = measure::grid(&docs[0].2);
+        let at = |d: &Document, axes: &[Axis], values: &[f64]| {
+            let mut d = d.clone();
+            for (axis, v) in axes.iter().zip(values) {
+                measure::apply_axis(&mut d, axis, *v);
+            }
+            d
+        };
+        let find = |name: &str| {
+            docs.iter()
+                .find(|(v, _, _)| v.name == name)
+                .expect("checked at load")
+        };
+        let first_row = rows.len();
+        for (v, vdoc, axes) in &docs {
+            let mut r = headless::renderer_for(gpu, vdoc, sc.volume.clone())
+                .with_context(|| format!("{fname}: variant '{}' on scene '{}'", v.name, sc.name))?;
+            for values in &points {
+                let d = at(vdoc, axes, values);
+                let s = d.frame_settings();
+                r.update_stack(&d.stack, d.render.target)?;
+                let timing = measure::time_frames(&mut r, &s, 1, e.frames)?;
+                let img = measure::gpu_image(&r, &d)?;
+                let memory: u64 = r.plugin_memory().iter().map(|(_, _, b)| b).sum();
+                let reference = match &e.reference {
+                    ReferenceSpec::Converged | ReferenceSpec::ConvergedOf(_) => {
+                        let rd = match &e.reference {
+                            ReferenceSpec::ConvergedOf(n) => {
+                                let (_, od, oa) = find(n);
+                                at(od, oa, values)
+                            }
+                            _ => d.clone(),
+                        };
+                        let key = reference_key(&sc.name, &rd);
+                        if let Some((i, _)) = converged.get(&key) {
+                            *i
+                        } else {
+                            let what = match &e.reference {
+                                ReferenceSpec::ConvergedOf(n) => {
+                                    format!("converged reference of '{n}'")
+                                }
+                                _ => format!("converged reference of '{}'", v.name),
+                            };
+                            observer(Event::Reference {
+                                scene: &sc.name,
+                                what: &what,
+                            });
+                            let (img, mut info) = measure::converged_image(
+                                &sc.volume,
+                                &rd,
+                                &rd.frame_settings(),
+                                e.tolerance,
+                                &ReferenceOptions::default(),
+                            )?;
+                            info["scene"] = json!(sc.name);
+                            info["what"] = json!(what);
+                            let i = references.len();
+                            info["image"] = json!(format!("images/reference_{i:02}.png"));
+                            headless::save_png(
+                                &img.to_rgb8(),
+                                &out.join(format!("images/reference_{i:02}.png")),
+                            )?;
+                            references.push(info);
+                            converged.insert(key, (i, img));
+                            i
+                        }
+                    }
+                    ReferenceSpec::Twin => {
+                        let i = references.len();
+                        let img = measure::twin_image(&sc.volume, &d, &s)?;
+                        references.push(json!({
+                            "scene": sc.name, "kind": "twin", "variant": v.name, "values": values,
+                            "image": format!("images/reference_{i:02}.png"),
+                        }));
+                        headless::save_png(
+                            &img.to_rgb8(),
+                            &out.join(format!("images/reference_{i:02}.png")),
+                        )?;
+                        images.push(img);
+                        i
+                    }
+                    ReferenceSpec::Variant(n) => {
+                        let key = format!("{}|{n}|{values:?}", sc.name);
+                        if !gpu_images.contains_key(&key) {
+                            let (_, od, oa) = find(n);
+                            let o = at(od, oa, values);
+                            let mut r2 = headless::renderer_for(gpu, &o, sc.volume.clone())?;
+                            r2.render(&o.frame_settings())?;
+                            gpu_images.insert(key.clone(), measure::gpu_image(&r2, &o)?);
+                        }
+                        let i = references.len();
+                        references.push(json!({
+                            "scene": sc.name, "kind": "variant", "variant": n, "values": values,
+                        }));
+                        images.push(gpu_images[&key].clone());
+                        i
+                    }
+                };
+                let theirs = match &e.reference {
+                    ReferenceSpec::Converged | ReferenceSpec::ConvergedOf(_) => converged
+                        .values()
+                        .find(|(i, _)| *i == reference)
+                        .map(|(_, img)| img)
+                        .expect("just stored"),
+                    _ => images.last().expect("just pushed"),
+                };
+                let m = metrics::try_compare(&img, theirs).map_err(|err| anyhow!(err))?;
+                let (ms, clock) = timing.frame_ms();
+                let image = format!("images/row_{:03}.png", rows.len());
+                headless::save_png(&img.to_rgb8(), &out.join(&image))?;
+                rows.push(Row {
+                    scene: sc.name.clone(),
+                    variant: v.name.clone(),
+                    values: values.clone(),
+                    slices: timing.slices,
+                    frame_ms: ms,
+                    clock,
+                    gpu_memory_bytes: memory,
+                    metrics: m,
+                    image,
+                    reference,
+                    pareto: false,
+                });
+                observer(Event::Row {
+                    index: rows.len() - 1,
+                    row: rows.last().expect("just pushed"),
+                });
+            }
+        }
+        let front = measure::pareto_front(
+            &rows[first_row..]
+                .iter()
+                .map(|r| (r.frame_ms, r.metrics.rms_delta_e))
+                .collect::<Vec<_>>(),
+        );
+        for (r, f) in rows[first_row..].iter_mut().zip(front) {
+            r.pareto = f;
+        }
+    }
+    let assertions: Vec<Checked> = e
+        .assertions
+        .iter()
+        .map(|a| {
+            Assertion::parse(a)
+                .expect("checked at load")
+                .check(a, &rows)
+        })
+        .collect();
+    let mut outcome = Outcome {
+        name: e.name.clone(),
+        rows,
+        references,
+        assertions,
+        markdown: String::new(),
+    };
+    outcome.markdown = markdown(e, file, gpu, &outcome);
+    write_outputs(e, file, gpu, out, &outcome)?;
+    Ok(outcome)
+}
+
+/// The report's Markdown (the part a doc block receives).
+fn markdown(e: &Experiment, file: &Path, gpu: &GpuContext, o: &Outcome) -> String {
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        "Experiment `{}` ({}), run by `vwb run {}`. Machine: {}; adapter: {}; vwb {}; seed {}; {} timed frames per image ({} clock, median).",
+        e.name,
+        if e.description.is_empty() {
+            "no description"
+        } else {
+            &e.description
+        },
+        file.display(),
+        measure::machine(),
+        gpu.describe(),
+        env!("CARGO_PKG_VERSION"),
+        e.seed
+            .map_or_else(|| "as the presets set it".to_string(), |s| s.to_string()),
+        e.frames,
+        o.rows.first().map_or("gpu", |r| r.clock),
+    );
+    let _ = writeln!(s);
+    for r in &o.references {
+        let what = r["what"]
+            .as_str()
+            .unwrap_or(r["kind"].as_str().unwrap_or("reference"));
+        if r["kind"] == json!("converged") {
+            let _ = writeln!(
+                s,
+                "- Reference for `{}`: {what} at {} voxels, last halving changed RMS ΔE*uv by {:.3} (converged: {}), {:.1} s on the CPU.",
+                r["scene"].as_str().unwrap_or(""),
+                r["spacing_voxels"],
+                r["last_change_rms_delta_e"].as_f64().unwrap_or(f64::NAN),
+                r["converged"],
+                r["seconds"].as_f64().unwrap_or(f64::NAN),
+            );
+        } else if r["kind"] != json!("twin") && r["kind"] != json!("variant") {
+            let _ = writeln!(
+                s,
+                "- Reference for `{}`: {what} ({}), {:.1} s on the CPU.",
+                r["scene"].as_str().unwrap_or(""),
+                r["kind"].as_str().unwrap_or(""),
+                r["seconds"].as_f64().unwrap_or(f64::NAN),
+            );
+        }
+    }
+    match &e.reference {
+        ReferenceSpec::Twin => {
+            let _ = writeln!(s, "- Reference: the CPU twin with the same slices.");
+        }
+        ReferenceSpec::Variant(n) => {
+            let _ = writeln!(
+                s,
+                "- Reference: variant `{n}`'s GPU image at the same grid point."
+            );
+        }
+        _ => {}
+    }
+    let _ = writeln!(s);
+    let mut header = vec!["scene".to_string(), "variant".to_string()];
+    header.extend(e.grid.iter().map(|a| a.param.clone()));
+    header.extend(e.metrics.iter().map(|m| m.header().to_string()));
+    header.push("Pareto".into());
+    let _ = writeln!(s, "| {} |", header.join(" | "));
+    let align: Vec<&str> = header
+        .iter()
+        .enumerate()
+        .map(|(i, _)| if i < 2 { "---" } else { "---:" })
+        .collect();
+    let _ = writeln!(s, "|{}|", align.join("|"));
+    for r in &o.rows {
+        let mut cells = vec![r.scene.clone(), r.variant.clone()];
+        cells.extend(r.values.iter().map(|v| format!("{v}")));
+        cells.extend(e.metrics.iter().map(|m| m.cell(r)));
+        cells.push(if r.pareto {
+            "●".into()
+        } else {
+            String::new()
+        });
+        let _ = writeln!(s, "| {} |", cells.join(" | "));
+    }
+    if !o.assertions.is_empty() {
+        let _ = writeln!(s);
+        let _ = writeln!(s, "Assertions:");
+        let _ = writeln!(s);
+        for a in &o.assertions {
+            let _ = writeln!(
+                s,
+                "- {} `{}`: {}",
+                if a.passed { "pass" } else { "**FAIL**" },
+                a.assertion,
+                a.detail
+            );
+        }
+    }
+    s
+}
+
+fn write_outputs(
+    e: &Experiment,
+    file: &Path,
+    gpu: &GpuContext,
+    out: &Path,
+    o: &Outcome,
+) -> Result<()> {
+    // Pareto plot per scene
+    let mut scenes: Vec<&str> = o.rows.iter().map(|r| r.scene.as_str()).collect();
+    scenes.dedup();
+    let mut plots = String::new();
+    for scene in &scenes {
+        let rows: Vec<&Row> = o.rows.iter().filter(|r| &r.scene == scene).collect();
+        let mut axes = vec![Axis {
+            name: "variant".into(),
+            target: measure::AxisTarget::Spacing,
+            values: Vec::new(),
+        }];
+        axes.extend(e.grid.iter().map(|a| Axis {
+            name: a.param.clone(),
+            target: measure::AxisTarget::Spacing,
+            values: Vec::new(),
+        }));
+        let variant_index =
+            |name: &str| e.variants.iter().position(|v| v.name == name).unwrap_or(0) as f64;
+        let points: Vec<SweepPoint> = rows
+            .iter()
+            .map(|r| {
+                let mut values = vec![variant_index(&r.variant)];
+                values.extend(&r.values);
+                SweepPoint {
+                    values,
+                    slices: r.slices,
+                    ms: r.frame_ms,
+                    clock: r.clock,
+                    wall_ms: r.frame_ms,
+                    metrics: r.metrics.clone(),
+                    image: r.image.clone(),
+                    pareto: r.pareto,
+                }
+            })
+            .collect();
+        let svg = measure::pareto_svg(&format!("{} — {scene}", e.name), &axes, &points);
+        let name = format!("pareto_{}.svg", file_safe(scene));
+        measure::save_text(&out.join(&name), &svg)?;
+        let _ = writeln!(plots, "![Pareto front, {scene}]({name})");
+    }
+    let legend: Vec<String> = e
+        .variants
+        .iter()
+        .enumerate()
+        .map(|(i, v)| format!("variant={i} is `{}`", v.name))
+        .collect();
+    let report = format!(
+        "# Experiment: {}\n\n{}\n{}\n{}\n",
+        e.name,
+        o.markdown,
+        if legend.is_empty() {
+            String::new()
+        } else {
+            format!("Plot labels: {}.\n", legend.join(", "))
+        },
+        plots
+    );
+    measure::save_text(&out.join("report.md"), &report)?;
+    // CSV
+    let mut csv = String::from("scene,variant");
+    for a in &e.grid {
+        let _ = write!(csv, ",{}", a.param);
+    }
+    for m in Metric::ALL {
+        let _ = write!(csv, ",{}", m.name());
+    }
+    csv.push_str(",clock,pareto,image\n");
+    for r in &o.rows {
+        let _ = write!(csv, "{},{}", csv_field(&r.scene), csv_field(&r.variant));
+        for v in &r.values {
+            let _ = write!(csv, ",{v}");
+        }
+        for m in Metric::ALL {
+            let _ = write!(csv, ",{}", m.of(r));
+        }
+        let _ = writeln!(csv, ",{},{},{}", r.clock, r.pareto, r.image);
+    }
+    measure::save_text(&out.join("results.csv"), &csv)?;
+    measure::save_json(
+        &out.join("results.json"),
+        &json!({
+            "experiment": e.name,
+            "file": file,
+            "machine": measure::machine(),
+            "adapter": gpu.describe(),
+            "version": env!("CARGO_PKG_VERSION"),
+            "seed": e.seed,
+            "frames": e.frames,
+            "references": o.references,
+            "rows": o.rows,
+            "assertions": o.assertions,
+        }),
+    )?;
+    measure::save_text(&out.join("junit.xml"), &junit(e, o))?;
+    if let Some(block) = &e.doc_block {
+        let dir = file.parent().unwrap_or(Path::new("."));
+        write_block(&dir.join(&block.file), &block.block, &o.markdown)?;
+    }
+    Ok(())
+}
+
+fn file_safe(s: &str) -> String {
+    s.chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || c == '-' || c == '_' {
+                c
+            } else {
+                '_'
+            }
+        })
+        .collect()
+}
+
+fn csv_field(s: &str) -> String {
+    if s.contains([',', '"', '\n']) {
+        format!("\"{}\"", s.replace('"', "\"\""))
+    } else {
+        s.to_string()
+    }
+}
+
+fn xml_escape(s: &str) -> String {
+    s.replace('&', "&amp;")
+        .replace('<', "&lt;")
+        .replace('>', "&gt;")
+        .replace('"', "&quot;")
+}
+
+/// JUnit XML: one test case per assertion (one passing case "ran" when there are none).
+fn junit(e: &Experiment, o: &Outcome) -> String {
+    let failures = o.failed().len();
+    let mut s = String::from("<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n");
+    let _ = writeln!(
+        s,
+        "<testsuite name=\"{}\" tests=\"{}\" failures=\"{failures}\">",
+        xml_escape(&e.name),
+        o.assertions.len().max(1)
+    );
+    if o.assertions.is_empty() {
+        let _ = writeln!(
+            s,
+            "  <testcase classname=\"{}\" name=\"ran ({} rows)\"/>",
+            xml_escape(&e.name),
+            o.rows.len()
+        );
+    }
+    for a in &o.assertions {
+        let _ = write!(
+            s,
+            "  <testcase classname=\"{}\" name=\"{}\"",
+            xml_escape(&e.name),
+            xml_escape(&a.assertion)
+        );
+        if a.passed {
+            let _ = writeln!(
+                s,
+                "><system-out>{}</system-out></testcase>",
+                xml_escape(&a.detail)
+            );
+        } else {
+            let _ = writeln!(
+                s,
+                "><failure message=\"{}\"/></testcase>",
+                xml_escape(&a.detail)
+            );
+        }
+    }
+    s.push_str("</testsuite>\n");
+    s
+}
+
+/// Replaces the text between `<!-- BEGIN name -->` and `<!-- END name -->` in `path`
+/// (atomically); an error names the file when either marker is missing.
+pub fn write_block(path: &Path, name: &str, body: &str) -> Result<()> {
+    let text = std::fs::read_to_string(path)
+        .with_context(|| format!("{}: cannot read the doc to update", path.display()))?;
+    let (begin, end) = (
+        format!("<!-- BEGIN {name} -->"),
+        format!("<!-- END {name} -->"),
+    );
+    let i = text
+        .find(&begin)
+        .ok_or_else(|| anyhow!("{}: no '{begin}' marker", path.display()))?;
+    let j = text[i..]
+        .find(&end)
+        .map(|j| i + j)
+        .ok_or_else(|| anyhow!("{}: no '{end}' marker after '{begin}'", path.display()))?;
+    let new = format!("{}{begin}\n{}{}", &text[..i], body, &text[j..]);
+    measure::save_text(path, &new)
+}
+
+/// Loads and runs an experiment file, printing progress to stderr; the report goes to
+/// `out` (default `reports/<name>`). Fails when an assertion fails, after writing the
+/// report and the JUnit file.
+pub fn run_file(file: &Path, out: Option<&Path>) -> Result<Outcome> {
+    let e = load(file)?;
+    let out: PathBuf = out.map_or_else(
+        || Path::new("reports").join(file_safe(&e.name)),
+        Path::to_path_buf,
+    );
+    crate::outputs::check_output(&out.join("report.md"))?;
+    let gpu = GpuContext::new_headless()?;
+    eprintln!("adapter: {}", gpu.describe());
+    let o = run(&gpu, &e, file, &out, &mut |ev| match ev {
+        Event::Reference { scene, what } => eprintln!("{scene}: computing the {what}"),
+        Event::Row { index, row } => eprintln!(
+            "[{index:>3}] {}: {:>4} slices {:>8.2} ms  RMS ΔE*uv {:.3}  >6 {:.2}%",
+            row.label(),
+            row.slices,
+            row.frame_ms,
+            row.metrics.rms_delta_e,
+            100.0 * row.metrics.share_above_6
+        ),
+    })?;
+    eprintln!("report: {}", out.join("report.md").display());
+    let failed = o.failed();
+    if !failed.is_empty() {
+        let lines: Vec<String> = failed
+            .iter()
+            .map(|a| format!("  {}: {}", a.assertion, a.detail))
+            .collect();
+        bail!(
+            "{}: {} of {} assertions failed:\n{}",
+            file.display(),
+            failed.len(),
+            o.assertions.len(),
+            lines.join("\n")
+        );
+    }
+    Ok(o)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn assertions_parse_and_refuse_nonsense() {
+        assert_eq!(
+            Assertion::parse("rms_delta_e < 0.5").unwrap(),
+            Assertion::Each {
+                term: Term {
+                    metric: Metric::RmsDeltaE,
+                    variant: None
+                },
+                op: Op::Lt,
+                bound: 0.5
+            }
+        );
+        match Assertion::parse("time(pre) / time(post) <= 0.8").unwrap() {
+            Assertion::Ratio { a, b, op, bound } => {
+                assert_eq!(a.metric, Metric::FrameMs);
+                assert_eq!(a.variant.as_deref(), Some("pre"));
+                assert_eq!(b.variant.as_deref(), Some("post"));
+                assert_eq!((op, bound), (Op::Le, 0.8));
+            }
+            other => panic!("{other:?}"),
+        }
+        for bad in [
+            "rms_delta_e",
+            "rms < 1",
+            "rms_delta_e < x",
+            "rms_delta_e(pre < 1",
+            "time / time(post) < 1",
+            "ssim() > 0.9",
+            "rms_delta_e < nan",
+        ] {
+            assert!(Assertion::parse(bad).is_err(), "{bad}");
+        }
+    }
+
+    fn row(variant: &str, ms: f64, rms: f64) -> Row {
+        Row {
+            scene: "s".into(),
+            variant: variant.into(),
+            values: vec![1.0],
+            slices: 10,
+            frame_ms: ms,
+            clock: "gpu",
+            gpu_memory_bytes: 0,
+            metrics: Metrics {
+                width: 1,
+                height: 1,
+                rms_delta_e: rms,
+                mean_delta_e: rms,
+                max_delta_e: rms,
+                share_above_6: 0.0,
+                psnr_db: 40.0,
+                ssim: 1.0,
+            },
+            image: String::new(),
+            reference: 0,
+            pareto: false,
+        }
+    }
+
+    #[test]
+    fn assertions_check_rows_and_medians() {
+        let rows = vec![
+            row("a", 10.0, 0.2),
+            row("a", 12.0, 0.6),
+            row("b", 20.0, 0.1),
+            row("b", 30.0, 0.1),
+        ];
+        let check = |s: &str| Assertion::parse(s).unwrap().check(s, &rows);
+        assert!(!check("rms_delta_e < 0.5").passed);
+        assert!(check("rms_delta_e(b) < 0.5").passed);
+        assert!(!check("rms_delta_e(a) < 0.5").passed);
+        assert!(check("rms_delta_e(a) < 0.7").passed);
+        // medians 11 and 25
+        let c = check("time(a) / time(b) < 0.5");
+        assert!(c.passed, "{}", c.detail);
+        assert!(c.detail.contains("0.44"), "{}", c.detail);
+        assert!(!check("time(a) / time(b) > 0.5").passed);
+        assert!(!check("ssim(zzz) > 0.5").passed, "no rows never passes");
+    }
+
+    #[test]
+    fn files_are_checked_with_their_name() {
+        let p = Path::new("exp.ron");
+        let err = |t: &str| parse(t, p).unwrap_err().to_string();
+        assert!(
+            err("Experiment(name: \"x\", scenes: [])")
+                .contains("exp.ron: an experiment needs at least one scene")
+        );
+        assert!(
+            err("Experiment(name: \"x\", scenes: [Preset(\"a.ron\")], colour: 1)")
+                .contains("exp.ron")
+        );
+        let e = err(
+            "Experiment(name: \"x\", scenes: [Preset(\"a.ron\")], variants: [(name: \"a\")], reference: ConvergedOf(\"b\"))",
+        );
+        assert!(e.contains("variant 'b'"), "{e}");
+        let e = err(
+            "Experiment(name: \"x\", scenes: [Preset(\"a.ron\")], assertions: [\"rms_delta_e(q) < 1\"])",
+        );
+        assert!(e.contains("variant 'q'"), "{e}");
+        let e = err(
+            "Experiment(name: \"x\", scenes: [Preset(\"a.ron\")], grid: [(param: \"render.slice_spacing\")])",
+        );
+        assert!(e.contains("grid axis"), "{e}");
+        let ok = parse(
+            "Experiment(name: \"x\", scenes: [Preset(\"a.ron\"), Sample(\"ct_head\")], variants: [(name: \"a\", set: {\"classify.tf1d.mode\": \"pre\", \"render.slice_spacing\": 0.5})], grid: [(param: \"render.slice_spacing\", range: \"0.5..2:3:log\")], reference: ConvergedOf(\"a\"), assertions: [\"time < 1e9\"], seed: Some(3))",
+            p,
+        )
+        .unwrap();
+        assert_eq!(ok.variants[0].set.len(), 2);
+        assert_eq!(axis_values(&ok.grid[0]).unwrap(), vec![0.5, 1.0, 2.0]);
+    }
+
+    #[test]
+    fn variants_set_swap_and_switch_with_checks() {
+        let base = crate::document::load_document(None).unwrap();
+        let v = |set: &[(&str, SetValue)]| Variant {
+            name: "v".into(),
+            set: set
+                .iter()
+                .map(|(k, x)| (k.to_string(), x.clone()))
+                .collect(),
+            ..Default::default()
+        };
+        let d = v(&[
+            ("classify.tf1d.mode", SetValue::Text("pre".into())),
+            ("render.slice_spacing", SetValue::Number(0.5)),
+        ])
+        .apply(&base)
+        .unwrap();
+        assert_eq!(d.render.slice_spacing, 0.5);
+        let inst = d
+            .stack
+            .iter()
+            .find(|i| i.plugin.id() == "classify.tf1d")
+            .unwrap();
+        assert_eq!(
+            inst.params.get("mode"),
+            Some(&ParamValue::Enum("pre".into()))
+        );
+        for (key, value, expect) in [
+            (
+                "classify.tf1d.mode",
+                SetValue::Text("sideways".into()),
+                "mode",
+            ),
+            (
+                "classify.tf1d.nope",
+                SetValue::Number(1.0),
+                "no parameter 'nope'",
+            ),
+            (
+                "shade.nothing.x",
+                SetValue::Number(1.0),
+                "no plugin 'shade.nothing'",
+            ),
+            ("classify.tf1d.mode", SetValue::Number(1.0), "does not fit"),
+            ("render.slice_spacing", SetValue::Number(-1.0), "> 0"),
+        ] {
+            let e = v(&[(key, value)]).apply(&base).unwrap_err().to_string();
+            assert!(e.contains(expect), "{key}: {e}");
+        }
+        let swapped = Variant {
+            name: "s".into(),
+            swap: vec![("classify.tf1d".into(), "classify.tf2d".into())],
+            ..Default::default()
+        }
+        .apply(&base)
+        .unwrap();
+        assert!(
+            swapped
+                .stack
+                .iter()
+                .any(|i| i.plugin.id() == "classify.tf2d")
+        );
+        assert!(
+            !swapped
+                .stack
+                .iter()
+                .any(|i| i.plugin.id() == "classify.tf1d")
+        );
+        let off = Variant {
+            name: "o".into(),
+            disable: vec!["classify.tf1d".into()],
+            ..Default::default()
+        }
+        .apply(&base)
+        .unwrap();
+        assert!(
+            off.stack
+                .iter()
+                .all(|i| i.plugin.id() != "classify.tf1d" || !i.enabled)
+        );
+    }
+
+    #[test]
+    fn doc_blocks_are_replaced_or_refused() {
+        let dir = std::env::temp_dir().join(format!("vwb-block-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let f = dir.join("doc.md");
+        std::fs::write(&f, "head\n<!-- BEGIN x -->\nold\n<!-- END x -->\ntail\n").unwrap();
+        write_block(&f, "x", "new\n").unwrap();
+        assert_eq!(
+            std::fs::read_to_string(&f).unwrap(),
+            "head\n<!-- BEGIN x -->\nnew\n<!-- END x -->\ntail\n"
+        );
+        let e = write_block(&f, "y", "z").unwrap_err().to_string();
+        assert!(e.contains("doc.md") && e.contains("BEGIN y"), "{e}");
+        std::fs::remove_dir_all(&dir).ok();
+    }
+}

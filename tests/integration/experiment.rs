@@ -1,0 +1,172 @@
+//! Experiment files (`vwb run`): a small study on the demo runs end to end, its
+//! assertions are evaluated on what it measured, and a failing one fails the run with a
+//! JUnit failure; the shipped experiment files load.
+
+use std::path::Path;
+
+use vwb_lab::experiment::{self, Event, ReferenceSpec};
+
+use crate::common::{gpu, repo, tmp};
+
+/// Writes an experiment over the demo preset into the scratch folder.
+fn write(name: &str, body: &str) -> std::path::PathBuf {
+    let preset = repo().join("presets/demo_preintegrated.ron");
+    let text = body.replace("PRESET", &preset.display().to_string());
+    let path = tmp(&format!("{name}.ron"));
+    std::fs::write(&path, text).unwrap();
+    path
+}
+
+const SMALL: &str = r#"Experiment(
+    name: "small",
+    scenes: [Preset("PRESET")],
+    variants: [
+        (name: "post", set: {"classify.tf1d.mode": "post"}),
+        (name: "preintegrated", set: {"classify.tf1d.mode": "preintegrated"}),
+    ],
+    grid: [(param: "render.slice_spacing", values: [1.0, 3.0])],
+    reference: ConvergedOf("post"),
+    render: (size: (40, 40), target: "rgba32float", early_termination: 0.0),
+    frames: 1,
+    tolerance: 0.5,
+    assertions: ["rms_delta_e(preintegrated) / rms_delta_e(post) < 0.9", "slices > 10"],
+)"#;
+
+#[test]
+fn a_small_experiment_runs_and_checks_what_it_measured() {
+    let file = write("small", SMALL);
+    let e = experiment::load(&file).unwrap();
+    let out = tmp("small-report");
+    let mut events = (0, 0);
+    let o = experiment::run(gpu(), &e, &file, &out, &mut |ev| match ev {
+        Event::Reference { .. } => events.0 += 1,
+        Event::Row { .. } => events.1 += 1,
+    })
+    .unwrap();
+    // 2 variants × 2 spacings, one converged reference (of post; spacing does not change it)
+    assert_eq!(o.rows.len(), 4);
+    assert_eq!(events, (1, 4));
+    assert_eq!(o.references.len(), 1);
+    assert!(o.rows.iter().all(|r| r.reference == 0));
+    // coarser slices: fewer of them, more error for post-classification
+    let post: Vec<_> = o.rows.iter().filter(|r| r.variant == "post").collect();
+    assert!(post[0].slices > post[1].slices);
+    assert!(post[0].metrics.rms_delta_e < post[1].metrics.rms_delta_e);
+    assert!(o.failed().is_empty(), "{:?}", o.assertions);
+    assert_eq!(o.assertions.len(), 2);
+    for f in [
+        "report.md",
+        "results.csv",
+        "results.json",
+        "junit.xml",
+        "pareto_demo_preintegrated.svg",
+        "images/row_003.png",
+        "images/reference_00.png",
+    ] {
+        assert!(out.join(f).is_file(), "{f} missing");
+    }
+    let csv = std::fs::read_to_string(out.join("results.csv")).unwrap();
+    assert_eq!(csv.lines().count(), 5, "{csv}");
+    assert!(csv.starts_with("scene,variant,render.slice_spacing,rms_delta_e"));
+    let junit = std::fs::read_to_string(out.join("junit.xml")).unwrap();
+    assert!(junit.contains("tests=\"2\" failures=\"0\""), "{junit}");
+    let report = std::fs::read_to_string(out.join("report.md")).unwrap();
+    assert!(
+        report.contains("| demo_preintegrated | preintegrated | 3 |"),
+        "{report}"
+    );
+    assert!(report.contains("pass `slices > 10`"), "{report}");
+}
+
+#[test]
+fn a_variant_against_itself_is_exact_and_a_failing_assertion_fails_the_run() {
+    let body = SMALL
+        .replace("ConvergedOf(\"post\")", "Variant(\"post\")")
+        .replace("[1.0, 3.0]", "[2.0]")
+        .replace(
+            "[\"rms_delta_e(preintegrated) / rms_delta_e(post) < 0.9\", \"slices > 10\"]",
+            "[\"rms_delta_e(post) <= 0\", \"rms_delta_e(preintegrated) < 0.001\"]",
+        );
+    let file = write("self", &body);
+    let e = experiment::load(&file).unwrap();
+    assert_eq!(e.reference, ReferenceSpec::Variant("post".into()));
+    let out = tmp("self-report");
+    let err = experiment::run_file(&file, Some(&out))
+        .unwrap_err()
+        .to_string();
+    // the GPU renders the same stack the same way twice; pre-integration differs
+    assert!(err.contains("1 of 2 assertions failed"), "{err}");
+    assert!(err.contains("rms_delta_e(preintegrated) < 0.001"), "{err}");
+    assert!(err.contains("self.ron"), "{err}");
+    let junit = std::fs::read_to_string(out.join("junit.xml")).unwrap();
+    assert!(junit.contains("failures=\"1\""), "{junit}");
+    assert!(junit.contains("<failure message="), "{junit}");
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("results.json")).unwrap()).unwrap();
+    assert_eq!(
+        json["rows"][0]["metrics"]["rms_delta_e"],
+        serde_json::json!(0.0)
+    );
+}
+
+#[test]
+fn bad_experiments_are_refused_naming_the_file_and_cause() {
+    let cases = [
+        (
+            "variants: [(name: \"a\", set: {\"classify.tf1d.bogus\": 1.0})]",
+            "no parameter 'bogus'",
+        ),
+        (
+            "variants: [(name: \"a\", swap: [(\"shade.dos\", \"shade.toon\")])]",
+            "no plugin 'shade.dos'",
+        ),
+        (
+            "grid: [(param: \"classify.tf1d.mode\", values: [1.0])]",
+            "only float and int",
+        ),
+    ];
+    for (i, (fields, expect)) in cases.iter().enumerate() {
+        let file = write(
+            &format!("bad{i}"),
+            &format!(
+                "Experiment(name: \"bad\", scenes: [Preset(\"PRESET\")], {fields}, render: (size: (16, 16)))"
+            ),
+        );
+        let e = experiment::load(&file).unwrap();
+        let err = experiment::run(gpu(), &e, &file, &tmp(&format!("bad{i}-out")), &mut |_| {})
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains(&format!("bad{i}.ron")) && err.contains(expect),
+            "{err}"
+        );
+    }
+    let missing = experiment::load(Path::new("/nonexistent/e.ron"))
+        .unwrap_err()
+        .to_string();
+    assert!(missing.contains("/nonexistent/e.ron"), "{missing}");
+}
+
+#[test]
+fn shipped_experiment_files_load() {
+    let dir = repo().join("experiments");
+    let mut n = 0;
+    for f in std::fs::read_dir(&dir).unwrap() {
+        let p = f.unwrap().path();
+        if p.extension().is_some_and(|e| e == "ron") {
+            let e = experiment::load(&p).unwrap_or_else(|e| panic!("{e:#}"));
+            for s in &e.scenes {
+                if let experiment::Scene::Preset(preset) = s {
+                    assert!(
+                        dir.join(preset).is_file(),
+                        "{}: {}",
+                        p.display(),
+                        preset.display()
+                    );
+                }
+            }
+            n += 1;
+        }
+    }
+    assert!(n >= 2);
+}
