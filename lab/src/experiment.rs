@@ -1143,7 +1143,7 @@ fn write_outputs(
                     ms: r.frame_ms,
                     clock: r.clock,
                     wall_ms: r.frame_ms,
-                    metrics: r.metrics.clone(),
+                    metrics: r.metrics,
                     image: r.image.clone(),
                     pareto: r.pareto,
                 }
