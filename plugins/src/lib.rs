@@ -10,6 +10,7 @@ pub use vwb_render::plugin::*;
 pub mod lighting;
 #[cfg(feature = "ui")]
 pub mod ui;
+pub mod user;
 
 /// A generated parameter key or label as `&'static str` (parameter specs need them);
 /// callers make each once, in a `OnceLock`.
@@ -73,6 +74,18 @@ pub fn builtin_registry() -> Registry {
     let all = builtin_plugins();
     for p in all {
         // built-ins are unique by construction; a clash is a programming error caught by tests
+        if let Err(e) = r.register(p) {
+            log::error!("{e}");
+        }
+    }
+    r
+}
+
+/// The built-in plugins and the installed user plugins ([`user::install`]); a user
+/// plugin whose id clashes is left out with an error in the log.
+pub fn registry() -> Registry {
+    let mut r = builtin_registry();
+    for p in user::plugins() {
         if let Err(e) = r.register(p) {
             log::error!("{e}");
         }

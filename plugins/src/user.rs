@@ -1,0 +1,489 @@
+//! User plugins: a folder holding `plugin.ron` (id, name, parameter spec, the WGSL file)
+//! and its WGSL hook functions, loaded at start without recompiling vwb.
+//!
+//! ```ron
+//! UserPlugin(
+//!     id: "shade.gooch",
+//!     name: "Gooch shading",
+//!     description: "cool-to-warm tone shading (Gooch et al. 1998)",
+//!     shader: "gooch.wgsl",
+//!     params: [
+//!         Float(key: "mix", label: "Tone mix", min: 0.0, max: 1.0, default: 0.8),
+//!         Color(key: "warm", label: "Warm", default: (0.9, 0.6, 0.2, 1.0)),
+//!     ],
+//! )
+//! ```
+//!
+//! Parameter kinds: `Float` (with `log: true` for a logarithmic slider), `Int`, `Bool`,
+//! `Enum` (options; structural: each option recomposes the pipeline), `Color`, `Vec3`.
+//! The WGSL file holds hook functions with the signatures of
+//! [`vwb_render::plugin`] (`shade`, `classify`, `clip`, `sample`, `composite`) and may
+//! use everything in `shaders/common.wgsl` (e.g. `gradient_central`, `shading_normal`,
+//! `light_dir`). A plugin is composed and naga-validated when it loads; errors name the
+//! file and line. It has no CPU twin, so it is measured against the GPU converged
+//! reference (`vwb_lab::measure`).
+//!
+//! Plugins load from the user plugin folder (`$VWB_PLUGINS`, else `<config>/vwb/plugins`)
+//! and from `--plugins DIR`; [`install`] makes them part of [`crate::registry`], and
+//! [`Watch`] reloads a plugin when its files change.
+
+use std::path::{Path, PathBuf};
+use std::sync::{Arc, RwLock};
+use std::time::SystemTime;
+
+use serde::Deserialize;
+use vwb_render::composer::{TargetFormat, compose};
+use vwb_render::params::{ParamKind, ParamSpec, validate_specs};
+use vwb_render::plugin::{Plugin, ShaderSource, valid_id};
+
+use crate::static_str;
+
+/// `plugin.ron`.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+#[serde(rename = "UserPlugin")]
+struct Manifest {
+    id: String,
+    name: String,
+    #[serde(default)]
+    description: String,
+    /// The WGSL file, relative to the folder.
+    shader: PathBuf,
+    #[serde(default)]
+    params: Vec<ParamDef>,
+}
+
+/// One parameter of a user plugin's spec.
+#[derive(Debug, Clone, Deserialize)]
+enum ParamDef {
+    Float {
+        key: String,
+        label: String,
+        min: f32,
+        max: f32,
+        default: f32,
+        #[serde(default)]
+        log: bool,
+        #[serde(default)]
+        doc: String,
+    },
+    Int {
+        key: String,
+        label: String,
+        min: i32,
+        max: i32,
+        default: i32,
+        #[serde(default)]
+        doc: String,
+    },
+    Bool {
+        key: String,
+        label: String,
+        default: bool,
+        #[serde(default)]
+        doc: String,
+    },
+    Enum {
+        key: String,
+        label: String,
+        options: Vec<String>,
+        default: usize,
+        #[serde(default)]
+        doc: String,
+    },
+    Color {
+        key: String,
+        label: String,
+        default: [f32; 4],
+        #[serde(default)]
+        doc: String,
+    },
+    Vec3 {
+        key: String,
+        label: String,
+        min: f32,
+        max: f32,
+        default: [f32; 3],
+        #[serde(default)]
+        doc: String,
+    },
+}
+
+impl ParamDef {
+    fn spec(&self) -> Result<ParamSpec, String> {
+        let s = |x: &String| static_str(x.clone());
+        let (spec, doc) = match self {
+            ParamDef::Float {
+                key,
+                label,
+                min,
+                max,
+                default,
+                log,
+                doc,
+            } => {
+                if *log && *min <= 0.0 {
+                    return Err(format!("'{key}': a log slider needs min > 0"));
+                }
+                let spec = if *log {
+                    ParamSpec::float_log(s(key), s(label), *min, *max, *default)
+                } else {
+                    ParamSpec::float(s(key), s(label), *min, *max, *default)
+                };
+                (spec, doc)
+            }
+            ParamDef::Int {
+                key,
+                label,
+                min,
+                max,
+                default,
+                doc,
+            } => (ParamSpec::int(s(key), s(label), *min, *max, *default), doc),
+            ParamDef::Bool {
+                key,
+                label,
+                default,
+                doc,
+            } => (ParamSpec::boolean(s(key), s(label), *default), doc),
+            ParamDef::Enum {
+                key,
+                label,
+                options,
+                default,
+                doc,
+            } => {
+                if *default >= options.len() {
+                    return Err(format!(
+                        "'{key}': default {default} is not an option index (0..{})",
+                        options.len()
+                    ));
+                }
+                let opts: Vec<&'static str> = options.iter().map(s).collect();
+                (
+                    ParamSpec::enumeration(s(key), s(label), &opts, *default).structural(),
+                    doc,
+                )
+            }
+            ParamDef::Color {
+                key,
+                label,
+                default,
+                doc,
+            } => (ParamSpec::color(s(key), s(label), *default), doc),
+            ParamDef::Vec3 {
+                key,
+                label,
+                min,
+                max,
+                default,
+                doc,
+            } => (ParamSpec::vec3(s(key), s(label), *min, *max, *default), doc),
+        };
+        if let ParamKind::Float { min, max, default, .. } = spec.kind
+            && !(min.is_finite() && max.is_finite() && min < max && (min..=max).contains(&default))
+        {
+            return Err(format!(
+                "'{}': needs finite min < max with the default between them",
+                spec.key
+            ));
+        }
+        if let ParamKind::Int { min, max, default } = spec.kind
+            && !(min < max && (min..=max).contains(&default))
+        {
+            return Err(format!(
+                "'{}': needs min < max with the default between them",
+                spec.key
+            ));
+        }
+        Ok(if doc.is_empty() {
+            spec
+        } else {
+            spec.with_doc(static_str(doc.clone()))
+        })
+    }
+}
+
+/// A plugin declared by a folder: its spec and WGSL, no CPU twin.
+#[derive(Debug)]
+pub struct UserPlugin {
+    id: &'static str,
+    name: &'static str,
+    description: &'static str,
+    specs: Vec<ParamSpec>,
+    file: String,
+    source: String,
+    /// The folder it came from.
+    pub dir: PathBuf,
+}
+
+impl Plugin for UserPlugin {
+    fn id(&self) -> &'static str {
+        self.id
+    }
+    fn display_name(&self) -> &'static str {
+        self.name
+    }
+    fn description(&self) -> &'static str {
+        self.description
+    }
+    fn params(&self) -> Vec<ParamSpec> {
+        self.specs.clone()
+    }
+    fn shader(&self) -> ShaderSource {
+        ShaderSource {
+            file: self.file.clone().into(),
+            source: self.source.clone().into(),
+        }
+    }
+}
+
+/// Loads the plugin in `dir` (its `plugin.ron` and WGSL), composes it behind a 1D
+/// transfer function and validates the result with naga. Errors name the file (and the
+/// line for WGSL errors).
+pub fn load(dir: &Path) -> Result<UserPlugin, String> {
+    let manifest_path = dir.join("plugin.ron");
+    let text = std::fs::read_to_string(&manifest_path)
+        .map_err(|e| format!("{}: cannot read: {e}", manifest_path.display()))?;
+    let m: Manifest =
+        ron::from_str(&text).map_err(|e| format!("{}: {e}", manifest_path.display()))?;
+    let at = |msg: String| format!("{}: {msg}", manifest_path.display());
+    if !valid_id(&m.id) {
+        return Err(at(format!(
+            "'{}' is not a plugin id: category.name with a category of clip, sample, classify, shade, composite, flow, search or test and a lowercase name",
+            m.id
+        )));
+    }
+    if crate::builtin_registry().get(&m.id).is_ok() {
+        return Err(at(format!("'{}' is the id of a built-in plugin", m.id)));
+    }
+    let specs = m
+        .params
+        .iter()
+        .map(ParamDef::spec)
+        .collect::<Result<Vec<_>, _>>()
+        .map_err(at)?;
+    validate_specs(&specs).map_err(at)?;
+    let wgsl = dir.join(&m.shader);
+    let source = std::fs::read_to_string(&wgsl)
+        .map_err(|e| format!("{}: cannot read: {e}", wgsl.display()))?;
+    let plugin = UserPlugin {
+        id: static_str(m.id),
+        name: static_str(m.name),
+        description: static_str(m.description),
+        specs,
+        file: wgsl.display().to_string(),
+        source,
+        dir: dir.to_path_buf(),
+    };
+    check_composes(&plugin)?;
+    Ok(plugin)
+}
+
+/// Composes the plugin alone (after a 1D TF unless it classifies itself) and validates
+/// it with naga; the error names the WGSL file and line.
+fn check_composes(p: &UserPlugin) -> Result<(), String> {
+    let tf = crate::classify_tf1d::Tf1d::default();
+    let mut stack: Vec<&dyn Plugin> = Vec::new();
+    if p.category() != vwb_render::plugin::Category::Classify {
+        stack.push(&tf);
+    }
+    stack.push(p);
+    let mut limits = wgpu::Limits::downlevel_defaults();
+    limits.max_bind_groups = 4;
+    compose(&stack, TargetFormat::Rgba16Float, &limits)
+        .map(|_| ())
+        .map_err(|e| e.to_string())
+}
+
+/// Every plugin folder (a sub-folder with `plugin.ron`) under `root`, loaded; the
+/// folders that fail give their errors instead. A missing `root` gives nothing.
+pub fn load_all(root: &Path) -> (Vec<UserPlugin>, Vec<String>) {
+    let (mut ok, mut errors) = (Vec::new(), Vec::new());
+    let Ok(entries) = std::fs::read_dir(root) else {
+        return (ok, errors);
+    };
+    let mut dirs: Vec<PathBuf> = entries
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.join("plugin.ron").is_file())
+        .collect();
+    dirs.sort();
+    for d in dirs {
+        match load(&d) {
+            Ok(p) => ok.push(p),
+            Err(e) => errors.push(e),
+        }
+    }
+    (ok, errors)
+}
+
+/// The user plugin folder: `$VWB_PLUGINS`, else `<config dir>/vwb/plugins`.
+pub fn default_dir() -> Option<PathBuf> {
+    std::env::var_os("VWB_PLUGINS")
+        .map(PathBuf::from)
+        .or_else(|| std::env::var_os("XDG_CONFIG_HOME").map(|c| PathBuf::from(c).join("vwb/plugins")))
+        .or_else(|| std::env::var_os("HOME").map(|h| PathBuf::from(h).join(".config/vwb/plugins")))
+}
+
+fn installed() -> &'static RwLock<Vec<Arc<UserPlugin>>> {
+    static USER: RwLock<Vec<Arc<UserPlugin>>> = RwLock::new(Vec::new());
+    &USER
+}
+
+/// Adds user plugins to [`crate::registry`] (replacing one with the same id).
+pub fn install(plugins: Vec<UserPlugin>) {
+    let mut all = installed().write().unwrap_or_else(|e| e.into_inner());
+    for p in plugins {
+        all.retain(|q| q.id != p.id);
+        all.push(Arc::new(p));
+    }
+}
+
+/// Loads the plugins of the user folder and of `extra` folders, installs them and
+/// returns the errors (each naming its file) and the ids loaded.
+pub fn install_from(extra: &[PathBuf]) -> (Vec<&'static str>, Vec<String>) {
+    let mut roots: Vec<PathBuf> = default_dir().into_iter().collect();
+    roots.extend(extra.iter().cloned());
+    let (mut ids, mut errors) = (Vec::new(), Vec::new());
+    for root in roots {
+        if extra.contains(&root) && !root.is_dir() {
+            errors.push(format!("{}: no such plugin folder", root.display()));
+            continue;
+        }
+        // a folder that is itself one plugin
+        let (ok, errs) = if root.join("plugin.ron").is_file() {
+            match load(&root) {
+                Ok(p) => (vec![p], vec![]),
+                Err(e) => (vec![], vec![e]),
+            }
+        } else {
+            load_all(&root)
+        };
+        ids.extend(ok.iter().map(|p| p.id));
+        errors.extend(errs);
+        install(ok);
+    }
+    (ids, errors)
+}
+
+/// The installed user plugins.
+pub fn plugins() -> Vec<Arc<dyn Plugin>> {
+    installed()
+        .read()
+        .unwrap_or_else(|e| e.into_inner())
+        .iter()
+        .map(|p| p.clone() as Arc<dyn Plugin>)
+        .collect()
+}
+
+/// Watches the installed plugins' files; [`Watch::poll`] reloads the ones that changed.
+#[derive(Default)]
+pub struct Watch {
+    seen: Vec<(PathBuf, Option<SystemTime>)>,
+}
+
+fn stamp(dir: &Path) -> Option<SystemTime> {
+    let mut newest = None;
+    for e in std::fs::read_dir(dir).ok()?.flatten() {
+        if let Ok(t) = e.metadata().and_then(|m| m.modified()) {
+            newest = newest.max(Some(t));
+        }
+    }
+    newest
+}
+
+impl Watch {
+    /// Reloads every installed plugin whose folder changed since the last poll (the
+    /// first poll only records the times). Returns (id, outcome): a reloaded plugin is
+    /// installed; a failed one keeps the installed version and gives the error.
+    pub fn poll(&mut self) -> Vec<(String, Result<Arc<dyn Plugin>, String>)> {
+        let dirs: Vec<(String, PathBuf)> = installed()
+            .read()
+            .unwrap_or_else(|e| e.into_inner())
+            .iter()
+            .map(|p| (p.id.to_string(), p.dir.clone()))
+            .collect();
+        let mut out = Vec::new();
+        for (id, dir) in dirs {
+            let now = stamp(&dir);
+            match self.seen.iter_mut().find(|(d, _)| *d == dir) {
+                None => self.seen.push((dir, now)),
+                Some((_, t)) if *t != now => {
+                    *t = now;
+                    match load(&dir) {
+                        Ok(p) => {
+                            let p = Arc::new(p);
+                            let mut all = installed().write().unwrap_or_else(|e| e.into_inner());
+                            all.retain(|q| q.dir != dir);
+                            all.push(p.clone());
+                            out.push((id, Ok(p as Arc<dyn Plugin>)));
+                        }
+                        Err(e) => out.push((id, Err(e))),
+                    }
+                }
+                Some(_) => {}
+            }
+        }
+        out
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn folder(name: &str, manifest: &str, wgsl: &str) -> PathBuf {
+        let d = std::env::temp_dir().join(format!("vwb-user-{}-{name}", std::process::id()));
+        std::fs::create_dir_all(&d).unwrap();
+        std::fs::write(d.join("plugin.ron"), manifest).unwrap();
+        std::fs::write(d.join("p.wgsl"), wgsl).unwrap();
+        d
+    }
+
+    const TINT: &str = "fn shade(s: Sample) -> Sample {\n    var o = s;\n    o.color = vec4<f32>(s.color.rgb * params.gain, s.color.a);\n    return o;\n}\n";
+
+    #[test]
+    fn a_folder_becomes_a_plugin_with_its_spec() {
+        let d = folder(
+            "ok",
+            r#"UserPlugin(id: "shade.tint_test", name: "Tint", shader: "p.wgsl",
+                params: [Float(key: "gain", label: "Gain", min: 0.0, max: 2.0, default: 0.5),
+                         Enum(key: "mode", label: "Mode", options: ["a", "b"], default: 1)])"#,
+            TINT,
+        );
+        let p = load(&d).unwrap();
+        assert_eq!(p.id(), "shade.tint_test");
+        assert_eq!(p.category(), vwb_render::plugin::Category::Shade);
+        let specs = p.params();
+        assert_eq!(specs.len(), 2);
+        assert!(specs[1].structural);
+        assert!(p.cpu_twin(&vwb_render::params::ParamValues::defaults(&specs)).is_none());
+        std::fs::remove_dir_all(&d).ok();
+    }
+
+    #[test]
+    fn broken_plugins_are_refused_with_file_and_line() {
+        let manifest = r#"UserPlugin(id: "shade.broken_test", name: "B", shader: "p.wgsl",
+            params: [Float(key: "gain", label: "Gain", min: 0.0, max: 2.0, default: 0.5)])"#;
+        let d = folder("wgsl", manifest, &TINT.replace("s.color.a);", "s.color.a)\n"));
+        let e = load(&d).unwrap_err();
+        // the missing `;` of line 3 is reported at the next token, line 5
+        assert!(e.contains("p.wgsl:5:") && e.contains("expected `;`"), "{e}");
+        std::fs::remove_dir_all(&d).ok();
+        let d = folder("param", manifest, &TINT.replace("params.gain", "params.gian"));
+        let e = load(&d).unwrap_err();
+        assert!(e.contains("p.wgsl:3:") && e.contains("gian"), "{e}");
+        std::fs::remove_dir_all(&d).ok();
+        for (bad, expect) in [
+            (manifest.replace("shade.broken_test", "shiny.x"), "is not a plugin id"),
+            (manifest.replace("shade.broken_test", "classify.tf1d"), "built-in"),
+            (manifest.replace("default: 0.5", "default: 5.0"), "'gain'"),
+            (manifest.replace("name:", "nome:"), "plugin.ron"),
+        ] {
+            let d = folder("manifest", &bad, TINT);
+            let e = load(&d).unwrap_err();
+            assert!(e.contains("plugin.ron") && e.contains(expect), "{e}");
+            std::fs::remove_dir_all(&d).ok();
+        }
+    }
+}
