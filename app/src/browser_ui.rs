@@ -42,7 +42,7 @@ fn default_cache() -> PathBuf {
 
 /// Renders a preset at [`THUMB`]² (its own camera, stack and volume).
 pub fn render_thumbnail(gpu: &GpuContext, preset: &Path) -> Result<image::RgbImage> {
-    let registry = vwb_plugins::builtin_registry();
+    let registry = vwb_plugins::registry();
     let mut doc = Document::load(preset, &registry)?.document;
     doc.render.size = [THUMB, THUMB];
     let volume = headless::load_volume(&doc.volume)?;
@@ -104,7 +104,7 @@ impl PresetBrowser {
                 paths.push((p.clone(), false));
             }
         }
-        let registry = vwb_plugins::builtin_registry();
+        let registry = vwb_plugins::registry();
         let mut old = std::mem::take(&mut self.entries);
         for (path, shipped) in paths {
             if let Some(i) = old.iter().position(|e| e.path == path) {

@@ -32,6 +32,24 @@ pub struct Cli {
     /// Open the window, render, save a screenshot to this PNG and exit.
     #[arg(long)]
     pub screenshot: Option<PathBuf>,
+    /// Also load user plugins from this folder (a plugin folder with plugin.ron, or a
+    /// folder of them; repeatable). The user plugin folder ($VWB_PLUGINS, else
+    /// ~/.config/vwb/plugins) is always read.
+    #[arg(long, global = true)]
+    pub plugins: Vec<PathBuf>,
+}
+
+/// Loads and installs the user plugins (the user folder and `--plugins`); a plugin
+/// that fails is reported with its file and line and left out.
+pub fn install_user_plugins(cli: &Cli) -> Vec<String> {
+    let (ids, errors) = vwb_plugins::user::install_from(&cli.plugins);
+    if !ids.is_empty() {
+        log::info!("user plugins: {}", ids.join(", "));
+    }
+    for e in &errors {
+        eprintln!("warning: user plugin not loaded: {e}");
+    }
+    errors
 }
 
 #[derive(Debug, Subcommand)]
@@ -426,7 +444,7 @@ pub fn run_info() -> Result<()> {
         l.max_uniform_buffers_per_shader_stage
     );
     println!("limit max_buffer_size: {}", l.max_buffer_size);
-    let registry = vwb_plugins::builtin_registry();
+    let registry = vwb_plugins::registry();
     for p in registry.plugins() {
         println!("plugin {} ({})", p.id(), p.display_name());
     }

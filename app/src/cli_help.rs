@@ -11,7 +11,9 @@ Examples:
   # headless: render a preset to a PNG
   vwb render --preset presets/demo.ron -o demo.png
   # which sample data sets are present
-  vwb data list";
+  vwb data list
+  # user plugins (a folder with plugin.ron and WGSL) next to the built-in ones
+  vwb --plugins examples/plugins --preset presets/demo_shaded.ron";
 
 pub const RENDER: &str = "\
 Examples:

@@ -7,6 +7,7 @@ use vwb_app::cli::{
 fn main() {
     env_logger::Builder::from_env(env_logger::Env::default().default_filter_or("warn")).init();
     let cli = Cli::parse();
+    vwb_app::cli::install_user_plugins(&cli);
     let result = match &cli.command {
         Some(Command::Render(a)) => run_render(cli.preset.as_deref(), a),
         Some(Command::Compare(a)) => run_compare(cli.preset.as_deref(), a),

@@ -20,7 +20,7 @@ use std::sync::mpsc;
 
 use anyhow::{Context as _, Result, anyhow};
 use vwb_render::gpu::{self, GpuContext};
-use vwb_render::plugin::Registry;
+use vwb_render::plugin::{PluginInstance, Registry};
 use vwb_render::preset::{Document, VolumeSource};
 use vwb_render::renderer::{Backend, FrameSettings};
 use vwb_render::{Camera, Renderer};
@@ -83,7 +83,7 @@ fn startup_or_demo(
     match loaded {
         Ok((doc, volume)) => Ok((doc, volume, None)),
         Err(e) if cli.screenshot.is_none() => {
-            let registry = vwb_plugins::builtin_registry();
+            let registry = vwb_plugins::registry();
             let doc = default_document(&registry);
             let volume = headless::load_volume(&doc.volume)?;
             Ok((doc, volume, Some(e)))
@@ -202,6 +202,9 @@ enum Dialog {
 pub struct Workbench {
     doc: Document,
     registry: Registry,
+    /// Reloads user plugins whose files change (checked about once a second).
+    plugin_watch: vwb_plugins::user::Watch,
+    plugin_watch_at: std::time::Instant,
     /// The preset path field (open / save).
     preset_path: String,
     /// The volume path field.
@@ -288,11 +291,13 @@ impl Workbench {
         let preview = default_preview(&rs.adapter.get_info());
         Ok(Self {
             doc,
-            registry: vwb_plugins::builtin_registry(),
+            registry: vwb_plugins::registry(),
             preset_path: persisted.preset_path,
             volume_path: persisted.volume_path,
             recent: persisted.recent,
             last_session: persisted.session,
+            plugin_watch: Default::default(),
+            plugin_watch_at: std::time::Instant::now(),
             dialog: None,
             wgsl: None,
             quality_scale: 1.0,
@@ -449,6 +454,44 @@ impl Workbench {
             .err()
             .map(|e| e.to_string());
         self.dirty = true;
+    }
+
+    /// Reloads the user plugins whose files changed: the stack's instances of a
+    /// reloaded plugin take the new one (keeping the values of parameters that still
+    /// exist), and a plugin that no longer loads keeps drawing with its last good version
+    /// while its error (file and line) is shown. True when something was reloaded or
+    /// failed.
+    pub fn reload_user_plugins(&mut self) -> bool {
+        let outcomes = self.plugin_watch.poll();
+        if outcomes.is_empty() {
+            return false;
+        }
+        let mut errors = Vec::new();
+        for (id, outcome) in outcomes {
+            match outcome {
+                Ok(plugin) => {
+                    for inst in self.doc.stack.iter_mut().filter(|i| i.plugin.id() == id) {
+                        let mut fresh = PluginInstance::new(plugin.clone());
+                        for spec in plugin.params() {
+                            if let Some(v) = inst.params.get(spec.key)
+                                && spec.check(v).is_ok()
+                            {
+                                fresh.params.set(spec.key, v.clone());
+                            }
+                        }
+                        inst.plugin = plugin.clone();
+                        inst.params = fresh.params;
+                    }
+                }
+                Err(e) => errors.push(e),
+            }
+        }
+        self.registry = vwb_plugins::registry();
+        self.apply_stack();
+        if !errors.is_empty() {
+            self.error = Some(errors.join("\n"));
+        }
+        true
     }
 
     /// Shows an error under the file fields (e.g. a preset that failed at start-up).
@@ -1351,6 +1394,10 @@ impl eframe::App for Workbench {
     fn ui(&mut self, ui: &mut egui::Ui, frame: &mut eframe::Frame) {
         let ctx = ui.ctx().clone();
         self.file_events(&ctx);
+        if self.plugin_watch_at.elapsed() >= std::time::Duration::from_secs(1) {
+            self.plugin_watch_at = std::time::Instant::now();
+            self.reload_user_plugins();
+        }
         egui::Panel::left("side").show(ui, |ui| {
             // wheel and scroll bar only: a drag belongs to the widget under it (stack
             // handles, TF editors, sliders)

@@ -34,7 +34,7 @@ pub fn default_document(registry: &Registry) -> Document {
 /// prints its warnings; the volume it names is protected from being overwritten by
 /// outputs.
 pub fn load_document(preset: Option<&Path>) -> Result<Document> {
-    let registry = vwb_plugins::builtin_registry();
+    let registry = vwb_plugins::registry();
     let Some(path) = preset else {
         return Ok(default_document(&registry));
     };

@@ -668,7 +668,7 @@ fn parse_target(s: &str) -> Result<TargetFormat> {
 impl Variant {
     /// The variant of a scene's document.
     fn apply(&self, base: &Document) -> Result<Document> {
-        let registry = vwb_plugins::builtin_registry();
+        let registry = vwb_plugins::registry();
         let mut doc = base.clone();
         for (from, to) in &self.swap {
             let plugin = registry
@@ -1035,10 +1035,15 @@ fn markdown(e: &Experiment, file: &Path, gpu: &GpuContext, o: &Outcome) -> Strin
         let what = r["what"]
             .as_str()
             .unwrap_or(r["kind"].as_str().unwrap_or("reference"));
-        if r["kind"] == json!("converged") {
+        if r["kind"] == json!("converged") || r["kind"] == json!("gpu-converged") {
+            let on = if r["kind"] == json!("converged") {
+                "on the CPU"
+            } else {
+                "on the GPU (no CPU twin)"
+            };
             let _ = writeln!(
                 s,
-                "- Reference for `{}`: {what} at {} voxels, last halving changed RMS ΔE*uv by {:.3} (converged: {}), {:.1} s on the CPU.",
+                "- Reference for `{}`: {what} at {} voxels, last halving changed RMS ΔE*uv by {:.3} (converged: {}), {:.1} s {on}.",
                 r["scene"].as_str().unwrap_or(""),
                 r["spacing_voxels"],
                 r["last_change_rms_delta_e"].as_f64().unwrap_or(f64::NAN),

@@ -264,6 +264,9 @@ pub fn converged_image(
             RgbImageF::from_rgba_premultiplied_over(&r.pixels, r.width, r.height, background(doc));
         return Ok((img, serde_json::Value::Object(info)));
     }
+    if needs_gpu_reference(doc) {
+        return gpu_converged(volume, doc, s, tolerance, opts);
+    }
     let c = if opts.cancel.is_some() || opts.progress.is_some() {
         converged_of(volume, doc, s, tolerance, opts)?
     } else {
@@ -281,6 +284,91 @@ pub fn converged_image(
         "seconds": start.elapsed().as_secs_f64(),
     });
     Ok((over(&c.image, doc), info))
+}
+
+/// Whether an enabled plugin of the stack has no CPU twin (a user plugin), so that its
+/// converged reference comes from the GPU ([`gpu_converged`]).
+pub fn needs_gpu_reference(doc: &Document) -> bool {
+    doc.stack
+        .iter()
+        .filter(|i| i.enabled)
+        .any(|i| i.configured().cpu_twin(&i.params).is_none())
+}
+
+/// The GPU converged reference, for stacks without CPU twins: the frame rendered into
+/// an rgba32float eye buffer with no early termination, the slice spacing halved from
+/// [`reference::CONVERGED_START_SPACING`] until one halving changes the image by less
+/// than `tolerance` (RMS ΔE*uv) or the spacing reaches
+/// [`reference::CONVERGED_MIN_SPACING`]. Its note says `"kind": "gpu-converged"`.
+pub fn gpu_converged(
+    volume: &Volume,
+    doc: &Document,
+    s: &FrameSettings,
+    tolerance: f64,
+    opts: &ReferenceOptions,
+) -> Result<(RgbImageF, serde_json::Value)> {
+    let start = Instant::now();
+    let gpu = GpuContext::new_headless()?;
+    let mut d = doc.clone();
+    d.render.target = TargetFormat::Rgba32Float;
+    d.render.early_termination = None;
+    let mut r = headless::renderer_for(&gpu, &d, Arc::new(volume.clone()))?;
+    let mut spacing = s.slice_spacing.min(reference::CONVERGED_START_SPACING) as f64;
+    let finest = reference::CONVERGED_MIN_SPACING.min(spacing / 2.0);
+    let render = |r: &mut Renderer, spacing: f64| -> Result<RgbImageF> {
+        let fs = FrameSettings {
+            slice_spacing: spacing as f32,
+            early_termination: None,
+            ..*s
+        };
+        r.render(&fs)?;
+        gpu_image(r, &d)
+    };
+    let mut image = render(&mut r, spacing)?;
+    let mut steps = Vec::new();
+    let mut change = f64::INFINITY;
+    while spacing / 2.0 >= finest * (1.0 - 1e-9) {
+        if opts
+            .cancel
+            .as_ref()
+            .is_some_and(|c| c.load(Ordering::Relaxed))
+        {
+            bail!("cancelled");
+        }
+        spacing /= 2.0;
+        let next = match render(&mut r, spacing) {
+            Ok(img) => img,
+            // too many slices for the renderer: keep the finest image rendered
+            Err(e) => {
+                log::warn!(
+                    "GPU converged reference stops at {} voxels: {e:#}",
+                    spacing * 2.0
+                );
+                spacing *= 2.0;
+                break;
+            }
+        };
+        change = metrics::try_compare(&next, &image)
+            .map_err(|e| anyhow!(e))?
+            .rms_delta_e;
+        steps.push((spacing, change));
+        image = next;
+        if change < tolerance {
+            break;
+        }
+    }
+    let info = json!({
+        "kind": "gpu-converged",
+        "note": "a plugin of the stack has no CPU twin: refined slices on the GPU, rgba32float",
+        "adapter": gpu.describe(),
+        "spacing_voxels": spacing,
+        "converged": change < tolerance,
+        "last_change_rms_delta_e": change,
+        "tolerance_rms_delta_e": tolerance,
+        "steps": steps,
+        "seconds": start.elapsed().as_secs_f64(),
+    });
+    Ok((image, info))
 }
 
 fn over(img: &ReferenceImage, doc: &Document) -> RgbImageF {

@@ -180,7 +180,9 @@ impl ParamDef {
                 doc,
             } => (ParamSpec::vec3(s(key), s(label), *min, *max, *default), doc),
         };
-        if let ParamKind::Float { min, max, default, .. } = spec.kind
+        if let ParamKind::Float {
+            min, max, default, ..
+        } = spec.kind
             && !(min.is_finite() && max.is_finite() && min < max && (min..=max).contains(&default))
         {
             return Err(format!(
@@ -321,7 +323,9 @@ pub fn load_all(root: &Path) -> (Vec<UserPlugin>, Vec<String>) {
 pub fn default_dir() -> Option<PathBuf> {
     std::env::var_os("VWB_PLUGINS")
         .map(PathBuf::from)
-        .or_else(|| std::env::var_os("XDG_CONFIG_HOME").map(|c| PathBuf::from(c).join("vwb/plugins")))
+        .or_else(|| {
+            std::env::var_os("XDG_CONFIG_HOME").map(|c| PathBuf::from(c).join("vwb/plugins"))
+        })
         .or_else(|| std::env::var_os("HOME").map(|h| PathBuf::from(h).join(".config/vwb/plugins")))
 }
 
@@ -376,6 +380,9 @@ pub fn plugins() -> Vec<Arc<dyn Plugin>> {
         .collect()
 }
 
+/// A reload's outcome: the plugin id and the reloaded plugin or the error.
+pub type Reload = (String, Result<Arc<dyn Plugin>, String>);
+
 /// Watches the installed plugins' files; [`Watch::poll`] reloads the ones that changed.
 #[derive(Default)]
 pub struct Watch {
@@ -396,7 +403,7 @@ impl Watch {
     /// Reloads every installed plugin whose folder changed since the last poll (the
     /// first poll only records the times). Returns (id, outcome): a reloaded plugin is
     /// installed; a failed one keeps the installed version and gives the error.
-    pub fn poll(&mut self) -> Vec<(String, Result<Arc<dyn Plugin>, String>)> {
+    pub fn poll(&mut self) -> Vec<Reload> {
         let dirs: Vec<(String, PathBuf)> = installed()
             .read()
             .unwrap_or_else(|e| e.into_inner())
@@ -457,7 +464,10 @@ mod tests {
         let specs = p.params();
         assert_eq!(specs.len(), 2);
         assert!(specs[1].structural);
-        assert!(p.cpu_twin(&vwb_render::params::ParamValues::defaults(&specs)).is_none());
+        assert!(
+            p.cpu_twin(&vwb_render::params::ParamValues::defaults(&specs))
+                .is_none()
+        );
         std::fs::remove_dir_all(&d).ok();
     }
 
@@ -465,18 +475,32 @@ mod tests {
     fn broken_plugins_are_refused_with_file_and_line() {
         let manifest = r#"UserPlugin(id: "shade.broken_test", name: "B", shader: "p.wgsl",
             params: [Float(key: "gain", label: "Gain", min: 0.0, max: 2.0, default: 0.5)])"#;
-        let d = folder("wgsl", manifest, &TINT.replace("s.color.a);", "s.color.a)\n"));
+        let d = folder(
+            "wgsl",
+            manifest,
+            &TINT.replace("s.color.a);", "s.color.a)\n"),
+        );
         let e = load(&d).unwrap_err();
         // the missing `;` of line 3 is reported at the next token, line 5
         assert!(e.contains("p.wgsl:5:") && e.contains("expected `;`"), "{e}");
         std::fs::remove_dir_all(&d).ok();
-        let d = folder("param", manifest, &TINT.replace("params.gain", "params.gian"));
+        let d = folder(
+            "param",
+            manifest,
+            &TINT.replace("params.gain", "params.gian"),
+        );
         let e = load(&d).unwrap_err();
         assert!(e.contains("p.wgsl:3:") && e.contains("gian"), "{e}");
         std::fs::remove_dir_all(&d).ok();
         for (bad, expect) in [
-            (manifest.replace("shade.broken_test", "shiny.x"), "is not a plugin id"),
-            (manifest.replace("shade.broken_test", "classify.tf1d"), "built-in"),
+            (
+                manifest.replace("shade.broken_test", "shiny.x"),
+                "is not a plugin id",
+            ),
+            (
+                manifest.replace("shade.broken_test", "classify.tf1d"),
+                "built-in",
+            ),
             (manifest.replace("default: 0.5", "default: 5.0"), "'gain'"),
             (manifest.replace("name:", "nome:"), "plugin.ron"),
         ] {

@@ -20,4 +20,5 @@ mod presets;
 mod reference;
 mod render;
 mod shading;
+mod user_plugins;
 mod window;

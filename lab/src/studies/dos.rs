@@ -186,7 +186,7 @@ fn pareto(points: &[Point]) -> Vec<Point> {
 pub fn run(gpu: &GpuContext, a: &DosStudyArgs) -> Result<String> {
     let started = Instant::now();
     crate::outputs::check_extension(&a.output, "md", "a Markdown report")?;
-    let registry = vwb_plugins::builtin_registry();
+    let registry = vwb_plugins::registry();
     let doc = Document::load(&a.scene, &registry)
         .with_context(|| a.scene.display().to_string())?
         .document;
