@@ -60,34 +60,42 @@ fn png_rgb(path: &Path) -> Vec<[f64; 3]> {
 }
 
 /// Renders a preset at 128² and compares with tests/reference_images/<name>.png.
-/// Tolerance: RMS < 1.5/255 and max < 32/255 — lavapipe reproduces the images to the
-/// bit; real GPUs filter with fewer bits of weight precision (about 8 on NVIDIA).
 fn check_reference(preset: &str, name: &str, backend: Backend) {
-    let loaded = Document::load(&repo().join("presets").join(preset), &registry()).unwrap();
+    let golden = repo()
+        .join("tests/reference_images")
+        .join(format!("{name}.png"));
+    check_golden(&repo().join("presets").join(preset), &golden, backend, 128, 1.5);
+}
+
+/// Renders a preset at `side`² on `backend` and compares with the golden image
+/// (`VWB_BLESS=1` writes it). Tolerance: RMS < `rms_levels`/255 and max < 32/255 —
+/// lavapipe reproduces the images to the bit; real GPUs filter with fewer bits of weight
+/// precision (about 8 on NVIDIA).
+fn check_golden(preset: &Path, golden: &Path, backend: Backend, side: u32, rms_levels: f64) {
+    let name = golden.file_stem().unwrap().to_string_lossy().to_string();
+    let loaded = Document::load(preset, &registry()).unwrap();
     let doc = loaded.document;
     let volume = vwb_lab::headless::load_volume(&doc.volume).unwrap();
     let mut r = Renderer::new(gpu(), volume).unwrap();
+    r.set_empty_space_skipping(doc.render.empty_space_skipping);
     let mut s = doc.frame_settings();
-    s.width = 128;
-    s.height = 128;
+    s.width = side;
+    s.height = side;
     s.backend = backend;
     let (img, _, _) = {
         r.update_stack(&doc.stack, doc.render.target).unwrap();
         vwb_lab::headless::render_image(&mut r, &s, doc.render.background).unwrap()
     };
-    let path = repo()
-        .join("tests/reference_images")
-        .join(format!("{name}.png"));
-    if bless() || !path.exists() {
-        vwb_lab::headless::save_png(&img, &path).unwrap();
+    if bless() || !golden.exists() {
+        vwb_lab::headless::save_png(&img, golden).unwrap();
         assert!(
             bless(),
             "{} did not exist; wrote it — rerun",
-            path.display()
+            golden.display()
         );
         return;
     }
-    let want = png_rgb(&path);
+    let want = png_rgb(golden);
     let got: Vec<[f64; 3]> = img
         .pixels()
         .map(|p| p.0.map(|v| v as f64 / 255.0))
@@ -99,7 +107,7 @@ fn check_reference(preset: &str, name: &str, backend: Backend) {
         max / ONE_LEVEL
     );
     assert!(
-        rms < 1.5 * ONE_LEVEL,
+        rms < rms_levels * ONE_LEVEL,
         "{name}: RMS {} levels",
         rms / ONE_LEVEL
     );
@@ -108,6 +116,30 @@ fn check_reference(preset: &str, name: &str, backend: Backend) {
         "{name}: max {} levels",
         max / ONE_LEVEL
     );
+}
+
+/// Every shipped preset on both backends at 64² against its golden image in
+/// tests/goldens (RMS ≤ 1/255): a change to the renderer or a plugin that changes what
+/// a shipped preset shows fails here. Regenerate deliberately with `VWB_BLESS=1`.
+#[test]
+fn every_shipped_preset_matches_its_golden_images() {
+    let dir = repo().join("tests/goldens");
+    std::fs::create_dir_all(&dir).unwrap();
+    let presets = crate::presets::shipped_presets();
+    let mut names = Vec::new();
+    for preset in &presets {
+        let stem = preset.file_stem().unwrap().to_string_lossy().to_string();
+        for (backend, tag) in [(Backend::Raster, "raster"), (Backend::Compute, "compute")] {
+            let golden = dir.join(format!("{stem}_{tag}.png"));
+            check_golden(preset, &golden, backend, 64, 1.0);
+            names.push(format!("{stem}_{tag}.png"));
+        }
+    }
+    // no golden without its preset (a removed or renamed preset takes its images along)
+    for e in std::fs::read_dir(&dir).unwrap() {
+        let f = e.unwrap().file_name().to_string_lossy().to_string();
+        assert!(names.contains(&f), "tests/goldens/{f} has no shipped preset");
+    }
 }
 
 #[test]
