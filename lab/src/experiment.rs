@@ -574,8 +574,9 @@ impl Row {
     }
 }
 
-/// Applies a `set` entry to a document.
-fn set_value(doc: &mut Document, key: &str, value: &SetValue) -> Result<()> {
+/// Applies a `set` entry (`<plugin id>.<key>` or `render.*`, see [`Variant::set`]) to a
+/// document, checked against the parameter's spec.
+pub fn set_value(doc: &mut Document, key: &str, value: &SetValue) -> Result<()> {
     let num = |what: &str| match value {
         SetValue::Number(x) => Ok(*x),
         _ => Err(anyhow!("'{key}' needs a number ({what})")),

@@ -1,0 +1,78 @@
+"""The Python package on the CPU Vulkan device (lavapipe) or a GPU: render a preset to
+NumPy, change a parameter, compare against the converged reference, time a frame, run
+an experiment file, and refuse bad input with a clear error."""
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import vwb
+
+REPO = Path(__file__).resolve().parents[2]
+DEMO = str(REPO / "presets" / "demo_preintegrated.ron")
+
+
+def test_adapter_is_vulkan():
+    assert "Vulkan" in vwb.adapter()
+
+
+def test_render_to_numpy():
+    s = vwb.Scene(DEMO)
+    img = s.render(size=(48, 40))
+    assert img.shape == (40, 48, 3)
+    assert img.dtype == np.float32
+    assert np.isfinite(img).all() and img.min() >= 0.0 and img.max() <= 1.0
+    assert img.mean() > 0.02, "the head is visible"
+    # same scene, same image
+    assert vwb.compare(img, s.render(size=(48, 40)))["rms_delta_e"] == 0.0
+
+
+def test_parameters_change_the_image_and_bad_ones_are_refused():
+    s = vwb.Scene(DEMO)  # pre-integrated in the preset
+    s.set("classify.tf1d.mode", "post")
+    post = s.render(size=(40, 40), spacing=2.0)
+    s.set("classify.tf1d.mode", "preintegrated")
+    pre = s.render(size=(40, 40), spacing=2.0)
+    s.set("classify.tf1d.mode", "post")
+    again = s.render(size=(40, 40), spacing=2.0)
+    assert vwb.compare(post, again)["rms_delta_e"] == 0.0, "setting it back restores the image"
+    assert vwb.compare(pre, post)["rms_delta_e"] > 0.1, "pre-integration changes the image"
+    with pytest.raises(ValueError, match="no parameter 'nope'"):
+        s.set("classify.tf1d.nope", 1.0)
+    with pytest.raises(ValueError, match="mode"):
+        s.set("classify.tf1d.mode", "sideways")
+    with pytest.raises(ValueError, match="> 0"):
+        s.render(size=(16, 16), spacing=-1.0)
+    with pytest.raises(RuntimeError, match="nonexistent.ron"):
+        vwb.Scene("nonexistent.ron")
+
+
+def test_finer_slices_are_closer_to_the_converged_reference():
+    s = vwb.Scene(DEMO)
+    s.set("classify.tf1d.mode", "post")
+    ref = s.converged(size=(32, 32), tolerance=0.5)
+    fine = vwb.compare(s.render(size=(32, 32), spacing=0.5), ref)
+    coarse = vwb.compare(s.render(size=(32, 32), spacing=4.0), ref)
+    assert fine["rms_delta_e"] < coarse["rms_delta_e"]
+    t = s.time(size=(32, 32), spacing=1.0, frames=2)
+    assert t["frame_ms"] > 0 and t["slices"] > 10
+
+
+def test_run_experiment_returns_rows(tmp_path):
+    exp = tmp_path / "e.ron"
+    exp.write_text(
+        f'''Experiment(name: "py", scenes: [Preset("{DEMO}")],
+            variants: [(name: "post", set: {{"classify.tf1d.mode": "post"}})],
+            grid: [(param: "render.slice_spacing", values: [1.0, 2.0])],
+            reference: Twin, render: (size: (24, 24)), frames: 1,
+            assertions: ["slices > 5"])'''
+    )
+    rows = vwb.run_experiment(str(exp), out=str(tmp_path / "out"))
+    assert [r["values"] for r in rows] == [[1.0], [2.0]]
+    assert rows[0]["slices"] > rows[1]["slices"]
+    assert (tmp_path / "out" / "junit.xml").is_file()
+    bad = tmp_path / "bad.ron"
+    bad.write_text(exp.read_text().replace("slices > 5", "slices > 100000"))
+    with pytest.raises(RuntimeError, match="assertions failed"):
+        vwb.run_experiment(str(bad), out=str(tmp_path / "out2"))
