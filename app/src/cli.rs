@@ -362,17 +362,22 @@ pub fn run_render(preset: Option<&std::path::Path>, a: &RenderArgs) -> Result<()
     let mut doc = load_document(Some(preset))?;
     a.frame.apply(&mut doc)?;
     vwb_lab::outputs::image_format(&a.output)?;
+    let progress = vwb_lab::progress::Steps::new("vwb render");
+    progress.step("loading the volume");
     let volume = headless::load_volume(&doc.volume)?;
     vwb_lab::outputs::check_output(&a.output)?;
     headless::preflight(Some(preset), &doc, &volume)?;
+    progress.step("opening the GPU");
     let gpu = GpuContext::new_headless()?;
-    eprintln!("adapter: {}", gpu.describe());
+    progress.note(&format!("adapter: {}", gpu.describe()));
+    progress.step("uploading the volume and composing the stack");
     let mut r = headless::renderer_for(&gpu, &doc, volume.clone())
         .with_context(|| format!("{}", preset.display()))?;
     let settings = doc.frame_settings();
+    progress.step("rendering");
     let (img, _, first) = headless::render_image(&mut r, &settings, doc.render.background)?;
     headless::save_png(&img, &a.output)?;
-    eprintln!(
+    progress.note(&format!(
         "wrote {} ({}x{}, {} slices, {} backend, volume {} {:?})",
         a.output.display(),
         img.width(),
@@ -381,9 +386,11 @@ pub fn run_render(preset: Option<&std::path::Path>, a: &RenderArgs) -> Result<()
         settings.backend.name(),
         volume.name,
         volume.dims
-    );
+    ));
     if a.timings {
+        progress.step(&format!("timing {} frames", a.frames));
         let t = measure::time_frames(&mut r, &settings, 2, a.frames)?;
+        drop(progress);
         println!(
             "timings: {} frames after 2 warm-up, {}x{}, {} slices, backend {}, adapter {}",
             t.frames,

@@ -15,4 +15,5 @@ pub mod headless;
 pub mod job;
 pub mod measure;
 pub mod outputs;
+pub mod progress;
 pub mod studies;

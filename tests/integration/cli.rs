@@ -30,6 +30,13 @@ fn render_writes_a_png_for_every_shipped_preset() {
             "{stem}: {}",
             String::from_utf8_lossy(&o.stderr)
         );
+        // piped: no spinner, no terminal control characters, just the lines
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(
+            !err.contains('\r') && !err.contains('\u{1b}'),
+            "{stem}: progress drawn into a pipe: {err:?}"
+        );
+        assert!(err.contains("wrote "), "{err}");
         let img = image::open(&out).unwrap().to_rgb8();
         assert_eq!(img.dimensions(), (96, 80));
         let lit = img.pixels().filter(|p| p.0.iter().any(|&v| v > 40)).count();
@@ -473,4 +480,28 @@ fn window_screenshot_under_xvfb_is_not_blank() {
         colours.len()
     );
     assert!(colours.len() > 200 && bright > (w / 2 * h / 50) as usize);
+}
+
+/// On a terminal `vwb render` shows which step it is at (a spinner on stderr), and
+/// clears it: run under `script`, which gives the command a pseudo-terminal.
+#[test]
+fn render_shows_progress_on_a_terminal() {
+    gpu();
+    let out = tmp("tty.png");
+    let cmd = format!(
+        "{} render --preset {} --size 64x64 -o {}",
+        env!("CARGO_BIN_EXE_vwb"),
+        repo().join("presets/ct_head.ron").display(),
+        out.display()
+    );
+    let o = std::process::Command::new("script")
+        .args(["-qec", &cmd, "/dev/null"])
+        .env("VWB_DATA_DIR", data_dir())
+        .output()
+        .expect("`script` (util-linux) runs the command on a pseudo-terminal");
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "{text}");
+    assert!(text.contains("vwb render: loading the volume"), "{text:?}");
+    assert!(text.contains("wrote "), "{text:?}");
+    assert!(out.is_file());
 }
