@@ -76,11 +76,6 @@ pub enum Command {
     /// renderers such as bench/vtk_peer.py.
     #[command(after_help = crate::cli_help::SCENE)]
     Scene(SceneArgs),
-    /// Measure classification modes: GPU time and error against the converged
-    /// post-classification reference for post / pre / pre-integrated classification
-    /// at several slice spacings, per preset; writes classification.json.
-    #[command(after_help = crate::cli_help::CLASSIFICATION)]
-    Classification(ClassificationArgs),
     /// Suggest a transfer function from the data (Kindlmann and Durkin 1998): opacity
     /// on the boundaries found in the histogram volume over value, first and second
     /// directional derivative. Writes the curve as RON (the `tf` of classify.tf1d).
@@ -257,28 +252,6 @@ pub struct SweepArgs {
     /// for a grid.
     #[arg(long = "param", required = true)]
     pub params: Vec<String>,
-    /// Timed frames per point (at least 1).
-    #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(1..))]
-    pub frames: u32,
-    /// Convergence tolerance of the references (RMS ΔE*uv between halvings).
-    #[arg(long, default_value_t = DEFAULT_TOLERANCE_DELTA_E)]
-    pub tolerance: f64,
-    /// Output folder.
-    #[arg(short, long)]
-    pub output: PathBuf,
-}
-
-#[derive(Debug, clap::Args)]
-pub struct ClassificationArgs {
-    /// Presets whose first classify.tf1d is measured (repeat).
-    #[arg(long = "scene", required = true)]
-    pub scenes: Vec<PathBuf>,
-    /// Slice spacings in voxels.
-    #[arg(long, value_delimiter = ',', default_values_t = [0.5f32, 1.0, 2.0, 4.0])]
-    pub spacings: Vec<f32>,
-    /// Image size WxH.
-    #[arg(long, value_parser = parse_size, default_value = "256x256")]
-    pub size: [u32; 2],
     /// Timed frames per point (at least 1).
     #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(1..))]
     pub frames: u32,
@@ -535,21 +508,6 @@ pub fn run_sweep(preset: Option<&std::path::Path>, a: &SweepArgs) -> Result<()> 
         "wrote {}/sweep.csv, pareto.svg, sweep.json and the images",
         a.output.display()
     );
-    Ok(())
-}
-
-pub fn run_classification(a: &ClassificationArgs) -> Result<()> {
-    let gpu = GpuContext::new_headless()?;
-    eprintln!("adapter: {}", gpu.describe());
-    vwb_lab::studies::classification::run(
-        &gpu,
-        &a.scenes,
-        &a.spacings,
-        a.size,
-        a.frames,
-        a.tolerance,
-        &a.output,
-    )?;
     Ok(())
 }
 

@@ -50,10 +50,6 @@ pub const SCENE: &str = "\
 Example:
   vwb scene --preset presets/ct_head.ron --size 256x256";
 
-pub const CLASSIFICATION: &str = "\
-Example:
-  vwb classification --scene presets/demo_preintegrated.ron --spacings 0.5,1,2 -o out/classification";
-
 pub const SUGGEST_TF: &str = "\
 Examples:
   # a sample by name, or a volume file

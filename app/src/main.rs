@@ -1,7 +1,7 @@
 use clap::Parser;
 use vwb_app::cli::{
-    Cli, Command, run_bench, run_classification, run_compare, run_dos_study, run_experiment,
-    run_info, run_render, run_scene, run_suggest_tf, run_sweep,
+    Cli, Command, run_bench, run_compare, run_dos_study, run_experiment, run_info, run_render,
+    run_scene, run_suggest_tf, run_sweep,
 };
 
 fn main() {
@@ -15,7 +15,6 @@ fn main() {
         Some(Command::Sweep(a)) => run_sweep(cli.preset.as_deref(), a),
         Some(Command::Scene(a)) => run_scene(cli.preset.as_deref(), a),
         Some(Command::Crop(a)) => vwb_app::crop::run_crop(cli.preset.as_deref(), a),
-        Some(Command::Classification(a)) => run_classification(a),
         Some(Command::SuggestTf(a)) => run_suggest_tf(a),
         Some(Command::DosStudy(a)) => run_dos_study(a),
         Some(Command::Run(a)) => run_experiment(a),

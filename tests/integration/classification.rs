@@ -268,3 +268,42 @@ fn tf2d_gradient_estimators_agree_and_the_prepass_runs_once() {
     // gradient of the interpolated field
     assert!(central != precomputed && rms < 0.1, "{rms}");
 }
+
+/// CPU time of rebuilding the pre-integration table (256×256 from a 256-entry TF, one
+/// thread) for the TFs of the presets the classification experiment uses: median, min
+/// and max of 50 builds, printed as `TABLE_BUILD {json}` lines for
+/// bench/classification.py (`bash bench/ignored_test.sh preintegration_table_build_time`).
+#[test]
+#[ignore = "benchmark: bench/classification.py"]
+fn preintegration_table_build_time() {
+    use vwb_plugins::classify_tf1d::preint;
+    for name in ["demo_preintegrated", "ct_skin"] {
+        let path = repo().join(format!("presets/{name}.ron"));
+        let doc = Document::load(&path, &registry()).unwrap().document;
+        let inst = doc
+            .stack
+            .iter()
+            .find(|i| i.plugin.id() == "classify.tf1d")
+            .expect("a 1D TF");
+        let lut = inst
+            .params
+            .tf("tf")
+            .expect("a curve")
+            .bake(vwb_render::tf::LUT_SIZE);
+        let opacity = inst.params.float("opacity") as f64;
+        let mut ms: Vec<f64> = (0..50)
+            .map(|k| {
+                let start = std::time::Instant::now();
+                let t = preint::build(&lut, opacity, 1.0 + k as f64 * 0.01);
+                std::hint::black_box(&t);
+                start.elapsed().as_secs_f64() * 1e3
+            })
+            .collect();
+        ms.sort_by(f64::total_cmp);
+        assert!(ms[0] > 0.0);
+        println!(
+            "TABLE_BUILD {}",
+            serde_json::json!({"preset": name, "builds": ms.len(), "median": ms[25], "min": ms[0], "max": ms[49]})
+        );
+    }
+}

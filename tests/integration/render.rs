@@ -64,7 +64,13 @@ fn check_reference(preset: &str, name: &str, backend: Backend) {
     let golden = repo()
         .join("tests/reference_images")
         .join(format!("{name}.png"));
-    check_golden(&repo().join("presets").join(preset), &golden, backend, 128, 1.5);
+    check_golden(
+        &repo().join("presets").join(preset),
+        &golden,
+        backend,
+        128,
+        1.5,
+    );
 }
 
 /// Renders a preset at `side`² on `backend` and compares with the golden image
@@ -138,7 +144,10 @@ fn every_shipped_preset_matches_its_golden_images() {
     // no golden without its preset (a removed or renamed preset takes its images along)
     for e in std::fs::read_dir(&dir).unwrap() {
         let f = e.unwrap().file_name().to_string_lossy().to_string();
-        assert!(names.contains(&f), "tests/goldens/{f} has no shipped preset");
+        assert!(
+            names.contains(&f),
+            "tests/goldens/{f} has no shipped preset"
+        );
     }
 }
 
