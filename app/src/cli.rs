@@ -91,9 +91,11 @@ pub enum Command {
     /// CSV, JSON, JUnit XML) and fails when an assertion fails.
     #[command(after_help = crate::cli_help::RUN)]
     Run(RunArgs),
-    /// Print the adapter, its limits and the registered plugin ids.
+    /// Print the adapter, its limits and the registered plugin ids; with --volume, what
+    /// was read from a volume file instead (dims, type, spacing, orientation, value
+    /// range, notes and warnings).
     #[command(after_help = crate::cli_help::INFO)]
-    Info,
+    Info(InfoArgs),
     /// Sample data sets that presets name (`volume: Sample("ct_head")`): list them,
     /// fetch them into the data directory ($VWB_DATA_DIR, else the user's cache).
     #[command(subcommand, after_help = crate::cli_help::DATA)]
@@ -378,7 +380,58 @@ pub fn run_render(preset: Option<&std::path::Path>, a: &RenderArgs) -> Result<()
     Ok(())
 }
 
-pub fn run_info() -> Result<()> {
+/// `vwb info`'s arguments.
+#[derive(Debug, Clone, Default, clap::Args)]
+pub struct InfoArgs {
+    /// A volume file (NRRD, NIfTI .nii/.nii.gz, MetaImage .mhd/.mha) or a sample name.
+    #[arg(long)]
+    pub volume: Option<PathBuf>,
+}
+
+/// What a volume file holds, as `vwb info --volume` prints it.
+pub fn volume_report(v: &vwb_render::Volume) -> String {
+    use std::fmt::Write as _;
+    let mut s = String::new();
+    let _ = writeln!(s, "volume: {}", v.name);
+    if let Some(src) = &v.source {
+        let _ = writeln!(s, "file: {}", src.display());
+    }
+    let _ = writeln!(s, "dims: {} x {} x {}", v.dims[0], v.dims[1], v.dims[2]);
+    let _ = writeln!(
+        s,
+        "samples: {} ({} component{})",
+        v.scalar_type().name(),
+        v.components,
+        if v.components == 1 { "" } else { "s" }
+    );
+    let _ = writeln!(
+        s,
+        "spacing: {} x {} x {}",
+        v.spacing[0], v.spacing[1], v.spacing[2]
+    );
+    let _ = writeln!(
+        s,
+        "orientation: +x left, +y posterior, +z superior (LPS) where the file records it; otherwise the axes as stored"
+    );
+    let _ = writeln!(s, "value range: {} .. {}", v.range[0], v.range[1]);
+    if v.non_finite > 0 {
+        let _ = writeln!(s, "non-finite samples: {}", v.non_finite);
+    }
+    for n in &v.notes {
+        let _ = writeln!(s, "note: {n}");
+    }
+    for w in vwb_render::validate::volume_warnings(v) {
+        let _ = writeln!(s, "warning: {w}");
+    }
+    s
+}
+
+pub fn run_info(a: &InfoArgs) -> Result<()> {
+    if let Some(path) = &a.volume {
+        let v = headless::load_volume(&headless::volume_arg(path))?;
+        print!("{}", volume_report(&v));
+        return Ok(());
+    }
     let gpu = GpuContext::new_headless()?;
     println!("adapter: {}", gpu.describe());
     println!("backend: {:?}", gpu.info.backend);

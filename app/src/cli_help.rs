@@ -69,8 +69,11 @@ Examples:
   vwb run experiments/shading_switchboard.ron -o out/shading";
 
 pub const INFO: &str = "\
-Example:
-  vwb info";
+Examples:
+  vwb info
+  # what a volume file holds: dims, type, spacing, orientation, range, warnings
+  vwb info --volume brain.nii.gz
+  vwb info --volume ct_head";
 
 pub const DATA: &str = "\
 Examples:

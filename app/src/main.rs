@@ -18,7 +18,7 @@ fn main() {
         Some(Command::SuggestTf(a)) => run_suggest_tf(a),
         Some(Command::DosStudy(a)) => run_dos_study(a),
         Some(Command::Run(a)) => run_experiment(a),
-        Some(Command::Info) => run_info(),
+        Some(Command::Info(a)) => run_info(a),
         Some(Command::Data(a)) => vwb_app::data_cmd::run(a),
         None => vwb_app::window::run(&cli),
     };

@@ -1025,7 +1025,7 @@ impl Workbench {
                     .id_salt("volume path"),
             )
             .on_hover_text(
-                "volume file (.nhdr, .nrrd, .raw + header) or a sample name such as ct_head (vwb data list)",
+                "volume file (NRRD .nhdr/.nrrd, NIfTI .nii/.nii.gz, MetaImage .mhd/.mha) or a sample name such as ct_head (vwb data list)",
             );
             if ui.button("Open volume").clicked() {
                 let path = PathBuf::from(self.volume_path.trim());

@@ -16,6 +16,7 @@ mod dos;
 mod experiment;
 mod extremes;
 mod flow;
+mod formats;
 mod presets;
 mod reference;
 mod render;

@@ -34,7 +34,10 @@
 //! ±Inf and are then counted as non-finite).
 
 mod demo;
+mod metaimage;
+pub mod nifti;
 mod nrrd;
+pub mod orient;
 mod raw;
 #[cfg(test)]
 mod tests;
@@ -195,6 +198,9 @@ pub struct Volume {
     pub non_finite: u64,
     /// The file the volume was loaded from (the header for detached NRRD).
     pub source: Option<PathBuf>,
+    /// What the loader did beyond reading samples (orientation applied, scaling, the
+    /// first volume of a series taken), for `vwb info --volume` and the window.
+    pub notes: Vec<String>,
 }
 
 impl Volume {
@@ -245,6 +251,7 @@ impl Volume {
             histogram: stats.histogram,
             non_finite: stats.non_finite,
             source: None,
+            notes: Vec::new(),
         })
     }
 
@@ -460,15 +467,40 @@ pub fn load(path: &Path) -> Result<Volume, VolumeError> {
     if head.starts_with(b"NRRD000") {
         return nrrd::load_input(input, path);
     }
-    if head.len() >= 348 && matches!(&head[344..348], b"n+1\0" | b"ni1\0" | b"n+2\0" | b"ni2\0")
-        || head.len() >= 8 && matches!(&head[4..8], b"n+2\0" | b"ni2\0")
-    {
+    let regular = std::fs::metadata(path).is_ok_and(|m| m.is_file());
+    if nifti::is_nifti(&head) {
+        if !regular {
+            return Err(VolumeError::Unsupported {
+                file: path.to_path_buf(),
+                message: "a NIfTI stream: vwb reads NIfTI from regular files".to_owned(),
+            });
+        }
+        return nifti::load(path, false);
+    }
+    if head.starts_with(&[0x1f, 0x8b]) && regular {
+        // a gzip-compressed file: NIfTI (.nii.gz) is the one format stored that way
+        let mut inner = Vec::new();
+        let f = std::fs::File::open(path).map_err(|e| raw::io_error(path, "cannot open", e))?;
+        std::io::Read::read_to_end(
+            &mut std::io::Read::take(flate2::read::MultiGzDecoder::new(f), 540),
+            &mut inner,
+        )
+        .map_err(|e| VolumeError::Compressed {
+            file: path.to_path_buf(),
+            message: format!("not a readable gzip stream: {e}"),
+        })?;
+        if nifti::is_nifti(&inner) {
+            return nifti::load(path, true);
+        }
         return Err(VolumeError::Unsupported {
             file: path.to_path_buf(),
-            message: "a NIfTI file; vwb reads NRRD only: convert it to NRRD (e.g. with 3D Slicer, \
-                      ITK or `c3d in.nii -o out.nrrd`)"
+            message: "a gzip-compressed file that is not NIfTI (.nii.gz); vwb reads NRRD (gzip \
+                      encoding inside), NIfTI and MetaImage"
                 .to_owned(),
         });
+    }
+    if metaimage::is_metaimage(path, &head) {
+        return metaimage::load(path);
     }
     Err(VolumeError::NotNrrd {
         file: path.to_path_buf(),
