@@ -655,13 +655,54 @@ fn fuzz_run(cases: usize) -> FuzzCounts {
         .iter()
         .map(|p| std::fs::read(repo().join("presets").join(p)).unwrap())
         .collect();
+    // NIfTI-1 (.nii and .nii.gz) and MetaImage (.mha, raw and zlib) seeds of the same ball
+    let nii = {
+        let p = d.join("seed.nii");
+        let ball16: Vec<i16> = ball().iter().map(|&v| v as i16).collect();
+        let sform = [
+            [-1.0, 0.0, 0.0, 0.0],
+            [0.0, 0.0, 1.0, 0.0],
+            [0.0, -1.0, 0.0, 0.0],
+        ];
+        vwb_render::volume::nifti::write_nifti1(&p, [8, 8, 8], [1.0, 2.0, 1.5], sform, &ball16)
+            .unwrap();
+        std::fs::read(&p).unwrap()
+    };
+    let nii_gz = {
+        use std::io::Write;
+        let mut e = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::best());
+        e.write_all(&nii).unwrap();
+        e.finish().unwrap()
+    };
+    let mha_header = "ObjectType = Image\nNDims = 3\nDimSize = 8 8 8\nElementType = MET_UCHAR\n\
+                      ElementSpacing = 1 1 2\nTransformMatrix = 0 1 0 1 0 0 0 0 1\n";
+    let mha = [
+        format!("{mha_header}ElementDataFile = LOCAL\n").into_bytes(),
+        ball(),
+    ]
+    .concat();
+    let mha_z = {
+        use std::io::Write;
+        let mut e = flate2::write::ZlibEncoder::new(Vec::new(), flate2::Compression::best());
+        e.write_all(&ball()).unwrap();
+        [
+            format!("{mha_header}CompressedData = True\nElementDataFile = LOCAL\n").into_bytes(),
+            e.finish().unwrap(),
+        ]
+        .concat()
+    };
     let mut counts = FuzzCounts::default();
     for i in 0..cases {
-        let nrrd = i % 2 == 0;
-        let seed = if nrrd {
-            &seeds_nrrd[(next() % 4) as usize]
-        } else {
-            &seeds_preset[(next() % 3) as usize]
+        // NRRD, preset, NIfTI, MetaImage in turn
+        let kind = i % 4;
+        let nrrd = kind != 1;
+        let (seed, name) = match kind {
+            0 => (&seeds_nrrd[(next() % 4) as usize], "case.nrrd"),
+            1 => (&seeds_preset[(next() % 3) as usize], "case.ron"),
+            2 if next() % 2 == 0 => (&nii, "case.nii"),
+            2 => (&nii_gz, "case.nii.gz"),
+            _ if next() % 2 == 0 => (&mha, "case.mha"),
+            _ => (&mha_z, "case.mha"),
         };
         let mut b = seed.clone();
         match next() % 4 {
@@ -686,7 +727,6 @@ fn fuzz_run(cases: usize) -> FuzzCounts {
                 b.splice(at..at, copy);
             }
         }
-        let name = if nrrd { "case.nrrd" } else { "case.ron" };
         let path = d.join(name);
         std::fs::write(&path, &b).unwrap();
         let outcome = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
@@ -701,11 +741,20 @@ fn fuzz_run(cases: usize) -> FuzzCounts {
             }
         }));
         counts.cases += 1;
+        let per = &mut counts.per_format[kind];
+        per.0 += 1;
         match outcome {
-            Err(_) => counts.panics += 1,
-            Ok(Ok(())) => counts.loaded += 1,
+            Err(_) => {
+                counts.panics += 1;
+                per.3 += 1;
+            }
+            Ok(Ok(())) => {
+                counts.loaded += 1;
+                per.1 += 1;
+            }
             Ok(Err(e)) => {
                 counts.errors += 1;
+                per.2 += 1;
                 // the header is untouched: blaming it for the gzip data is wrong
                 if nrrd && b.starts_with(GZIP_HEADER) && e.contains("probably wrong") {
                     counts.header_blamed_for_gzip += 1;
@@ -721,6 +770,8 @@ fn fuzz_run(cases: usize) -> FuzzCounts {
 
 #[derive(Debug, Default)]
 struct FuzzCounts {
+    /// (cases, loaded, errors, panics) for NRRD, presets, NIfTI, MetaImage.
+    per_format: [(usize, usize, usize, usize); 4],
     cases: usize,
     loaded: usize,
     errors: usize,
@@ -740,6 +791,9 @@ fn fuzz_smoke() {
         c.unnamed
     );
     assert!(c.errors > 0 && c.loaded > 0, "{c:?}");
+    for (cases, loaded, errors, _) in c.per_format {
+        assert!(cases > 0 && loaded > 0 && errors > 0, "{:?}", c.per_format);
+    }
 }
 
 #[test]
@@ -760,6 +814,14 @@ fn fuzz() {
         c.unnamed.len(),
         c.header_blamed_for_gzip
     );
+    for (name, (cases, loaded, errors, panics)) in ["NRRD", "preset", "NIfTI", "MetaImage"]
+        .iter()
+        .zip(c.per_format)
+    {
+        println!(
+            "fuzz {name}: {cases} cases, {loaded} loaded, {errors} clear errors, {panics} panics"
+        );
+    }
     assert_eq!(c.panics, 0);
     assert_eq!(c.header_blamed_for_gzip, 0);
     assert!(c.unnamed.is_empty(), "{:?}", c.unnamed);

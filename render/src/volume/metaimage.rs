@@ -307,7 +307,7 @@ pub fn load(path: &Path) -> Result<Volume, VolumeError> {
         } else {
             header_size.max(0) as u64
         };
-        if !compressed && len < skip + need {
+        if !compressed && len < skip.saturating_add(need) {
             return Err(VolumeError::DataSize {
                 file: p,
                 file_len: len,
@@ -449,6 +449,11 @@ mod tests {
                 "36",
             ),
             ("just text\n", "Field = value"),
+            // regression: a huge HeaderSize overflowed the size check
+            (
+                "NDims = 3\nDimSize = 3 2 2\nElementType = MET_SHORT\nHeaderSize = 1e300\nElementDataFile = short.raw\n",
+                "short.raw",
+            ),
         ] {
             std::fs::write(&m, text).unwrap();
             let e = super::super::load(&m).unwrap_err().to_string();

@@ -41,6 +41,7 @@ pub mod orient;
 mod raw;
 #[cfg(test)]
 mod tests;
+pub mod tiff;
 
 use std::fmt;
 use std::path::{Path, PathBuf};
@@ -460,6 +461,9 @@ fn skip_note(skip: u64) -> String {
 /// [`load_raw`]. The path is opened once, so pipes (`--volume <(cat x.nrrd)`) and
 /// FIFOs are read as streams; a FIFO nobody writes to gives an error, not a hang.
 pub fn load(path: &Path) -> Result<Volume, VolumeError> {
+    if path.is_dir() && !tiff::folder_pages(path).is_empty() {
+        return tiff::load(path);
+    }
     let input = nrrd::Input::open(path)?;
     let head = input
         .head(348)
@@ -501,6 +505,9 @@ pub fn load(path: &Path) -> Result<Volume, VolumeError> {
     }
     if metaimage::is_metaimage(path, &head) {
         return metaimage::load(path);
+    }
+    if tiff::is_tiff(&head) && regular {
+        return tiff::load(path);
     }
     Err(VolumeError::NotNrrd {
         file: path.to_path_buf(),

@@ -328,7 +328,7 @@ pub fn load(path: &Path, gzip: bool) -> Result<Volume, VolumeError> {
             .map_err(|e| io_error(path, "cannot read metadata", e))?
             .len();
         let need = layout.values as u64 * nrrd_type_bytes(ty);
-        if len < h.vox_offset + need {
+        if len < h.vox_offset.saturating_add(need) {
             return Err(VolumeError::DataSize {
                 file: path.to_path_buf(),
                 file_len: len,
@@ -620,6 +620,13 @@ mod tests {
         std::fs::write(&b, &bad).unwrap();
         let e = super::super::load(&b).unwrap_err().to_string();
         assert!(e.contains("datatype 2048"), "{e}");
+        // regression (the fuzzer's find): a vox_offset of 3·10³⁸ overflowed the size check
+        let mut far = bytes.clone();
+        far[108..112].copy_from_slice(&3.0e38f32.to_le_bytes());
+        let f = tmp("far.nii");
+        std::fs::write(&f, &far).unwrap();
+        let e = super::super::load(&f).unwrap_err().to_string();
+        assert!(e.contains("far.nii"), "{e}");
         // scaling
         let mut s = bytes.clone();
         s[112..116].copy_from_slice(&2f32.to_le_bytes());
