@@ -86,6 +86,12 @@ pub enum Command {
     /// write the report (docs/dos.md).
     #[command(after_help = crate::cli_help::DOS_STUDY)]
     DosStudy(vwb_lab::studies::dos::DosStudyArgs),
+    /// Transfer-function design gallery (Marks et al. 1997): draws a seeded pool of TF
+    /// genomes, renders each from several viewpoints in batched atlases, keeps the most
+    /// dispersed and lays them out by MDS; writes gallery.png, genomes.ron and
+    /// gallery.json. --around/--pick refine around a pick; --apply writes a preset with it.
+    #[command(after_help = crate::cli_help::GALLERY)]
+    Gallery(GalleryArgs),
     /// Run an experiment file: scenes × variants × a parameter grid, each image timed and
     /// compared with its reference; writes a report (Markdown, Pareto plots, images,
     /// CSV, JSON, JUnit XML) and fails when an assertion fails.
@@ -100,6 +106,79 @@ pub enum Command {
     /// fetch them into the data directory ($VWB_DATA_DIR, else the user's cache).
     #[command(subcommand, after_help = crate::cli_help::DATA)]
     Data(crate::data_cmd::DataCommand),
+}
+
+/// `vwb gallery`'s arguments.
+#[derive(Debug, Clone, clap::Args)]
+pub struct GalleryArgs {
+    /// Genomes drawn.
+    #[arg(long, default_value_t = 256, value_parser = clap::value_parser!(u32).range(2..=8192))]
+    pub pool: u32,
+    /// Genomes kept.
+    #[arg(long, default_value_t = 36, value_parser = clap::value_parser!(u32).range(1..=1024))]
+    pub k: u32,
+    /// Thumbnail side in pixels.
+    #[arg(long, default_value_t = 64, value_parser = clap::value_parser!(u32).range(16..=256))]
+    pub tile: u32,
+    /// Viewpoints per descriptor.
+    #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u32).range(1..=16))]
+    pub views: u32,
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Slice spacing of the thumbnails, voxels.
+    #[arg(long, default_value_t = 1.0, value_parser = parse_positive)]
+    pub spacing: f64,
+    /// Primitives per random genome, at most (1–8).
+    #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u32).range(1..=8))]
+    pub max_primitives: u32,
+    /// A gallery's genomes.ron: refine around its pick --pick (or apply it with --apply).
+    #[arg(long)]
+    pub around: Option<PathBuf>,
+    /// The pick's index in --around's file (its selection order).
+    #[arg(long, default_value_t = 0)]
+    pub pick: usize,
+    /// Mutation radius of a refinement (0–1).
+    #[arg(long, default_value_t = 0.3, value_parser = parse_unit)]
+    pub radius: f64,
+    /// Write the preset with the pick's TF to -o (a .ron) instead of a gallery.
+    #[arg(long)]
+    pub apply: bool,
+    /// Output folder (or, with --apply, the preset to write).
+    #[arg(short, long)]
+    pub output: PathBuf,
+}
+
+/// `vwb gallery`.
+pub fn run_gallery(preset: Option<&std::path::Path>, a: &GalleryArgs) -> Result<()> {
+    let Some(preset) = preset else {
+        bail!("vwb gallery needs --preset P.ron (a stack with classify.tf1d)");
+    };
+    let around = match &a.around {
+        Some(f) => Some(vwb_lab::search::read_pick(f, a.pick)?),
+        None => None,
+    };
+    if a.apply {
+        let g = around
+            .ok_or_else(|| anyhow::anyhow!("--apply needs --around genomes.ron and --pick I"))?;
+        vwb_lab::search::apply_pick(preset, &g, &a.output)?;
+        eprintln!("wrote {} with pick {}", a.output.display(), a.pick);
+        return Ok(());
+    }
+    let o = vwb_render::search::gallery::GalleryOptions {
+        pool: a.pool as usize,
+        k: a.k as usize,
+        tile: a.tile,
+        views: a.views as usize,
+        slice_spacing: a.spacing as f32,
+        seed: a.seed,
+        max_primitives: a.max_primitives as usize,
+        around: around.map(|g| (g, a.radius)),
+        ..Default::default()
+    };
+    let g = vwb_lab::search::run_gallery(preset, &o, &a.output)?;
+    eprintln!("{}", vwb_lab::search::summary(&g));
+    eprintln!("wrote {}", a.output.join("gallery.png").display());
+    Ok(())
 }
 
 /// `vwb run`'s arguments.

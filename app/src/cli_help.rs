@@ -61,6 +61,15 @@ Example:
   # a quick, small study (the default writes docs/dos.md at 48x48)
   vwb dos-study --size 24 --directions 8 --ct skip -o out/dos.md";
 
+pub const GALLERY: &str = "\
+Examples:
+  # 36 dispersed TFs for the CT head out of 256 random ones, from 3 viewpoints
+  vwb gallery --preset presets/ct_head.ron -o out/gallery
+  # refine around pick 4 of that gallery, with a smaller mutation radius
+  vwb gallery --preset presets/ct_head.ron --around out/gallery/genomes.ron --pick 4 --radius 0.2 -o out/refined
+  # save the preset with pick 2's TF
+  vwb gallery --preset presets/ct_head.ron --around out/refined/genomes.ron --pick 2 --apply -o ct_picked.ron";
+
 pub const RUN: &str = "\
 Examples:
   # regenerate the classification table in docs/classification.md

@@ -16,4 +16,5 @@ pub mod job;
 pub mod measure;
 pub mod outputs;
 pub mod progress;
+pub mod search;
 pub mod studies;

@@ -14,6 +14,7 @@ pub mod reference;
 pub mod renderer;
 pub mod rng;
 pub mod samples;
+pub mod search;
 pub mod shading;
 pub mod skipping;
 pub mod slicing;

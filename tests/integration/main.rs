@@ -20,6 +20,7 @@ mod formats;
 mod presets;
 mod reference;
 mod render;
+mod search;
 mod shading;
 mod user_plugins;
 mod window;

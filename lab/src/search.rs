@@ -1,0 +1,151 @@
+//! Transfer-function search from the command line and scripts: design galleries on a
+//! preset ([`run_gallery`]), their refinement around a pick, and applying a picked
+//! genome to the preset ([`apply_pick`]).
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, Result, anyhow, bail};
+use serde::{Deserialize, Serialize};
+use serde_json::json;
+use vwb_render::GpuContext;
+use vwb_render::params::ParamValue;
+use vwb_render::preset::Document;
+use vwb_render::search::gallery::{self, Gallery, GalleryOptions};
+use vwb_render::search::genome::Genome;
+
+use crate::{headless, measure};
+
+/// `genomes.ron`: the chosen genomes with their grid cells, and how they were drawn.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct GalleryFile {
+    pub preset: PathBuf,
+    pub seed: u64,
+    pub pool: usize,
+    /// (cell [column, row], genome), in selection order.
+    pub chosen: Vec<([u32; 2], Genome)>,
+}
+
+/// Reads `genomes.ron` and returns pick `i` (its selection index).
+pub fn read_pick(file: &Path, i: usize) -> Result<Genome> {
+    let text = std::fs::read_to_string(file)
+        .with_context(|| format!("{}: cannot read", file.display()))?;
+    let g: GalleryFile = ron::from_str(&text).map_err(|e| anyhow!("{}: {e}", file.display()))?;
+    g.chosen.get(i).map(|(_, g)| g.clone()).ok_or_else(|| {
+        anyhow!(
+            "{}: no pick {i} (it holds {})",
+            file.display(),
+            g.chosen.len()
+        )
+    })
+}
+
+/// Renders a gallery of the preset's scene and writes `gallery.png` (the thumbnails on
+/// their MDS grid, first viewpoint), `genomes.ron` and `gallery.json` into `out`.
+pub fn run_gallery(preset: &Path, o: &GalleryOptions, out: &Path) -> Result<Gallery> {
+    let doc = crate::document::load_document(Some(preset))?;
+    let volume = headless::load_volume(&doc.volume)?;
+    crate::outputs::check_output(&out.join("gallery.png"))?;
+    std::fs::create_dir_all(out).with_context(|| format!("{}: cannot create", out.display()))?;
+    let gpu = GpuContext::new_headless()?;
+    eprintln!("adapter: {}", gpu.describe());
+    let mut r = headless::renderer_for(&gpu, &doc, volume)?;
+    let g = gallery::gallery(
+        &mut r,
+        &doc.stack,
+        &doc.camera,
+        measure::background(&doc),
+        o,
+    )
+    .map_err(|e| anyhow!("{}: {e}", preset.display()))?;
+    // the grid image
+    let t = o.tile;
+    let rows = g.cells.iter().map(|c| c[1]).max().map_or(1, |r| r + 1);
+    let mut img = image::RgbImage::new(g.cols * (t + 2), rows * (t + 2));
+    for (thumb, cell) in g.thumbnails.iter().zip(&g.cells) {
+        let rgb = thumb.to_rgb8();
+        image::imageops::replace(
+            &mut img,
+            &rgb,
+            (cell[0] * (t + 2) + 1) as i64,
+            (cell[1] * (t + 2) + 1) as i64,
+        );
+    }
+    headless::save_png(&img, &out.join("gallery.png"))?;
+    let file = GalleryFile {
+        preset: preset.to_path_buf(),
+        seed: o.seed,
+        pool: o.pool,
+        chosen: g
+            .chosen
+            .iter()
+            .zip(&g.cells)
+            .map(|(&i, c)| (*c, g.pool[i].clone()))
+            .collect(),
+    };
+    let text = ron::ser::to_string_pretty(&file, ron::ser::PrettyConfig::default())?;
+    measure::save_text(&out.join("genomes.ron"), &text)?;
+    measure::save_json(
+        &out.join("gallery.json"),
+        &json!({
+            "preset": preset,
+            "adapter": gpu.describe(),
+            "machine": measure::machine(),
+            "pool": o.pool, "k": g.chosen.len(), "tile": o.tile, "views": o.views, "seed": o.seed,
+            "refined_around": o.around.as_ref().map(|(_, r)| r),
+            "thumbnails": g.rendered,
+            "render_ms": g.render_ms,
+            "thumbnails_per_s": g.rendered as f64 / (g.render_ms / 1e3),
+            "dispersion_min_delta_e": g.dispersion,
+            "random_dispersion_min_delta_e": g.random_dispersion,
+        }),
+    )?;
+    Ok(g)
+}
+
+/// One line per gallery for the terminal.
+pub fn summary(g: &Gallery) -> String {
+    let mut s = String::new();
+    let _ = write!(
+        s,
+        "{} thumbnails in {:.0} ms ({:.1}/s); {} chosen: min pairwise ΔE*uv {:.2} against {:.2} for {} drawn at random ({:.2}×)",
+        g.rendered,
+        g.render_ms,
+        g.rendered as f64 / (g.render_ms / 1e3),
+        g.chosen.len(),
+        g.dispersion,
+        g.random_dispersion,
+        g.chosen.len(),
+        g.dispersion / g.random_dispersion.max(1e-12)
+    );
+    s
+}
+
+/// Writes the preset with its first `classify.tf1d` showing the genome (atomically).
+pub fn apply_pick(preset: &Path, g: &Genome, out: &Path) -> Result<Document> {
+    crate::outputs::check_extension(out, "ron", "a preset")?;
+    if g.primitives.is_empty() {
+        bail!("the pick has no primitives");
+    }
+    let mut doc = crate::document::load_document(Some(preset))?;
+    let tf = doc
+        .stack
+        .iter_mut()
+        .find(|i| i.enabled && i.plugin.id() == "classify.tf1d")
+        .ok_or_else(|| {
+            anyhow!(
+                "{}: no enabled classify.tf1d to apply the TF to",
+                preset.display()
+            )
+        })?;
+    tf.params.set("tf", ParamValue::Tf(g.to_curve()));
+    if doc.description.is_empty() {
+        doc.description = "a TF picked from a design gallery".into();
+    } else {
+        doc.description = format!("{} (TF picked from a design gallery)", doc.description);
+    }
+    crate::outputs::check_output(out)?;
+    doc.save(out)
+        .with_context(|| format!("{}: cannot save", out.display()))?;
+    Ok(doc)
+}

@@ -1,0 +1,186 @@
+//! Transfer-function search (render/src/search, lab/src/search.rs): a design gallery is
+//! reproducible from its seed and disperses its picks; a refinement stays near its
+//! pick; a pick applied to a preset renders that TF.
+
+use std::process::Command;
+
+use vwb_render::Renderer;
+use vwb_render::preset::Document;
+use vwb_render::search::gallery::{self, GalleryOptions};
+
+use crate::common::*;
+
+fn demo_doc() -> Document {
+    Document::load(&repo().join("presets/demo.ron"), &registry())
+        .unwrap()
+        .document
+}
+
+fn small(seed: u64) -> GalleryOptions {
+    GalleryOptions {
+        pool: 24,
+        k: 6,
+        tile: 24,
+        views: 3,
+        seed,
+        batch: 36,
+        ..Default::default()
+    }
+}
+
+#[test]
+fn a_gallery_is_reproducible_and_dispersed() {
+    let doc = demo_doc();
+    let run = |seed| {
+        let mut r = Renderer::new(gpu(), demo()).unwrap();
+        gallery::gallery(&mut r, &doc.stack, &doc.camera, [0.0; 3], &small(seed)).unwrap()
+    };
+    let (a, b) = (run(5), run(5));
+    assert_eq!(a.pool, b.pool);
+    assert_eq!(a.chosen, b.chosen);
+    assert_eq!(a.cells, b.cells);
+    assert!(
+        a.thumbnails
+            .iter()
+            .zip(&b.thumbnails)
+            .all(|(x, y)| x.pixels == y.pixels),
+        "same seed, same images"
+    );
+    assert_eq!(a.rendered, 24 * 3);
+    // another seed, another pool
+    assert_ne!(run(6).pool, a.pool);
+    // farthest-point picks are more dispersed than the first six drawn
+    assert!(
+        a.dispersion > 2.0 * a.random_dispersion,
+        "{} vs {}",
+        a.dispersion,
+        a.random_dispersion
+    );
+    assert!(a.dispersion > 3.0, "{}", a.dispersion);
+    // every chosen genome has its own grid cell
+    let mut cells = a.cells.clone();
+    cells.sort();
+    cells.dedup();
+    assert_eq!(cells.len(), 6);
+}
+
+#[test]
+fn a_refinement_stays_near_its_pick() {
+    let doc = demo_doc();
+    let mut r = Renderer::new(gpu(), demo()).unwrap();
+    let first = gallery::gallery(&mut r, &doc.stack, &doc.camera, [0.0; 3], &small(11)).unwrap();
+    let pick = first.pool[first.chosen[1]].clone();
+    let refined = gallery::gallery(
+        &mut r,
+        &doc.stack,
+        &doc.camera,
+        [0.0; 3],
+        &GalleryOptions {
+            around: Some((pick.clone(), 0.15)),
+            ..small(12)
+        },
+    )
+    .unwrap();
+    assert_eq!(refined.pool[0], pick, "the pick is part of its refinement");
+    let cameras = gallery::viewpoints(&doc.camera, 3);
+    let describe = |r: &mut Renderer, genomes: &[_]| -> Vec<Vec<[f64; 3]>> {
+        gallery::thumbnails(r, &doc.stack, genomes, &cameras, 24, 1.0, [0.0; 3], 36)
+            .unwrap()
+            .iter()
+            .map(|v| gallery::descriptor(v))
+            .collect()
+    };
+    let at_pick = describe(&mut r, std::slice::from_ref(&pick)).remove(0);
+    let mut mean = |pool: &[_]| {
+        let d = describe(&mut r, pool);
+        d.iter()
+            .map(|x| gallery::distance(x, &at_pick))
+            .sum::<f64>()
+            / d.len() as f64
+    };
+    let (near, far) = (mean(&refined.pool[1..]), mean(&first.pool));
+    assert!(
+        near < 0.5 * far,
+        "refined {near:.2} vs random {far:.2} ΔE from the pick"
+    );
+}
+
+#[test]
+fn the_cli_writes_a_gallery_and_applies_a_pick() {
+    let out = tmp("gallery_cli");
+    let vwb = || {
+        let mut c = Command::new(env!("CARGO_BIN_EXE_vwb"));
+        c.current_dir(repo());
+        c
+    };
+    let o = vwb()
+        .args([
+            "gallery",
+            "--preset",
+            "presets/demo.ron",
+            "--pool",
+            "16",
+            "--k",
+            "4",
+            "--tile",
+            "24",
+            "-o",
+        ])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("48 thumbnails") && err.contains("min pairwise"),
+        "{err}"
+    );
+    let png = image::open(out.join("gallery.png")).unwrap();
+    assert_eq!((png.width(), png.height()), (2 * 26, 2 * 26));
+    let pick = vwb_lab::search::read_pick(&out.join("genomes.ron"), 1).unwrap();
+    let preset = tmp("picked.ron");
+    let o = vwb()
+        .args([
+            "gallery",
+            "--preset",
+            "presets/demo.ron",
+            "--pick",
+            "1",
+            "--apply",
+            "--around",
+        ])
+        .arg(out.join("genomes.ron"))
+        .arg("-o")
+        .arg(&preset)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let doc = Document::load(&preset, &registry()).unwrap().document;
+    let tf = doc
+        .stack
+        .iter()
+        .find(|i| i.plugin.id() == "classify.tf1d")
+        .unwrap();
+    assert_eq!(tf.params.tf("tf"), Some(&pick.to_curve()));
+    // a pick that does not exist names the file
+    let o = vwb()
+        .args([
+            "gallery",
+            "--preset",
+            "presets/demo.ron",
+            "--pick",
+            "99",
+            "--apply",
+            "--around",
+        ])
+        .arg(out.join("genomes.ron"))
+        .arg("-o")
+        .arg(tmp("never.ron"))
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success() && err.contains("genomes.ron") && err.contains("no pick 99"),
+        "{err}"
+    );
+}
