@@ -6,4 +6,5 @@
 //! genomes and the same images.
 
 pub mod gallery;
+pub mod genetic;
 pub mod genome;
