@@ -92,6 +92,10 @@ pub enum Command {
     /// gallery.json. --around/--pick refine around a pick; --apply writes a preset with it.
     #[command(after_help = crate::cli_help::GALLERY)]
     Gallery(GalleryArgs),
+    /// Genetic TF search (He et al. 1996) toward the images of a target preset's stack,
+    /// seeded and bit-reproducible; writes best.ron, history.csv and best.png.
+    #[command(after_help = crate::cli_help::EVOLVE)]
+    Evolve(EvolveArgs),
     /// Run an experiment file: scenes × variants × a parameter grid, each image timed and
     /// compared with its reference; writes a report (Markdown, Pareto plots, images,
     /// CSV, JSON, JUnit XML) and fails when an assertion fails.
@@ -178,6 +182,48 @@ pub fn run_gallery(preset: Option<&std::path::Path>, a: &GalleryArgs) -> Result<
     let g = vwb_lab::search::run_gallery(preset, &o, &a.output)?;
     eprintln!("{}", vwb_lab::search::summary(&g));
     eprintln!("wrote {}", a.output.join("gallery.png").display());
+    Ok(())
+}
+
+/// `vwb evolve`'s arguments.
+#[derive(Debug, Clone, clap::Args)]
+pub struct EvolveArgs {
+    /// The preset whose TF is searched for: its images from the same viewpoints are
+    /// the target.
+    #[arg(long)]
+    pub target_preset: PathBuf,
+    #[arg(long, default_value_t = 32, value_parser = clap::value_parser!(u32).range(4..=512))]
+    pub population: u32,
+    #[arg(long, default_value_t = 20, value_parser = clap::value_parser!(u32).range(1..=1000))]
+    pub generations: u32,
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Thumbnail side in pixels.
+    #[arg(long, default_value_t = 48, value_parser = clap::value_parser!(u32).range(16..=256))]
+    pub tile: u32,
+    #[arg(short, long)]
+    pub output: PathBuf,
+}
+
+/// `vwb evolve`.
+pub fn run_evolve(preset: Option<&std::path::Path>, a: &EvolveArgs) -> Result<()> {
+    let Some(preset) = preset else {
+        bail!("vwb evolve needs --preset P.ron (a stack with classify.tf1d)");
+    };
+    let o = vwb_render::search::genetic::GaOptions {
+        population: a.population as usize,
+        generations: a.generations as usize,
+        seed: a.seed,
+        tile: a.tile,
+        ..Default::default()
+    };
+    let h = vwb_lab::search::run_evolve(preset, &a.target_preset, &o, &a.output)?;
+    let (first, last) = (h[0].best_score, h[h.len() - 1].best_score);
+    eprintln!(
+        "best RMS ΔE*uv {first:.2} → {last:.2} over {} generations; wrote {}",
+        h.len(),
+        a.output.join("best.ron").display()
+    );
     Ok(())
 }
 

@@ -70,6 +70,11 @@ Examples:
   # save the preset with pick 2's TF
   vwb gallery --preset presets/ct_head.ron --around out/refined/genomes.ron --pick 2 --apply -o ct_picked.ron";
 
+pub const EVOLVE: &str = "\
+Example:
+  # search the demo's TF space for the pre-integrated demo's look, 20 generations of 32
+  vwb evolve --preset presets/demo.ron --target-preset presets/demo_preintegrated.ron --seed 1 -o out/evolve";
+
 pub const RUN: &str = "\
 Examples:
   # regenerate the classification table in docs/classification.md

@@ -18,6 +18,7 @@ fn main() {
         Some(Command::SuggestTf(a)) => run_suggest_tf(a),
         Some(Command::DosStudy(a)) => run_dos_study(a),
         Some(Command::Run(a)) => run_experiment(a),
+        Some(Command::Evolve(a)) => vwb_app::cli::run_evolve(cli.preset.as_deref(), a),
         Some(Command::Gallery(a)) => vwb_app::cli::run_gallery(cli.preset.as_deref(), a),
         Some(Command::Info(a)) => run_info(a),
         Some(Command::Data(a)) => vwb_app::data_cmd::run(a),

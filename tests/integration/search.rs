@@ -244,3 +244,40 @@ fn a_seeded_genetic_search_converges_on_a_hidden_tf() {
     assert!(last < 0.6 * first, "{first:.2} → {last:.2}");
     assert_eq!(run(), h, "bit-reproducible");
 }
+
+#[test]
+fn vwb_evolve_writes_the_best_genome_and_its_history() {
+    let out = tmp("evolve_cli");
+    let o = Command::new(env!("CARGO_BIN_EXE_vwb"))
+        .current_dir(repo())
+        .args([
+            "evolve",
+            "--preset",
+            "presets/demo.ron",
+            "--target-preset",
+            "presets/demo_preintegrated.ron",
+            "--generations",
+            "3",
+            "--population",
+            "8",
+            "--tile",
+            "24",
+            "-o",
+        ])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let csv = std::fs::read_to_string(out.join("history.csv")).unwrap();
+    let best: Vec<f64> = csv
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').nth(1).unwrap().parse().unwrap())
+        .collect();
+    assert_eq!(best.len(), 3);
+    assert!(best[2] <= best[0], "{best:?}");
+    let g: vwb_render::search::genome::Genome =
+        ron::from_str(&std::fs::read_to_string(out.join("best.ron")).unwrap()).unwrap();
+    g.to_curve().validate().unwrap();
+    assert!(image::open(out.join("best.png")).is_ok());
+}
