@@ -96,6 +96,11 @@ pub enum Command {
     /// seeded and bit-reproducible; writes best.ron, history.csv and best.png.
     #[command(after_help = crate::cli_help::EVOLVE)]
     Evolve(EvolveArgs),
+    /// Template adaptation (thesis §6.4): move a TF designed for one volume onto another
+    /// by a monotone warp of the value axis found by dynamic programming on their
+    /// histograms and boundary profiles p(v); reports which it used.
+    #[command(after_help = crate::cli_help::ADAPT_TF)]
+    AdaptTf(AdaptTfArgs),
     /// Run an experiment file: scenes × variants × a parameter grid, each image timed and
     /// compared with its reference; writes a report (Markdown, Pareto plots, images,
     /// CSV, JSON, JUnit XML) and fails when an assertion fails.
@@ -223,6 +228,34 @@ pub fn run_evolve(preset: Option<&std::path::Path>, a: &EvolveArgs) -> Result<()
         "best RMS ΔE*uv {first:.2} → {last:.2} over {} generations; wrote {}",
         h.len(),
         a.output.join("best.ron").display()
+    );
+    Ok(())
+}
+
+/// `vwb adapt-tf`'s arguments.
+#[derive(Debug, Clone, clap::Args)]
+pub struct AdaptTfArgs {
+    /// The volume the TF was designed for (a file or a sample name).
+    #[arg(long)]
+    pub reference_volume: PathBuf,
+    /// The TF (RON, as `vwb suggest-tf` writes it and classify.tf1d's `tf` holds).
+    #[arg(long)]
+    pub tf: PathBuf,
+    /// The volume to adapt it to.
+    #[arg(long)]
+    pub volume: PathBuf,
+    #[arg(short, long)]
+    pub output: PathBuf,
+}
+
+/// `vwb adapt-tf`.
+pub fn run_adapt_tf(a: &AdaptTfArgs) -> Result<()> {
+    let w = vwb_lab::search::run_adapt(&a.reference_volume, &a.tf, &a.volume, &a.output)?;
+    eprintln!(
+        "warp by the {} signature (mean squared difference {:.5}); wrote {}",
+        w.signature,
+        w.cost,
+        a.output.display()
     );
     Ok(())
 }

@@ -75,6 +75,11 @@ Example:
   # search the demo's TF space for the pre-integrated demo's look, 20 generations of 32
   vwb evolve --preset presets/demo.ron --target-preset presets/demo_preintegrated.ron --seed 1 -o out/evolve";
 
+pub const ADAPT_TF: &str = "\
+Example:
+  # the CT head's TF moved onto another scan's value distribution
+  vwb adapt-tf --reference-volume ct_head --tf ct_tf.ron --volume other_ct.nii.gz -o other_tf.ron";
+
 pub const RUN: &str = "\
 Examples:
   # regenerate the classification table in docs/classification.md

@@ -19,6 +19,7 @@ fn main() {
         Some(Command::DosStudy(a)) => run_dos_study(a),
         Some(Command::Run(a)) => run_experiment(a),
         Some(Command::Evolve(a)) => vwb_app::cli::run_evolve(cli.preset.as_deref(), a),
+        Some(Command::AdaptTf(a)) => vwb_app::cli::run_adapt_tf(a),
         Some(Command::Gallery(a)) => vwb_app::cli::run_gallery(cli.preset.as_deref(), a),
         Some(Command::Info(a)) => run_info(a),
         Some(Command::Data(a)) => vwb_app::data_cmd::run(a),

@@ -243,3 +243,32 @@ pub fn run_evolve(
     headless::save_png(&thumb[0][0].to_rgb8(), &out.join("best.png"))?;
     Ok(history)
 }
+
+/// `vwb adapt-tf`: moves a transfer function designed for the reference volume onto
+/// another volume through the monotone value warp between them; returns the warp.
+pub fn run_adapt(
+    reference: &Path,
+    tf_file: &Path,
+    volume: &Path,
+    out: &Path,
+) -> Result<vwb_render::search::adapt::Warp> {
+    use vwb_render::search::adapt;
+    crate::outputs::check_extension(out, "ron", "a transfer function (RON)")?;
+    let text = std::fs::read_to_string(tf_file)
+        .with_context(|| format!("{}: cannot read", tf_file.display()))?;
+    let tf: vwb_render::tf::TfCurve =
+        ron::from_str(&text).map_err(|e| anyhow!("{}: {e}", tf_file.display()))?;
+    tf.validate()
+        .map_err(|e| anyhow!("{}: {e}", tf_file.display()))?;
+    let a = headless::load_volume(&headless::volume_arg(reference))?;
+    let b = headless::load_volume(&headless::volume_arg(volume))?;
+    let w = adapt::warp(&a, &b);
+    let adapted = adapt::adapt_curve(&tf, &w);
+    adapted
+        .validate()
+        .map_err(|e| anyhow!("the adapted transfer function is invalid: {e}"))?;
+    crate::outputs::check_output(out)?;
+    let text = ron::ser::to_string_pretty(&adapted, ron::ser::PrettyConfig::default())?;
+    measure::save_text(out, &text)?;
+    Ok(w)
+}

@@ -281,3 +281,100 @@ fn vwb_evolve_writes_the_best_genome_and_its_history() {
     g.to_curve().validate().unwrap();
     assert!(image::open(out.join("best.png")).is_ok());
 }
+
+/// Template adaptation: the CT head's values warped by a 3-knot monotone map are
+/// matched back to within one of 256 bins wherever the head has data, and the CLI moves
+/// a TF through the warp.
+#[test]
+fn adaptation_recovers_a_three_knot_warp_of_the_ct_values() {
+    use vwb_render::search::adapt;
+    use vwb_render::volume::{Volume, VoxelData};
+    data_dir();
+    let a =
+        vwb_lab::headless::load_volume(&vwb_render::preset::VolumeSource::Sample("ct_head".into()))
+            .unwrap();
+    let (lo, hi) = (a.range[0], a.range[1]);
+    // knots (0, 0), (0.2, 0.3), (0.5, 0.45), (0.8, 0.85), (1, 1) on the normalised axis
+    let knots = [(0.0, 0.0), (0.2, 0.3), (0.5, 0.45), (0.8, 0.85), (1.0, 1.0)];
+    let w = |x: f64| {
+        let k = knots
+            .windows(2)
+            .find(|k| x <= k[1].0)
+            .unwrap_or(&knots[3..5]);
+        let t = (x - k[0].0) / (k[1].0 - k[0].0);
+        k[0].1 + t * (k[1].1 - k[0].1)
+    };
+    let VoxelData::I16(src) = &a.data else {
+        panic!()
+    };
+    let warped: Vec<i16> = src
+        .iter()
+        .map(|&v| (lo + w((v as f64 - lo) / (hi - lo)) * (hi - lo)).round() as i16)
+        .collect();
+    let b = Volume::new(
+        "warped",
+        a.dims,
+        1,
+        a.spacing,
+        VoxelData::I16(warped.clone()),
+    )
+    .unwrap();
+    assert_eq!(b.range, a.range);
+    let found = adapt::warp(&a, &b);
+    let total: u64 = a.histogram.iter().sum();
+    let mut worst: f64 = 0.0;
+    for (i, &count) in a.histogram.iter().enumerate() {
+        // bins with data (1 voxel in 10 000 or more) pin the warp
+        if count * 10_000 >= total {
+            let want = w(i as f64 / 255.0) * 255.0;
+            worst = worst.max((found.map[i] - want).abs());
+        }
+    }
+    eprintln!(
+        "adaptation: {} signature, worst error {worst:.2} bins",
+        found.signature
+    );
+    assert!(
+        worst <= 1.0,
+        "{} bins off ({} signature)",
+        worst,
+        found.signature
+    );
+    // the CLI: a bone TF from the CT moves with the warp
+    let nii = tmp("ct_warped.nii");
+    let sp = a.spacing.map(|x| x as f32);
+    let sform = [
+        [-sp[0], 0.0, 0.0, 0.0],
+        [0.0, -sp[1], 0.0, 0.0],
+        [0.0, 0.0, sp[2], 0.0],
+    ];
+    vwb_render::volume::nifti::write_nifti1(&nii, a.dims, sp, sform, &warped).unwrap();
+    let tf = vwb_render::tf::TfCurve::ramp(0.35, 0.5, [1.0, 1.0, 0.9, 0.8]);
+    let tf_file = tmp("bone_tf.ron");
+    std::fs::write(&tf_file, ron::to_string(&tf).unwrap()).unwrap();
+    let out = tmp("bone_tf_warped.ron");
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_vwb"))
+        .args(["adapt-tf", "--reference-volume", "ct_head", "--tf"])
+        .arg(&tf_file)
+        .arg("--volume")
+        .arg(&nii)
+        .arg("-o")
+        .arg(&out)
+        .env("VWB_DATA_DIR", data_dir())
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert!(err.contains("signature"), "{err}");
+    let moved: vwb_render::tf::TfCurve =
+        ron::from_str(&std::fs::read_to_string(&out).unwrap()).unwrap();
+    for (p, q) in tf.points.iter().zip(&moved.points) {
+        assert!(
+            (q.x as f64 - w(p.x as f64)).abs() <= 1.5 / 255.0,
+            "{} → {} (want {})",
+            p.x,
+            q.x,
+            w(p.x as f64)
+        );
+    }
+}

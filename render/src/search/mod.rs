@@ -5,6 +5,7 @@
 //! ([`gallery`]). Everything is seeded: the same seed, data and settings give the same
 //! genomes and the same images.
 
+pub mod adapt;
 pub mod gallery;
 pub mod genetic;
 pub mod genome;
