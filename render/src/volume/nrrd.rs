@@ -2,7 +2,8 @@
 //!
 //! Supported: attached headers (data after the blank line that ends the header)
 //! and detached headers (`data file:` / `datafile:` relative to the header's
-//! folder); `raw` and `gzip`/`gz` encodings (a zlib stream is accepted too);
+//! folder); `raw`, `gzip`/`gz` (a zlib stream is accepted too), `bzip2`/`bz2` and
+//! `ascii`/`text`/`txt` encodings (decimal samples separated by white space or commas);
 //! either endianness; `line skip` (lines of the data file, before decompression),
 //! `byte skip` (of the decompressed data for gzip; `-1` for raw means the data
 //! ends the file); dimension 3 (scalar) or 4 with the first axis holding 1, 2 or
@@ -13,7 +14,7 @@
 //! integers and `double` are converted to f32.
 //!
 //! Not supported (with a clear error): `data file: LIST` and formatted file
-//! lists, the `ascii`/`text`/`hex`/`bzip2` encodings, `block` samples, 2D and 4D
+//! lists, the `hex` encoding, `block` samples, 2D and 4D
 //! (time series) volumes, more than 3 components.
 //!
 //! Comments, `key:=value` pairs and the known descriptive fields (`space`,
@@ -156,6 +157,10 @@ impl From<ScalarType> for NrrdType {
 pub enum NrrdEncoding {
     Raw,
     Gzip,
+    /// bzip2-compressed samples (`bzip2` / `bz2`).
+    Bzip2,
+    /// Samples as decimal text separated by white space (`ascii` / `text` / `txt`).
+    Ascii,
 }
 
 /// Where the data starts after the line skip.
@@ -526,9 +531,11 @@ impl<'t, 'e> Fields<'t, 'e> {
         match value.to_ascii_lowercase().as_str() {
             "raw" => Ok(NrrdEncoding::Raw),
             "gzip" | "gz" => Ok(NrrdEncoding::Gzip),
-            other @ ("ascii" | "text" | "txt" | "hex" | "bzip2" | "bz2") => Err(self.errs.at(
+            "bzip2" | "bz2" => Ok(NrrdEncoding::Bzip2),
+            "ascii" | "text" | "txt" => Ok(NrrdEncoding::Ascii),
+            other @ "hex" => Err(self.errs.at(
                 line,
-                format!("encoding '{other}' is not supported (use raw or gzip)"),
+                format!("encoding '{other}' is not supported (use raw, gzip, bzip2 or ascii)"),
             )),
             _ => Err(self.errs.at(line, format!("unknown encoding '{value}'"))),
         }
@@ -1154,77 +1161,218 @@ fn read_data<R: BufRead + Seek>(
                 ReadFail::Short(_) => size_error(data_start),
             })
         }
-        NrrdEncoding::Gzip => {
+        NrrdEncoding::Gzip | NrrdEncoding::Bzip2 => {
             let skip = match header.byte_skip {
                 ByteSkip::Bytes(skip) => skip,
                 // Rejected by the header parser; kept total for safety.
                 ByteSkip::FromEnd => 0,
             };
+            let name = if header.encoding == NrrdEncoding::Gzip {
+                "gzip"
+            } else {
+                "bzip2"
+            };
             let corrupt = |e: io::Error| VolumeError::Compressed {
                 file: file.to_path_buf(),
-                message: format!("the gzip data is corrupt: {e}"),
+                message: format!("the {name} data is corrupt: {e}"),
             };
-            // Peeks at the stream type first, so that empty data gets its own message.
-            let mut decoder = open_decoder(r, file)?;
-            let compressed = total_len.saturating_sub(pos);
-            let wanted = skip.saturating_add(needed);
-            if wanted > compressed.saturating_mul(MAX_DEFLATE_RATIO) {
-                return Err(VolumeError::Compressed {
-                    file: file.to_path_buf(),
-                    message: format!(
-                        "the header needs {needed} bytes ({layout}) but {compressed} bytes of \
-                         gzip data cannot decompress to that much"
-                    ),
+            let decoder: Box<dyn Read + '_> = if header.encoding == NrrdEncoding::Gzip {
+                // Peeks at the stream type first, so that empty data gets its own message.
+                open_decoder(r, file)?
+            } else {
+                Box::new(bzip2::read::MultiBzDecoder::new(r))
+            };
+            decompress(
+                decoder,
+                total_len.saturating_sub(pos),
+                skip,
+                needed,
+                count,
+                header,
+                file,
+                &layout,
+                name,
+                corrupt,
+            )
+        }
+        NrrdEncoding::Ascii => {
+            if header.byte_skip != ByteSkip::Bytes(0) {
+                return Err(VolumeError::Invalid {
+                    file: Some(file.to_path_buf()),
+                    message: "byte skip is not allowed with ascii encoding (use line skip)".into(),
                 });
             }
-            if skip > 0 {
-                let skipped =
-                    io::copy(&mut decoder.by_ref().take(skip), &mut io::sink()).map_err(corrupt)?;
-                if skipped < skip {
-                    return Err(VolumeError::Compressed {
-                        file: file.to_path_buf(),
-                        message: format!(
-                            "gzip data ends after {skipped} bytes, before the byte skip of {skip}"
-                        ),
-                    });
-                }
-            }
-            let mut limited = decoder.take(needed + 1);
-            let data = read_samples(&mut limited, header.data_type, header.endian, count).map_err(
-                |f| match f {
-                    ReadFail::Io(e) => corrupt(e),
-                    ReadFail::Alloc(bytes) => alloc_error(bytes),
-                    ReadFail::Short(got) => VolumeError::Compressed {
-                        file: file.to_path_buf(),
-                        message: format!(
-                            "gzip data ends after {got} bytes but the header needs {needed} \
-                             ({layout}): the gzip stream is truncated or the header's sizes \
-                             or type are wrong"
-                        ),
-                    },
-                },
-            )?;
-            let mut extra = [0u8; 1];
-            if super::raw::read_fully(&mut limited, &mut extra).map_err(corrupt)? > 0 {
-                // Decompress the rest (bounded by deflate's ratio) so that the stream's
-                // checksum decides between a corrupt stream and a wrong header.
-                let mut rest = limited.into_inner();
-                let bound = compressed.saturating_mul(MAX_DEFLATE_RATIO);
-                let more =
-                    io::copy(&mut rest.by_ref().take(bound), &mut io::sink()).map_err(corrupt)?;
-                return Err(VolumeError::Compressed {
-                    file: file.to_path_buf(),
-                    message: format!(
-                        "the gzip data is intact but decompresses to {} bytes, more than the \
-                         {needed} bytes the header needs ({layout}); the header's sizes or \
-                         type are probably wrong",
-                        skip + needed + 1 + more
-                    ),
-                });
-            }
-            Ok(data)
+            read_ascii(r, total_len.saturating_sub(pos), header, file, count)
         }
     }
+}
+
+/// Reads `count` decimal samples separated by white space (or commas) and converts them
+/// to the type's in-memory type; the text is bounded by the file length.
+fn read_ascii<R: Read>(
+    r: R,
+    available: u64,
+    header: &NrrdHeader,
+    file: &Path,
+    count: usize,
+) -> Result<super::VoxelData, VolumeError> {
+    // a sample takes at least 2 bytes of text (a digit and a separator; the last one 1)
+    if (count as u64).saturating_mul(2).saturating_sub(1) > available {
+        return Err(VolumeError::Invalid {
+            file: Some(file.to_path_buf()),
+            message: format!(
+                "ascii data of {available} bytes cannot hold the {count} samples the header needs ({})",
+                header.layout_text()
+            ),
+        });
+    }
+    let mut text = String::new();
+    io::BufReader::new(r)
+        .take(available)
+        .read_to_string(&mut text)
+        .map_err(|e| io_error(file, "cannot read the ascii data", e))?;
+    let mut values: Vec<f64> = Vec::new();
+    values
+        .try_reserve_exact(count)
+        .map_err(|_| VolumeError::OutOfMemory {
+            file: Some(file.to_path_buf()),
+            bytes: count as u64 * 8,
+        })?;
+    for (i, tok) in text
+        .split(|c: char| c.is_whitespace() || c == ',')
+        .filter(|t| !t.is_empty())
+        .enumerate()
+    {
+        if i >= count {
+            return Err(VolumeError::Invalid {
+                file: Some(file.to_path_buf()),
+                message: format!(
+                    "ascii data holds more than the {count} samples the header needs ({})",
+                    header.layout_text()
+                ),
+            });
+        }
+        let v: f64 = tok.parse().map_err(|_| VolumeError::Invalid {
+            file: Some(file.to_path_buf()),
+            message: format!("ascii sample {} ('{tok}') is not a number", i + 1),
+        })?;
+        values.push(v);
+    }
+    if values.len() < count {
+        return Err(VolumeError::Invalid {
+            file: Some(file.to_path_buf()),
+            message: format!(
+                "ascii data holds {} samples but the header needs {count} ({})",
+                values.len(),
+                header.layout_text()
+            ),
+        });
+    }
+    let out_of_range = |i: usize, v: f64| VolumeError::Invalid {
+        file: Some(file.to_path_buf()),
+        message: format!(
+            "ascii sample {} = {v} does not fit the header's type {}",
+            i + 1,
+            header.data_type.name()
+        ),
+    };
+    macro_rules! ints {
+        ($t:ty, $variant:ident) => {{
+            let mut out = Vec::with_capacity(count);
+            for (i, &v) in values.iter().enumerate() {
+                if v.fract() != 0.0 || v < <$t>::MIN as f64 || v > <$t>::MAX as f64 {
+                    return Err(out_of_range(i, v));
+                }
+                out.push(v as $t);
+            }
+            super::VoxelData::$variant(out)
+        }};
+    }
+    Ok(match header.data_type {
+        NrrdType::UInt8 => ints!(u8, U8),
+        NrrdType::Int8 => ints!(i8, I8),
+        NrrdType::UInt16 => ints!(u16, U16),
+        NrrdType::Int16 => ints!(i16, I16),
+        _ => super::VoxelData::F32(values.iter().map(|&v| v as f32).collect()),
+    })
+}
+
+/// Decompressed samples after `skip` bytes: exactly `needed` bytes must follow, and a
+/// stream that decodes longer is checked to its end so that its checksum decides between
+/// a corrupt stream and a wrong header.
+#[allow(clippy::too_many_arguments)]
+fn decompress<'a>(
+    mut decoder: Box<dyn Read + 'a>,
+    compressed: u64,
+    skip: u64,
+    needed: u64,
+    count: usize,
+    header: &NrrdHeader,
+    file: &Path,
+    layout: &str,
+    name: &str,
+    corrupt: impl Fn(io::Error) -> VolumeError,
+) -> Result<super::VoxelData, VolumeError> {
+    let alloc_error = |bytes| VolumeError::OutOfMemory {
+        file: Some(file.to_path_buf()),
+        bytes,
+    };
+    let wanted = skip.saturating_add(needed);
+    if wanted > compressed.saturating_mul(MAX_DEFLATE_RATIO) {
+        return Err(VolumeError::Compressed {
+            file: file.to_path_buf(),
+            message: format!(
+                "the header needs {needed} bytes ({layout}) but {compressed} bytes of \
+                 {name} data cannot decompress to that much"
+            ),
+        });
+    }
+    if skip > 0 {
+        let skipped =
+            io::copy(&mut decoder.by_ref().take(skip), &mut io::sink()).map_err(&corrupt)?;
+        if skipped < skip {
+            return Err(VolumeError::Compressed {
+                file: file.to_path_buf(),
+                message: format!(
+                    "{name} data ends after {skipped} bytes, before the byte skip of {skip}"
+                ),
+            });
+        }
+    }
+    let mut limited = decoder.take(needed + 1);
+    let data =
+        read_samples(&mut limited, header.data_type, header.endian, count).map_err(
+            |f| match f {
+                ReadFail::Io(e) => corrupt(e),
+                ReadFail::Alloc(bytes) => alloc_error(bytes),
+                ReadFail::Short(got) => VolumeError::Compressed {
+                    file: file.to_path_buf(),
+                    message: format!(
+                        "{name} data ends after {got} bytes but the header needs {needed} \
+                     ({layout}): the {name} stream is truncated or the header's sizes \
+                     or type are wrong"
+                    ),
+                },
+            },
+        )?;
+    let mut extra = [0u8; 1];
+    if super::raw::read_fully(&mut limited, &mut extra).map_err(&corrupt)? > 0 {
+        // Decompress the rest (bounded by deflate's ratio) so that the stream's
+        // checksum decides between a corrupt stream and a wrong header.
+        let mut rest = limited.into_inner();
+        let bound = compressed.saturating_mul(MAX_DEFLATE_RATIO);
+        let more = io::copy(&mut rest.by_ref().take(bound), &mut io::sink()).map_err(&corrupt)?;
+        return Err(VolumeError::Compressed {
+            file: file.to_path_buf(),
+            message: format!(
+                "the {name} data is intact but decompresses to {} bytes, more than the \
+                 {needed} bytes the header needs ({layout}); the header's sizes or \
+                 type are probably wrong",
+                skip + needed + 1 + more
+            ),
+        });
+    }
+    Ok(data)
 }
 
 /// A gzip decoder, or a zlib one for writers that store zlib streams.

@@ -1113,8 +1113,8 @@ fn malformed_headers_give_clear_errors() {
         ),
         (
             "encoding",
-            Some("encoding: ascii"),
-            &["encoding 'ascii' is not supported"],
+            Some("encoding: hex"),
+            &["encoding 'hex' is not supported"],
         ),
         (
             "encoding",
@@ -1719,4 +1719,41 @@ fn progress_is_reported_and_cancel_stops_the_load() {
     assert!(e.to_string().contains("cancelled"), "{e}");
     // without a progress object, loads on this thread are not affected
     assert!(load(&path).is_ok());
+}
+
+/// The ascii and bzip2 encodings (Teem reads both): the same samples load the same, and
+/// bad text names the sample.
+#[test]
+fn ascii_and_bzip2_encodings() {
+    use std::io::Write;
+    let d = std::env::temp_dir().join(format!("vwb-enc-{}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    let head = |enc: &str| {
+        format!("NRRD0004\ntype: short\ndimension: 3\nsizes: 3 2 2\nendian: little\nencoding: {enc}\n\n")
+    };
+    let values: Vec<i16> = (0..12).map(|i| i * 100 - 300).collect();
+    let text: String = values.iter().map(|v| format!("{v}\n")).collect();
+    let a = d.join("a.nrrd");
+    std::fs::write(&a, format!("{}{text}", head("ascii"))).unwrap();
+    let va = super::load(&a).unwrap();
+    assert_eq!(va.data, VoxelData::I16(values.clone()));
+    let raw: Vec<u8> = values.iter().flat_map(|v| v.to_le_bytes()).collect();
+    let mut enc = bzip2::write::BzEncoder::new(Vec::new(), bzip2::Compression::best());
+    enc.write_all(&raw).unwrap();
+    let b = d.join("b.nrrd");
+    std::fs::write(&b, [head("bzip2").into_bytes(), enc.finish().unwrap()].concat()).unwrap();
+    assert_eq!(super::load(&b).unwrap().data, va.data);
+    for (body, expect) in [
+        ("1 2 3", "cannot hold the 12 samples"),
+        ("1 2 3                                   ", "holds 3 samples but the header needs 12"),
+        ("1 2 x 4 5 6 7 8 9 10 11 12", "sample 3 ('x')"),
+        ("1 2 3 4 5 6 7 8 9 10 11 70000", "70000 does not fit"),
+    ] {
+        std::fs::write(&a, format!("{}{body}", head("ascii"))).unwrap();
+        let e = super::load(&a).unwrap_err().to_string();
+        assert!(e.contains("a.nrrd") && e.contains(expect), "{e}");
+    }
+    std::fs::write(&b, [head("bzip2").into_bytes(), b"BZh9 not really".to_vec()].concat()).unwrap();
+    let e = super::load(&b).unwrap_err().to_string();
+    assert!(e.contains("b.nrrd") && e.contains("bzip2"), "{e}");
 }
