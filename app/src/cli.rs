@@ -194,9 +194,17 @@ pub fn run_gallery(preset: Option<&std::path::Path>, a: &GalleryArgs) -> Result<
 #[derive(Debug, Clone, clap::Args)]
 pub struct EvolveArgs {
     /// The preset whose TF is searched for: its images from the same viewpoints are
-    /// the target.
-    #[arg(long)]
-    pub target_preset: PathBuf,
+    /// the target (score: RMS ΔE*uv).
+    #[arg(
+        long,
+        required_unless_present = "objective",
+        conflicts_with = "objective"
+    )]
+    pub target_preset: Option<PathBuf>,
+    /// Or an image objective to maximise: entropy, edge_energy or histogram_variance
+    /// (score: minus the objective).
+    #[arg(long, value_parser = parse_objective)]
+    pub objective: Option<vwb_render::search::genetic::Objective>,
     #[arg(long, default_value_t = 32, value_parser = clap::value_parser!(u32).range(4..=512))]
     pub population: u32,
     #[arg(long, default_value_t = 20, value_parser = clap::value_parser!(u32).range(1..=1000))]
@@ -222,10 +230,15 @@ pub fn run_evolve(preset: Option<&std::path::Path>, a: &EvolveArgs) -> Result<()
         tile: a.tile,
         ..Default::default()
     };
-    let h = vwb_lab::search::run_evolve(preset, &a.target_preset, &o, &a.output)?;
+    let target = match (&a.target_preset, a.objective) {
+        (Some(p), _) => vwb_lab::search::EvolveTarget::Preset(p.clone()),
+        (None, Some(o)) => vwb_lab::search::EvolveTarget::Objective(o),
+        (None, None) => bail!("vwb evolve needs --target-preset Q.ron or --objective NAME"),
+    };
+    let h = vwb_lab::search::run_evolve(preset, &target, &o, &a.output)?;
     let (first, last) = (h[0].best_score, h[h.len() - 1].best_score);
     eprintln!(
-        "best RMS ΔE*uv {first:.2} → {last:.2} over {} generations; wrote {}",
+        "best score {first:.3} → {last:.3} over {} generations; wrote {}",
         h.len(),
         a.output.join("best.ron").display()
     );
@@ -458,6 +471,13 @@ pub fn parse_size(s: &str) -> Result<[u32; 2], String> {
             .ok_or_else(|| format!("size '{s}': '{v}' is not an integer in 1..=16384"))
     };
     Ok([p(w)?, p(h)?])
+}
+
+/// An evolve objective by name.
+pub fn parse_objective(s: &str) -> Result<vwb_render::search::genetic::Objective, String> {
+    vwb_render::search::genetic::Objective::from_name(s).ok_or_else(|| {
+        format!("'{s}' is not an objective (entropy, edge_energy, histogram_variance)")
+    })
 }
 
 /// A finite number > 0.

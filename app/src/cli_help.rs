@@ -71,9 +71,11 @@ Examples:
   vwb gallery --preset presets/ct_head.ron --around out/refined/genomes.ron --pick 2 --apply -o ct_picked.ron";
 
 pub const EVOLVE: &str = "\
-Example:
+Examples:
   # search the demo's TF space for the pre-integrated demo's look, 20 generations of 32
-  vwb evolve --preset presets/demo.ron --target-preset presets/demo_preintegrated.ron --seed 1 -o out/evolve";
+  vwb evolve --preset presets/demo.ron --target-preset presets/demo_preintegrated.ron --seed 1 -o out/evolve
+  # or for the TF whose images show the most edges
+  vwb evolve --preset presets/ct_head.ron --objective edge_energy --seed 1 -o out/edges";
 
 pub const ADAPT_TF: &str = "\
 Example:

@@ -150,18 +150,26 @@ pub fn apply_pick(preset: &Path, g: &Genome, out: &Path) -> Result<Document> {
     Ok(doc)
 }
 
-/// Genetic search on a preset's scene toward the images of a target preset's stack (the
-/// same volume and camera): writes `best.ron` (the best genome), `history.csv` (per
-/// generation best and mean RMS ΔE*uv, radius) and `best.png` (first view).
+/// What `vwb evolve` searches toward.
+#[derive(Debug, Clone)]
+pub enum EvolveTarget {
+    /// The images a preset's stack gives from the run's viewpoints (same volume).
+    Preset(PathBuf),
+    /// An image objective to maximise.
+    Objective(vwb_render::search::genetic::Objective),
+}
+
+/// Genetic search on a preset's scene toward a target (a preset's images or an
+/// objective): writes `best.ron` (the best genome), `history.csv` (per generation best
+/// and mean score, radius) and `best.png` (first view).
 pub fn run_evolve(
     preset: &Path,
-    target_preset: &Path,
+    target: &EvolveTarget,
     o: &vwb_render::search::genetic::GaOptions,
     out: &Path,
 ) -> Result<Vec<vwb_render::search::genetic::Generation>> {
     use vwb_render::search::genetic;
     let doc = crate::document::load_document(Some(preset))?;
-    let target_doc = crate::document::load_document(Some(target_preset))?;
     let volume = headless::load_volume(&doc.volume)?;
     crate::outputs::check_output(&out.join("best.ron"))?;
     std::fs::create_dir_all(out).with_context(|| format!("{}: cannot create", out.display()))?;
@@ -169,53 +177,59 @@ pub fn run_evolve(
     eprintln!("adapter: {}", gpu.describe());
     let mut r = headless::renderer_for(&gpu, &doc, volume.clone())?;
     let bg = measure::background(&doc);
-    // the target: the target preset's own stack from the run's viewpoints
     let cams = gallery::viewpoints(&doc.camera, o.views);
-    let s = vwb_render::FrameSettings {
-        camera: doc.camera,
-        width: o.tile,
-        height: o.tile,
-        slice_spacing: o.slice_spacing,
-        backend: vwb_render::renderer::Backend::Compute,
-        early_termination: None,
+    let fitness = match target {
+        EvolveTarget::Objective(obj) => genetic::Fitness::Objective(*obj),
+        EvolveTarget::Preset(target_preset) => {
+            let target_doc = crate::document::load_document(Some(target_preset))?;
+            // the target: the target preset's own stack from the run's viewpoints
+            let s = vwb_render::FrameSettings {
+                camera: doc.camera,
+                width: o.tile,
+                height: o.tile,
+                slice_spacing: o.slice_spacing,
+                backend: vwb_render::renderer::Backend::Compute,
+                early_termination: None,
+            };
+            let tiles: Vec<vwb_render::renderer::AtlasTile> = cams
+                .iter()
+                .map(|c| vwb_render::renderer::AtlasTile {
+                    camera: *c,
+                    stack: &target_doc.stack,
+                })
+                .collect();
+            let mut rt = headless::renderer_for(&gpu, &target_doc, volume)?;
+            let atlas = rt
+                .render_atlas(
+                    &tiles,
+                    &s,
+                    vwb_render::TargetFormat::Rgba32Float,
+                    cams.len() as u32,
+                )
+                .map_err(|e| anyhow!("{}: {e}", target_preset.display()))?;
+            let views: Vec<vwb_render::metrics::RgbImageF> = (0..cams.len())
+                .map(|i| {
+                    vwb_render::metrics::RgbImageF::from_rgba_f32_premultiplied_over(
+                        &atlas.tile_pixels(i),
+                        o.tile,
+                        o.tile,
+                        bg,
+                    )
+                })
+                .collect();
+            genetic::Fitness::Target(gallery::descriptor(&views))
+        }
     };
-    let tiles: Vec<vwb_render::renderer::AtlasTile> = cams
-        .iter()
-        .map(|c| vwb_render::renderer::AtlasTile {
-            camera: *c,
-            stack: &target_doc.stack,
-        })
-        .collect();
-    let mut rt = headless::renderer_for(&gpu, &target_doc, volume)?;
-    let atlas = rt
-        .render_atlas(
-            &tiles,
-            &s,
-            vwb_render::TargetFormat::Rgba32Float,
-            cams.len() as u32,
-        )
-        .map_err(|e| anyhow!("{}: {e}", target_preset.display()))?;
-    let views: Vec<vwb_render::metrics::RgbImageF> = (0..cams.len())
-        .map(|i| {
-            vwb_render::metrics::RgbImageF::from_rgba_f32_premultiplied_over(
-                &atlas.tile_pixels(i),
-                o.tile,
-                o.tile,
-                bg,
-            )
-        })
-        .collect();
-    let target = gallery::descriptor(&views);
     let history = genetic::evolve(
         &mut r,
         &doc.stack,
         &doc.camera,
         bg,
-        &target,
+        &fitness,
         o,
         &mut |g, step| {
             eprintln!(
-                "generation {g:>3}: best RMS ΔE*uv {:.2}, mean {:.2}, radius {:.3}",
+                "generation {g:>3}: best score {:.3}, mean {:.3}, radius {:.3}",
                 step.best_score, step.mean_score, step.radius
             )
         },
@@ -224,7 +238,7 @@ pub fn run_evolve(
     let best = history.last().expect("at least one generation");
     let text = ron::ser::to_string_pretty(&best.best, ron::ser::PrettyConfig::default())?;
     measure::save_text(&out.join("best.ron"), &text)?;
-    let mut csv = String::from("generation,best_rms_delta_e,mean_rms_delta_e,radius\n");
+    let mut csv = String::from("generation,best_score,mean_score,radius\n");
     for (i, g) in history.iter().enumerate() {
         let _ = writeln!(csv, "{i},{},{},{}", g.best_score, g.mean_score, g.radius);
     }

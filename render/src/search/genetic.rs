@@ -1,6 +1,6 @@
-//! Genetic search for a transfer function (He et al. 1996), against a target: the
-//! images a known TF gives from the same viewpoints, or a target image for the first
-//! one. Every generation renders the whole population from every viewpoint in batched
+//! Genetic search for a transfer function (He et al. 1996), against a target (the
+//! images a known TF gives from the same viewpoints) or toward an image objective
+//! (entropy, edge energy, histogram variance of the thumbnails). Every generation renders the whole population from every viewpoint in batched
 //! atlases; fitness is the RMS ΔE*uv between a genome's descriptor and the target's
 //! (lower is better). Selection is by tournaments of two, with elitism; children blend
 //! their parents primitive by primitive and then mutate with a radius that anneals
@@ -51,11 +51,101 @@ impl Default for GaOptions {
     }
 }
 
+/// What a generation is scored by (lower scores are better).
+#[derive(Debug, Clone, PartialEq)]
+pub enum Fitness {
+    /// RMS ΔE*uv to a target descriptor (the target's views from the run's viewpoints).
+    Target(Vec<[f64; 3]>),
+    /// An image objective to maximise, averaged over the views (its score is minus it).
+    Objective(Objective),
+}
+
+/// Image objectives after He et al. (1996), on the thumbnails' L*.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Objective {
+    /// Shannon entropy (bits) of the L* histogram (64 bins over 0–100).
+    Entropy,
+    /// Mean |∇L*| by forward differences: how much edge the image shows.
+    EdgeEnergy,
+    /// Variance of L* over the pixels: contrast.
+    HistogramVariance,
+}
+
+impl Objective {
+    pub const ALL: [Objective; 3] = [Self::Entropy, Self::EdgeEnergy, Self::HistogramVariance];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Entropy => "entropy",
+            Self::EdgeEnergy => "edge_energy",
+            Self::HistogramVariance => "histogram_variance",
+        }
+    }
+
+    pub fn from_name(s: &str) -> Option<Objective> {
+        Self::ALL.into_iter().find(|o| o.name() == s)
+    }
+
+    /// The objective of one view.
+    pub fn of(self, img: &crate::metrics::RgbImageF) -> f64 {
+        let l: Vec<f64> = img
+            .pixels
+            .iter()
+            .map(|&p| crate::metrics::srgb_to_luv(p)[0])
+            .collect();
+        let n = l.len().max(1) as f64;
+        match self {
+            Self::Entropy => {
+                let mut bins = [0u64; 64];
+                for v in &l {
+                    bins[((v / 100.0 * 64.0) as usize).min(63)] += 1;
+                }
+                -bins
+                    .iter()
+                    .filter(|&&c| c > 0)
+                    .map(|&c| {
+                        let p = c as f64 / n;
+                        p * p.log2()
+                    })
+                    .sum::<f64>()
+            }
+            Self::EdgeEnergy => {
+                let (w, h) = (img.width as usize, img.height as usize);
+                let mut sum = 0.0;
+                for y in 0..h.saturating_sub(1) {
+                    for x in 0..w.saturating_sub(1) {
+                        let c = l[y * w + x];
+                        let (dx, dy) = (l[y * w + x + 1] - c, l[(y + 1) * w + x] - c);
+                        sum += (dx * dx + dy * dy).sqrt();
+                    }
+                }
+                sum / n
+            }
+            Self::HistogramVariance => {
+                let mean = l.iter().sum::<f64>() / n;
+                l.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / n
+            }
+        }
+    }
+}
+
+impl Fitness {
+    /// The score of a genome's views (lower is better).
+    pub fn score(&self, views: &[crate::metrics::RgbImageF]) -> f64 {
+        match self {
+            Fitness::Target(t) => distance(&descriptor(views), t),
+            Fitness::Objective(o) => {
+                -views.iter().map(|v| o.of(v)).sum::<f64>() / views.len().max(1) as f64
+            }
+        }
+    }
+}
+
 /// One generation's outcome.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Generation {
     pub best: Genome,
-    /// RMS ΔE*uv of the best to the target.
+    /// The best score: RMS ΔE*uv to the target, or minus the objective.
     pub best_score: f64,
     pub mean_score: f64,
     pub radius: f64,
@@ -131,7 +221,7 @@ pub fn evolve(
     stack: &[PluginInstance],
     camera: &Camera,
     background: [f64; 3],
-    target: &[[f64; 3]],
+    fitness: &Fitness,
     o: &GaOptions,
     observer: &mut dyn FnMut(usize, &Generation),
 ) -> Result<Vec<Generation>, RenderError> {
@@ -153,10 +243,7 @@ pub fn evolve(
             background,
             o.batch,
         )?;
-        let scores: Vec<f64> = thumbs
-            .iter()
-            .map(|v| distance(&descriptor(v), target))
-            .collect();
+        let scores: Vec<f64> = thumbs.iter().map(|v| fitness.score(v)).collect();
         let mut order: Vec<usize> = (0..pop).collect();
         order.sort_by(|&a, &b| scores[a].total_cmp(&scores[b]).then(a.cmp(&b)));
         let g = Generation {

@@ -1729,7 +1729,9 @@ fn ascii_and_bzip2_encodings() {
     let d = std::env::temp_dir().join(format!("vwb-enc-{}", std::process::id()));
     std::fs::create_dir_all(&d).unwrap();
     let head = |enc: &str| {
-        format!("NRRD0004\ntype: short\ndimension: 3\nsizes: 3 2 2\nendian: little\nencoding: {enc}\n\n")
+        format!(
+            "NRRD0004\ntype: short\ndimension: 3\nsizes: 3 2 2\nendian: little\nencoding: {enc}\n\n"
+        )
     };
     let values: Vec<i16> = (0..12).map(|i| i * 100 - 300).collect();
     let text: String = values.iter().map(|v| format!("{v}\n")).collect();
@@ -1741,11 +1743,18 @@ fn ascii_and_bzip2_encodings() {
     let mut enc = bzip2::write::BzEncoder::new(Vec::new(), bzip2::Compression::best());
     enc.write_all(&raw).unwrap();
     let b = d.join("b.nrrd");
-    std::fs::write(&b, [head("bzip2").into_bytes(), enc.finish().unwrap()].concat()).unwrap();
+    std::fs::write(
+        &b,
+        [head("bzip2").into_bytes(), enc.finish().unwrap()].concat(),
+    )
+    .unwrap();
     assert_eq!(super::load(&b).unwrap().data, va.data);
     for (body, expect) in [
         ("1 2 3", "cannot hold the 12 samples"),
-        ("1 2 3                                   ", "holds 3 samples but the header needs 12"),
+        (
+            "1 2 3                                   ",
+            "holds 3 samples but the header needs 12",
+        ),
         ("1 2 x 4 5 6 7 8 9 10 11 12", "sample 3 ('x')"),
         ("1 2 3 4 5 6 7 8 9 10 11 70000", "70000 does not fit"),
     ] {
@@ -1753,7 +1762,11 @@ fn ascii_and_bzip2_encodings() {
         let e = super::load(&a).unwrap_err().to_string();
         assert!(e.contains("a.nrrd") && e.contains(expect), "{e}");
     }
-    std::fs::write(&b, [head("bzip2").into_bytes(), b"BZh9 not really".to_vec()].concat()).unwrap();
+    std::fs::write(
+        &b,
+        [head("bzip2").into_bytes(), b"BZh9 not really".to_vec()].concat(),
+    )
+    .unwrap();
     let e = super::load(&b).unwrap_err().to_string();
     assert!(e.contains("b.nrrd") && e.contains("bzip2"), "{e}");
 }
