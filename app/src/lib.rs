@@ -10,6 +10,7 @@ pub mod compare_ui;
 pub mod crop;
 pub mod data_cmd;
 pub mod data_ui;
+pub mod gallery_ui;
 pub mod loading;
 pub mod stack_ui;
 #[cfg(test)]

@@ -205,6 +205,8 @@ pub struct Workbench {
     /// Reloads user plugins whose files change (checked about once a second).
     plugin_watch: vwb_plugins::user::Watch,
     plugin_watch_at: std::time::Instant,
+    /// The transfer-function gallery panel.
+    pub gallery: crate::gallery_ui::GalleryPanel,
     /// The preset path field (open / save).
     preset_path: String,
     /// The volume path field.
@@ -298,6 +300,7 @@ impl Workbench {
             last_session: persisted.session,
             plugin_watch: Default::default(),
             plugin_watch_at: std::time::Instant::now(),
+            gallery: Default::default(),
             dialog: None,
             wgsl: None,
             quality_scale: 1.0,
@@ -494,6 +497,30 @@ impl Workbench {
         true
     }
 
+    /// Puts a gallery genome's TF into the stack's first enabled classify.tf1d.
+    pub fn apply_genome(&mut self, g: &vwb_render::search::genome::Genome) {
+        match self
+            .doc
+            .stack
+            .iter_mut()
+            .find(|i| i.enabled && i.plugin.id() == "classify.tf1d")
+        {
+            Some(tf) => {
+                tf.params
+                    .set("tf", vwb_render::params::ParamValue::Tf(g.to_curve()));
+                self.apply_stack();
+                self.file_status = Some(Ok(
+                    "applied the gallery's TF (save the preset to keep it)".into(),
+                ));
+            }
+            None => {
+                self.file_status = Some(Err(
+                    "the stack has no enabled classify.tf1d to apply the TF to".into(),
+                ));
+            }
+        }
+    }
+
     /// Shows an error under the file fields (e.g. a preset that failed at start-up).
     pub fn show_error(&mut self, message: String) {
         self.file_status = Some(Err(message));
@@ -643,6 +670,19 @@ impl Workbench {
         if let Some(path) = picked {
             let outcome = self.open(&path);
             self.report(outcome);
+        }
+        let (mut new_gallery, mut refine) = (false, None);
+        let applied = egui::CollapsingHeader::new("TF gallery")
+            .show(ui, |ui| self.gallery.ui(ui, &mut new_gallery, &mut refine))
+            .body_returned
+            .flatten();
+        if new_gallery || refine.is_some() {
+            let volume = self.renderer.volume().clone();
+            let gpu = self.renderer.gpu().clone();
+            self.gallery.start(&gpu, &self.doc, volume, refine);
+        }
+        if let Some(crate::gallery_ui::GalleryAction::Apply(g)) = applied {
+            self.apply_genome(&g);
         }
         ui.separator();
         ui.label("Plugins");

@@ -447,3 +447,42 @@ fn an_objective_run_raises_its_objective() {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert!(out.join("best.ron").is_file());
 }
+
+/// The window's gallery panel: a gallery renders in the background into the history, a
+/// refinement around a thumbnail adds a page with a smaller radius, and Back returns.
+#[test]
+fn the_window_gallery_panel_renders_refines_and_steps_back() {
+    use vwb_app::gallery_ui::GalleryPanel;
+    let doc = demo_doc();
+    let ctx = egui::Context::default();
+    let mut panel = GalleryPanel::default();
+    let wait = |panel: &mut GalleryPanel| {
+        let start = std::time::Instant::now();
+        while panel.busy() {
+            panel.poll(&ctx);
+            std::thread::sleep(std::time::Duration::from_millis(20));
+            assert!(
+                start.elapsed().as_secs() < 120,
+                "the gallery job never finished"
+            );
+        }
+        assert!(panel.error.is_none(), "{:?}", panel.error);
+    };
+    panel.start(gpu(), &doc, demo(), None);
+    wait(&mut panel);
+    assert_eq!(panel.history.len(), 1);
+    let first = &panel.history[0];
+    assert_eq!(first.genomes.len(), 16);
+    assert_eq!(first.textures.len(), 16);
+    let pick = first.genomes[3].clone();
+    panel.start(gpu(), &doc, demo(), Some((pick.clone(), 0.25)));
+    wait(&mut panel);
+    assert_eq!(panel.history.len(), 2);
+    assert_eq!(panel.history[1].radius, 0.25);
+    assert_ne!(
+        panel.history[1].genomes, panel.history[0].genomes,
+        "a new page"
+    );
+    panel.history.pop();
+    assert_eq!(panel.history.len(), 1);
+}

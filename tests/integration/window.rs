@@ -829,3 +829,45 @@ fn window_side_panel_scrolls_at_the_default_size() {
         "Compute reference is off screen: {compute:?}"
     );
 }
+
+/// The TF gallery in the window: open the panel, make a gallery (background job), click
+/// a thumbnail to refine around it, step back, and apply a TF to the stack: the image
+/// changes and the stack's TF is the genome's.
+#[test]
+fn window_gallery_refines_and_applies_a_tf() {
+    let mut h = demo_window();
+    click(&mut h, "TF gallery");
+    click(&mut h, "New gallery");
+    step_until(&mut h, Duration::from_secs(120), |h| {
+        !h.state().gallery.busy() && !h.state().gallery.history.is_empty()
+    });
+    h.run_steps(3);
+    assert_eq!(h.state().gallery.history[0].genomes.len(), 16);
+    click(&mut h, "gallery TF 2");
+    step_until(&mut h, Duration::from_secs(120), |h| {
+        !h.state().gallery.busy() && h.state().gallery.history.len() == 2
+    });
+    h.run_steps(3);
+    assert!(h.state().gallery.history[1].radius < 1.0, "a refinement");
+    click(&mut h, "Back");
+    assert_eq!(h.state().gallery.history.len(), 1);
+    let before = image(&h);
+    let g = h.state().gallery.history[0].genomes[0].clone();
+    h.state_mut().apply_genome(&g);
+    settle(&mut h);
+    h.run_steps(5);
+    // the TF editor's colour widgets round colours through f32 conversions (~1e-7)
+    let (got, want) = (tf_curve(&h), g.to_curve());
+    assert_eq!(got.points, want.points);
+    assert_eq!(got.primitives.len(), want.primitives.len());
+    for (p, q) in got.primitives.iter().zip(&want.primitives) {
+        assert_eq!(
+            (p.shape, p.centre, p.width, p.height),
+            (q.shape, q.centre, q.width, q.height)
+        );
+        for c in 0..3 {
+            assert!((p.color[c] - q.color[c]).abs() < 1e-5, "{p:?} vs {q:?}");
+        }
+    }
+    assert!(rms(&before, &image(&h)) > 1.0, "the applied TF shows");
+}
