@@ -604,29 +604,36 @@ mod tests {
         std::fs::write(&t, &bytes[..bytes.len() - 4]).unwrap();
         let e = super::super::load(&t).unwrap_err().to_string();
         assert!(e.contains("t.nii"), "{e}");
+        // a patched copy is refused with its name and the cause
+        let refused = |name: &str, patch: &dyn Fn(&mut Vec<u8>), cause: &str| {
+            let mut b = bytes.clone();
+            patch(&mut b);
+            let p = tmp(name);
+            std::fs::write(&p, &b).unwrap();
+            let e = super::super::load(&p).unwrap_err().to_string();
+            assert!(e.contains(name) && e.contains(cause), "{e}");
+        };
         // a header claiming 30000³ voxels fails before allocating
-        let mut huge = bytes.clone();
-        for i in 0..3 {
-            huge[42 + 2 * i..44 + 2 * i].copy_from_slice(&30000i16.to_le_bytes());
-        }
-        let h = tmp("huge.nii");
-        std::fs::write(&h, &huge).unwrap();
-        let e = super::super::load(&h).unwrap_err().to_string();
-        assert!(e.contains("huge.nii") && e.contains("30000"), "{e}");
-        // an unknown datatype
-        let mut bad = bytes.clone();
-        bad[70..72].copy_from_slice(&2048i16.to_le_bytes());
-        let b = tmp("bad.nii");
-        std::fs::write(&b, &bad).unwrap();
-        let e = super::super::load(&b).unwrap_err().to_string();
-        assert!(e.contains("datatype 2048"), "{e}");
+        refused(
+            "huge.nii",
+            &|b| {
+                for i in 0..3 {
+                    b[42 + 2 * i..44 + 2 * i].copy_from_slice(&30000i16.to_le_bytes());
+                }
+            },
+            "30000",
+        );
+        refused(
+            "bad.nii",
+            &|b| b[70..72].copy_from_slice(&2048i16.to_le_bytes()),
+            "datatype 2048",
+        );
         // regression (the fuzzer's find): a vox_offset of 3·10³⁸ overflowed the size check
-        let mut far = bytes.clone();
-        far[108..112].copy_from_slice(&3.0e38f32.to_le_bytes());
-        let f = tmp("far.nii");
-        std::fs::write(&f, &far).unwrap();
-        let e = super::super::load(&f).unwrap_err().to_string();
-        assert!(e.contains("far.nii"), "{e}");
+        refused(
+            "far.nii",
+            &|b| b[108..112].copy_from_slice(&3.0e38f32.to_le_bytes()),
+            "",
+        );
         // scaling
         let mut s = bytes.clone();
         s[112..116].copy_from_slice(&2f32.to_le_bytes());
