@@ -264,7 +264,17 @@ fn ray_basis(view: &crate::camera::View) -> Mat4 {
 fn structure_of(inst: &PluginInstance) -> u64 {
     use std::hash::{Hash, Hasher};
     let mut h = std::collections::hash_map::DefaultHasher::new();
-    for spec in inst.plugin.params().iter().filter(|s| s.structural) {
+    // the code and the parameter layout: a plugin reloaded from its files (a user
+    // plugin) keeps its id but may change both
+    let shader = inst.plugin.shader();
+    shader.file.hash(&mut h);
+    shader.source.hash(&mut h);
+    let specs = inst.plugin.params();
+    for spec in &specs {
+        spec.key.hash(&mut h);
+        spec.kind_name().hash(&mut h);
+    }
+    for spec in specs.iter().filter(|s| s.structural) {
         spec.key.hash(&mut h);
         match inst.params.get(spec.key) {
             None => 0u8.hash(&mut h),
@@ -274,8 +284,9 @@ fn structure_of(inst: &PluginInstance) -> u64 {
     h.finish()
 }
 
-/// The hash that keys a compiled stack: the enabled plugins' ids and structural values
-/// in stack order, the eye-buffer format and the shader overrides.
+/// The hash that keys a compiled stack: the enabled plugins' ids, code, parameter
+/// layout and structural values in stack order, the eye-buffer format and the shader
+/// overrides.
 fn structure_hash(
     entries: &[(u64, &'static str, u64)],
     target: TargetFormat,

@@ -871,3 +871,71 @@ fn window_gallery_refines_and_applies_a_tf() {
     }
     assert!(rms(&before, &image(&h)) > 1.0, "the applied TF shows");
 }
+
+/// A user plugin in the stack reloads in the open window when its WGSL changes (the
+/// image follows), and a broken edit shows its file and line while the last good
+/// version keeps drawing.
+#[test]
+fn window_reloads_an_edited_user_plugin_and_survives_a_broken_one() {
+    use vwb_plugins::user;
+    let dir = tmp("window_toon");
+    std::fs::create_dir_all(&dir).unwrap();
+    let src_dir = repo().join("examples/plugins/toon_lite");
+    for f in ["plugin.ron", "toon_lite.wgsl"] {
+        std::fs::copy(src_dir.join(f), dir.join(f)).unwrap();
+    }
+    let manifest = dir.join("plugin.ron");
+    let text = std::fs::read_to_string(&manifest).unwrap();
+    std::fs::write(
+        &manifest,
+        text.replace("shade.toon_lite", "shade.toon_window"),
+    )
+    .unwrap();
+    user::install(vec![user::load(&dir).unwrap()]);
+    let mut doc = default_document(&registry());
+    doc.stack.push(vwb_render::plugin::PluginInstance::new(
+        vwb_plugins::registry().get("shade.toon_window").unwrap(),
+    ));
+    let mut h = window(doc, 0.25);
+    h.state_mut().reload_user_plugins(); // the first poll records the files' times
+    settle(&mut h);
+    let before = image(&h);
+    let wgsl = dir.join("toon_lite.wgsl");
+    let src = std::fs::read_to_string(&wgsl).unwrap();
+    let touch = |secs: u64| {
+        let f = std::fs::File::options().write(true).open(&wgsl).unwrap();
+        f.set_modified(std::time::SystemTime::now() + Duration::from_secs(secs))
+            .unwrap();
+    };
+    // a darker model: the image follows within the window's one-second poll
+    std::fs::write(
+        &wgsl,
+        src.replace("var rgb = s.color.rgb *", "var rgb = 0.2 * s.color.rgb *"),
+    )
+    .unwrap();
+    touch(10);
+    step_until(&mut h, Duration::from_secs(30), |h| {
+        h.state()
+            .document()
+            .stack
+            .iter()
+            .any(|i| i.plugin.shader().source.contains("0.2 * s.color"))
+    });
+    settle(&mut h);
+    h.run_steps(5);
+    let darker = image(&h);
+    assert!(rms(&before, &darker) > 1.0, "the edited shader draws");
+    // a broken edit: its file and line are shown, the last good image stays
+    std::fs::write(&wgsl, src.replace("let d = max(", "let d == max(")).unwrap();
+    touch(20);
+    step_until(&mut h, Duration::from_secs(30), |h| {
+        h.state().error().is_some()
+    });
+    let e = h.state().error().unwrap().to_string();
+    assert!(e.contains("toon_lite.wgsl:"), "{e}");
+    h.run_steps(5);
+    assert!(
+        rms(&darker, &image(&h)) < 0.5,
+        "the last good pipeline keeps drawing"
+    );
+}
