@@ -498,13 +498,7 @@ pub fn parse_unit(s: &str) -> Result<f64, String> {
         .ok_or_else(|| format!("'{s}' is not a number in [0, 1]"))
 }
 
-pub fn parse_target(s: &str) -> Result<TargetFormat, String> {
-    match s {
-        "rgba16float" => Ok(TargetFormat::Rgba16Float),
-        "rgba32float" => Ok(TargetFormat::Rgba32Float),
-        _ => Err(format!("unknown target '{s}' (rgba16float or rgba32float)")),
-    }
-}
+pub use vwb_lab::experiment::parse_target;
 
 pub use vwb_lab::document::load_document;
 

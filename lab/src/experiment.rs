@@ -600,8 +600,8 @@ pub fn set_value(doc: &mut Document, key: &str, value: &SetValue) -> Result<()> 
             }
             doc.render.early_termination = (v > 0.0).then_some(v as f32);
         }
-        "render.backend" => doc.render.backend = parse_backend(text()?)?,
-        "render.target" => doc.render.target = parse_target(text()?)?,
+        "render.backend" => doc.render.backend = parse_backend(text()?).map_err(|e| anyhow!(e))?,
+        "render.target" => doc.render.target = parse_target(text()?).map_err(|e| anyhow!(e))?,
         _ => {
             let (id, k) = key.rsplit_once('.').ok_or_else(|| {
                 anyhow!("'{key}': expected <plugin id>.<key> or render.slice_spacing")
@@ -624,10 +624,7 @@ pub fn set_value(doc: &mut Document, key: &str, value: &SetValue) -> Result<()> 
                 (ParamKind::Bool { .. }, SetValue::Bool(b)) => ParamValue::Bool(*b),
                 (ParamKind::Enum { .. }, SetValue::Text(t)) => ParamValue::Enum(t.clone()),
                 (ParamKind::Path { .. }, SetValue::Text(t)) => ParamValue::Path(t.into()),
-                (kind, v) => bail!(
-                    "'{key}' is a {} parameter; {v:?} does not fit it",
-                    kind_name(kind)
-                ),
+                (_, v) => bail!("'{key}' takes {}; {v:?} does not fit it", spec.kind_name()),
             };
             spec.check(&v).map_err(|e| anyhow!("'{key}': {e}"))?;
             inst.params.set(k, v);
@@ -636,33 +633,21 @@ pub fn set_value(doc: &mut Document, key: &str, value: &SetValue) -> Result<()> 
     Ok(())
 }
 
-fn kind_name(kind: &ParamKind) -> &'static str {
-    match kind {
-        ParamKind::Float { .. } => "float",
-        ParamKind::Int { .. } => "int",
-        ParamKind::Bool { .. } => "bool",
-        ParamKind::Enum { .. } => "enum",
-        ParamKind::Color { .. } => "colour",
-        ParamKind::Vec3 { .. } => "vec3",
-        ParamKind::Tf { .. } => "transfer-function",
-        ParamKind::Tf2d { .. } => "2D transfer-function",
-        ParamKind::Path { .. } => "path",
-    }
-}
-
-fn parse_backend(s: &str) -> Result<Backend> {
+/// `raster` or `compute` (experiment files, the Python package).
+pub fn parse_backend(s: &str) -> Result<Backend, String> {
     match s {
         "raster" => Ok(Backend::Raster),
         "compute" => Ok(Backend::Compute),
-        _ => bail!("unknown backend '{s}' (raster or compute)"),
+        _ => Err(format!("unknown backend '{s}' (raster or compute)")),
     }
 }
 
-fn parse_target(s: &str) -> Result<TargetFormat> {
+/// `rgba16float` or `rgba32float` (experiment files, the CLI's `--target`).
+pub fn parse_target(s: &str) -> Result<TargetFormat, String> {
     match s {
         "rgba16float" => Ok(TargetFormat::Rgba16Float),
         "rgba32float" => Ok(TargetFormat::Rgba32Float),
-        _ => bail!("unknown target '{s}' (rgba16float or rgba32float)"),
+        _ => Err(format!("unknown target '{s}' (rgba16float or rgba32float)")),
     }
 }
 
@@ -738,10 +723,10 @@ fn load_scene(scene: &Scene, dir: &Path, e: &Experiment) -> Result<SceneDoc> {
         doc.render.size = [w, h];
     }
     if let Some(t) = &e.render.target {
-        doc.render.target = parse_target(t)?;
+        doc.render.target = parse_target(t).map_err(|e| anyhow!(e))?;
     }
     if let Some(b) = &e.render.backend {
-        doc.render.backend = parse_backend(b)?;
+        doc.render.backend = parse_backend(b).map_err(|e| anyhow!(e))?;
     }
     if let Some(t) = e.render.early_termination {
         doc.render.early_termination = (t > 0.0).then_some(t);

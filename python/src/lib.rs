@@ -26,7 +26,6 @@ use vwb_lab::{document, headless, measure};
 use vwb_render::metrics::{self, RgbImageF};
 use vwb_render::preset::Document;
 use vwb_render::reference::ReferenceOptions;
-use vwb_render::renderer::Backend;
 use vwb_render::slicing::VolumeBox;
 use vwb_render::{GpuContext, Renderer, Volume};
 
@@ -97,11 +96,7 @@ impl Scene {
                 .map_err(|e| PyValueError::new_err(e.to_string()))?;
         }
         if let Some(b) = backend {
-            d.render.backend = match b {
-                "raster" => Backend::Raster,
-                "compute" => Backend::Compute,
-                _ => return Err(PyValueError::new_err(format!("unknown backend '{b}' (raster or compute)"))),
-            };
+            d.render.backend = experiment::parse_backend(b).map_err(PyValueError::new_err)?;
         }
         headless::preflight(None, &d, &self.volume).map_err(err)?;
         Ok(d)

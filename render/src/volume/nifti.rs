@@ -99,15 +99,18 @@ pub fn parse_header(h: &[u8], file: &Path) -> Result<NiftiHeader, VolumeError> {
             }
         }};
     }
+    // a single-file NIfTI has the magic n+1 / n+2; ni1 / ni2 is a .hdr/.img pair
+    let magic = if version == 1 { at(344, 4) } else { at(4, 4) };
+    if magic != [b'n', b'+', b'0' + version, 0] {
+        return Err(VolumeError::Unsupported {
+            file: file.to_path_buf(),
+            message: format!(
+                "a NIfTI-{version} header without its data (magic 'ni{version}': a .hdr/.img \
+                 pair); convert it to a single .nii file"
+            ),
+        });
+    }
     let hdr = if version == 1 {
-        if !matches!(at(344, 4), b"n+1\0") {
-            return Err(VolumeError::Unsupported {
-                file: file.to_path_buf(),
-                message: "a NIfTI-1 header without its data (magic 'ni1': a .hdr/.img pair); \
-                          convert it to a single .nii file"
-                    .into(),
-            });
-        }
         NiftiHeader {
             version,
             endian,
@@ -135,14 +138,6 @@ pub fn parse_header(h: &[u8], file: &Path) -> Result<NiftiHeader, VolumeError> {
             intent_code: num!(i16, 68) as i32,
         }
     } else {
-        if !matches!(at(4, 4), b"n+2\0") {
-            return Err(VolumeError::Unsupported {
-                file: file.to_path_buf(),
-                message: "a NIfTI-2 header without its data (magic 'ni2': a .hdr/.img pair); \
-                          convert it to a single .nii file"
-                    .into(),
-            });
-        }
         let off = num!(i64, 168);
         if off < 0 {
             return Err(hdr_err(file, format!("vox_offset {off} is negative")));
@@ -627,6 +622,11 @@ mod tests {
             "bad.nii",
             &|b| b[70..72].copy_from_slice(&2048i16.to_le_bytes()),
             "datatype 2048",
+        );
+        refused(
+            "pair.nii",
+            &|b| b[344..348].copy_from_slice(b"ni1\0"),
+            "NIfTI-1 header without its data",
         );
         // regression (the fuzzer's find): a vox_offset of 3·10³⁸ overflowed the size check
         refused(
