@@ -282,6 +282,8 @@ impl Workbench {
         )?;
         log::info!("window adapter: {}", gpu.describe());
         let mut renderer = Renderer::new(&gpu, volume)?;
+        // progressive light passes refine one step per frame, the window redraws meanwhile
+        renderer.set_refinement_budget(Some(1));
         let error = renderer
             .update_stack(&doc.stack, doc.render.target)
             .err()
@@ -542,6 +544,7 @@ impl Workbench {
     /// renderer's WGSL overrides; nothing changes on screen until it is swapped in.
     fn fresh_renderer(&self, volume: Arc<vwb_render::Volume>, doc: &Document) -> Result<Renderer> {
         let mut renderer = Renderer::new(self.renderer.gpu(), volume)?;
+        renderer.set_refinement_budget(Some(1));
         for (file, source) in self.renderer.shader_overrides() {
             renderer.set_shader_override(file, Some(source.to_string()));
         }
@@ -1327,6 +1330,32 @@ impl Workbench {
                 Err(e) => self.error = Some(e.to_string()),
             }
             self.dirty = false;
+        }
+        // progressive light passes: draw again until every step is in
+        if self.error.is_none() && self.renderer.refining() {
+            self.dirty = true;
+            ui.ctx().request_repaint();
+        }
+        if let Some((done, total)) = self.renderer.refinement_progress()
+            && total > 1
+        {
+            let text = if done < total {
+                format!("refining light {done}/{total}")
+            } else {
+                format!("light refined ({total} steps)")
+            };
+            ui.put(
+                egui::Rect::from_min_size(
+                    rect.left_top() + egui::vec2(8.0, 6.0),
+                    egui::vec2(220.0, 18.0),
+                ),
+                egui::Label::new(
+                    egui::RichText::new(text)
+                        .small()
+                        .color(egui::Color32::from_gray(200)),
+                )
+                .selectable(false),
+            );
         }
         if let Some(id) = self.texture {
             ui.painter().image(

@@ -154,6 +154,28 @@ pub enum ReferenceSpec {
     Twin,
     /// The named variant's GPU image at the same grid point.
     Variant(String),
+    /// The illumination ground truth of the scene: single scattering of a directional
+    /// light with shadows, Monte Carlo on the CPU, for the stack's clip, sample and
+    /// classify plugins (shading plugins are what it measures, so they are ignored);
+    /// one per scene and grid point, shared by the variants
+    /// (`vwb_render::reference::render_single_scattering`).
+    SingleScattering(ScatteringSpec),
+}
+
+/// The light and effort of a [`ReferenceSpec::SingleScattering`] reference.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ScatteringSpec {
+    /// Towards the light, world space; None (the default): a head light from the eye.
+    #[serde(default)]
+    pub light: Option<(f64, f64, f64)>,
+    /// Paths per pixel (default 64).
+    #[serde(default = "default_paths")]
+    pub samples: u32,
+}
+
+fn default_paths() -> u32 {
+    64
 }
 
 /// A measured quantity of one row.
@@ -902,6 +924,69 @@ pub fn run(
                             i
                         }
                     }
+                    ReferenceSpec::SingleScattering(spec) => {
+                        let key = format!("{}|single_scattering|{values:?}", sc.name);
+                        if let Some((i, _)) = converged.get(&key) {
+                            *i
+                        } else {
+                            observer(Event::Reference {
+                                scene: &sc.name,
+                                what: "single-scattering ground truth",
+                            });
+                            let start = std::time::Instant::now();
+                            let opts = vwb_render::reference::ScatteringOptions {
+                                light: spec.light.map(|(x, y, z)| glam::DVec3::new(x, y, z)),
+                                samples: spec.samples,
+                                seed: e.seed.unwrap_or(1),
+                                ..Default::default()
+                            };
+                            let g = vwb_render::reference::render_single_scattering(
+                                &sc.volume, &d.stack, &s, &opts,
+                            )?;
+                            let over = |px: &[[f64; 4]]| {
+                                metrics::RgbImageF::from_rgba_premultiplied_over(
+                                    px,
+                                    g.image.width,
+                                    g.image.height,
+                                    measure::background(&d),
+                                )
+                            };
+                            let img = over(&g.image.pixels);
+                            // the noise floor: an independent run with the next seed
+                            let second = vwb_render::reference::render_single_scattering(
+                                &sc.volume,
+                                &d.stack,
+                                &s,
+                                &vwb_render::reference::ScatteringOptions {
+                                    seed: opts.seed.wrapping_add(1),
+                                    ..opts.clone()
+                                },
+                            )?;
+                            let floor =
+                                metrics::compare(&img, &over(&second.image.pixels)).rms_delta_e;
+                            let i = references.len();
+                            references.push(json!({
+                                "scene": sc.name, "kind": "single_scattering",
+                                "what": format!(
+                                    "single-scattering ground truth ({} paths per pixel, light ({:.3}, {:.3}, {:.3}), 95 % CI ±{:.4} mean, ±{:.4} max per channel; two seeds differ by RMS ΔE*uv {floor:.2}, so an image equal to the true mean scores about {:.2} against it)",
+                                    spec.samples, g.light.x, g.light.y, g.light.z, g.ci95_mean, g.ci95_max, floor / std::f64::consts::SQRT_2
+                                ),
+                                "seed_to_seed_rms_delta_e": floor,
+                                "light": [g.light.x, g.light.y, g.light.z],
+                                "samples": spec.samples,
+                                "ci95_mean": g.ci95_mean,
+                                "ci95_max": g.ci95_max,
+                                "seconds": start.elapsed().as_secs_f64(),
+                                "image": format!("images/reference_{i:02}.png"),
+                            }));
+                            headless::save_png(
+                                &img.to_rgb8(),
+                                &out.join(format!("images/reference_{i:02}.png")),
+                            )?;
+                            converged.insert(key, (i, img));
+                            i
+                        }
+                    }
                     ReferenceSpec::Twin => {
                         let i = references.len();
                         let img = measure::twin_image(&sc.volume, &d, &s)?;
@@ -934,7 +1019,9 @@ pub fn run(
                     }
                 };
                 let theirs = match &e.reference {
-                    ReferenceSpec::Converged | ReferenceSpec::ConvergedOf(_) => converged
+                    ReferenceSpec::Converged
+                    | ReferenceSpec::ConvergedOf(_)
+                    | ReferenceSpec::SingleScattering(_) => converged
                         .values()
                         .find(|(i, _)| *i == reference)
                         .map(|(_, img)| img)

@@ -169,6 +169,8 @@ pub enum BindingRole {
     Params,
     Resource(usize),
     PrepassTarget,
+    /// The target of the instance's volume pass `k`, sampled ([`crate::plugin::VolumePassDecl`]).
+    PassTarget(usize),
     StatePrev,
     StateNext,
 }
@@ -254,7 +256,26 @@ pub struct InstanceLayout {
     pub update_entry: Option<String>,
     /// Its pre-pass module (bindings in group 1) and the module's bindings.
     pub prepass: Option<(ComposedModule, Vec<Binding>)>,
+    /// Its volume passes, in declaration order: the entry point in the main module
+    /// and the group-3 binding of the pass's storage target.
+    pub passes: Vec<PassLayout>,
 }
+
+/// A volume pass in the main module ([`InstanceLayout::passes`]).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct PassLayout {
+    pub entry_point: String,
+    /// Binding (group 3) of the storage view of its target.
+    pub binding: u32,
+    pub format: crate::plugin::StorageFormat,
+    pub accumulate: bool,
+}
+
+/// First group-3 binding of volume-pass targets (0 and 1 are the compute output).
+pub const PASS_BINDING_BASE: u32 = 2;
+
+/// What `stack_classify` is, for checking a plugin file in isolation.
+const STACK_CLASSIFY_STUB: &str = "fn stack_classify(tex: vec3<f32>, dir: vec3<f32>) -> vec4<f32> { return vec4<f32>(tex + dir, 0.0); }";
 
 /// The composed pipeline description.
 #[derive(Debug, Clone)]
@@ -547,6 +568,17 @@ fn instance_bindings(
         };
         push(1, group1_next, pp.target, kind, BindingRole::PrepassTarget);
     }
+    if !prepass_module {
+        for (k, vp) in plugin.volume_passes().iter().enumerate() {
+            push(
+                1,
+                group1_next,
+                vp.target,
+                BindingKind::Texture3d,
+                BindingRole::PassTarget(k),
+            );
+        }
+    }
     if !prepass_module && let Some(st) = plugin.slice_state() {
         push(
             2,
@@ -782,13 +814,34 @@ pub fn compose_with(
         if plugin.slice_state().is_some() {
             allowed.push("slice_update");
         }
-        let decls = check_plugin_file(
-            plugin,
-            &shader.file,
-            &shader.source,
-            &decls_text(&iso_bindings, "", &uniform),
-            &allowed,
-        )?;
+        let passes = plugin.volume_passes();
+        let mut iso_decls = decls_text(&iso_bindings, "", &uniform);
+        if !passes.is_empty() {
+            iso_decls.push_str(STACK_CLASSIFY_STUB);
+            iso_decls.push('\n');
+        }
+        let decls = check_plugin_file(plugin, &shader.file, &shader.source, &iso_decls, &allowed)?;
+        for vp in &passes {
+            if !decls.iter().any(|d| d.is_fn && d.name == vp.entry) {
+                return Err(ComposeError::Plugin {
+                    plugin: plugin.id().to_string(),
+                    message: format!(
+                        "{} defines no function '{}' for the volume pass '{}'",
+                        shader.file, vp.entry, vp.target
+                    ),
+                });
+            }
+            if vp.accumulate && vp.format != crate::plugin::StorageFormat::R32Float {
+                return Err(ComposeError::Plugin {
+                    plugin: plugin.id().to_string(),
+                    message: format!(
+                        "the volume pass '{}' accumulates, which needs r32float (read-write storage), not {}",
+                        vp.target,
+                        vp.format.wgsl()
+                    ),
+                });
+            }
+        }
         let hooks: Vec<&'static str> = HOOKS
             .iter()
             .copied()
@@ -829,7 +882,45 @@ pub fn compose_with(
             uniform,
             update_entry,
             prepass,
+            passes: Vec::new(),
         });
+    }
+
+    // volume passes: a storage view of each target in group 3 and an entry point
+    let mut pass_code = Vec::new();
+    let mut next_binding = PASS_BINDING_BASE;
+    for inst in &mut instances {
+        let plugin = plugins[inst.input_index];
+        for vp in plugin.volume_passes() {
+            let p = &inst.prefix;
+            let out = format!("{p}{}_out", vp.target);
+            let access = if vp.accumulate { "read_write" } else { "write" };
+            let prev = if vp.accumulate {
+                format!("textureLoad({out}, gid)")
+            } else {
+                "vec4<f32>(0.0)".to_string()
+            };
+            let entry_point = format!("vp_{p}{}", vp.target);
+            let code = format!(
+                "@group(3) @binding({next_binding}) var {out}: texture_storage_3d<{fmt}, {access}>;\n\
+                 @compute @workgroup_size(4, 4, 4)\n\
+                 fn {entry_point}(@builtin(global_invocation_id) gid: vec3<u32>) {{\n    \
+                 let dims = textureDimensions({out});\n    \
+                 if (any(gid >= dims)) {{\n        return;\n    }}\n    \
+                 textureStore({out}, gid, {p}{entry}(gid, dims, slice_info.index, {prev}));\n\
+                 }}",
+                fmt = vp.format.wgsl(),
+                entry = vp.entry,
+            );
+            pass_code.push((inst.input_index, code));
+            inst.passes.push(PassLayout {
+                entry_point,
+                binding: next_binding,
+                format: vp.format,
+                accumulate: vp.accumulate,
+            });
+            next_binding += 1;
+        }
     }
 
     check_limits(&bindings, limits)?;
@@ -890,6 +981,9 @@ pub fn compose_with(
         } else {
             m.push_line(&line.replace("{{TARGET_FORMAT}}", target.wgsl()), origin);
         }
+    }
+    for (index, code) in &pass_code {
+        m.push_generated("volume pass entry point", code, Some(*index));
     }
 
     validate_composed(&m, plugins)?;

@@ -15,6 +15,11 @@
 //! - `fn slice_update(s: Sample, c: vec4<f32>, uv: vec2<f32>) -> vec4<f32>` — next
 //!   state texel after the current slice (needs [`SliceStateDecl`])
 //! - pre-pass file: `fn prepass(voxel: vec3<u32>, dims: vec3<u32>) -> vec4<f32>`
+//! - volume pass (a function of the plugin's hook file named by [`VolumePassDecl`]):
+//!   `fn <entry>(voxel: vec3<u32>, dims: vec3<u32>, step: u32, prev: vec4<f32>) -> vec4<f32>`;
+//!   it may call `stack_classify(tex, dir)` (the stack's clip, sample and classify hooks
+//!   at a texture coordinate: straight RGBA, zero where clipped) and read the targets
+//!   of the plugin's earlier passes by name
 //!
 //! Names the plugin can use: `params.<key>` (its uniform parameters), each declared
 //! resource by name, `state_prev` (its state of the previous slice, a texture_2d
@@ -171,6 +176,36 @@ pub struct PrepassDecl {
     pub scale: f32,
     pub shader: ShaderSource,
     pub depends_on: Vec<&'static str>,
+}
+
+/// A volume pass: a compute pass over a 3D texture `target` (read by the plugin's hooks
+/// and later passes by that name, as a `texture_3d<f32>` with `linear_clamp`). Unlike a
+/// [`PrepassDecl`], its function lives in the plugin's hook file and sees the whole
+/// stack: `stack_classify(tex, dir)` runs every plugin's clip, sample and classify
+/// hooks, so a light pass sees the current transfer function and casts no light
+/// through clipped matter. A plugin's passes form a chain, run in declaration order;
+/// when one reruns, every later one does too. A pass reruns when it never ran, when one
+/// of its `depends_on` parameters changed, or when a clip, sample or classify
+/// instance of the stack changed its parameters (the volume change recreates
+/// everything). Camera moves rerun nothing.
+#[derive(Debug, Clone)]
+pub struct VolumePassDecl {
+    pub target: &'static str,
+    pub format: StorageFormat,
+    /// Size of the target relative to the volume (1 = one texel per voxel).
+    pub scale: f32,
+    /// The pass function in the plugin's hook file.
+    pub entry: &'static str,
+    pub depends_on: Vec<&'static str>,
+    /// Progressive refinement: the number of steps under the instance's parameters
+    /// (at least 1 is run; None: one step). Step `step` (0-based) is dispatched with that index; the
+    /// renderer runs as many steps per frame as its refinement budget allows
+    /// ([`crate::renderer::Renderer::set_refinement_budget`]; all by default), so a
+    /// window refines over several frames.
+    pub steps: Option<fn(&ParamValues) -> u32>,
+    /// The pass reads its own previous texel as `prev` (read-write storage; R32Float
+    /// only), e.g. to blend a refinement step into the stored result.
+    pub accumulate: bool,
 }
 
 /// What a plugin gets to create and update its resources.
@@ -511,7 +546,14 @@ pub trait CpuTwin: Send + Sync {
     fn slice_update(&self, _ctx: &CpuContext, _s: &CpuSample, _c: DVec4, _uv: DVec2) -> DVec4 {
         DVec4::ZERO
     }
+    /// The twin of the plugin's volume passes, called once per frame after
+    /// [`CpuTwin::prepare`]: `classify(tex, dir)` is `stack_classify` (the other
+    /// twins' clip, sample and classify at a texture coordinate; zero where clipped).
+    fn prepare_passes(&mut self, _ctx: &CpuContext, _classify: &StackClassify<'_>) {}
 }
+
+/// The CPU twin of `stack_classify(tex, dir)` ([`CpuTwin::prepare_passes`]).
+pub type StackClassify<'a> = dyn Fn(DVec3, DVec3) -> DVec4 + Sync + 'a;
 
 /// Whether any value in `[lo, hi]` (normalised) can be classified with α > 0.
 pub type VisibleFn = dyn Fn(f64, f64) -> bool + Send + Sync;
@@ -599,6 +641,10 @@ pub trait Plugin: Send + Sync + 'static {
     }
     fn prepass(&self) -> Option<PrepassDecl> {
         None
+    }
+    /// Its volume passes, in order ([`VolumePassDecl`]).
+    fn volume_passes(&self) -> Vec<VolumePassDecl> {
+        Vec::new()
     }
     /// Creates the resources declared by [`Plugin::resources`], in order.
     fn create_resources(

@@ -33,7 +33,7 @@ use crate::composer::{
 };
 use crate::gpu::GpuContext;
 use crate::params::ParamValues;
-use crate::plugin::{GpuInit, GpuResource, Plugin, PluginError, PluginInstance};
+use crate::plugin::{Category, GpuInit, GpuResource, Plugin, PluginError, PluginInstance};
 use crate::skipping::{BRICK, BrickRanges, clear_outside_regions, stack_regions, stack_visibility};
 use crate::slicing::{SliceError, SlicePlan, VolumeBox};
 use crate::volume::Volume;
@@ -138,6 +138,9 @@ pub struct FrameStats {
     pub wall_ms: f64,
     pub per_slice_mode: bool,
     pub prepasses_run: usize,
+    /// Volume-pass dispatches of this frame, labelled `<plugin id>/<target>`, one per
+    /// refinement step ([`crate::plugin::VolumePassDecl`]).
+    pub volume_passes_run: Vec<String>,
     /// Plugin resources rebuilt for a new slice spacing before this frame (e.g.
     /// pre-integration tables; [`Plugin::uses_slice_spacing`]).
     pub spacing_updates: usize,
@@ -166,6 +169,21 @@ pub const DISPLAY_WGSL: &str = include_str!("../../shaders/display.wgsl");
 pub const MAX_PER_SLICE_SLICES: u32 = 65_536;
 const MAX_TIMESTAMPS: u32 = 64;
 
+/// A volume pass's record: the parameters and upstream hash it last started with
+/// (None: never), and its refinement steps done since.
+#[derive(Default)]
+struct PassState {
+    stamp: Option<(ParamValues, u64)>,
+    steps_done: u32,
+}
+
+/// One dispatch of a volume pass in a frame's plan.
+struct PassDispatch {
+    /// Index into `CompiledStack::volume_passes`.
+    pass: usize,
+    step: u32,
+}
+
 struct InstanceGpu {
     plugin_id: &'static str,
     uniform: wgpu::Buffer,
@@ -175,6 +193,10 @@ struct InstanceGpu {
     prepass_target: Option<(wgpu::Texture, wgpu::TextureView)>,
     /// Parameters the last pre-pass ran with (None: never ran).
     prepass_done: Option<ParamValues>,
+    /// Targets of its volume passes, in declaration order.
+    pass_targets: Vec<(wgpu::Texture, wgpu::TextureView)>,
+    /// What each volume pass last ran with, and how many refinement steps it has done.
+    pass_state: Vec<PassState>,
     /// Hash of the structural parameters the resources were made for.
     structure: u64,
     /// Slice spacing (voxels) the resources were last updated for, for plugins that
@@ -196,6 +218,7 @@ impl InstanceGpu {
         self.uniform_size
             + self.resources.iter().map(GpuResource::bytes).sum::<u64>()
             + self.prepass_target.as_ref().map_or(0, |(t, _)| tex(t))
+            + self.pass_targets.iter().map(|(t, _)| tex(t)).sum::<u64>()
             + self
                 .state
                 .as_ref()
@@ -246,6 +269,18 @@ struct CompiledStack {
     updates: Vec<(usize, wgpu::ComputePipeline)>,
     /// (instance index, pipeline, group-1 layout) per pre-pass.
     prepasses: Vec<(usize, wgpu::ComputePipeline, wgpu::BindGroupLayout)>,
+    /// Volume passes in stack order, each instance's in declaration order.
+    volume_passes: Vec<CompiledPass>,
+}
+
+struct CompiledPass {
+    /// Index of the instance in the stack and of the pass in its declarations.
+    instance: usize,
+    k: usize,
+    pipeline: wgpu::ComputePipeline,
+    /// Group 3: the storage view of its target.
+    layout: wgpu::BindGroupLayout,
+    binding: u32,
 }
 
 /// `frame.ray_basis` (shaders/common.wgsl), in f64 and then rounded: columns 0 and 1
@@ -261,6 +296,12 @@ fn ray_basis(view: &crate::camera::View) -> Mat4 {
 
 /// A hash of an instance's structural parameter values: what, beside its id, decides
 /// its code, resources and passes.
+/// Refinement steps of a volume pass under `params` (at least 1).
+fn pass_steps(decl: &crate::plugin::VolumePassDecl, params: &ParamValues) -> u32 {
+    decl.steps
+        .map_or(1, |steps| steps(params).clamp(1, MAX_PER_SLICE_SLICES))
+}
+
 fn structure_of(inst: &PluginInstance) -> u64 {
     use std::hash::{Hash, Hasher};
     let mut h = std::collections::hash_map::DefaultHasher::new();
@@ -329,6 +370,8 @@ pub struct RenderCounters {
     pub instance_creations: u64,
     /// Pre-pass runs.
     pub prepass_runs: u64,
+    /// Volume-pass dispatches (one per refinement step).
+    pub volume_pass_runs: u64,
 }
 
 struct Target {
@@ -391,6 +434,10 @@ pub struct Renderer {
     dump_dir: Option<std::path::PathBuf>,
     /// Slice spacing (voxels) of the last frame drawn ([`GpuInit::slice_spacing`]).
     slice_spacing: f32,
+    /// Most refinement steps of volume passes per frame (None: all).
+    refinement_budget: Option<u32>,
+    /// Bound in place of a volume pass's own target while that pass writes it.
+    dummy_3d: (wgpu::Texture, wgpu::TextureView),
 }
 
 fn uniform_entry(
@@ -528,6 +575,8 @@ impl Renderer {
             display_pipeline: None,
             dump_dir: std::env::var_os("VWB_SHADER_DUMP").map(Into::into),
             slice_spacing: 1.0,
+            refinement_budget: None,
+            dummy_3d: upload_occupancy(gpu, [1, 1, 1], &[0]),
         };
         if gpu.has_timestamps()
             && gpu
@@ -930,6 +979,35 @@ impl Renderer {
             let view = texture.create_view(&Default::default());
             (texture, view)
         });
+        let pass_targets: Vec<_> = plugin
+            .volume_passes()
+            .iter()
+            .map(|vp| {
+                let dims = self
+                    .volume
+                    .dims
+                    .map(|d| ((d as f32 * vp.scale).ceil() as u32).max(1));
+                let texture = self.gpu.device.create_texture(&wgpu::TextureDescriptor {
+                    label: Some(vp.target),
+                    size: wgpu::Extent3d {
+                        width: dims[0],
+                        height: dims[1],
+                        depth_or_array_layers: dims[2],
+                    },
+                    mip_level_count: 1,
+                    sample_count: 1,
+                    dimension: wgpu::TextureDimension::D3,
+                    format: vp.format.wgpu(),
+                    usage: wgpu::TextureUsages::STORAGE_BINDING
+                        | wgpu::TextureUsages::TEXTURE_BINDING
+                        | wgpu::TextureUsages::COPY_SRC,
+                    view_formats: &[],
+                });
+                let view = texture.create_view(&Default::default());
+                (texture, view)
+            })
+            .collect();
+        let pass_state = pass_targets.iter().map(|_| PassState::default()).collect();
         self.counters.instance_creations += 1;
         self.instances.insert(
             inst.uid,
@@ -941,6 +1019,8 @@ impl Renderer {
                 params: inst.params.clone(),
                 prepass_target,
                 prepass_done: None,
+                pass_targets,
+                pass_state,
                 structure,
                 spacing: self.slice_spacing,
                 state: None,
@@ -1103,7 +1183,44 @@ impl Renderer {
         let cs_resolve = compute("cs_resolve", &compute_layout, &module);
         let mut updates = Vec::new();
         let mut prepasses = Vec::new();
+        let mut volume_passes = Vec::new();
         for (i, inst) in composition.instances.iter().enumerate() {
+            for (k, vp) in inst.passes.iter().enumerate() {
+                let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+                    label: Some("vwb volume pass group 3"),
+                    entries: &[wgpu::BindGroupLayoutEntry {
+                        binding: vp.binding,
+                        visibility: wgpu::ShaderStages::COMPUTE,
+                        ty: wgpu::BindingType::StorageTexture {
+                            access: if vp.accumulate {
+                                wgpu::StorageTextureAccess::ReadWrite
+                            } else {
+                                wgpu::StorageTextureAccess::WriteOnly
+                            },
+                            format: vp.format.wgpu(),
+                            view_dimension: wgpu::TextureViewDimension::D3,
+                        },
+                        count: None,
+                    }],
+                });
+                let pl = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                    label: Some("vwb volume pass"),
+                    bind_group_layouts: &[
+                        Some(&self.g0_layout),
+                        Some(&g1_layout),
+                        Some(&g2_layout),
+                        Some(&layout),
+                    ],
+                    immediate_size: 0,
+                });
+                volume_passes.push(CompiledPass {
+                    instance: i,
+                    k,
+                    pipeline: compute(&vp.entry_point, &pl, &module),
+                    layout,
+                    binding: vp.binding,
+                });
+            }
             if let Some(entry) = &inst.update_entry {
                 updates.push((i, compute(entry, &compute_layout, &module)));
             }
@@ -1138,6 +1255,7 @@ impl Renderer {
             cs_resolve,
             updates,
             prepasses,
+            volume_passes,
         })
     }
 
@@ -1329,6 +1447,9 @@ impl Renderer {
             BindingRole::PrepassTarget => {
                 wgpu::BindingResource::TextureView(&g.prepass_target.as_ref()?.1)
             }
+            BindingRole::PassTarget(k) => {
+                wgpu::BindingResource::TextureView(&g.pass_targets.get(k)?.1)
+            }
             BindingRole::StatePrev => {
                 wgpu::BindingResource::TextureView(&g.state.as_ref()?[parity.unwrap_or(0)].1)
             }
@@ -1503,6 +1624,224 @@ impl Renderer {
         prepasses_run
     }
 
+    /// The most refinement steps of progressive volume passes to run per frame
+    /// (None, the default: all, so that one frame shows the finished result; a window
+    /// sets a small budget and keeps drawing while [`Renderer::refining`]).
+    pub fn set_refinement_budget(&mut self, steps: Option<u32>) {
+        self.refinement_budget = steps;
+    }
+
+    /// Whether a volume pass of the current stack has steps left (a window keeps
+    /// drawing until it has none).
+    pub fn refining(&self) -> bool {
+        self.refinement_progress()
+            .is_some_and(|(done, total)| done < total)
+    }
+
+    /// Refinement steps of the current stack's volume passes done since their inputs
+    /// last changed, and their total (None: the stack has no volume pass). Steps of a
+    /// pass whose inputs changed since the last frame count as not done.
+    pub fn refinement_progress(&self) -> Option<(u32, u32)> {
+        let p = self.pipelines.as_ref()?;
+        let mut out = None::<(u32, u32)>;
+        for cp in &p.volume_passes {
+            let (uid, plugin) = &p.stack[cp.instance];
+            let Some(g) = self.instances.get(uid) else {
+                continue;
+            };
+            let decl = &plugin.volume_passes()[cp.k];
+            let st = &g.pass_state[cp.k];
+            let total = pass_steps(decl, &g.params);
+            let fresh = st.stamp.as_ref().is_some_and(|(done, _)| {
+                decl.depends_on
+                    .iter()
+                    .all(|key| done.get(key) == g.params.get(key))
+            });
+            let done = if fresh { st.steps_done.min(total) } else { 0 };
+            let (d, t) = out.unwrap_or((0, 0));
+            out = Some((d + done, t + total));
+        }
+        out
+    }
+
+    /// Hash of the parameters of the stack's clip, sample and classify instances other
+    /// than `skip`: what `stack_classify` reads.
+    fn upstream_hash(&self, stack: &[(u64, Arc<dyn Plugin>)], skip: u64) -> u64 {
+        use std::hash::{Hash, Hasher};
+        let mut h = std::collections::hash_map::DefaultHasher::new();
+        for (uid, plugin) in stack {
+            if *uid == skip
+                || !matches!(
+                    plugin.category(),
+                    Category::Clip | Category::Sample | Category::Classify
+                )
+            {
+                continue;
+            }
+            plugin.id().hash(&mut h);
+            if let Some(g) = self.instances.get(uid) {
+                for (k, v) in &g.params.values {
+                    k.hash(&mut h);
+                    v.hash_into(&mut h);
+                }
+            }
+        }
+        h.finish()
+    }
+
+    /// Decides which volume-pass steps this frame runs and records them as run: a
+    /// chain restarts at its first out-of-date pass; passes run in order, a later pass
+    /// only once the earlier ones have all their steps.
+    fn plan_volume_passes(
+        &mut self,
+        p: &CompiledStack,
+        stack: &[(u64, Arc<dyn Plugin>)],
+    ) -> Vec<PassDispatch> {
+        let mut out = Vec::new();
+        let mut budget = self.refinement_budget.unwrap_or(u32::MAX).max(1);
+        let mut index = 0;
+        while index < p.volume_passes.len() {
+            let instance = p.volume_passes[index].instance;
+            let count = p.volume_passes[index..]
+                .iter()
+                .take_while(|cp| cp.instance == instance)
+                .count();
+            let (uid, plugin) = &stack[instance];
+            let upstream = self.upstream_hash(stack, *uid);
+            let decls = plugin.volume_passes();
+            let Some(g) = self.instances.get_mut(uid) else {
+                index += count;
+                continue;
+            };
+            let mut restart = false;
+            for (k, decl) in decls.iter().enumerate().take(count) {
+                let st = &mut g.pass_state[k];
+                let stale = restart
+                    || match &st.stamp {
+                        None => true,
+                        Some((done, hash)) => {
+                            *hash != upstream
+                                || decl
+                                    .depends_on
+                                    .iter()
+                                    .any(|key| done.get(key) != g.params.get(key))
+                        }
+                    };
+                if stale {
+                    restart = true;
+                    st.stamp = Some((g.params.clone(), upstream));
+                    st.steps_done = 0;
+                }
+            }
+            for (k, decl) in decls.iter().enumerate().take(count) {
+                let total = pass_steps(decl, &g.params);
+                let st = &mut g.pass_state[k];
+                while st.steps_done < total && budget > 0 {
+                    out.push(PassDispatch {
+                        pass: index + k,
+                        step: st.steps_done,
+                    });
+                    st.steps_done += 1;
+                    if decl.steps.is_some() {
+                        budget -= 1;
+                    }
+                }
+                if st.steps_done < total {
+                    break;
+                }
+            }
+            index += count;
+        }
+        out
+    }
+
+    /// Encodes planned volume-pass dispatches, each after a `stamp`.
+    fn encode_volume_passes(
+        &self,
+        enc: &mut wgpu::CommandEncoder,
+        p: &CompiledStack,
+        stack: &[(u64, Arc<dyn Plugin>)],
+        plan: &[PassDispatch],
+        stamp: &mut dyn FnMut(&mut wgpu::CommandEncoder, Option<String>),
+    ) -> Vec<String> {
+        let device = &self.gpu.device;
+        let uids: Vec<u64> = stack.iter().map(|(u, _)| *u).collect();
+        let mut labels = Vec::new();
+        let g2 = {
+            let entries: Vec<wgpu::BindGroupEntry> = p
+                .composition
+                .bindings
+                .iter()
+                .filter(|b| b.group == 2)
+                .filter_map(|b| self.bind_entry(&uids, b, Some(0)))
+                .collect();
+            device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("vwb volume pass group 2"),
+                layout: &p.g2_layout,
+                entries: &entries,
+            })
+        };
+        for d in plan {
+            let cp = &p.volume_passes[d.pass];
+            let (uid, plugin) = &stack[cp.instance];
+            let Some(g) = self.instances.get(uid) else {
+                continue;
+            };
+            let Some((tex, _)) = g.pass_targets.get(cp.k) else {
+                continue;
+            };
+            let label = format!("{}/{}", plugin.id(), plugin.volume_passes()[cp.k].target);
+            stamp(enc, Some(format!("pass {label}")));
+            // group 1 with the pass's own target replaced (it is written, not read)
+            let entries: Vec<wgpu::BindGroupEntry> = p
+                .composition
+                .bindings
+                .iter()
+                .filter(|b| b.group == 1)
+                .filter_map(|b| {
+                    if b.instance == cp.instance && b.role == BindingRole::PassTarget(cp.k) {
+                        return Some(wgpu::BindGroupEntry {
+                            binding: b.binding,
+                            resource: wgpu::BindingResource::TextureView(&self.dummy_3d.1),
+                        });
+                    }
+                    self.bind_entry(&uids, b, None)
+                })
+                .collect();
+            let g1 = device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("vwb volume pass group 1"),
+                layout: &p.g1_layout,
+                entries: &entries,
+            });
+            let storage = tex.create_view(&Default::default());
+            let g3 = device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("vwb volume pass group 3"),
+                layout: &cp.layout,
+                entries: &[wgpu::BindGroupEntry {
+                    binding: cp.binding,
+                    resource: wgpu::BindingResource::TextureView(&storage),
+                }],
+            });
+            let size = tex.size();
+            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("vwb volume pass"),
+                timestamp_writes: None,
+            });
+            pass.set_pipeline(&cp.pipeline);
+            pass.set_bind_group(0, &self.g0, &[(d.step as u64 * SLICE_INFO_STRIDE) as u32]);
+            pass.set_bind_group(1, &g1, &[]);
+            pass.set_bind_group(2, &g2, &[]);
+            pass.set_bind_group(3, &g3, &[]);
+            pass.dispatch_workgroups(
+                size.width.div_ceil(4),
+                size.height.div_ceil(4),
+                size.depth_or_array_layers.div_ceil(4),
+            );
+            labels.push(label);
+        }
+        labels
+    }
+
     /// Records that the pre-passes of `uids` ran with their instances' parameters.
     fn mark_prepasses_done(&mut self, uids: impl IntoIterator<Item = u64>) {
         for uid in uids {
@@ -1560,6 +1899,17 @@ impl Renderer {
             }
             self.ensure_slice_info(plan.count);
         }
+        let pass_plan = match &self.pipelines {
+            Some(p) if !p.volume_passes.is_empty() => {
+                let (compiled, stack) = (p.compiled.clone(), p.stack.clone());
+                let pass_plan = self.plan_volume_passes(&compiled, &stack);
+                if let Some(last) = pass_plan.iter().map(|d| d.step + 1).max() {
+                    self.ensure_slice_info(last);
+                }
+                pass_plan
+            }
+            _ => Vec::new(),
+        };
         self.write_frame(s, &plan, &view);
 
         // vertices for the raster backend
@@ -1616,9 +1966,11 @@ impl Renderer {
             }
         };
 
-        // pre-passes that are out of date
+        // pre-passes that are out of date, then volume passes
         let dirty = self.dirty_prepasses(p, &p.stack);
         let prepasses_run = self.encode_prepasses(&mut enc, p, &p.stack, &dirty, &mut stamp);
+        let volume_passes_run =
+            self.encode_volume_passes(&mut enc, p, &p.stack, &pass_plan, &mut stamp);
 
         let g1 = self.group1(p);
         let g2 = self.group2(p);
@@ -1793,10 +2145,12 @@ impl Renderer {
         let done: Vec<u64> = dirty.iter().map(|i| p.stack[*i].0).collect();
         self.mark_prepasses_done(done);
         self.counters.prepass_runs += prepasses_run as u64;
+        self.counters.volume_pass_runs += volume_passes_run.len() as u64;
         let mut stats = FrameStats {
             slices: plan.count,
             per_slice_mode: per_slice,
             prepasses_run,
+            volume_passes_run,
             spacing_updates,
             ..Default::default()
         };

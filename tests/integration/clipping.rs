@@ -15,7 +15,7 @@ use crate::common::*;
 use crate::reference::{delta_e_rms, gpu_and_reference};
 
 /// Sets slot `i` of a `clip.shapes` instance.
-fn shape(
+pub(crate) fn shape(
     c: &mut PluginInstance,
     i: usize,
     kind: &str,
@@ -30,7 +30,7 @@ fn shape(
     c.params.set(k.size, ParamValue::Vec3(size));
 }
 
-fn clip() -> PluginInstance {
+pub(crate) fn clip() -> PluginInstance {
     instance("clip.shapes")
 }
 
@@ -200,7 +200,7 @@ fn the_cut_is_lit_by_its_own_normal() {
 /// A block floating in front of a wall along the view (+z), n = 32; `with_block`
 /// false: the block's voxels removed; voxels from x = `x_end` on removed (the
 /// physically cropped phantoms).
-fn block_and_wall(with_block: bool, x_end: u32) -> Arc<Volume> {
+pub(crate) fn block_and_wall(with_block: bool, x_end: u32) -> Arc<Volume> {
     synthetic([32; 3], move |x, y, z| {
         let block =
             with_block && (10..22).contains(&x) && (10..22).contains(&y) && (5..10).contains(&z);
@@ -213,7 +213,7 @@ fn block_and_wall(with_block: bool, x_end: u32) -> Arc<Volume> {
 }
 
 /// The TF and DOS (θ = 60°, fp32 buffer) of the consistency scenes.
-fn dos_stack() -> (PluginInstance, PluginInstance) {
+pub(crate) fn dos_stack() -> (PluginInstance, PluginInstance) {
     let mut tf = instance("classify.tf1d");
     tf.params.set(
         "tf",

@@ -170,3 +170,53 @@ fn shipped_experiment_files_load() {
     }
     assert!(n >= 2);
 }
+
+/// The illumination ground truth as an experiment reference: one per scene, shared by
+/// the variants (shading plugins are what it measures), with its statistical error in
+/// the report; the global light is closer to it than no light.
+#[test]
+fn a_single_scattering_reference_is_shared_by_the_illumination_variants() {
+    let body = r#"Experiment(
+    name: "scattering",
+    scenes: [Preset("PRESET")],
+    variants: [
+        (name: "none"),
+        (name: "hernell", enable: ["shade.hernell"]),
+    ],
+    reference: SingleScattering((samples: 16)),
+    render: (size: (32, 32), target: "rgba32float"),
+    frames: 1,
+    assertions: ["rms_delta_e(hernell) / rms_delta_e(none) < 1.0"],
+)"#;
+    // the demo with shade.hernell in the stack, switched off, lit along the camera offset
+    let mut doc = std::fs::read_to_string(repo().join("presets/demo.ron")).unwrap();
+    let at = doc.rfind("],").expect("the plugin list ends");
+    doc.insert_str(
+        at,
+        "    (id: \"shade.hernell\", enabled: false, params: {\"scattering\": false, \"bias\": 0.0, \"light\": (-0.807, -0.174, -0.565)}),\n    ",
+    );
+    let preset = tmp("scattering_scene.ron");
+    std::fs::write(&preset, doc).unwrap();
+    let file = tmp("scattering.ron");
+    std::fs::write(&file, body.replace("PRESET", &preset.display().to_string())).unwrap();
+    let e = experiment::load(&file).unwrap();
+    let out = tmp("scattering-report");
+    let o = experiment::run(gpu(), &e, &file, &out, &mut |_| {}).unwrap();
+    assert_eq!(o.rows.len(), 2);
+    assert_eq!(o.references.len(), 1, "{:?}", o.references);
+    assert!(o.rows.iter().all(|r| r.reference == 0));
+    assert_eq!(o.references[0]["kind"], "single_scattering");
+    assert!(o.references[0]["ci95_mean"].as_f64().unwrap() > 0.0);
+    assert!(
+        o.references[0]["seed_to_seed_rms_delta_e"]
+            .as_f64()
+            .unwrap()
+            > 0.0
+    );
+    assert!(o.failed().is_empty(), "{:?}", o.assertions);
+    let report = std::fs::read_to_string(out.join("report.md")).unwrap();
+    assert!(
+        report.contains("single-scattering ground truth (16 paths per pixel"),
+        "{report}"
+    );
+}

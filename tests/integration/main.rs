@@ -17,6 +17,7 @@ mod experiment;
 mod extremes;
 mod flow;
 mod formats;
+mod hernell;
 mod presets;
 mod reference;
 mod render;

@@ -1,0 +1,8 @@
+#!/usr/bin/env bash
+# Global light (shade.hernell) figures: piecewise against exact integration over
+# segment length × SVR with the time of each update level, scattering refinement
+# costs and the extremes, on the CT head; writes docs/hernell.md. On the CPU Vulkan
+# device (lavapipe, 2 threads) unless VWB_TEST_GPU=1.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+bash bench/ignored_test.sh hernell_benchmark
