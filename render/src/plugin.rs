@@ -505,25 +505,33 @@ impl<'a> CpuContext<'a> {
     /// quantity: `voxel(i)` for the voxel at linear index i (x fastest), e.g. a
     /// classified colour (the twin of sampling a pre-pass target of scale 1).
     pub fn trilinear(&self, tex: DVec3, voxel: impl Fn(usize) -> DVec4) -> DVec4 {
-        let d = self.volume.dims;
-        let mut i0 = [0usize; 3];
-        let mut i1 = [0usize; 3];
-        let mut t = [0.0f64; 3];
-        for a in 0..3 {
-            let n = d[a].max(1) as f64;
-            let x = (tex[a] * n - 0.5).clamp(0.0, n - 1.0);
-            let f = x.floor();
-            i0[a] = f as usize;
-            i1[a] = (i0[a] + 1).min(d[a].max(1) as usize - 1);
-            t[a] = x - f;
-        }
-        let at = |x: usize, y: usize, z: usize| voxel((z * d[1] as usize + y) * d[0] as usize + x);
-        let c00 = at(i0[0], i0[1], i0[2]).lerp(at(i1[0], i0[1], i0[2]), t[0]);
-        let c10 = at(i0[0], i1[1], i0[2]).lerp(at(i1[0], i1[1], i0[2]), t[0]);
-        let c01 = at(i0[0], i0[1], i1[2]).lerp(at(i1[0], i0[1], i1[2]), t[0]);
-        let c11 = at(i0[0], i1[1], i1[2]).lerp(at(i1[0], i1[1], i1[2]), t[0]);
-        c00.lerp(c10, t[1]).lerp(c01.lerp(c11, t[1]), t[2])
+        trilinear_grid(self.volume.dims, tex, voxel)
     }
+}
+
+/// Trilinear interpolation at a texture coordinate of a `dims` grid with texel centres
+/// at (i + 0.5)/n and clamp-to-edge, as `textureSampleLevel(.., linear_clamp, ..)`
+/// reads a 3D texture; `voxel(i)` is the texel at linear index i (x fastest). The CPU
+/// twin of sampling any 3D target (a volume pass's at its own resolution, too).
+pub fn trilinear_grid(dims: [u32; 3], tex: DVec3, voxel: impl Fn(usize) -> DVec4) -> DVec4 {
+    let d = dims;
+    let mut i0 = [0usize; 3];
+    let mut i1 = [0usize; 3];
+    let mut t = [0.0f64; 3];
+    for a in 0..3 {
+        let n = d[a].max(1) as f64;
+        let x = (tex[a] * n - 0.5).clamp(0.0, n - 1.0);
+        let f = x.floor();
+        i0[a] = f as usize;
+        i1[a] = (i0[a] + 1).min(d[a].max(1) as usize - 1);
+        t[a] = x - f;
+    }
+    let at = |x: usize, y: usize, z: usize| voxel((z * d[1] as usize + y) * d[0] as usize + x);
+    let c00 = at(i0[0], i0[1], i0[2]).lerp(at(i1[0], i0[1], i0[2]), t[0]);
+    let c10 = at(i0[0], i1[1], i0[2]).lerp(at(i1[0], i1[1], i0[2]), t[0]);
+    let c01 = at(i0[0], i0[1], i1[2]).lerp(at(i1[0], i0[1], i1[2]), t[0]);
+    let c11 = at(i0[0], i1[1], i1[2]).lerp(at(i1[0], i1[1], i1[2]), t[0]);
+    c00.lerp(c10, t[1]).lerp(c01.lerp(c11, t[1]), t[2])
 }
 
 /// CPU twin of a plugin's GPU hooks, in f64. Each method mirrors the WGSL hook of the

@@ -924,6 +924,38 @@ impl Renderer {
         }
     }
 
+    /// A 3D texture of the volume's size times `scale` that a compute pass writes and
+    /// hooks sample (pre-pass and volume-pass targets).
+    fn storage_target_3d(
+        &self,
+        label: &str,
+        scale: f32,
+        format: crate::plugin::StorageFormat,
+    ) -> (wgpu::Texture, wgpu::TextureView) {
+        let dims = self
+            .volume
+            .dims
+            .map(|d| ((d as f32 * scale).ceil() as u32).max(1));
+        let texture = self.gpu.device.create_texture(&wgpu::TextureDescriptor {
+            label: Some(label),
+            size: wgpu::Extent3d {
+                width: dims[0],
+                height: dims[1],
+                depth_or_array_layers: dims[2],
+            },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D3,
+            format: format.wgpu(),
+            usage: wgpu::TextureUsages::STORAGE_BINDING
+                | wgpu::TextureUsages::TEXTURE_BINDING
+                | wgpu::TextureUsages::COPY_SRC,
+            view_formats: &[],
+        });
+        let view = texture.create_view(&Default::default());
+        (texture, view)
+    }
+
     fn ensure_instance(&mut self, inst: &PluginInstance) -> Result<(), RenderError> {
         let structure = structure_of(inst);
         if self
@@ -955,57 +987,13 @@ impl Renderer {
                 ),
             }));
         }
-        let prepass_target = plugin.prepass().map(|pp| {
-            let dims = self
-                .volume
-                .dims
-                .map(|d| ((d as f32 * pp.scale).ceil() as u32).max(1));
-            let texture = self.gpu.device.create_texture(&wgpu::TextureDescriptor {
-                label: Some(pp.target),
-                size: wgpu::Extent3d {
-                    width: dims[0],
-                    height: dims[1],
-                    depth_or_array_layers: dims[2],
-                },
-                mip_level_count: 1,
-                sample_count: 1,
-                dimension: wgpu::TextureDimension::D3,
-                format: pp.format.wgpu(),
-                usage: wgpu::TextureUsages::STORAGE_BINDING
-                    | wgpu::TextureUsages::TEXTURE_BINDING
-                    | wgpu::TextureUsages::COPY_SRC,
-                view_formats: &[],
-            });
-            let view = texture.create_view(&Default::default());
-            (texture, view)
-        });
+        let prepass_target = plugin
+            .prepass()
+            .map(|pp| self.storage_target_3d(pp.target, pp.scale, pp.format));
         let pass_targets: Vec<_> = plugin
             .volume_passes()
             .iter()
-            .map(|vp| {
-                let dims = self
-                    .volume
-                    .dims
-                    .map(|d| ((d as f32 * vp.scale).ceil() as u32).max(1));
-                let texture = self.gpu.device.create_texture(&wgpu::TextureDescriptor {
-                    label: Some(vp.target),
-                    size: wgpu::Extent3d {
-                        width: dims[0],
-                        height: dims[1],
-                        depth_or_array_layers: dims[2],
-                    },
-                    mip_level_count: 1,
-                    sample_count: 1,
-                    dimension: wgpu::TextureDimension::D3,
-                    format: vp.format.wgpu(),
-                    usage: wgpu::TextureUsages::STORAGE_BINDING
-                        | wgpu::TextureUsages::TEXTURE_BINDING
-                        | wgpu::TextureUsages::COPY_SRC,
-                    view_formats: &[],
-                });
-                let view = texture.create_view(&Default::default());
-                (texture, view)
-            })
+            .map(|vp| self.storage_target_3d(vp.target, vp.scale, vp.format))
             .collect();
         let pass_state = pass_targets.iter().map(|_| PassState::default()).collect();
         self.counters.instance_creations += 1;

@@ -15,7 +15,7 @@ use crate::common::*;
 use crate::reference::{delta_e_rms, gpu_and_reference};
 
 /// Sets slot `i` of a `clip.shapes` instance.
-pub(crate) fn shape(
+fn shape(
     c: &mut PluginInstance,
     i: usize,
     kind: &str,
@@ -30,7 +30,7 @@ pub(crate) fn shape(
     c.params.set(k.size, ParamValue::Vec3(size));
 }
 
-pub(crate) fn clip() -> PluginInstance {
+fn clip() -> PluginInstance {
     instance("clip.shapes")
 }
 
@@ -200,7 +200,7 @@ fn the_cut_is_lit_by_its_own_normal() {
 /// A block floating in front of a wall along the view (+z), n = 32; `with_block`
 /// false: the block's voxels removed; voxels from x = `x_end` on removed (the
 /// physically cropped phantoms).
-pub(crate) fn block_and_wall(with_block: bool, x_end: u32) -> Arc<Volume> {
+fn block_and_wall(with_block: bool, x_end: u32) -> Arc<Volume> {
     synthetic([32; 3], move |x, y, z| {
         let block =
             with_block && (10..22).contains(&x) && (10..22).contains(&y) && (5..10).contains(&z);
@@ -264,6 +264,12 @@ pub fn cut_through_matter(yaw: f32, with_dos: bool) -> f64 {
 /// z = 15/32 − 1/2 lies on a voxel boundary between the block and the wall.
 pub fn dos_consistency() -> (f64, f64) {
     let (tf, dos) = dos_stack();
+    block_removed_consistency(tf, dos)
+}
+
+/// [`dos_consistency`] for any shading instance after the TF `tf` (a light that
+/// must not see the clipped block either: `shade.hernell`).
+pub(crate) fn block_removed_consistency(tf: PluginInstance, dos: PluginInstance) -> (f64, f64) {
     let mut c = clip();
     shape(
         &mut c,

@@ -39,6 +39,7 @@ use vwb_render::params::{ParamSpec, ParamValues};
 use vwb_render::plugin::{
     CpuContext, CpuSample, CpuTwin, GpuInit, GpuResource, Plugin, PluginError, ResourceDecl,
     ResourceKind, ShaderSource, StackClassify, StorageFormat, Transparency, VolumePassDecl,
+    trilinear_grid,
 };
 
 #[cfg(test)]
@@ -313,28 +314,11 @@ pub struct Grid {
 
 impl Grid {
     pub fn at(&self, tex: DVec3) -> f64 {
-        let d = self.dims;
         if self.values.is_empty() {
             return 0.0;
         }
-        let mut i0 = [0usize; 3];
-        let mut i1 = [0usize; 3];
-        let mut t = [0.0f64; 3];
-        for a in 0..3 {
-            let n = d[a].max(1) as f64;
-            let x = (tex[a] * n - 0.5).clamp(0.0, n - 1.0);
-            let f = x.floor();
-            i0[a] = f as usize;
-            i1[a] = (i0[a] + 1).min(d[a].max(1) - 1);
-            t[a] = x - f;
-        }
-        let v = |x: usize, y: usize, z: usize| self.values[(z * d[1] + y) * d[0] + x];
-        let lerp = |a: f64, b: f64, t: f64| a + (b - a) * t;
-        let c00 = lerp(v(i0[0], i0[1], i0[2]), v(i1[0], i0[1], i0[2]), t[0]);
-        let c10 = lerp(v(i0[0], i1[1], i0[2]), v(i1[0], i1[1], i0[2]), t[0]);
-        let c01 = lerp(v(i0[0], i0[1], i1[2]), v(i1[0], i0[1], i1[2]), t[0]);
-        let c11 = lerp(v(i0[0], i1[1], i1[2]), v(i1[0], i1[1], i1[2]), t[0]);
-        lerp(lerp(c00, c10, t[1]), lerp(c01, c11, t[1]), t[2])
+        let dims = self.dims.map(|d| d as u32);
+        trilinear_grid(dims, tex, |i| DVec4::splat(self.values[i])).x
     }
 }
 
