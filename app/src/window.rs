@@ -1336,6 +1336,16 @@ impl Workbench {
             self.dirty = true;
             ui.ctx().request_repaint();
         }
+        if let Some(id) = self.texture {
+            ui.painter().image(
+                id,
+                rect,
+                egui::Rect::from_min_max(egui::pos2(0.0, 0.0), egui::pos2(1.0, 1.0)),
+                egui::Color32::WHITE,
+            );
+            self.shown += 1;
+        }
+        // progressive volume passes (global light): how far the refinement is
         if let Some((done, total)) = self.renderer.refinement_progress()
             && total > 1
         {
@@ -1356,15 +1366,6 @@ impl Workbench {
                 )
                 .selectable(false),
             );
-        }
-        if let Some(id) = self.texture {
-            ui.painter().image(
-                id,
-                rect,
-                egui::Rect::from_min_max(egui::pos2(0.0, 0.0), egui::pos2(1.0, 1.0)),
-                egui::Color32::WHITE,
-            );
-            self.shown += 1;
         }
         let hint = egui::Rect::from_min_size(
             rect.left_bottom() + egui::vec2(8.0, -22.0),
