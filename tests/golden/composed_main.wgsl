@@ -358,6 +358,31 @@ fn evaluate(s_in: Sample) -> Evaluated {
     return e;
 }
 
+// The stack's clip, sample and classify hooks at a volume texture coordinate, for
+// volume passes (light, occlusion): straight RGBA with α per Δs0, zero where clipped.
+// `dir` is the direction the pass integrates along (Sample.ray_dir); the step is one
+// voxel. Shading and soft clip edges (shade hooks) do not apply.
+// CPU twin: vwb_render::reference (`stack_classify`).
+fn stack_classify(tex: vec3<f32>, dir: vec3<f32>) -> vec4<f32> {
+    var s: Sample;
+    s.tex = tex;
+    s.pos = frame.box_min.xyz + tex * (frame.box_max.xyz - frame.box_min.xyz);
+    s.ray_dir = dir;
+    s.uv = vec2<f32>(0.0);
+    s.value = 0.0;
+    s.step = frame.box_min.w;
+    s.color = vec4<f32>(0.0);
+    s.normal = vec3<f32>(0.0);
+    s.slice = 0u;
+    clip_cut_gradient = vec4<f32>(0.0);
+    if (!run_clip(s)) {
+        return vec4<f32>(0.0);
+    }
+    s = run_sample(s);
+    s = run_classify(s);
+    return s.color;
+}
+
 fn make_sample(pos: vec3<f32>, ray_dir: vec3<f32>, uv: vec2<f32>, slice: u32) -> Sample {
     var s: Sample;
     s.pos = pos;
