@@ -296,6 +296,25 @@ fn ray_basis(view: &crate::camera::View) -> Mat4 {
 
 /// A hash of an instance's structural parameter values: what, beside its id, decides
 /// its code, resources and passes.
+/// Whether any of `keys` has another value in `now` than in `done`.
+fn params_changed(keys: &[&str], done: &ParamValues, now: &ParamValues) -> bool {
+    keys.iter().any(|k| done.get(k) != now.get(k))
+}
+
+/// Whether a volume pass must (re)start: it never ran, the stack upstream of it
+/// changed, or one of its `depends_on` parameters did.
+fn pass_stale(
+    st: &PassState,
+    decl: &crate::plugin::VolumePassDecl,
+    params: &ParamValues,
+    upstream: u64,
+) -> bool {
+    match &st.stamp {
+        None => true,
+        Some((done, hash)) => *hash != upstream || params_changed(&decl.depends_on, done, params),
+    }
+}
+
 /// Refinement steps of a volume pass under `params` (at least 1).
 fn pass_steps(decl: &crate::plugin::VolumePassDecl, params: &ParamValues) -> u32 {
     decl.steps
@@ -1537,7 +1556,7 @@ impl Renderer {
                     .get(uid)
                     .is_some_and(|g| match &g.prepass_done {
                         None => true,
-                        Some(done) => deps.iter().any(|k| done.get(k) != g.params.get(k)),
+                        Some(done) => params_changed(&deps, done, &g.params),
                     })
             })
             .map(|(i, _, _)| *i)
@@ -1640,11 +1659,8 @@ impl Renderer {
             let decl = &plugin.volume_passes()[cp.k];
             let st = &g.pass_state[cp.k];
             let total = pass_steps(decl, &g.params);
-            let fresh = st.stamp.as_ref().is_some_and(|(done, _)| {
-                decl.depends_on
-                    .iter()
-                    .all(|key| done.get(key) == g.params.get(key))
-            });
+            let upstream = self.upstream_hash(&p.stack, *uid);
+            let fresh = !pass_stale(st, decl, &g.params, upstream);
             let done = if fresh { st.steps_done.min(total) } else { 0 };
             let (d, t) = out.unwrap_or((0, 0));
             out = Some((d + done, t + total));
@@ -1704,17 +1720,7 @@ impl Renderer {
             let mut restart = false;
             for (k, decl) in decls.iter().enumerate().take(count) {
                 let st = &mut g.pass_state[k];
-                let stale = restart
-                    || match &st.stamp {
-                        None => true,
-                        Some((done, hash)) => {
-                            *hash != upstream
-                                || decl
-                                    .depends_on
-                                    .iter()
-                                    .any(|key| done.get(key) != g.params.get(key))
-                        }
-                    };
+                let stale = restart || pass_stale(st, decl, &g.params, upstream);
                 if stale {
                     restart = true;
                     st.stamp = Some((g.params.clone(), upstream));
