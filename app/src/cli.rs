@@ -57,7 +57,7 @@ pub enum Command {
     /// Render a preset headless to a PNG.
     #[command(after_help = crate::cli_help::RENDER)]
     Render(RenderArgs),
-    /// Write the region inside the preset's clip shapes (or --box) as NRRD.
+    /// Write the region inside the preset's clip shapes or clip mesh (or --box) as NRRD.
     #[command(after_help = crate::cli_help::CROP)]
     Crop(crate::crop::CropArgs),
     /// Render a preset on the GPU and compare it with the CPU reference, the converged

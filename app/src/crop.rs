@@ -1,8 +1,8 @@
 //! `vwb crop --preset P [--box x0,y0,z0,x1,y1,z1] -o sub.nhdr`: sub-volume extraction
 //! (Rezk-Salama 2001 §12.3's inner-ear case). Writes the voxels of the box — given in
 //! voxel indices (x1, y1, z1 exclusive), or else the bounding box of the voxels whose
-//! centres the preset's enabled `clip.shapes` instances keep (the camera slab is not
-//! considered: it depends on the view) — as a detached NRRD (`sub.nhdr` + `sub.raw`,
+//! centres the preset's enabled `clip.shapes` and `clip.mesh` instances keep (the
+//! camera slab is not considered: it depends on the view) — as a detached NRRD (`sub.nhdr` + `sub.raw`,
 //! both written atomically) with the source's type, its spacing, and the space origin
 //! of the first voxel: the source header's `space origin` (0 when it has none) plus the
 //! box's offset times the spacing (axis-aligned directions, as the loader assumes).
@@ -18,7 +18,7 @@ use vwb_render::volume::{Volume, VoxelData};
 #[derive(Debug, clap::Args)]
 pub struct CropArgs {
     /// Voxel box x0,y0,z0,x1,y1,z1 (the upper bounds exclusive); default: the bounding
-    /// box of the voxels the preset's clip.shapes instances keep.
+    /// box of the voxels the preset's clip.shapes and clip.mesh instances keep.
     #[arg(long = "box", value_parser = parse_box)]
     pub region: Option<[u32; 6]>,
     /// Output header (.nhdr); the samples go beside it (.raw).
@@ -48,12 +48,14 @@ pub fn run_crop(preset: Option<&Path>, a: &CropArgs) -> Result<()> {
     let volume = vwb_lab::headless::load_volume(&doc.volume)?;
     let b = match a.region {
         Some(b) => check_box(b, volume.dims)?,
-        None => kept_bounds(&volume, &doc.stack).with_context(|| {
-            format!(
-                "{}: no --box given and no enabled clip.shapes keeps a voxel",
-                preset.display()
-            )
-        })?,
+        None => kept_bounds(&volume, &doc.stack)
+            .with_context(|| preset.display().to_string())?
+            .with_context(|| {
+                format!(
+                    "{}: no --box given and no enabled clip.shapes or clip.mesh keeps a voxel",
+                    preset.display()
+                )
+            })?,
     };
     write_nhdr(&a.output, &volume, b)?;
     eprintln!(
@@ -83,24 +85,38 @@ pub fn check_box(b: [u32; 6], dims: [u32; 3]) -> Result<[u32; 6]> {
     Ok(b)
 }
 
-/// The bounding box of the voxels whose centres every enabled `clip.shapes` keeps,
-/// `None` when there is no such instance or no voxel is kept.
-pub fn kept_bounds(volume: &Volume, stack: &[PluginInstance]) -> Option<[u32; 6]> {
-    let regions: Vec<ClipRegion> = stack
-        .iter()
-        .filter(|i| i.enabled && i.plugin.id() == "clip.shapes")
-        .map(|i| ClipRegion {
-            slab: None,
-            ..ClipRegion::from_params(&i.params)
-        })
-        .collect();
-    if regions.is_empty() {
-        return None;
+/// The bounding box of the voxels whose centres every enabled `clip.shapes` and
+/// `clip.mesh` keeps, `None` when there is no such instance or no voxel is kept; an
+/// error when a mesh cannot be loaded.
+pub fn kept_bounds(volume: &Volume, stack: &[PluginInstance]) -> Result<Option<[u32; 6]>> {
+    let view = CpuView::default();
+    let mut kept: Vec<Box<dyn Fn(DVec3, DVec3) -> bool>> = Vec::new();
+    for i in stack.iter().filter(|i| i.enabled) {
+        match i.plugin.id() {
+            "clip.shapes" => {
+                let r = ClipRegion {
+                    slab: None,
+                    ..ClipRegion::from_params(&i.params)
+                };
+                kept.push(Box::new(move |p, _| r.sd(p, &view) <= 0.0));
+            }
+            "clip.mesh" => {
+                let grid = vwb_plugins::clip_mesh::grid_for(&i.params, volume)
+                    .map_err(|e| anyhow::anyhow!("clip.mesh: {e}"))?;
+                let outside = i.params.enumeration("keep") == "outside";
+                kept.push(Box::new(move |_, tex| {
+                    vwb_plugins::clip_mesh::kept_distance(&grid, tex, outside) <= 0.0
+                }));
+            }
+            _ => {}
+        }
+    }
+    if kept.is_empty() {
+        return Ok(None);
     }
     let vbox = vwb_render::slicing::VolumeBox::new(volume.dims, volume.spacing);
     let (lo, hi) = (vbox.min.as_dvec3(), vbox.max.as_dvec3());
     let d = volume.dims;
-    let view = CpuView::default();
     let mut b: Option<[u32; 6]> = None;
     for z in 0..d[2] {
         for y in 0..d[1] {
@@ -108,7 +124,7 @@ pub fn kept_bounds(volume: &Volume, stack: &[PluginInstance]) -> Option<[u32; 6]
                 let tex = (DVec3::new(x as f64, y as f64, z as f64) + 0.5)
                     / DVec3::from(d.map(f64::from));
                 let p = lo + (hi - lo) * tex;
-                if regions.iter().all(|r| r.sd(p, &view) <= 0.0) {
+                if kept.iter().all(|k| k(p, tex)) {
                     let e = b.get_or_insert([x, y, z, x + 1, y + 1, z + 1]);
                     for (a, v) in [x, y, z].into_iter().enumerate() {
                         e[a] = e[a].min(v);
@@ -118,7 +134,7 @@ pub fn kept_bounds(volume: &Volume, stack: &[PluginInstance]) -> Option<[u32; 6]
             }
         }
     }
-    b
+    Ok(b)
 }
 
 /// `space origin` of the volume's source NRRD header, if it has one.
@@ -266,11 +282,11 @@ mod tests {
         let v = ramp();
         let registry = vwb_plugins::builtin_registry();
         let mut clip = PluginInstance::new(registry.get("clip.shapes").unwrap());
-        assert_eq!(kept_bounds(&v, &[]), None);
+        assert_eq!(kept_bounds(&v, &[]).unwrap(), None);
         // the default plane keeps x ≤ 0: the world box is 3 × 5 × 8 scaled to longest
         // side 1, so x ≤ 0 holds the first three of six voxel columns
         assert_eq!(
-            kept_bounds(&v, std::slice::from_ref(&clip)),
+            kept_bounds(&v, std::slice::from_ref(&clip)).unwrap(),
             Some([0, 0, 0, 3, 5, 4])
         );
         // a small sphere around the centre voxel row
@@ -278,8 +294,22 @@ mod tests {
         clip.params.set(k.kind, ParamValue::Enum("sphere".into()));
         clip.params.set(k.size, ParamValue::Vec3([0.15, 0.0, 0.0]));
         assert_eq!(
-            kept_bounds(&v, std::slice::from_ref(&clip)),
+            kept_bounds(&v, std::slice::from_ref(&clip)).unwrap(),
             Some([2, 2, 1, 4, 3, 3])
         );
+        // the same sphere as a mesh: the same voxels
+        let mut mesh = PluginInstance::new(registry.get("clip.mesh").unwrap());
+        mesh.params.set("size", ParamValue::Vec3([0.15; 3]));
+        mesh.params.set("segments", ParamValue::Int(64));
+        assert_eq!(
+            kept_bounds(&v, std::slice::from_ref(&mesh)).unwrap(),
+            Some([2, 2, 1, 4, 3, 3])
+        );
+        // a mesh file that cannot be read is an error naming it
+        mesh.params.set("source", ParamValue::Enum("file".into()));
+        mesh.params
+            .set("file", ParamValue::Path("/nonexistent/cutter.stl".into()));
+        let e = kept_bounds(&v, &[mesh]).unwrap_err().to_string();
+        assert!(e.contains("cutter.stl"), "{e}");
     }
 }

@@ -6,6 +6,7 @@
 pub mod browser_ui;
 pub mod cli;
 pub mod cli_help;
+pub mod clip_handles;
 pub mod compare_ui;
 pub mod crop;
 pub mod data_cmd;

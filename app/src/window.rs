@@ -20,6 +20,7 @@ use std::sync::mpsc;
 
 use anyhow::{Context as _, Result, anyhow};
 use vwb_render::gpu::{self, GpuContext};
+use vwb_render::params::ParamValue;
 use vwb_render::plugin::{PluginInstance, Registry};
 use vwb_render::preset::{Document, VolumeSource};
 use vwb_render::renderer::{Backend, FrameSettings};
@@ -240,6 +241,8 @@ pub struct Workbench {
     texture: Option<egui::TextureId>,
     texture_size: [u32; 2],
     dirty: bool,
+    /// Clip handles to draw this frame (screen position, hovered or dragged).
+    handle_marks: Vec<(egui::Pos2, bool)>,
     frame_ms: Option<f64>,
     /// Per-pass GPU times of the last frame.
     passes: Vec<(String, f64)>,
@@ -320,6 +323,7 @@ impl Workbench {
             texture: None,
             texture_size: [0, 0],
             dirty: true,
+            handle_marks: Vec::new(),
             frame_ms: None,
             passes: Vec::new(),
             history: std::collections::VecDeque::new(),
@@ -626,18 +630,64 @@ impl Workbench {
     fn start_open_any(&mut self, path: &std::path::Path) {
         if path.extension().is_some_and(|e| e == "ron") {
             self.start_open(path)
+        } else if is_mesh_file(path) {
+            let outcome = self.open_mesh(path);
+            self.report(outcome);
         } else {
             self.start_open_volume(path)
         }
     }
 
-    /// Opens a preset (`.ron`) or a volume by its extension.
+    /// Opens a preset (`.ron`), a clipping mesh (`.obj`, `.ply`, `.stl`: see
+    /// [`Workbench::open_mesh`]) or a volume by its extension.
     pub fn open_any(&mut self, path: &std::path::Path) -> Result<String> {
         if path.extension().is_some_and(|e| e == "ron") {
             self.open(path)
+        } else if is_mesh_file(path) {
+            self.open_mesh(path)
         } else {
             self.open_volume(path)
         }
+    }
+
+    /// Clips by a mesh file (opened or dropped on the window): the first enabled
+    /// `clip.mesh` of the stack takes the file, or a new one is put at the top of the
+    /// stack. The mesh is checked first, so a mesh that is not closed is refused with
+    /// its first bad edge and the stack is left as it was.
+    pub fn open_mesh(&mut self, path: &std::path::Path) -> Result<String> {
+        let mut mesh = vwb_plugins::clip_mesh::mesh::load(path).map_err(anyhow::Error::msg)?;
+        let report = mesh
+            .check(&path.display().to_string())
+            .map_err(anyhow::Error::msg)?;
+        let index = match self
+            .doc
+            .stack
+            .iter()
+            .position(|i| i.enabled && i.plugin.id() == "clip.mesh")
+        {
+            Some(i) => i,
+            None => {
+                let plugin = self
+                    .registry
+                    .get("clip.mesh")
+                    .context("clip.mesh is not registered")?;
+                self.doc.stack.insert(0, PluginInstance::new(plugin));
+                0
+            }
+        };
+        let params = &mut self.doc.stack[index].params;
+        params.set("source", ParamValue::Enum("file".into()));
+        params.set("file", ParamValue::Path(path.to_path_buf()));
+        let mut note = format!(
+            "clipping by {} ({} triangles)",
+            path.display(),
+            mesh.triangles.len()
+        );
+        if let Some(w) = report.orientation {
+            note += &format!("; warning: {w}");
+        }
+        self.apply_stack();
+        Ok(note)
     }
 
     fn settings(&self, size: [u32; 2]) -> FrameSettings {
@@ -1068,13 +1118,17 @@ impl Workbench {
                     .id_salt("volume path"),
             )
             .on_hover_text(
-                "volume file (NRRD .nhdr/.nrrd, NIfTI .nii/.nii.gz, MetaImage .mhd/.mha) or a sample name such as ct_head (vwb data list)",
+                "volume file (NRRD .nhdr/.nrrd, NIfTI .nii/.nii.gz, MetaImage .mhd/.mha) or a sample name such as ct_head (vwb data list); a mesh (.obj, .ply, .stl) chosen with … or dropped on the window clips the volume (clip.mesh)",
             );
             if ui.button("Open volume").clicked() {
                 let path = PathBuf::from(self.volume_path.trim());
-                self.start_open_volume(&path);
+                self.start_open_any(&path);
             }
-            if ui.button("…").on_hover_text("choose a volume").clicked() {
+            if ui
+                .button("…")
+                .on_hover_text("choose a volume, or a mesh to clip by")
+                .clicked()
+            {
                 let mut d = egui_file::FileDialog::open_file()
                     .initial_path(start_folder(&self.volume_path, None))
                     .title("Open volume");
@@ -1185,7 +1239,8 @@ impl Workbench {
             if preset {
                 self.start_open(&path);
             } else {
-                self.start_open_volume(&path);
+                // a volume, or a mesh to clip by (.obj, .ply, .stl)
+                self.start_open_any(&path);
             }
         }
         let dropped = ctx.input(|i| i.raw.dropped_files.clone());
@@ -1252,6 +1307,64 @@ impl Workbench {
         Ok(format!("opened {}", path.display()))
     }
 
+    /// The clip handles' interaction (before the frame renders, so a drag shows at
+    /// once): moves a dragged centre; returns whether one is dragged and the screen
+    /// segments of the outline to draw (the hovered or dragged shape's).
+    fn clip_handles(
+        &mut self,
+        ui: &mut egui::Ui,
+        rect: egui::Rect,
+    ) -> (bool, Vec<[egui::Pos2; 2]>) {
+        use crate::clip_handles as ch;
+        let aspect = rect.width() / rect.height().max(1.0);
+        let view = self.doc.camera.view(aspect);
+        let vp = view.view_proj();
+        let volume = self.renderer.volume().clone();
+        let hs = ch::handles(&self.doc.stack, self.renderer.volume_box(), &view, &volume);
+        let mut dragged = false;
+        let mut outline = Vec::new();
+        for (i, h) in hs.iter().enumerate() {
+            let Some(pos) = ch::project(&vp, rect, h.center) else {
+                continue;
+            };
+            if !rect.contains(pos) {
+                continue;
+            }
+            let r = ui.interact(
+                egui::Rect::from_center_size(pos, egui::Vec2::splat(2.0 * ch::RADIUS)),
+                ui.scope_id().with(("clip handle", i)),
+                egui::Sense::drag(),
+            );
+            let label = h.label.clone();
+            r.widget_info(|| egui::WidgetInfo::labeled(egui::Role::Slider, true, label.clone()));
+            let r = r.on_hover_text(format!("{}: drag to move it in the image plane", h.label));
+            if r.dragged() {
+                let delta = r.drag_delta();
+                if delta != egui::Vec2::ZERO {
+                    ch::set_center(
+                        &mut self.doc.stack,
+                        h,
+                        ch::dragged(&vp, rect, h.center, delta),
+                    );
+                    self.apply_stack();
+                }
+                dragged = true;
+            }
+            let active = r.dragged() || r.hovered();
+            if active {
+                outline = h
+                    .outline
+                    .iter()
+                    .filter_map(|[a, b]| {
+                        Some([ch::project(&vp, rect, *a)?, ch::project(&vp, rect, *b)?])
+                    })
+                    .collect();
+            }
+            self.handle_marks.push((pos, active));
+        }
+        (dragged, outline)
+    }
+
     fn viewport(&mut self, ui: &mut egui::Ui, frame: &eframe::Frame) {
         let avail = ui.available_size();
         let (rect, response) = ui.allocate_exact_size(avail, egui::Sense::drag());
@@ -1293,8 +1406,10 @@ impl Workbench {
                 }
             }
         });
+        let (handle_dragged, outlines) = self.clip_handles(ui, rect);
         let ppp = ui.ctx().pixels_per_point();
         let moving = response.dragged()
+            || handle_dragged
             || (response.hovered() && ui.input(|i| i.smooth_scroll_delta.y != 0.0));
         let moving = moving || self.editing;
         let scale = if moving {
@@ -1344,6 +1459,27 @@ impl Workbench {
                 egui::Color32::WHITE,
             );
             self.shown += 1;
+        }
+        // the clip handles over the image, the outline of the one in hand
+        let painter = ui.painter_at(rect);
+        for seg in &outlines {
+            painter.line_segment(
+                *seg,
+                egui::Stroke::new(1.5, egui::Color32::from_rgb(255, 200, 60)),
+            );
+        }
+        for (pos, active) in std::mem::take(&mut self.handle_marks) {
+            let fill = if active {
+                egui::Color32::from_rgb(255, 200, 60)
+            } else {
+                egui::Color32::from_rgba_unmultiplied(255, 200, 60, 120)
+            };
+            painter.circle(
+                pos,
+                crate::clip_handles::RADIUS,
+                fill,
+                egui::Stroke::new(1.0, egui::Color32::BLACK),
+            );
         }
         // progressive volume passes (global light): how far the refinement is
         if let Some((done, total)) = self.renderer.refinement_progress()
@@ -1484,4 +1620,11 @@ impl eframe::App for Workbench {
         self.wgsl_window(&ctx);
         self.screenshot(&ctx);
     }
+}
+
+/// Whether `path` names a mesh file `clip.mesh` reads (by extension).
+fn is_mesh_file(path: &std::path::Path) -> bool {
+    path.extension()
+        .and_then(|e| e.to_str())
+        .is_some_and(|e| ["obj", "ply", "stl"].contains(&e.to_ascii_lowercase().as_str()))
 }

@@ -611,8 +611,8 @@ const GZIP_BALL: [u8; 53] = [
 
 const GZIP_HEADER: &[u8] = b"NRRD0004\ntype: uint8\ndimension: 3\nsizes: 8 8 8\nencoding: gzip\n\n";
 
-/// Bit flips, truncations and splices of valid NRRD files and presets: never a
-/// panic, every error names its file. A quick smoke here; `VWB_FUZZ_CASES=N cargo test
+/// Bit flips, truncations and splices of valid volume files (NRRD, NIfTI, MetaImage),
+/// presets and mesh files (OBJ, PLY, STL): never a panic, every error names its file. A quick smoke here; `VWB_FUZZ_CASES=N cargo test
 /// --test integration adversarial::fuzz -- --ignored --nocapture` runs more
 /// (docs/reliability.md).
 fn fuzz_run(cases: usize) -> FuzzCounts {
@@ -691,18 +691,32 @@ fn fuzz_run(cases: usize) -> FuzzCounts {
         ]
         .concat()
     };
+    // clip.mesh's files: a small closed box as OBJ, ASCII PLY and binary STL
+    let meshes: Vec<(Vec<u8>, &str)> = ["case.obj", "case.ply", "case.stl"]
+        .into_iter()
+        .map(|name| {
+            let p = d.join(format!("seed-{name}"));
+            let cube = vwb_plugins::clip_mesh::mesh::cube().map_positions(|p| p * 0.3);
+            vwb_plugins::clip_mesh::mesh::save(&cube, &p).unwrap();
+            (std::fs::read(&p).unwrap(), name)
+        })
+        .collect();
     let mut counts = FuzzCounts::default();
     for i in 0..cases {
-        // NRRD, preset, NIfTI, MetaImage in turn
-        let kind = i % 4;
-        let nrrd = kind != 1;
+        // NRRD, preset, NIfTI, MetaImage, mesh in turn
+        let kind = i % 5;
+        let nrrd = kind != 1 && kind != 4;
         let (seed, name) = match kind {
             0 => (&seeds_nrrd[(next() % 4) as usize], "case.nrrd"),
             1 => (&seeds_preset[(next() % 3) as usize], "case.ron"),
             2 if next() % 2 == 0 => (&nii, "case.nii"),
             2 => (&nii_gz, "case.nii.gz"),
-            _ if next() % 2 == 0 => (&mha, "case.mha"),
-            _ => (&mha_z, "case.mha"),
+            3 if next() % 2 == 0 => (&mha, "case.mha"),
+            3 => (&mha_z, "case.mha"),
+            _ => {
+                let (b, n) = &meshes[(next() % 3) as usize];
+                (b, *n)
+            }
         };
         let mut b = seed.clone();
         match next() % 4 {
@@ -730,7 +744,10 @@ fn fuzz_run(cases: usize) -> FuzzCounts {
         let path = d.join(name);
         std::fs::write(&path, &b).unwrap();
         let outcome = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-            if nrrd {
+            if kind == 4 {
+                use vwb_plugins::clip_mesh::mesh;
+                mesh::load(&path).and_then(|mut m| m.check(&path.display().to_string()).map(|_| ()))
+            } else if nrrd {
                 vwb_render::volume::load(&path)
                     .map(|_| ())
                     .map_err(|e| e.to_string())
@@ -770,8 +787,8 @@ fn fuzz_run(cases: usize) -> FuzzCounts {
 
 #[derive(Debug, Default)]
 struct FuzzCounts {
-    /// (cases, loaded, errors, panics) for NRRD, presets, NIfTI, MetaImage.
-    per_format: [(usize, usize, usize, usize); 4],
+    /// (cases, loaded, errors, panics) for NRRD, presets, NIfTI, MetaImage, meshes.
+    per_format: [(usize, usize, usize, usize); 5],
     cases: usize,
     loaded: usize,
     errors: usize,
@@ -814,7 +831,7 @@ fn fuzz() {
         c.unnamed.len(),
         c.header_blamed_for_gzip
     );
-    for (name, (cases, loaded, errors, panics)) in ["NRRD", "preset", "NIfTI", "MetaImage"]
+    for (name, (cases, loaded, errors, panics)) in ["NRRD", "preset", "NIfTI", "MetaImage", "mesh"]
         .iter()
         .zip(c.per_format)
     {

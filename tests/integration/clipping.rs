@@ -275,10 +275,22 @@ pub(crate) fn block_removed_consistency(tf: PluginInstance, dos: PluginInstance)
         &mut c,
         0,
         "plane",
-        [0.0, 0.0, 15.0 / 32.0 - 0.5],
+        [0.0, 0.0, BLOCK_CUT_Z],
         [0.0, 0.0, -1.0],
         [0.0; 3],
     );
+    block_removed_consistency_with(c, tf, dos)
+}
+
+/// The world z of the voxel boundary between the block and the wall (32³ phantom).
+pub(crate) const BLOCK_CUT_Z: f32 = 15.0 / 32.0 - 0.5;
+
+/// [`block_removed_consistency`] with any clip instance `c` that removes z < [`BLOCK_CUT_Z`].
+pub(crate) fn block_removed_consistency_with(
+    c: PluginInstance,
+    tf: PluginInstance,
+    dos: PluginInstance,
+) -> (f64, f64) {
     let s = ortho_axis(64, 64, Backend::Compute);
     let cropped = render_reference(
         &block_and_wall(false, 32),
@@ -536,19 +548,21 @@ fn clipping_benchmark() {
          ## Open\n\n\
          - Clipped-value substitution (VTK/Slicer style) is not implemented; the \
          Weiskopf layer is.\n\
-         - `clip.mesh` and the window handles are not built yet.\n\
+         - The window handles are not built yet (numeric fields only).\n\
+         - `clip.mesh` (closed OBJ/PLY/STL or generated meshes, voxelised into a \
+         signed-distance grid) has its own figures in docs/clip_mesh.md.\n\
          \n\
          ## Also\n\n\
          - `clip.labels`: hides or shows label ranges of a u8 or u16 label volume \
          (nearest voxel; a per-voxel mask baked on the CPU), preset \
          `presets/demo_clip_labels.ron`.\n\
          - `vwb crop --preset P [--box x0,y0,z0,x1,y1,z1] -o sub.nhdr`: the bounding box of \
-         the voxels the preset's `clip.shapes` keep (or the box; upper bounds exclusive) \
+         the voxels the preset's `clip.shapes` and `clip.mesh` keep (or the box; upper bounds exclusive) \
          as a detached NRRD with the source's type, spacing and `space origin` shifted \
          by the box's offset.\n\
          - Presets: `ct_clip_quadrant.ron` (cut-away octant, shading at the cut), \
          `mri_clip_sphere.ron` (sphere, soft edge), `ct_dos_clip.ron` (DOS with a clip \
-         plane).\n",
+         plane), `ct_clip_mesh.ron` (a ball cut away by a mesh file, shading at the cut).\n",
         machine = vwb_lab::measure::machine(),
         adapter = gpu().describe(),
     );

@@ -7,6 +7,7 @@
 mod adversarial;
 mod classification;
 mod cli;
+mod clip_mesh;
 mod clipping;
 mod common;
 mod composer;

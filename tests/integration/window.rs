@@ -773,6 +773,85 @@ fn window_drop_files_edit_the_2d_tf_and_compare() {
     assert!(h.state().recent().len() >= 2, "{:?}", h.state().recent());
 }
 
+/// A clip shape's handle over the viewport drags its centre in the image plane (the
+/// camera does not orbit), and the image follows.
+#[test]
+fn window_a_clip_handle_drags_the_shape() {
+    let doc = vwb_render::preset::Document::load(
+        &repo().join("presets/mri_clip_sphere.ron"),
+        &registry(),
+    )
+    .unwrap()
+    .document;
+    let mut h = window(doc, 0.25);
+    let key = vwb_plugins::clip_shapes::slot_keys()[0].center;
+    let center = |h: &Harness<'_, Workbench>| {
+        glam::Vec3::from(h.state().document().stack[1].params.vec3(key))
+    };
+    let (c0, camera, image0) = (center(&h), h.state().document().camera, image(&h));
+    let at = h
+        .get_by_label("clip.shapes shape 0 (sphere) centre")
+        .rect()
+        .center();
+    drag(&mut h, at, at + egui::vec2(60.0, 0.0), 4);
+    settle(&mut h);
+    let c1 = center(&h);
+    let view = camera.view(1.0);
+    eprintln!("centre {c0} → {c1}");
+    assert!((c1 - c0).length() > 0.02, "the centre moved");
+    assert!(
+        (c1 - c0).normalize().dot(view.right).abs() > 0.95,
+        "along the image's horizontal"
+    );
+    assert_eq!(
+        h.state().document().camera,
+        camera,
+        "the camera did not orbit"
+    );
+    assert!(rms(&image0, &image(&h)) > 1.0, "the cut moved in the image");
+}
+
+/// A mesh dropped on the window clips the volume (a `clip.mesh` takes the file); an
+/// open mesh is refused with its first bad edge and changes nothing.
+#[test]
+fn window_a_dropped_mesh_clips_the_volume() {
+    use vwb_plugins::clip_mesh::mesh;
+    let dir = crate::common::tmp("window-mesh");
+    std::fs::create_dir_all(&dir).unwrap();
+    let good = dir.join("ball.stl");
+    mesh::save(&mesh::sphere(32).map_positions(|p| p * 0.3), &good).unwrap();
+    let mut open = mesh::cube().map_positions(|p| p * 0.3);
+    open.triangles.pop();
+    let bad = dir.join("open.obj");
+    mesh::save(&open, &bad).unwrap();
+
+    let mut h = demo_window();
+    let before = (ids(&h), image(&h));
+    drop_file(&mut h, good.clone());
+    settle(&mut h);
+    assert!(
+        matches!(h.state().file_status(), Some(Ok(m)) if m.contains("ball.stl")),
+        "{:?}",
+        h.state().file_status()
+    );
+    let mut expected = vec!["clip.mesh"];
+    expected.extend(before.0.iter().copied());
+    assert_eq!(ids(&h), expected);
+    assert!(rms(&before.1, &image(&h)) > 1.0, "the mesh cuts the image");
+
+    drop_file(&mut h, bad);
+    let status = format!("{:?}", h.state().file_status());
+    assert!(
+        status.contains("open.obj") && status.contains("not closed"),
+        "{status}"
+    );
+    assert_eq!(ids(&h), expected, "the stack is unchanged");
+    assert_eq!(
+        h.state().document().stack[0].params.path("file"),
+        Some(good.as_path())
+    );
+}
+
 /// The file dialog (egui_file) opens on the presets folder and lists them; choosing
 /// one opens it; Cancel closes the dialog. egui_file's own path fields have no
 /// accessible names, so kittest's accessibility check is off here only.
