@@ -10,9 +10,9 @@ use vwb_plugins::clip_mesh::{self, mesh};
 use vwb_render::params::ParamValue;
 use vwb_render::{Backend, FrameSettings, PluginInstance, Renderer, TargetFormat, Volume};
 
-use crate::clipping::{BLOCK_CUT_Z, block_removed_consistency_with, dos_stack};
+use crate::clipping::{BLOCK_CUT_Z, block_removed_consistency_with, clip_twin_errors, dos_stack};
 use crate::common::*;
-use crate::reference::{delta_e_rms, gpu_and_reference};
+use crate::reference::delta_e_rms;
 
 pub fn mesh_clip(source: &str) -> PluginInstance {
     let mut c = instance("clip.mesh");
@@ -61,20 +61,7 @@ pub fn modes() -> Vec<(String, PluginInstance)> {
 
 /// ΔE*uv RMS of GPU against twin for each mode and backend, with Blinn–Phong shading.
 pub fn twin_errors() -> Vec<(String, Backend, f64)> {
-    let mut out = Vec::new();
-    for (label, c) in modes() {
-        let stack = vec![instance("classify.tf1d"), c, instance("shade.blinn_phong")];
-        for backend in [Backend::Compute, Backend::Raster] {
-            let s = settings(48, 48, backend);
-            let (px, reference) = gpu_and_reference(demo(), &stack, TargetFormat::Rgba32Float, &s);
-            assert!(
-                reference.iter().filter(|p| p[3] > 0.05).count() > 48 * 48 / 40,
-                "{label}: something is visible"
-            );
-            out.push((label.clone(), backend, delta_e_rms(&px, &reference, 48, 48)));
-        }
-    }
-    out
+    clip_twin_errors(modes())
 }
 
 #[test]
@@ -434,13 +421,22 @@ fn clip_mesh_benchmark() {
          ## Frame cost\n\n\
          `classify.tf1d` on the demo, compute, 128², least frame of 20 rounds × 3 \
          repetitions (stacks in turn): no clipping {t0:.2} ms; `clip.shapes` sphere \
-         {t1:.2} ms ({o1:+.1} %); `clip.mesh` sphere {t2:.2} ms ({o2:+.1} %).\n\n\
+         {t1:.2} ms ({o1:+.1} %); `clip.mesh` sphere {t2:.2} ms ({o2:+.1} %). The \
+         mesh's clip hook makes eight texel loads and a trilinear blend per sample \
+         (written out: a filtered sample in a clip hook crashes this lavapipe, see \
+         plugins/src/clip_mesh/mesh.wgsl) where the analytic sphere needs one distance; \
+         on a GPU one filtered sample would do. No GPU figure (no GPU on this machine).\n\n\
          ## The voxelised surface against the analytic sphere\n\n\
          A ball of radius 0.35 cut out of the demo (keep outside, shading at the cut, \
          Blinn–Phong), 96², rgba32float: ΔE*uv RMS of the GPU image with `clip.mesh` \
          against the f64 reference of `clip.shapes`' analytic sphere. Errors come from \
          the tessellation (segments), the grid (resolution) and f16 storage.\n\n\
          | segments | resolution | ΔE*uv RMS |\n|---|---|---|\n{accuracy}\n\
+         The tessellation dominates: an inscribed UV sphere lies inside the true one \
+         by up to its sagitta, so the error falls with the segments; the grid \
+         resolution matters once the facets are fine (the trilinear distance rounds \
+         the surface between texel centres). The default (48 segments, 1:1) is \
+         within 0.2 of the analytic cut.\n\n\
          ## GPU against the CPU twin\n\n\
          Demo volume, `classify.tf1d` + `clip.mesh` + `shade.blinn_phong`, 48², \
          rgba32float.\n\n\

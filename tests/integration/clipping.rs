@@ -135,8 +135,17 @@ fn modes() -> Vec<(String, PluginInstance)> {
 
 /// ΔE*uv RMS of GPU against twin for each mode and backend, with Blinn–Phong shading.
 fn twin_errors() -> Vec<(String, Backend, f64)> {
+    clip_twin_errors(modes())
+}
+
+/// ΔE*uv RMS of GPU against twin for each clip instance of `modes` (label, instance)
+/// on both backends: `classify.tf1d`, the clip and `shade.blinn_phong` on the demo at
+/// 48², rgba32float; something must stay visible.
+pub(crate) fn clip_twin_errors(
+    modes: Vec<(String, PluginInstance)>,
+) -> Vec<(String, Backend, f64)> {
     let mut out = Vec::new();
-    for (label, c) in modes() {
+    for (label, c) in modes {
         let stack = vec![instance("classify.tf1d"), c, instance("shade.blinn_phong")];
         for backend in [Backend::Compute, Backend::Raster] {
             let s = settings(48, 48, backend);
@@ -506,8 +515,8 @@ fn clipping_benchmark() {
          lookup per sample on the CPU, every plane adds ALU work on the same two cores, \
          and branches are masked (the clip hook's early return makes the whole \
          sample divergent). The kinds are structural, so slots that are off cost \
-         nothing. A GPU figure is open (no GPU on this machine). The machine is \
-         shared with other jobs (load average ≈ 4 on 2 cores while this ran), hence \
+         nothing. A GPU figure is open (no GPU on this machine). The machine may be \
+         shared with other jobs (load average {load} on 2 cores when this ended), hence \
          three repetitions, each interleaving the stacks frame by frame; their spread \
          is the last column, so only the trend is firm.\n\n\
          ## Skipping wholly clipped bricks\n\n\
@@ -548,7 +557,8 @@ fn clipping_benchmark() {
          ## Open\n\n\
          - Clipped-value substitution (VTK/Slicer style) is not implemented; the \
          Weiskopf layer is.\n\
-         - The window handles are not built yet (numeric fields only).\n\
+         - Window handles move the shapes' centres (dragged in the image plane, the \
+         outline drawn while hovered or dragged); axes and sizes are numeric fields.\n\
          - `clip.mesh` (closed OBJ/PLY/STL or generated meshes, voxelised into a \
          signed-distance grid) has its own figures in docs/clip_mesh.md.\n\
          \n\
@@ -565,6 +575,10 @@ fn clipping_benchmark() {
          plane), `ct_clip_mesh.ron` (a ball cut away by a mesh file, shading at the cut).\n",
         machine = vwb_lab::measure::machine(),
         adapter = gpu().describe(),
+        load = std::fs::read_to_string("/proc/loadavg")
+            .ok()
+            .and_then(|l| l.split_whitespace().next().map(str::to_string))
+            .unwrap_or_else(|| "unknown".into()),
     );
     vwb_render::preset::write_atomic(&repo().join("docs/clipping.md"), md.as_bytes()).unwrap();
     eprintln!("{md}");

@@ -57,7 +57,6 @@ pub const SOURCES: [&str; 4] = ["sphere", "box", "torus", "file"];
 pub const UNITS: [&str; 3] = ["world", "voxels", "mm"];
 pub const KEEP: [&str; 2] = ["inside", "outside"];
 pub const RESOLUTIONS: [&str; 4] = ["1:4", "1:2", "1:1", "2:1"];
-pub const CUT_SHADING: [&str; 2] = ["off", "clip_normal"];
 /// Largest grid along an axis.
 pub const MAX_GRID: u32 = 512;
 
@@ -336,16 +335,11 @@ impl Plugin for ClipMesh {
             ParamSpec::enumeration("resolution", "Grid resolution", &RESOLUTIONS, 2)
                 .structural()
                 .with_doc("voxelisation grid against the data's dims"),
-            ParamSpec::float("soft_edge", "Soft edge (voxels)", 0.0, 4.0, 0.0)
-                .with_doc("α ramps from 0 at the cut to full over this width inside"),
-            ParamSpec::enumeration("cut_shading", "Shading at the cut", &CUT_SHADING, 0)
-                .structural()
-                .with_doc(
-                    "clip_normal: within the layer behind the cut, the mesh's normal replaces the data gradient of the shading plugins (Weiskopf, Engel & Ertl 2003)",
-                ),
-            ParamSpec::float("cut_layer", "Cut layer (voxels)", 0.0, 4.0, 2.0)
-                .with_doc("width of the layer behind the cut that is shaded with the cut's normal"),
         ]
+        .into_iter()
+        // within the band of exact distances
+        .chain(crate::clip_shapes::cut_params(voxelize::BAND as f32))
+        .collect()
     }
     fn shader(&self) -> ShaderSource {
         ShaderSource {

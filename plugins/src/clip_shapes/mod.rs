@@ -131,6 +131,22 @@ fn shade_cut(p: vec3<f32>, d: f32) {
 "
 }
 
+/// The soft edge and the shading at the cut (`soft_edge`, `cut_shading`, `cut_layer`),
+/// widths up to `max_voxels`; shared by the clip plugins.
+pub fn cut_params(max_voxels: f32) -> [ParamSpec; 3] {
+    [
+        ParamSpec::float("soft_edge", "Soft edge (voxels)", 0.0, max_voxels, 0.0)
+            .with_doc("α ramps from 0 at the cut to full over this width inside"),
+        ParamSpec::enumeration("cut_shading", "Shading at the cut", &CUT_SHADING, 0)
+            .structural()
+            .with_doc(
+                "clip_normal: within the layer behind the cut, the cut's normal replaces the data gradient of the shading plugins (Weiskopf, Engel & Ertl 2003)",
+            ),
+        ParamSpec::float("cut_layer", "Cut layer (voxels)", 0.0, max_voxels, 2.0)
+            .with_doc("width of the layer behind the cut that is shaded with the cut's normal"),
+    ]
+}
+
 /// The plugin as its structural parameters configure it: each slot's kind (an index
 /// into [`KINDS`]) and whether the cut is shaded.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -181,15 +197,6 @@ impl Plugin for Shapes {
                 .with_doc(
                     "keep what is inside every shape (intersection), inside any (union) or outside all (complement)",
                 ),
-            ParamSpec::float("soft_edge", "Soft edge (voxels)", 0.0, 16.0, 0.0)
-                .with_doc("α ramps from 0 at the cut to full over this width inside"),
-            ParamSpec::enumeration("cut_shading", "Shading at the cut", &CUT_SHADING, 0)
-                .structural()
-                .with_doc(
-                    "clip_normal: within the layer behind the cut, the cut's normal replaces the data gradient of the shading plugins (Weiskopf, Engel & Ertl 2003)",
-                ),
-            ParamSpec::float("cut_layer", "Cut layer (voxels)", 0.0, 16.0, 2.0)
-                .with_doc("width of the layer behind the cut that is shaded with the cut's normal"),
             ParamSpec::boolean("follow_camera", "Follow the camera", false)
                 .with_doc("keep only a slab in front of the eye along the view direction"),
             ParamSpec::float("camera_near", "Slab near (world)", 0.0, 10.0, 1.5)
@@ -197,6 +204,7 @@ impl Plugin for Shapes {
             ParamSpec::float("camera_thickness", "Slab thickness (world)", 0.0, 10.0, 0.0)
                 .with_doc("0: no far side"),
         ];
+        p.splice(1..1, cut_params(16.0));
         for (i, (k, l)) in slot_keys().iter().zip(slot_labels()).enumerate() {
             p.extend([
                 ParamSpec::enumeration(k.kind, l[0], &KINDS, usize::from(i == 0))
