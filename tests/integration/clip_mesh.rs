@@ -35,7 +35,7 @@ pub fn modes() -> Vec<(String, PluginInstance)> {
         .params
         .set("resolution", ParamValue::Enum("1:2".into()));
     out.push(("ellipsoid at 1:2".to_string(), coarse));
-    for cut in ["off", "clip_normal"] {
+    for cut in ["off", "clip_normal", "substitute"] {
         let mut torus = mesh_clip("torus");
         torus.params.set("keep", ParamValue::Enum("outside".into()));
         torus.params.set("size", ParamValue::Vec3([0.3, 0.3, 0.3]));

@@ -44,6 +44,8 @@ use vwb_render::shading::{safe_normalize, set_cut_gradient};
 use vwb_render::slicing::VolumeBox;
 use vwb_render::volume::Volume;
 
+use crate::clip_shapes::cut::{CutShading, SubstituteTwin, substitute_wgsl};
+
 pub mod mesh;
 pub mod voxelize;
 
@@ -272,18 +274,18 @@ fn write_grid(queue: &wgpu::Queue, texture: &wgpu::Texture, grid: &SdfGrid, key:
 /// The plugin as its structural parameter `cut_shading` configures it.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct ClipMesh {
-    /// Shading at the cut on (`cut_shading = clip_normal`).
-    pub cut: bool,
+    /// How the cut is shaded.
+    pub cut: CutShading,
 }
 
 /// The generated `mesh_cut(tex, d)`: within the layer behind the cut, the cut's normal
 /// (−∇sd in world space, central differences half a grid voxel apart) replaces the
-/// data gradient; empty when off.
-fn cut_wgsl(cut: bool) -> &'static str {
-    if !cut {
-        return "\nfn mesh_cut(tex: vec3<f32>, d: f32) {}\n";
-    }
-    "
+/// data gradient; or clipped-value substitution within the stencil's reach of the cut;
+/// empty when off.
+fn cut_wgsl(cut: CutShading) -> String {
+    match cut {
+        CutShading::Off => "\nfn mesh_cut(tex: vec3<f32>, d: f32) {}\n".into(),
+        CutShading::ClipNormal => "
 fn mesh_cut(tex: vec3<f32>, d: f32) {
     if (-d < params.cut_layer * frame.box_min.w) {
         let h = 0.5 / vec3<f32>(textureDimensions(sdf));
@@ -297,6 +299,18 @@ fn mesh_cut(tex: vec3<f32>, d: f32) {
     }
 }
 "
+        .into(),
+        CutShading::Substitute => {
+            substitute_wgsl("mesh_sd(q) > 0.0")
+                + "
+fn mesh_cut(tex: vec3<f32>, d: f32) {
+    if (-d < substitute_reach()) {
+        substitute_cut(tex);
+    }
+}
+"
+        }
+    }
 }
 
 impl Plugin for ClipMesh {
@@ -338,7 +352,7 @@ impl Plugin for ClipMesh {
         ]
         .into_iter()
         // within the band of exact distances
-        .chain(crate::clip_shapes::cut_params(voxelize::BAND as f32))
+        .chain(crate::clip_shapes::cut::cut_params(voxelize::BAND as f32))
         .collect()
     }
     fn shader(&self) -> ShaderSource {
@@ -349,7 +363,7 @@ impl Plugin for ClipMesh {
     }
     fn configure(&self, params: &ParamValues) -> Option<Arc<dyn Plugin>> {
         let configured = ClipMesh {
-            cut: params.enumeration("cut_shading") == "clip_normal",
+            cut: CutShading::from_params(params),
         };
         (configured != *self).then(|| Arc::new(configured) as Arc<dyn Plugin>)
     }
@@ -416,8 +430,10 @@ impl Plugin for ClipMesh {
             grid: None,
             keep_outside: params.enumeration("keep") == "outside",
             soft_edge: params.float("soft_edge") as f64,
-            cut_layer: (params.enumeration("cut_shading") == "clip_normal")
+            cut_layer: (CutShading::from_params(params) == CutShading::ClipNormal)
                 .then(|| params.float("cut_layer") as f64),
+            substitute: (CutShading::from_params(params) == CutShading::Substitute)
+                .then(|| SubstituteTwin::new(params)),
             step: 1.0,
             extent: DVec3::ONE,
         }))
@@ -432,6 +448,7 @@ pub struct ClipMeshTwin {
     keep_outside: bool,
     soft_edge: f64,
     cut_layer: Option<f64>,
+    substitute: Option<SubstituteTwin>,
     /// Δs0 (world).
     step: f64,
     /// The volume box's size (world).
@@ -458,6 +475,9 @@ impl CpuTwin for ClipMeshTwin {
         self.step = ctx.reference_step();
         let (lo, hi) = ctx.volume_box();
         self.extent = hi - lo;
+        if let Some(sub) = &mut self.substitute {
+            sub.prepare(ctx);
+        }
     }
     fn clip(&self, s: &CpuSample) -> bool {
         let Some(grid) = &self.grid else {
@@ -479,6 +499,11 @@ impl CpuTwin for ClipMeshTwin {
                 diff(DVec3::Z * h.z) / w.z,
             );
             set_cut_gradient(Some(-safe_normalize(g)));
+        }
+        if let Some(sub) = &self.substitute
+            && -d < sub.reach()
+        {
+            set_cut_gradient(Some(sub.gradient(s.tex, |q| self.sd(grid, q) > 0.0)));
         }
         true
     }

@@ -20,6 +20,8 @@
 //!   apart); every shading plugin's `gradient_at` returns it there
 //!   (`vwb_render::shading::cut_gradient` on the CPU), so the cut is lit as a surface
 //!   instead of by the noisy data gradient.
+//! - Clipped-value substitution (`cut_shading = substitute`, VTK/Slicer style): inside
+//!   the gradient stencil, clipped positions take `substitute_value` ([`cut`]).
 //! - Follow the camera: keeps only depths along the view direction in
 //!   [near, near + thickness] (thickness 0: no far side).
 //!
@@ -39,15 +41,17 @@ use vwb_render::shading::{safe_normalize, set_cut_gradient};
 
 use crate::static_str;
 
+pub mod cut;
 #[cfg(test)]
 mod tests;
+
+pub use cut::{CUT_SHADING, CutShading, cut_params};
 
 /// Primitive slots.
 pub const SLOTS: usize = 16;
 
 pub const KINDS: [&str; 5] = ["off", "plane", "box", "sphere", "cylinder"];
 pub const COMBINE: [&str; 3] = ["intersection", "union", "complement"];
-pub const CUT_SHADING: [&str; 2] = ["off", "clip_normal"];
 
 /// The keys of one slot: kind, center, axis, size, invert.
 #[derive(Debug, Clone, Copy)]
@@ -111,12 +115,12 @@ fn slots_wgsl(kinds: &[u8; SLOTS]) -> String {
 
 /// The generated `shade_cut(p, d)`: Weiskopf, Engel & Ertl 2003 — within the layer
 /// behind the cut, the cut's normal (−∇sd, unit length: a full step per voxel, central
-/// differences half a voxel apart) replaces the data gradient; empty when off.
-fn cut_wgsl(cut: bool) -> &'static str {
-    if !cut {
-        return "\nfn shade_cut(p: vec3<f32>, d: f32) {}\n";
-    }
-    "
+/// differences half a voxel apart) replaces the data gradient; or clipped-value
+/// substitution within the stencil's reach of the cut ([`cut`]); empty when off.
+fn cut_wgsl(cut: CutShading) -> String {
+    match cut {
+        CutShading::Off => "\nfn shade_cut(p: vec3<f32>, d: f32) {}\n".into(),
+        CutShading::ClipNormal => "
 fn shade_cut(p: vec3<f32>, d: f32) {
     if (-d < params.cut_layer * frame.box_min.w) {
         let h = 0.5 * frame.box_min.w;
@@ -129,22 +133,19 @@ fn shade_cut(p: vec3<f32>, d: f32) {
     }
 }
 "
+        .into(),
+        CutShading::Substitute => {
+            cut::substitute_wgsl(
+                "clip_sd(frame.box_min.xyz + q * (frame.box_max.xyz - frame.box_min.xyz)) > 0.0",
+            ) + "
+fn shade_cut(p: vec3<f32>, d: f32) {
+    if (-d < substitute_reach()) {
+        substitute_cut((p - frame.box_min.xyz) / (frame.box_max.xyz - frame.box_min.xyz));
+    }
 }
-
-/// The soft edge and the shading at the cut (`soft_edge`, `cut_shading`, `cut_layer`),
-/// widths up to `max_voxels`; shared by the clip plugins.
-pub fn cut_params(max_voxels: f32) -> [ParamSpec; 3] {
-    [
-        ParamSpec::float("soft_edge", "Soft edge (voxels)", 0.0, max_voxels, 0.0)
-            .with_doc("α ramps from 0 at the cut to full over this width inside"),
-        ParamSpec::enumeration("cut_shading", "Shading at the cut", &CUT_SHADING, 0)
-            .structural()
-            .with_doc(
-                "clip_normal: within the layer behind the cut, the cut's normal replaces the data gradient of the shading plugins (Weiskopf, Engel & Ertl 2003)",
-            ),
-        ParamSpec::float("cut_layer", "Cut layer (voxels)", 0.0, max_voxels, 2.0)
-            .with_doc("width of the layer behind the cut that is shaded with the cut's normal"),
-    ]
+"
+        }
+    }
 }
 
 /// The plugin as its structural parameters configure it: each slot's kind (an index
@@ -152,8 +153,8 @@ pub fn cut_params(max_voxels: f32) -> [ParamSpec; 3] {
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Shapes {
     pub kinds: [u8; SLOTS],
-    /// Shading at the cut on (`cut_shading = clip_normal`).
-    pub cut: bool,
+    /// How the cut is shaded (`cut_shading`).
+    pub cut: CutShading,
 }
 
 impl Default for Shapes {
@@ -161,7 +162,10 @@ impl Default for Shapes {
     fn default() -> Self {
         let mut kinds = [0; SLOTS];
         kinds[0] = 1;
-        Self { kinds, cut: false }
+        Self {
+            kinds,
+            cut: CutShading::Off,
+        }
     }
 }
 
@@ -175,7 +179,7 @@ impl Shapes {
     pub fn for_params(p: &ParamValues) -> Self {
         Self {
             kinds: std::array::from_fn(|i| option_index(&KINDS, p.enumeration(slot_keys()[i].kind)) as u8),
-            cut: p.enumeration("cut_shading") == "clip_normal",
+            cut: CutShading::from_params(p),
         }
     }
 }
@@ -394,11 +398,16 @@ impl ClipRegion {
 pub struct ShapesTwin {
     pub region: ClipRegion,
     pub soft_edge: f64,
-    /// The layer width in voxels, when shading at the cut is on.
+    /// The layer width in voxels, when the cut is shaded by its normal.
     pub cut_layer: Option<f64>,
+    /// Clipped-value substitution, when on.
+    pub substitute: Option<cut::SubstituteTwin>,
     view: CpuView,
     /// Δs0 of the frame.
     voxel: f64,
+    /// The volume box (world).
+    lo: DVec3,
+    hi: DVec3,
 }
 
 impl ShapesTwin {
@@ -406,10 +415,14 @@ impl ShapesTwin {
         Self {
             region: ClipRegion::from_params(p),
             soft_edge: p.float("soft_edge") as f64,
-            cut_layer: (p.enumeration("cut_shading") == "clip_normal")
+            cut_layer: (CutShading::from_params(p) == CutShading::ClipNormal)
                 .then(|| p.float("cut_layer") as f64),
+            substitute: (CutShading::from_params(p) == CutShading::Substitute)
+                .then(|| cut::SubstituteTwin::new(p)),
             view: CpuView::default(),
             voxel: 1.0,
+            lo: DVec3::splat(-0.5),
+            hi: DVec3::splat(0.5),
         }
     }
 }
@@ -418,6 +431,10 @@ impl CpuTwin for ShapesTwin {
     fn prepare(&mut self, ctx: &CpuContext) {
         self.view = ctx.view;
         self.voxel = ctx.reference_step();
+        (self.lo, self.hi) = ctx.volume_box();
+        if let Some(sub) = &mut self.substitute {
+            sub.prepare(ctx);
+        }
     }
     fn clip(&self, s: &CpuSample) -> bool {
         let d = self.region.sd(s.pos, &self.view);
@@ -432,6 +449,15 @@ impl CpuTwin for ShapesTwin {
                 &self.view,
                 0.5 * self.voxel,
             )));
+        }
+        if let Some(sub) = &self.substitute
+            && -d < sub.reach()
+        {
+            let (lo, hi) = (self.lo, self.hi);
+            let tex = (s.pos - lo) / (hi - lo);
+            set_cut_gradient(Some(sub.gradient(tex, |q| {
+                self.region.sd(lo + q * (hi - lo), &self.view) > 0.0
+            })));
         }
         true
     }
