@@ -646,7 +646,9 @@ fn clipping_benchmark() {
          by the box's offset.\n\
          - Presets: `ct_clip_quadrant.ron` (cut-away octant, shading at the cut), \
          `mri_clip_sphere.ron` (sphere, soft edge), `ct_dos_clip.ron` (DOS with a clip \
-         plane), `ct_clip_mesh.ron` (a ball cut away by a mesh file, shading at the cut).\n",
+         plane), `ct_clip_mesh.ron` (a ball cut away by a mesh file, shading at the cut), \
+         `nuclei_clip_labels.ron` (the five largest nuclei hidden by their labels, \
+         `presets/data/nuclei_labels.nrrd` from `bench/make_nuclei_labels.py`).\n",
         machine = vwb_lab::measure::machine(),
         adapter = gpu().describe(),
         load = std::fs::read_to_string("/proc/loadavg")
