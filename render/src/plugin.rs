@@ -679,6 +679,17 @@ pub trait Plugin: Send + Sync + 'static {
     fn transparency(&self, _params: &ParamValues) -> Transparency {
         Transparency::Unknown
     }
+    /// The region of world space outside which it drops every sample, over `volume`
+    /// (bricks wholly outside are skipped): by default that of
+    /// [`Transparency::Region`]; a plugin whose region depends on the volume (a mesh
+    /// voxelised over the volume box) answers here and promises
+    /// [`Transparency::Keeps`].
+    fn region(&self, params: &ParamValues, _volume: &Volume) -> Option<Arc<RegionFn>> {
+        match self.transparency(params) {
+            Transparency::Region(f) => Some(f),
+            _ => None,
+        }
+    }
     /// The plugin as its structural parameters configure it, where they change its
     /// code, resources, pre-pass or state (e.g. a classification mode). The returned
     /// plugin has the same id and parameters; `None` (the default) means `self`.

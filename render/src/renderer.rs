@@ -723,7 +723,7 @@ impl Renderer {
             self.bricks.dims,
             self.volume.dims,
             (self.vbox.min.as_dvec3(), self.vbox.max.as_dvec3()),
-            &stack_regions(stack),
+            &stack_regions(stack, &self.volume),
         );
         Some(bytes)
     }

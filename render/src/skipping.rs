@@ -107,16 +107,16 @@ pub fn visible_by_table(visible: Vec<bool>) -> Transparency {
     }))
 }
 
-/// The regions of the enabled instances that drop samples outside them
-/// ([`Transparency::Region`]).
-pub fn stack_regions(stack: &[PluginInstance]) -> Vec<Arc<RegionFn>> {
+/// The regions of the enabled instances that drop samples outside them, over
+/// `volume` ([`crate::plugin::Plugin::region`]).
+pub fn stack_regions(
+    stack: &[PluginInstance],
+    volume: &crate::volume::Volume,
+) -> Vec<Arc<RegionFn>> {
     stack
         .iter()
         .filter(|i| i.enabled)
-        .filter_map(|i| match i.configured().transparency(&i.params) {
-            Transparency::Region(f) => Some(f),
-            _ => None,
-        })
+        .filter_map(|i| i.configured().region(&i.params, volume))
         .collect()
 }
 

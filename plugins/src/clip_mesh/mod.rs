@@ -37,8 +37,8 @@ use std::sync::{Arc, Mutex, OnceLock};
 use glam::{DMat3, DVec3};
 use vwb_render::params::{ParamSpec, ParamValues};
 use vwb_render::plugin::{
-    CpuContext, CpuSample, CpuTwin, GpuInit, GpuResource, Plugin, PluginError, ResourceDecl,
-    ResourceKind, ShaderSource, Transparency, trilinear_grid,
+    CpuContext, CpuSample, CpuTwin, GpuInit, GpuResource, Plugin, PluginError, RegionFn,
+    ResourceDecl, ResourceKind, ShaderSource, Transparency, trilinear_grid,
 };
 use vwb_render::shading::{safe_normalize, set_cut_gradient};
 use vwb_render::slicing::VolumeBox;
@@ -420,9 +420,23 @@ impl Plugin for ClipMesh {
         }
         Ok(())
     }
-    /// Keeps transparent samples transparent (a clip hook only removes samples).
+    /// Keeps transparent samples transparent (a clip hook only removes samples); the
+    /// region it keeps depends on the volume ([`Plugin::region`]).
     fn transparency(&self, _params: &ParamValues) -> Transparency {
         Transparency::Keeps
+    }
+    /// The world boxes some point of which the grid keeps: a trilinear value is a
+    /// convex blend of its eight texels, so a box none of whose texels (those any
+    /// point in it blends) is kept keeps nothing. `None` (no skipping) when the mesh
+    /// cannot be voxelised.
+    fn region(&self, params: &ParamValues, volume: &Volume) -> Option<Arc<RegionFn>> {
+        let grid = grid_for(params, volume).ok()?;
+        let outside = params.enumeration("keep") == "outside";
+        let vbox = VolumeBox::new(volume.dims, volume.spacing);
+        let (lo, hi) = (vbox.min.as_dvec3(), vbox.max.as_dvec3());
+        Some(Arc::new(move |a: DVec3, z: DVec3| {
+            may_keep_box(&grid, outside, (lo, hi), a, z)
+        }))
     }
     fn cpu_twin(&self, params: &ParamValues) -> Option<Box<dyn CpuTwin>> {
         Some(Box::new(ClipMeshTwin {
@@ -453,6 +467,38 @@ pub struct ClipMeshTwin {
     step: f64,
     /// The volume box's size (world).
     extent: DVec3,
+}
+
+/// Whether some point of the world box (`a`, `z`) can be kept by `grid` over the
+/// volume box `(lo, hi)`: whether one of the texels any point of the box blends has a
+/// kept distance ≤ 0.
+pub fn may_keep_box(
+    grid: &SdfGrid,
+    keep_outside: bool,
+    (lo, hi): (DVec3, DVec3),
+    a: DVec3,
+    z: DVec3,
+) -> bool {
+    let n = grid.dims.map(|d| d.max(1) as i64);
+    let range = |axis: usize| {
+        let cell = (hi[axis] - lo[axis]) / n[axis] as f64;
+        let at = |p: f64| ((p - lo[axis]) / cell - 0.5).floor() as i64;
+        let first = at(a[axis]).clamp(0, n[axis] - 1);
+        let last = (at(z[axis]) + 1).clamp(0, n[axis] - 1);
+        first..=last
+    };
+    let (rx, ry, rz) = (range(0), range(1), range(2));
+    for k in rz {
+        for j in ry.clone() {
+            for i in rx.clone() {
+                let v = grid.values[((k * n[1] + j) * n[0] + i) as usize];
+                if (if keep_outside { -v } else { v }) <= 0.0 {
+                    return true;
+                }
+            }
+        }
+    }
+    false
 }
 
 /// The grid's signed distance at texture coordinate `tex` in Δs0, ≤ 0 where kept

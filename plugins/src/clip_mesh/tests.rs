@@ -234,3 +234,18 @@ fn file_units_place_the_mesh_over_the_volume() {
     let _ = std::fs::remove_dir_all(dir);
 }
 
+
+#[test]
+fn boxes_outside_the_kept_region_are_reported_empty() {
+    let n = 16u32;
+    let (lo, hi) = (DVec3::splat(-0.5), DVec3::splat(0.5));
+    let g = voxelize(&mesh::cube().map_positions(|p| p * 0.2), lo, hi, [n; 3], 1.0 / n as f64);
+    let corner = (DVec3::splat(0.35), DVec3::splat(0.5));
+    let straddles = (DVec3::splat(0.1), DVec3::splat(0.3));
+    // keep the inside: the corner box holds nothing, a box across the face does
+    assert!(!may_keep_box(&g, false, (lo, hi), corner.0, corner.1));
+    assert!(may_keep_box(&g, false, (lo, hi), straddles.0, straddles.1));
+    // keep the outside: the centre holds nothing
+    assert!(!may_keep_box(&g, true, (lo, hi), DVec3::splat(-0.05), DVec3::splat(0.05)));
+    assert!(may_keep_box(&g, true, (lo, hi), corner.0, corner.1));
+}
