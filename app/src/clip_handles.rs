@@ -1,7 +1,8 @@
 //! Drag handles for clip shapes over the viewport: a handle at the centre of every
 //! active `clip.shapes` primitive and of every `clip.mesh`, dragged in the plane facing
-//! the camera through the centre, with the shape's outline drawn while it is hovered
-//! or dragged (a plane's cut through the volume box, a sphere's silhouette circle, a
+//! the camera through the centre; an axis handle (planes, boxes, cylinders) that turns
+//! the normal or axis towards the pointer, and a radius handle (spheres, cylinders);
+//! the shape's outline is drawn while a handle is hovered or dragged (a plane's cut through the volume box, a sphere's silhouette circle, a
 //! box's and a cylinder's edges, a mesh's bounding box). The numeric fields of the
 //! stack stay the exact way in; a handle writes the same `…center` parameter.
 
@@ -20,11 +21,31 @@ pub const RADIUS: f32 = 7.0;
 #[derive(Debug, Clone, PartialEq)]
 pub struct Handle {
     pub instance: usize,
+    /// The parameter it writes.
     pub key: &'static str,
+    pub kind: HandleKind,
+    /// Where it is drawn (world).
+    pub at: Vec3,
+    /// The shape's centre (world).
     pub center: Vec3,
     pub label: String,
     pub outline: Vec<[Vec3; 2]>,
 }
+
+/// What dragging a handle changes.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum HandleKind {
+    /// The centre (`…center`) follows the pointer.
+    Center,
+    /// The axis (`…axis`: a plane's normal, a box's or cylinder's z) points from the
+    /// centre to the pointer.
+    Axis,
+    /// The radius (`…size`, x; y and z kept) is the pointer's distance from the centre.
+    Radius { size: Vec3 },
+}
+
+/// How far from the centre an axis handle is drawn (world).
+pub const AXIS_LENGTH: f32 = 0.15;
 
 fn vec3(p: &PluginInstance, key: &str) -> Vec3 {
     Vec3::from(p.params.vec3(key))
@@ -101,13 +122,34 @@ pub fn handles(
                             e
                         }
                     };
-                    out.push(Handle {
+                    let base = Handle {
                         instance: index,
                         key: k.center,
+                        kind: HandleKind::Center,
+                        at: c,
                         center: c,
                         label: format!("clip.shapes shape {slot} ({kind}) centre"),
                         outline,
-                    });
+                    };
+                    if kind != "sphere" {
+                        out.push(Handle {
+                            key: k.axis,
+                            kind: HandleKind::Axis,
+                            at: c + a * AXIS_LENGTH,
+                            label: format!("clip.shapes shape {slot} ({kind}) axis"),
+                            ..base.clone()
+                        });
+                    }
+                    if kind == "sphere" || kind == "cylinder" {
+                        out.push(Handle {
+                            key: k.size,
+                            kind: HandleKind::Radius { size: s },
+                            at: c + view.right * s.x,
+                            label: format!("clip.shapes shape {slot} ({kind}) radius"),
+                            ..base.clone()
+                        });
+                    }
+                    out.push(base);
                 }
             }
             "clip.mesh" => {
@@ -126,6 +168,8 @@ pub fn handles(
                 out.push(Handle {
                     instance: index,
                     key: "center",
+                    kind: HandleKind::Center,
+                    at: center,
                     center,
                     label: "clip.mesh centre".into(),
                     outline,
@@ -173,12 +217,22 @@ pub fn dragged(view_proj: &Mat4, rect: egui::Rect, p: Vec3, delta: egui::Vec2) -
     (w / w.w).truncate().as_vec3()
 }
 
-/// Sets the handle's centre parameter.
-pub fn set_center(stack: &mut [PluginInstance], h: &Handle, p: Vec3) {
-    if let Some(inst) = stack.get_mut(h.instance) {
-        let clamped = p.clamp(Vec3::splat(-2.0), Vec3::splat(2.0));
-        inst.params.set(h.key, ParamValue::Vec3(clamped.to_array()));
-    }
+/// Writes what dragging handle `h` to the world point `p` changes.
+pub fn apply(stack: &mut [PluginInstance], h: &Handle, p: Vec3) {
+    let Some(inst) = stack.get_mut(h.instance) else {
+        return;
+    };
+    let value = match h.kind {
+        HandleKind::Center => p.clamp(Vec3::splat(-2.0), Vec3::splat(2.0)),
+        HandleKind::Axis => match (p - h.center).try_normalize() {
+            Some(a) => a,
+            None => return,
+        },
+        HandleKind::Radius { size } => {
+            Vec3::new((p - h.center).length().clamp(0.0, 2.0), size.y, size.z)
+        }
+    };
+    inst.params.set(h.key, ParamValue::Vec3(value.to_array()));
 }
 
 #[cfg(test)]
@@ -217,7 +271,9 @@ mod tests {
         let vbox = VolumeBox::new(volume.dims, volume.spacing);
         let view = Camera::default().view(1.0);
         let hs = handles(&[shapes, mesh], &vbox, &view, &volume);
-        assert_eq!(hs.len(), 5);
+        // plane: centre, axis; sphere: centre, radius; box: centre, axis; cylinder:
+        // centre, axis, radius; mesh: centre
+        assert_eq!(hs.len(), 10);
         for h in &hs {
             assert!(
                 h.outline.len() >= 3,
@@ -226,7 +282,33 @@ mod tests {
                 h.outline.len()
             );
         }
-        assert_eq!(hs[4].key, "center");
-        assert_eq!(hs[1].key, slot_keys()[1].center);
+        assert_eq!(hs[9].key, "center");
+        let sphere: Vec<_> = hs.iter().filter(|h| h.label.contains("(sphere)")).collect();
+        assert_eq!(sphere.len(), 2);
+        assert!(sphere.iter().any(|h| h.key == slot_keys()[1].center));
+        assert!(sphere.iter().any(|h| h.key == slot_keys()[1].size));
+    }
+
+    #[test]
+    fn axis_and_radius_handles_turn_and_size_the_shape() {
+        let registry = vwb_plugins::builtin_registry();
+        let mut shapes = PluginInstance::new(registry.get("clip.shapes").unwrap());
+        shapes
+            .params
+            .set(slot_keys()[1].kind, ParamValue::Enum("sphere".into()));
+        let volume = vwb_render::volume::demo();
+        let vbox = VolumeBox::new(volume.dims, volume.spacing);
+        let view = Camera::default().view(1.0);
+        let mut stack = vec![shapes];
+        let hs = handles(&stack, &vbox, &view, &volume);
+        let axis = hs.iter().find(|h| h.kind == HandleKind::Axis).unwrap();
+        apply(&mut stack, axis, axis.center + Vec3::new(0.0, 0.3, 0.0));
+        assert_eq!(stack[0].params.vec3(slot_keys()[0].axis), [0.0, 1.0, 0.0]);
+        let radius = hs
+            .iter()
+            .find(|h| matches!(h.kind, HandleKind::Radius { .. }))
+            .unwrap();
+        apply(&mut stack, radius, radius.center + Vec3::new(0.0, 0.0, 0.4));
+        assert!((stack[0].params.vec3(slot_keys()[1].size)[0] - 0.4).abs() < 1e-6);
     }
 }

@@ -1324,7 +1324,7 @@ impl Workbench {
         let mut dragged = false;
         let mut outline = Vec::new();
         for (i, h) in hs.iter().enumerate() {
-            let Some(pos) = ch::project(&vp, rect, h.center) else {
+            let Some(pos) = ch::project(&vp, rect, h.at) else {
                 continue;
             };
             if !rect.contains(pos) {
@@ -1337,15 +1337,17 @@ impl Workbench {
             );
             let label = h.label.clone();
             r.widget_info(|| egui::WidgetInfo::labeled(egui::Role::Slider, true, label.clone()));
-            let r = r.on_hover_text(format!("{}: drag to move it in the image plane", h.label));
+            let r = r.on_hover_text(match h.kind {
+                ch::HandleKind::Center => {
+                    format!("{}: drag to move it in the image plane", h.label)
+                }
+                ch::HandleKind::Axis => format!("{}: drag to turn it", h.label),
+                ch::HandleKind::Radius { .. } => format!("{}: drag to size it", h.label),
+            });
             if r.dragged() {
                 let delta = r.drag_delta();
                 if delta != egui::Vec2::ZERO {
-                    ch::set_center(
-                        &mut self.doc.stack,
-                        h,
-                        ch::dragged(&vp, rect, h.center, delta),
-                    );
+                    ch::apply(&mut self.doc.stack, h, ch::dragged(&vp, rect, h.at, delta));
                     self.apply_stack();
                 }
                 dragged = true;

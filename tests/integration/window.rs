@@ -809,6 +809,28 @@ fn window_a_clip_handle_drags_the_shape() {
         "the camera did not orbit"
     );
     assert!(rms(&image0, &image(&h)) > 1.0, "the cut moved in the image");
+
+    // the radius handle sizes the sphere
+    let size = |h: &Harness<'_, Workbench>| {
+        h.state().document().stack[1]
+            .params
+            .vec3(vwb_plugins::clip_shapes::slot_keys()[0].size)[0]
+    };
+    let r0 = size(&h);
+    let at = h
+        .get_by_label("clip.shapes shape 0 (sphere) radius")
+        .rect()
+        .center();
+    let centre = h
+        .get_by_label("clip.shapes shape 0 (sphere) centre")
+        .rect()
+        .center();
+    // outwards, away from the centre
+    let out = (at - centre).normalized() * 25.0;
+    drag(&mut h, at, at + out, 4);
+    settle(&mut h);
+    eprintln!("radius {r0} → {}", size(&h));
+    assert!(size(&h) > r0 + 0.02, "the sphere grew");
 }
 
 /// A mesh dropped on the window clips the volume (a `clip.mesh` takes the file); an
