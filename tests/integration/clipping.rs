@@ -446,7 +446,11 @@ fn wholly_clipped_bricks_are_skipped_without_changing_the_image() {
 /// the machine is shared, and the least disturbed frame is the most repeatable figure.
 const ROUNDS: usize = 30;
 
-fn least_times(stacks: &[Vec<PluginInstance>], skipping: &[bool], s: &FrameSettings) -> Vec<f64> {
+pub(crate) fn least_times(
+    stacks: &[Vec<PluginInstance>],
+    skipping: &[bool],
+    s: &FrameSettings,
+) -> Vec<f64> {
     let mut renderers: Vec<Renderer> = stacks
         .iter()
         .zip(skipping)
@@ -652,10 +656,7 @@ fn clipping_benchmark() {
          `presets/data/nuclei_labels.nrrd` from `bench/make_nuclei_labels.py`).\n",
         machine = vwb_lab::measure::machine(),
         adapter = gpu().describe(),
-        load = std::fs::read_to_string("/proc/loadavg")
-            .ok()
-            .and_then(|l| l.split_whitespace().next().map(str::to_string))
-            .unwrap_or_else(|| "unknown".into()),
+        load = load_average(),
     );
     vwb_render::preset::write_atomic(&repo().join("docs/clipping.md"), md.as_bytes()).unwrap();
     eprintln!("{md}");

@@ -21,6 +21,14 @@ pub fn data_dir() -> PathBuf {
     vwb_render::samples::data_dir().expect("a data directory")
 }
 
+/// The 1-minute load average (`/proc/loadavg`), for benchmark reports.
+pub fn load_average() -> String {
+    std::fs::read_to_string("/proc/loadavg")
+        .ok()
+        .and_then(|l| l.split_whitespace().next().map(str::to_string))
+        .unwrap_or_else(|| "unknown".into())
+}
+
 /// A path in this test run's scratch directory.
 pub fn tmp(name: &str) -> PathBuf {
     let d = std::env::temp_dir().join(format!("vwb-test-{}", std::process::id()));
