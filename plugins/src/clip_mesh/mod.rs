@@ -32,7 +32,7 @@
 
 use std::collections::HashMap;
 use std::hash::{Hash, Hasher};
-use std::sync::{Arc, Mutex, OnceLock};
+use std::sync::{Arc, Mutex, OnceLock, Weak};
 
 use glam::{DMat3, DVec3};
 use vwb_render::params::{ParamSpec, ParamValues};
@@ -187,18 +187,45 @@ fn grid_key(params: &ParamValues, volume: &Volume) -> u64 {
     h.finish()
 }
 
+/// Grids recently built (the last [`RECENT`]) and every grid still held elsewhere (a
+/// CPU twin, a caller), by grid key.
+#[derive(Default)]
+struct GridCache {
+    recent: Vec<(u64, Arc<SdfGrid>)>,
+    held: HashMap<u64, Weak<SdfGrid>>,
+}
+
+/// Grids the cache keeps alive by itself.
+const RECENT: usize = 8;
+
+impl GridCache {
+    fn get(&mut self, key: u64) -> Option<Arc<SdfGrid>> {
+        if let Some((_, g)) = self.recent.iter().find(|(k, _)| *k == key) {
+            return Some(g.clone());
+        }
+        let g = self.held.get(&key)?.upgrade()?;
+        self.keep(key, g.clone());
+        Some(g)
+    }
+    fn keep(&mut self, key: u64, g: Arc<SdfGrid>) {
+        self.held.insert(key, Arc::downgrade(&g));
+        self.recent.push((key, g));
+        if self.recent.len() > RECENT {
+            self.recent.remove(0);
+            self.held.retain(|_, w| w.strong_count() > 0);
+        }
+    }
+}
+
 /// The grid of `params` over `volume`: built by the mesh pass on first use, then
-/// served from a small cache (the GPU upload and the CPU twin share it).
+/// served from a cache (the GPU upload, the skipping region and the CPU twin share
+/// it): the last [`RECENT`] grids, and any grid still held elsewhere, are never built
+/// again.
 pub fn grid_for(params: &ParamValues, volume: &Volume) -> Result<Arc<SdfGrid>, String> {
-    type Cache = Mutex<Vec<(u64, Arc<SdfGrid>)>>;
-    static CACHE: OnceLock<Cache> = OnceLock::new();
+    static CACHE: OnceLock<Mutex<GridCache>> = OnceLock::new();
     let key = grid_key(params, volume);
     let cache = CACHE.get_or_init(Default::default);
-    if let Some(g) = cache
-        .lock()
-        .ok()
-        .and_then(|c| c.iter().find(|(k, _)| *k == key).map(|(_, g)| g.clone()))
-    {
+    if let Some(g) = cache.lock().ok().and_then(|mut c| c.get(key)) {
         return Ok(g);
     }
     let m = placed_mesh(params, volume)?;
@@ -219,10 +246,7 @@ pub fn grid_for(params: &ParamValues, volume: &Volume) -> Result<Arc<SdfGrid>, S
         );
     }
     if let Ok(mut c) = cache.lock() {
-        c.push((key, grid.clone()));
-        if c.len() > 4 {
-            c.remove(0);
-        }
+        c.keep(key, grid.clone());
     }
     Ok(grid)
 }
