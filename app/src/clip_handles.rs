@@ -1,7 +1,8 @@
 //! Drag handles for clip shapes over the viewport: a handle at the centre of every
 //! active `clip.shapes` primitive and of every `clip.mesh`, dragged in the plane facing
 //! the camera through the centre; an axis handle (planes, boxes, cylinders) that turns
-//! the normal or axis towards the pointer, and a radius handle (spheres, cylinders);
+//! the normal or axis towards the pointer, a radius handle (spheres, cylinders) and
+//! three half-extent handles (boxes, on their local axes);
 //! the shape's outline is drawn while a handle is hovered or dragged (a plane's cut through the volume box, a sphere's silhouette circle, a
 //! box's and a cylinder's edges, a mesh's bounding box). The numeric fields of the
 //! stack stay the exact way in; a handle writes the same `…center` parameter.
@@ -42,6 +43,9 @@ pub enum HandleKind {
     Axis,
     /// The radius (`…size`, x; y and z kept) is the pointer's distance from the centre.
     Radius { size: Vec3 },
+    /// One half extent of a box (`…size`[axis]) is the pointer's distance from the
+    /// centre along the box's local axis `dir`.
+    Extent { axis: usize, dir: Vec3, size: Vec3 },
 }
 
 /// How far from the centre an axis handle is drawn (world).
@@ -132,10 +136,16 @@ pub fn handles(
                         outline,
                     };
                     if kind != "sphere" {
+                        // beyond a box's face, where its z extent handle sits
+                        let reach = if kind == "box" {
+                            s.z + AXIS_LENGTH
+                        } else {
+                            AXIS_LENGTH
+                        };
                         out.push(Handle {
                             key: k.axis,
                             kind: HandleKind::Axis,
-                            at: c + a * AXIS_LENGTH,
+                            at: c + a * reach,
                             label: format!("clip.shapes shape {slot} ({kind}) axis"),
                             ..base.clone()
                         });
@@ -148,6 +158,19 @@ pub fn handles(
                             label: format!("clip.shapes shape {slot} ({kind}) radius"),
                             ..base.clone()
                         });
+                    }
+                    if kind == "box" {
+                        for (axis, (dir, name)) in
+                            [(u, "x"), (v, "y"), (a, "z")].into_iter().enumerate()
+                        {
+                            out.push(Handle {
+                                key: k.size,
+                                kind: HandleKind::Extent { axis, dir, size: s },
+                                at: c + dir * s[axis],
+                                label: format!("clip.shapes shape {slot} (box) {name} extent"),
+                                ..base.clone()
+                            });
+                        }
                     }
                     out.push(base);
                 }
@@ -231,6 +254,11 @@ pub fn apply(stack: &mut [PluginInstance], h: &Handle, p: Vec3) {
         HandleKind::Radius { size } => {
             Vec3::new((p - h.center).length().clamp(0.0, 2.0), size.y, size.z)
         }
+        HandleKind::Extent { axis, dir, size } => {
+            let mut s = size;
+            s[axis] = (p - h.center).dot(dir).abs().clamp(0.0, 2.0);
+            s
+        }
     };
     inst.params.set(h.key, ParamValue::Vec3(value.to_array()));
 }
@@ -271,9 +299,9 @@ mod tests {
         let vbox = VolumeBox::new(volume.dims, volume.spacing);
         let view = Camera::default().view(1.0);
         let hs = handles(&[shapes, mesh], &vbox, &view, &volume);
-        // plane: centre, axis; sphere: centre, radius; box: centre, axis; cylinder:
-        // centre, axis, radius; mesh: centre
-        assert_eq!(hs.len(), 10);
+        // plane: centre, axis; sphere: centre, radius; box: centre, axis, 3 extents;
+        // cylinder: centre, axis, radius; mesh: centre
+        assert_eq!(hs.len(), 13);
         for h in &hs {
             assert!(
                 h.outline.len() >= 3,
@@ -282,7 +310,7 @@ mod tests {
                 h.outline.len()
             );
         }
-        assert_eq!(hs[9].key, "center");
+        assert_eq!(hs[12].key, "center");
         let sphere: Vec<_> = hs.iter().filter(|h| h.label.contains("(sphere)")).collect();
         assert_eq!(sphere.len(), 2);
         assert!(sphere.iter().any(|h| h.key == slot_keys()[1].center));
@@ -310,5 +338,25 @@ mod tests {
             .unwrap();
         apply(&mut stack, radius, radius.center + Vec3::new(0.0, 0.0, 0.4));
         assert!((stack[0].params.vec3(slot_keys()[1].size)[0] - 0.4).abs() < 1e-6);
+        // a box's y extent follows the pointer along the box's local y only
+        stack[0]
+            .params
+            .set(slot_keys()[2].kind, ParamValue::Enum("box".into()));
+        let hs = handles(&stack, &vbox, &view, &volume);
+        let y = hs
+            .iter()
+            .find(|h| matches!(h.kind, HandleKind::Extent { axis: 1, .. }))
+            .unwrap();
+        let HandleKind::Extent { dir, size, .. } = y.kind else {
+            unreachable!()
+        };
+        apply(
+            &mut stack,
+            y,
+            y.center + dir * 0.4 + Vec3::new(0.0, 0.0, 0.0),
+        );
+        let got = stack[0].params.vec3(slot_keys()[2].size);
+        assert!((got[1] - 0.4).abs() < 1e-6, "{got:?}");
+        assert_eq!([got[0], got[2]], [size.x, size.z]);
     }
 }

@@ -1343,6 +1343,7 @@ impl Workbench {
                 }
                 ch::HandleKind::Axis => format!("{}: drag to turn it", h.label),
                 ch::HandleKind::Radius { .. } => format!("{}: drag to size it", h.label),
+                ch::HandleKind::Extent { .. } => format!("{}: drag to resize the box", h.label),
             });
             if r.dragged() {
                 let delta = r.drag_delta();

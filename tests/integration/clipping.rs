@@ -636,8 +636,9 @@ fn clipping_benchmark() {
          - Substitution uses central differences whatever estimator the shading \
          plugin has, and only the plugin's own cut is substituted.\n\
          - Window handles move the shapes' centres (in the image plane), turn planes', \
-         boxes' and cylinders' axes and size spheres and cylinders, with the outline \
-         drawn while hovered or dragged; box sizes are numeric fields.\n\
+         boxes' and cylinders' axes, size spheres and cylinders and each half extent of \
+         a box, with the outline drawn while hovered or dragged; a cylinder's length \
+         and a mesh's rotation and scale are numeric fields.\n\
          - `clip.mesh` (closed OBJ/PLY/STL or generated meshes, voxelised into a \
          signed-distance grid) has its own figures in docs/clip_mesh.md.\n\
          \n\
