@@ -30,7 +30,39 @@ pub struct Handle {
     /// The shape's centre (world).
     pub center: Vec3,
     pub label: String,
-    pub outline: Vec<[Vec3; 2]>,
+    pub outline: Outline,
+}
+
+/// The outline of a handle's shape.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Outline {
+    /// World segments.
+    Segments(Vec<[Vec3; 2]>),
+    /// The bounding box of the placed mesh, placed only when asked
+    /// ([`Handle::outline`]): the mesh is loaded and transformed then.
+    MeshBounds,
+}
+
+impl Handle {
+    /// The outline's world segments (empty for a mesh that cannot be placed).
+    pub fn outline(&self, stack: &[PluginInstance], volume: &vwb_render::Volume) -> Vec<[Vec3; 2]> {
+        match &self.outline {
+            Outline::Segments(s) => s.clone(),
+            Outline::MeshBounds => stack
+                .get(self.instance)
+                .and_then(|inst| vwb_plugins::clip_mesh::placed_mesh(&inst.params, volume).ok())
+                .map(|m| {
+                    let (lo, hi) = m.bounds();
+                    let (lo, hi) = (lo.as_vec3(), hi.as_vec3());
+                    let h = (hi - lo) * 0.5;
+                    box_edges(
+                        (lo + hi) * 0.5,
+                        [Vec3::X * h.x, Vec3::Y * h.y, Vec3::Z * h.z],
+                    )
+                })
+                .unwrap_or_default(),
+        }
+    }
 }
 
 /// What dragging a handle changes.
@@ -88,12 +120,7 @@ fn box_edges(c: Vec3, axes: [Vec3; 3]) -> Vec<[Vec3; 2]> {
 }
 
 /// The handles of the stack's enabled clip instances, seen by `view`.
-pub fn handles(
-    stack: &[PluginInstance],
-    vbox: &VolumeBox,
-    view: &View,
-    volume: &vwb_render::Volume,
-) -> Vec<Handle> {
+pub fn handles(stack: &[PluginInstance], vbox: &VolumeBox, view: &View) -> Vec<Handle> {
     let mut out = Vec::new();
     for (index, inst) in stack.iter().enumerate().filter(|(_, i)| i.enabled) {
         match inst.plugin.id() {
@@ -133,7 +160,7 @@ pub fn handles(
                         at: c,
                         center: c,
                         label: format!("clip.shapes shape {slot} ({kind}) centre"),
-                        outline,
+                        outline: Outline::Segments(outline),
                     };
                     if kind != "sphere" {
                         // beyond a box's face, where its z extent handle sits
@@ -177,17 +204,6 @@ pub fn handles(
             }
             "clip.mesh" => {
                 let center = vec3(inst, "center");
-                let outline = vwb_plugins::clip_mesh::placed_mesh(&inst.params, volume)
-                    .map(|m| {
-                        let (lo, hi) = m.bounds();
-                        let (lo, hi) = (lo.as_vec3(), hi.as_vec3());
-                        let h = (hi - lo) * 0.5;
-                        box_edges(
-                            (lo + hi) * 0.5,
-                            [Vec3::X * h.x, Vec3::Y * h.y, Vec3::Z * h.z],
-                        )
-                    })
-                    .unwrap_or_default();
                 out.push(Handle {
                     instance: index,
                     key: "center",
@@ -195,7 +211,7 @@ pub fn handles(
                     at: center,
                     center,
                     label: "clip.mesh centre".into(),
-                    outline,
+                    outline: Outline::MeshBounds,
                 });
             }
             _ => {}
@@ -298,17 +314,14 @@ mod tests {
         let volume = vwb_render::volume::demo();
         let vbox = VolumeBox::new(volume.dims, volume.spacing);
         let view = Camera::default().view(1.0);
-        let hs = handles(&[shapes, mesh], &vbox, &view, &volume);
+        let stack = [shapes, mesh];
+        let hs = handles(&stack, &vbox, &view);
         // plane: centre, axis; sphere: centre, radius; box: centre, axis, 3 extents;
         // cylinder: centre, axis, radius; mesh: centre
         assert_eq!(hs.len(), 13);
         for h in &hs {
-            assert!(
-                h.outline.len() >= 3,
-                "{}: {} segments",
-                h.label,
-                h.outline.len()
-            );
+            let n = h.outline(&stack, &volume).len();
+            assert!(n >= 3, "{}: {n} segments", h.label);
         }
         assert_eq!(hs[12].key, "center");
         let sphere: Vec<_> = hs.iter().filter(|h| h.label.contains("(sphere)")).collect();
@@ -328,7 +341,7 @@ mod tests {
         let vbox = VolumeBox::new(volume.dims, volume.spacing);
         let view = Camera::default().view(1.0);
         let mut stack = vec![shapes];
-        let hs = handles(&stack, &vbox, &view, &volume);
+        let hs = handles(&stack, &vbox, &view);
         let axis = hs.iter().find(|h| h.kind == HandleKind::Axis).unwrap();
         apply(&mut stack, axis, axis.center + Vec3::new(0.0, 0.3, 0.0));
         assert_eq!(stack[0].params.vec3(slot_keys()[0].axis), [0.0, 1.0, 0.0]);
@@ -342,7 +355,7 @@ mod tests {
         stack[0]
             .params
             .set(slot_keys()[2].kind, ParamValue::Enum("box".into()));
-        let hs = handles(&stack, &vbox, &view, &volume);
+        let hs = handles(&stack, &vbox, &view);
         let y = hs
             .iter()
             .find(|h| matches!(h.kind, HandleKind::Extent { axis: 1, .. }))

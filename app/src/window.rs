@@ -630,7 +630,7 @@ impl Workbench {
     fn start_open_any(&mut self, path: &std::path::Path) {
         if path.extension().is_some_and(|e| e == "ron") {
             self.start_open(path)
-        } else if is_mesh_file(path) {
+        } else if vwb_plugins::clip_mesh::mesh::is_mesh_file(path) {
             let outcome = self.open_mesh(path);
             self.report(outcome);
         } else {
@@ -643,7 +643,7 @@ impl Workbench {
     pub fn open_any(&mut self, path: &std::path::Path) -> Result<String> {
         if path.extension().is_some_and(|e| e == "ron") {
             self.open(path)
-        } else if is_mesh_file(path) {
+        } else if vwb_plugins::clip_mesh::mesh::is_mesh_file(path) {
             self.open_mesh(path)
         } else {
             self.open_volume(path)
@@ -655,10 +655,7 @@ impl Workbench {
     /// stack. The mesh is checked first, so a mesh that is not closed is refused with
     /// its first bad edge and the stack is left as it was.
     pub fn open_mesh(&mut self, path: &std::path::Path) -> Result<String> {
-        let mut mesh = vwb_plugins::clip_mesh::mesh::load(path).map_err(anyhow::Error::msg)?;
-        let report = mesh
-            .check(&path.display().to_string())
-            .map_err(anyhow::Error::msg)?;
+        let checked = vwb_plugins::clip_mesh::load_checked(path).map_err(anyhow::Error::msg)?;
         let index = match self
             .doc
             .stack
@@ -681,9 +678,9 @@ impl Workbench {
         let mut note = format!(
             "clipping by {} ({} triangles)",
             path.display(),
-            mesh.triangles.len()
+            checked.mesh.triangles.len()
         );
-        if let Some(w) = report.orientation {
+        if let Some(w) = &checked.warning {
             note += &format!("; warning: {w}");
         }
         self.apply_stack();
@@ -1319,8 +1316,7 @@ impl Workbench {
         let aspect = rect.width() / rect.height().max(1.0);
         let view = self.doc.camera.view(aspect);
         let vp = view.view_proj();
-        let volume = self.renderer.volume().clone();
-        let hs = ch::handles(&self.doc.stack, self.renderer.volume_box(), &view, &volume);
+        let hs = ch::handles(&self.doc.stack, self.renderer.volume_box(), &view);
         let mut dragged = false;
         let mut outline = Vec::new();
         for (i, h) in hs.iter().enumerate() {
@@ -1356,7 +1352,7 @@ impl Workbench {
             let active = r.dragged() || r.hovered();
             if active {
                 outline = h
-                    .outline
+                    .outline(&self.doc.stack, self.renderer.volume())
                     .iter()
                     .filter_map(|[a, b]| {
                         Some([ch::project(&vp, rect, *a)?, ch::project(&vp, rect, *b)?])
@@ -1623,11 +1619,4 @@ impl eframe::App for Workbench {
         self.wgsl_window(&ctx);
         self.screenshot(&ctx);
     }
-}
-
-/// Whether `path` names a mesh file `clip.mesh` reads (by extension).
-fn is_mesh_file(path: &std::path::Path) -> bool {
-    path.extension()
-        .and_then(|e| e.to_str())
-        .is_some_and(|e| ["obj", "ply", "stl"].contains(&e.to_ascii_lowercase().as_str()))
 }

@@ -183,31 +183,6 @@ impl GpuContext {
     }
 }
 
-/// An empty 3D texture of `format` for sampling (filled with `queue.write_texture`).
-pub fn create_3d(
-    device: &wgpu::Device,
-    label: &str,
-    dims: [u32; 3],
-    format: wgpu::TextureFormat,
-) -> (wgpu::Texture, wgpu::TextureView) {
-    let texture = device.create_texture(&wgpu::TextureDescriptor {
-        label: Some(label),
-        size: wgpu::Extent3d {
-            width: dims[0],
-            height: dims[1],
-            depth_or_array_layers: dims[2],
-        },
-        mip_level_count: 1,
-        sample_count: 1,
-        dimension: wgpu::TextureDimension::D3,
-        format,
-        usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
-        view_formats: &[],
-    });
-    let view = texture.create_view(&Default::default());
-    (texture, view)
-}
-
 /// Uploads bytes (x fastest) as an R8Unorm 3D texture for sampling (byte v reads as
 /// v/255): brick occupancy, label volumes.
 pub fn upload_r8_3d(
@@ -217,7 +192,21 @@ pub fn upload_r8_3d(
     dims: [u32; 3],
     bytes: &[u8],
 ) -> (wgpu::Texture, wgpu::TextureView) {
-    let (texture, view) = create_3d(device, label, dims, wgpu::TextureFormat::R8Unorm);
+    let size = wgpu::Extent3d {
+        width: dims[0],
+        height: dims[1],
+        depth_or_array_layers: dims[2],
+    };
+    let texture = device.create_texture(&wgpu::TextureDescriptor {
+        label: Some(label),
+        size,
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D3,
+        format: wgpu::TextureFormat::R8Unorm,
+        usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+        view_formats: &[],
+    });
     queue.write_texture(
         texture.as_image_copy(),
         bytes,
@@ -226,8 +215,9 @@ pub fn upload_r8_3d(
             bytes_per_row: Some(dims[0]),
             rows_per_image: Some(dims[1]),
         },
-        texture.size(),
+        size,
     );
+    let view = texture.create_view(&Default::default());
     (texture, view)
 }
 

@@ -425,8 +425,16 @@ fn half_space(offset: f32) -> PluginInstance {
 
 #[test]
 fn wholly_clipped_bricks_are_skipped_without_changing_the_image() {
+    let (base, share) = skipped_bricks(half_space(-0.1));
+    eprintln!("empty bricks: {base:.3} without the cut, {share:.3} with it");
+    assert!(share > base + 0.15, "{base} → {share}");
+}
+
+/// The empty brick share of `classify.tf1d` on the demo without and with the clip
+/// instance `clip` after it; asserts that skipping those bricks changes no pixel.
+pub(crate) fn skipped_bricks(clip: PluginInstance) -> (f64, f64) {
     let s = settings(64, 64, Backend::Compute);
-    let stack = vec![instance("classify.tf1d"), half_space(-0.1)];
+    let stack = vec![instance("classify.tf1d"), clip];
     let mut r = Renderer::new(gpu(), demo()).unwrap();
     let base = {
         render(&mut r, &stack[..1], TargetFormat::Rgba32Float, &s);
@@ -436,9 +444,8 @@ fn wholly_clipped_bricks_are_skipped_without_changing_the_image() {
     let share = r.empty_brick_share().unwrap();
     r.set_empty_space_skipping(false);
     let all = render(&mut r, &stack, TargetFormat::Rgba32Float, &s);
-    eprintln!("empty bricks: {base:.3} without the cut, {share:.3} with it");
-    assert!(share > base + 0.15, "{base} → {share}");
     assert_eq!(skipped, all, "skipping changes no pixel");
+    (base, share)
 }
 
 /// Least wall time (render and read back, ms) of each stack, one renderer each (with

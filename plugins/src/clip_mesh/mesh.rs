@@ -244,14 +244,23 @@ pub fn torus(segments: u32, ratio: f64) -> TriMesh {
     m
 }
 
+/// The lowercase extension of `path` ("" when it has none).
+fn extension(path: &Path) -> String {
+    path.extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase)
+        .unwrap_or_default()
+}
+
+/// Whether `path` names a mesh file [`load`] reads (by extension: .obj, .ply, .stl).
+pub fn is_mesh_file(path: &Path) -> bool {
+    matches!(extension(path).as_str(), "obj" | "ply" | "stl")
+}
+
 /// Loads an OBJ, PLY or STL file (by extension), welded but not yet checked.
 pub fn load(path: &Path) -> Result<TriMesh, String> {
     let file = path.display();
-    let ext = path
-        .extension()
-        .and_then(|e| e.to_str())
-        .map(str::to_ascii_lowercase)
-        .unwrap_or_default();
+    let ext = extension(path);
     let mesh = match ext.as_str() {
         "obj" => load_obj(path),
         "stl" => load_stl(path),
@@ -435,11 +444,7 @@ fn load_ply(path: &Path) -> Result<TriMesh, String> {
 /// saving a generated shape; atomically (a temporary file beside it, then a rename).
 pub fn save(mesh: &TriMesh, path: &Path) -> Result<(), String> {
     use std::fmt::Write as _;
-    let ext = path
-        .extension()
-        .and_then(|e| e.to_str())
-        .map(str::to_ascii_lowercase)
-        .unwrap_or_default();
+    let ext = extension(path);
     let bytes = match ext.as_str() {
         "obj" => {
             let mut s = String::from("# written by vwb (clip.mesh)\n");

@@ -32,6 +32,7 @@
 
 use std::collections::HashMap;
 use std::hash::{Hash, Hasher};
+use std::path::Path;
 use std::sync::{Arc, Mutex, OnceLock, Weak};
 
 use glam::{DMat3, DVec3};
@@ -119,17 +120,37 @@ pub fn grid_dims(params: &ParamValues, dims: [u32; 3]) -> [u32; 3] {
     dims.map(|d| ((d.max(1) as f64 * f).round() as u32).clamp(2, MAX_GRID))
 }
 
-/// The mesh in its own coordinates, welded and checked (a file's errors name it).
+/// A mesh file loaded, welded and checked ([`TriMesh::check`]), with the warning of an
+/// inconsistent orientation, if any.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CheckedMesh {
+    pub mesh: TriMesh,
+    pub warning: Option<String>,
+}
+
+/// Loads and checks a mesh file (cached per path and modification time, so a file is
+/// read, checked and its warning logged once per version). Errors name the file.
+pub fn load_checked(path: &Path) -> Result<Arc<CheckedMesh>, String> {
+    crate::classify_labels::cached_load(path, |path| {
+        let mut mesh = mesh::load(path)?;
+        let warning = mesh.check(&path.display().to_string())?.orientation;
+        if let Some(w) = &warning {
+            log::warn!("clip.mesh: {w}");
+        }
+        Ok(CheckedMesh { mesh, warning })
+    })
+}
+
+/// The mesh in its own coordinates: the checked file, or a generated shape (closed and
+/// consistently oriented by construction; the tests check each generator).
 fn source_mesh(params: &ParamValues) -> Result<TriMesh, String> {
-    let v3 = |k: &str| DVec3::from(params.vec3(k).map(f64::from));
     let segments = params.int("segments").clamp(3, 512) as u32;
-    let (mut m, what) = match params.enumeration("source") {
+    Ok(match params.enumeration("source") {
         "file" => {
             let path = params
                 .path("file")
                 .ok_or("no mesh file set (parameter `file`)")?;
-            let m = crate::classify_labels::cached_load(path, mesh::load)?;
-            (m.as_ref().clone(), path.display().to_string())
+            load_checked(path)?.mesh.clone()
         }
         source => {
             let unit = match source {
@@ -137,15 +158,10 @@ fn source_mesh(params: &ParamValues) -> Result<TriMesh, String> {
                 "torus" => mesh::torus(segments, params.float("torus_ratio").clamp(0.01, 0.99) as f64),
                 _ => mesh::sphere(segments),
             };
-            let size = v3("size");
-            (unit.map_positions(|p| p * size), format!("the generated {source}"))
+            let size = DVec3::from(params.vec3("size").map(f64::from));
+            unit.map_positions(|p| p * size)
         }
-    };
-    let report = m.check(&what)?;
-    if let Some(w) = &report.orientation {
-        log::warn!("clip.mesh: {w}");
-    }
-    Ok(m)
+    })
 }
 
 /// The mesh placed in world space over `volume` as the parameters say.
@@ -222,8 +238,12 @@ impl GridCache {
 /// it): the last [`RECENT`] grids, and any grid still held elsewhere, are never built
 /// again.
 pub fn grid_for(params: &ParamValues, volume: &Volume) -> Result<Arc<SdfGrid>, String> {
+    grid_of_key(params, volume, grid_key(params, volume))
+}
+
+/// [`grid_for`] with the grid's key already computed.
+fn grid_of_key(params: &ParamValues, volume: &Volume, key: u64) -> Result<Arc<SdfGrid>, String> {
     static CACHE: OnceLock<Mutex<GridCache>> = OnceLock::new();
-    let key = grid_key(params, volume);
     let cache = CACHE.get_or_init(Default::default);
     if let Some(g) = cache.lock().ok().and_then(|mut c| c.get(key)) {
         return Ok(g);
@@ -264,35 +284,16 @@ fn texture_id(t: &wgpu::Texture) -> u64 {
     h.finish()
 }
 
-/// The distance texture's format: r32float where it can be filtered, else r16float;
-/// the values are f16-exact, so both hold the same numbers.
-fn sdf_format(gpu: &GpuInit) -> wgpu::TextureFormat {
-    if gpu.features.contains(wgpu::Features::FLOAT32_FILTERABLE) {
-        wgpu::TextureFormat::R32Float
-    } else {
-        wgpu::TextureFormat::R16Float
-    }
-}
-
-/// Writes `grid` into `texture` (r32float or r16float).
-fn write_grid(queue: &wgpu::Queue, texture: &wgpu::Texture, grid: &SdfGrid, key: u64) {
-    let wide = texture.format() == wgpu::TextureFormat::R32Float;
-    let bytes: Vec<u8> = if wide {
-        grid.values.iter().flat_map(|v| v.to_ne_bytes()).collect()
-    } else {
-        grid.f16_bytes()
-    };
-    queue.write_texture(
-        texture.as_image_copy(),
-        &bytes,
-        wgpu::TexelCopyBufferLayout {
-            offset: 0,
-            bytes_per_row: Some(grid.dims[0] * if wide { 4 } else { 2 }),
-            rows_per_image: Some(grid.dims[1]),
-        },
-        texture.size(),
-    );
+/// Writes `grid` (of key `key`) into the distance texture and records which grid it
+/// holds. The texture is r32float where the device filters it, else r16float
+/// ([`GpuInit::create_volume_texture`]); the values are f16-exact, so both hold the
+/// same numbers.
+fn upload(gpu: &GpuInit, sdf: &GpuResource, grid: &SdfGrid, key: u64) {
+    gpu.write_floats(sdf, &grid.values);
     count(key, 0, 1);
+    if let Ok(mut m) = uploaded().lock() {
+        m.insert(texture_id(&sdf.texture), key);
+    }
 }
 
 /// The plugin as its structural parameter `cut_shading` configures it.
@@ -402,19 +403,11 @@ impl Plugin for ClipMesh {
         gpu: &GpuInit,
         params: &ParamValues,
     ) -> Result<Vec<GpuResource>, PluginError> {
-        let grid = grid_for(params, gpu.volume).map_err(error)?;
-        let (texture, view) = vwb_render::gpu::create_3d(
-            gpu.device,
-            "clip.mesh sdf",
-            grid.dims,
-            sdf_format(gpu),
-        );
         let key = grid_key(params, gpu.volume);
-        write_grid(gpu.queue, &texture, &grid, key);
-        if let Ok(mut m) = uploaded().lock() {
-            m.insert(texture_id(&texture), key);
-        }
-        Ok(vec![GpuResource { texture, view }])
+        let grid = grid_of_key(params, gpu.volume, key).map_err(error)?;
+        let sdf = gpu.create_volume_texture("clip.mesh sdf", grid.dims, 1);
+        upload(gpu, &sdf, &grid, key);
+        Ok(vec![sdf])
     }
     fn update_resources(
         &self,
@@ -430,7 +423,7 @@ impl Plugin for ClipMesh {
         if uploaded().lock().is_ok_and(|m| m.get(&id) == Some(&key)) {
             return Ok(());
         }
-        let grid = grid_for(params, gpu.volume).map_err(error)?;
+        let grid = grid_of_key(params, gpu.volume, key).map_err(error)?;
         let size = sdf.texture.size();
         if [size.width, size.height, size.depth_or_array_layers] != grid.dims {
             return Err(error(format!(
@@ -438,10 +431,7 @@ impl Plugin for ClipMesh {
                 size.width, size.height, size.depth_or_array_layers, grid.dims
             )));
         }
-        write_grid(gpu.queue, &sdf.texture, &grid, key);
-        if let Ok(mut m) = uploaded().lock() {
-            m.insert(id, key);
-        }
+        upload(gpu, sdf, &grid, key);
         Ok(())
     }
     /// Keeps transparent samples transparent (a clip hook only removes samples); the

@@ -38,22 +38,6 @@ pub struct SdfGrid {
     /// Columns with an odd number of crossings (grazing rays; 0 for a closed mesh in
     /// general position).
     pub odd_columns: usize,
-    /// Triangles voxelised.
-    pub triangles: usize,
-}
-
-impl SdfGrid {
-    /// The f16 texels of the GPU texture, as bytes (native endian, as wgpu takes them).
-    pub fn f16_bytes(&self) -> Vec<u8> {
-        self.values
-            .iter()
-            .flat_map(|&v| half::f16::from_f32(v).to_bits().to_ne_bytes())
-            .collect()
-    }
-    /// The share of voxel centres inside the mesh.
-    pub fn inside_share(&self) -> f64 {
-        self.values.iter().filter(|&&v| v < 0.0).count() as f64 / self.values.len().max(1) as f64
-    }
 }
 
 /// Voxelises `mesh` (world coordinates) over the box (`lo`, `hi`) into a grid of
@@ -151,7 +135,6 @@ pub fn voxelize(mesh: &TriMesh, lo: DVec3, hi: DVec3, dims: [u32; 3], step: f64)
         values,
         band: half::f16::from_f64(band).to_f32(),
         odd_columns,
-        triangles: tris.len(),
     }
 }
 
