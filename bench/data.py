@@ -1,6 +1,8 @@
 #!/usr/bin/env python3
-"""Load time per volume format: the CT head sample converted to NIfTI (.nii, .nii.gz)
-and MetaImage (.mhd + .raw, .mha with zlib) by this script, each loaded by
+"""Load time per volume format: the CT head sample converted to NIfTI (.nii, .nii.gz),
+MetaImage (.mhd + .raw, .mha with zlib) and a DICOM series (one explicit VR little endian
+file per axial slice, written byte by byte here, independently of vwb's own writer) by
+this script, each loaded by
 `vwb info --volume F` (process start + load + statistics), median of 5 runs, against
 the NRRD it came from. Rewrites the block between <!-- BEGIN formats --> and
 <!-- END formats --> in docs/data.md.
@@ -52,6 +54,45 @@ def mhd_header(data_file: str, compressed: bool, size: int) -> str:
     return "\n".join(lines) + "\n"
 
 
+def dicom_element(group: int, element: int, vr: str, value: bytes) -> bytes:
+    """One explicit VR little endian element (values padded to even length)."""
+    if len(value) % 2:
+        value += b"\0" if vr in ("UI", "OB") else b" "
+    if vr in ("OB", "OW", "SQ", "UN", "UT"):
+        return struct.pack("<HH2sHI", group, element, vr.encode(), 0, len(value)) + value
+    return struct.pack("<HH2sH", group, element, vr.encode(), len(value)) + value
+
+
+def dicom_slice(k: int, pixels: bytes) -> bytes:
+    """Axial slice k of the CT head as a CT image storage file."""
+    e = dicom_element
+    ct_storage = b"1.2.840.10008.5.1.4.1.1.2"
+    instance = f"1.2.826.0.1.3680043.2.1125.7.{k + 1}".encode()
+    meta = b"".join([
+        e(0x0002, 0x0001, "OB", b"\0\1"), e(0x0002, 0x0002, "UI", ct_storage),
+        e(0x0002, 0x0003, "UI", instance), e(0x0002, 0x0010, "UI", b"1.2.840.10008.1.2.1"),
+        e(0x0002, 0x0012, "UI", b"1.2.826.0.1.3680043.2.1125.7"),
+    ])
+    us = lambda v: struct.pack("<H", v)
+    body = b"".join([
+        e(0x0008, 0x0016, "UI", ct_storage), e(0x0008, 0x0018, "UI", instance),
+        e(0x0008, 0x0060, "CS", b"CT"),
+        e(0x0020, 0x000E, "UI", b"1.2.826.0.1.3680043.2.1125.7"),
+        e(0x0020, 0x0013, "IS", str(k + 1).encode()),
+        e(0x0020, 0x0032, "DS", f"0\\0\\{k * SPACING[2]}".encode()),
+        e(0x0020, 0x0037, "DS", b"1\\0\\0\\0\\1\\0"),
+        e(0x0028, 0x0002, "US", us(1)), e(0x0028, 0x0004, "CS", b"MONOCHROME2"),
+        e(0x0028, 0x0010, "US", us(DIMS[1])), e(0x0028, 0x0011, "US", us(DIMS[0])),
+        e(0x0028, 0x0030, "DS", f"{SPACING[1]}\\{SPACING[0]}".encode()),
+        e(0x0028, 0x0100, "US", us(16)), e(0x0028, 0x0101, "US", us(16)),
+        e(0x0028, 0x0102, "US", us(15)), e(0x0028, 0x0103, "US", us(1)),
+        e(0x0028, 0x1052, "DS", b"0"), e(0x0028, 0x1053, "DS", b"1"),
+        e(0x7FE0, 0x0010, "OW", pixels),
+    ])
+    group_length = e(0x0002, 0x0000, "UL", struct.pack("<I", len(meta)))
+    return b"\0" * 128 + b"DICM" + group_length + meta + body
+
+
 def timed(vwb, env, path, runs=5):
     out = []
     for _ in range(runs):
@@ -79,14 +120,21 @@ def main():
         (t / "ct.mhd").write_text(mhd_header("ct.raw", False, 0))
         z = zlib.compress(samples, 6)
         (t / "ct.mha").write_bytes(mhd_header("LOCAL", True, len(z)).encode() + z)
+        series = t / "ct_dicom"
+        series.mkdir()
+        plane = DIMS[0] * DIMS[1] * 2
+        for k in range(DIMS[2]):
+            (series / f"IM{k:04d}").write_bytes(dicom_slice(k, samples[k * plane:(k + 1) * plane]))
         reference = None
         raw = data / "ct_cranium_256x256x108_int16.raw"
         for label, path, extra in [("NRRD (.nhdr + .raw)", nhdr, raw), ("NIfTI-1 .nii", t / "ct.nii", None),
                                    ("NIfTI-1 .nii.gz", t / "ct.nii.gz", None),
                                    ("MetaImage .mhd + .raw", t / "ct.mhd", t / "ct.raw"),
-                                   ("MetaImage .mha, zlib", t / "ct.mha", None)]:
+                                   ("MetaImage .mha, zlib", t / "ct.mha", None),
+                                   (f"DICOM series ({DIMS[2]} files, a folder)", series, None)]:
             secs, text = timed(vwb, env, path)
-            size = path.stat().st_size + (extra.stat().st_size if extra else 0)
+            size = (sum(f.stat().st_size for f in path.iterdir()) if path.is_dir()
+                    else path.stat().st_size + (extra.stat().st_size if extra else 0))
             rng = next(l for l in text.splitlines() if l.startswith("value range"))
             reference = reference or rng
             same = "yes" if rng == reference else "NO"

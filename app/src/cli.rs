@@ -555,7 +555,8 @@ pub fn run_render(preset: Option<&std::path::Path>, a: &RenderArgs) -> Result<()
 /// `vwb info`'s arguments.
 #[derive(Debug, Clone, Default, clap::Args)]
 pub struct InfoArgs {
-    /// A volume file (NRRD, NIfTI .nii/.nii.gz, MetaImage .mhd/.mha) or a sample name.
+    /// A volume file (NRRD, NIfTI .nii/.nii.gz, MetaImage .mhd/.mha, a TIFF stack, a DICOM
+    /// file or folder) or a sample name.
     #[arg(long)]
     pub volume: Option<PathBuf>,
 }

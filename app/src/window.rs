@@ -355,6 +355,11 @@ impl Workbench {
     }
 
     /// The last composer, resource or file error shown in the stack.
+    /// The renderer, for scripts and tests (e.g. its GPU memory budget).
+    pub fn renderer_mut(&mut self) -> &mut Renderer {
+        &mut self.renderer
+    }
+
     pub fn error(&self) -> Option<&str> {
         self.error.as_deref()
     }
@@ -547,7 +552,11 @@ impl Workbench {
     /// A renderer for `volume` and `doc` on the window's device, with the current
     /// renderer's WGSL overrides; nothing changes on screen until it is swapped in.
     fn fresh_renderer(&self, volume: Arc<vwb_render::Volume>, doc: &Document) -> Result<Renderer> {
-        let mut renderer = Renderer::new(self.renderer.gpu(), volume)?;
+        let mut renderer = Renderer::with_gpu_memory_budget(
+            self.renderer.gpu(),
+            volume,
+            self.renderer.gpu_memory_budget(),
+        )?;
         renderer.set_refinement_budget(Some(1));
         for (file, source) in self.renderer.shader_overrides() {
             renderer.set_shader_override(file, Some(source.to_string()));
@@ -1115,7 +1124,7 @@ impl Workbench {
                     .id_salt("volume path"),
             )
             .on_hover_text(
-                "volume file (NRRD .nhdr/.nrrd, NIfTI .nii/.nii.gz, MetaImage .mhd/.mha) or a sample name such as ct_head (vwb data list); a mesh (.obj, .ply, .stl) chosen with … or dropped on the window clips the volume (clip.mesh)",
+                "volume file (NRRD .nhdr/.nrrd, NIfTI .nii/.nii.gz, MetaImage .mhd/.mha, a TIFF stack, a DICOM file or folder: the whole series loads) or a sample name such as ct_head (vwb data list); a mesh (.obj, .ply, .stl) chosen with … or dropped on the window clips the volume (clip.mesh)",
             );
             if ui.button("Open volume").clicked() {
                 let path = PathBuf::from(self.volume_path.trim());
@@ -1241,11 +1250,20 @@ impl Workbench {
             }
         }
         let dropped = ctx.input(|i| i.raw.dropped_files.clone());
+        // the files of a DICOM series dropped together open once: one file opens its
+        // whole series
+        let mut series_folders = std::collections::HashSet::new();
         for f in dropped {
             let path = f.path().to_path_buf();
-            if !path.as_os_str().is_empty() {
-                self.start_open_any(&path);
+            if path.as_os_str().is_empty() {
+                continue;
             }
+            if vwb_render::volume::dicom::is_dicom_file(&path)
+                && !series_folders.insert(path.parent().map(|p| p.to_path_buf()))
+            {
+                continue;
+            }
+            self.start_open_any(&path);
         }
     }
 
@@ -1440,10 +1458,28 @@ impl Workbench {
                     }
                     self.preview = moving;
                     self.show(frame, size);
+                    self.dirty = false;
                 }
-                Err(e) => self.error = Some(e.to_string()),
+                Err(e) => {
+                    self.dirty = false;
+                    // the last image stays on screen; an eye buffer that does not fit in
+                    // GPU memory is retried at half the resolution, down to ⅛
+                    if matches!(e, vwb_render::renderer::RenderError::OutOfMemory { .. })
+                        && self.quality_scale > 0.125
+                    {
+                        self.quality_scale = (self.quality_scale * 0.5).max(0.125);
+                        self.dirty = true;
+                        ui.ctx().request_repaint();
+                        self.error = Some(format!(
+                            "{e}: retrying at {:.1} % of the full resolution (Quality: \
+                             resolution × raises it again)",
+                            self.quality_scale * 100.0
+                        ));
+                    } else {
+                        self.error = Some(e.to_string());
+                    }
+                }
             }
-            self.dirty = false;
         }
         // progressive light passes: draw again until every step is in
         if self.error.is_none() && self.renderer.refining() {

@@ -48,6 +48,26 @@ pub struct GpuContext {
     pub info: wgpu::AdapterInfo,
     pub features: wgpu::Features,
     pub limits: wgpu::Limits,
+    /// Set by the device-lost callback: why the device was lost.
+    lost: std::sync::Arc<std::sync::Mutex<Option<String>>>,
+}
+
+/// Watches `device` for loss; the returned cell holds the reason once it is lost.
+fn watch_loss(device: &wgpu::Device) -> std::sync::Arc<std::sync::Mutex<Option<String>>> {
+    let lost = std::sync::Arc::new(std::sync::Mutex::new(None));
+    let cell = lost.clone();
+    device.set_device_lost_callback(move |reason, message| {
+        let text = if message.is_empty() {
+            format!("{reason:?}")
+        } else {
+            format!("{reason:?}: {message}")
+        };
+        log::error!("the GPU device was lost ({text})");
+        if let Ok(mut l) = cell.lock() {
+            *l = Some(text);
+        }
+    });
+    lost
 }
 
 impl fmt::Debug for GpuContext {
@@ -133,6 +153,7 @@ impl GpuContext {
                 source,
             })?;
         install_error_handler(&device);
+        let lost = watch_loss(&device);
         Ok(Self {
             instance,
             adapter,
@@ -141,6 +162,7 @@ impl GpuContext {
             info,
             features,
             limits,
+            lost,
         })
     }
 
@@ -156,6 +178,7 @@ impl GpuContext {
         Ok(Self {
             features: device.features(),
             limits: device.limits(),
+            lost: watch_loss(&device),
             instance,
             adapter,
             device,
@@ -174,6 +197,12 @@ impl GpuContext {
 
     pub fn float32_filterable(&self) -> bool {
         self.features.contains(wgpu::Features::FLOAT32_FILTERABLE)
+    }
+
+    /// Why the device was lost, once it has been (a driver reset, a removed GPU, or
+    /// [`wgpu::Device::destroy`]); every later frame fails with this reason.
+    pub fn lost(&self) -> Option<String> {
+        self.lost.lock().ok().and_then(|l| l.clone())
     }
 
     /// Blocks until the GPU is idle.

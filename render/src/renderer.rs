@@ -118,6 +118,18 @@ pub enum RenderError {
     TooManyPerSliceSlices { count: u32, max: u32 },
     #[error("GPU error: {0}")]
     Gpu(String),
+    #[error(
+        "the GPU device was lost ({0}); nothing more can be rendered on it: restart vwb \
+         (the last image stays)"
+    )]
+    DeviceLost(String),
+    #[error("GPU memory: {what} needs {} MiB, {reason}", bytes.div_ceil(1 << 20))]
+    OutOfMemory {
+        what: String,
+        bytes: u64,
+        /// "the budget of N MiB is M MiB short" or the driver's message.
+        reason: String,
+    },
     #[error("atlas: {0}")]
     Atlas(String),
     #[error(transparent)]
@@ -404,6 +416,28 @@ struct Target {
     display_view: wgpu::TextureView,
 }
 
+impl Target {
+    /// Eye buffer, accumulation buffer and display texture.
+    fn bytes(&self) -> u64 {
+        target_bytes(self.width, self.height, self.format)
+    }
+}
+
+fn target_bytes(w: u32, h: u32, format: TargetFormat) -> u64 {
+    let texel = match format {
+        TargetFormat::Rgba16Float => 8,
+        TargetFormat::Rgba32Float => 16,
+    };
+    u64::from(w) * u64::from(h) * (texel + 16 + 4)
+}
+
+/// Bytes of `volume` as [`upload_volume`] stores it (r32float, or r16float without
+/// float32 filtering).
+fn volume_texture_bytes(gpu: &GpuContext, volume: &Volume) -> u64 {
+    let texel = if gpu.float32_filterable() { 4 } else { 2 };
+    volume.dims.iter().map(|&d| u64::from(d)).product::<u64>() * texel
+}
+
 /// Result of [`Renderer::update_stack`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum StackChange {
@@ -446,6 +480,11 @@ pub struct Renderer {
     atlas_uids: std::collections::HashSet<u64>,
     instances: HashMap<u64, InstanceGpu>,
     target: Option<Target>,
+    /// Bytes of the uploaded volume texture.
+    volume_bytes: u64,
+    /// GPU memory the renderer may hold (`VWB_GPU_MEMORY_LIMIT` bytes, or
+    /// [`Renderer::set_gpu_memory_budget`]); `None`: only the driver refuses.
+    gpu_budget: Option<u64>,
     vertices: Option<(wgpu::Buffer, u64)>,
     timestamps: Option<(wgpu::QuerySet, wgpu::Buffer, wgpu::Buffer)>,
     display_pipeline: Option<(TargetFormat, wgpu::ComputePipeline, wgpu::BindGroupLayout)>,
@@ -500,7 +539,23 @@ fn sampler_entry(binding: u32, vis: wgpu::ShaderStages) -> wgpu::BindGroupLayout
 }
 
 impl Renderer {
+    /// A renderer for `volume`, with the GPU memory budget of `VWB_GPU_MEMORY_LIMIT`
+    /// (bytes; none when unset).
     pub fn new(gpu: &GpuContext, volume: Arc<Volume>) -> Result<Self, RenderError> {
+        let budget = std::env::var("VWB_GPU_MEMORY_LIMIT")
+            .ok()
+            .and_then(|v| v.trim().parse().ok());
+        Self::with_gpu_memory_budget(gpu, volume, budget)
+    }
+
+    /// A renderer for `volume` that holds at most `budget` bytes of GPU memory (see
+    /// [`Renderer::set_gpu_memory_budget`]); a volume that does not fit, or that the
+    /// driver cannot allocate, fails with [`RenderError::OutOfMemory`].
+    pub fn with_gpu_memory_budget(
+        gpu: &GpuContext,
+        volume: Arc<Volume>,
+        budget: Option<u64>,
+    ) -> Result<Self, RenderError> {
         let device = &gpu.device;
         let limit = gpu.limits.max_texture_dimension_3d;
         if volume.dims.iter().any(|&d| d == 0 || d > limit) {
@@ -511,7 +566,29 @@ impl Renderer {
             });
         }
         let vbox = VolumeBox::new(volume.dims, volume.spacing);
+        let volume_bytes = volume_texture_bytes(gpu, &volume);
+        let what = format!("volume {} ({:?})", volume.name, volume.dims);
+        if let Some(b) = budget
+            && volume_bytes > b
+        {
+            return Err(RenderError::OutOfMemory {
+                what,
+                bytes: volume_bytes,
+                reason: format!(
+                    "more than the renderer's GPU memory budget of {} MiB",
+                    b >> 20
+                ),
+            });
+        }
+        let scope = device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
         let volume_view = upload_volume(gpu, &volume);
+        if let Some(e) = pollster::block_on(scope.pop()) {
+            return Err(RenderError::OutOfMemory {
+                what,
+                bytes: volume_bytes,
+                reason: format!("and the device is out of memory ({e})"),
+            });
+        }
         let sampler = |filter| {
             device.create_sampler(&wgpu::SamplerDescriptor {
                 label: Some("vwb sampler"),
@@ -589,6 +666,8 @@ impl Renderer {
             },
             instances: HashMap::new(),
             target: None,
+            volume_bytes,
+            gpu_budget: budget,
             vertices: None,
             timestamps: None,
             display_pipeline: None,
@@ -657,8 +736,13 @@ impl Renderer {
                 limit,
             });
         }
+        let bytes = volume_texture_bytes(&self.gpu, &volume);
+        let what = format!("volume {} ({:?})", volume.name, volume.dims);
+        self.check_budget(&what, bytes, self.volume_bytes)?;
+        let view = self.out_of_memory_scope(&what, bytes, || upload_volume(&self.gpu, &volume))?;
         self.vbox = VolumeBox::new(volume.dims, volume.spacing);
-        self.volume_view = upload_volume(&self.gpu, &volume);
+        self.volume_view = view;
+        self.volume_bytes = bytes;
         self.counters.volume_uploads += 1;
         self.bricks = BrickRanges::new(volume.dims, &volume.normalized_scalars());
         self.occupancy = upload_occupancy(&self.gpu, [1, 1, 1], &[255]);
@@ -768,6 +852,74 @@ impl Renderer {
             .as_ref()
             .map(|p| p.stack.iter().map(|(_, pl)| pl.id()).collect())
             .unwrap_or_default()
+    }
+
+    /// GPU memory the renderer holds: the volume, the eye buffer with its
+    /// accumulation and display copies, and every instance's resources (enabled or
+    /// held while disabled).
+    pub fn gpu_memory(&self) -> u64 {
+        self.volume_bytes
+            + self.target.as_ref().map_or(0, Target::bytes)
+            + self.instances.values().map(|g| g.bytes()).sum::<u64>()
+    }
+
+    /// Caps the GPU memory the renderer may hold (volume, eye buffer, instance
+    /// resources). A volume or an image size that would pass it fails with
+    /// [`RenderError::OutOfMemory`] before anything is allocated, and what was there
+    /// stays. `None` (the default unless `VWB_GPU_MEMORY_LIMIT` is set, in bytes) leaves
+    /// the refusal to the driver, which is caught the same way.
+    pub fn set_gpu_memory_budget(&mut self, bytes: Option<u64>) {
+        self.gpu_budget = bytes;
+    }
+
+    pub fn gpu_memory_budget(&self) -> Option<u64> {
+        self.gpu_budget
+    }
+
+    /// Fails when adding `bytes` (and freeing `freeing`) would pass the budget.
+    fn check_budget(&self, what: &str, bytes: u64, freeing: u64) -> Result<(), RenderError> {
+        let Some(budget) = self.gpu_budget else {
+            return Ok(());
+        };
+        let after = self
+            .gpu_memory()
+            .saturating_sub(freeing)
+            .saturating_add(bytes);
+        if after <= budget {
+            return Ok(());
+        }
+        Err(RenderError::OutOfMemory {
+            what: what.to_string(),
+            bytes,
+            reason: format!(
+                "and the renderer would hold {} MiB, more than its GPU memory budget of {} MiB",
+                after.div_ceil(1 << 20),
+                budget >> 20
+            ),
+        })
+    }
+
+    /// Runs `f` (allocations) in an out-of-memory error scope: a driver refusal becomes
+    /// [`RenderError::OutOfMemory`] instead of a logged error and invalid resources.
+    fn out_of_memory_scope<T>(
+        &self,
+        what: &str,
+        bytes: u64,
+        f: impl FnOnce() -> T,
+    ) -> Result<T, RenderError> {
+        let scope = self
+            .gpu
+            .device
+            .push_error_scope(wgpu::ErrorFilter::OutOfMemory);
+        let out = f();
+        match pollster::block_on(scope.pop()) {
+            None => Ok(out),
+            Some(e) => Err(RenderError::OutOfMemory {
+                what: what.to_string(),
+                bytes,
+                reason: format!("and the device is out of memory ({e})"),
+            }),
+        }
     }
 
     /// GPU memory per enabled instance in stack order: (uid, plugin id, bytes) of its
@@ -1266,69 +1418,83 @@ impl Renderer {
         })
     }
 
-    fn ensure_target(&mut self, w: u32, h: u32, format: TargetFormat) {
+    fn ensure_target(&mut self, w: u32, h: u32, format: TargetFormat) -> Result<(), RenderError> {
         if self
             .target
             .as_ref()
             .is_some_and(|t| t.width == w && t.height == h && t.format == format)
         {
-            return;
+            return Ok(());
         }
-        let device = &self.gpu.device;
-        let size = wgpu::Extent3d {
-            width: w,
-            height: h,
-            depth_or_array_layers: 1,
-        };
-        let texture = device.create_texture(&wgpu::TextureDescriptor {
-            label: Some("vwb eye buffer"),
-            size,
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
-            format: format.wgpu(),
-            usage: wgpu::TextureUsages::RENDER_ATTACHMENT
-                | wgpu::TextureUsages::STORAGE_BINDING
-                | wgpu::TextureUsages::TEXTURE_BINDING
-                | wgpu::TextureUsages::COPY_SRC,
-            view_formats: &[],
-        });
-        let view = texture.create_view(&Default::default());
-        let accum = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("vwb accumulation"),
-            size: w as u64 * h as u64 * 16,
-            usage: wgpu::BufferUsages::STORAGE,
-            mapped_at_creation: false,
-        });
-        let display = device.create_texture(&wgpu::TextureDescriptor {
-            label: Some("vwb display"),
-            size,
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
-            format: wgpu::TextureFormat::Rgba8Unorm,
-            usage: wgpu::TextureUsages::STORAGE_BINDING
-                | wgpu::TextureUsages::TEXTURE_BINDING
-                | wgpu::TextureUsages::COPY_SRC,
-            view_formats: &[],
-        });
-        let display_view = display.create_view(&Default::default());
-        self.target = Some(Target {
-            width: w,
-            height: h,
-            format,
-            texture,
-            view,
-            accum,
-            display,
-            display_view,
-        });
+        let bytes = target_bytes(w, h, format);
+        let what = format!("the {w}×{h} {format:?} eye buffer");
+        let freeing = self.target.as_ref().map_or(0, Target::bytes);
+        self.check_budget(&what, bytes, freeing)?;
+        let target =
+            self.out_of_memory_scope(&what, bytes, || create_target(&self.gpu, w, h, format))?;
+        self.target = Some(target);
         // state textures follow the eye buffer's size
         for g in self.instances.values_mut() {
             g.state = None;
         }
+        Ok(())
     }
+}
 
+/// The eye buffer, its accumulation buffer and its display texture.
+fn create_target(gpu: &GpuContext, w: u32, h: u32, format: TargetFormat) -> Target {
+    let device = &gpu.device;
+    let size = wgpu::Extent3d {
+        width: w,
+        height: h,
+        depth_or_array_layers: 1,
+    };
+    let texture = device.create_texture(&wgpu::TextureDescriptor {
+        label: Some("vwb eye buffer"),
+        size,
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format: format.wgpu(),
+        usage: wgpu::TextureUsages::RENDER_ATTACHMENT
+            | wgpu::TextureUsages::STORAGE_BINDING
+            | wgpu::TextureUsages::TEXTURE_BINDING
+            | wgpu::TextureUsages::COPY_SRC,
+        view_formats: &[],
+    });
+    let view = texture.create_view(&Default::default());
+    let accum = device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("vwb accumulation"),
+        size: w as u64 * h as u64 * 16,
+        usage: wgpu::BufferUsages::STORAGE,
+        mapped_at_creation: false,
+    });
+    let display = device.create_texture(&wgpu::TextureDescriptor {
+        label: Some("vwb display"),
+        size,
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format: wgpu::TextureFormat::Rgba8Unorm,
+        usage: wgpu::TextureUsages::STORAGE_BINDING
+            | wgpu::TextureUsages::TEXTURE_BINDING
+            | wgpu::TextureUsages::COPY_SRC,
+        view_formats: &[],
+    });
+    let display_view = display.create_view(&Default::default());
+    Target {
+        width: w,
+        height: h,
+        format,
+        texture,
+        view,
+        accum,
+        display,
+        display_view,
+    }
+}
+
+impl Renderer {
     fn ensure_slice_info(&mut self, slices: u32) {
         let need = slices.max(1);
         if self.slice_info_slices >= need {
@@ -1853,6 +2019,9 @@ impl Renderer {
 
     /// Renders one frame into the eye buffer with the current (last good) pipeline.
     pub fn render(&mut self, s: &FrameSettings) -> Result<FrameStats, RenderError> {
+        if let Some(reason) = self.gpu.lost() {
+            return Err(RenderError::DeviceLost(reason));
+        }
         let max = self.gpu.limits.max_texture_dimension_2d;
         if s.width == 0 || s.height == 0 || s.width > max || s.height > max {
             return Err(RenderError::BadSize(s.width, s.height, max));
@@ -1878,7 +2047,7 @@ impl Renderer {
         let view = s.camera.view(s.width as f32 / s.height as f32);
         let plan = SlicePlan::new(&view, &self.vbox, s.slice_spacing)?;
         let spacing_updates = self.sync_spacing(plan.spacing / self.vbox.voxel)?;
-        self.ensure_target(s.width, s.height, target_format);
+        self.ensure_target(s.width, s.height, target_format)?;
         self.ensure_state();
         let per_slice = self
             .pipelines

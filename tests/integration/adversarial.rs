@@ -611,8 +611,8 @@ const GZIP_BALL: [u8; 53] = [
 
 const GZIP_HEADER: &[u8] = b"NRRD0004\ntype: uint8\ndimension: 3\nsizes: 8 8 8\nencoding: gzip\n\n";
 
-/// Bit flips, truncations and splices of valid volume files (NRRD, NIfTI, MetaImage),
-/// presets and mesh files (OBJ, PLY, STL): never a panic, every error names its file. A quick smoke here; `VWB_FUZZ_CASES=N cargo test
+/// Bit flips, truncations and splices of valid volume files (NRRD, NIfTI, MetaImage,
+/// DICOM), presets and mesh files (OBJ, PLY, STL): never a panic, every error names its file. A quick smoke here; `VWB_FUZZ_CASES=N cargo test
 /// --test integration adversarial::fuzz -- --ignored --nocapture` runs more
 /// (docs/reliability.md).
 fn fuzz_run(cases: usize) -> FuzzCounts {
@@ -701,10 +701,62 @@ fn fuzz_run(cases: usize) -> FuzzCounts {
             (std::fs::read(&p).unwrap(), name)
         })
         .collect();
+    // DICOM: an 8×8 slice, uncompressed and RLE, and a 2-frame enhanced file
+    let dicom: Vec<Vec<u8>> = {
+        use vwb_render::volume::dicom::{SliceSpec, write_slice};
+        let seeds = d.join("dicom-seeds");
+        std::fs::create_dir_all(&seeds).unwrap();
+        let ball: Vec<i32> = ball().iter().map(|&v| i32::from(v) - 20).collect();
+        let specs = [
+            SliceSpec {
+                rows: 8,
+                cols: 8,
+                samples: &ball[..64],
+                positions: &[[0.0, 0.0, 1.0]],
+                rescale: (1.0, -1024.0),
+                ..SliceSpec::default()
+            },
+            SliceSpec {
+                rows: 8,
+                cols: 8,
+                samples: &ball[64..128],
+                positions: &[[0.0, 0.0, 1.0]],
+                rle: true,
+                ..SliceSpec::default()
+            },
+            SliceSpec {
+                rows: 8,
+                cols: 8,
+                frames: 2,
+                samples: &ball[..128],
+                positions: &[[0.0, 0.0, 2.0], [0.0, 0.0, 0.5]],
+                rescale: (0.5, 3.0),
+                ..SliceSpec::default()
+            },
+        ];
+        specs
+            .iter()
+            .enumerate()
+            .map(|(i, spec)| {
+                let p = seeds.join(format!("seed{i}.dcm"));
+                write_slice(&p, spec).unwrap();
+                std::fs::read(&p).unwrap()
+            })
+            .collect()
+    };
+    // VWB_FUZZ_ONLY=DICOM (or another name of FORMATS) fuzzes one format
+    let only = std::env::var("VWB_FUZZ_ONLY").ok();
+    let kinds: Vec<usize> = (0..FORMATS.len())
+        .filter(|&k| {
+            only.as_deref()
+                .is_none_or(|o| o.eq_ignore_ascii_case(FORMATS[k]))
+        })
+        .collect();
+    assert!(!kinds.is_empty(), "VWB_FUZZ_ONLY names none of {FORMATS:?}");
     let mut counts = FuzzCounts::default();
     for i in 0..cases {
-        // NRRD, preset, NIfTI, MetaImage, mesh in turn
-        let kind = i % 5;
+        // NRRD, preset, NIfTI, MetaImage, mesh, DICOM in turn
+        let kind = kinds[i % kinds.len()];
         let nrrd = kind != 1 && kind != 4;
         let (seed, name) = match kind {
             0 => (&seeds_nrrd[(next() % 4) as usize], "case.nrrd"),
@@ -713,6 +765,7 @@ fn fuzz_run(cases: usize) -> FuzzCounts {
             2 => (&nii_gz, "case.nii.gz"),
             3 if next() % 2 == 0 => (&mha, "case.mha"),
             3 => (&mha_z, "case.mha"),
+            5 => (&dicom[(next() % 3) as usize], "case.dcm"),
             _ => {
                 let (b, n) = &meshes[(next() % 3) as usize];
                 (b, *n)
@@ -785,10 +838,13 @@ fn fuzz_run(cases: usize) -> FuzzCounts {
     counts
 }
 
+/// The fuzzed formats, in the order of [`FuzzCounts::per_format`].
+const FORMATS: [&str; 6] = ["NRRD", "preset", "NIfTI", "MetaImage", "mesh", "DICOM"];
+
 #[derive(Debug, Default)]
 struct FuzzCounts {
-    /// (cases, loaded, errors, panics) for NRRD, presets, NIfTI, MetaImage, meshes.
-    per_format: [(usize, usize, usize, usize); 5],
+    /// (cases, loaded, errors, panics) for NRRD, presets, NIfTI, MetaImage, meshes, DICOM.
+    per_format: [(usize, usize, usize, usize); 6],
     cases: usize,
     loaded: usize,
     errors: usize,
@@ -831,10 +887,7 @@ fn fuzz() {
         c.unnamed.len(),
         c.header_blamed_for_gzip
     );
-    for (name, (cases, loaded, errors, panics)) in ["NRRD", "preset", "NIfTI", "MetaImage", "mesh"]
-        .iter()
-        .zip(c.per_format)
-    {
+    for (name, (cases, loaded, errors, panics)) in FORMATS.iter().zip(c.per_format) {
         println!(
             "fuzz {name}: {cases} cases, {loaded} loaded, {errors} clear errors, {panics} panics"
         );

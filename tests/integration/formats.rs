@@ -1,6 +1,6 @@
-//! Volume formats beyond NRRD (render/src/volume/{nifti,metaimage,orient}.rs): the same
-//! anatomy stored in different axis orders and orientations by NRRD, NIfTI (.nii.gz)
-//! and MetaImage loads to the same voxels (left stays left), renders the same image,
+//! Volume formats beyond NRRD (render/src/volume/{nifti,metaimage,dicom,orient}.rs): the
+//! same anatomy stored in different axis orders and orientations by NRRD, NIfTI (.nii.gz),
+//! MetaImage and a DICOM series loads to the same voxels (left stays left), renders the same image,
 //! and `vwb info --volume` prints what was read.
 
 use std::io::Write;
@@ -104,33 +104,104 @@ fn the_same_anatomy_from_nifti_and_metaimage_lands_in_the_same_place() {
     assert!(i16s(&from_mhd) == i16s(&ct), "MetaImage voxels moved");
     // a voxel on the patient's left half stays there: the skull's left edge is at low x
     // in every copy, by construction of the comparison above; and the render agrees
-    let preset = repo().join("presets/ct_head.ron");
-    let render = |volume: &Path| {
-        let out = tmp(&format!(
-            "{}.png",
-            volume.file_name().unwrap().to_string_lossy()
-        ));
-        let o = std::process::Command::new(env!("CARGO_BIN_EXE_vwb"))
-            .args(["render", "--size", "64x64", "--preset"])
-            .arg(&preset)
-            .arg("--volume")
-            .arg(volume)
-            .arg("-o")
-            .arg(&out)
-            .env("VWB_DATA_DIR", data_dir())
-            .output()
-            .unwrap();
-        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-        image::open(&out).unwrap().to_rgb8()
-    };
-    let reference = render(&data_dir().join("ct_cranium_256x256x108_int16.nhdr"));
+    let reference = render_ct(&data_dir().join("ct_cranium_256x256x108_int16.nhdr"));
     assert!(
-        render(&gz) == reference,
+        render_ct(&gz) == reference,
         "the NIfTI copy renders differently"
     );
     assert!(
-        render(&mhd) == reference,
+        render_ct(&mhd) == reference,
         "the MetaImage copy renders differently"
+    );
+}
+
+/// `presets/ct_head.ron` rendered at 64² from `volume` by the `vwb` binary.
+fn render_ct(volume: &Path) -> image::RgbImage {
+    let preset = repo().join("presets/ct_head.ron");
+    let out = tmp(&format!(
+        "{}.png",
+        volume.file_name().unwrap().to_string_lossy()
+    ));
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_vwb"))
+        .args(["render", "--size", "64x64", "--preset"])
+        .arg(&preset)
+        .arg("--volume")
+        .arg(volume)
+        .arg("-o")
+        .arg(&out)
+        .env("VWB_DATA_DIR", data_dir())
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    image::open(&out).unwrap().to_rgb8()
+}
+
+/// The CT head as a coronal DICOM series: rows run along +x (left), columns down the
+/// head (−z), one file per y (anterior to posterior); file names, instance numbers and
+/// the order of writing are shuffled, so only ImagePositionPatient gives the order. It
+/// loads to exactly the NRRD's voxels and renders its image.
+#[test]
+fn the_same_anatomy_from_a_dicom_series_lands_in_the_same_place() {
+    let ct = ct();
+    let (s, dims, sp) = store(&ct, [0, 2, 1], [false, true, false]);
+    let dir = tmp("ct_coronal_dicom");
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let plane = (dims[0] * dims[1]) as usize;
+    let n = dims[2] as i32;
+    for k in 0..n {
+        let samples: Vec<i32> = s[k as usize * plane..(k as usize + 1) * plane]
+            .iter()
+            .map(|&v| i32::from(v))
+            .collect();
+        // stored row 0 is the top of the head: canonical z = dims_z − 1
+        let top = (ct.dims[2] - 1) as f64 * ct.spacing[2];
+        let position = [[0.0, k as f64 * sp[2], top]];
+        let shuffled = (k * 37 + 11) % n;
+        volume::dicom::write_slice(
+            &dir.join(format!("{shuffled:03}.dcm")),
+            &volume::dicom::SliceSpec {
+                instance: (k * 101 + 5) % n + 1,
+                rows: dims[1] as u16,
+                cols: dims[0] as u16,
+                samples: &samples,
+                positions: &position,
+                orientation: Some([1.0, 0.0, 0.0, 0.0, 0.0, -1.0]),
+                pixel_spacing: Some([sp[1], sp[0]]),
+                ..Default::default()
+            },
+        )
+        .unwrap();
+    }
+    let from_dicom = volume::load(&dir).unwrap();
+    assert_eq!(from_dicom.dims, ct.dims);
+    for a in 0..3 {
+        assert!(
+            (from_dicom.spacing[a] - ct.spacing[a]).abs() < 1e-9,
+            "{:?} against {:?}",
+            from_dicom.spacing,
+            ct.spacing
+        );
+    }
+    assert!(i16s(&from_dicom) == i16s(&ct), "DICOM voxels moved");
+    assert!(
+        from_dicom.notes[0].contains("axes to LPS: x→x, y→−z, z→y"),
+        "{:?}",
+        from_dicom.notes
+    );
+    // one file of the series opens the whole series; the image is the NRRD's
+    let image = render_ct(&dir.join("000.dcm"));
+    let reference = render_ct(&data_dir().join("ct_cranium_256x256x108_int16.nhdr"));
+    let worst = image
+        .as_raw()
+        .iter()
+        .zip(reference.as_raw())
+        .map(|(a, b)| a.abs_diff(*b))
+        .max()
+        .unwrap();
+    assert!(
+        worst <= 1,
+        "the DICOM copy renders differently (max {worst}/255)"
     );
 }
 

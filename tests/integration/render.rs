@@ -423,6 +423,58 @@ fn bad_sizes_and_spacings_are_errors_not_panics() {
     assert!(r.render(&s).unwrap_err().to_string().contains("slices"));
 }
 
+/// GPU memory (issue 20): a volume or an eye buffer that would pass the renderer's
+/// budget fails with a clear error before anything is allocated, and the last volume
+/// and image stay usable; a lost device fails every later frame with its reason,
+/// never a panic.
+#[test]
+fn gpu_memory_limits_and_a_lost_device_are_clear_errors() {
+    let stack = [instance("classify.tf1d")];
+    let s = settings(48, 48, Backend::Compute);
+    let mut r = Renderer::new(gpu(), demo()).unwrap();
+    let before = render(&mut r, &stack, TargetFormat::Rgba16Float, &s);
+    let held = r.gpu_memory();
+    // the demo (128×128×84 r32float or r16float) and a 48² eye buffer
+    let volume = 128 * 128 * 84 * if gpu().float32_filterable() { 4 } else { 2 };
+    assert!(held >= volume + 48 * 48 * 28, "{held}");
+    r.set_gpu_memory_budget(Some(held + (1 << 20)));
+    // a volume 8× larger does not fit: refused, the demo stays
+    let big = synthetic([256, 256, 168], |x, y, z| ((x ^ y ^ z) & 1) as f32);
+    let e = r.set_volume(big).unwrap_err().to_string();
+    assert!(
+        e.contains("GPU memory") && e.contains("256, 256, 168") && e.contains("budget"),
+        "{e}"
+    );
+    r.render(&s).unwrap();
+    assert_eq!(r.read_pixels().unwrap().2, before, "the demo still renders");
+    // an eye buffer that does not fit: refused, a smaller one renders
+    let e = r
+        .render(&settings(1024, 1024, Backend::Compute))
+        .unwrap_err();
+    assert!(
+        matches!(e, vwb_render::renderer::RenderError::OutOfMemory { .. })
+            && e.to_string().contains("1024×1024"),
+        "{e}"
+    );
+    r.set_gpu_memory_budget(None);
+    assert_eq!(
+        render(&mut r, &stack, TargetFormat::Rgba16Float, &s),
+        before
+    );
+    // a device of its own, lost: every frame says so
+    let own = vwb_render::GpuContext::new_headless().unwrap();
+    let mut lost = Renderer::new(&own, demo()).unwrap();
+    render(&mut lost, &stack, TargetFormat::Rgba16Float, &s);
+    assert!(own.lost().is_none());
+    own.device.destroy();
+    own.wait();
+    let e = lost.render(&s).unwrap_err().to_string();
+    assert!(
+        e.contains("device was lost") && e.contains("restart"),
+        "{e}"
+    );
+}
+
 /// Empty-space skipping changes nothing in the image: every shipped preset (and the
 /// per-slice-state one) renders the same with it on and off, on both backends and with
 /// early termination, while a good share of the bricks is skipped where the stack

@@ -773,6 +773,33 @@ fn window_drop_files_edit_the_2d_tf_and_compare() {
     assert!(h.state().recent().len() >= 2, "{:?}", h.state().recent());
 }
 
+/// GPU memory (issue 20): with a budget that holds the demo and a small eye buffer, a
+/// full-resolution frame is retried at lower resolutions until one fits and the window
+/// says so; a dropped volume that does not fit is refused and the demo stays.
+#[test]
+fn window_retries_at_a_lower_resolution_when_gpu_memory_runs_out() {
+    let mut h = demo_window();
+    let held = h.state().renderer().gpu_memory();
+    h.state_mut()
+        .renderer_mut()
+        .set_gpu_memory_budget(Some(held + (1 << 18)));
+    h.state_mut().quality_scale = 1.0;
+    h.run_steps(10);
+    let q = h.state().quality_scale;
+    assert!((0.125..1.0).contains(&q), "quality {q}");
+    let e = h.state().error().unwrap_or_default().to_string();
+    assert!(e.contains("GPU memory") && e.contains("retrying at"), "{e}");
+    assert!(h.state().renderer().gpu_memory() <= held + (1 << 18));
+    image(&h);
+    drop_file(&mut h, crate::common::data_dir().join(CT));
+    assert_eq!(h.state().renderer().volume().dims, [128, 128, 84]);
+    let status = format!("{:?}", h.state().file_status());
+    assert!(
+        status.contains("GPU memory") && status.contains("256, 256, 108"),
+        "{status}"
+    );
+}
+
 /// A clip shape's handle over the viewport drags its centre in the image plane (the
 /// camera does not orbit), and the image follows.
 #[test]

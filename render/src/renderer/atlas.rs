@@ -217,7 +217,7 @@ impl Renderer {
                 }
             }
         }
-        self.ensure_target(tw, th, target);
+        self.ensure_target(tw, th, target)?;
         // pre-passes read the volume through the frame uniform
         self.write_frame(
             &FrameSettings {

@@ -34,6 +34,7 @@
 //! ±Inf and are then counted as non-finite).
 
 mod demo;
+pub mod dicom;
 mod metaimage;
 pub mod nifti;
 mod nrrd;
@@ -464,6 +465,9 @@ pub fn load(path: &Path) -> Result<Volume, VolumeError> {
     if path.is_dir() && !tiff::folder_pages(path).is_empty() {
         return tiff::load(path);
     }
+    if path.is_dir() && !dicom::folder_files(path).is_empty() {
+        return dicom::load(path);
+    }
     let input = nrrd::Input::open(path)?;
     let head = input
         .head(348)
@@ -472,6 +476,9 @@ pub fn load(path: &Path) -> Result<Volume, VolumeError> {
         return nrrd::load_input(input, path);
     }
     let regular = std::fs::metadata(path).is_ok_and(|m| m.is_file());
+    if dicom::is_dicom(&head) && regular {
+        return dicom::load(path);
+    }
     if nifti::is_nifti(&head) {
         if !regular {
             return Err(VolumeError::Unsupported {

@@ -456,7 +456,7 @@ pub(crate) fn reorder_data(
 }
 
 /// Planar components (all of component 0, then 1, ...) to interleaved.
-fn interleave(data: VoxelData, components: usize) -> VoxelData {
+pub(crate) fn interleave(data: VoxelData, components: usize) -> VoxelData {
     fn go<T: Copy>(v: Vec<T>, c: usize) -> Vec<T> {
         let n = v.len() / c;
         let mut out = Vec::with_capacity(v.len());

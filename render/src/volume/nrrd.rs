@@ -6,18 +6,25 @@
 //! `ascii`/`text`/`txt` encodings (decimal samples separated by white space or commas);
 //! either endianness; `line skip` (lines of the data file, before decompression),
 //! `byte skip` (of the decompressed data for gzip; `-1` for raw means the data
-//! ends the file); dimension 3 (scalar) or 4 with the first axis holding 1, 2 or
-//! 3 interleaved components. Spacing comes from `space directions` (the length of
+//! ends the file); dimension 3 (scalar) or 4: the first axis holding 1, 2 or 3
+//! interleaved components (the default), or, by its kind, the last axis holding
+//! planar components (`vector`, `3-vector`, … with 1–3 entries) or a series
+//! (`time`, `list`, …: the first volume is read, with a note). Spacing comes from `space directions` (the length of
 //! each axis vector) when present, else from `spacings`, else it is 1.
 //!
 //! Sample types: 8- and 16-bit integers and `float` load as they are; 32/64-bit
 //! integers and `double` are converted to f32.
 //!
 //! Not supported (with a clear error): `data file: LIST` and formatted file
-//! lists, the `hex` encoding, `block` samples, 2D and 4D
-//! (time series) volumes, more than 3 components.
+//! lists, the `hex` encoding, `block` samples, 2D volumes, a non-spatial axis
+//! in the middle, more than 3 components.
 //!
-//! Comments, `key:=value` pairs and the known descriptive fields (`space`,
+//! Orientation: when `space` names an anatomical space (RAS, LAS, LPS) and `space
+//! directions` are given, the axes are permuted and flipped to LPS like every other
+//! format (`orient.rs`; scalar volumes only, a vector volume keeps its axes with a note).
+//! Other spaces and headers without directions keep the stored order.
+//!
+//! Comments, `key:=value` pairs and the known descriptive fields (
 //! `space origin`, `kinds` beyond their check, `units`, `labels`, ...) are
 //! ignored; unrecognised fields are ignored too but listed in
 //! [`NrrdHeader::unknown_fields`] so a caller can warn about typos.
@@ -185,6 +192,20 @@ pub struct NrrdHeader {
     /// Voxel size along x, y, z: the norms of `space directions`, else
     /// `spacings`, else 1.
     pub spacing: [f64; 3],
+    /// The world direction of each spatial axis in LPS, when the header names an
+    /// anatomical `space` (RAS, LAS, LPS or their long names) and gives `space
+    /// directions` for it; the loader reorders the axes by it (see `orient.rs`).
+    pub lps_directions: Option<[[f64; 3]; 3]>,
+    /// The `space` field as written, if any.
+    pub space: Option<String>,
+    /// Volumes of a 4-dimensional series on the last axis (1 otherwise); the loader
+    /// reads the first.
+    pub volumes: u64,
+    /// The components lie on the last axis (whole volumes one after another), not
+    /// interleaved on the first.
+    pub planar: bool,
+    /// The kind of the non-spatial axis of a 4-dimensional NRRD, if given.
+    pub extra_kind: Option<String>,
     /// Byte order (little when the header omits it for a 1-byte type).
     pub endian: Endian,
     pub encoding: NrrdEncoding,
@@ -229,6 +250,7 @@ enum Field {
     Sizes,
     Spacings,
     SpaceDirections,
+    Space,
     Kinds,
     Endian,
     Encoding,
@@ -247,6 +269,7 @@ impl Field {
             "sizes" => Field::Sizes,
             "spacings" => Field::Spacings,
             "space directions" => Field::SpaceDirections,
+            "space" => Field::Space,
             "kinds" => Field::Kinds,
             "endian" => Field::Endian,
             "encoding" => Field::Encoding,
@@ -256,7 +279,7 @@ impl Field {
             "content" | "block size" | "blocksize" | "thicknesses" | "axis mins" | "axismins"
             | "axis maxs" | "axismaxs" | "centers" | "centerings" | "labels" | "units" | "min"
             | "max" | "old min" | "oldmin" | "old max" | "oldmax" | "number" | "sample units"
-            | "sampleunits" | "space" | "space dimension" | "space units" | "space origin"
+            | "sampleunits" | "space dimension" | "space units" | "space origin"
             | "measurement frame" => Field::Ignored,
             _ => return None,
         })
@@ -269,6 +292,7 @@ impl Field {
             Field::Sizes => "sizes",
             Field::Spacings => "spacings",
             Field::SpaceDirections => "space directions",
+            Field::Space => "space",
             Field::Kinds => "kinds",
             Field::Endian => "endian",
             Field::Encoding => "encoding",
@@ -323,13 +347,20 @@ pub fn parse_nrrd_header(text: &str, file: Option<&Path>) -> Result<NrrdHeader, 
     let encoding = fields.encoding()?;
     let endian = fields.endian(data_type)?;
     let spacing = if let Some((line, value)) = fields.get(Field::SpaceDirections) {
-        let s = spacing_from_directions(&errs, line, value, dimension)?;
+        let s = spacing_from_directions(&errs, line, value, dimension, axes.extra)?;
         check_spacing_line(&errs, line, "space directions", s)?
     } else if let Some((line, value)) = fields.get(Field::Spacings) {
-        let s = spacing_from_spacings(&errs, line, value, dimension)?;
+        let s = spacing_from_spacings(&errs, line, value, dimension, axes.extra)?;
         check_spacing_line(&errs, line, "spacings", s)?
     } else {
         [1.0; 3]
+    };
+    let space = fields.get(Field::Space).map(|(_, v)| v.to_string());
+    let lps_directions = match (&space, fields.get(Field::SpaceDirections)) {
+        (Some(name), Some((line, value))) => {
+            lps_directions(name, value, axes.extra).map_err(|m| errs.at(line, m))?
+        }
+        _ => None,
     };
     let data_file = fields.data_file()?;
     let line_skip = fields.line_skip()?;
@@ -346,6 +377,11 @@ pub fn parse_nrrd_header(text: &str, file: Option<&Path>) -> Result<NrrdHeader, 
         dims: layout.dims,
         components: layout.components,
         spacing,
+        lps_directions,
+        space,
+        volumes: axes.volumes,
+        planar: axes.planar,
+        extra_kind: axes.extra_kind.clone(),
         endian,
         encoding,
         data_file,
@@ -359,6 +395,13 @@ pub fn parse_nrrd_header(text: &str, file: Option<&Path>) -> Result<NrrdHeader, 
 struct Axes {
     sizes: [u64; 3],
     components: u64,
+    /// The non-spatial axis of a 4-dimensional NRRD (0 or 3).
+    extra: Option<usize>,
+    /// Volumes in a series on the last axis (1 otherwise); only the first is read.
+    volumes: u64,
+    /// Components on the last axis (whole volumes one after another).
+    planar: bool,
+    extra_kind: Option<String>,
 }
 
 /// The interpreted fields of a header, each with its line number.
@@ -479,35 +522,89 @@ impl<'t, 'e> Fields<'t, 'e> {
             sizes.push(size);
         }
 
-        let first_spatial = dimension - 3;
-        if let Some((line, value)) = self.get(Field::Kinds) {
-            let kinds: Vec<&str> = value.split_whitespace().collect();
-            check_count(errs, line, "kinds", kinds.len(), dimension)?;
-            for (axis, kind) in kinds.iter().enumerate() {
-                let spatial = is_spatial_kind(kind);
-                if axis < first_spatial && spatial {
-                    return Err(errs.at(
-                        line,
-                        format!(
-                            "kinds: axis 0 is '{kind}', so this is a 4D volume (e.g. a time \
-                             series), which is not supported; a 4-dimensional NRRD must hold \
-                             vectors on axis 0"
-                        ),
-                    ));
-                }
-                if axis >= first_spatial && !spatial {
-                    return Err(errs.at(
-                        line,
-                        format!(
-                            "kinds: axis {axis} is '{kind}', but only the first axis of a \
-                             4-dimensional NRRD may hold components; axes {first_spatial}.. \
-                             must be spatial"
-                        ),
-                    ));
+        // the one non-spatial axis of a 4-dimensional NRRD: the first (interleaved
+        // components, the default without kinds) or the last (planar components, or a
+        // series of volumes such as time steps)
+        let kinds: Option<(usize, Vec<&str>)> = self
+            .get(Field::Kinds)
+            .map(|(line, value)| (line, value.split_whitespace().collect()));
+        if let Some((line, k)) = &kinds {
+            check_count(errs, *line, "kinds", k.len(), dimension)?;
+        }
+        let extra = if dimension == 4 {
+            match &kinds {
+                None => 0,
+                Some((line, k)) => {
+                    let non_spatial: Vec<usize> =
+                        (0..4).filter(|&a| !is_spatial_kind(k[a])).collect();
+                    match non_spatial.as_slice() {
+                        [0] => 0,
+                        [3] => 3,
+                        [] if k[3].eq_ignore_ascii_case("time") => 3,
+                        [] => {
+                            return Err(errs.at(
+                                *line,
+                                "kinds: all four axes are spatial; a 4-dimensional NRRD \
+                                 holds components or a series on its first or last axis",
+                            ));
+                        }
+                        [a, ..] => {
+                            return Err(errs.at(
+                                *line,
+                                format!(
+                                    "kinds: axis {a} is '{}'; a 4-dimensional NRRD may hold \
+                                     components or a series only on its first or last axis \
+                                     (the other axes spatial)",
+                                    k[*a]
+                                ),
+                            ));
+                        }
+                    }
                 }
             }
-        }
-        let components = if dimension == 4 { sizes[0] } else { 1 };
+        } else {
+            if let Some((line, k)) = &kinds
+                && let Some(a) = (0..3).find(|&a| !is_spatial_kind(k[a]))
+            {
+                return Err(errs.at(
+                    *line,
+                    format!(
+                        "kinds: axis {a} is '{}', but a 3-dimensional NRRD must be spatial \
+                         on every axis",
+                        k[a]
+                    ),
+                ));
+            }
+            usize::MAX
+        };
+        let spatial: Vec<usize> = (0..dimension).filter(|&a| a != extra).collect();
+        let extra_size = sizes.get(extra).copied().unwrap_or(1);
+        let extra_kind = kinds
+            .as_ref()
+            .and_then(|(_, k)| k.get(extra))
+            .map(|k| k.to_ascii_lowercase());
+        // a last axis of vector kind with 1–3 entries holds planar components; any other
+        // last axis is a series, whose first volume is read
+        let vector_kind = extra_kind.as_deref().is_some_and(|k| {
+            matches!(
+                k,
+                "vector"
+                    | "2-vector"
+                    | "3-vector"
+                    | "covariant-vector"
+                    | "normal"
+                    | "3-normal"
+                    | "3-color"
+                    | "rgb-color"
+                    | "point"
+            )
+        });
+        let (components, volumes, planar) = match extra {
+            0 => (sizes[0], 1, false),
+            3 if vector_kind && extra_size <= 3 => (extra_size, 1, true),
+            3 => (1, extra_size, false),
+            _ => (1, 1, false),
+        };
         if components > 3 {
             return Err(errs.at(
                 sizes_line,
@@ -517,12 +614,12 @@ impl<'t, 'e> Fields<'t, 'e> {
             ));
         }
         Ok(Axes {
-            sizes: [
-                sizes[first_spatial],
-                sizes[first_spatial + 1],
-                sizes[first_spatial + 2],
-            ],
+            sizes: [sizes[spatial[0]], sizes[spatial[1]], sizes[spatial[2]]],
             components,
+            extra: (dimension == 4).then_some(extra),
+            volumes,
+            planar,
+            extra_kind,
         })
     }
 
@@ -691,11 +788,12 @@ fn spacing_from_spacings(
     line: usize,
     value: &str,
     dimension: usize,
+    extra: Option<usize>,
 ) -> Result<[f64; 3], VolumeError> {
     let tokens: Vec<&str> = value.split_whitespace().collect();
     check_count(errs, line, "spacings", tokens.len(), dimension)?;
-    let first_spatial = dimension - 3;
     let mut spacing = [1.0; 3];
+    let mut next = 0;
     for (axis, tok) in tokens.iter().enumerate() {
         let v: f64 = tok.parse().map_err(|_| {
             errs.at(
@@ -703,8 +801,9 @@ fn spacing_from_spacings(
                 format!("spacings: '{tok}' (axis {axis}) is not a number"),
             )
         })?;
-        if axis >= first_spatial {
-            spacing[axis - first_spatial] = check_spacing_value(errs, line, "spacings", axis, v)?;
+        if Some(axis) != extra {
+            spacing[next] = check_spacing_value(errs, line, "spacings", axis, v)?;
+            next += 1;
         }
     }
     Ok(spacing)
@@ -717,15 +816,16 @@ fn spacing_from_directions(
     line: usize,
     value: &str,
     dimension: usize,
+    extra: Option<usize>,
 ) -> Result<[f64; 3], VolumeError> {
     let field = "space directions";
     let dirs = parse_directions(value).map_err(|m| errs.at(line, format!("{field}: {m}")))?;
     check_count(errs, line, field, dirs.len(), dimension)?;
-    let first_spatial = dimension - 3;
     let mut spacing = [1.0; 3];
+    let mut next = 0;
     let mut space_dim = None;
     for (axis, dir) in dirs.iter().enumerate() {
-        match (axis >= first_spatial, dir) {
+        match (Some(axis) != extra, dir) {
             (false, None) => {}
             (false, Some(_)) => {
                 return Err(errs.at(
@@ -746,11 +846,47 @@ fn spacing_from_directions(
                     );
                 }
                 let norm = v.iter().map(|c| c * c).sum::<f64>().sqrt();
-                spacing[axis - first_spatial] = check_spacing_value(errs, line, field, axis, norm)?;
+                spacing[next] = check_spacing_value(errs, line, field, axis, norm)?;
+                next += 1;
             }
         }
     }
     Ok(spacing)
+}
+
+/// The spatial axes' directions in LPS for an anatomical `space` (None for other
+/// spaces, such as `scanner-xyz` or `3D-right-handed`, which name no patient side).
+fn lps_directions(
+    space: &str,
+    directions: &str,
+    extra: Option<usize>,
+) -> Result<Option<[[f64; 3]; 3]>, String> {
+    // sign of (x, y) that takes the space's axes to LPS
+    let flip = match space.trim().to_ascii_lowercase().as_str() {
+        "left-posterior-superior" | "lps" => [1.0, 1.0],
+        "right-anterior-superior" | "ras" => [-1.0, -1.0],
+        "left-anterior-superior" | "las" => [1.0, -1.0],
+        _ => return Ok(None),
+    };
+    let dirs = parse_directions(directions).map_err(|m| format!("space directions: {m}"))?;
+    let spatial: Vec<&Vec<f64>> = dirs
+        .iter()
+        .enumerate()
+        .filter(|(a, _)| Some(*a) != extra)
+        .filter_map(|(_, d)| d.as_ref())
+        .collect();
+    if spatial.len() != 3 || spatial.iter().any(|v| v.len() != 3) {
+        return Err(format!(
+            "space directions: the space '{space}' needs three 3-vectors for the spatial axes"
+        ));
+    }
+    Ok(Some(std::array::from_fn(|a| {
+        [
+            spatial[a][0] * flip[0],
+            spatial[a][1] * flip[1],
+            spatial[a][2],
+        ]
+    })))
 }
 
 /// Parses `none` and `(x,y,z)` tokens (spaces allowed inside the parentheses).
@@ -1016,14 +1152,56 @@ fn load_stream<R: BufRead + Seek>(
             read_data(r, header_text.len, total_len, &header, file)?
         }
     };
-    Volume::new(
+    let mut notes = Vec::new();
+    if header.volumes > 1 {
+        notes.push(format!(
+            "a 4D series of {} volumes on the last axis ({}): the first is shown",
+            header.volumes,
+            header.extra_kind.as_deref().unwrap_or("no kind")
+        ));
+    }
+    let data = if header.planar {
+        notes.push(format!(
+            "{} components stored on the last axis ({})",
+            header.components,
+            header.extra_kind.as_deref().unwrap_or("no kind")
+        ));
+        super::nifti::interleave(data, header.components as usize)
+    } else {
+        data
+    };
+    let mut reorder = super::orient::Reorder::IDENTITY;
+    if let (Some(dirs), Some(space)) = (header.lps_directions, &header.space) {
+        let (r, angle) = super::orient::reorder_for(&dirs);
+        if header.components > 1 && !r.is_identity() {
+            notes.push(format!(
+                "space {space}: a vector volume keeps its stored axes (its components would \
+                 have to turn with them)"
+            ));
+        } else {
+            reorder = r;
+            if angle > 0.5 {
+                notes.push(format!(
+                    "oblique by {angle:.1}°: snapped to the nearest axes without resampling"
+                ));
+            }
+            notes.push(format!(
+                "space {space}; axes to LPS: {}",
+                super::nifti::describe(&reorder)
+            ));
+        }
+    }
+    let data = super::nifti::reorder_data(data, &reorder, header.dims, header.components as usize);
+    let mut volume = Volume::new(
         name_from_path(file),
-        header.dims,
+        reorder.apply(header.dims),
         header.components,
-        header.spacing,
+        reorder.apply(header.spacing),
         data,
     )
-    .map_err(|e| e.in_file(file))
+    .map_err(|e| e.in_file(file))?;
+    volume.notes = notes;
+    Ok(volume)
 }
 
 struct HeaderText {
@@ -1140,10 +1318,12 @@ fn read_data<R: BufRead + Seek>(
         NrrdEncoding::Raw => {
             let data_start = match header.byte_skip {
                 ByteSkip::FromEnd => {
-                    if total_len.saturating_sub(pos) < needed {
+                    // a series ends the file: its first volume starts that far before
+                    let all = needed.saturating_mul(header.volumes);
+                    if total_len.saturating_sub(pos) < all {
                         return Err(size_error(pos));
                     }
-                    total_len - needed
+                    total_len - all
                 }
                 ByteSkip::Bytes(skip) => {
                     let data_start = pos.saturating_add(skip);
@@ -1243,6 +1423,9 @@ fn read_ascii<R: Read>(
         .filter(|t| !t.is_empty())
         .enumerate()
     {
+        if i >= count && header.volumes > 1 {
+            break; // the later volumes of a series
+        }
         if i >= count {
             return Err(VolumeError::Invalid {
                 file: Some(file.to_path_buf()),
@@ -1356,7 +1539,10 @@ fn decompress<'a>(
             },
         )?;
     let mut extra = [0u8; 1];
-    if super::raw::read_fully(&mut limited, &mut extra).map_err(&corrupt)? > 0 {
+    // a series goes on after its first volume
+    if header.volumes == 1
+        && super::raw::read_fully(&mut limited, &mut extra).map_err(&corrupt)? > 0
+    {
         // Decompress the rest (bounded by deflate's ratio) so that the stream's
         // checksum decides between a corrupt stream and a wrong header.
         let mut rest = limited.into_inner();

@@ -559,6 +559,153 @@ fn wide_types_convert_to_f32() {
     }
 }
 
+/// An anatomical `space` with `space directions` reorders the axes to LPS (the same
+/// rule as NIfTI and DICOM); LPS with positive diagonal directions (what `vwb crop`
+/// writes) and spaces without a patient side keep the stored order.
+#[test]
+fn anatomical_nrrd_spaces_are_reoriented_to_lps() {
+    let dir = TempDir::new("nrrdspace");
+    // 2×2×2 voxels, value = 4z + 2y + x
+    let data: Vec<u8> = (0..8).collect();
+    let load_with = |space: &str, dirs: &str| {
+        let s = format!("space: {space}");
+        let d = format!("space directions: {dirs}");
+        let path = dir.write(
+            "o.nrrd",
+            &nrrd(
+                &[
+                    "type: uint8",
+                    "dimension: 3",
+                    "sizes: 2 2 2",
+                    &s,
+                    &d,
+                    "encoding: raw",
+                ],
+                &data,
+            ),
+        );
+        load(&path).unwrap()
+    };
+    let u8s = |v: &Volume| match &v.data {
+        VoxelData::U8(x) => x.clone(),
+        other => panic!("{:?}", other.scalar_type()),
+    };
+    // RAS with positive diagonal directions: stored x runs to the right, y anterior,
+    // so both flip
+    let v = load_with("right-anterior-superior", "(0.5,0,0) (0,2,0) (0,0,3)");
+    assert_eq!(u8s(&v), vec![3, 2, 1, 0, 7, 6, 5, 4]);
+    assert_eq!(v.spacing, [0.5, 2.0, 3.0]);
+    assert!(
+        v.notes.iter().any(|n| n.contains("x→−x, y→−y, z→z")),
+        "{:?}",
+        v.notes
+    );
+    // the same voxels stored as LPS: unchanged
+    let v = load_with("LPS", "(0.5,0,0) (0,2,0) (0,0,3)");
+    assert_eq!(u8s(&v), data);
+    // LAS, axes stored (z, x, y): stored axis 0 runs superior, 1 left, 2 anterior
+    let v = load_with("left-anterior-superior", "(0,0,3) (0.5,0,0) (0,2,0)");
+    assert_eq!(v.spacing, [0.5, 2.0, 3.0]);
+    let got = u8s(&v);
+    for z in 0..2usize {
+        for y in 0..2usize {
+            for x in 0..2usize {
+                // canonical (x, y, z) = stored (x' = z, y' = x, z' = 1 − y)
+                let stored = 4 * (1 - y) + 2 * x + z;
+                assert_eq!(got[4 * z + 2 * y + x], stored as u8, "at {x} {y} {z}");
+            }
+        }
+    }
+    // a space without a patient side keeps the stored order
+    let v = load_with("3D-right-handed", "(0,0,3) (0.5,0,0) (0,2,0)");
+    assert_eq!(u8s(&v), data);
+    assert_eq!(v.spacing, [3.0, 0.5, 2.0]);
+}
+
+/// 4-dimensional NRRDs whose non-spatial axis comes last: a series (time, list) loads
+/// its first volume with a note, in every encoding and with `byte skip: -1`; a vector
+/// axis with 1–3 entries holds planar components, which are interleaved.
+#[test]
+fn four_dimensional_nrrds_with_the_extra_axis_last() {
+    let dir = TempDir::new("nrrd4d");
+    // three 2×2×2 volumes: volume t holds 10·t + voxel index
+    let series: Vec<u8> = (0..3u8)
+        .flat_map(|t| (0..8).map(move |i| 10 * t + i))
+        .collect();
+    let first: Vec<u8> = (0..8).collect();
+    let u8s = |v: &Volume| match &v.data {
+        VoxelData::U8(x) => x.clone(),
+        other => panic!("{:?}", other.scalar_type()),
+    };
+    let base = [
+        "type: uint8",
+        "dimension: 4",
+        "sizes: 2 2 2 3",
+        "spacings: 0.5 1 2 NaN",
+    ];
+    for (kind, extra) in [
+        ("time", vec!["encoding: raw"]),
+        ("list", vec!["encoding: raw", "byte skip: -1"]),
+        ("time", vec!["encoding: gzip"]),
+        ("time", vec!["encoding: ascii"]),
+    ] {
+        let kinds = format!("kinds: domain domain domain {kind}");
+        let mut fields: Vec<&str> = base.to_vec();
+        fields.push(&kinds);
+        fields.extend(extra.iter().copied());
+        let payload = if extra[0] == "encoding: gzip" {
+            let mut e = GzEncoder::new(Vec::new(), Compression::fast());
+            e.write_all(&series).unwrap();
+            e.finish().unwrap()
+        } else if extra[0] == "encoding: ascii" {
+            series
+                .iter()
+                .map(|v| format!("{v} "))
+                .collect::<String>()
+                .into_bytes()
+        } else {
+            // a byte skip of −1 reads the series from the end of the file
+            [b"junk".as_slice(), &series].concat()
+        };
+        let payload = if extra.len() == 1 && extra[0] == "encoding: raw" {
+            series.clone()
+        } else {
+            payload
+        };
+        let path = dir.write("s.nrrd", &nrrd(&fields, &payload));
+        let v = load(&path).unwrap_or_else(|e| panic!("{extra:?}: {e}"));
+        assert_eq!(v.dims, [2, 2, 2], "{extra:?}");
+        assert_eq!(v.spacing, [0.5, 1.0, 2.0], "{extra:?}");
+        assert_eq!(u8s(&v), first, "{extra:?}");
+        assert!(
+            v.notes
+                .iter()
+                .any(|n| n.contains("series of 3 volumes") && n.contains(kind)),
+            "{:?}",
+            v.notes
+        );
+    }
+    // planar 3-vectors on the last axis: component c of voxel i is 10·c + i
+    let path = dir.write(
+        "v.nrrd",
+        &nrrd(
+            &[
+                "type: uint8",
+                "dimension: 4",
+                "sizes: 2 2 2 3",
+                "kinds: domain domain domain 3-vector",
+                "space directions: (1,0,0) (0,1,0) (0,0,1) none",
+                "encoding: raw",
+            ],
+            &series,
+        ),
+    );
+    let v = load(&path).unwrap();
+    assert_eq!(v.components, 3);
+    let want: Vec<u8> = (0..8u8).flat_map(|i| [i, 10 + i, 20 + i]).collect();
+    assert_eq!(u8s(&v), want);
+}
+
 #[test]
 fn space_directions_give_spacing() {
     let h = header(&[
@@ -1245,15 +1392,24 @@ fn malformed_headers_give_clear_errors() {
         "encoding: raw",
     ];
     assert!(err_text(header(&four)).contains("4 components"));
-    let time = [
+    let middle = [
         "type: float",
         "dimension: 4",
-        "sizes: 3 2 2 2",
-        "kinds: domain domain domain time",
+        "sizes: 2 3 2 2",
+        "kinds: domain list domain domain",
         "endian: little",
         "encoding: raw",
     ];
-    assert!(err_text(header(&time)).contains("4D volume"));
+    assert!(err_text(header(&middle)).contains("axis 1 is 'list'"));
+    let all_spatial = [
+        "type: float",
+        "dimension: 4",
+        "sizes: 2 2 2 2",
+        "kinds: domain domain domain space",
+        "endian: little",
+        "encoding: raw",
+    ];
+    assert!(err_text(header(&all_spatial)).contains("all four axes are spatial"));
     let gz_end = [
         "type: uint8",
         "dimension: 3",
