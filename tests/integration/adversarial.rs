@@ -811,6 +811,13 @@ fn fuzz_run(cases: usize) -> FuzzCounts {
             }
         }));
         counts.cases += 1;
+        // long runs report as they go, so a run cut short still leaves its counts
+        if cases >= 10_000 && counts.cases % (cases / 10) == 0 {
+            eprintln!(
+                "fuzz progress: {} of {cases} cases, {} loaded, {} errors, {} panics",
+                counts.cases, counts.loaded, counts.errors, counts.panics
+            );
+        }
         let per = &mut counts.per_format[kind];
         per.0 += 1;
         match outcome {

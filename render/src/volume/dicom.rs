@@ -384,51 +384,35 @@ fn check_lengths(path: &Path) -> Result<(), VolumeError> {
         let at = pos;
         pos += 4;
         let mut word = [0u8; 4];
-        let read4 = |r: &mut BufReader<File>, w: &mut [u8; 4], what: u64| {
-            r.read_exact(w).map_err(|_| {
+        let mut read4 = |r: &mut BufReader<File>, pos: &mut u64| {
+            r.read_exact(&mut word).map_err(|_| {
                 header_error(
                     path,
-                    format!("the file ends inside an element header at byte {what}"),
+                    format!("the file ends inside an element header at byte {at}"),
                 )
+            })?;
+            *pos += 4;
+            Ok::<[u8; 4], VolumeError>(word)
+        };
+        let as_u32 = |w: [u8; 4]| {
+            u64::from(if big_endian {
+                u32::from_be_bytes(w)
+            } else {
+                u32::from_le_bytes(w)
             })
         };
         let length: u64 = if tag.0 == 0xFFFE || !explicit {
-            read4(&mut r, &mut word, at)?;
-            pos += 4;
-            u64::from(if big_endian {
-                u32::from_be_bytes(word)
-            } else {
-                u32::from_le_bytes(word)
-            })
+            as_u32(read4(&mut r, &mut pos)?)
         } else {
-            read4(&mut r, &mut word, at)?;
-            pos += 4;
-            let vr = [word[0], word[1]];
-            if matches!(
-                &vr,
-                b"OB"
-                    | b"OD"
-                    | b"OF"
-                    | b"OL"
-                    | b"OV"
-                    | b"OW"
-                    | b"SQ"
-                    | b"UC"
-                    | b"UR"
-                    | b"UT"
-                    | b"UN"
-                    | b"SV"
-                    | b"UV"
-            ) {
-                read4(&mut r, &mut word, at)?;
-                pos += 4;
-                u64::from(if big_endian {
-                    u32::from_be_bytes(word)
-                } else {
-                    u32::from_le_bytes(word)
-                })
+            let w = read4(&mut r, &mut pos)?;
+            let long_vr = [
+                b"OB", b"OD", b"OF", b"OL", b"OV", b"OW", b"SQ", b"UC", b"UR", b"UT", b"UN", b"SV",
+                b"UV",
+            ];
+            if long_vr.contains(&&[w[0], w[1]]) {
+                as_u32(read4(&mut r, &mut pos)?)
             } else {
-                u64::from(u16_at(&word[2..4], big_endian))
+                u64::from(u16_at(&w[2..4], big_endian))
             }
         };
         if length == 0xFFFF_FFFF || (tag.0 == 0xFFFE && tag.1 != 0xE000) {
