@@ -79,6 +79,7 @@ fn stack_classify(tex: vec3<f32>, dir: vec3<f32>) -> vec4<f32> {
     s.step = frame.box_min.w;
     s.color = vec4<f32>(0.0);
     s.normal = vec3<f32>(0.0);
+    s.shade_at = 0.0;
     s.slice = 0u;
     clip_cut_gradient = vec4<f32>(0.0);
     if (!run_clip(s)) {
@@ -100,6 +101,7 @@ fn make_sample(pos: vec3<f32>, ray_dir: vec3<f32>, uv: vec2<f32>, slice: u32) ->
     s.step = frame.forward.w / max(dot(ray_dir, frame.forward.xyz), 1.0e-6);
     s.color = vec4<f32>(0.0);
     s.normal = vec3<f32>(0.0);
+    s.shade_at = 0.0;
     s.slice = slice;
     return s;
 }

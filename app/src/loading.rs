@@ -26,12 +26,12 @@ pub struct VolumeLoad {
 
 impl VolumeLoad {
     /// Whether `path` should load in the background: a pipe, FIFO or device, or
-    /// `threshold` bytes or more on disk. Folders and missing files load at once (and
-    /// fail with their message).
+    /// `threshold` bytes or more on disk (with a detached data file, the DICOM files of
+    /// a series or the pages of a TIFF folder). Missing files and folders without
+    /// volume files load at once (and fail with their message).
     pub fn wanted(path: &Path, threshold: u64) -> bool {
         match std::fs::metadata(path) {
-            Ok(m) if m.is_dir() => false,
-            Ok(m) if !m.is_file() => true,
+            Ok(m) if !m.is_file() && !m.is_dir() => true,
             Ok(_) => {
                 let bytes: u64 = vwb_render::volume::input_files(path)
                     .iter()
@@ -118,8 +118,35 @@ mod tests {
         std::fs::write(&f, vec![0u8; 1000]).unwrap();
         assert!(VolumeLoad::wanted(&f, 1000));
         assert!(!VolumeLoad::wanted(&f, 1001));
-        assert!(!VolumeLoad::wanted(&d, 0));
         assert!(!VolumeLoad::wanted(&d.join("missing"), 0));
+        // a DICOM series counts all its files, opened by folder or by one file
+        let series = d.join("series");
+        std::fs::create_dir_all(&series).unwrap();
+        for k in 0..3 {
+            vwb_render::volume::dicom::write_slice(
+                &series.join(format!("s{k}")),
+                &vwb_render::volume::dicom::SliceSpec {
+                    instance: k + 1,
+                    rows: 16,
+                    cols: 16,
+                    samples: &[0; 256],
+                    positions: &[[0.0, 0.0, f64::from(k)]],
+                    ..Default::default()
+                },
+            )
+            .unwrap();
+        }
+        let one = std::fs::metadata(series.join("s0")).unwrap().len();
+        assert!(one > 512, "{one}");
+        for path in [series.clone(), series.join("s1")] {
+            assert!(VolumeLoad::wanted(&path, 3 * one), "{path:?}");
+            assert!(!VolumeLoad::wanted(&path, 3 * one + 1), "{path:?}");
+        }
+        // a folder without volume files loads at once (and fails with its message)
+        assert!(!VolumeLoad::wanted(&d.join("series/../missing-folder"), 0));
+        let empty = d.join("empty");
+        std::fs::create_dir_all(&empty).unwrap();
+        assert!(!VolumeLoad::wanted(&empty, 1));
         #[cfg(unix)]
         assert!(VolumeLoad::wanted(Path::new("/dev/null"), u64::MAX));
     }

@@ -33,7 +33,7 @@ use vwb_lab::headless;
 pub const CAMERA_HINT: &str =
     "drag: orbit · right-drag: pan · wheel: zoom · R: reset · 1/2/3: look along x/y/z";
 
-pub use vwb_lab::document::{DEMO_PRESET, default_document};
+pub use vwb_lab::document::{DEMO_PRESET, default_document, first_document};
 
 /// eframe's wgpu setup: vwb's backends (never GL) and features.
 pub fn wgpu_configuration() -> egui_wgpu::WgpuConfiguration {
@@ -68,7 +68,11 @@ fn startup_or_demo(
     cli: &Cli,
 ) -> Result<(Document, Arc<vwb_render::Volume>, Option<anyhow::Error>)> {
     let loaded = (|| {
-        let mut doc = load_document(cli.preset.as_deref())?;
+        // no preset: the first image (the demo, pre-integrated and lit)
+        let mut doc = match cli.preset.as_deref() {
+            Some(p) => load_document(Some(p))?,
+            None => first_document(&vwb_plugins::registry()),
+        };
         if let Some(v) = &cli.volume {
             doc.volume = headless::volume_arg(v);
         }
@@ -85,7 +89,7 @@ fn startup_or_demo(
         Ok((doc, volume)) => Ok((doc, volume, None)),
         Err(e) if cli.screenshot.is_none() => {
             let registry = vwb_plugins::registry();
-            let doc = default_document(&registry);
+            let doc = first_document(&registry);
             let volume = headless::load_volume(&doc.volume)?;
             Ok((doc, volume, Some(e)))
         }
@@ -126,8 +130,12 @@ pub fn run(cli: &Cli) -> Result<()> {
                     .or(cli.volume.clone())
                     .unwrap_or_default();
                 app.report_failed_open(e, &opening);
-            } else if cli.preset.is_none() && cli.volume.is_none() && cli.screenshot.is_none() {
-                app.restore_last_session();
+            } else if cli.preset.is_none() {
+                // the first image, at the spacing this device affords
+                app.fit_first_image_to_device();
+                if cli.volume.is_none() && cli.screenshot.is_none() {
+                    app.restore_last_session();
+                }
             }
             Ok(Box::new(app))
         }),
@@ -168,6 +176,17 @@ pub fn default_preview(info: &wgpu::AdapterInfo) -> (f32, f32) {
         (4.0, 0.25)
     } else {
         (2.0, 0.5)
+    }
+}
+
+/// The first image's slice spacing on this adapter (voxels): the preset's 0.5 on CPU
+/// adapters (1.7 s a frame at 512² on lavapipe), 0.25 on GPUs, where the lit demo's
+/// remaining slice rings fade further (docs/perf.md, "First image").
+pub fn first_image_spacing(device: wgpu::DeviceType, preset: f32) -> f32 {
+    if device == wgpu::DeviceType::Cpu {
+        preset
+    } else {
+        preset.min(0.25)
     }
 }
 
@@ -418,6 +437,18 @@ impl Workbench {
     }
 
     /// Reopens the last run's scene, if there is one.
+    /// Sets the slice spacing of the first image for this adapter
+    /// ([`first_image_spacing`]).
+    pub fn fit_first_image_to_device(&mut self) {
+        let device = self.renderer.gpu().adapter.get_info().device_type;
+        let spacing = first_image_spacing(device, self.doc.render.slice_spacing);
+        if spacing != self.doc.render.slice_spacing {
+            log::info!("first image: {spacing} voxel per slice on this GPU");
+            self.doc.render.slice_spacing = spacing;
+            self.dirty = true;
+        }
+    }
+
     pub fn restore_last_session(&mut self) {
         if let Some(text) = self.last_session.take() {
             let outcome = self.restore_session(&text);

@@ -10,6 +10,22 @@ use vwb_render::preset::{Document, RenderSection, VolumeSource};
 /// The preset the workbench opens on (embedded, so it runs anywhere).
 pub const DEMO_PRESET: &str = include_str!("../../presets/demo.ron");
 
+/// The window's first image (a start with no arguments): the embedded demo,
+/// pre-integrated and lit, shaded at the slab centroid (docs/perf.md, "First image").
+pub const FIRST_IMAGE_PRESET: &str = include_str!("../../presets/first_image.ron");
+
+/// The document the window opens on when it is started with no arguments and no
+/// last session: `presets/first_image.ron` (else [`default_document`]).
+pub fn first_document(registry: &Registry) -> Document {
+    match Document::parse(FIRST_IMAGE_PRESET, "presets/first_image.ron", registry) {
+        Ok(loaded) => loaded.document,
+        Err(e) => {
+            log::error!("{e}");
+            default_document(registry)
+        }
+    }
+}
+
 /// The document shown when no preset is given: `presets/demo.ron` (the embedded demo
 /// volume with a 1D transfer function).
 pub fn default_document(registry: &Registry) -> Document {

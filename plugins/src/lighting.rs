@@ -265,7 +265,7 @@ impl<T: LitColour> CpuTwin for LitTwin<T> {
             return;
         }
         let v = -s.ray_dir;
-        let g = self.gradients.at(ctx, s.tex);
+        let g = self.gradients.at(ctx, s.shading_tex(ctx));
         let (n, w) = shading_normal(g, self.floor, v, self.two_sided);
         let base = s.color.truncate();
         let lit = self.model.lit(ctx, &self.lights, base, n, v, s.pos);

@@ -336,6 +336,21 @@ pub struct CpuSample {
     pub color: DVec4,
     pub normal: DVec3,
     pub slice: u32,
+    /// Where shading reads the gradient, as a fraction of `step` ahead along the ray
+    /// (0: at the sample; set by pre-integrated classification's `shade_at: centroid`).
+    pub shade_at: f64,
+}
+
+impl CpuSample {
+    /// `shading_tex(s)`: the texture coordinate where shading plugins evaluate the
+    /// gradient.
+    pub fn shading_tex(&self, ctx: &CpuContext) -> DVec3 {
+        if self.shade_at == 0.0 {
+            return self.tex;
+        }
+        let (lo, hi) = ctx.volume_box();
+        self.tex + self.ray_dir * (self.step * self.shade_at) / (hi - lo)
+    }
 }
 
 /// The camera and slice geometry as CPU twins see them (the twin of `frame.eye`,

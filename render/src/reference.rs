@@ -563,6 +563,7 @@ impl Frame {
             color: DVec4::ZERO,
             normal: DVec3::ZERO,
             slice: k,
+            shade_at: 0.0,
         })
     }
 

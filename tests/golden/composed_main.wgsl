@@ -73,6 +73,19 @@ struct Sample {
     normal: vec3<f32>,
     // index of the slice, front (0) to back
     slice: u32,
+    // where shading evaluates the gradient, as a fraction of `step` ahead of the sample
+    // along the ray: 0 (the sample) unless `classify` moved it (pre-integrated
+    // classification with `shade_at: centroid` puts it at the slab's opacity centroid).
+    // Read it through `shading_tex`.
+    shade_at: f32,
+}
+
+// The texture coordinate where shading plugins evaluate the gradient (`shade_at`).
+fn shading_tex(s: Sample) -> vec3<f32> {
+    if (s.shade_at == 0.0) {
+        return s.tex;
+    }
+    return s.tex + s.ray_dir * (s.step * s.shade_at) / (frame.box_max.xyz - frame.box_min.xyz);
 }
 
 // Shading at a clip cut (Weiskopf, Engel & Ertl 2003): a clip hook may set xyz to the
@@ -236,6 +249,7 @@ struct p0_smooth_Params {
 struct p1_tf1d_Params {
     mode: u32,
     opacity: f32,
+    shade_at: u32,
 }
 @group(1) @binding(2) var<uniform> p1_tf1d_params: p1_tf1d_Params;
 @group(1) @binding(3) var p1_tf1d_lut: texture_2d<f32>;
@@ -248,6 +262,7 @@ struct p2_slice_shadow_Params {
 struct p3_tf1d_Params {
     mode: u32,
     opacity: f32,
+    shade_at: u32,
 }
 @group(1) @binding(5) var<uniform> p3_tf1d_params: p3_tf1d_Params;
 @group(1) @binding(6) var p3_tf1d_lut: texture_2d<f32>;
@@ -373,6 +388,7 @@ fn stack_classify(tex: vec3<f32>, dir: vec3<f32>) -> vec4<f32> {
     s.step = frame.box_min.w;
     s.color = vec4<f32>(0.0);
     s.normal = vec3<f32>(0.0);
+    s.shade_at = 0.0;
     s.slice = 0u;
     clip_cut_gradient = vec4<f32>(0.0);
     if (!run_clip(s)) {
@@ -394,6 +410,7 @@ fn make_sample(pos: vec3<f32>, ray_dir: vec3<f32>, uv: vec2<f32>, slice: u32) ->
     s.step = frame.forward.w / max(dot(ray_dir, frame.forward.xyz), 1.0e-6);
     s.color = vec4<f32>(0.0);
     s.normal = vec3<f32>(0.0);
+    s.shade_at = 0.0;
     s.slice = slice;
     return s;
 }

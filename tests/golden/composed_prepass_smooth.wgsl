@@ -73,6 +73,19 @@ struct Sample {
     normal: vec3<f32>,
     // index of the slice, front (0) to back
     slice: u32,
+    // where shading evaluates the gradient, as a fraction of `step` ahead of the sample
+    // along the ray: 0 (the sample) unless `classify` moved it (pre-integrated
+    // classification with `shade_at: centroid` puts it at the slab's opacity centroid).
+    // Read it through `shading_tex`.
+    shade_at: f32,
+}
+
+// The texture coordinate where shading plugins evaluate the gradient (`shade_at`).
+fn shading_tex(s: Sample) -> vec3<f32> {
+    if (s.shade_at == 0.0) {
+        return s.tex;
+    }
+    return s.tex + s.ray_dir * (s.step * s.shade_at) / (frame.box_max.xyz - frame.box_min.xyz);
 }
 
 // Shading at a clip cut (Weiskopf, Engel & Ertl 2003): a clip hook may set xyz to the

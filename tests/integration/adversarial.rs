@@ -575,10 +575,34 @@ fn memory_limits_fail_cleanly() {
 #[test]
 fn a_failing_start_up_opens_the_demo_with_the_error() {
     use clap::Parser;
+    // no arguments: the first image, the demo pre-integrated and lit at the slab
+    // centroid (presets/first_image.ron)
+    let cli = vwb_app::cli::Cli::parse_from(["vwb"]);
+    let (first, volume, error) = vwb_app::window::startup(&cli).unwrap();
+    assert!(error.is_none(), "{error:?}");
+    assert_eq!(volume.name, "demo");
+    let ids: Vec<&str> = first.stack.iter().map(|i| i.plugin.id()).collect();
+    assert_eq!(ids, ["classify.tf1d", "shade.blinn_phong"]);
+    assert_eq!(first.stack[0].params.enumeration("mode"), "preintegrated");
+    assert_eq!(first.stack[0].params.enumeration("shade_at"), "centroid");
+    // … at half a voxel per slice on CPU adapters, a quarter on GPUs
+    use vwb_app::window::first_image_spacing;
+    assert_eq!(first.render.slice_spacing, 0.5);
+    assert_eq!(first_image_spacing(wgpu::DeviceType::Cpu, 0.5), 0.5);
+    assert_eq!(
+        first_image_spacing(wgpu::DeviceType::DiscreteGpu, 0.5),
+        0.25
+    );
+    assert_eq!(
+        first_image_spacing(wgpu::DeviceType::IntegratedGpu, 0.1),
+        0.1
+    );
     let cli = vwb_app::cli::Cli::parse_from(["vwb", "--preset", "presets/missing.ron"]);
     let (doc, volume, error) = vwb_app::window::startup(&cli).unwrap();
     assert_eq!(doc.volume, VolumeSource::Demo);
     assert_eq!(volume.name, "demo");
+    // the scene shown instead of a preset that failed is the first image too
+    assert_eq!(doc.stack.len(), first.stack.len());
     let error = error.unwrap();
     assert!(error.contains("presets/missing.ron"), "{error}");
     // the window may save over the preset it opened (its volume stays protected)

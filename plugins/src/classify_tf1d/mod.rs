@@ -12,7 +12,9 @@
 //!   scale or the spacing changes.
 //!
 //! Parameters: `mode`, `tf` (the curve), `opacity` (a global opacity scale, clamped
-//! to 1 per reference step). The CPU twins evaluate the same baked tables with the
+//! to 1 per reference step), `shade_at` (pre-integrated only: where the shading
+//! plugins read the gradient, at the front sample or at the slab's opacity centroid,
+//! a second 256×256 table; see [`preint`]). The CPU twins evaluate the same baked tables with the
 //! same filtering as the GPU samplers.
 
 pub mod preint;
@@ -56,6 +58,9 @@ impl Mode {
             .find(|m| m.name() == name)
     }
 }
+
+/// Values of the `shade_at` parameter.
+pub const SHADE_AT: [&str; 2] = ["front", "centroid"];
 
 /// The plugin, configured for one mode (the registry holds the post-classification
 /// one; [`Plugin::configure`] picks the others).
@@ -109,6 +114,8 @@ impl Plugin for Tf1d {
                 .with_doc("control points over the normalised value [0,1]"),
             ParamSpec::float_log("opacity", "Opacity scale", 0.01, 100.0, 1.0)
                 .with_doc("multiplies every opacity (per reference step, clamped to 1)"),
+            ParamSpec::enumeration("shade_at", "Shade at", &SHADE_AT, 0)
+                .with_doc("preintegrated mode only: where a shading plugin reads the gradient. front: at the slice sample (Engel et al. 2001). centroid: inside the slab, where its opacity is taken up (fewer rings on lit surfaces at coarse spacing)"),
         ]
     }
     fn shader(&self) -> ShaderSource {
@@ -132,10 +139,17 @@ impl Plugin for Tf1d {
             Mode::Post | Mode::Pre => "lut",
             Mode::Preintegrated => "preint",
         };
-        vec![ResourceDecl {
+        let mut decls = vec![ResourceDecl {
             name,
             kind: ResourceKind::Texture2d,
-        }]
+        }];
+        if self.mode == Mode::Preintegrated {
+            decls.push(ResourceDecl {
+                name: "preint_depth",
+                kind: ResourceKind::Texture2d,
+            });
+        }
+        decls
     }
     fn prepass(&self) -> Option<PrepassDecl> {
         (self.mode == Mode::Pre).then(|| PrepassDecl {
@@ -161,16 +175,16 @@ impl Plugin for Tf1d {
         gpu: &GpuInit,
         params: &ParamValues,
     ) -> Result<Vec<GpuResource>, PluginError> {
+        let n = LUT_SIZE as u32;
         let res = match self.mode {
-            Mode::Post | Mode::Pre => gpu.create_table("classify.tf1d lut", LUT_SIZE as u32, 1),
-            Mode::Preintegrated => gpu.create_table(
-                "classify.tf1d pre-integration table",
-                LUT_SIZE as u32,
-                LUT_SIZE as u32,
-            ),
+            Mode::Post | Mode::Pre => vec![gpu.create_table("classify.tf1d lut", n, 1)],
+            Mode::Preintegrated => vec![
+                gpu.create_table("classify.tf1d pre-integration table", n, n),
+                gpu.create_table("classify.tf1d pre-integration centroids", n, n),
+            ],
         };
-        self.update_resources(gpu, params, std::slice::from_ref(&res))?;
-        Ok(vec![res])
+        self.update_resources(gpu, params, &res)?;
+        Ok(res)
     }
     fn update_resources(
         &self,
@@ -185,16 +199,20 @@ impl Plugin for Tf1d {
             });
         };
         let lut = curve(params).bake(LUT_SIZE);
-        let texels = match self.mode {
-            Mode::Post | Mode::Pre => lut,
-            Mode::Preintegrated => preint::build(
-                &lut,
-                params.float("opacity") as f64,
-                gpu.slice_spacing as f64,
-            )
-            .texels_f32(),
-        };
-        gpu.write_table(res, &texels);
+        match self.mode {
+            Mode::Post | Mode::Pre => gpu.write_table(res, &lut),
+            Mode::Preintegrated => {
+                let table = preint::build(
+                    &lut,
+                    params.float("opacity") as f64,
+                    gpu.slice_spacing as f64,
+                );
+                gpu.write_table(res, &table.texels_f32());
+                if let Some(depth) = resources.get(1) {
+                    gpu.write_table(depth, &table.depth_texels_f32());
+                }
+            }
+        }
         Ok(())
     }
     /// Post: colour from the value alone; a value range can be visible when any table
@@ -224,6 +242,7 @@ impl Plugin for Tf1d {
             Mode::Preintegrated => Box::new(PreintTwin {
                 lut,
                 opacity,
+                centroid: params.enumeration("shade_at") == SHADE_AT[1],
                 table: None,
             }),
         })
@@ -278,6 +297,8 @@ impl CpuTwin for PreTwin {
 pub struct PreintTwin {
     pub lut: Vec<[f32; 4]>,
     pub opacity: f64,
+    /// `shade_at: centroid`: the sample's `shade_at` from the centroid table.
+    pub centroid: bool,
     pub table: Option<preint::PreintTable>,
 }
 
@@ -286,6 +307,9 @@ impl CpuTwin for PreintTwin {
         let mut t = preint::build(&self.lut, self.opacity, ctx.spacing as f32 as f64);
         for e in &mut t.entries {
             *e = e.map(|v| v as f32 as f64);
+        }
+        for z in &mut t.depth {
+            *z = *z as f32 as f64;
         }
         self.table = Some(t);
     }
@@ -297,5 +321,8 @@ impl CpuTwin for PreintTwin {
         let (lo, hi) = ctx.volume_box();
         let back = ctx.value((back_pos - lo) / (hi - lo));
         s.color = table.lookup(s.value, back);
+        if self.centroid {
+            s.shade_at = table.lookup_depth(s.value, back);
+        }
     }
 }

@@ -33,6 +33,16 @@
 //! off-axis by 1/cos and the segment's opacity is corrected as a homogeneous one.
 //! Colour inside the segment is still that of length d: a documented approximation
 //! (≤ 1/cos² − 1 relative change of the self-attenuation, < 2% at 8° off-axis).
+//!
+//! Shading point. A second table holds, per entry, the opacity centroid of the slab:
+//! the mean depth, as a fraction of the slab from its front, of where its opacity is
+//! taken up (weights T(0, t)·κ(t), i.e. each cell's share of α). Shading there instead
+//! of at the front sample removes the O(d) offset between where the gradient is read
+//! and where the surface is (`shade_at: centroid`, [`crate::classify_tf1d`]). Inside
+//! a cell crossed with optical depth τ the centroid of κ·e^{−κt} is
+//! 1/τ − e^{−τ}/(1 − e^{−τ}) of the cell (½ for a thin cell); the recursion carries
+//! Σ T·(1 − t_k)·(k + that) beside the colour. This extension is ours: Engel et al.
+//! shade at the slice samples and interpolate.
 
 use glam::DVec4;
 
@@ -45,6 +55,8 @@ const KAPPA_MAX: f64 = 20.723_265_836_946_41; // −ln(1e-9)
 pub struct PreintTable {
     pub n: usize,
     pub entries: Vec<[f64; 4]>,
+    /// The slab's opacity centroid per entry, as a fraction of the slab from its front.
+    pub depth: Vec<f64>,
 }
 
 /// Builds the table for a baked TF (`lut`: straight RGBA per voxel at x_i = i/(n−1)),
@@ -55,19 +67,21 @@ pub fn build(lut: &[[f32; 4]], opacity_scale: f64, d: f64) -> PreintTable {
     let d = if d.is_finite() && d > 0.0 { d } else { 1.0 };
     let (alpha, kappa, color) = nodes(lut, opacity_scale);
     let mut entries = vec![[0.0; 4]; n * n];
+    let mut depth = vec![0.5; n * n];
     if n == 0 {
-        return PreintTable { n, entries };
+        return PreintTable { n, entries, depth };
     }
     // diagonal: homogeneous segments
     for i in 0..n {
         let tau = kappa[i] * d;
         let rgb = color[i].map(|v| v.clamp(0.0, 1.0));
         entries[i * n + i] = [rgb[0], rgb[1], rgb[2], 1.0 - (-tau / d).exp()];
+        depth[i * n + i] = cell_centroid(tau);
     }
     // ascending (front < back) from the arrays as they are; descending from the
     // reversed arrays, mapped back
     let ascending =
-        |alpha: &[f64], color: &[[f64; 3]], put: &mut dyn FnMut(usize, usize, [f64; 4])| {
+        |alpha: &[f64], color: &[[f64; 3]], put: &mut dyn FnMut(usize, usize, [f64; 4], f64)| {
             let cells = cells(alpha, color);
             let mut prefix = vec![0.0; n];
             for k in 1..n {
@@ -77,13 +91,17 @@ pub fn build(lut: &[[f32; 4]], opacity_scale: f64, d: f64) -> PreintTable {
                 diagonal(&cells, &prefix, m, d, &mut *put);
             }
         };
-    ascending(&alpha, &color, &mut |i, j, e| entries[j * n + i] = e);
+    ascending(&alpha, &color, &mut |i, j, e, z| {
+        entries[j * n + i] = e;
+        depth[j * n + i] = z;
+    });
     let ra: Vec<f64> = alpha.iter().rev().copied().collect();
     let rc: Vec<[f64; 3]> = color.iter().rev().copied().collect();
-    ascending(&ra, &rc, &mut |i, j, e| {
-        entries[(n - 1 - j) * n + (n - 1 - i)] = e
+    ascending(&ra, &rc, &mut |i, j, e, z| {
+        entries[(n - 1 - j) * n + (n - 1 - i)] = e;
+        depth[(n - 1 - j) * n + (n - 1 - i)] = z;
     });
-    PreintTable { n, entries }
+    PreintTable { n, entries, depth }
 }
 
 /// Opacity per voxel (scaled, clamped to [0, 1 − 1e-9]), extinction and straight
@@ -111,6 +129,17 @@ fn nodes(lut: &[[f32; 4]], opacity_scale: f64) -> Nodes {
         .map(|c| [c[0] as f64, c[1] as f64, c[2] as f64])
         .collect();
     (alpha, kappa, color)
+}
+
+/// Centroid of the absorbed light κ·e^{−κt} over a homogeneous piece crossed with
+/// optical depth `tau`, as a fraction of its length: ½ − τ/12 + … for a thin piece,
+/// → 1/τ for a thick one.
+fn cell_centroid(tau: f64) -> f64 {
+    if tau < 1e-4 {
+        return 0.5 - tau / 12.0;
+    }
+    let e = (-tau).exp();
+    (1.0 / tau - e / (1.0 - e)).clamp(0.0, 1.0)
 }
 
 /// Mean of −ln(1 − a) over a cell where a runs linearly from a0 to a1.
@@ -172,7 +201,7 @@ fn diagonal(
     prefix: &[f64],
     m: usize,
     d: f64,
-    put: &mut dyn FnMut(usize, usize, [f64; 4]),
+    put: &mut dyn FnMut(usize, usize, [f64; 4], f64),
 ) {
     let n = prefix.len();
     let ell = d / m as f64;
@@ -184,14 +213,22 @@ fn diagonal(
             (c.map(|v| v * (1.0 - t)), t)
         })
         .unzip();
+    // where in cell k (absolute, in cells) its absorption is centred
+    let centre: Vec<f64> = cells
+        .iter()
+        .enumerate()
+        .map(|(k, (kappa, _))| k as f64 + cell_centroid(kappa * ell))
+        .collect();
     let transmit = |a: usize, b: usize| (-(prefix[b] - prefix[a]) * ell).exp();
-    // the last window directly
+    // the last window directly; `moment` = Σ T·(1 − t_k)·centre_k over the window
     let last = n - 1 - m;
     let mut acc = [0.0f64; 3];
+    let mut moment = 0.0f64;
     for k in (last..last + m).rev() {
         acc = std::array::from_fn(|c| emit[k][c] + trans[k] * acc[c]);
+        moment = (1.0 - trans[k]) * centre[k] + trans[k] * moment;
     }
-    let mut emit_entry = |i: usize, acc: [f64; 3]| {
+    let mut emit_entry = |i: usize, acc: [f64; 3], moment: f64| {
         let tau = prefix[i + m] - prefix[i]; // optical depth per ell
         let alpha = 1.0 - (-tau * ell).exp();
         let rgb = if alpha > 1e-12 {
@@ -200,20 +237,28 @@ fn diagonal(
             // transparent segment: the mean colour of its cells (its limit)
             mean_color(&cells[i..i + m])
         };
+        let depth = if alpha > 1e-12 {
+            ((moment / alpha - i as f64) / m as f64).clamp(0.0, 1.0)
+        } else {
+            0.5
+        };
         // opacity per reference step: 1 − exp(−τ_total/d) with τ_total = tau·ell
         put(
             i,
             i + m,
             [rgb[0], rgb[1], rgb[2], 1.0 - (-tau / m as f64).exp()],
+            depth,
         );
     };
-    emit_entry(last, acc);
+    emit_entry(last, acc, moment);
     for i in (0..last).rev() {
         // drop the back cell of window (i+1, i+1+m), then put cell i in front
         let back = transmit(i + 1, i + m);
         let mid: [f64; 3] = std::array::from_fn(|c| (acc[c] - back * emit[i + m][c]).max(0.0));
         acc = std::array::from_fn(|c| emit[i][c] + trans[i] * mid[c]);
-        emit_entry(i, acc);
+        let mid_moment = (moment - back * (1.0 - trans[i + m]) * centre[i + m]).max(0.0);
+        moment = (1.0 - trans[i]) * centre[i] + trans[i] * mid_moment;
+        emit_entry(i, acc, moment);
     }
 }
 
@@ -230,25 +275,46 @@ impl PreintTable {
         }))
     }
 
+    /// Bilinear lookup of the opacity centroid (`depth`), as [`PreintTable::lookup`].
+    pub fn lookup_depth(&self, front: f64, back: f64) -> f64 {
+        let n = self.n;
+        if n == 0 {
+            return 0.0;
+        }
+        vwb_render::tf::bilinear(n, front, back, |x, y| [self.depth[y * n + x], 0.0, 0.0, 0.0])[0]
+    }
+
     /// Texel data for an rgba32float or rgba16float texture (n × n).
     pub fn texels_f32(&self) -> Vec<[f32; 4]> {
         self.entries.iter().map(|e| e.map(|v| v as f32)).collect()
     }
+
+    /// The centroid table's texels (in the red channel).
+    pub fn depth_texels_f32(&self) -> Vec<[f32; 4]> {
+        self.depth.iter().map(|&z| [z as f32, 0.0, 0.0, 0.0]).collect()
+    }
 }
 
-/// Direct evaluation of one entry by compositing its cells one by one (O(m)): the
-/// definition the diagonal recursion must reproduce (tests).
+/// Direct evaluation of one entry and its centroid by compositing its cells one by
+/// one (O(m)): the definition the diagonal recursion must reproduce (tests).
 #[cfg(test)]
-pub fn entry_direct(lut: &[[f32; 4]], opacity_scale: f64, d: f64, i: usize, j: usize) -> [f64; 4] {
+pub fn entry_direct(
+    lut: &[[f32; 4]],
+    opacity_scale: f64,
+    d: f64,
+    i: usize,
+    j: usize,
+) -> ([f64; 4], f64) {
     let n = lut.len();
     let (alpha, kappa, color) = nodes(lut, opacity_scale);
     if i == j {
-        return [
+        let entry = [
             color[i][0],
             color[i][1],
             color[i][2],
             1.0 - (-kappa[i]).exp(),
         ];
+        return (entry, cell_centroid(kappa[i] * d));
     }
     let (alpha, color, i, j) = if i < j {
         (alpha, color, i, j)
@@ -260,24 +326,31 @@ pub fn entry_direct(lut: &[[f32; 4]], opacity_scale: f64, d: f64, i: usize, j: u
     let cells = cells(&alpha, &color);
     let m = j - i;
     let ell = d / m as f64;
-    let (mut rgb, mut alpha, mut tau) = ([0.0f64; 3], 0.0f64, 0.0f64);
-    for cell in &cells[i..j] {
+    let (mut rgb, mut alpha, mut tau, mut moment) = ([0.0f64; 3], 0.0f64, 0.0f64, 0.0f64);
+    for (k, cell) in cells[i..j].iter().enumerate() {
         let a = 1.0 - (-cell.0 * ell).exp();
         for (v, c) in rgb.iter_mut().zip(cell.1) {
             *v += (1.0 - alpha) * c * a;
         }
+        moment += (1.0 - alpha) * a * (k as f64 + cell_centroid(cell.0 * ell));
         alpha += (1.0 - alpha) * a;
         tau += cell.0;
     }
+    let depth = if alpha > 1e-12 {
+        (moment / alpha / m as f64).clamp(0.0, 1.0)
+    } else {
+        0.5
+    };
     let straight = if alpha > 1e-12 {
         rgb.map(|v| (v / alpha).clamp(0.0, 1.0))
     } else {
         mean_color(&cells[i..j])
     };
-    [
+    let entry = [
         straight[0],
         straight[1],
         straight[2],
         1.0 - (-tau / m as f64).exp(),
-    ]
+    ];
+    (entry, depth)
 }

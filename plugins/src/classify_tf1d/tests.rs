@@ -168,7 +168,7 @@ fn preintegration_recursion_matches_direct_compositing() {
         let t = preint::build(&lut, 1.0, d);
         for i in (0..64).step_by(3) {
             for j in (0..64).step_by(5) {
-                let want = preint::entry_direct(&lut, 1.0, d, i, j);
+                let (want, want_depth) = preint::entry_direct(&lut, 1.0, d, i, j);
                 let got = t.entries[j * 64 + i];
                 for c in 0..4 {
                     assert!(
@@ -178,6 +178,11 @@ fn preintegration_recursion_matches_direct_compositing() {
                         want[c]
                     );
                 }
+                let depth = t.depth[j * 64 + i];
+                assert!(
+                    (depth - want_depth).abs() < 1e-7,
+                    "d {d} ({i},{j}) centroid {depth} vs {want_depth}"
+                );
             }
         }
     }
@@ -195,14 +200,25 @@ fn preintegration_table_matches_the_integral() {
         for (sf, sb) in [(0.3, 0.7), (0.7, 0.3), (0.45, 0.55), (0.1, 0.2), (0.5, 0.5)] {
             let steps = 100_000;
             let h = d / steps as f64;
-            let (mut c, mut a) = (DVec3::ZERO, 0.0f64);
+            let (mut c, mut a, mut moment) = (DVec3::ZERO, 0.0f64, 0.0f64);
             for k in 0..steps {
-                let v = sf + (sb - sf) * (k as f64 + 0.5) / steps as f64;
+                let t = (k as f64 + 0.5) / steps as f64;
+                let v = sf + (sb - sf) * t;
                 let e = eval_lut(&lut, v);
                 let kappa = -(1.0 - e[3]).ln();
                 let ak = 1.0 - (-kappa * h).exp();
                 c += (1.0 - a) * ak * DVec3::new(e[0], e[1], e[2]);
+                moment += (1.0 - a) * ak * t;
                 a += (1.0 - a) * ak;
+            }
+            // the opacity centroid, where the slab takes up a visible share of light
+            if a > 0.01 {
+                let depth = table.lookup_depth(sf, sb);
+                assert!(
+                    (depth - moment / a).abs() < 0.01,
+                    "d {d} ({sf},{sb}): centroid {depth} vs {}",
+                    moment / a
+                );
             }
             let got = table.lookup(sf, sb);
             let slab_alpha = 1.0 - (1.0 - got.w).powf(d);
@@ -261,6 +277,10 @@ fn preintegration_is_stable_at_the_extremes() {
             "opacity {opacity} d {d}: {:?}",
             bad.map(|i| (i, t.entries[i]))
         );
+        assert!(
+            t.depth.iter().all(|z| z.is_finite() && (0.0..=1.0).contains(z)),
+            "opacity {opacity} d {d}: centroid outside [0, 1]"
+        );
     }
     assert!(
         preint::build(&lut, 0.0, 1.0)
@@ -270,13 +290,15 @@ fn preintegration_is_stable_at_the_extremes() {
     );
 }
 
-/// The twin reads the back value where the ray meets the next slice.
-#[test]
-fn preintegrated_twin_reads_front_and_back() {
+/// The pre-integrated twin with `shade_at`, applied on the ramp volume to the sample
+/// at x = 0.375 whose slab reaches x = 0.625 (a ray along +x, one voxel per slice):
+/// the classified sample, its (front, back) values and where shading reads.
+fn classify_across_the_shell(shade_at: &str) -> (CpuSample, (f64, f64), DVec3) {
     let volume = ramp_volume();
     let scalars = volume.normalized_scalars();
     let ctx = CpuContext::new(&volume, &scalars).with_spacing(1.0);
-    let params = params_for(Mode::Preintegrated, sharp_curve());
+    let mut params = params_for(Mode::Preintegrated, sharp_curve());
+    params.set("shade_at", ParamValue::Enum(shade_at.into()));
     let mut twin = Tf1d {
         mode: Mode::Preintegrated,
     }
@@ -294,11 +316,35 @@ fn preintegrated_twin_reads_front_and_back() {
     };
     s.value = ctx.value(s.tex);
     twin.classify(&ctx, &mut s);
+    let back = ctx.value(tex + DVec3::new(0.25, 0.0, 0.0));
+    let at = s.shading_tex(&ctx);
+    (s, (s.value, back), at)
+}
+
+/// The twin reads the back value where the ray meets the next slice.
+#[test]
+fn preintegrated_twin_reads_front_and_back() {
+    let (s, (front, back), _) = classify_across_the_shell("front");
     let table = preint::build(&sharp_curve().bake(LUT_SIZE), 1.0, 1.0);
-    let want = table.lookup(ctx.value(tex), ctx.value(tex + DVec3::new(0.25, 0.0, 0.0)));
+    let want = table.lookup(front, back);
     assert!(
         (s.color - want).abs().max_element() < 1e-6,
         "{} vs {want}",
         s.color
     );
+}
+
+/// `shade_at: centroid` moves the shading point to where the slab's opacity is: a
+/// thin opaque shell (the TF's spike at 0.5) lies halfway between the front sample
+/// (value 1/3) and the back (2/3), so the gradient is read halfway, at the shell;
+/// `front` leaves it at the sample.
+#[test]
+fn centroid_shading_reads_the_gradient_at_the_shell() {
+    for (shade_at, want_x) in [("front", 0.375), ("centroid", 0.5)] {
+        let (_, _, at) = classify_across_the_shell(shade_at);
+        assert!(
+            (at.x - want_x).abs() < 0.02 && (at.y - 0.5).abs() < 1e-12,
+            "{shade_at}: shading at {at}, want x = {want_x}"
+        );
+    }
 }

@@ -3,7 +3,8 @@
 // value read where the ray meets the next slice plane. The n×n table `preint`
 // (built on the CPU for the current TF, opacity scale and slice spacing; see
 // preint.rs) holds the slab's straight colour and its opacity per reference step,
-// which the core's opacity correction turns back into the slab opacity.
+// which the core's opacity correction turns back into the slab opacity. The table
+// `preint_depth` holds where in the slab its opacity is taken up (`shade_at`).
 
 fn classify(s: Sample) -> Sample {
     var o = s;
@@ -14,5 +15,9 @@ fn classify(s: Sample) -> Sample {
     let fb = clamp(vec2<f32>(s.value, back), vec2<f32>(0.0), vec2<f32>(1.0));
     let uv = (fb * (n - 1.0) + 0.5) / n;
     o.color = textureSampleLevel(preint, linear_clamp, uv, 0.0);
+    // shade_at: centroid — shading reads the gradient at the slab's opacity centroid
+    if (params.shade_at == 1u) {
+        o.shade_at = textureSampleLevel(preint_depth, linear_clamp, uv, 0.0).r;
+    }
     return o;
 }

@@ -23,7 +23,7 @@ fn shade(s: Sample) -> Sample {
         return o;
     }
     let v = -s.ray_dir;
-    let g = gradient_at(s.tex);
+    let g = gradient_at(shading_tex(s));
     let nw = shading_normal(g, params.gradient_floor, v, params.two_sided != 0u);
     var t = LightTerms(vec3<f32>(0.0), vec3<f32>(0.0));
     t = add_light(t, params.light0_on, params.light0_type, params.light0_space, params.light0_vector, params.light0_color, s.pos, nw.xyz, v);

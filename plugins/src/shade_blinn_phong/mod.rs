@@ -108,7 +108,7 @@ impl CpuTwin for BlinnPhongTwin {
             return;
         }
         let v = -s.ray_dir;
-        let g = self.gradients.at(ctx, s.tex);
+        let g = self.gradients.at(ctx, s.shading_tex(ctx));
         let (n, w) = shading_normal(g, self.floor, v, self.two_sided);
         let lights: Vec<_> = self
             .lights

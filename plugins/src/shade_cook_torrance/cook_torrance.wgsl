@@ -57,7 +57,7 @@ fn shade(s: Sample) -> Sample {
         return o;
     }
     let v = -s.ray_dir;
-    let nw = shading_normal(gradient_at(s.tex), params.gradient_floor, v, params.two_sided != 0u);
+    let nw = shading_normal(gradient_at(shading_tex(s)), params.gradient_floor, v, params.two_sided != 0u);
     var t = LightTerms(vec3<f32>(0.0), vec3<f32>(0.0));
     t = add_light(t, params.light0_on, params.light0_type, params.light0_space, params.light0_vector, params.light0_color, s.pos, nw.xyz, v);
     t = add_light(t, params.light1_on, params.light1_type, params.light1_space, params.light1_vector, params.light1_color, s.pos, nw.xyz, v);

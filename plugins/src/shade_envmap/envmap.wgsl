@@ -39,7 +39,7 @@ fn shade(s: Sample) -> Sample {
         return o;
     }
     let v = -s.ray_dir;
-    let nw = shading_normal(gradient_at(s.tex), params.gradient_floor, v, true);
+    let nw = shading_normal(gradient_at(shading_tex(s)), params.gradient_floor, v, true);
     if (nw.w <= 0.0) {
         return o;
     }

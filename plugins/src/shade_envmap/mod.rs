@@ -153,7 +153,7 @@ impl CpuTwin for EnvMapTwin {
             return;
         }
         let v = -s.ray_dir;
-        let (n, w) = shading_normal(self.gradients.at(ctx, s.tex), self.floor, v, true);
+        let (n, w) = shading_normal(self.gradients.at(ctx, s.shading_tex(ctx)), self.floor, v, true);
         if w <= 0.0 {
             return;
         }

@@ -54,6 +54,10 @@ pub fn is_dicom(head: &[u8]) -> bool {
 
 /// Whether the file at `path` starts like a DICOM file.
 pub fn is_dicom_file(path: &Path) -> bool {
+    // a pipe or FIFO is never opened here: reading it would consume or block
+    if !path.metadata().is_ok_and(|m| m.is_file()) {
+        return false;
+    }
     let mut head = [0u8; 132];
     File::open(path)
         .and_then(|mut f| f.read_exact(&mut head))

@@ -574,13 +574,27 @@ pub(crate) fn report_progress(done: u64, total: u64) -> bool {
     })
 }
 
-/// The files a volume path reads: the path itself and, for a detached NRRD header,
-/// its data file (for checks that an output never overwrites an input). Unreadable or
+/// The files a volume path reads (for checks that an output never overwrites an
+/// input, and for the size of a load): the path itself and, for a detached NRRD
+/// header, its data file; for a folder, its TIFF pages or DICOM files; for a DICOM
+/// file, the DICOM files beside it (its series is among them). Unreadable or
 /// non-regular files list only themselves.
 pub fn input_files(path: &Path) -> Vec<PathBuf> {
+    if path.is_dir() {
+        let pages = tiff::folder_pages(path);
+        return if pages.is_empty() {
+            dicom::folder_files(path)
+        } else {
+            pages
+        };
+    }
     let mut files = vec![path.to_path_buf()];
     if let Some(data) = nrrd::detached_data_file(path) {
         files.push(data);
+    } else if dicom::is_dicom_file(path)
+        && let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty())
+    {
+        files.extend(dicom::folder_files(dir).into_iter().filter(|f| f != path));
     }
     files
 }
