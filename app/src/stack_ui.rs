@@ -67,6 +67,9 @@ pub fn param_widgets(
     };
     let mut changed = false;
     for spec in specs {
+        if !spec.is_shown(values) {
+            continue;
+        }
         let Some(current) = values.get(spec.key).cloned() else {
             continue;
         };

@@ -66,6 +66,9 @@ pub struct ParamSpec {
     pub kind: ParamKind,
     /// A change needs a recomposed pipeline (the value changes the shader structure).
     pub structural: bool,
+    /// Shown in the UI only while the enumeration `.0` has the value `.1` (a parameter
+    /// that one mode reads); presets and uniforms hold it whatever the mode.
+    pub shown_when: Option<(&'static str, &'static str)>,
 }
 
 impl ParamSpec {
@@ -150,6 +153,7 @@ impl ParamSpec {
             doc: "",
             kind,
             structural: false,
+            shown_when: None,
         }
     }
     pub fn with_doc(mut self, doc: &'static str) -> Self {
@@ -159,6 +163,16 @@ impl ParamSpec {
     pub fn structural(mut self) -> Self {
         self.structural = true;
         self
+    }
+    /// Show the parameter only while the enumeration `key` is `value`.
+    pub fn shown_when(mut self, key: &'static str, value: &'static str) -> Self {
+        self.shown_when = Some((key, value));
+        self
+    }
+    /// Whether the UI shows the parameter for these values ([`ParamSpec::shown_when`]).
+    pub fn is_shown(&self, values: &ParamValues) -> bool {
+        self.shown_when
+            .is_none_or(|(key, value)| values.enumeration(key) == value)
     }
 
     pub fn default_value(&self) -> ParamValue {
@@ -640,6 +654,18 @@ pub fn validate_specs(specs: &[ParamSpec]) -> Result<(), String> {
         }
         s.check(&s.default_value())
             .map_err(|e| format!("parameter '{}' default: {e}", s.key))?;
+        if let Some((key, value)) = s.shown_when {
+            let names_a_value = specs.iter().any(|o| {
+                o.key == key
+                    && matches!(&o.kind, ParamKind::Enum { options, .. } if options.contains(&value))
+            });
+            if !names_a_value {
+                return Err(format!(
+                    "parameter '{}' is shown when '{key}' is '{value}', but '{key}' is not an enumeration with that value",
+                    s.key
+                ));
+            }
+        }
     }
     Ok(())
 }
@@ -647,6 +673,22 @@ pub fn validate_specs(specs: &[ParamSpec]) -> Result<(), String> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_mode_parameter_is_shown_only_in_its_mode() {
+        let mut specs = specs();
+        specs.push(ParamSpec::float("k", "K", 0.0, 1.0, 0.5).shown_when("mode", "x"));
+        assert!(validate_specs(&specs).is_ok());
+        let mut values = ParamValues::defaults(&specs);
+        assert!(!specs[7].is_shown(&values));
+        values.set("mode", ParamValue::Enum("x".into()));
+        assert!(specs[7].is_shown(&values) && specs[0].is_shown(&values));
+        for bad in [("mode", "z"), ("a", "x"), ("none", "x")] {
+            specs[7] = ParamSpec::float("k", "K", 0.0, 1.0, 0.5).shown_when(bad.0, bad.1);
+            let e = validate_specs(&specs).unwrap_err();
+            assert!(e.contains("'k' is shown when"), "{e}");
+        }
+    }
 
     fn specs() -> Vec<ParamSpec> {
         vec![

@@ -115,6 +115,7 @@ impl Plugin for Tf1d {
             ParamSpec::float_log("opacity", "Opacity scale", 0.01, 100.0, 1.0)
                 .with_doc("multiplies every opacity (per reference step, clamped to 1)"),
             ParamSpec::enumeration("shade_at", "Shade at", &SHADE_AT, 0)
+                .shown_when("mode", "preintegrated")
                 .with_doc("preintegrated mode only: where a shading plugin reads the gradient. front: at the slice sample (Engel et al. 2001). centroid: inside the slab, where its opacity is taken up (fewer rings on lit surfaces at coarse spacing)"),
         ]
     }
