@@ -3,7 +3,8 @@
 //! Supported: attached headers (data after the blank line that ends the header)
 //! and detached headers (`data file:` / `datafile:` relative to the header's
 //! folder); `raw`, `gzip`/`gz` (a zlib stream is accepted too), `bzip2`/`bz2` and
-//! `ascii`/`text`/`txt` encodings (decimal samples separated by white space or commas);
+//! `ascii`/`text`/`txt` encodings (decimal samples separated by white space or commas)
+//! and `hex` (the raw bytes as hexadecimal digit pairs, white space ignored);
 //! either endianness; `line skip` (lines of the data file, before decompression),
 //! `byte skip` (of the decompressed data for gzip; `-1` for raw means the data
 //! ends the file); dimension 3 (scalar) or 4: the first axis holding 1, 2 or 3
@@ -168,6 +169,8 @@ pub enum NrrdEncoding {
     Bzip2,
     /// Samples as decimal text separated by white space (`ascii` / `text` / `txt`).
     Ascii,
+    /// The raw bytes as pairs of hexadecimal digits, white space ignored (`hex`).
+    Hex,
 }
 
 /// Where the data starts after the line skip.
@@ -630,10 +633,7 @@ impl<'t, 'e> Fields<'t, 'e> {
             "gzip" | "gz" => Ok(NrrdEncoding::Gzip),
             "bzip2" | "bz2" => Ok(NrrdEncoding::Bzip2),
             "ascii" | "text" | "txt" => Ok(NrrdEncoding::Ascii),
-            other @ "hex" => Err(self.errs.at(
-                line,
-                format!("encoding '{other}' is not supported (use raw, gzip, bzip2 or ascii)"),
-            )),
+            "hex" => Ok(NrrdEncoding::Hex),
             _ => Err(self.errs.at(line, format!("unknown encoding '{value}'"))),
         }
     }
@@ -1384,7 +1384,93 @@ fn read_data<R: BufRead + Seek>(
             }
             read_ascii(r, total_len.saturating_sub(pos), header, file, count)
         }
+        NrrdEncoding::Hex => {
+            if header.byte_skip != ByteSkip::Bytes(0) {
+                return Err(VolumeError::Invalid {
+                    file: Some(file.to_path_buf()),
+                    message: "byte skip is not allowed with hex encoding (use line skip)".into(),
+                });
+            }
+            let bytes = read_hex(r, total_len.saturating_sub(pos), header, file, needed)?;
+            read_samples(
+                &mut io::Cursor::new(bytes),
+                header.data_type,
+                header.endian,
+                count,
+            )
+            .map_err(|f| match f {
+                ReadFail::Io(e) => io_error(file, "cannot read the hex data", e),
+                ReadFail::Alloc(bytes) => alloc_error(bytes),
+                ReadFail::Short(_) => size_error(pos),
+            })
+        }
     }
+}
+
+/// Reads the `needed` bytes of hex-encoded data (two digits per byte, either case,
+/// white space anywhere), bounded by the file length; the later volumes of a series
+/// are left unread.
+fn read_hex<R: Read>(
+    r: R,
+    available: u64,
+    header: &NrrdHeader,
+    file: &Path,
+    needed: u64,
+) -> Result<Vec<u8>, VolumeError> {
+    let invalid = |message: String| VolumeError::Invalid {
+        file: Some(file.to_path_buf()),
+        message,
+    };
+    if needed.saturating_mul(2) > available {
+        return Err(invalid(format!(
+            "hex data of {available} bytes cannot hold the {needed} bytes the header needs ({})",
+            header.layout_text()
+        )));
+    }
+    let mut out: Vec<u8> = Vec::new();
+    out.try_reserve_exact(needed as usize)
+        .map_err(|_| VolumeError::OutOfMemory {
+            file: Some(file.to_path_buf()),
+            bytes: needed,
+        })?;
+    let mut high: Option<u8> = None;
+    let mut digits = 0u64;
+    for byte in io::BufReader::new(r).take(available).bytes() {
+        let c = byte.map_err(|e| io_error(file, "cannot read the hex data", e))?;
+        if c.is_ascii_whitespace() {
+            continue;
+        }
+        digits += 1;
+        let Some(nibble) = (c as char).to_digit(16) else {
+            return Err(invalid(format!(
+                "hex digit {digits} ('{}') is not a hexadecimal digit",
+                c.escape_ascii()
+            )));
+        };
+        if out.len() as u64 == needed {
+            if header.volumes > 1 {
+                break; // the later volumes of a series
+            }
+            return Err(invalid(format!(
+                "hex data holds more than the {needed} bytes the header needs ({})",
+                header.layout_text()
+            )));
+        }
+        match high.take() {
+            None => high = Some(nibble as u8),
+            Some(h) => out.push(h << 4 | nibble as u8),
+        }
+    }
+    if (out.len() as u64) < needed || high.is_some() {
+        return Err(invalid(format!(
+            "hex data holds {} digits but the header needs {} ({} bytes: {})",
+            digits,
+            needed * 2,
+            needed,
+            header.layout_text()
+        )));
+    }
+    Ok(out)
 }
 
 /// Reads `count` decimal samples separated by white space (or commas) and converts them

@@ -1260,11 +1260,6 @@ fn malformed_headers_give_clear_errors() {
         ),
         (
             "encoding",
-            Some("encoding: hex"),
-            &["encoding 'hex' is not supported"],
-        ),
-        (
-            "encoding",
             Some("encoding: zstd"),
             &["unknown encoding 'zstd'"],
         ),
@@ -1877,10 +1872,10 @@ fn progress_is_reported_and_cancel_stops_the_load() {
     assert!(load(&path).is_ok());
 }
 
-/// The ascii and bzip2 encodings (Teem reads both): the same samples load the same, and
-/// bad text names the sample.
+/// The ascii, bzip2 and hex encodings (Teem reads all three): the same samples load the
+/// same, and bad text names the sample or the digit.
 #[test]
-fn ascii_and_bzip2_encodings() {
+fn ascii_bzip2_and_hex_encodings() {
     use std::io::Write;
     let d = std::env::temp_dir().join(format!("vwb-enc-{}", std::process::id()));
     std::fs::create_dir_all(&d).unwrap();
@@ -1925,4 +1920,26 @@ fn ascii_and_bzip2_encodings() {
     .unwrap();
     let e = super::load(&b).unwrap_err().to_string();
     assert!(e.contains("b.nrrd") && e.contains("bzip2"), "{e}");
+    // hex: the little-endian bytes as digit pairs, any case, lines of any length
+    let digits: String = raw.iter().map(|b| format!("{b:02x}")).collect();
+    let h = d.join("h.nrrd");
+    let body = format!("{}\n  {}\n", &digits[..10].to_uppercase(), &digits[10..]);
+    std::fs::write(&h, format!("{}{body}", head("hex"))).unwrap();
+    assert_eq!(super::load(&h).unwrap().data, va.data);
+    for (body, expect) in [
+        (digits[..20].to_string(), "cannot hold the 24 bytes"),
+        (
+            format!("{}{}", &digits[..47], " ".repeat(10)),
+            "holds 47 digits but the header needs 48",
+        ),
+        (
+            format!("{}zz{}", &digits[..4], &digits[6..]),
+            "hex digit 5 ('z')",
+        ),
+        (format!("{digits}00"), "more than the 24 bytes"),
+    ] {
+        std::fs::write(&h, format!("{}{body}", head("hex"))).unwrap();
+        let e = super::load(&h).unwrap_err().to_string();
+        assert!(e.contains("h.nrrd") && e.contains(expect), "{e}");
+    }
 }
