@@ -436,7 +436,6 @@ impl Workbench {
         Ok("reopened the last session".into())
     }
 
-    /// Reopens the last run's scene, if there is one.
     /// Sets the slice spacing of the first image for this adapter
     /// ([`first_image_spacing`]).
     pub fn fit_first_image_to_device(&mut self) {
@@ -449,6 +448,7 @@ impl Workbench {
         }
     }
 
+    /// Reopens the last run's scene, if there is one.
     pub fn restore_last_session(&mut self) {
         if let Some(text) = self.last_session.take() {
             let outcome = self.restore_session(&text);

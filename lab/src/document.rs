@@ -17,21 +17,24 @@ pub const FIRST_IMAGE_PRESET: &str = include_str!("../../presets/first_image.ron
 /// The document the window opens on when it is started with no arguments and no
 /// last session: `presets/first_image.ron` (else [`default_document`]).
 pub fn first_document(registry: &Registry) -> Document {
-    match Document::parse(FIRST_IMAGE_PRESET, "presets/first_image.ron", registry) {
-        Ok(loaded) => loaded.document,
-        Err(e) => {
-            log::error!("{e}");
-            default_document(registry)
-        }
-    }
+    embedded(FIRST_IMAGE_PRESET, "presets/first_image.ron", registry)
+        .unwrap_or_else(|| default_document(registry))
+}
+
+/// An embedded preset's document, or None (logged) when it does not parse with
+/// `registry`.
+fn embedded(text: &str, name: &str, registry: &Registry) -> Option<Document> {
+    Document::parse(text, name, registry)
+        .map(|loaded| loaded.document)
+        .map_err(|e| log::error!("{e}"))
+        .ok()
 }
 
 /// The document shown when no preset is given: `presets/demo.ron` (the embedded demo
 /// volume with a 1D transfer function).
 pub fn default_document(registry: &Registry) -> Document {
-    match Document::parse(DEMO_PRESET, "presets/demo.ron", registry) {
-        Ok(loaded) => return loaded.document,
-        Err(e) => log::error!("{e}"),
+    if let Some(doc) = embedded(DEMO_PRESET, "presets/demo.ron", registry) {
+        return doc;
     }
     let stack = registry
         .get("classify.tf1d")

@@ -52,7 +52,7 @@ pub fn is_dicom(head: &[u8]) -> bool {
     head.len() >= 132 && &head[128..132] == b"DICM"
 }
 
-/// Whether the file at `path` starts like a DICOM file.
+/// Whether the file at `path` is a regular file that starts like a DICOM file.
 pub fn is_dicom_file(path: &Path) -> bool {
     // a pipe or FIFO is never opened here: reading it would consume or block
     if !path.metadata().is_ok_and(|m| m.is_file()) {
@@ -70,7 +70,7 @@ pub fn folder_files(dir: &Path) -> Vec<PathBuf> {
     let mut files: Vec<PathBuf> = std::fs::read_dir(dir)
         .map(|it| {
             it.filter_map(|e| e.ok().map(|e| e.path()))
-                .filter(|p| p.is_file() && is_dicom_file(p))
+                .filter(|p| is_dicom_file(p))
                 .collect()
         })
         .unwrap_or_default();
