@@ -179,15 +179,25 @@ fn pixel_ray(uv: vec2<f32>) -> Ray {
 }
 
 // Parameter t >= 0 along the ray of the point on slice plane k, or -1 if the point
-// lies outside the volume box or behind the near plane.
+// lies outside this renderer's own box or behind the near plane.
 fn slice_hit(r: Ray, k: u32) -> f32 {
     let d = frame.box_max.w + f32(k) * frame.forward.w;
     let t = (d - dot(r.origin - frame.eye.xyz, frame.forward.xyz)) / dot(r.dir, frame.forward.xyz);
     let p = r.origin + r.dir * t;
-    if (t < 0.0 || any(p < frame.box_min.xyz) || any(p > frame.box_max.xyz)) {
+    if (t < 0.0 || !in_own_box(p)) {
         return -1.0;
     }
     return t;
+}
+
+// Whether a world point is one of this renderer's samples: inside its own box, which
+// is half-open at faces shared with the next brick so that a sample on a brick face
+// belongs to one brick only.
+fn in_own_box(p: vec3<f32>) -> bool {
+    let m = u32(frame.own_max.w);
+    let open = vec3<bool>((m & 1u) != 0u, (m & 2u) != 0u, (m & 4u) != 0u);
+    let above = select(p > frame.own_max.xyz, p >= frame.own_max.xyz, open);
+    return !(any(p < frame.own_min.xyz) || any(above));
 }
 
 // Slices [first, last) that can meet the box along the ray: the ray's slab interval
@@ -198,8 +208,8 @@ fn slice_hit(r: Ray, k: u32) -> f32 {
 fn slice_range(r: Ray) -> vec2<u32> {
     let tiny = vec3<f32>(1.0e-20);
     let d = select(r.dir, tiny, abs(r.dir) < tiny);
-    let ta = (frame.box_min.xyz - r.origin) / d;
-    let tb = (frame.box_max.xyz - r.origin) / d;
+    let ta = (frame.own_min.xyz - r.origin) / d;
+    let tb = (frame.own_max.xyz - r.origin) / d;
     let t_in = max(max(min(ta.x, tb.x), min(ta.y, tb.y)), min(ta.z, tb.z));
     let t_out = min(min(max(ta.x, tb.x), max(ta.y, tb.y)), max(ta.z, tb.z));
     let count = frame.counts.x;
@@ -281,26 +291,34 @@ fn march(r: Ray, uv: vec2<f32>, skipping: bool) -> vec4<f32> {
     return acc;
 }
 
+// The first pixel of the dispatch: a brick of a split volume dispatches only the
+// pixels its own box can cover (frame.settings.zw; 0 for a whole volume).
+fn dispatch_offset() -> vec2<u32> {
+    return vec2<u32>(frame.settings.zw);
+}
+
 // Whole frame in one dispatch (no plugin needs per-slice passes).
 @compute @workgroup_size(8, 8, 1)
 fn cs_main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let size = vec2<u32>(frame.viewport.xy);
-    if (gid.x >= size.x || gid.y >= size.y) {
+    let px = gid.xy + dispatch_offset();
+    if (px.x >= size.x || px.y >= size.y) {
         return;
     }
-    let uv = (vec2<f32>(gid.xy) + 0.5) * frame.viewport.zw;
-    textureStore(out_tex, vec2<i32>(gid.xy), march(pixel_ray(uv), uv, false));
+    let uv = (vec2<f32>(px) + 0.5) * frame.viewport.zw;
+    textureStore(out_tex, vec2<i32>(px), march(pixel_ray(uv), uv, false));
 }
 
 // `cs_main` with empty-space skipping (used while the occupancy grid is active).
 @compute @workgroup_size(8, 8, 1)
 fn cs_main_skip(@builtin(global_invocation_id) gid: vec3<u32>) {
     let size = vec2<u32>(frame.viewport.xy);
-    if (gid.x >= size.x || gid.y >= size.y) {
+    let px = gid.xy + dispatch_offset();
+    if (px.x >= size.x || px.y >= size.y) {
         return;
     }
-    let uv = (vec2<f32>(gid.xy) + 0.5) * frame.viewport.zw;
-    textureStore(out_tex, vec2<i32>(gid.xy), march(pixel_ray(uv), uv, true));
+    let uv = (vec2<f32>(px) + 0.5) * frame.viewport.zw;
+    textureStore(out_tex, vec2<i32>(px), march(pixel_ray(uv), uv, true));
 }
 
 // One slice per dispatch, accumulating in `accum` (used when a plugin has per-slice state).

@@ -743,6 +743,16 @@ impl Workbench {
             self.renderer.volume().dims
         ));
         ui.label(format!("adapter: {}", self.renderer.gpu().info.name));
+        let bricks = self.renderer.bricks().len();
+        if bricks > 0 {
+            ui.label(format!(
+                "split into {bricks} bricks (beyond one 3D texture), composited sort-last"
+            ))
+            .on_hover_text(
+                "Plugins that carry light or flow across the whole volume cannot render it; \
+                 see docs/scale.md",
+            );
+        }
         for w in headless::frame_warnings(&self.doc, self.renderer.volume()) {
             ui.colored_label(egui::Color32::from_rgb(230, 160, 40), format!("⚠ {w}"));
         }

@@ -1134,6 +1134,7 @@ mod tests {
     #[test]
     fn standalone_shaders_are_valid() {
         naga_check(crate::renderer::DISPLAY_WGSL).expect("shaders/display.wgsl");
+        naga_check(crate::renderer::COMPOSITE_WGSL).expect("shaders/composite.wgsl");
     }
 
     #[test]

@@ -726,6 +726,16 @@ pub trait Plugin: Send + Sync + 'static {
     fn converged_reference(&self) -> Option<Arc<dyn ConvergedReference>> {
         None
     }
+    /// Whether it renders a volume split into bricks (the volume longer than the 3D
+    /// texture limit, `vwb_render::renderer::RendererOptions`) as it renders the whole
+    /// volume: every input it reads at a sample is the scalar volume within a few
+    /// voxels of it, or a pre-pass of it. By default a plugin with per-slice state or
+    /// volume passes carries light or flow across the whole volume and does not; a
+    /// plugin that reads a grid of its own over the volume (labels, a voxelised mesh)
+    /// answers `false` here. A split volume refuses a stack with such a plugin.
+    fn splits_into_bricks(&self) -> bool {
+        self.slice_state().is_none() && self.volume_passes().is_empty()
+    }
     /// Whether [`Plugin::update_resources`] must run again when the slice spacing
     /// changes ([`GpuInit::slice_spacing`]), e.g. for a pre-integration table.
     fn uses_slice_spacing(&self) -> bool {

@@ -39,7 +39,10 @@ use crate::slicing::{SliceError, SlicePlan, VolumeBox};
 use crate::volume::Volume;
 
 mod atlas;
+mod bricks;
 pub use atlas::{Atlas, AtlasTile, EncodedAtlas};
+pub use bricks::{BRICK_GHOST, BrickInfo, MIN_BRICK_LIMIT, RendererOptions, over, split_axis};
+use bricks::{Region, Split, Upload, upload_or_split};
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
 pub enum Backend {
@@ -132,6 +135,8 @@ pub enum RenderError {
     },
     #[error("atlas: {0}")]
     Atlas(String),
+    #[error("bricks: {0}")]
+    Bricks(String),
     #[error(transparent)]
     Camera(#[from] crate::validate::FieldError),
 }
@@ -172,17 +177,40 @@ struct FrameUniform {
     value_range: [f32; 4],
     counts: [u32; 4],
     settings: [f32; 4],
+    own_min: [f32; 4],
+    own_max: [f32; 4],
 }
 
 const SLICE_INFO_STRIDE: u64 = 256;
+/// Front-to-back "under" blending of premultiplied colour: src·(1 − dst.a) + dst. The
+/// slices blend into the eye buffer with it, and the bricks' partial images into the
+/// frame.
+const UNDER: wgpu::BlendComponent = wgpu::BlendComponent {
+    src_factor: wgpu::BlendFactor::OneMinusDstAlpha,
+    dst_factor: wgpu::BlendFactor::One,
+    operation: wgpu::BlendOperation::Add,
+};
 /// The display pass (`shaders/display.wgsl`).
 pub const DISPLAY_WGSL: &str = include_str!("../../shaders/display.wgsl");
+/// The sort-last compositing pass of a split volume (`shaders/composite.wgsl`).
+pub const COMPOSITE_WGSL: &str = include_str!("../../shaders/composite.wgsl");
 /// Most slices a frame with per-slice passes may have.
 pub const MAX_PER_SLICE_SLICES: u32 = 65_536;
 const MAX_TIMESTAMPS: u32 = 64;
 
 /// A volume pass's record: the parameters and upstream hash it last started with
 /// (None: never), and its refinement steps done since.
+/// One frame encoded by [`Renderer::record`], not yet booked.
+struct Recorded {
+    /// When encoding started (after the uniforms and polygons were written).
+    start: Instant,
+    /// Instances whose pre-pass ran.
+    done: Vec<u64>,
+    /// Labels of the timestamps written (none unless timed).
+    ts_labels: Vec<String>,
+    stats: FrameStats,
+}
+
 #[derive(Default)]
 struct PassState {
     stamp: Option<(ParamValues, u64)>,
@@ -496,6 +524,15 @@ pub struct Renderer {
     refinement_budget: Option<u32>,
     /// Bound in place of a volume pass's own target while that pass writes it.
     dummy_3d: (wgpu::Texture, wgpu::TextureView),
+    /// Largest 3D texture extent; a longer axis splits the volume into bricks.
+    brick_limit: u32,
+    /// Most bytes of one volume texture ([`RendererOptions::max_brick_bytes`]).
+    max_brick_bytes: Option<u64>,
+    /// Set when this renderer draws one brick of a split volume.
+    region: Option<Region>,
+    /// Set when the volume is split into bricks: this renderer then only composites
+    /// the bricks' partial images (and owns no volume texture of its own).
+    split: Option<Split>,
 }
 
 fn uniform_entry(
@@ -541,11 +578,10 @@ fn sampler_entry(binding: u32, vis: wgpu::ShaderStages) -> wgpu::BindGroupLayout
 impl Renderer {
     /// A renderer for `volume`, with the GPU memory budget of `VWB_GPU_MEMORY_LIMIT`
     /// (bytes; none when unset).
+    /// A volume longer than the adapter's 3D texture limit (or `VWB_BRICK_LIMIT`) along
+    /// an axis is split into bricks ([`Renderer::bricks`]).
     pub fn new(gpu: &GpuContext, volume: Arc<Volume>) -> Result<Self, RenderError> {
-        let budget = std::env::var("VWB_GPU_MEMORY_LIMIT")
-            .ok()
-            .and_then(|v| v.trim().parse().ok());
-        Self::with_gpu_memory_budget(gpu, volume, budget)
+        Self::with_options(gpu, volume, RendererOptions::from_env())
     }
 
     /// A renderer for `volume` that holds at most `budget` bytes of GPU memory (see
@@ -556,39 +592,36 @@ impl Renderer {
         volume: Arc<Volume>,
         budget: Option<u64>,
     ) -> Result<Self, RenderError> {
+        let options = RendererOptions {
+            gpu_memory_budget: budget,
+            ..RendererOptions::from_env()
+        };
+        Self::with_options(gpu, volume, options)
+    }
+
+    /// A renderer for `volume` built with `options` (GPU memory budget, brick limit).
+    pub fn with_options(
+        gpu: &GpuContext,
+        volume: Arc<Volume>,
+        options: RendererOptions,
+    ) -> Result<Self, RenderError> {
         let device = &gpu.device;
-        let limit = gpu.limits.max_texture_dimension_3d;
-        if volume.dims.iter().any(|&d| d == 0 || d > limit) {
+        let budget = options.gpu_memory_budget;
+        let brick_limit = options.limit(gpu);
+        if volume.dims.contains(&0) {
             return Err(RenderError::VolumeTooLarge {
                 name: volume.name.clone(),
                 dims: volume.dims,
-                limit,
+                limit: gpu.limits.max_texture_dimension_3d,
             });
         }
         let vbox = VolumeBox::new(volume.dims, volume.spacing);
-        let volume_bytes = volume_texture_bytes(gpu, &volume);
-        let what = format!("volume {} ({:?})", volume.name, volume.dims);
-        if let Some(b) = budget
-            && volume_bytes > b
-        {
-            return Err(RenderError::OutOfMemory {
-                what,
-                bytes: volume_bytes,
-                reason: format!(
-                    "more than the renderer's GPU memory budget of {} MiB",
-                    b >> 20
-                ),
-            });
-        }
-        let scope = device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
-        let volume_view = upload_volume(gpu, &volume);
-        if let Some(e) = pollster::block_on(scope.pop()) {
-            return Err(RenderError::OutOfMemory {
-                what,
-                bytes: volume_bytes,
-                reason: format!("and the device is out of memory ({e})"),
-            });
-        }
+        let max_brick_bytes = options.max_brick_bytes;
+        let (volume_view, volume_bytes, split) =
+            match upload_or_split(gpu, &volume, &vbox, brick_limit, max_brick_bytes, budget)? {
+                Upload::Single(view, bytes) => (view, bytes, None),
+                Upload::Split(split) => (upload_occupancy(gpu, [1, 1, 1], &[0]).1, 0, Some(split)),
+            };
         let sampler = |filter| {
             device.create_sampler(&wgpu::SamplerDescriptor {
                 label: Some("vwb sampler"),
@@ -627,7 +660,10 @@ impl Renderer {
             usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
-        let bricks = BrickRanges::new(volume.dims, &volume.normalized_scalars());
+        let bricks = match split {
+            Some(_) => BrickRanges::new([1, 1, 1], &[0.0]),
+            None => BrickRanges::new(volume.dims, &volume.normalized_scalars()),
+        };
         let occupancy = upload_occupancy(gpu, [1, 1, 1], &[255]);
         let g0 = make_g0(
             device,
@@ -661,7 +697,7 @@ impl Renderer {
             compiled: Vec::new(),
             atlas_uids: Default::default(),
             counters: RenderCounters {
-                volume_uploads: 1,
+                volume_uploads: split.is_none() as u64,
                 ..Default::default()
             },
             instances: HashMap::new(),
@@ -675,6 +711,10 @@ impl Renderer {
             slice_spacing: 1.0,
             refinement_budget: None,
             dummy_3d: upload_occupancy(gpu, [1, 1, 1], &[0]),
+            brick_limit,
+            max_brick_bytes,
+            region: None,
+            split,
         };
         if gpu.has_timestamps()
             && gpu
@@ -710,7 +750,25 @@ impl Renderer {
 
     /// The work done since the renderer was made ([`RenderCounters`]).
     pub fn counters(&self) -> RenderCounters {
-        self.counters
+        let mut c = self.counters;
+        for b in self.split.iter().flat_map(|sp| &sp.children) {
+            let d = b.renderer.counters();
+            c.compiles += d.compiles;
+            c.compile_cache_hits += d.compile_cache_hits;
+            c.volume_uploads += d.volume_uploads;
+            c.instance_creations += d.instance_creations;
+            c.prepass_runs += d.prepass_runs;
+            c.volume_pass_runs += d.volume_pass_runs;
+        }
+        c
+    }
+
+    /// The renderers of a split volume's bricks (none for one texture).
+    fn brick_renderers(&self) -> impl Iterator<Item = &Renderer> {
+        self.split
+            .iter()
+            .flat_map(|sp| &sp.children)
+            .map(|c| &c.renderer)
     }
 
     pub fn volume(&self) -> &Arc<Volume> {
@@ -728,23 +786,46 @@ impl Renderer {
         if Arc::ptr_eq(&volume, &self.volume) {
             return Ok(());
         }
-        let limit = self.gpu.limits.max_texture_dimension_3d;
-        if volume.dims.iter().any(|&d| d == 0 || d > limit) {
+        if volume.dims.contains(&0) {
             return Err(RenderError::VolumeTooLarge {
                 name: volume.name.clone(),
                 dims: volume.dims,
-                limit,
+                limit: self.gpu.limits.max_texture_dimension_3d,
             });
         }
         let bytes = volume_texture_bytes(&self.gpu, &volume);
         let what = format!("volume {} ({:?})", volume.name, volume.dims);
-        self.check_budget(&what, bytes, self.volume_bytes)?;
-        let view = self.out_of_memory_scope(&what, bytes, || upload_volume(&self.gpu, &volume))?;
-        self.vbox = VolumeBox::new(volume.dims, volume.spacing);
-        self.volume_view = view;
-        self.volume_bytes = bytes;
-        self.counters.volume_uploads += 1;
-        self.bricks = BrickRanges::new(volume.dims, &volume.normalized_scalars());
+        let held = self.volume_bytes
+            + self
+                .brick_renderers()
+                .map(Renderer::gpu_memory)
+                .sum::<u64>();
+        self.check_budget(&what, bytes, held)?;
+        let vbox = VolumeBox::new(volume.dims, volume.spacing);
+        let upload = upload_or_split(
+            &self.gpu,
+            &volume,
+            &vbox,
+            self.brick_limit,
+            self.max_brick_bytes,
+            None,
+        )?;
+        self.vbox = vbox;
+        match upload {
+            Upload::Single(view, bytes) => {
+                self.volume_view = view;
+                self.volume_bytes = bytes;
+                self.counters.volume_uploads += 1;
+                self.bricks = BrickRanges::new(volume.dims, &volume.normalized_scalars());
+                self.split = None;
+            }
+            Upload::Split(split) => {
+                self.volume_view = upload_occupancy(&self.gpu, [1, 1, 1], &[0]).1;
+                self.volume_bytes = 0;
+                self.bricks = BrickRanges::new([1, 1, 1], &[0.0]);
+                self.split = Some(split);
+            }
+        }
         self.occupancy = upload_occupancy(&self.gpu, [1, 1, 1], &[255]);
         self.occupancy_bytes = None;
         self.volume = volume;
@@ -788,6 +869,13 @@ impl Renderer {
 
     /// Share of bricks skipped for the current stack, `None` when skipping is off.
     pub fn empty_brick_share(&self) -> Option<f64> {
+        if self.split.is_some() {
+            let shares: Vec<f64> = self
+                .brick_renderers()
+                .filter_map(Renderer::empty_brick_share)
+                .collect();
+            return (!shares.is_empty()).then(|| shares.iter().sum::<f64>() / shares.len() as f64);
+        }
         self.occupancy_bytes
             .as_ref()
             .map(|b| b.iter().filter(|&&v| v == 0).count() as f64 / b.len().max(1) as f64)
@@ -841,6 +929,9 @@ impl Renderer {
 
     /// The composed WGSL of the current pipeline.
     pub fn composed_wgsl(&self) -> Option<&str> {
+        if let Some(first) = self.brick_renderers().next() {
+            return first.composed_wgsl();
+        }
         self.pipelines
             .as_ref()
             .map(|p| p.composition.main.source.as_str())
@@ -848,6 +939,9 @@ impl Renderer {
 
     /// Ids of the plugins in the current (last good) pipeline.
     pub fn active_plugins(&self) -> Vec<&'static str> {
+        if let Some(first) = self.brick_renderers().next() {
+            return first.active_plugins();
+        }
         self.pipelines
             .as_ref()
             .map(|p| p.stack.iter().map(|(_, pl)| pl.id()).collect())
@@ -858,7 +952,10 @@ impl Renderer {
     /// accumulation and display copies, and every instance's resources (enabled or
     /// held while disabled).
     pub fn gpu_memory(&self) -> u64 {
-        self.volume_bytes
+        self.brick_renderers()
+            .map(Renderer::gpu_memory)
+            .sum::<u64>()
+            + self.volume_bytes
             + self.target.as_ref().map_or(0, Target::bytes)
             + self.instances.values().map(|g| g.bytes()).sum::<u64>()
     }
@@ -925,6 +1022,9 @@ impl Renderer {
     /// GPU memory per enabled instance in stack order: (uid, plugin id, bytes) of its
     /// uniforms, resources, pre-pass target and per-slice state.
     pub fn plugin_memory(&self) -> Vec<(u64, &'static str, u64)> {
+        if self.split.is_some() {
+            return sum_by_uid(self.brick_renderers().map(Renderer::plugin_memory));
+        }
         let Some(p) = &self.pipelines else {
             return Vec::new();
         };
@@ -941,6 +1041,9 @@ impl Renderer {
     /// (uid, plugin id, bytes), so that enabling them again neither recreates their
     /// resources nor reruns their pre-passes. Reported by `vwb bench` and the window.
     pub fn disabled_memory(&self) -> Vec<(u64, &'static str, u64)> {
+        if self.split.is_some() {
+            return sum_by_uid(self.brick_renderers().map(Renderer::disabled_memory));
+        }
         let enabled: std::collections::HashSet<u64> = self
             .pipelines
             .as_ref()
@@ -963,6 +1066,9 @@ impl Renderer {
         stack: &[PluginInstance],
         target: TargetFormat,
     ) -> Result<StackChange, RenderError> {
+        if self.split.is_some() {
+            return self.update_split_stack(stack, target);
+        }
         // structural parameters pick the plugin's configuration (Plugin::configure)
         let stack: Vec<PluginInstance> = stack
             .iter()
@@ -1274,11 +1380,7 @@ impl Renderer {
             ],
             immediate_size: 0,
         });
-        let blend = wgpu::BlendComponent {
-            src_factor: wgpu::BlendFactor::OneMinusDstAlpha,
-            dst_factor: wgpu::BlendFactor::One,
-            operation: wgpu::BlendOperation::Add,
-        };
+        let blend = UNDER;
         let raster = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
             label: Some("vwb raster slices"),
             layout: Some(&raster_layout),
@@ -1654,6 +1756,8 @@ impl Renderer {
         format: TargetFormat,
     ) -> FrameUniform {
         let vp: Mat4 = view.view_proj();
+        let (own, open) = self.own_box();
+        let rect = self.pixel_rect(view, size);
         let range = self.volume.range;
         let span = (range[1] - range[0]) as f32;
         FrameUniform {
@@ -1704,10 +1808,66 @@ impl Renderer {
                 } else {
                     0.0
                 },
-                0.0,
-                0.0,
+                rect[0] as f32,
+                rect[1] as f32,
             ],
+            own_min: [own.min.x, own.min.y, own.min.z, 0.0],
+            own_max: [own.max.x, own.max.y, own.max.z, open as f32],
         }
+    }
+
+    /// The part of the box whose samples this renderer takes, and the axes whose max
+    /// face it shares with the next brick (bit mask): the whole box and none unless
+    /// the renderer draws one brick of a split volume.
+    fn own_box(&self) -> (VolumeBox, u32) {
+        match &self.region {
+            Some(r) => (r.own, r.open),
+            None => (self.vbox, 0),
+        }
+    }
+
+    /// The pixels [x0, y0, x1, y1) this renderer's samples can cover in a `size` frame:
+    /// the whole frame, or for a brick its own box's projected corners (one pixel of
+    /// margin; the whole frame when a corner lies behind the eye).
+    pub(super) fn pixel_rect(&self, view: &crate::camera::View, size: [u32; 2]) -> [u32; 4] {
+        let full = [0, 0, size[0], size[1]];
+        let Some(region) = &self.region else {
+            return full;
+        };
+        let vp = view.view_proj();
+        let (mut lo, mut hi) = (
+            glam::Vec2::splat(f32::INFINITY),
+            glam::Vec2::splat(f32::NEG_INFINITY),
+        );
+        for c in region.own.corners() {
+            let clip = vp * c.extend(1.0);
+            if clip.w.is_nan() || clip.w <= 1.0e-6 {
+                return full;
+            }
+            let ndc = glam::Vec2::new(clip.x, clip.y) / clip.w;
+            let px = glam::Vec2::new(
+                (ndc.x * 0.5 + 0.5) * size[0] as f32,
+                (0.5 - ndc.y * 0.5) * size[1] as f32,
+            );
+            lo = lo.min(px);
+            hi = hi.max(px);
+        }
+        if !(lo.is_finite() && hi.is_finite()) {
+            return full;
+        }
+        let clamp = |v: f32, n: u32| v.clamp(0.0, n as f32) as u32;
+        [
+            clamp(lo.x.floor() - 1.0, size[0]),
+            clamp(lo.y.floor() - 1.0, size[1]),
+            clamp(hi.x.ceil() + 1.0, size[0]),
+            clamp(hi.y.ceil() + 1.0, size[1]),
+        ]
+    }
+
+    /// The box the slice lattice is planned on: the whole volume's, also for a brick,
+    /// so that the slices of all bricks lie on the same planes.
+    fn lattice_box(&self) -> &VolumeBox {
+        self.region.as_ref().map_or(&self.vbox, |r| &r.lattice)
     }
 
     /// Indices (in the stack) of the instances whose pre-pass is out of date: never run,
@@ -1815,6 +1975,10 @@ impl Renderer {
     /// last changed, and their total (None: the stack has no volume pass). Steps of a
     /// pass whose inputs changed since the last frame count as not done.
     pub fn refinement_progress(&self) -> Option<(u32, u32)> {
+        if let Some(first) = self.brick_renderers().next() {
+            // the bricks refine in step
+            return first.refinement_progress();
+        }
         let p = self.pipelines.as_ref()?;
         let mut out = None::<(u32, u32)>;
         for cp in &p.volume_passes {
@@ -2014,7 +2178,7 @@ impl Renderer {
     /// The slice plan for settings (what the frame will draw).
     pub fn plan(&self, s: &FrameSettings) -> Result<SlicePlan, RenderError> {
         let view = s.camera.view(s.width as f32 / s.height.max(1) as f32);
-        Ok(SlicePlan::new(&view, &self.vbox, s.slice_spacing)?)
+        Ok(SlicePlan::new(&view, self.lattice_box(), s.slice_spacing)?)
     }
 
     /// Renders one frame into the eye buffer with the current (last good) pipeline.
@@ -2026,9 +2190,56 @@ impl Renderer {
         if s.width == 0 || s.height == 0 || s.width > max || s.height > max {
             return Err(RenderError::BadSize(s.width, s.height, max));
         }
+        if self.split.is_some() {
+            return self.render_split(s);
+        }
         if self.pipelines.is_none() {
             self.update_stack(&[], TargetFormat::default())?;
         }
+        let mut enc = self
+            .gpu
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("vwb frame"),
+            });
+        let rec = self.record(s, &mut enc, true)?;
+        self.gpu.queue.submit([enc.finish()]);
+        let n_stamps = rec.ts_labels.len() as u32;
+        let (start, ts_labels) = (rec.start, rec.ts_labels.clone());
+        let mut stats = self.submitted(rec);
+        if let Some((_, _, read)) = &self.timestamps
+            && n_stamps > 1
+        {
+            let ticks = read_buffer(&self.gpu, read, n_stamps as u64 * 8);
+            let ticks: Vec<u64> = ticks
+                .chunks_exact(8)
+                .map(|c| u64::from_le_bytes(c.try_into().expect("8 bytes")))
+                .collect();
+            let period = self.gpu.queue.get_timestamp_period() as f64;
+            let ms = |a: u64, b: u64| b.saturating_sub(a) as f64 * period / 1.0e6;
+            for i in 0..ticks.len() - 1 {
+                stats
+                    .gpu_passes
+                    .push((ts_labels[i].clone(), ms(ticks[i], ticks[i + 1])));
+            }
+            stats.gpu_ms = Some(ms(ticks[0], ticks[ticks.len() - 1]));
+        } else {
+            self.gpu.wait();
+        }
+        stats.wall_ms = start.elapsed().as_secs_f64() * 1e3;
+        Ok(stats)
+    }
+
+    /// Encodes one frame into `enc` (pre-passes and volume passes that are due, then
+    /// the slices into the eye buffer) after writing its uniforms and proxy polygons.
+    /// With `timed`, GPU timestamps are written and resolved too. The caller submits
+    /// `enc` and then hands the result to [`Renderer::submitted`].
+    fn record(
+        &mut self,
+        s: &FrameSettings,
+        enc: &mut wgpu::CommandEncoder,
+        timed: bool,
+    ) -> Result<Recorded, RenderError> {
         let target_format = self
             .pipelines
             .as_ref()
@@ -2045,7 +2256,7 @@ impl Renderer {
         }
         crate::validate::check_camera(&s.camera)?;
         let view = s.camera.view(s.width as f32 / s.height as f32);
-        let plan = SlicePlan::new(&view, &self.vbox, s.slice_spacing)?;
+        let plan = SlicePlan::new(&view, self.lattice_box(), s.slice_spacing)?;
         let spacing_updates = self.sync_spacing(plan.spacing / self.vbox.voxel)?;
         self.ensure_target(s.width, s.height, target_format)?;
         self.ensure_state();
@@ -2078,7 +2289,7 @@ impl Renderer {
         // vertices for the raster backend
         let mut slice_ranges = Vec::new();
         if s.backend == Backend::Raster {
-            let tris = plan.triangles(&self.vbox);
+            let tris = plan.triangles(&self.own_box().0);
             let mut data = Vec::with_capacity(tris.len() * 16);
             let mut last = u32::MAX;
             for (i, (p, k)) in tris.iter().enumerate() {
@@ -2114,10 +2325,7 @@ impl Renderer {
         let p = self.pipelines.as_ref().expect("pipeline exists");
         let t = self.target.as_ref().expect("target exists");
         let device = &self.gpu.device;
-        let mut enc = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
-            label: Some("vwb frame"),
-        });
-        let ts = self.timestamps.as_ref();
+        let ts = self.timestamps.as_ref().filter(|_| timed);
         let mut ts_labels: Vec<String> = Vec::new();
         let mut stamp = |enc: &mut wgpu::CommandEncoder, label: Option<String>| {
             if let Some((qs, _, _)) = ts {
@@ -2131,9 +2339,8 @@ impl Renderer {
 
         // pre-passes that are out of date, then volume passes
         let dirty = self.dirty_prepasses(p, &p.stack);
-        let prepasses_run = self.encode_prepasses(&mut enc, p, &p.stack, &dirty, &mut stamp);
-        let volume_passes_run =
-            self.encode_volume_passes(&mut enc, p, &p.stack, &pass_plan, &mut stamp);
+        let prepasses_run = self.encode_prepasses(enc, p, &p.stack, &dirty, &mut stamp);
+        let volume_passes_run = self.encode_volume_passes(enc, p, &p.stack, &pass_plan, &mut stamp);
 
         let g1 = self.group1(p);
         let g2 = self.group2(p);
@@ -2152,7 +2359,7 @@ impl Renderer {
             ],
         });
 
-        stamp(&mut enc, Some("slices".to_string()));
+        stamp(enc, Some("slices".to_string()));
         // clear the per-slice state
         if per_slice {
             for (uid, plugin) in &p.stack {
@@ -2182,6 +2389,12 @@ impl Renderer {
             }
         }
         let wg = (t.width.div_ceil(8), t.height.div_ceil(8));
+        // a brick dispatches its footprint only (offset in frame.settings.zw)
+        let rect = self.pixel_rect(&view, [t.width, t.height]);
+        let wg_own = (
+            (rect[2] - rect[0]).div_ceil(8),
+            (rect[3] - rect[1]).div_ceil(8),
+        );
         let run_updates = |enc: &mut wgpu::CommandEncoder, k: u32| {
             let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
                 label: Some("vwb state update"),
@@ -2226,10 +2439,10 @@ impl Renderer {
                 };
                 if per_slice {
                     // clear once, then one pass per slice followed by the updates
-                    drop(begin(&mut enc, true));
+                    drop(begin(enc, true));
                     for k in 0..plan.count {
                         if let Some(&(_, a, b)) = slice_ranges.iter().find(|r| r.0 == k) {
-                            let mut pass = begin(&mut enc, false);
+                            let mut pass = begin(enc, false);
                             pass.set_pipeline(&p.raster);
                             pass.set_bind_group(0, &self.g0, &[0]);
                             pass.set_bind_group(1, &g1, &[]);
@@ -2237,11 +2450,11 @@ impl Renderer {
                             pass.set_vertex_buffer(0, vbuf.slice(..));
                             pass.draw(a..b, 0..1);
                         }
-                        run_updates(&mut enc, k);
+                        run_updates(enc, k);
                     }
                 } else {
                     let n = slice_ranges.last().map_or(0, |r| r.2);
-                    let mut pass = begin(&mut enc, true);
+                    let mut pass = begin(enc, true);
                     pass.set_pipeline(&p.raster);
                     pass.set_bind_group(0, &self.g0, &[0]);
                     pass.set_bind_group(1, &g1, &[]);
@@ -2268,7 +2481,7 @@ impl Renderer {
                             pass.set_bind_group(3, &g3, &[]);
                             pass.dispatch_workgroups(wg.0, wg.1, 1);
                         }
-                        run_updates(&mut enc, k);
+                        run_updates(enc, k);
                     }
                     let mut pass = enc.begin_compute_pass(&Default::default());
                     pass.set_pipeline(if plan.count == 0 {
@@ -2292,11 +2505,13 @@ impl Renderer {
                     pass.set_bind_group(1, &g1, &[]);
                     pass.set_bind_group(2, &g2[0], &[]);
                     pass.set_bind_group(3, &g3, &[]);
-                    pass.dispatch_workgroups(wg.0, wg.1, 1);
+                    if wg_own.0 > 0 && wg_own.1 > 0 {
+                        pass.dispatch_workgroups(wg_own.0, wg_own.1, 1);
+                    }
                 }
             }
         }
-        stamp(&mut enc, None);
+        stamp(enc, None);
         let n_stamps = ts_labels.len() as u32;
         if let Some((qs, resolve, read)) = ts
             && n_stamps > 0
@@ -2304,40 +2519,29 @@ impl Renderer {
             enc.resolve_query_set(qs, 0..n_stamps, resolve, 0);
             enc.copy_buffer_to_buffer(resolve, 0, read, 0, n_stamps as u64 * 8);
         }
-        self.gpu.queue.submit([enc.finish()]);
         let done: Vec<u64> = dirty.iter().map(|i| p.stack[*i].0).collect();
-        self.mark_prepasses_done(done);
-        self.counters.prepass_runs += prepasses_run as u64;
-        self.counters.volume_pass_runs += volume_passes_run.len() as u64;
-        let mut stats = FrameStats {
-            slices: plan.count,
-            per_slice_mode: per_slice,
-            prepasses_run,
-            volume_passes_run,
-            spacing_updates,
-            ..Default::default()
-        };
-        if let Some((_, _, read)) = &self.timestamps
-            && n_stamps > 1
-        {
-            let ticks = read_buffer(&self.gpu, read, n_stamps as u64 * 8);
-            let ticks: Vec<u64> = ticks
-                .chunks_exact(8)
-                .map(|c| u64::from_le_bytes(c.try_into().expect("8 bytes")))
-                .collect();
-            let period = self.gpu.queue.get_timestamp_period() as f64;
-            let ms = |a: u64, b: u64| b.saturating_sub(a) as f64 * period / 1.0e6;
-            for i in 0..ticks.len() - 1 {
-                stats
-                    .gpu_passes
-                    .push((ts_labels[i].clone(), ms(ticks[i], ticks[i + 1])));
-            }
-            stats.gpu_ms = Some(ms(ticks[0], ticks[ticks.len() - 1]));
-        } else {
-            self.gpu.wait();
-        }
-        stats.wall_ms = start.elapsed().as_secs_f64() * 1e3;
-        Ok(stats)
+        Ok(Recorded {
+            start,
+            done,
+            ts_labels,
+            stats: FrameStats {
+                slices: plan.count,
+                per_slice_mode: per_slice,
+                prepasses_run,
+                volume_passes_run,
+                spacing_updates,
+                ..Default::default()
+            },
+        })
+    }
+
+    /// Books a recorded frame once its encoder was submitted: its pre-passes count as
+    /// done. Returns its statistics without timings.
+    fn submitted(&mut self, rec: Recorded) -> FrameStats {
+        self.mark_prepasses_done(rec.done);
+        self.counters.prepass_runs += rec.stats.prepasses_run as u64;
+        self.counters.volume_pass_runs += rec.stats.volume_passes_run.len() as u64;
+        rec.stats
     }
 
     /// Reads the eye buffer: premultiplied RGBA per pixel, row-major from the top.
@@ -2449,6 +2653,7 @@ impl Renderer {
     }
 
     /// Reads a pre-pass target of the instance `uid` (for tests): texels as f32 RGBA.
+    /// None for a split volume (each brick has its own).
     pub fn read_prepass(&self, uid: u64) -> Option<([u32; 3], Vec<f32>)> {
         let g = self.instances.get(&uid)?;
         let (tex, _) = g.prepass_target.as_ref()?;
@@ -2476,6 +2681,22 @@ impl Renderer {
 }
 
 /// RGBA texels read back with rows padded to 256 bytes, `bpp` 8 (rgba16float) or 16.
+/// Per-instance figures of several renderers summed by uid, in first-seen order.
+fn sum_by_uid(
+    lists: impl Iterator<Item = Vec<(u64, &'static str, u64)>>,
+) -> Vec<(u64, &'static str, u64)> {
+    let mut out: Vec<(u64, &'static str, u64)> = Vec::new();
+    for list in lists {
+        for (uid, id, bytes) in list {
+            match out.iter_mut().find(|e| e.0 == uid) {
+                Some(e) => e.2 += bytes,
+                None => out.push((uid, id, bytes)),
+            }
+        }
+    }
+    out
+}
+
 fn decode_rgba(bytes: &[u8], width: u32, height: u32, bpp: u32) -> Vec<[f32; 4]> {
     let row = (width * bpp).div_ceil(256) * 256;
     let mut out = Vec::with_capacity((width * height) as usize);

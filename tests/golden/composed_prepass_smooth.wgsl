@@ -34,8 +34,13 @@ struct Frame {
     // x: slice count, y: 1 when the eye buffer is fp16, z: 1 when early termination is on
     counts: vec4<u32>,
     // x: early-termination opacity threshold; y: brick size of empty-space skipping
-    // (0: off)
+    // (0: off); zw: first pixel of a compute dispatch (a brick's footprint)
     settings: vec4<f32>,
+    // the part of the box whose samples this renderer takes (the whole box, or a
+    // brick's own region when the volume is split into bricks); own_max.w: bit a set
+    // when the max face along axis a is shared with the next brick (half-open there)
+    own_min: vec4<f32>,
+    own_max: vec4<f32>,
 }
 
 struct SliceInfo {

@@ -5,6 +5,7 @@
 
 #[cfg(unix)]
 mod adversarial;
+mod bricks;
 mod classification;
 mod cli;
 mod clip_mesh;

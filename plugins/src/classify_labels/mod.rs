@@ -216,6 +216,10 @@ pub fn bake(params: &ParamValues) -> Vec<[f32; 4]> {
 }
 
 impl Plugin for Labels {
+    /// It reads a label volume over the whole volume, in the volume's texture coordinates.
+    fn splits_into_bricks(&self) -> bool {
+        false
+    }
     fn id(&self) -> &'static str {
         "classify.labels"
     }

@@ -111,6 +111,10 @@ fn volume_for(params: &ParamValues, data_dims: [u32; 3]) -> Result<Arc<LabelVolu
 pub struct ClipLabels;
 
 impl Plugin for ClipLabels {
+    /// It reads a label volume over the whole volume, in the volume's texture coordinates.
+    fn splits_into_bricks(&self) -> bool {
+        false
+    }
     fn id(&self) -> &'static str {
         "clip.labels"
     }

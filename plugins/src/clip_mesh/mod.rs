@@ -339,6 +339,10 @@ fn mesh_cut(tex: vec3<f32>, d: f32) {
 }
 
 impl Plugin for ClipMesh {
+    /// It reads a voxelised mesh over the whole volume box, in the volume's texture coordinates.
+    fn splits_into_bricks(&self) -> bool {
+        false
+    }
     fn id(&self) -> &'static str {
         "clip.mesh"
     }

@@ -128,6 +128,10 @@ pub fn lic_of(volume: &Volume, frequency: u32, params: &ParamValues) -> GridFiel
 }
 
 impl Plugin for Lic3d {
+    /// Its pre-pass follows streamlines through the whole vector volume.
+    fn splits_into_bricks(&self) -> bool {
+        false
+    }
     fn id(&self) -> &'static str {
         "flow.lic3d"
     }

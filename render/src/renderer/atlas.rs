@@ -121,6 +121,11 @@ impl Renderer {
         target: TargetFormat,
         cols: u32,
     ) -> Result<EncodedAtlas, RenderError> {
+        if self.split.is_some() {
+            return Err(RenderError::Atlas(
+                "a volume split into bricks cannot be rendered into an atlas yet".into(),
+            ));
+        }
         if tiles.is_empty() || cols == 0 {
             return Err(RenderError::Atlas(
                 "an atlas needs at least one tile and one column".into(),

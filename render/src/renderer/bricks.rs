@@ -1,0 +1,762 @@
+//! Volumes beyond one 3D texture: bricked in core, rendered sort-last.
+//!
+//! An axis longer than the brick limit (the adapter's `max_texture_dimension_3d`, or
+//! [`RendererOptions::brick_limit`]) is cut into pieces of at most
+//! `limit − 2·BRICK_GHOST` voxels. Each brick owns the half-open voxel-edge range of its
+//! piece and uploads it with [`BRICK_GHOST`] voxels more on every side that has a
+//! neighbour, so that trilinear samples and gradients at its own samples read the same
+//! voxels as the unbricked texture would.
+//!
+//! Every brick is an ordinary [`Renderer`] of its sub-volume (values normalised by the
+//! whole volume's range, Δs0 of the whole volume) with two differences, both in
+//! [`Region`]:
+//! - its slices are planned on the whole volume's box (one global slice lattice, so the
+//!   planes of neighbouring bricks are the same planes and no seam appears), and
+//! - it takes only the samples inside its own box, half-open at faces it shares with
+//!   the next brick (`in_own_box` in `slice.wgsl`; the raster backend draws polygons
+//!   clipped to that box, whose shared edges are bit-identical, so each pixel of a
+//!   slice is covered once).
+//!
+//! Each brick renders its partial image (premultiplied, front to back) into its own
+//! eye buffer; the bricks are then composited "under", in visibility order, into the
+//! parent's eye buffer (`composite.wgsl`), all in one submission. Along any ray the
+//! samples of one (convex) brick are contiguous and the order below is the ray's, so
+//! the result is the unbricked image up to the rounding of the eye buffers. This is
+//! the sort-last step a distributed engine (IceT-style) runs across machines.
+//!
+//! Plugins whose state crosses the volume (per-slice occlusion buffers, light volumes)
+//! are computed per brick: their shadows stop at brick faces ([`BrickInfo`] lists the
+//! bricks; docs/scale.md states what is exact).
+
+use super::*;
+
+/// Voxels a brick reads beyond its own region on every side that has a neighbour:
+/// trilinear samples need one; central-difference and Sobel gradients (on the fly or
+/// from the pre-pass) and the pre-integrated back sample one more.
+pub const BRICK_GHOST: u32 = 4;
+
+/// Smallest brick limit accepted: a brick owns at least 4 voxels beside its ghosts.
+pub const MIN_BRICK_LIMIT: u32 = 2 * BRICK_GHOST + 4;
+
+/// How a [`Renderer`] is built.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct RendererOptions {
+    /// GPU memory the renderer may hold ([`Renderer::set_gpu_memory_budget`]).
+    pub gpu_memory_budget: Option<u64>,
+    /// Largest extent of one 3D texture; a volume with a longer axis is split into
+    /// bricks. `None`: the adapter's `max_texture_dimension_3d`. Values below
+    /// [`MIN_BRICK_LIMIT`] count as that.
+    pub brick_limit: Option<u32>,
+    /// Most bytes of one volume texture; a larger volume is split into bricks.
+    /// `None`: no cap, but a volume whose single texture the driver refuses (drivers
+    /// cap one allocation; lavapipe refuses 2.2 GB) is split into bricks of half its
+    /// size.
+    pub max_brick_bytes: Option<u64>,
+}
+
+impl RendererOptions {
+    /// `VWB_GPU_MEMORY_LIMIT` (bytes) and `VWB_BRICK_LIMIT` (voxels) when set.
+    pub fn from_env() -> Self {
+        let var = |name: &str| std::env::var(name).ok();
+        Self {
+            gpu_memory_budget: var("VWB_GPU_MEMORY_LIMIT").and_then(|v| v.trim().parse().ok()),
+            brick_limit: var("VWB_BRICK_LIMIT").and_then(|v| v.trim().parse().ok()),
+            max_brick_bytes: var("VWB_MAX_BRICK_BYTES").and_then(|v| v.trim().parse().ok()),
+        }
+    }
+
+    /// The brick limit on `gpu`: the option, capped by the adapter's limit.
+    pub(super) fn limit(&self, gpu: &GpuContext) -> u32 {
+        let adapter = gpu.limits.max_texture_dimension_3d;
+        self.brick_limit
+            .map_or(adapter, |l| l.min(adapter))
+            .max(MIN_BRICK_LIMIT)
+    }
+}
+
+/// Where a brick's renderer sits in the whole volume.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Region {
+    /// The whole volume's box: the slice lattice is planned on it.
+    pub lattice: VolumeBox,
+    /// The brick's own part of the box: the samples it takes.
+    pub own: VolumeBox,
+    /// Bit a set when the own box's max face along axis a is shared with the next brick.
+    pub open: u32,
+}
+
+/// One brick of a split volume.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct BrickInfo {
+    /// Position in the brick grid (x, y, z).
+    pub index: [u32; 3],
+    /// Voxels it owns per axis, [start, end).
+    pub own: [[u32; 2]; 3],
+    /// Voxels its texture holds per axis, [start, end): `own` and the ghosts.
+    pub texture: [[u32; 2]; 3],
+}
+
+/// The pieces an axis of `dim` voxels is cut into for textures of at most `limit`
+/// voxels: owned voxel ranges [start, end), near-equal, covering 0..dim. One piece when
+/// the axis fits.
+pub fn split_axis(dim: u32, limit: u32) -> Vec<(u32, u32)> {
+    let limit = limit.max(MIN_BRICK_LIMIT);
+    if dim <= limit {
+        return vec![(0, dim)];
+    }
+    split_count(dim, dim.div_ceil(limit - 2 * BRICK_GHOST))
+}
+
+/// `dim` voxels in `k` near-equal pieces (owned ranges [start, end)).
+fn split_count(dim: u32, k: u32) -> Vec<(u32, u32)> {
+    let k = k.clamp(1, dim.max(1)) as u64;
+    let at = |i: u64| (i * dim as u64 / k) as u32;
+    (0..k).map(|i| (at(i), at(i + 1))).collect()
+}
+
+/// Texels of the largest brick of a split, ghosts included.
+fn largest_brick_texels(dims: [u32; 3], pieces: &[Vec<(u32, u32)>; 3]) -> u64 {
+    (0..3)
+        .map(|a| {
+            let ghosts = if pieces[a].len() > 1 {
+                2 * BRICK_GHOST
+            } else {
+                0
+            };
+            let longest = pieces[a].iter().map(|(s, e)| e - s).max().unwrap_or(0);
+            (longest + ghosts).min(dims[a]) as u64
+        })
+        .product()
+}
+
+/// The pieces of each axis: those of [`split_axis`], cut further along the longest
+/// piece until the largest brick holds at most `max_bytes` at `texel` bytes a voxel.
+pub(super) fn split_volume(
+    dims: [u32; 3],
+    limit: u32,
+    max_bytes: Option<u64>,
+    texel: u64,
+) -> [Vec<(u32, u32)>; 3] {
+    let mut pieces = dims.map(|d| split_axis(d, limit));
+    let Some(cap) = max_bytes else {
+        return pieces;
+    };
+    while largest_brick_texels(dims, &pieces) * texel > cap {
+        let longest = |a: usize| pieces[a].iter().map(|(s, e)| e - s).max().unwrap_or(0);
+        let a = (0..3).max_by_key(|&a| longest(a)).unwrap_or(0);
+        if longest(a) <= MIN_BRICK_LIMIT {
+            break;
+        }
+        pieces[a] = split_count(dims[a], pieces[a].len() as u32 + 1);
+    }
+    pieces
+}
+
+/// The sort-last operator on two premultiplied partial images, `front` nearer the eye:
+/// `front + (1 − front.a)·back` per pixel, the slices' own "under" blend. It is
+/// associative, so partial images combine pairwise in any grouping that keeps their
+/// order (binary swap, radix-k), which is what lets a distributed engine composite them.
+pub fn over(front: &[[f32; 4]], back: &[[f32; 4]]) -> Vec<[f32; 4]> {
+    front
+        .iter()
+        .zip(back)
+        .map(|(f, b)| std::array::from_fn(|c| f[c] + (1.0 - f[3]) * b[c]))
+        .collect()
+}
+
+/// A volume's GPU form: one texture (with its bytes), or bricks.
+pub(super) enum Upload {
+    Single(wgpu::TextureView, u64),
+    Split(Split),
+}
+
+/// Smallest brick the retry after a driver refusal goes down to.
+const MIN_RETRY_BYTES: u64 = 64 << 20;
+
+/// Uploads `volume` as one texture, or as bricks when an axis passes `limit` or the
+/// texture passes `max_bytes`. Nothing is allocated for a volume beyond the GPU memory
+/// `budget`. When the driver refuses a texture and no `max_bytes` was given (drivers
+/// cap one allocation: lavapipe refuses 2.2 GB), it tries again with bricks of half
+/// the largest texture tried, down to 64 MiB.
+pub(super) fn upload_or_split(
+    gpu: &GpuContext,
+    volume: &Volume,
+    whole: &VolumeBox,
+    limit: u32,
+    max_bytes: Option<u64>,
+    budget: Option<u64>,
+) -> Result<Upload, RenderError> {
+    let single = volume_texture_bytes(gpu, volume);
+    let what = format!("volume {} ({:?})", volume.name, volume.dims);
+    if let Some(b) = budget
+        && single > b
+    {
+        return Err(RenderError::OutOfMemory {
+            what,
+            bytes: single,
+            reason: format!(
+                "more than the renderer's GPU memory budget of {} MiB",
+                b >> 20
+            ),
+        });
+    }
+    let texel = if gpu.float32_filterable() { 4 } else { 2 };
+    let mut cap = max_bytes;
+    loop {
+        let bricked = volume.dims.iter().any(|&d| d > limit) || cap.is_some_and(|c| single > c);
+        let (attempt, largest) = if bricked {
+            let pieces = split_volume(volume.dims, limit, cap, texel);
+            let largest = largest_brick_texels(volume.dims, &pieces) * texel;
+            let split = Split::new(gpu, volume, whole, limit, cap, budget).map(Upload::Split);
+            (split, largest)
+        } else {
+            let scope = gpu.device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
+            let view = upload_volume(gpu, volume);
+            let attempt = match pollster::block_on(scope.pop()) {
+                None => Ok(Upload::Single(view, single)),
+                Some(e) => Err(RenderError::OutOfMemory {
+                    what: what.clone(),
+                    bytes: single,
+                    reason: format!("and the device is out of memory ({e})"),
+                }),
+            };
+            (attempt, single)
+        };
+        match attempt {
+            Err(RenderError::OutOfMemory { bytes, .. })
+                if max_bytes.is_none()
+                    && budget.is_none_or(|b| bytes <= b)
+                    && largest / 2 >= MIN_RETRY_BYTES =>
+            {
+                cap = Some(largest / 2);
+            }
+            other => return other,
+        }
+    }
+}
+
+pub(super) struct Child {
+    pub info: BrickInfo,
+    pub renderer: Renderer,
+}
+
+/// The bricks of a split volume and the compositing pipeline.
+pub(super) struct Split {
+    pub children: Vec<Child>,
+    dims: [u32; 3],
+    pieces: [Vec<(u32, u32)>; 3],
+    /// The last frame's bricks, front to back, with their pixel footprints.
+    last: Vec<(usize, [u32; 4])>,
+    composite: Option<(TargetFormat, wgpu::RenderPipeline, wgpu::BindGroupLayout)>,
+}
+
+/// World coordinate of voxel edge `e` (0..=dim) along an axis of the box.
+fn edge_world(lo: f32, hi: f32, e: u32, dim: u32) -> f32 {
+    if e == 0 {
+        lo
+    } else if e >= dim {
+        hi
+    } else {
+        lo + (hi - lo) * (e as f32 / dim as f32)
+    }
+}
+
+/// The box of voxel-edge ranges `r` (per axis) inside `whole`, with `whole`'s Δs0.
+fn sub_box(whole: &VolumeBox, dims: [u32; 3], r: [[u32; 2]; 3]) -> VolumeBox {
+    let (lo, hi) = (whole.min.to_array(), whole.max.to_array());
+    let at = |a: usize, e: u32| edge_world(lo[a], hi[a], e, dims[a]);
+    VolumeBox {
+        min: glam::Vec3::new(at(0, r[0][0]), at(1, r[1][0]), at(2, r[2][0])),
+        max: glam::Vec3::new(at(0, r[0][1]), at(1, r[1][1]), at(2, r[2][1])),
+        voxel: whole.voxel,
+    }
+}
+
+/// Copies the voxels `r` (per axis, [start, end)) of a volume into a volume of their
+/// own, keeping the whole volume's value range so that both normalise alike.
+fn cut(volume: &Volume, r: [[u32; 2]; 3], name: String) -> Result<Volume, RenderError> {
+    use crate::volume::VoxelData;
+    let c = volume.components.max(1) as usize;
+    let [w, h, _] = volume.dims.map(|d| d as usize);
+    let dims = r.map(|[a, b]| b - a);
+    fn copy<T: Copy>(v: &[T], r: [[u32; 2]; 3], w: usize, h: usize, c: usize) -> Vec<T> {
+        let run = (r[0][1] - r[0][0]) as usize * c;
+        let rows = (r[1][1] - r[1][0]) as usize * (r[2][1] - r[2][0]) as usize;
+        let mut out = Vec::with_capacity(run * rows);
+        for z in r[2][0] as usize..r[2][1] as usize {
+            for y in r[1][0] as usize..r[1][1] as usize {
+                let start = ((z * h + y) * w + r[0][0] as usize) * c;
+                out.extend_from_slice(&v[start..start + run]);
+            }
+        }
+        out
+    }
+    let data = match &volume.data {
+        VoxelData::U8(v) => VoxelData::U8(copy(v, r, w, h, c)),
+        VoxelData::I8(v) => VoxelData::I8(copy(v, r, w, h, c)),
+        VoxelData::U16(v) => VoxelData::U16(copy(v, r, w, h, c)),
+        VoxelData::I16(v) => VoxelData::I16(copy(v, r, w, h, c)),
+        VoxelData::F32(v) => VoxelData::F32(copy(v, r, w, h, c)),
+    };
+    let mut brick = Volume::new(name, dims, volume.components, volume.spacing, data)
+        .map_err(|e| RenderError::Bricks(format!("volume {}: {e}", volume.name)))?;
+    brick.range = volume.range;
+    brick.histogram = volume.histogram.clone();
+    brick.source = volume.source.clone();
+    Ok(brick)
+}
+
+impl Split {
+    /// Cuts `volume` (box `whole`) into bricks of at most `limit` voxels per axis and
+    /// uploads each. Fails, before anything is uploaded, when the bricks together pass
+    /// the GPU memory `budget`.
+    pub fn new(
+        gpu: &GpuContext,
+        volume: &Volume,
+        whole: &VolumeBox,
+        limit: u32,
+        max_bytes: Option<u64>,
+        budget: Option<u64>,
+    ) -> Result<Self, RenderError> {
+        let dims = volume.dims;
+        let texel = if gpu.float32_filterable() { 4 } else { 2 };
+        let pieces = split_volume(dims, limit, max_bytes, texel);
+        let ghosted = |a: usize, (s, e): (u32, u32)| {
+            [
+                s.saturating_sub(BRICK_GHOST),
+                (e + BRICK_GHOST).min(dims[a]),
+            ]
+        };
+        let bytes = texel
+            * pieces
+                .iter()
+                .enumerate()
+                .map(|(a, p)| {
+                    p.iter()
+                        .map(|&piece| {
+                            let [s, e] = ghosted(a, piece);
+                            (e - s) as u64
+                        })
+                        .sum::<u64>()
+                })
+                .product::<u64>();
+        if let Some(b) = budget
+            && bytes > b
+        {
+            return Err(RenderError::OutOfMemory {
+                what: format!("volume {} ({dims:?}) in bricks", volume.name),
+                bytes,
+                reason: format!(
+                    "more than the renderer's GPU memory budget of {} MiB",
+                    b >> 20
+                ),
+            });
+        }
+        let mut children = Vec::new();
+        for (iz, &pz) in pieces[2].iter().enumerate() {
+            for (iy, &py) in pieces[1].iter().enumerate() {
+                for (ix, &px) in pieces[0].iter().enumerate() {
+                    let own = [[px.0, px.1], [py.0, py.1], [pz.0, pz.1]];
+                    let texture = [ghosted(0, px), ghosted(1, py), ghosted(2, pz)];
+                    let info = BrickInfo {
+                        index: [ix as u32, iy as u32, iz as u32],
+                        own,
+                        texture,
+                    };
+                    let name = format!("{} brick {ix},{iy},{iz}", volume.name);
+                    let brick = Arc::new(cut(volume, texture, name)?);
+                    let mut renderer = Renderer::with_options(
+                        gpu,
+                        brick,
+                        RendererOptions {
+                            gpu_memory_budget: None,
+                            brick_limit: Some(limit),
+                            max_brick_bytes: Some(u64::MAX),
+                        },
+                    )?;
+                    let open = (0..3)
+                        .filter(|&a| own[a][1] < dims[a])
+                        .fold(0, |m, a| m | (1 << a));
+                    renderer.vbox = sub_box(whole, dims, texture);
+                    renderer.region = Some(Region {
+                        lattice: *whole,
+                        own: sub_box(whole, dims, own),
+                        open,
+                    });
+                    children.push(Child { info, renderer });
+                }
+            }
+        }
+        Ok(Self {
+            children,
+            dims,
+            pieces,
+            last: Vec::new(),
+            composite: None,
+        })
+    }
+
+    /// Brick indices front to back for a view of the box `whole`: by the sum over axes
+    /// of the distance (in bricks) from the brick holding the eye. Along any ray the
+    /// bricks it crosses step away from the eye one axis at a time, so the sum grows
+    /// strictly and the order is the ray's for every ray, perspective or not.
+    fn order(&self, view: &crate::camera::View, whole: &VolumeBox) -> Vec<usize> {
+        let eye = if view.perspective {
+            view.eye
+        } else {
+            whole.centre() - view.forward * 1.0e3
+        };
+        let (lo, hi, e) = (whole.min.to_array(), whole.max.to_array(), eye.to_array());
+        let at: [i64; 3] = std::array::from_fn(|a| {
+            let t = (e[a] - lo[a]) / (hi[a] - lo[a]) * self.dims[a] as f32;
+            let p = &self.pieces[a];
+            p.iter()
+                .position(|&(_, end)| t < end as f32)
+                .unwrap_or(p.len() - 1) as i64
+        });
+        let key =
+            |c: &Child| -> i64 { (0..3).map(|a| (c.info.index[a] as i64 - at[a]).abs()).sum() };
+        let mut order: Vec<usize> = (0..self.children.len()).collect();
+        order.sort_by_key(|&i| key(&self.children[i]));
+        order
+    }
+
+    /// The compositing pipeline for eye buffers of `format`.
+    fn ensure_composite(&mut self, gpu: &GpuContext, format: TargetFormat) {
+        if self.composite.as_ref().is_none_or(|c| c.0 != format) {
+            let device = &gpu.device;
+            let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+                label: Some("vwb composite"),
+                source: wgpu::ShaderSource::Wgsl(COMPOSITE_WGSL.into()),
+            });
+            let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+                label: Some("vwb composite"),
+                entries: &[wgpu::BindGroupLayoutEntry {
+                    binding: 0,
+                    visibility: wgpu::ShaderStages::FRAGMENT,
+                    ty: wgpu::BindingType::Texture {
+                        sample_type: wgpu::TextureSampleType::Float { filterable: false },
+                        view_dimension: wgpu::TextureViewDimension::D2,
+                        multisampled: false,
+                    },
+                    count: None,
+                }],
+            });
+            let pl = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                label: Some("vwb composite"),
+                bind_group_layouts: &[Some(&layout)],
+                immediate_size: 0,
+            });
+            let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                label: Some("vwb composite"),
+                layout: Some(&pl),
+                vertex: wgpu::VertexState {
+                    module: &module,
+                    entry_point: Some("vs_main"),
+                    compilation_options: Default::default(),
+                    buffers: &[],
+                },
+                primitive: Default::default(),
+                depth_stencil: None,
+                multisample: Default::default(),
+                fragment: Some(wgpu::FragmentState {
+                    module: &module,
+                    entry_point: Some("fs_main"),
+                    compilation_options: Default::default(),
+                    targets: &[Some(wgpu::ColorTargetState {
+                        format: format.wgpu(),
+                        blend: Some(wgpu::BlendState {
+                            color: UNDER,
+                            alpha: UNDER,
+                        }),
+                        write_mask: wgpu::ColorWrites::ALL,
+                    })],
+                }),
+                multiview_mask: None,
+                cache: None,
+            });
+            self.composite = Some((format, pipeline, layout));
+        }
+    }
+}
+
+impl Renderer {
+    /// The bricks of a split volume, in grid order (empty when the volume is one
+    /// texture).
+    pub fn bricks(&self) -> Vec<BrickInfo> {
+        self.split
+            .as_ref()
+            .map(|s| s.children.iter().map(|c| c.info).collect())
+            .unwrap_or_default()
+    }
+
+    /// The last frame's partial images, front to back: (index into
+    /// [`Renderer::bricks`], premultiplied RGBA row-major from the top, zero outside
+    /// the brick's footprint). What a sort-last engine would send between machines;
+    /// bricks that covered no pixel are left out. Empty for a volume in one texture.
+    pub fn brick_images(&self) -> Vec<(usize, Vec<[f32; 4]>)> {
+        let Some(split) = &self.split else {
+            return Vec::new();
+        };
+        split
+            .last
+            .iter()
+            .filter_map(|&(i, rect)| {
+                let (w, _, mut px) = split.children[i].renderer.read_pixels()?;
+                for (k, p) in px.iter_mut().enumerate() {
+                    let (x, y) = (k as u32 % w, k as u32 / w);
+                    if x < rect[0] || x >= rect[2] || y < rect[1] || y >= rect[3] {
+                        *p = [0.0; 4];
+                    }
+                }
+                Some((i, px))
+            })
+            .collect()
+    }
+
+    /// The stack change of a split volume: every brick gets the stack; the first
+    /// brick composes, the others take its compiled pipelines from the cache. An
+    /// error leaves every brick on its last good pipeline.
+    pub(super) fn update_split_stack(
+        &mut self,
+        stack: &[PluginInstance],
+        target: TargetFormat,
+    ) -> Result<StackChange, RenderError> {
+        let split = self.split.as_mut().expect("split volume");
+        if let Some(i) = stack
+            .iter()
+            .find(|i| i.enabled && !i.configured().splits_into_bricks())
+        {
+            return Err(RenderError::Bricks(format!(
+                "plugin {} cannot render volume {} ({:?} voxels, split into {} bricks at the \
+                 3D-texture limit of {} voxels): it carries information across the whole \
+                 volume; disable it, or crop the volume (vwb crop) to fit one texture",
+                i.plugin.id(),
+                self.volume.name,
+                self.volume.dims,
+                split.children.len(),
+                self.brick_limit
+            )));
+        }
+        let mut change = StackChange::None;
+        let mut cache: Vec<(u64, Arc<CompiledStack>)> = Vec::new();
+        for (i, c) in split.children.iter_mut().enumerate() {
+            let r = &mut c.renderer;
+            r.shader_overrides = self.shader_overrides.clone();
+            r.overrides_generation = self.overrides_generation;
+            r.skipping_enabled = self.skipping_enabled;
+            r.refinement_budget = self.refinement_budget;
+            for (h, compiled) in &cache {
+                if !r.compiled.iter().any(|(k, _)| k == h) {
+                    r.compiled.push((*h, compiled.clone()));
+                }
+            }
+            let ch = r.update_stack(stack, target)?;
+            if i == 0 {
+                change = ch;
+                cache = r.compiled.clone();
+            }
+        }
+        Ok(change)
+    }
+
+    /// Renders every brick into its eye buffer and composites them front to back into
+    /// this renderer's, in one submission.
+    pub(super) fn render_split(&mut self, s: &FrameSettings) -> Result<FrameStats, RenderError> {
+        let needs_stack = self
+            .split
+            .as_ref()
+            .is_some_and(|sp| sp.children.iter().any(|c| c.renderer.pipelines.is_none()));
+        if needs_stack {
+            self.update_split_stack(&[], TargetFormat::default())?;
+        }
+        let budget = self.refinement_budget;
+        for c in self.split.iter_mut().flat_map(|sp| &mut sp.children) {
+            c.renderer.refinement_budget = budget;
+        }
+        crate::validate::check_camera(&s.camera)?;
+        let view = s.camera.view(s.width as f32 / s.height as f32);
+        let plan = SlicePlan::new(&view, &self.vbox, s.slice_spacing)?;
+        let format = self
+            .split
+            .as_ref()
+            .and_then(|sp| sp.children[0].renderer.pipelines.as_ref())
+            .map(|p| p.key.target)
+            .unwrap_or_default();
+        if format == TargetFormat::Rgba32Float
+            && !self
+                .gpu
+                .features
+                .contains(wgpu::Features::FLOAT32_BLENDABLE)
+        {
+            return Err(RenderError::NoFloat32Blending);
+        }
+        self.ensure_target(s.width, s.height, format)?;
+        let gpu = self.gpu.clone();
+        let timestamps = self.timestamps.as_ref();
+        let target = self.target.as_ref().expect("target exists");
+        let split = self.split.as_mut().expect("split volume");
+        let order = split.order(&view, &self.vbox);
+        let mut enc = gpu
+            .device
+            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                label: Some("vwb bricks"),
+            });
+        if let Some((qs, _, _)) = timestamps {
+            enc.write_timestamp(qs, 0);
+        }
+        // bricks whose box covers no pixel are not drawn
+        let size = [s.width, s.height];
+        let order: Vec<(usize, [u32; 4])> = order
+            .into_iter()
+            .map(|i| (i, split.children[i].renderer.pixel_rect(&view, size)))
+            .filter(|(_, r)| r[2] > r[0] && r[3] > r[1])
+            .collect();
+        let mut recorded = Vec::with_capacity(order.len());
+        for &(i, _) in &order {
+            recorded.push((i, split.children[i].renderer.record(s, &mut enc, false)?));
+        }
+        let start = recorded.first().map_or_else(Instant::now, |(_, r)| r.start);
+        if let Some((qs, _, _)) = timestamps {
+            enc.write_timestamp(qs, 1);
+        }
+        split.ensure_composite(&gpu, format);
+        let (_, pipeline, layout) = split.composite.as_ref().expect("made above");
+        {
+            let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some("vwb composite"),
+                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                    view: &target.view,
+                    depth_slice: None,
+                    resolve_target: None,
+                    ops: wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
+                        store: wgpu::StoreOp::Store,
+                    },
+                })],
+                ..Default::default()
+            });
+            pass.set_pipeline(pipeline);
+            for &(i, rect) in &order {
+                let part = &split.children[i]
+                    .renderer
+                    .target
+                    .as_ref()
+                    .expect("drawn")
+                    .view;
+                let group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
+                    label: Some("vwb composite"),
+                    layout,
+                    entries: &[wgpu::BindGroupEntry {
+                        binding: 0,
+                        resource: wgpu::BindingResource::TextureView(part),
+                    }],
+                });
+                pass.set_bind_group(0, &group, &[]);
+                // only the brick's footprint: a compute brick writes no other pixel
+                pass.set_scissor_rect(rect[0], rect[1], rect[2] - rect[0], rect[3] - rect[1]);
+                pass.draw(0..3, 0..1);
+            }
+        }
+        if let Some((qs, resolve, read)) = timestamps {
+            enc.write_timestamp(qs, 2);
+            enc.resolve_query_set(qs, 0..3, resolve, 0);
+            enc.copy_buffer_to_buffer(resolve, 0, read, 0, 24);
+        }
+        gpu.queue.submit([enc.finish()]);
+        split.last = order.clone();
+        let mut stats = FrameStats {
+            slices: plan.count,
+            ..Default::default()
+        };
+        for (i, rec) in recorded {
+            let st = split.children[i].renderer.submitted(rec);
+            stats.per_slice_mode |= st.per_slice_mode;
+            stats.prepasses_run += st.prepasses_run;
+            stats.spacing_updates += st.spacing_updates;
+            stats.volume_passes_run.extend(st.volume_passes_run);
+        }
+        if let Some((_, _, read)) = timestamps {
+            let ticks = read_buffer(&gpu, read, 24);
+            let t: Vec<u64> = ticks
+                .chunks_exact(8)
+                .map(|c| u64::from_le_bytes(c.try_into().expect("8 bytes")))
+                .collect();
+            let period = gpu.queue.get_timestamp_period() as f64;
+            let ms = |a: u64, b: u64| b.saturating_sub(a) as f64 * period / 1.0e6;
+            stats.gpu_passes = vec![
+                (format!("{} bricks", order.len()), ms(t[0], t[1])),
+                ("composite".to_string(), ms(t[1], t[2])),
+            ];
+            stats.gpu_ms = Some(ms(t[0], t[2]));
+        } else {
+            gpu.wait();
+        }
+        stats.wall_ms = start.elapsed().as_secs_f64() * 1e3;
+        Ok(stats)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn axes_split_into_near_equal_pieces_that_fit_with_their_ghosts() {
+        assert_eq!(split_axis(2048, 2048), vec![(0, 2048)]);
+        assert_eq!(split_axis(2100, 2048), vec![(0, 1050), (1050, 2100)]);
+        for (dim, limit) in [
+            (256, 64),
+            (108, 64),
+            (50, 24),
+            (2100, 2048),
+            (1000, 8),
+            (9, 8),
+        ] {
+            let p = split_axis(dim, limit);
+            assert_eq!(p[0].0, 0);
+            assert_eq!(p.last().unwrap().1, dim);
+            for w in p.windows(2) {
+                assert_eq!(w[0].1, w[1].0, "contiguous");
+            }
+            let sizes: Vec<u32> = p.iter().map(|(a, b)| b - a).collect();
+            let (lo, hi) = (*sizes.iter().min().unwrap(), *sizes.iter().max().unwrap());
+            assert!(hi - lo <= 1, "near equal: {sizes:?}");
+            let limit = limit.max(MIN_BRICK_LIMIT);
+            assert!(
+                p.len() == 1 && dim <= limit || hi + 2 * BRICK_GHOST <= limit,
+                "{dim} at {limit}: {sizes:?}"
+            );
+            assert!(lo >= 1);
+        }
+        // limits below the minimum count as the minimum
+        assert_eq!(split_axis(100, 1), split_axis(100, MIN_BRICK_LIMIT));
+    }
+
+    #[test]
+    fn over_is_associative_and_keeps_order() {
+        let px = |r: f32, a: f32| vec![[r * a, 0.5 * a, 0.0, a]];
+        let (a, b, c) = (px(1.0, 0.5), px(0.2, 0.7), px(0.9, 0.3));
+        let left = over(&over(&a, &b), &c);
+        let right = over(&a, &over(&b, &c));
+        for k in 0..4 {
+            assert!((left[0][k] - right[0][k]).abs() < 1e-6);
+        }
+        assert_ne!(over(&a, &b), over(&b, &a));
+        // an opaque front hides the back
+        assert_eq!(over(&px(1.0, 1.0), &b), px(1.0, 1.0));
+    }
+
+    #[test]
+    fn brick_boxes_share_their_faces_exactly() {
+        let whole = VolumeBox::new([100, 60, 30], [1.0, 1.0, 2.0]);
+        let p = split_axis(100, 40);
+        let a = sub_box(&whole, [100, 60, 30], [[p[0].0, p[0].1], [0, 60], [0, 30]]);
+        let b = sub_box(&whole, [100, 60, 30], [[p[1].0, p[1].1], [0, 60], [0, 30]]);
+        assert_eq!(a.max.x, b.min.x);
+        assert_eq!(a.min, whole.min);
+        let last = sub_box(&whole, [100, 60, 30], [[p[2].0, 100], [0, 60], [0, 30]]);
+        assert_eq!(last.max, whole.max);
+        assert_eq!(a.voxel, whole.voxel);
+    }
+}

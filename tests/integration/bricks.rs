@@ -1,0 +1,532 @@
+//! Volumes split into bricks (the 3D-texture limit lowered): the same image as one
+//! texture, on both backends, with one slice lattice and no seams.
+
+use std::sync::Arc;
+
+use vwb_render::metrics::{RgbImageF, compare, delta_e_map};
+use vwb_render::params::ParamValue;
+use vwb_render::preset::Document;
+use vwb_render::renderer::{Backend, FrameSettings, RenderError, RendererOptions};
+use vwb_render::tf::{TfCurve, TfPoint};
+use vwb_render::{Camera, Projection, Renderer, TargetFormat};
+
+use crate::common::*;
+
+fn bricked(limit: u32) -> RendererOptions {
+    RendererOptions {
+        brick_limit: Some(limit),
+        ..Default::default()
+    }
+}
+
+fn image(px: &[[f32; 4]], w: u32, h: u32) -> RgbImageF {
+    RgbImageF::new(w, h, rgb(px))
+}
+
+/// Share of pixels whose ΔE*uv exceeds `limit`.
+fn share_above(a: &RgbImageF, b: &RgbImageF, limit: f64) -> f64 {
+    let d = delta_e_map(a, b);
+    d.iter().filter(|&&v| v > limit).count() as f64 / d.len() as f64
+}
+
+/// Every shipped preset, with its volume split into bricks of at most 64 voxels per
+/// axis and as one texture, on both backends (rgba32float eye buffers, so that only
+/// the bricking differs): the compute backend gives the same image to 0.01 ΔE*uv RMS;
+/// the raster backend differs only at isolated pixels (vertex snapping of the brick
+/// polygons: mean ΔE ≤ 0.02, at most 0.25 % of the pixels above 1). A stack with a plugin that carries information across the volume is
+/// refused with an error naming it.
+#[test]
+fn bricked_volumes_render_the_unbricked_image() {
+    let registry = registry();
+    let (mut split_presets, mut refused) = (0, 0);
+    for path in crate::presets::shipped_presets() {
+        let name = path.file_name().unwrap().to_string_lossy().to_string();
+        let doc = Document::load(&path, &registry).unwrap().document;
+        let volume = vwb_lab::headless::load_volume(&doc.volume).unwrap();
+        let mut split = Renderer::with_options(gpu(), Arc::clone(&volume), bricked(64)).unwrap();
+        let n = split.bricks().len();
+        if n == 0 {
+            assert!(volume.dims.iter().all(|&d| d <= 64), "{name}");
+            continue;
+        }
+        let target = TargetFormat::Rgba32Float;
+        if let Err(e) = split.update_stack(&doc.stack, target) {
+            let culprit = doc
+                .stack
+                .iter()
+                .find(|i| i.enabled && !i.configured().splits_into_bricks())
+                .unwrap_or_else(|| panic!("{name}: {e}"));
+            let text = e.to_string();
+            assert!(
+                matches!(e, RenderError::Bricks(_))
+                    && text.contains(culprit.plugin.id())
+                    && text.contains(&format!("{n} bricks")),
+                "{name}: {text}"
+            );
+            refused += 1;
+            continue;
+        }
+        split_presets += 1;
+        for backend in [Backend::Raster, Backend::Compute] {
+            let s = FrameSettings {
+                width: 64,
+                height: 64,
+                backend,
+                early_termination: None,
+                ..doc.frame_settings()
+            };
+            let mut one = Renderer::new(gpu(), volume.clone()).unwrap();
+            let a = image(&render(&mut one, &doc.stack, target, &s), 64, 64);
+            let b = image(&render(&mut split, &doc.stack, target, &s), 64, 64);
+            let m = compare(&a, &b);
+            let rough = share_above(&a, &b, 1.0);
+            eprintln!(
+                "{name} {}: {n} bricks, ΔE*uv RMS {:.4}, max {:.3}, {:.2} % above 1",
+                backend.name(),
+                m.rms_delta_e,
+                m.max_delta_e,
+                rough * 100.0
+            );
+            match backend {
+                Backend::Compute => assert!(
+                    m.rms_delta_e <= 0.01 && m.max_delta_e <= 0.5,
+                    "{name}: {m:?}"
+                ),
+                Backend::Raster => assert!(
+                    m.mean_delta_e <= 0.02 && rough <= 0.0025,
+                    "{name}: {m:?}, {rough}"
+                ),
+            }
+        }
+    }
+    assert!(split_presets >= 20, "{split_presets} presets split");
+    assert!(refused >= 5, "{refused} presets refused");
+}
+
+/// Slice planes that fall exactly on brick faces (orthographic views along each axis,
+/// both ways, one slice per voxel anchored at the box centre, which is a brick face) and
+/// a camera inside the volume: every sample is taken once. A constant-density volume
+/// would show a sample taken twice or missed as a stripe; here a smooth field over 64
+/// bricks gives the unbricked image on the compute backend to 1e-3 in every channel.
+#[test]
+fn samples_on_brick_faces_are_taken_once() {
+    let volume = synthetic([50, 50, 50], |x, y, z| {
+        0.2 + 0.6
+            * (((x as f32 * 0.21).sin() + (y as f32 * 0.17).cos() + z as f32 / 50.0) / 3.0).abs()
+    });
+    let mut stack = vec![instance("classify.tf1d")];
+    stack[0].params.set(
+        "tf",
+        ParamValue::Tf(TfCurve::new(vec![
+            TfPoint {
+                x: 0.0,
+                color: [1.0, 0.5, 0.2, 0.05],
+            },
+            TfPoint {
+                x: 1.0,
+                color: [0.2, 0.6, 1.0, 0.05],
+            },
+        ])),
+    );
+    let mut views = Vec::new();
+    for axis in 0..3 {
+        for negative in [false, true] {
+            let mut camera = Camera {
+                projection: Projection::Orthographic { height: 1.2 },
+                ..Default::default()
+            };
+            camera.axis_view(axis, negative);
+            views.push((
+                format!("axis {axis}{}", if negative { "-" } else { "+" }),
+                camera,
+            ));
+        }
+    }
+    views.push((
+        "inside".into(),
+        Camera {
+            distance: 0.1,
+            yaw_deg: 30.0,
+            pitch_deg: 20.0,
+            ..Default::default()
+        },
+    ));
+    let mut one = Renderer::new(gpu(), volume.clone()).unwrap();
+    let mut split = Renderer::with_options(gpu(), volume, bricked(24)).unwrap();
+    assert_eq!(split.bricks().len(), 64);
+    for (what, camera) in views {
+        for backend in [Backend::Compute, Backend::Raster] {
+            let s = FrameSettings {
+                camera,
+                width: 48,
+                height: 48,
+                slice_spacing: 1.0,
+                backend,
+                early_termination: None,
+            };
+            let a = render(&mut one, &stack, TargetFormat::Rgba32Float, &s);
+            let b = render(&mut split, &stack, TargetFormat::Rgba32Float, &s);
+            let worst = a
+                .iter()
+                .zip(&b)
+                .flat_map(|(p, q)| (0..4).map(move |c| (p[c] - q[c]).abs()))
+                .fold(0.0f32, f32::max);
+            let alpha = a.iter().map(|p| p[3]).fold(0.0f32, f32::max);
+            assert!(alpha > 0.3, "{what}: the view shows the volume ({alpha})");
+            let bound = if backend == Backend::Compute {
+                1.0e-3
+            } else {
+                2.0e-2
+            };
+            assert!(worst <= bound, "{what} {}: {worst}", backend.name());
+        }
+    }
+}
+
+/// The presets' own rgba16float eye buffers round each brick's partial image to fp16
+/// and then the composite, in a different order than one texture does: the difference
+/// stays below the rounding's own size. With early termination every brick stops on its
+/// own opacity, so the bricked image is at least as complete.
+#[test]
+fn bricks_in_half_float_and_with_early_termination() {
+    let registry = registry();
+    let doc = Document::load(&repo().join("presets/ct_head.ron"), &registry)
+        .unwrap()
+        .document;
+    let volume = vwb_lab::headless::load_volume(&doc.volume).unwrap();
+    let mut one = Renderer::new(gpu(), volume.clone()).unwrap();
+    let mut split = Renderer::with_options(gpu(), volume, bricked(64)).unwrap();
+    let frame = |early_termination| FrameSettings {
+        width: 64,
+        height: 64,
+        backend: Backend::Compute,
+        early_termination,
+        ..doc.frame_settings()
+    };
+    let f16 = TargetFormat::Rgba16Float;
+    let draw = |r: &mut Renderer, et| image(&render(r, &doc.stack, f16, &frame(et)), 64, 64);
+    let (full, full_split) = (draw(&mut one, None), draw(&mut split, None));
+    let m = compare(&full, &full_split);
+    eprintln!("ct_head rgba16float, bricked against one texture: {m:?}");
+    assert!(m.rms_delta_e <= 0.5 && m.max_delta_e <= 4.0, "{m:?}");
+    let (early, early_split) = (draw(&mut one, Some(0.95)), draw(&mut split, Some(0.95)));
+    let (e1, e2) = (compare(&full, &early), compare(&full, &early_split));
+    eprintln!(
+        "early termination at 0.95 against none: one texture {:.3}, bricks {:.3} ΔE*uv RMS",
+        e1.rms_delta_e, e2.rms_delta_e
+    );
+    assert!(e2.rms_delta_e <= e1.rms_delta_e + 0.5, "{e1:?} {e2:?}");
+}
+
+/// A stack the bricks cannot render is refused and the last good one keeps rendering;
+/// the counters and the memory report cover every brick.
+#[test]
+fn split_volumes_refuse_global_plugins_and_keep_the_last_image() {
+    let mut r = Renderer::with_options(gpu(), demo(), bricked(64)).unwrap();
+    assert_eq!(r.bricks().len(), 18, "128×128×84 at 64: 3×3×2 bricks");
+    let stack = [instance("classify.tf1d")];
+    let s = settings(48, 48, Backend::Compute);
+    let before = render(&mut r, &stack, TargetFormat::Rgba16Float, &s);
+    let c = r.counters();
+    assert_eq!(c.volume_uploads, 18);
+    assert_eq!(c.compiles, 1, "one brick composes, the others share: {c:?}");
+    let dos = [instance("classify.tf1d"), instance("shade.dos")];
+    let e = r
+        .update_stack(&dos, TargetFormat::Rgba16Float)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("shade.dos") && e.contains("18 bricks"), "{e}");
+    r.render(&s).unwrap();
+    assert_eq!(r.read_pixels().unwrap().2, before);
+    assert!(r.gpu_memory() >= 128 * 128 * 84 * 2, "{}", r.gpu_memory());
+    assert_eq!(r.active_plugins(), vec!["classify.tf1d"]);
+}
+
+/// Sort-last as a distributed engine would run it: the bricks' partial images, read
+/// back, composited on the CPU pairwise in a binary tree (the grouping of binary swap)
+/// in the renderer's front-to-back order, give the renderer's own image (compute
+/// backend: each brick writes its footprint only).
+#[test]
+fn partial_images_composite_pairwise_to_the_frame() {
+    let doc = Document::load(&repo().join("presets/first_image.ron"), &registry())
+        .unwrap()
+        .document;
+    let volume = vwb_lab::headless::load_volume(&doc.volume).unwrap();
+    let mut r = Renderer::with_options(gpu(), volume, bricked(48)).unwrap();
+    let s = FrameSettings {
+        width: 40,
+        height: 40,
+        backend: Backend::Compute,
+        ..doc.frame_settings()
+    };
+    let frame = render(&mut r, &doc.stack, TargetFormat::Rgba32Float, &s);
+    let parts = r.brick_images();
+    assert!(parts.len() >= 8, "{}", parts.len());
+    assert!(parts.len() <= r.bricks().len());
+    let mut level: Vec<Vec<[f32; 4]>> = parts.iter().map(|(_, px)| px.clone()).collect();
+    while level.len() > 1 {
+        level = level
+            .chunks(2)
+            .map(|pair| match pair {
+                [front, back] => vwb_render::renderer::over(front, back),
+                [last] => last.clone(),
+                _ => unreachable!(),
+            })
+            .collect();
+    }
+    let worst = level[0]
+        .iter()
+        .zip(&frame)
+        .flat_map(|(p, q)| (0..4).map(move |c| (p[c] - q[c]).abs()))
+        .fold(0.0f32, f32::max);
+    assert!(worst <= 1.0e-5, "{worst}");
+    // the order matters: reversed, the image changes
+    let mut back_first = vec![[0.0f32; 4]; frame.len()];
+    for (_, px) in &parts {
+        back_first = vwb_render::renderer::over(px, &back_first);
+    }
+    assert!(
+        back_first
+            .iter()
+            .zip(&frame)
+            .any(|(p, q)| (p[0] - q[0]).abs() > 1e-3)
+    );
+}
+
+/// Writes the bricking figures into docs/scale.md (between its `bricks` markers):
+/// the CT head bricked at lowered limits against one texture (time, and ΔE*uv to the
+/// f64 CPU reference and to the unbricked image), and a 512×512×2100 int16 volume (the
+/// CT head upsampled in x, y and tiled along z) on the adapter's own limit.
+/// Run by `bash bench/bricks.sh`.
+#[test]
+#[ignore]
+fn bricks_benchmark() {
+    use vwb_lab::measure::{machine, time_frames, twin_image};
+    let registry = registry();
+    let doc = Document::load(&repo().join("presets/ct_head.ron"), &registry)
+        .unwrap()
+        .document;
+    let volume = vwb_lab::headless::load_volume(&doc.volume).unwrap();
+    let frames = 5;
+    let mut rows = String::new();
+    let small = FrameSettings {
+        width: 256,
+        height: 256,
+        ..doc.frame_settings()
+    };
+    let reference = twin_image(&volume, &doc, &small).unwrap();
+    let mut base: std::collections::HashMap<&str, (f64, RgbImageF, RgbImageF)> = Default::default();
+    for backend in [Backend::Raster, Backend::Compute] {
+        for limit in [None, Some(128), Some(64)] {
+            let options = RendererOptions {
+                brick_limit: limit,
+                ..Default::default()
+            };
+            let t0 = std::time::Instant::now();
+            let mut r = Renderer::with_options(gpu(), volume.clone(), options).unwrap();
+            let upload_ms = t0.elapsed().as_secs_f64() * 1e3;
+            let bricks = r.bricks().len().max(1);
+            let target = doc.render.target;
+            let s = FrameSettings { backend, ..small };
+            let exact = image(
+                &render(&mut r, &doc.stack, TargetFormat::Rgba32Float, &s),
+                256,
+                256,
+            );
+            let img = image(&render(&mut r, &doc.stack, target, &s), 256, 256);
+            let to_reference = compare(&reference, &img).rms_delta_e;
+            let big = FrameSettings {
+                width: 512,
+                height: 512,
+                ..s
+            };
+            let t = time_frames(&mut r, &big, 2, frames).unwrap();
+            let (ms, clock) = (t.wall_ms.median, "wall");
+            let name = backend.name();
+            let (one_ms, to_one, to_one_exact) = match base.get(name) {
+                None => {
+                    base.insert(name, (ms, img, exact));
+                    (ms, 0.0, 0.0)
+                }
+                Some((one_ms, one_img, one_exact)) => (
+                    *one_ms,
+                    compare(one_img, &img).rms_delta_e,
+                    compare(one_exact, &exact).rms_delta_e,
+                ),
+            };
+            let limit = limit.map_or("adapter".to_string(), |l| l.to_string());
+            eprintln!(
+                "{name} limit {limit}: {bricks} bricks {ms:.1} ms ({clock}) ΔE ref {to_reference:.3} one {to_one:.3}"
+            );
+            rows += &format!(
+                "| {name} | {limit} | {bricks} | {upload_ms:.0} | {ms:.1} | {:.2}× | {to_reference:.3} | {to_one:.3} | {to_one_exact:.4} |\n",
+                one_ms / ms
+            );
+        }
+    }
+
+    // a volume taller than the 3D-texture limit, on the adapter's limit
+    let [w, h, d] = volume.dims;
+    let vwb_render::volume::VoxelData::I16(src) = &volume.data else {
+        panic!("the CT head is int16");
+    };
+    let (tw, th, td) = (2 * w as usize, 2 * h as usize, 2100usize);
+    let mut tall = Vec::with_capacity(tw * th * td);
+    for z in 0..td {
+        let plane = (z % d as usize) * (w * h) as usize;
+        for y in 0..th {
+            let row = plane + (y / 2) * w as usize;
+            tall.extend((0..tw).map(|x| src[row + x / 2]));
+        }
+    }
+    let spacing = [
+        volume.spacing[0] / 2.0,
+        volume.spacing[1] / 2.0,
+        volume.spacing[2],
+    ];
+    let tall = Arc::new(
+        vwb_render::volume::Volume::new(
+            "ct_head tiled",
+            [tw as u32, th as u32, td as u32],
+            1,
+            spacing,
+            vwb_render::volume::VoxelData::I16(tall),
+        )
+        .unwrap(),
+    );
+    let adapter_limit = gpu().limits.max_texture_dimension_3d;
+    let mut tall_rows = String::new();
+    for limit in [None, Some(2048)] {
+        let options = RendererOptions {
+            brick_limit: limit,
+            ..Default::default()
+        };
+        let t0 = std::time::Instant::now();
+        let mut r = Renderer::with_options(gpu(), tall.clone(), options).unwrap();
+        let upload_s = t0.elapsed().as_secs_f64();
+        let bricks = r.bricks();
+        let limit_text = limit.map_or(format!("adapter ({adapter_limit})"), |l| l.to_string());
+        let why = if tall
+            .dims
+            .iter()
+            .all(|&d| d <= limit.unwrap_or(adapter_limit))
+        {
+            "one texture refused by the driver, split by bytes"
+        } else {
+            "z above the limit"
+        };
+        assert!(bricks.len() >= 2, "{:?} at {limit_text}", tall.dims);
+        let pieces: Vec<String> = bricks
+            .iter()
+            .map(|b| format!("{}..{}", b.own[2][0], b.own[2][1]))
+            .collect();
+        for backend in [Backend::Raster, Backend::Compute] {
+            let mut camera = doc.camera;
+            camera.fit(r.volume_box().min, r.volume_box().max);
+            let s = FrameSettings {
+                camera,
+                width: 512,
+                height: 512,
+                backend,
+                ..doc.frame_settings()
+            };
+            let px = render(&mut r, &doc.stack, doc.render.target, &s);
+            let covered = px.iter().filter(|p| p[3] > 0.05).count();
+            assert!(covered > 1000, "the tall volume shows ({covered} pixels)");
+            let t = time_frames(&mut r, &s, 1, 3).unwrap();
+            let (ms, clock) = (t.wall_ms.median, "wall");
+            eprintln!(
+                "tall {limit_text} {}: {ms:.0} ms ({clock}), {} slices",
+                backend.name(),
+                t.slices
+            );
+            tall_rows += &format!(
+                "| {limit_text} | {why} | {} (z {}) | {upload_s:.1} | {} | {} | {ms:.0} |\n",
+                bricks.len(),
+                pieces.join(", "),
+                backend.name(),
+                t.slices
+            );
+            if backend == Backend::Raster && limit.is_none() {
+                let img = vwb_lab::headless::to_image(512, 512, &rgb(&px));
+                img.save(repo().join("docs/images/tall_volume.png"))
+                    .unwrap();
+            }
+        }
+    }
+
+    let section = format!(
+        "<!-- bricks:begin (generated by `bash bench/bricks.sh`, the ignored test \
+         `bricks_benchmark` in tests/integration/bricks.rs; do not edit by hand) -->\n\
+         Machine: {}. Adapter: {}.\n\n\
+         **The CT head bricked at a lowered limit** (preset `presets/ct_head.ron`, \
+         256×256×108 int16, its own camera, one slice per voxel, rgba16float as the preset \
+         has it). Upload: cutting and uploading the bricks (ms, once). Frame: median of \
+         {frames} frames at 512² after 2 warm-up frames, wall clock (encode to GPU idle; \
+         lavapipe's timestamps book overlapping dispatches to the wrong pass). Speed: the \
+         one-texture frame time over this one, same backend, same run. ΔE*uv RMS at 256²: \
+         against the f64 CPU reference of the whole volume, and against the one-texture \
+         image, in rgba16float and in rgba32float eye buffers. The f64 reference emulates \
+         the fp16 eye buffer of one texture (rounded after every slice), so the compute \
+         backend on one texture is within 0.02 of it; bricks round each partial image \
+         and then the composite, a different grouping of the same rounding (the \
+         rgba32float column shows the bricking alone).\n\n\
+         | backend | limit | bricks | upload ms | frame ms | speed | ΔE to f64 reference | ΔE to one texture | same, rgba32float |\n\
+         |---|---|---|---|---|---|---|---|---|\n{rows}\n\
+         **A volume taller than the limit** (512×512×2100 int16: the CT head upsampled 2× \
+         in x and y, tiled along z; {:.1} GB of voxels, {:.1} GB as one r32float \
+         texture), on the adapter's own limit and on wgpu's default of 2048. Upload: \
+         cutting and uploading (s, once, including a refused attempt). Camera fitted to \
+         the box, 512², one slice per voxel; wall-clock median of 3 frames after one \
+         warm-up (docs/images/tall_volume.png).\n\n\
+         | limit | why split | bricks (owned z) | upload s | backend | slices | frame ms |\n\
+         |---|---|---|---|---|---|---|\n{tall_rows}\
+         <!-- bricks:end -->",
+        machine(),
+        gpu().describe(),
+        (tw * th * td * 2) as f64 / 1e9,
+        (tw * th * td * 4) as f64 / 1e9,
+    );
+    let path = repo().join("docs/scale.md");
+    let text = std::fs::read_to_string(&path).unwrap();
+    let (a, b) = (
+        text.find("<!-- bricks:begin").unwrap(),
+        text.find("<!-- bricks:end -->").unwrap(),
+    );
+    let out = format!(
+        "{}{section}{}",
+        &text[..a],
+        &text[b + "<!-- bricks:end -->".len()..]
+    );
+    std::fs::write(&path, out).unwrap();
+}
+
+/// A cap on the bytes of one texture splits a volume that fits the dimension limit
+/// (drivers cap one allocation): the same image, bricks within the cap.
+#[test]
+fn a_byte_cap_splits_a_volume_within_the_dimension_limit() {
+    let texel = if gpu().float32_filterable() { 4 } else { 2 };
+    let whole = 128 * 128 * 84 * texel;
+    let options = RendererOptions {
+        max_brick_bytes: Some(whole / 3),
+        ..Default::default()
+    };
+    let mut r = Renderer::with_options(gpu(), demo(), options).unwrap();
+    let bricks = r.bricks();
+    assert!(bricks.len() >= 4, "{bricks:?}");
+    for b in &bricks {
+        let texels: u64 = b.texture.iter().map(|[s, e]| (e - s) as u64).product();
+        assert!(texels * texel <= whole / 3, "{b:?}");
+    }
+    let stack = [instance("classify.tf1d")];
+    let s = settings(48, 48, Backend::Compute);
+    let mut one = Renderer::new(gpu(), demo()).unwrap();
+    let a = render(&mut one, &stack, TargetFormat::Rgba32Float, &s);
+    let b = render(&mut r, &stack, TargetFormat::Rgba32Float, &s);
+    let worst = a
+        .iter()
+        .zip(&b)
+        .flat_map(|(p, q)| (0..4).map(move |c| (p[c] - q[c]).abs()))
+        .fold(0.0f32, f32::max);
+    assert!(worst <= 1.0e-3, "{worst}");
+}
