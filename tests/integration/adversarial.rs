@@ -820,6 +820,7 @@ fn fuzz_run(cases: usize) -> FuzzCounts {
         }
         let path = d.join(name);
         std::fs::write(&path, &b).unwrap();
+        let t_case = Instant::now();
         let outcome = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
             if kind == 4 {
                 use vwb_plugins::clip_mesh::mesh;
@@ -834,6 +835,21 @@ fn fuzz_run(cases: usize) -> FuzzCounts {
                     .map_err(|e| e.to_string())
             }
         }));
+        // VWB_FUZZ_SLOW=1 keeps each case slower than 50 ms (in the temp directory)
+        if std::env::var_os("VWB_FUZZ_SLOW").is_some() && t_case.elapsed().as_millis() > 50 {
+            let keep = std::env::temp_dir().join(format!("slow-{i}-{name}"));
+            std::fs::copy(&path, &keep).unwrap();
+            let error = match &outcome {
+                Ok(Err(e)) => e.chars().take(150).collect::<String>(),
+                Ok(Ok(())) => "loaded".to_string(),
+                Err(_) => "panic".to_string(),
+            };
+            eprintln!(
+                "slow case {i}: {} ms, {error} -> {}",
+                t_case.elapsed().as_millis(),
+                keep.display()
+            );
+        }
         counts.cases += 1;
         // long runs report as they go, so a run cut short still leaves its counts
         if cases >= 10_000 && counts.cases % (cases / 10) == 0 {
@@ -1038,4 +1054,31 @@ fn the_window_loads_volumes_in_the_background_and_cancels() {
     );
     assert_eq!(h.state().renderer().volume().dims, [8, 8, 8]);
     drop(writer);
+}
+
+/// Fuzz cases that made dicom-rs guess element lengths from the bytes after an unknown
+/// value representation (up to 12 s and gigabytes of allocation per file, found by
+/// `VWB_FUZZ_ONLY=DICOM`): each is refused before dicom-rs reads it, with the file and
+/// the element named.
+#[test]
+fn dicom_files_with_unknown_value_representations_are_refused_early() {
+    let dir = repo().join("tests/fixtures/dicom_slow");
+    let mut files: Vec<_> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .collect();
+    files.sort();
+    assert!(files.len() >= 5);
+    for (i, f) in files.iter().enumerate() {
+        // alone in a folder: a file's series siblings are read too
+        let d = scratch(&format!("dicom-slow-{i}"));
+        let path = d.join("case.dcm");
+        std::fs::copy(f, &path).unwrap();
+        let e = vwb_render::volume::load(&path).unwrap_err().to_string();
+        assert!(
+            e.contains("case.dcm") && e.contains("no valid value representation"),
+            "{}: {e}",
+            f.display()
+        );
+    }
 }

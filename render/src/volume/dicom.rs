@@ -324,6 +324,13 @@ fn read_header(path: &Path) -> Result<Header, VolumeError> {
 /// longer than the bytes left in the file, before dicom-rs allocates for it. Values of
 /// defined length are skipped, undefined-length sequences and items are entered.
 /// Deflated data sets are inflated by dicom-rs and not walked here.
+/// The value representations of PS3.5 §6.2.
+const VALID_VRS: [&[u8; 2]; 34] = [
+    b"AE", b"AS", b"AT", b"CS", b"DA", b"DS", b"DT", b"FL", b"FD", b"IS", b"LO", b"LT", b"OB",
+    b"OD", b"OF", b"OL", b"OV", b"OW", b"PN", b"SH", b"SL", b"SQ", b"SS", b"ST", b"SV", b"TM",
+    b"UC", b"UI", b"UL", b"UN", b"UR", b"US", b"UT", b"UV",
+];
+
 fn check_lengths(path: &Path) -> Result<(), VolumeError> {
     let f = File::open(path).map_err(|e| super::raw::io_error(path, "cannot open", e))?;
     let len = f
@@ -409,6 +416,21 @@ fn check_lengths(path: &Path) -> Result<(), VolumeError> {
             as_u32(read4(&mut r, &mut pos)?)
         } else {
             let w = read4(&mut r, &mut pos)?;
+            // an unknown VR makes the parser guess a length from other bytes (the
+            // fuzzer found 4 GB allocations that way): refuse it here
+            let vr = [w[0], w[1]];
+            if !VALID_VRS.contains(&&vr) {
+                return Err(header_error(
+                    path,
+                    format!(
+                        "element ({:04X},{:04X}) at byte {at} has no valid value representation \
+                         ({:?}): a corrupt file",
+                        tag.0,
+                        tag.1,
+                        String::from_utf8_lossy(&vr)
+                    ),
+                ));
+            }
             let long_vr = [
                 b"OB", b"OD", b"OF", b"OL", b"OV", b"OW", b"SQ", b"UC", b"UR", b"UT", b"UN", b"SV",
                 b"UV",
