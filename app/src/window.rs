@@ -654,7 +654,10 @@ impl Workbench {
             .fresh_renderer(volume, &self.doc)
             .with_context(|| format!("{}", path.display()))?;
         let v = renderer.volume();
-        let msg = format!("opened {} {:?}", path.display(), v.dims);
+        let mut msg = format!("opened {} {:?}", path.display(), v.dims);
+        if let Some(level) = renderer.level() {
+            msg += &format!("; {}", level.notice());
+        }
         let vbox = *renderer.volume_box();
         self.doc.camera.fit(vbox.min, vbox.max);
         self.renderer = renderer;
@@ -743,6 +746,12 @@ impl Workbench {
             self.renderer.volume().dims
         ));
         ui.label(format!("adapter: {}", self.renderer.gpu().info.name));
+        if let Some(level) = self.renderer.level() {
+            ui.colored_label(
+                egui::Color32::from_rgb(230, 160, 40),
+                format!("⚠ {}", level.notice()),
+            );
+        }
         let bricks = self.renderer.bricks().len();
         if bricks > 0 {
             ui.label(format!(

@@ -41,6 +41,9 @@ pub fn load_volume_file(path: &Path) -> Result<Volume> {
 /// A renderer with a document's plugin stack applied.
 pub fn renderer_for(gpu: &GpuContext, doc: &Document, volume: Arc<Volume>) -> Result<Renderer> {
     let mut r = Renderer::new(gpu, volume)?;
+    if let Some(level) = r.level() {
+        eprintln!("note: {}", level.notice());
+    }
     r.set_empty_space_skipping(doc.render.empty_space_skipping);
     r.update_stack(&doc.stack, doc.render.target)?;
     Ok(r)

@@ -40,9 +40,12 @@ use crate::volume::Volume;
 
 mod atlas;
 mod bricks;
+mod level;
 pub use atlas::{Atlas, AtlasTile, EncodedAtlas};
 pub use bricks::{BRICK_GHOST, BrickInfo, MIN_BRICK_LIMIT, RendererOptions, over, split_axis};
 use bricks::{Region, Split, Upload, upload_or_split};
+use level::level_for;
+pub use level::{LevelInfo, halve};
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
 pub enum Backend {
@@ -528,6 +531,8 @@ pub struct Renderer {
     brick_limit: u32,
     /// Most bytes of one volume texture ([`RendererOptions::max_brick_bytes`]).
     max_brick_bytes: Option<u64>,
+    /// Set when the volume passed the GPU memory budget and a coarser level is shown.
+    level: Option<LevelInfo>,
     /// Set when this renderer draws one brick of a split volume.
     region: Option<Region>,
     /// Set when the volume is split into bricks: this renderer then only composites
@@ -615,7 +620,12 @@ impl Renderer {
                 limit: gpu.limits.max_texture_dimension_3d,
             });
         }
+        // beyond the budget: a coarser level, in the full volume's box and Δs0
         let vbox = VolumeBox::new(volume.dims, volume.spacing);
+        let (volume, level) = match level_for(gpu, &volume, budget)? {
+            Some((level, info)) => (level, Some(info)),
+            None => (volume, None),
+        };
         let max_brick_bytes = options.max_brick_bytes;
         let (volume_view, volume_bytes, split) =
             match upload_or_split(gpu, &volume, &vbox, brick_limit, max_brick_bytes, budget)? {
@@ -713,6 +723,7 @@ impl Renderer {
             dummy_3d: upload_occupancy(gpu, [1, 1, 1], &[0]),
             brick_limit,
             max_brick_bytes,
+            level,
             region: None,
             split,
         };
@@ -779,6 +790,12 @@ impl Renderer {
         &self.vbox
     }
 
+    /// The coarser level shown in place of a volume beyond the GPU memory budget
+    /// (`None`: the volume itself is shown). [`Renderer::volume`] is then the level.
+    pub fn level(&self) -> Option<&LevelInfo> {
+        self.level.as_ref()
+    }
+
     /// Replaces the volume; pre-passes rerun, plugin resources are recreated (compiled
     /// stacks are kept: they do not depend on the volume). The same volume (the same
     /// `Arc`) is not uploaded again and changes nothing.
@@ -811,6 +828,7 @@ impl Renderer {
             None,
         )?;
         self.vbox = vbox;
+        self.level = None;
         match upload {
             Upload::Single(view, bytes) => {
                 self.volume_view = view;

@@ -775,7 +775,8 @@ fn window_drop_files_edit_the_2d_tf_and_compare() {
 
 /// GPU memory (issue 20): with a budget that holds the demo and a small eye buffer, a
 /// full-resolution frame is retried at lower resolutions until one fits and the window
-/// says so; a dropped volume that does not fit is refused and the demo stays.
+/// says so; a dropped volume that does not fit opens as a coarser level, with a notice
+/// in the status line and the side panel.
 #[test]
 fn window_retries_at_a_lower_resolution_when_gpu_memory_runs_out() {
     let mut h = demo_window();
@@ -791,13 +792,24 @@ fn window_retries_at_a_lower_resolution_when_gpu_memory_runs_out() {
     assert!(e.contains("GPU memory") && e.contains("retrying at"), "{e}");
     assert!(h.state().renderer().gpu_memory() <= held + (1 << 18));
     image(&h);
+    // a volume beyond the budget opens as a coarser level, with a notice
     drop_file(&mut h, crate::common::data_dir().join(CT));
-    assert_eq!(h.state().renderer().volume().dims, [128, 128, 84]);
+    let level = h
+        .state()
+        .renderer()
+        .level()
+        .cloned()
+        .expect("a coarser level");
+    assert_eq!(level.full_dims, [256, 256, 108]);
+    assert_eq!(h.state().renderer().volume().dims, level.level_dims);
     let status = format!("{:?}", h.state().file_status());
     assert!(
-        status.contains("GPU memory") && status.contains("256, 256, 108"),
+        status.contains("opened") && status.contains("level") && status.contains("budget"),
         "{status}"
     );
+    h.run_steps(2);
+    // the status line and the side panel
+    assert!(h.query_all_by_label_contains("level (").count() >= 2);
 }
 
 /// A clip shape's handle over the viewport drags its centre in the image plane (the

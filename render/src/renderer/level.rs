@@ -1,0 +1,143 @@
+//! A coarser level for a volume beyond the GPU memory budget: rather than refuse it,
+//! the renderer shows the volume averaged over 2×2×2 blocks (repeatedly) until its
+//! texture takes at most half the budget, and says so ([`Renderer::level`]).
+//!
+//! The level keeps the volume's box (its spacing grows so that the extents stay), its
+//! value range (so the transfer function maps values as before) and Δs0, the world
+//! length at which TF opacities are defined (so slices at "one voxel" are as many and
+//! as opaque as on the full volume). What a coarser level loses is detail: structures
+//! thinner than its voxels blur (docs/scale.md measures it). Refining the bricks in
+//! view from the full volume is not built.
+
+use super::*;
+use crate::volume::VoxelData;
+
+/// The level a renderer shows instead of its volume.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LevelInfo {
+    /// Voxels of the full volume per level voxel along each axis (2, 4, …).
+    pub factor: u32,
+    pub full_dims: [u32; 3],
+    pub level_dims: [u32; 3],
+    /// Why: the full volume's texture bytes and the budget.
+    pub full_bytes: u64,
+    pub budget: u64,
+}
+
+impl LevelInfo {
+    /// One line for the window and the command line.
+    pub fn notice(&self) -> String {
+        format!(
+            "showing a 1/{} level ({:?} of {:?} voxels): the volume needs {} MiB, more than \
+             half the GPU memory budget of {} MiB",
+            self.factor,
+            self.level_dims,
+            self.full_dims,
+            self.full_bytes.div_ceil(1 << 20),
+            self.budget >> 20
+        )
+    }
+}
+
+/// The volume averaged over 2×2×2 blocks (partial blocks at odd ends), as f32, with the
+/// same box and value range. Non-finite samples are left out of a block's average (a
+/// block of only non-finite samples stays NaN).
+pub fn halve(volume: &Volume) -> Result<Volume, RenderError> {
+    let [w, h, d] = volume.dims.map(|v| v as usize);
+    let c = volume.components.max(1) as usize;
+    let dims = volume.dims.map(|v| v.div_ceil(2));
+    let [nw, nh, nd] = dims.map(|v| v as usize);
+    let get: Box<dyn Fn(usize) -> f64 + Sync + '_> = match &volume.data {
+        VoxelData::U8(v) => Box::new(move |i| f64::from(v[i])),
+        VoxelData::I8(v) => Box::new(move |i| f64::from(v[i])),
+        VoxelData::U16(v) => Box::new(move |i| f64::from(v[i])),
+        VoxelData::I16(v) => Box::new(move |i| f64::from(v[i])),
+        VoxelData::F32(v) => Box::new(move |i| f64::from(v[i])),
+    };
+    let mut out = vec![0.0f32; nw * nh * nd * c];
+    use rayon::prelude::*;
+    out.par_chunks_mut(nw * nh * c)
+        .enumerate()
+        .for_each(|(z, plane)| {
+            for y in 0..nh {
+                for x in 0..nw {
+                    for k in 0..c {
+                        let (mut sum, mut n) = (0.0f64, 0u32);
+                        for zz in 2 * z..(2 * z + 2).min(d) {
+                            for yy in 2 * y..(2 * y + 2).min(h) {
+                                for xx in 2 * x..(2 * x + 2).min(w) {
+                                    let v = get(((zz * h + yy) * w + xx) * c + k);
+                                    if v.is_finite() {
+                                        sum += v;
+                                        n += 1;
+                                    }
+                                }
+                            }
+                        }
+                        plane[(y * nw + x) * c + k] = if n > 0 {
+                            (sum / f64::from(n)) as f32
+                        } else {
+                            f32::NAN
+                        };
+                    }
+                }
+            }
+        });
+    // the same extents: spacing × (dims / level dims)
+    let spacing: [f64; 3] =
+        std::array::from_fn(|a| volume.spacing[a] * volume.dims[a] as f64 / dims[a] as f64);
+    let mut level = Volume::new(
+        format!("{} (1/2)", volume.name),
+        dims,
+        volume.components,
+        spacing,
+        VoxelData::F32(out),
+    )
+    .map_err(|e| RenderError::Bricks(format!("volume {}: {e}", volume.name)))?;
+    level.range = volume.range;
+    level.histogram = volume.histogram.clone();
+    level.source = volume.source.clone();
+    level.notes = volume.notes.clone();
+    Ok(level)
+}
+
+/// The coarsest-needed level of `volume` for `budget`: `None` when its texture takes
+/// at most the budget; else the volume halved until its texture takes at most half of
+/// it (the rest is for eye buffers and plugins), with what was done.
+pub(super) fn level_for(
+    gpu: &GpuContext,
+    volume: &Arc<Volume>,
+    budget: Option<u64>,
+) -> Result<Option<(Arc<Volume>, LevelInfo)>, RenderError> {
+    let Some(budget) = budget else {
+        return Ok(None);
+    };
+    let full_bytes = volume_texture_bytes(gpu, volume);
+    if full_bytes <= budget {
+        return Ok(None);
+    }
+    let mut level = volume.clone();
+    let mut factor = 1;
+    while volume_texture_bytes(gpu, &level) > budget / 2 {
+        if level.dims.iter().all(|&d| d <= 1) {
+            return Err(RenderError::OutOfMemory {
+                what: format!("volume {} ({:?})", volume.name, volume.dims),
+                bytes: full_bytes,
+                reason: format!(
+                    "more than the renderer's GPU memory budget of {} MiB at any level",
+                    budget >> 20
+                ),
+            });
+        }
+        level = Arc::new(halve(&level)?);
+        factor *= 2;
+    }
+    let info = LevelInfo {
+        factor,
+        full_dims: volume.dims,
+        level_dims: level.dims,
+        full_bytes,
+        budget,
+    };
+    Ok(Some((level, info)))
+}
