@@ -185,6 +185,18 @@ struct FrameUniform {
 }
 
 const SLICE_INFO_STRIDE: u64 = 256;
+/// A colour target of `format` that blends [`UNDER`].
+fn under_target(format: TargetFormat) -> wgpu::ColorTargetState {
+    wgpu::ColorTargetState {
+        format: format.wgpu(),
+        blend: Some(wgpu::BlendState {
+            color: UNDER,
+            alpha: UNDER,
+        }),
+        write_mask: wgpu::ColorWrites::ALL,
+    }
+}
+
 /// Front-to-back "under" blending of premultiplied colour: src·(1 − dst.a) + dst. The
 /// slices blend into the eye buffer with it, and the bricks' partial images into the
 /// frame.
@@ -1398,7 +1410,6 @@ impl Renderer {
             ],
             immediate_size: 0,
         });
-        let blend = UNDER;
         let raster = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
             label: Some("vwb raster slices"),
             layout: Some(&raster_layout),
@@ -1434,14 +1445,7 @@ impl Renderer {
                 module: &module,
                 entry_point: Some("fs_main"),
                 compilation_options: Default::default(),
-                targets: &[Some(wgpu::ColorTargetState {
-                    format: target.wgpu(),
-                    blend: Some(wgpu::BlendState {
-                        color: blend,
-                        alpha: blend,
-                    }),
-                    write_mask: wgpu::ColorWrites::ALL,
-                })],
+                targets: &[Some(under_target(target))],
             }),
             multiview_mask: None,
             cache: None,

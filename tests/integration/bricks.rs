@@ -23,6 +23,15 @@ fn image(px: &[[f32; 4]], w: u32, h: u32) -> RgbImageF {
     RgbImageF::new(w, h, rgb(px))
 }
 
+/// The largest difference in any channel of any pixel.
+fn worst_channel(a: &[[f32; 4]], b: &[[f32; 4]]) -> f32 {
+    assert_eq!(a.len(), b.len());
+    a.iter()
+        .zip(b)
+        .flat_map(|(p, q)| (0..4).map(move |c| (p[c] - q[c]).abs()))
+        .fold(0.0f32, f32::max)
+}
+
 /// Share of pixels whose ΔE*uv exceeds `limit`.
 fn share_above(a: &RgbImageF, b: &RgbImageF, limit: f64) -> f64 {
     let d = delta_e_map(a, b);
@@ -166,11 +175,7 @@ fn samples_on_brick_faces_are_taken_once() {
             };
             let a = render(&mut one, &stack, TargetFormat::Rgba32Float, &s);
             let b = render(&mut split, &stack, TargetFormat::Rgba32Float, &s);
-            let worst = a
-                .iter()
-                .zip(&b)
-                .flat_map(|(p, q)| (0..4).map(move |c| (p[c] - q[c]).abs()))
-                .fold(0.0f32, f32::max);
+            let worst = worst_channel(&a, &b);
             let alpha = a.iter().map(|p| p[3]).fold(0.0f32, f32::max);
             assert!(alpha > 0.3, "{what}: the view shows the volume ({alpha})");
             let bound = if backend == Backend::Compute {
@@ -274,11 +279,7 @@ fn partial_images_composite_pairwise_to_the_frame() {
             })
             .collect();
     }
-    let worst = level[0]
-        .iter()
-        .zip(&frame)
-        .flat_map(|(p, q)| (0..4).map(move |c| (p[c] - q[c]).abs()))
-        .fold(0.0f32, f32::max);
+    let worst = worst_channel(&level[0], &frame);
     assert!(worst <= 1.0e-5, "{worst}");
     // the order matters: reversed, the image changes
     let mut back_first = vec![[0.0f32; 4]; frame.len()];
@@ -593,11 +594,7 @@ fn a_byte_cap_splits_a_volume_within_the_dimension_limit() {
     let mut one = Renderer::new(gpu(), demo()).unwrap();
     let a = render(&mut one, &stack, TargetFormat::Rgba32Float, &s);
     let b = render(&mut r, &stack, TargetFormat::Rgba32Float, &s);
-    let worst = a
-        .iter()
-        .zip(&b)
-        .flat_map(|(p, q)| (0..4).map(move |c| (p[c] - q[c]).abs()))
-        .fold(0.0f32, f32::max);
+    let worst = worst_channel(&a, &b);
     assert!(worst <= 1.0e-3, "{worst}");
 }
 

@@ -463,14 +463,7 @@ impl Split {
                     module: &module,
                     entry_point: Some("fs_main"),
                     compilation_options: Default::default(),
-                    targets: &[Some(wgpu::ColorTargetState {
-                        format: format.wgpu(),
-                        blend: Some(wgpu::BlendState {
-                            color: UNDER,
-                            alpha: UNDER,
-                        }),
-                        write_mask: wgpu::ColorWrites::ALL,
-                    })],
+                    targets: &[Some(under_target(format))],
                 }),
                 multiview_mask: None,
                 cache: None,
