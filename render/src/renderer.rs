@@ -43,7 +43,7 @@ mod bricks;
 mod level;
 pub use atlas::{Atlas, AtlasTile, EncodedAtlas};
 pub use bricks::{BRICK_GHOST, BrickInfo, MIN_BRICK_LIMIT, RendererOptions, over, split_axis};
-use bricks::{Region, Split, Upload, upload_or_split};
+use bricks::{Region, Split, upload_or_split};
 use level::level_for;
 pub use level::{LevelInfo, halve};
 
@@ -213,8 +213,6 @@ pub const COMPOSITE_WGSL: &str = include_str!("../../shaders/composite.wgsl");
 pub const MAX_PER_SLICE_SLICES: u32 = 65_536;
 const MAX_TIMESTAMPS: u32 = 64;
 
-/// A volume pass's record: the parameters and upstream hash it last started with
-/// (None: never), and its refinement steps done since.
 /// One frame encoded by [`Renderer::record`], not yet booked.
 struct Recorded {
     /// When encoding started (after the uniforms and polygons were written).
@@ -226,6 +224,8 @@ struct Recorded {
     stats: FrameStats,
 }
 
+/// A volume pass's record: the parameters and upstream hash it last started with
+/// (None: never), and its refinement steps done since.
 #[derive(Default)]
 struct PassState {
     stamp: Option<(ParamValues, u64)>,
@@ -477,8 +477,12 @@ fn target_bytes(w: u32, h: u32, format: TargetFormat) -> u64 {
 /// Bytes of `volume` as [`upload_volume`] stores it (r32float, or r16float without
 /// float32 filtering).
 fn volume_texture_bytes(gpu: &GpuContext, volume: &Volume) -> u64 {
-    let texel = if gpu.float32_filterable() { 4 } else { 2 };
-    volume.dims.iter().map(|&d| u64::from(d)).product::<u64>() * texel
+    volume.dims.iter().map(|&d| u64::from(d)).product::<u64>() * texel_bytes(gpu)
+}
+
+/// Bytes of one voxel of the volume texture ([`upload_volume`]'s format).
+fn texel_bytes(gpu: &GpuContext) -> u64 {
+    if gpu.float32_filterable() { 4 } else { 2 }
 }
 
 /// Result of [`Renderer::update_stack`].
@@ -595,6 +599,7 @@ fn sampler_entry(binding: u32, vis: wgpu::ShaderStages) -> wgpu::BindGroupLayout
 impl Renderer {
     /// A renderer for `volume`, with the GPU memory budget of `VWB_GPU_MEMORY_LIMIT`
     /// (bytes; none when unset).
+    ///
     /// A volume longer than the adapter's 3D texture limit (or `VWB_BRICK_LIMIT`) along
     /// an axis is split into bricks ([`Renderer::bricks`]).
     pub fn new(gpu: &GpuContext, volume: Arc<Volume>) -> Result<Self, RenderError> {
@@ -639,11 +644,9 @@ impl Renderer {
             None => (volume, None),
         };
         let max_brick_bytes = options.max_brick_bytes;
-        let (volume_view, volume_bytes, split) =
-            match upload_or_split(gpu, &volume, &vbox, brick_limit, max_brick_bytes, budget)? {
-                Upload::Single(view, bytes) => (view, bytes, None),
-                Upload::Split(split) => (upload_occupancy(gpu, [1, 1, 1], &[0]).1, 0, Some(split)),
-            };
+        let (volume_view, volume_bytes, bricks, split) =
+            upload_or_split(gpu, &volume, &vbox, brick_limit, max_brick_bytes, budget)?
+                .into_parts(gpu, &volume);
         let sampler = |filter| {
             device.create_sampler(&wgpu::SamplerDescriptor {
                 label: Some("vwb sampler"),
@@ -682,10 +685,6 @@ impl Renderer {
             usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
-        let bricks = match split {
-            Some(_) => BrickRanges::new([1, 1, 1], &[0.0]),
-            None => BrickRanges::new(volume.dims, &volume.normalized_scalars()),
-        };
         let occupancy = upload_occupancy(gpu, [1, 1, 1], &[255]);
         let g0 = make_g0(
             device,
@@ -841,21 +840,9 @@ impl Renderer {
         )?;
         self.vbox = vbox;
         self.level = None;
-        match upload {
-            Upload::Single(view, bytes) => {
-                self.volume_view = view;
-                self.volume_bytes = bytes;
-                self.counters.volume_uploads += 1;
-                self.bricks = BrickRanges::new(volume.dims, &volume.normalized_scalars());
-                self.split = None;
-            }
-            Upload::Split(split) => {
-                self.volume_view = upload_occupancy(&self.gpu, [1, 1, 1], &[0]).1;
-                self.volume_bytes = 0;
-                self.bricks = BrickRanges::new([1, 1, 1], &[0.0]);
-                self.split = Some(split);
-            }
-        }
+        (self.volume_view, self.volume_bytes, self.bricks, self.split) =
+            upload.into_parts(&self.gpu, &volume);
+        self.counters.volume_uploads += self.split.is_none() as u64;
         self.occupancy = upload_occupancy(&self.gpu, [1, 1, 1], &[255]);
         self.occupancy_bytes = None;
         self.volume = volume;
@@ -1984,6 +1971,9 @@ impl Renderer {
     /// sets a small budget and keeps drawing while [`Renderer::refining`]).
     pub fn set_refinement_budget(&mut self, steps: Option<u32>) {
         self.refinement_budget = steps;
+        for c in self.split.iter_mut().flat_map(|sp| &mut sp.children) {
+            c.renderer.refinement_budget = steps;
+        }
     }
 
     /// Whether a volume pass of the current stack has steps left (a window keeps
@@ -2232,13 +2222,8 @@ impl Renderer {
         if let Some((_, _, read)) = &self.timestamps
             && n_stamps > 1
         {
-            let ticks = read_buffer(&self.gpu, read, n_stamps as u64 * 8);
-            let ticks: Vec<u64> = ticks
-                .chunks_exact(8)
-                .map(|c| u64::from_le_bytes(c.try_into().expect("8 bytes")))
-                .collect();
-            let period = self.gpu.queue.get_timestamp_period() as f64;
-            let ms = |a: u64, b: u64| b.saturating_sub(a) as f64 * period / 1.0e6;
+            let ticks = read_ticks(&self.gpu, read, n_stamps);
+            let ms = |a: u64, b: u64| ticks_ms(&self.gpu, a, b);
             for i in 0..ticks.len() - 1 {
                 stats
                     .gpu_passes
@@ -2702,7 +2687,19 @@ impl Renderer {
     }
 }
 
-/// RGBA texels read back with rows padded to 256 bytes, `bpp` 8 (rgba16float) or 16.
+/// The first `n` resolved timestamps in `read` (GPU ticks).
+fn read_ticks(gpu: &GpuContext, read: &wgpu::Buffer, n: u32) -> Vec<u64> {
+    read_buffer(gpu, read, n as u64 * 8)
+        .chunks_exact(8)
+        .map(|c| u64::from_le_bytes(c.try_into().expect("8 bytes")))
+        .collect()
+}
+
+/// Milliseconds from tick `a` to tick `b` (0 when `b` is earlier).
+fn ticks_ms(gpu: &GpuContext, a: u64, b: u64) -> f64 {
+    b.saturating_sub(a) as f64 * gpu.queue.get_timestamp_period() as f64 / 1.0e6
+}
+
 /// Per-instance figures of several renderers summed by uid, in first-seen order.
 fn sum_by_uid(
     lists: impl Iterator<Item = Vec<(u64, &'static str, u64)>>,
@@ -2719,6 +2716,7 @@ fn sum_by_uid(
     out
 }
 
+/// RGBA texels read back with rows padded to 256 bytes, `bpp` 8 (rgba16float) or 16.
 fn decode_rgba(bytes: &[u8], width: u32, height: u32, bpp: u32) -> Vec<[f32; 4]> {
     let row = (width * bpp).div_ceil(256) * 256;
     let mut out = Vec::with_capacity((width * height) as usize);

@@ -367,7 +367,7 @@ fn bricks_benchmark() {
     }
 
     // beyond the GPU memory budget: a coarser level (CT head)
-    let texel = if gpu().float32_filterable() { 4 } else { 2 };
+    let texel = texel_bytes();
     let full_bytes = volume.dims.iter().map(|&d| d as u64).product::<u64>() * texel;
     let mut level_rows = String::new();
     let full_img = base.get("raster").map(|b| b.1.clone()).unwrap();
@@ -576,7 +576,7 @@ fn bricks_benchmark() {
 /// (drivers cap one allocation): the same image, bricks within the cap.
 #[test]
 fn a_byte_cap_splits_a_volume_within_the_dimension_limit() {
-    let texel = if gpu().float32_filterable() { 4 } else { 2 };
+    let texel = texel_bytes();
     let whole = 128 * 128 * 84 * texel;
     let options = RendererOptions {
         max_brick_bytes: Some(whole / 3),
@@ -603,7 +603,7 @@ fn a_byte_cap_splits_a_volume_within_the_dimension_limit() {
 /// full volume's. Halving keeps the mean of each 2×2×2 block.
 #[test]
 fn a_volume_beyond_the_budget_shows_a_coarser_level() {
-    let texel = if gpu().float32_filterable() { 4 } else { 2 };
+    let texel = texel_bytes();
     let full = 128 * 128 * 84 * texel;
     let budget = full / 3;
     let options = RendererOptions {

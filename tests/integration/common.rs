@@ -58,6 +58,12 @@ pub fn gpu() -> &'static GpuContext {
     })
 }
 
+/// Bytes of one voxel of the renderer's volume texture on the test adapter (r32float
+/// where it is filterable, else r16float).
+pub fn texel_bytes() -> u64 {
+    if gpu().float32_filterable() { 4 } else { 2 }
+}
+
 pub fn registry() -> Registry {
     vwb_plugins::builtin_registry()
 }

@@ -435,7 +435,7 @@ fn gpu_memory_limits_and_a_lost_device_are_clear_errors() {
     let before = render(&mut r, &stack, TargetFormat::Rgba16Float, &s);
     let held = r.gpu_memory();
     // the demo (128×128×84 r32float or r16float) and a 48² eye buffer
-    let volume = 128 * 128 * 84 * if gpu().float32_filterable() { 4 } else { 2 };
+    let volume = 128 * 128 * 84 * texel_bytes();
     assert!(held >= volume + 48 * 48 * 28, "{held}");
     r.set_gpu_memory_budget(Some(held + (1 << 20)));
     // a volume 8× larger does not fit: refused, the demo stays

@@ -24,15 +24,16 @@
 //! the result is the unbricked image up to the rounding of the eye buffers. This is
 //! the sort-last step a distributed engine (IceT-style) runs across machines.
 //!
-//! Plugins whose state crosses the volume (per-slice occlusion buffers, light volumes)
-//! are computed per brick: their shadows stop at brick faces ([`BrickInfo`] lists the
-//! bricks; docs/scale.md states what is exact).
+//! Plugins whose state crosses the volume (per-slice occlusion buffers, light volumes,
+//! streamlines, grids of their own) cannot be split: a stack with one is refused by
+//! name ([`Plugin::splits_into_bricks`]; docs/scale.md states what is exact).
 
 use super::*;
 
 /// Voxels a brick reads beyond its own region on every side that has a neighbour:
 /// trilinear samples need one; central-difference and Sobel gradients (on the fly or
-/// from the pre-pass) and the pre-integrated back sample one more.
+/// from the pre-pass) one more; the back sample of a pre-integrated slab up to 2 voxels
+/// long two more.
 pub const BRICK_GHOST: u32 = 4;
 
 /// Smallest brick limit accepted: a brick owns at least 4 voxels beside its ghosts.
@@ -55,7 +56,8 @@ pub struct RendererOptions {
 }
 
 impl RendererOptions {
-    /// `VWB_GPU_MEMORY_LIMIT` (bytes) and `VWB_BRICK_LIMIT` (voxels) when set.
+    /// `VWB_GPU_MEMORY_LIMIT` (bytes), `VWB_BRICK_LIMIT` (voxels) and
+    /// `VWB_MAX_BRICK_BYTES` when set.
     pub fn from_env() -> Self {
         let var = |name: &str| std::env::var(name).ok();
         Self {
@@ -164,10 +166,48 @@ pub fn over(front: &[[f32; 4]], back: &[[f32; 4]]) -> Vec<[f32; 4]> {
         .collect()
 }
 
+/// `what` needs `bytes`, more than the renderer's GPU memory `budget` on its own.
+fn over_budget(what: String, bytes: u64, budget: u64) -> RenderError {
+    RenderError::OutOfMemory {
+        what,
+        bytes,
+        reason: format!(
+            "more than the renderer's GPU memory budget of {} MiB",
+            budget >> 20
+        ),
+    }
+}
+
 /// A volume's GPU form: one texture (with its bytes), or bricks.
 pub(super) enum Upload {
     Single(wgpu::TextureView, u64),
     Split(Split),
+}
+
+impl Upload {
+    /// What a renderer holds for it: the volume texture and its bytes, the value ranges
+    /// per skipping brick, and the bricks. A split volume has no texture of its own (a
+    /// 1³ placeholder keeps the bind group whole) and no ranges (its bricks skip).
+    pub(super) fn into_parts(
+        self,
+        gpu: &GpuContext,
+        volume: &Volume,
+    ) -> (wgpu::TextureView, u64, BrickRanges, Option<Split>) {
+        match self {
+            Upload::Single(view, bytes) => (
+                view,
+                bytes,
+                BrickRanges::new(volume.dims, &volume.normalized_scalars()),
+                None,
+            ),
+            Upload::Split(split) => (
+                upload_occupancy(gpu, [1, 1, 1], &[0]).1,
+                0,
+                BrickRanges::new([1, 1, 1], &[0.0]),
+                Some(split),
+            ),
+        }
+    }
 }
 
 /// Smallest brick the retry after a driver refusal goes down to.
@@ -191,23 +231,16 @@ pub(super) fn upload_or_split(
     if let Some(b) = budget
         && single > b
     {
-        return Err(RenderError::OutOfMemory {
-            what,
-            bytes: single,
-            reason: format!(
-                "more than the renderer's GPU memory budget of {} MiB",
-                b >> 20
-            ),
-        });
+        return Err(over_budget(what, single, b));
     }
-    let texel = if gpu.float32_filterable() { 4 } else { 2 };
+    let texel = texel_bytes(gpu);
     let mut cap = max_bytes;
     loop {
         let bricked = volume.dims.iter().any(|&d| d > limit) || cap.is_some_and(|c| single > c);
         let (attempt, largest) = if bricked {
             let pieces = split_volume(volume.dims, limit, cap, texel);
             let largest = largest_brick_texels(volume.dims, &pieces) * texel;
-            let split = Split::new(gpu, volume, whole, limit, cap, budget).map(Upload::Split);
+            let split = Split::new(gpu, volume, whole, limit, pieces, budget).map(Upload::Split);
             (split, largest)
         } else {
             let scope = gpu.device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
@@ -307,20 +340,19 @@ fn cut(volume: &Volume, r: [[u32; 2]; 3], name: String) -> Result<Volume, Render
 }
 
 impl Split {
-    /// Cuts `volume` (box `whole`) into bricks of at most `limit` voxels per axis and
-    /// uploads each. Fails, before anything is uploaded, when the bricks together pass
-    /// the GPU memory `budget`.
-    pub fn new(
+    /// Cuts `volume` (box `whole`) into the bricks of `pieces` ([`split_volume`] at the
+    /// brick `limit`) and uploads each. Fails, before anything is uploaded, when the
+    /// bricks together pass the GPU memory `budget`.
+    fn new(
         gpu: &GpuContext,
         volume: &Volume,
         whole: &VolumeBox,
         limit: u32,
-        max_bytes: Option<u64>,
+        pieces: [Vec<(u32, u32)>; 3],
         budget: Option<u64>,
     ) -> Result<Self, RenderError> {
         let dims = volume.dims;
-        let texel = if gpu.float32_filterable() { 4 } else { 2 };
-        let pieces = split_volume(dims, limit, max_bytes, texel);
+        let texel = texel_bytes(gpu);
         let ghosted = |a: usize, (s, e): (u32, u32)| {
             [
                 s.saturating_sub(BRICK_GHOST),
@@ -343,14 +375,8 @@ impl Split {
         if let Some(b) = budget
             && bytes > b
         {
-            return Err(RenderError::OutOfMemory {
-                what: format!("volume {} ({dims:?}) in bricks", volume.name),
-                bytes,
-                reason: format!(
-                    "more than the renderer's GPU memory budget of {} MiB",
-                    b >> 20
-                ),
-            });
+            let what = format!("volume {} ({dims:?}) in bricks", volume.name);
+            return Err(over_budget(what, bytes, b));
         }
         let mut children = Vec::new();
         for (iz, &pz) in pieces[2].iter().enumerate() {
@@ -538,7 +564,6 @@ impl Renderer {
             r.shader_overrides = self.shader_overrides.clone();
             r.overrides_generation = self.overrides_generation;
             r.skipping_enabled = self.skipping_enabled;
-            r.refinement_budget = self.refinement_budget;
             for (h, compiled) in &cache {
                 if !r.compiled.iter().any(|(k, _)| k == h) {
                     r.compiled.push((*h, compiled.clone()));
@@ -562,10 +587,6 @@ impl Renderer {
             .is_some_and(|sp| sp.children.iter().any(|c| c.renderer.pipelines.is_none()));
         if needs_stack {
             self.update_split_stack(&[], TargetFormat::default())?;
-        }
-        let budget = self.refinement_budget;
-        for c in self.split.iter_mut().flat_map(|sp| &mut sp.children) {
-            c.renderer.refinement_budget = budget;
         }
         crate::validate::check_camera(&s.camera)?;
         let view = s.camera.view(s.width as f32 / s.height as f32);
@@ -670,13 +691,8 @@ impl Renderer {
             stats.volume_passes_run.extend(st.volume_passes_run);
         }
         if let Some((_, _, read)) = timestamps {
-            let ticks = read_buffer(&gpu, read, 24);
-            let t: Vec<u64> = ticks
-                .chunks_exact(8)
-                .map(|c| u64::from_le_bytes(c.try_into().expect("8 bytes")))
-                .collect();
-            let period = gpu.queue.get_timestamp_period() as f64;
-            let ms = |a: u64, b: u64| b.saturating_sub(a) as f64 * period / 1.0e6;
+            let t = read_ticks(&gpu, read, 3);
+            let ms = |a: u64, b: u64| ticks_ms(&gpu, a, b);
             stats.gpu_passes = vec![
                 (format!("{} bricks", order.len()), ms(t[0], t[1])),
                 ("composite".to_string(), ms(t[1], t[2])),
