@@ -82,8 +82,8 @@ pub enum Command {
     #[command(after_help = crate::cli_help::SUGGEST_TF)]
     SuggestTf(SuggestTfArgs),
     /// Measure directional occlusion shading against its Monte-Carlo reference (θ,
-    /// kernel, slice count, buffer precision, Pareto front, extremes, CT frame time) and
-    /// write the report (docs/dos.md).
+    /// kernel, slice count, buffer precision, chromatic extinction, Pareto front,
+    /// extremes, CT frame time) and write the report (docs/dos.md).
     #[command(after_help = crate::cli_help::DOS_STUDY)]
     DosStudy(vwb_lab::studies::dos::DosStudyArgs),
     /// Transfer-function design gallery (Marks et al. 1997): draws a seeded pool of TF

@@ -126,6 +126,8 @@ pub enum SetValue {
     Bool(bool),
     Number(f64),
     Text(String),
+    /// A vec3 `(x, y, z)` or a colour `(r, g, b, a)`.
+    Numbers(Vec<f64>),
 }
 
 /// One axis of the grid: `values: [..]` or `range: "A..B:N"` (`:log` for geometric).
@@ -172,6 +174,10 @@ pub struct ScatteringSpec {
     /// Paths per pixel (default 64).
     #[serde(default = "default_paths")]
     pub samples: u32,
+    /// κ of a chromatic extinction on the light's paths (σ per channel = κ·σ on the
+    /// shadow rays; the eye ray keeps σ); None (the default): achromatic.
+    #[serde(default)]
+    pub extinction: Option<(f64, f64, f64)>,
 }
 
 fn default_paths() -> u32 {
@@ -646,6 +652,12 @@ pub fn set_value(doc: &mut Document, key: &str, value: &SetValue) -> Result<()> 
                 (ParamKind::Bool { .. }, SetValue::Bool(b)) => ParamValue::Bool(*b),
                 (ParamKind::Enum { .. }, SetValue::Text(t)) => ParamValue::Enum(t.clone()),
                 (ParamKind::Path { .. }, SetValue::Text(t)) => ParamValue::Path(t.into()),
+                (ParamKind::Vec3 { .. }, SetValue::Numbers(x)) if x.len() == 3 => {
+                    ParamValue::Vec3([x[0] as f32, x[1] as f32, x[2] as f32])
+                }
+                (ParamKind::Color { .. }, SetValue::Numbers(x)) if x.len() == 4 => {
+                    ParamValue::Color([x[0] as f32, x[1] as f32, x[2] as f32, x[3] as f32])
+                }
                 (_, v) => bail!("'{key}' takes {}; {v:?} does not fit it", spec.kind_name()),
             };
             spec.check(&v).map_err(|e| anyhow!("'{key}': {e}"))?;
@@ -938,6 +950,11 @@ pub fn run(
                                 light: spec.light.map(|(x, y, z)| glam::DVec3::new(x, y, z)),
                                 samples: spec.samples,
                                 seed: e.seed.unwrap_or(1),
+                                extinction: spec
+                                    .extinction
+                                    .map_or(glam::DVec3::ONE, |(r, g, b)| {
+                                        glam::DVec3::new(r, g, b)
+                                    }),
                                 ..Default::default()
                             };
                             let g = vwb_render::reference::render_single_scattering(
@@ -968,12 +985,15 @@ pub fn run(
                             references.push(json!({
                                 "scene": sc.name, "kind": "single_scattering",
                                 "what": format!(
-                                    "single-scattering ground truth ({} paths per pixel, light ({:.3}, {:.3}, {:.3}), 95 % CI ±{:.4} mean, ±{:.4} max per channel; two seeds differ by RMS ΔE*uv {floor:.2}, so an image equal to the true mean scores about {:.2} against it)",
-                                    spec.samples, g.light.x, g.light.y, g.light.z, g.ci95_mean, g.ci95_max, floor / std::f64::consts::SQRT_2
+                                    "single-scattering ground truth ({} paths per pixel, light ({:.3}, {:.3}, {:.3}){}, 95 % CI ±{:.4} mean, ±{:.4} max per channel; two seeds differ by RMS ΔE*uv {floor:.2}, so an image equal to the true mean scores about {:.2} against it)",
+                                    spec.samples, g.light.x, g.light.y, g.light.z,
+                                    spec.extinction.map_or(String::new(), |(r, g, b)| format!(", chromatic extinction κ ({r}, {g}, {b}) on the shadow rays")),
+                                    g.ci95_mean, g.ci95_max, floor / std::f64::consts::SQRT_2
                                 ),
                                 "seed_to_seed_rms_delta_e": floor,
                                 "light": [g.light.x, g.light.y, g.light.z],
                                 "samples": spec.samples,
+                                "extinction": spec.extinction.map(|(r, g, b)| [r, g, b]),
                                 "ci95_mean": g.ci95_mean,
                                 "ci95_max": g.ci95_max,
                                 "seconds": start.elapsed().as_secs_f64(),
@@ -1586,6 +1606,11 @@ mod tests {
                 "no plugin 'shade.nothing'",
             ),
             ("classify.tf1d.mode", SetValue::Number(1.0), "does not fit"),
+            (
+                "classify.tf1d.mode",
+                SetValue::Numbers(vec![1.0, 2.0, 3.0]),
+                "does not fit",
+            ),
             ("render.slice_spacing", SetValue::Number(-1.0), "> 0"),
         ] {
             let e = v(&[(key, value)]).apply(&base).unwrap_err().to_string();

@@ -145,8 +145,12 @@ impl Scene {
             SetValue::Number(x)
         } else if let Ok(s) = value.extract::<String>() {
             SetValue::Text(s)
+        } else if let Ok(xs) = value.extract::<Vec<f64>>() {
+            SetValue::Numbers(xs)
         } else {
-            return Err(PyValueError::new_err(format!("'{key}': use a bool, a number or a string")));
+            return Err(PyValueError::new_err(format!(
+                "'{key}': use a bool, a number, a string or a sequence of numbers"
+            )));
         };
         experiment::set_value(&mut self.doc, key, &v).map_err(|e| PyValueError::new_err(e.to_string()))
     }

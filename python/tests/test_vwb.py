@@ -48,6 +48,20 @@ def test_parameters_change_the_image_and_bad_ones_are_refused():
         vwb.Scene("nonexistent.ron")
 
 
+def test_vector_parameters_are_set_from_sequences():
+    s = vwb.Scene(str(REPO / "presets" / "demo_dos.ron"))
+    grey = s.render(size=(32, 32))
+    s.set("shade.dos.extinction", "chromatic")
+    s.set("shade.dos.extinction_rgb", (1.0, 1.0, 1.0))
+    assert vwb.compare(grey, s.render(size=(32, 32)))["rms_delta_e"] < 1e-3, "κ = 1 is achromatic"
+    s.set("shade.dos.extinction_rgb", [0.4, 1.0, 2.5])
+    assert vwb.compare(grey, s.render(size=(32, 32)))["rms_delta_e"] > 0.1, "warm shadows"
+    with pytest.raises(ValueError, match="does not fit"):
+        s.set("shade.dos.extinction_rgb", (1.0, 2.0))
+    with pytest.raises(ValueError, match="outside"):
+        s.set("shade.dos.extinction_rgb", (1.0, 2.0, 9.0))
+
+
 def test_finer_slices_are_closer_to_the_converged_reference():
     s = vwb.Scene(DEMO)
     s.set("classify.tf1d.mode", "post")

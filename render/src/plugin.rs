@@ -93,6 +93,39 @@ impl ShaderSource {
             source: Cow::Borrowed(source),
         }
     }
+
+    /// The file with its optional regions left out: every line from a
+    /// `// {name}: begin` line to the next `// {name}: end` line (each may be indented)
+    /// is blanked, so that compile errors keep their line numbers, and the begin line
+    /// becomes `stub` (e.g. a constant stand-in for a function the region defines).
+    /// A structural parameter that switches a feature off thus compiles the shader
+    /// without it: nothing of the feature is left to cost time.
+    pub fn without_region(
+        file: &'static str,
+        source: &'static str,
+        name: &str,
+        stub: &str,
+    ) -> Self {
+        let (begin, end) = (format!("// {name}: begin"), format!("// {name}: end"));
+        let mut out = String::with_capacity(source.len());
+        let mut inside = false;
+        for line in source.lines() {
+            let t = line.trim_start();
+            if t.starts_with(&begin) {
+                inside = true;
+                out.push_str(stub);
+            } else if t.starts_with(&end) {
+                inside = false;
+            } else if !inside {
+                out.push_str(line);
+            }
+            out.push('\n');
+        }
+        Self {
+            file: Cow::Borrowed(file),
+            source: Cow::Owned(out),
+        }
+    }
 }
 
 /// Sampled resources a plugin owns (it creates them in [`Plugin::create_resources`]).

@@ -42,11 +42,18 @@ fn dos(theta: f32) -> PluginInstance {
 
 #[test]
 fn both_backends_match_the_twin_and_each_other() {
-    for (kernel, distance, format, scale) in [
-        ("grid", "slice", "fp16", "1"),
-        ("poisson", "exact", "fp32", "0.5"),
+    for (kernel, distance, format, scale, extinction) in [
+        ("grid", "slice", "fp16", "1", None),
+        ("poisson", "exact", "fp32", "0.5", None),
+        ("grid", "exact", "fp32", "1", Some([0.4, 1.0, 2.5])),
+        ("poisson", "slice", "fp16", "0.5", Some([2.0, 1.0, 0.3])),
     ] {
         let mut d = dos(70.0);
+        if let Some(k) = extinction {
+            d.params
+                .set("extinction", ParamValue::Enum("chromatic".into()));
+            d.params.set("extinction_rgb", ParamValue::Vec3(k));
+        }
         d.params.set("kernel", ParamValue::Enum(kernel.into()));
         d.params.set("distance", ParamValue::Enum(distance.into()));
         d.params
@@ -59,7 +66,7 @@ fn both_backends_match_the_twin_and_each_other() {
             let (px, reference) = gpu_and_reference(demo(), &stack, TargetFormat::Rgba32Float, &s);
             let rms = delta_e_rms(&px, &reference, 48, 48);
             eprintln!(
-                "dos {kernel} {distance} {format} ×{scale} {backend:?}: ΔE RMS vs twin {rms:.4}"
+                "dos {kernel} {distance} {format} ×{scale} κ {extinction:?} {backend:?}: ΔE RMS vs twin {rms:.4}"
             );
             assert!(rms < 0.5, "{kernel} {backend:?}: {rms}");
             images.push(px);
@@ -177,6 +184,60 @@ fn a_block_casts_a_soft_shadow_on_the_wall_behind_it() {
     }
     eprintln!("wall ring luminance at θ 0 / 30 / 60: {lum:?}");
     assert!(lum[1] < 0.95 * lum[0] && lum[2] < lum[1], "{lum:?}");
+}
+
+/// Chromatic extinction (σt·κ per channel on the occlusion cone): κ = (1, 1, 1) is
+/// the achromatic image; κ_r < 1 < κ_b lets red reach deeper, so the contact shadow
+/// on the wall turns warm (red brighter, blue darker than achromatic, green as it
+/// was), while the eye ray keeps its achromatic σt: the opacity image is unchanged.
+#[test]
+fn chromatic_extinction_colours_the_shadow() {
+    let (vol, tf) = block_and_wall(32, [12..20, 12..20, 6..9], 22..25, [0.9, 0.9, 0.9, 0.9]);
+    let s = ortho_axis(64, 64, Backend::Compute);
+    let mut r = Renderer::new(gpu(), vol).unwrap();
+    let mut shot = |extinction: Option<[f32; 3]>| {
+        let mut d = dos(60.0);
+        d.params
+            .set("buffer_format", ParamValue::Enum("fp32".into()));
+        if let Some(k) = extinction {
+            d.params
+                .set("extinction", ParamValue::Enum("chromatic".into()));
+            d.params.set("extinction_rgb", ParamValue::Vec3(k));
+        }
+        render(&mut r, &[tf.clone(), d], TargetFormat::Rgba32Float, &s)
+    };
+    let grey = shot(None);
+    let white = shot(Some([1.0, 1.0, 1.0]));
+    let warm = shot(Some([0.25, 1.0, 3.0]));
+    let (rms, max) = diff(&rgb(&grey), &rgb(&white));
+    eprintln!("chromatic κ = 1 vs achromatic: RGB RMS {rms:.2e}, max {max:.2e}");
+    assert!(max < 1e-5, "{rms} {max}");
+    let alpha = |img: &[[f32; 4]]| img.iter().map(|p| p[3]).collect::<Vec<_>>();
+    assert_eq!(
+        alpha(&grey),
+        alpha(&warm),
+        "the eye ray's opacity is achromatic"
+    );
+    // mean RGB over the ring of wall around the block
+    let ring = |img: &[[f64; 3]]| {
+        let (mut sum, mut n) = ([0.0; 3], 0.0);
+        for y in 0..64 {
+            for x in 0..64 {
+                let d = (x as f64 - 31.5).abs().max((y as f64 - 31.5).abs());
+                if (8.5..12.0).contains(&d) {
+                    for c in 0..3 {
+                        sum[c] += img[y * 64 + x][c];
+                    }
+                    n += 1.0;
+                }
+            }
+        }
+        sum.map(|v| v / n)
+    };
+    let (g, w) = (ring(&rgb(&grey)), ring(&rgb(&warm)));
+    eprintln!("shadow ring RGB achromatic {g:.4?}, κ (0.25, 1, 3) {w:.4?}");
+    assert!(w[0] > 1.05 * g[0] && w[2] < 0.95 * g[2], "{g:?} {w:?}");
+    assert!((w[1] - g[1]).abs() < 1e-4, "green keeps κ = 1: {g:?} {w:?}");
 }
 
 /// DOS against its Monte-Carlo reference on a small scene. The slice algorithm

@@ -1,12 +1,24 @@
 // shade.dos: directional occlusion shading (Schott, Pegoraro, Hansen, Boulanger and
 // Bouatouch 2009) on the slice loop's per-slice state. `state_prev.r` is the
 // occlusion buffer of the previous slice: the fractional visibility V (eq 10) of the
-// ambient light L_a at the current slice, 1 before the first slice. CPU twin: mod.rs.
+// ambient light L_a at the current slice, 1 before the first slice. With chromatic
+// extinction (`extinction: chromatic`, structural) the buffer holds V per channel in
+// .rgb, attenuated by σt·κ (κ: the `extinction_rgb` parameter). Achromatic, the plugin
+// leaves the `chromatic` regions out (`ShaderSource::without_region`): the shader is
+// the paper's scalar one (the RGB path costs lavapipe 6–10 % per frame even when
+// its branches are not taken). CPU twin: mod.rs.
 
 // Eye pass (Algorithm 1): σs·(L_a·V + ambient), α unchanged (α = 1 − e^(−σt·d) is
 // applied by the core's opacity correction of the TF's α per Δs0).
 fn shade(s: Sample) -> Sample {
     var o = s;
+    // chromatic: begin
+    if (params.extinction == 1u) {
+        let rgb = textureSampleLevel(state_prev, linear_clamp, s.uv, 0.0).rgb;
+        o.color = vec4<f32>(s.color.rgb * (params.la * rgb + params.ambient), s.color.a);
+        return o;
+    }
+    // chromatic: end
     let v = textureSampleLevel(state_prev, linear_clamp, s.uv, 0.0).r;
     o.color = vec4<f32>(s.color.rgb * (params.la * v + params.ambient), s.color.a);
     return o;
@@ -25,6 +37,39 @@ fn kernel_tap(q: vec2<f32>, uv: vec2<f32>, scale: vec2<f32>, extent: f32, d: f32
     return textureSampleLevel(state_prev, linear_clamp, pt, 0.0).r * exp(-sigma_t * dist);
 }
 
+// chromatic: begin
+// Chromatic extinction: the kernel's taps with σt·κ per channel, averaged. The points
+// are the same as the achromatic loops' (grid or Poisson, in the same order).
+fn chromatic_taps(uv: vec2<f32>, scale: vec2<f32>, extent: f32, d: f32, sigma_t: f32) -> vec3<f32> {
+    let poisson_kernel = params.kernel == 1u;
+    let g = params.grid;
+    var count = g * g;
+    if (poisson_kernel) {
+        count = min(params.poisson_count, i32(textureDimensions(poisson).x));
+    }
+    var sum = vec3<f32>(0.0);
+    var n = 0.0;
+    for (var i = 0; i < count; i = i + 1) {
+        var q = (vec2<f32>(f32(i % g), f32(i / g)) + 0.5) / f32(g) * 2.0 - 1.0;
+        if (poisson_kernel) {
+            q = textureLoad(poisson, vec2<i32>(i, 0), 0).xy;
+        } else if (dot(q, q) > 1.0) {
+            continue;
+        }
+        let p = q * extent;
+        let pt = uv + vec2<f32>(p.x, -p.y) * scale;
+        var dist = d;
+        if (params.distance == 1u) {
+            dist = sqrt(d * d + dot(p, p));
+        }
+        let prev = textureSampleLevel(state_prev, linear_clamp, pt, 0.0).rgb;
+        sum = sum + prev * exp(-(sigma_t * params.extinction_rgb) * dist);
+        n = n + 1.0;
+    }
+    return sum / max(n, 1.0);
+}
+// chromatic: end
+
 // Occlusion pass (Algorithms 2 and 3): the next buffer at `uv` averages the previous
 // one over the base of the cone, radius d·tan θ (eq 11), mapped to the screen at
 // this slice's depth (eqs 12–15), with σt of the current slice at the cone's tip.
@@ -38,6 +83,11 @@ fn slice_update(s: Sample, c: vec4<f32>, uv: vec2<f32>) -> vec4<f32> {
         depth = max(frame.box_max.w + f32(s.slice) * frame.forward.w, 1.0e-9);
     }
     let scale = 0.5 / (vec2<f32>(length(frame.ray_basis[0].xyz), length(frame.ray_basis[1].xyz)) * depth);
+    // chromatic: begin
+    if (params.extinction == 1u) {
+        return vec4<f32>(chromatic_taps(uv, scale, extent, d, sigma_t), 1.0);
+    }
+    // chromatic: end
     var sum = 0.0;
     var n = 0.0;
     if (params.kernel == 1u) {

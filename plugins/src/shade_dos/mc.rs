@@ -15,7 +15,9 @@
 //! `directions` directions drawn uniformly in the cone of aperture θ around the
 //! direction back along the pixel ray (uniform in solid angle, which is what Φθ
 //! weights), each marched to the box exit with step `cone_step`·Δs0. The eye ray stops
-//! once T_eye < 10⁻⁴ and cone rays once T < 10⁻⁴ (bias below 10⁻⁴).
+//! once T_eye < 10⁻⁴ and cone rays once T < 10⁻⁴ (bias below 10⁻⁴). With chromatic
+//! extinction the cone rays' transmittance is per channel, e^(−κ_c·τ), and V is an
+//! RGB visibility.
 //!
 //! Confidence: the directions are split into `replicas` independent streams; the
 //! image is the mean of the replica images, and [`McImage::std_error`] holds the
@@ -120,6 +122,8 @@ struct Scene {
     theta: f64,
     la: f64,
     ambient: f64,
+    /// κ of the chromatic extinction ((1, 1, 1) when achromatic).
+    kappa: DVec3,
     twins: Vec<Box<dyn CpuTwin>>,
 }
 
@@ -144,6 +148,7 @@ fn scene(stack: &[PluginInstance], ctx: &CpuContext) -> Result<Scene, String> {
         theta: (dos.params.float("theta_deg") as f64).to_radians(),
         la: dos.params.float("la") as f64,
         ambient: dos.params.float("ambient") as f64,
+        kappa: super::extinction(&dos.params).unwrap_or(DVec3::ONE),
         twins,
     })
 }
@@ -240,9 +245,11 @@ pub fn render_mc(
     let per_replica = (opts.directions / replicas).max(1);
     let (he, hc) = (opts.eye_step * voxel, opts.cone_step * voxel);
 
-    let transmittance = |from: DVec3, dir: DVec3| -> f64 {
+    // T < 10⁻⁴ in every channel
+    let tau_max = 9.3 / sc.kappa.min_element().max(1.0e-9);
+    let transmittance = |from: DVec3, dir: DVec3| -> DVec3 {
         let Some((_, t_out)) = slab(from, dir, lo, hi) else {
-            return 1.0;
+            return DVec3::ONE;
         };
         // midpoint rule with n equal steps of at most hc
         let n = (t_out / hc).ceil().max(1.0);
@@ -252,11 +259,11 @@ pub fn render_mc(
             let (_, sigma) =
                 sc.optics(&ctx, &b, from + dir * ((i as f64 + 0.5) * step), dir, false);
             tau += sigma * step;
-            if tau > 9.3 {
-                return 0.0; // T < 10⁻⁴
+            if tau > tau_max {
+                return DVec3::ZERO;
             }
         }
-        (-tau).exp()
+        (-tau * sc.kappa).exp()
     };
 
     let pixel = |x: u32, y: u32| -> ([f64; 4], [f64; 3]) {
@@ -285,13 +292,13 @@ pub fn render_mc(
             let a = 1.0 - (-sigma * he).exp();
             if a > 0.0 {
                 for (r, rng) in rngs.iter_mut().enumerate() {
-                    let mut v = 0.0;
+                    let mut v = DVec3::ZERO;
                     for _ in 0..per_replica {
                         let omega = cone_direction(-dir, sc.theta, rng);
                         v += transmittance(pos, omega);
                     }
                     v /= per_replica as f64;
-                    let c = rgb * (sc.la * v + sc.ambient) * a * t_eye;
+                    let c = rgb * (v * sc.la + sc.ambient) * a * t_eye;
                     sums[r] += c.extend(a * t_eye);
                 }
             }

@@ -26,6 +26,17 @@
 //!   memory, so fp32 is the default.
 //! - Only what is rendered occludes: a clipped or skipped sample reaches the
 //!   occlusion pass with α = 0, i.e. σt = 0.
+//! - Chromatic extinction (`extinction: chromatic`; the global-light issue, item 9):
+//!   Schott et al. map the TF to a chromatic σs and an achromatic σt (their §3), while
+//!   the transport equation they start from (eqs 1–3) has a wavelength-dependent σ.
+//!   Here σt along the light's paths becomes per channel σt,c = κ_c·σt, with κ the
+//!   `extinction_rgb` colour (each in [0, 4]); the eye ray keeps the achromatic σt of
+//!   the core's compositing, so the opacity and the silhouette do not change, only the
+//!   colour of the shadows (κ_r < κ_b: red light reaches deeper, warm shadows). The
+//!   occlusion buffer then holds V per channel (rgba32float, or rgba16float at fp16);
+//!   κ = (1, 1, 1) gives the achromatic image. The single-scattering ground truth
+//!   takes the same κ on its shadow rays (`ScatteringOptions::extinction`). Choice: κ
+//!   is one colour for the whole volume, not per material (the TF carries one α).
 //! - θ = 0: every tap reads the texel itself, V becomes the transmittance towards the
 //!   viewer (no lateral occlusion): the image equals `test.slice_shadow` at strength 1
 //!   with L_a = 1 and no ambient.
@@ -36,7 +47,7 @@ pub mod ui;
 
 use std::sync::Arc;
 
-use glam::{DVec2, DVec4};
+use glam::{DVec2, DVec3, DVec4};
 use vwb_render::params::{ParamSpec, ParamValues};
 use vwb_render::plugin::{
     ConvergedReference, CpuContext, CpuSample, CpuTwin, GpuInit, GpuResource, Plugin, PluginError, ResourceDecl,
@@ -51,12 +62,15 @@ pub const MAX_POISSON: usize = 64;
 
 pub const SCALES: [&str; 3] = ["1", "0.5", "0.25"];
 pub const FORMATS: [&str; 2] = ["fp16", "fp32"];
+pub const EXTINCTIONS: [&str; 2] = ["achromatic", "chromatic"];
 
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Dos {
     /// Occlusion-buffer resolution relative to the eye buffer.
     pub scale: f32,
     pub format: StorageFormat,
+    /// Per-channel visibility in the occlusion buffer (chromatic extinction).
+    pub chromatic: bool,
 }
 
 impl Default for Dos {
@@ -64,6 +78,7 @@ impl Default for Dos {
         Self {
             scale: 1.0,
             format: StorageFormat::R32Float,
+            chromatic: false,
         }
     }
 }
@@ -145,17 +160,31 @@ impl Plugin for Dos {
             ParamSpec::float("la", "Ambient radiance L_a", 0.0, 4.0, 1.0),
             ParamSpec::float("ambient", "Ambient term", 0.0, 1.0, 0.0)
                 .with_doc("added to L_a·V so that fully occluded matter is not black"),
+            ParamSpec::enumeration("extinction", "Extinction", &EXTINCTIONS, 0)
+                .structural()
+                .with_doc(
+                    "achromatic: one σt (the paper); chromatic: σt·κ per channel on the light's paths",
+                ),
+            ParamSpec::vec3("extinction_rgb", "Extinction colour κ", 0.0, 4.0, [1.0, 1.0, 1.0])
+                .shown_when("extinction", "chromatic")
+                .with_doc("σt per channel = κ·σt along the occlusion cone; (1, 1, 1) is achromatic"),
             ParamSpec::enumeration("buffer_scale", "Occlusion buffer scale", &SCALES, 0)
                 .structural(),
             ParamSpec::enumeration("buffer_format", "Occlusion buffer precision", &FORMATS, 1)
                 .structural()
                 .with_doc(
-                    "fp32: r32float (4 bytes/texel, the default); fp16: rgba16float (8 bytes)",
+                    "fp32: r32float (4 bytes/texel, the default; rgba32float when chromatic); fp16: rgba16float (8 bytes)",
                 ),
         ]
     }
     fn shader(&self) -> ShaderSource {
-        ShaderSource::new_static("plugins/src/shade_dos/dos.wgsl", include_str!("dos.wgsl"))
+        const FILE: &str = "plugins/src/shade_dos/dos.wgsl";
+        const SOURCE: &str = include_str!("dos.wgsl");
+        if self.chromatic {
+            ShaderSource::new_static(FILE, SOURCE)
+        } else {
+            ShaderSource::without_region(FILE, SOURCE, "chromatic", "")
+        }
     }
     fn resources(&self) -> Vec<ResourceDecl> {
         vec![ResourceDecl {
@@ -164,10 +193,21 @@ impl Plugin for Dos {
         }]
     }
     fn slice_state(&self) -> Option<SliceStateDecl> {
-        Some(SliceStateDecl {
-            format: self.format,
-            scale: self.scale,
-            clear: [1.0, 0.0, 0.0, 1.0],
+        Some(if self.chromatic {
+            SliceStateDecl {
+                format: match self.format {
+                    StorageFormat::R32Float => StorageFormat::Rgba32Float,
+                    f => f,
+                },
+                scale: self.scale,
+                clear: [1.0; 4],
+            }
+        } else {
+            SliceStateDecl {
+                format: self.format,
+                scale: self.scale,
+                clear: [1.0, 0.0, 0.0, 1.0],
+            }
         })
     }
     fn configure(&self, params: &ParamValues) -> Option<Arc<dyn Plugin>> {
@@ -180,7 +220,12 @@ impl Plugin for Dos {
         } else {
             StorageFormat::R32Float
         };
-        let c = Dos { scale, format };
+        let chromatic = params.enumeration("extinction") == "chromatic";
+        let c = Dos {
+            scale,
+            format,
+            chromatic,
+        };
         (c != *self).then(|| Arc::new(c) as Arc<dyn Plugin>)
     }
     fn create_resources(
@@ -212,8 +257,15 @@ impl Plugin for Dos {
             exact_distance: params.enumeration("distance") == "exact",
             la: params.float("la") as f64,
             ambient: params.float("ambient") as f64,
+            extinction: extinction(params),
         }))
     }
+}
+
+/// κ of the chromatic extinction (σt per channel = κ·σt), `None` when achromatic.
+pub fn extinction(params: &ParamValues) -> Option<DVec3> {
+    (params.enumeration("extinction") == "chromatic")
+        .then(|| glam::Vec3::from(params.vec3("extinction_rgb")).as_dvec3())
 }
 
 /// CPU twin of `dos.wgsl`.
@@ -223,13 +275,20 @@ pub struct DosTwin {
     pub exact_distance: bool,
     pub la: f64,
     pub ambient: f64,
+    /// κ of the chromatic extinction; `None`: achromatic (one channel).
+    pub extinction: Option<DVec3>,
 }
 
 impl CpuTwin for DosTwin {
     fn shade(&self, ctx: &CpuContext, s: &mut CpuSample) {
-        let v = ctx.state_prev(s.uv).x;
-        let k = self.la * v + self.ambient;
-        s.color = DVec4::new(s.color.x * k, s.color.y * k, s.color.z * k, s.color.w);
+        let state = ctx.state_prev(s.uv);
+        let v = if self.extinction.is_some() {
+            state.truncate()
+        } else {
+            DVec3::splat(state.x)
+        };
+        let k = v * self.la + self.ambient;
+        s.color = (s.color.truncate() * k).extend(s.color.w);
     }
 
     fn slice_update(&self, ctx: &CpuContext, s: &CpuSample, _c: DVec4, uv: DVec2) -> DVec4 {
@@ -242,7 +301,7 @@ impl CpuTwin for DosTwin {
         let d = ctx.view.slice_spacing;
         let extent = d * (self.theta_deg as f32).to_radians().tan() as f64;
         let scale = ctx.view.uv_per_world(s.slice);
-        let mut sum = 0.0;
+        let mut sum = DVec3::ZERO;
         for q in &self.kernel {
             let p = *q * extent;
             let pt = uv + DVec2::new(p.x, -p.y) * scale;
@@ -251,8 +310,12 @@ impl CpuTwin for DosTwin {
             } else {
                 d
             };
-            sum += ctx.state_prev(pt).x * (-sigma_t * dist).exp();
+            let prev = ctx.state_prev(pt);
+            sum += match self.extinction {
+                Some(k) => prev.truncate() * (-sigma_t * k * dist).exp(),
+                None => DVec3::new(prev.x * (-sigma_t * dist).exp(), 0.0, 0.0),
+            };
         }
-        DVec4::new(sum / self.kernel.len().max(1) as f64, 0.0, 0.0, 1.0)
+        (sum / self.kernel.len().max(1) as f64).extend(1.0)
     }
 }

@@ -49,6 +49,20 @@ fn structural_parameters_choose_the_buffer() {
         st.clear[0], 1.0,
         "the occlusion buffers start at full visibility"
     );
+    // chromatic extinction: V per channel, in rgba32float at fp32, rgba16float at fp16
+    p.set("extinction", ParamValue::Enum("chromatic".into()));
+    let st = c.configure(&p).unwrap().slice_state().unwrap();
+    assert_eq!((st.format, st.clear), (StorageFormat::Rgba16Float, [1.0; 4]));
+    p.set("buffer_format", ParamValue::Enum("fp32".into()));
+    let st = base.configure(&p).unwrap().slice_state().unwrap();
+    assert_eq!(st.format, StorageFormat::Rgba32Float);
+    assert_eq!(extinction(&p), Some(DVec3::ONE));
+    // achromatic, the shader has no chromatic code left (same line numbers)
+    let chromatic = base.configure(&p).unwrap().shader().source;
+    let achromatic = base.shader().source;
+    assert_eq!(chromatic.lines().count(), achromatic.lines().count());
+    assert!(chromatic.contains("params.extinction"));
+    assert!(!achromatic.contains("params.extinction") && !achromatic.contains("fn chromatic_taps"));
 }
 
 /// Homogeneous slab seen head on, θ = 0: V(s) is the transmittance back to the front
@@ -76,6 +90,7 @@ fn monte_carlo_matches_the_closed_form_of_a_slab() {
     );
     let mut dos = PluginInstance::new(std::sync::Arc::new(Dos::default()));
     dos.params.set("theta_deg", ParamValue::Float(0.0));
+    let achromatic = dos.clone();
     let mut camera = Camera {
         projection: Projection::Orthographic { height: 1.5 },
         ..Default::default()
@@ -92,7 +107,7 @@ fn monte_carlo_matches_the_closed_form_of_a_slab() {
         eye_step: 0.05,
         ..Default::default()
     };
-    let img = render_mc(&volume, &[tf, dos], &settings, &opts, None).unwrap();
+    let img = render_mc(&volume, &[tf.clone(), dos], &settings, &opts, None).unwrap();
     // σ per voxel length; the slab is n voxels thick
     let sigma = -(1.0 - a as f64).ln();
     let expect = c as f64 * (1.0 - (-2.0 * sigma * n as f64).exp()) / 2.0;
@@ -100,6 +115,23 @@ fn monte_carlo_matches_the_closed_form_of_a_slab() {
     assert!((got - expect).abs() < 2e-4, "{got} vs {expect}");
     // θ = 0 draws one direction only: no noise
     assert_eq!(img.rms_std_error(), 0.0);
+
+    // chromatic extinction: the cone's σ is κ_c·σ, so L_c = c·(1 − e^(−(1 + κ_c)σL))/(1 + κ_c)
+    let kappa = [0.25f32, 1.0, 3.0];
+    let mut chromatic = achromatic;
+    chromatic
+        .params
+        .set("extinction", ParamValue::Enum("chromatic".into()));
+    chromatic
+        .params
+        .set("extinction_rgb", ParamValue::Vec3(kappa));
+    let img = render_mc(&volume, &[tf, chromatic], &settings, &opts, None).unwrap();
+    for (ch, k) in kappa.iter().enumerate() {
+        let k = 1.0 + *k as f64;
+        let expect = c as f64 * (1.0 - (-k * sigma * n as f64).exp()) / k;
+        let got = img.pixels[12][ch];
+        assert!((got - expect).abs() < 2e-4, "channel {ch}: {got} vs {expect}");
+    }
 }
 
 #[test]

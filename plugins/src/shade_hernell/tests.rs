@@ -22,6 +22,17 @@ fn polyhedra_subdivide_to_the_expected_unit_directions() {
 
 /// A `dims` volume of constant opacity `alpha` per voxel (classify = the value).
 fn run(params: &ParamValues, svr: f32, dims: [usize; 3], alpha: impl Fn(DVec3) -> f64 + Sync) -> HernellTwin {
+    run_blocked(params, svr, None, dims, alpha)
+}
+
+/// [`run`] with flat blocking at a tolerance.
+fn run_blocked(
+    params: &ParamValues,
+    svr: f32,
+    blocking: Option<f64>,
+    dims: [usize; 3],
+    alpha: impl Fn(DVec3) -> f64 + Sync,
+) -> HernellTwin {
     let v = Volume::new(
         "t",
         dims.map(|d| d as u32),
@@ -37,6 +48,7 @@ fn run(params: &ParamValues, svr: f32, dims: [usize; 3], alpha: impl Fn(DVec3) -
         h: b.voxel as f64,
     };
     let mut t = HernellTwin::new(params, svr);
+    t.blocking = blocking;
     let classify = |tex: DVec3, _dir: DVec3| DVec4::new(1.0, 1.0, 1.0, alpha(tex));
     t.run_passes(sp, dims, &classify);
     t
@@ -177,4 +189,102 @@ fn refinement_blends_each_direction_with_equal_weight() {
         .map(|(a, b)| (a - b).abs())
         .fold(0.0, f64::max);
     assert!(diff > 1e-3, "{diff}");
+}
+
+/// Flat blocking's levels in the TF domain (80×16×16, five blocks along x): a constant
+/// block and a zero block next to matter (its apron) take the coarsest level; a block
+/// whose matter and its apron's are all zero is empty; a block half at α 0.3 (a step
+/// at x = 72, aligned to 8) keeps cells of 8 at tolerance 0.1 (its 16³ mean is 0.15
+/// RMS off) and goes to one cell at 0.2. Voxels over stored cells is the reduction.
+#[test]
+fn flat_blocking_levels_follow_the_opacity_error() {
+    let dims = [80, 16, 16];
+    let alpha = |t: DVec3| {
+        let x = (t.x * 80.0).floor();
+        if x < 16.0 {
+            0.2
+        } else if (64.0..72.0).contains(&x) {
+            0.3
+        } else {
+            0.0
+        }
+    };
+    let mut p = params();
+    p.set("scattering", ParamValue::Bool(false));
+    let t = run_blocked(&p, 1.0, Some(0.1), dims, alpha);
+    assert_eq!(t.blocks.dims, [5, 1, 1]);
+    assert_eq!(t.blocks.levels, vec![4, 4, -1, 4, 3]);
+    assert_eq!(t.blocks.histogram(), [0, 0, 0, 1, 3, 1]);
+    assert!((t.blocks.reduction() - 20480.0 / 11.0).abs() < 1e-9);
+    assert!((t.blocks.empty_share() - 0.2).abs() < 1e-12);
+    let t = run_blocked(&p, 1.0, Some(0.2), dims, alpha);
+    assert_eq!(t.blocks.levels, vec![4, 4, -1, 4, 4]);
+    // the empty block is skipped: no local opacity there, the unattenuated light
+    let at = |v: &[f64], x: usize| v[(8 * 16 + 8) * 80 + x];
+    assert_eq!(at(&t.alpha_lp.values, 40), 0.0);
+    assert_eq!(at(&t.light_volume.values, 40), 1.0);
+    // without blocking nothing is recorded
+    assert!(run(&p, 1.0, dims, alpha).blocks.levels.is_empty());
+}
+
+/// Fig. 4 of the paper: a receiver (x 2…5, probed at x = 7) lit along +x through an empty block
+/// (x 16…31) behind which an occluder (x 33…36) sits. α_g's samples that fall in
+/// the empty block hold no local opacity; advancing them to the next non-empty block
+/// keeps the occluder's shadow (the light at the receiver stays that of the
+/// unblocked passes), where reading the skipped pieces would light it fully.
+#[test]
+fn flat_blocking_advances_global_rays_over_empty_blocks() {
+    let dims = [48, 16, 16];
+    let scene = |occluder: bool| {
+        move |t: DVec3| {
+            let x = (t.x * 48.0).floor();
+            if (2.0..6.0).contains(&x) {
+                0.2
+            } else if occluder && (33.0..37.0).contains(&x) {
+                0.6
+            } else {
+                0.0
+            }
+        }
+    };
+    let mut p = params();
+    p.set("light", ParamValue::Vec3([1.0, 0.0, 0.0]));
+    p.set("scattering", ParamValue::Bool(false));
+    p.set("segment", ParamValue::Int(8));
+    let blocked = run_blocked(&p, 1.0, Some(0.0), dims, scene(true));
+    assert_eq!(blocked.blocks.levels[1], -1, "{:?}", blocked.blocks.levels);
+    let plain = run(&p, 1.0, dims, scene(true));
+    let open = run_blocked(&p, 1.0, Some(0.0), dims, scene(false));
+    let at = |t: &HernellTwin| t.light_volume.values[(8 * 16 + 8) * 48 + 7];
+    eprintln!(
+        "light at the receiver: blocked {}, unblocked {}, no occluder {}",
+        at(&blocked),
+        at(&plain),
+        at(&open)
+    );
+    let shadow = 0.4f64.powi(4);
+    assert!((at(&plain) - shadow).abs() < 1e-4, "{}", at(&plain));
+    assert!((at(&blocked) - at(&plain)).abs() < 0.01, "{} {}", at(&blocked), at(&plain));
+    assert!(at(&open) > 0.99, "{}", at(&open));
+}
+
+/// With `blocking: off` the hook file keeps its line numbers and references no
+/// `blocks` target; with it on, the block pass comes first.
+#[test]
+fn blocking_off_blanks_the_block_pass_keeping_line_numbers() {
+    let on = Hernell {
+        svr: 0.5,
+        blocking: true,
+    };
+    let off = Hernell::default();
+    let (a, b) = (on.shader().source, off.shader().source);
+    assert_eq!(a.lines().count(), b.lines().count());
+    assert!(a.contains("textureLoad(blocks") && !b.contains("blocks,"));
+    assert!(!b.contains("fn block_pass"));
+    assert_eq!(on.volume_passes()[0].target, "blocks");
+    assert!(off.volume_passes().iter().all(|p| p.target != "blocks"));
+    let mut p = params();
+    assert!(off.configure(&p).is_none());
+    p.set("blocking", ParamValue::Enum("16³".into()));
+    assert!(off.configure(&p).unwrap().volume_passes()[0].target == "blocks");
 }
