@@ -84,10 +84,13 @@ fn hn_voxel_of(p: vec3<f32>) -> vec3<i32> {
     return vec3<i32>(floor(hn_tex(p) * vec3<f32>(hn_volume_dims())));
 }
 
-// Where a voxel's light is computed: the centre of its cell at the block's level.
+// Where a voxel's light is computed: the centre of its cell at the block's level (of
+// the part inside the volume, for the blocks at its far faces).
 fn hn_cell_pos(voxel: vec3<u32>, level: i32) -> vec3<f32> {
     let c = 1u << u32(level);
-    let t = (vec3<f32>((voxel / c) * c) + 0.5 * f32(c)) / vec3<f32>(hn_volume_dims());
+    let lo = (voxel / c) * c;
+    let hi = min(lo + c, vec3<u32>(hn_volume_dims()));
+    let t = 0.5 * vec3<f32>(lo + hi) / vec3<f32>(hn_volume_dims());
     return hn_box_min() + t * (hn_box_max() - hn_box_min());
 }
 

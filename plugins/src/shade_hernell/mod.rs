@@ -593,13 +593,16 @@ impl HernellTwin {
         std::array::from_fn(|a| (t[a] * d[a] as f64).floor() as i64)
     }
 
-    /// `hn_cell_pos`: the centre of a voxel's cell at `level`.
+    /// `hn_cell_pos`: the centre of a voxel's cell at `level` (of the part inside the
+    /// volume).
     fn cell_pos(&self, sp: &Space, i: usize, dims: [usize; 3], level: i32) -> DVec3 {
         let c = 1usize << level;
         let v = [i % dims[0], (i / dims[0]) % dims[1], i / (dims[0] * dims[1])];
-        let t = DVec3::from(v.map(|x| ((x / c) * c) as f64 + 0.5 * c as f64))
-            / DVec3::new(dims[0] as f64, dims[1] as f64, dims[2] as f64);
-        sp.lo + t * (sp.hi - sp.lo)
+        let t: [f64; 3] = std::array::from_fn(|a| {
+            let lo = (v[a] / c) * c;
+            0.5 * (lo + (lo + c).min(dims[a])) as f64 / dims[a] as f64
+        });
+        sp.lo + DVec3::from(t) * (sp.hi - sp.lo)
     }
 
     /// `hn_next_block`: from p along the unit `dir`, the world distance to the first

@@ -288,3 +288,21 @@ fn blocking_off_blanks_the_block_pass_keeping_line_numbers() {
     p.set("blocking", ParamValue::Enum("16³".into()));
     assert!(off.configure(&p).unwrap().volume_passes()[0].target == "blocks");
 }
+
+/// A block cut by the volume's far face (x 16…17 of an 18-voxel volume) at the
+/// coarsest level computes its light at the centre of the part inside the volume:
+/// under a uniform medium lit along −x, its voxels get the light there, not the
+/// unattenuated light outside the box.
+#[test]
+fn a_partial_block_computes_its_cell_inside_the_volume() {
+    let dims = [18, 16, 16];
+    let mut p = params();
+    p.set("light", ParamValue::Vec3([-1.0, 0.0, 0.0]));
+    p.set("scattering", ParamValue::Bool(false));
+    p.set("segment", ParamValue::Int(4));
+    let t = run_blocked(&p, 1.0, Some(0.5), dims, |_| 0.1);
+    assert_eq!(t.blocks.levels, vec![4, 4]);
+    let light = t.light_volume.values[(8 * 16 + 8) * 18 + 17];
+    eprintln!("light at x = 17: {light}");
+    assert!(light < 0.5, "{light}");
+}
