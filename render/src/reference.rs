@@ -745,19 +745,8 @@ pub fn render_single_scattering(
     settings: &FrameSettings,
     opts: &ScatteringOptions,
 ) -> Result<ScatteringImage, ReferenceError> {
-    use crate::plugin::Category;
     check_size(settings)?;
-    let classifying: Vec<PluginInstance> = stack
-        .iter()
-        .filter(|i| {
-            matches!(
-                i.plugin.category(),
-                Category::Clip | Category::Sample | Category::Classify
-            )
-        })
-        .cloned()
-        .collect();
-    let mut prepared = Prepared::new(volume, &classifying)?;
+    let mut prepared = Prepared::new(volume, &classifying(stack))?;
     let frame = Frame::new(volume, settings, settings.slice_spacing, false)?;
     let ctx = CpuContext::new(volume, &prepared.scalars)
         .with_spacing(frame.spacing / frame.voxel)
@@ -880,6 +869,39 @@ pub fn render_single_scattering(
         ci95_max: ci_max,
         light,
     })
+}
+
+/// The stack's clip, sample and classify plugins (what `stack_classify` runs).
+fn classifying(stack: &[PluginInstance]) -> Vec<PluginInstance> {
+    use crate::plugin::Category;
+    stack
+        .iter()
+        .filter(|i| {
+            matches!(
+                i.plugin.category(),
+                Category::Clip | Category::Sample | Category::Classify
+            )
+        })
+        .cloned()
+        .collect()
+}
+
+/// Calls `f` with the stack's `stack_classify` over `volume` (the twins of its clip,
+/// sample and classify plugins, prepared for a frame at one slice per voxel): what
+/// volume passes see, for CPU-side analyses of a scene's classification such as
+/// `shade.hernell`'s flat-blocking levels.
+pub fn with_stack_classify<R>(
+    volume: &Volume,
+    stack: &[PluginInstance],
+    f: impl FnOnce(&crate::plugin::StackClassify<'_>) -> R,
+) -> Result<R, ReferenceError> {
+    let mut prepared = Prepared::new(volume, &classifying(stack))?;
+    let ctx = CpuContext::new(volume, &prepared.scalars);
+    for t in &mut prepared.twins {
+        t.prepare(&ctx);
+    }
+    let twins = &prepared.twins;
+    Ok(f(&|tex, dir| stack_classify(&ctx, [twins, &[]], tex, dir)))
 }
 
 /// `stack_classify` of shaders/slice.wgsl: the twins' clip, sample and classify at a

@@ -427,6 +427,18 @@ fn bricks_benchmark() {
         )
         .unwrap(),
     );
+    // 512², the preset's settings with the camera fitted to the renderer's box
+    let fitted = |r: &Renderer, backend| {
+        let mut camera = doc.camera;
+        camera.fit(r.volume_box().min, r.volume_box().max);
+        FrameSettings {
+            camera,
+            width: 512,
+            height: 512,
+            backend,
+            ..doc.frame_settings()
+        }
+    };
     let adapter_limit = gpu().limits.max_texture_dimension_3d;
     let mut tall_rows = String::new();
     for limit in [None, Some(2048)] {
@@ -454,15 +466,7 @@ fn bricks_benchmark() {
             .map(|b| format!("{}..{}", b.own[2][0], b.own[2][1]))
             .collect();
         for backend in [Backend::Raster, Backend::Compute] {
-            let mut camera = doc.camera;
-            camera.fit(r.volume_box().min, r.volume_box().max);
-            let s = FrameSettings {
-                camera,
-                width: 512,
-                height: 512,
-                backend,
-                ..doc.frame_settings()
-            };
+            let s = fitted(&r, backend);
             let px = render(&mut r, &doc.stack, doc.render.target, &s);
             let covered = px.iter().filter(|p| p[3] > 0.05).count();
             assert!(covered > 1000, "the tall volume shows ({covered} pixels)");
@@ -499,15 +503,7 @@ fn bricks_benchmark() {
         },
     )
     .unwrap();
-    let mut camera = doc.camera;
-    camera.fit(r.volume_box().min, r.volume_box().max);
-    let s = FrameSettings {
-        camera,
-        width: 512,
-        height: 512,
-        backend: Backend::Raster,
-        ..doc.frame_settings()
-    };
+    let s = fitted(&r, Backend::Raster);
     render(&mut r, &doc.stack, doc.render.target, &s);
     let tall_first_s = t0.elapsed().as_secs_f64();
     let tall_level = r.level().cloned().expect("a level");

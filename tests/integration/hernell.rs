@@ -153,22 +153,15 @@ fn flat_blocking_matches_its_twin() {
         assert!(e < 0.05, "blocking {blocking}: {e}");
         images.push(px);
     }
-    let e = delta_e_rms(
-        &images[0],
-        &images[1]
-            .iter()
-            .map(|p| p.map(f64::from))
-            .collect::<Vec<_>>(),
-        48,
-        48,
-    );
+    let e = against(&images[0], &images[1], 48, 48).rms_delta_e;
     eprintln!("blocked vs unblocked: ΔE*uv RMS {e:.3}");
     assert!(e > 0.0 && e < 5.0, "{e}");
     // the blocks: the gap's four are empty
     let stack = [tf(), hernell(&edit(true))];
-    let blocks = with_stack_classify(&volume, &stack, |c| {
+    let blocks = vwb_render::reference::with_stack_classify(&volume, &stack, |c| {
         vwb_plugins::shade_hernell::blocks_for(&volume, &stack[1].params, 0.05, c)
-    });
+    })
+    .unwrap();
     eprintln!("blocks {:?}: {:?}", blocks.dims, blocks.levels);
     assert_eq!(blocks.dims, [3, 2, 2]);
     // the gap's four blocks (x 16…31) and the three around the ball that it does not
@@ -275,15 +268,7 @@ fn in_scattering_refines_progressively_over_frames() {
     // (A) with the light's direction, then one direction per frame
     assert_eq!(frames, 5);
     assert_eq!(last, finished);
-    let e = delta_e_rms(
-        &first,
-        &finished
-            .iter()
-            .map(|p| p.map(f64::from))
-            .collect::<Vec<_>>(),
-        32,
-        32,
-    );
+    let e = against(&first, &finished, 32, 32).rms_delta_e;
     eprintln!("first frame (light direction only) vs refined: ΔE*uv RMS {e:.3}");
     assert!(e > 0.05, "{e}");
 }
@@ -639,53 +624,6 @@ fn blocking_block() -> String {
     }
 }
 
-/// The stack's clip, sample and classify twins (all but `shade.hernell`) as a
-/// [`vwb_render::plugin::StackClassify`] over `volume`, for [`blocks_for`].
-fn with_stack_classify<R>(
-    volume: &Volume,
-    stack: &[PluginInstance],
-    f: impl FnOnce(&vwb_render::plugin::StackClassify<'_>) -> R,
-) -> R {
-    use vwb_render::plugin::{Category, CpuContext, CpuSample};
-    let scalars = volume.normalized_scalars();
-    let ctx = CpuContext::new(volume, &scalars);
-    let twins: Vec<_> = stack
-        .iter()
-        .filter(|i| {
-            i.enabled
-                && matches!(
-                    i.plugin.category(),
-                    Category::Clip | Category::Sample | Category::Classify
-                )
-        })
-        .map(|i| {
-            let mut t = i.configured().cpu_twin(&i.params).unwrap();
-            t.prepare(&ctx);
-            t
-        })
-        .collect();
-    let classify = |tex: glam::DVec3, dir: glam::DVec3| {
-        let mut smp = CpuSample {
-            tex,
-            ray_dir: dir,
-            ..Default::default()
-        };
-        if !twins.iter().all(|t| t.clip(&smp)) {
-            return glam::DVec4::ZERO;
-        }
-        smp.value = ctx.value(tex);
-        for t in &twins {
-            t.sample(&ctx, &mut smp);
-        }
-        smp.color = glam::DVec4::splat(smp.value);
-        for t in &twins {
-            t.classify(&ctx, &mut smp);
-        }
-        smp.color
-    };
-    f(&classify)
-}
-
 /// Flat blocking on the CT head: the data reduction each tolerance gives, the time of
 /// each update level and the error against the exact integration and against the
 /// unblocked light; writes the "Flat blocking" section of docs/hernell.md.
@@ -726,9 +664,10 @@ fn hernell_blocking_benchmark() {
         edit.push(("blocking", ParamValue::Enum("16³".into())));
         edit.push(("tolerance", ParamValue::Float(tolerance)));
         let run = run_config(&volume, &doc.stack, &s, &edit);
-        let blocks = with_stack_classify(&volume, &doc.stack, |c| {
+        let blocks = vwb_render::reference::with_stack_classify(&volume, &doc.stack, |c| {
             vwb_plugins::shade_hernell::blocks_for(&volume, &hernell_params, tolerance as f64, c)
-        });
+        })
+        .unwrap();
         let m = against(&run.px, &exact.px, w, h);
         let vs_plain = against(&run.px, &plain.px, w, h).rms_delta_e;
         let hist = blocks.histogram();

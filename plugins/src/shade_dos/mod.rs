@@ -193,21 +193,19 @@ impl Plugin for Dos {
         }]
     }
     fn slice_state(&self) -> Option<SliceStateDecl> {
-        Some(if self.chromatic {
-            SliceStateDecl {
-                format: match self.format {
-                    StorageFormat::R32Float => StorageFormat::Rgba32Float,
-                    f => f,
-                },
-                scale: self.scale,
-                clear: [1.0; 4],
-            }
-        } else {
-            SliceStateDecl {
-                format: self.format,
-                scale: self.scale,
-                clear: [1.0, 0.0, 0.0, 1.0],
-            }
+        // chromatic: V per channel, so fp32 needs four of them
+        let format = match self.format {
+            StorageFormat::R32Float if self.chromatic => StorageFormat::Rgba32Float,
+            f => f,
+        };
+        Some(SliceStateDecl {
+            format,
+            scale: self.scale,
+            clear: if self.chromatic {
+                [1.0; 4]
+            } else {
+                [1.0, 0.0, 0.0, 1.0]
+            },
         })
     }
     fn configure(&self, params: &ParamValues) -> Option<Arc<dyn Plugin>> {

@@ -475,7 +475,7 @@ impl Space {
         p.cmpge(self.lo).all() && p.cmple(self.hi).all()
     }
     fn voxel_pos(&self, i: usize, dims: [usize; 3]) -> DVec3 {
-        let (x, y, z) = (i % dims[0], (i / dims[0]) % dims[1], i / (dims[0] * dims[1]));
+        let [x, y, z] = grid_index(i, dims);
         let t = (DVec3::new(x as f64, y as f64, z as f64) + 0.5)
             / DVec3::new(dims[0] as f64, dims[1] as f64, dims[2] as f64);
         self.lo + t * (self.hi - self.lo)
@@ -483,6 +483,11 @@ impl Space {
     fn max_steps(&self) -> i32 {
         ((self.hi - self.lo).length() / self.h).ceil() as i32 + 1
     }
+}
+
+/// The (x, y, z) of linear index `i` in a `dims` grid (x fastest).
+fn grid_index(i: usize, dims: [usize; 3]) -> [usize; 3] {
+    [i % dims[0], (i / dims[0]) % dims[1], i / (dims[0] * dims[1])]
 }
 
 fn f32r(x: f64) -> f64 {
@@ -522,8 +527,7 @@ impl HernellTwin {
         let levels = (0..bdims[0] * bdims[1] * bdims[2])
             .into_par_iter()
             .map(|i| {
-                let b = [i % bdims[0], (i / bdims[0]) % bdims[1], i / (bdims[0] * bdims[1])];
-                let origin = b.map(|x| (x * BLOCK) as i64);
+                let origin = grid_index(i, bdims).map(|x| (x * BLOCK) as i64);
                 let centre = DVec3::new(origin[0] as f64, origin[1] as f64, origin[2] as f64) + 8.0;
                 let dir = self.to_light(sp.lo + centre / vd * (sp.hi - sp.lo)).0;
                 let alpha = |x: i64, y: i64, z: i64| {
@@ -594,10 +598,10 @@ impl HernellTwin {
     }
 
     /// `hn_cell_pos`: the centre of a voxel's cell at `level` (of the part inside the
-    /// volume).
+    /// volume); at level 0 the voxel's centre, `voxel_pos`.
     fn cell_pos(&self, sp: &Space, i: usize, dims: [usize; 3], level: i32) -> DVec3 {
         let c = 1usize << level;
-        let v = [i % dims[0], (i / dims[0]) % dims[1], i / (dims[0] * dims[1])];
+        let v = grid_index(i, dims);
         let t: [f64; 3] = std::array::from_fn(|a| {
             let lo = (v[a] / c) * c;
             0.5 * (lo + (lo + c).min(dims[a])) as f64 / dims[a] as f64
@@ -686,10 +690,7 @@ impl HernellTwin {
             None => Blocks::default(),
         };
         // the level of voxel i (0 without blocking)
-        let level_of = |i: usize| {
-            self.blocks
-                .level([(i % dims[0]) as i64, ((i / dims[0]) % dims[1]) as i64, (i / (dims[0] * dims[1])) as i64])
-        };
+        let level_of = |i: usize| self.blocks.level(grid_index(i, dims).map(|x| x as i64));
         // (A1)
         let n = if self.light.exact { sp.max_steps() } else { seg };
         let lp: Vec<f64> = (0..n_all)
@@ -699,7 +700,7 @@ impl HernellTwin {
                 if level < 0 {
                     return 0.0;
                 }
-                let p = if level > 0 { self.cell_pos(&sp, i, dims, level) } else { sp.voxel_pos(i, dims) };
+                let p = self.cell_pos(&sp, i, dims, level);
                 let (l, dist) = self.to_light(p);
                 f32r(self.opacity(&sp, classify, p, l, n, dist))
             })
@@ -767,7 +768,7 @@ impl HernellTwin {
                 if level < 0 {
                     return f32r(self.light.intensity);
                 }
-                let p = if level > 0 { self.cell_pos(&sp, i, dims, level) } else { sp.voxel_pos(i, dims) };
+                let p = self.cell_pos(&sp, i, dims, level);
                 if !self.light.scattering {
                     return f32r(self.direct(&sp, p));
                 }
