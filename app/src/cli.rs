@@ -81,11 +81,6 @@ pub enum Command {
     /// directional derivative. Writes the curve as RON (the `tf` of classify.tf1d).
     #[command(after_help = crate::cli_help::SUGGEST_TF)]
     SuggestTf(SuggestTfArgs),
-    /// Measure directional occlusion shading against its Monte-Carlo reference (θ,
-    /// kernel, slice count, buffer precision, chromatic extinction, Pareto front,
-    /// extremes, CT frame time) and write the report (docs/dos.md).
-    #[command(after_help = crate::cli_help::DOS_STUDY)]
-    DosStudy(vwb_lab::studies::dos::DosStudyArgs),
     /// Transfer-function design gallery (Marks et al. 1997): draws a seeded pool of TF
     /// genomes, renders each from several viewpoints in batched atlases, keeps the most
     /// dispersed and lays them out by MDS; writes gallery.png, genomes.ron and
@@ -276,16 +271,39 @@ pub fn run_adapt_tf(a: &AdaptTfArgs) -> Result<()> {
 /// `vwb run`'s arguments.
 #[derive(Debug, Clone, clap::Args)]
 pub struct RunArgs {
-    /// The experiment file (RON; see experiments/ and docs/experiments.md).
-    pub experiment: PathBuf,
-    /// Folder for the report (default reports/<experiment name>).
+    /// The experiment files (RON; see experiments/ and docs/experiments.md), run in
+    /// order.
+    #[arg(required = true, num_args = 1..)]
+    pub experiments: Vec<PathBuf>,
+    /// Folder for the report (default reports/<experiment name>); only with one file.
     #[arg(short, long)]
     pub output: Option<PathBuf>,
 }
 
-/// `vwb run FILE`: runs the experiment; an error when an assertion fails.
+/// `vwb run FILE..`: runs the experiments in order; an error when a file is bad or an
+/// assertion fails (the remaining files still run, so every report is written).
 pub fn run_experiment(a: &RunArgs) -> Result<()> {
-    vwb_lab::experiment::run_file(&a.experiment, a.output.as_deref())?;
+    if a.output.is_some() && a.experiments.len() > 1 {
+        bail!("-o names one report folder; give one experiment file with it");
+    }
+    let mut failed = Vec::new();
+    for file in &a.experiments {
+        if let Err(e) = vwb_lab::experiment::run_file(file, a.output.as_deref()) {
+            if a.experiments.len() == 1 {
+                return Err(e);
+            }
+            eprintln!("error: {e:#}");
+            failed.push(file.display().to_string());
+        }
+    }
+    if !failed.is_empty() {
+        bail!(
+            "{} of {} experiments failed: {}",
+            failed.len(),
+            a.experiments.len(),
+            failed.join(", ")
+        );
+    }
     Ok(())
 }
 
@@ -734,14 +752,6 @@ pub fn run_sweep(preset: Option<&std::path::Path>, a: &SweepArgs) -> Result<()> 
         "wrote {}/sweep.csv, pareto.svg, sweep.json and the images",
         a.output.display()
     );
-    Ok(())
-}
-
-pub fn run_dos_study(a: &vwb_lab::studies::dos::DosStudyArgs) -> Result<()> {
-    let gpu = GpuContext::new_headless()?;
-    eprintln!("adapter: {}", gpu.describe());
-    vwb_lab::studies::dos::run(&gpu, a)?;
-    eprintln!("wrote {}", a.output.display());
     Ok(())
 }
 

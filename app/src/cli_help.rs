@@ -56,11 +56,6 @@ Examples:
   vwb suggest-tf --volume ct_head -o ct_tf.ron
   vwb suggest-tf --max-opacity 0.3 -o demo_tf.ron";
 
-pub const DOS_STUDY: &str = "\
-Example:
-  # a quick, small study (the default writes docs/dos.md at 48x48)
-  vwb dos-study --size 24 --directions 8 --ct skip -o out/dos.md";
-
 pub const GALLERY: &str = "\
 Examples:
   # 36 dispersed TFs for the CT head out of 256 random ones, from 3 viewpoints
@@ -86,6 +81,8 @@ pub const RUN: &str = "\
 Examples:
   # regenerate the classification table in docs/classification.md
   vwb run experiments/classification.ron
+  # regenerate docs/dos.md (directional occlusion: six experiment files)
+  vwb run experiments/dos*.ron
   # a quick check of the illumination models, report into a chosen folder
   vwb run experiments/shading_switchboard.ron -o out/shading";
 

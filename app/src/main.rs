@@ -1,7 +1,7 @@
 use clap::Parser;
 use vwb_app::cli::{
-    Cli, Command, run_bench, run_compare, run_dos_study, run_experiment, run_info, run_render,
-    run_scene, run_suggest_tf, run_sweep,
+    Cli, Command, run_bench, run_compare, run_experiment, run_info, run_render, run_scene,
+    run_suggest_tf, run_sweep,
 };
 
 fn main() {
@@ -16,7 +16,6 @@ fn main() {
         Some(Command::Scene(a)) => run_scene(cli.preset.as_deref(), a),
         Some(Command::Crop(a)) => vwb_app::crop::run_crop(cli.preset.as_deref(), a),
         Some(Command::SuggestTf(a)) => run_suggest_tf(a),
-        Some(Command::DosStudy(a)) => run_dos_study(a),
         Some(Command::Run(a)) => run_experiment(a),
         Some(Command::Evolve(a)) => vwb_app::cli::run_evolve(cli.preset.as_deref(), a),
         Some(Command::AdaptTf(a)) => vwb_app::cli::run_adapt_tf(a),

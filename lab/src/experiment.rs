@@ -31,7 +31,7 @@ use serde::{Deserialize, Serialize};
 use serde_json::json;
 use vwb_render::metrics::{self, Metrics, RgbImageF};
 use vwb_render::params::{ParamKind, ParamValue};
-use vwb_render::plugin::PluginInstance;
+use vwb_render::plugin::{ConvergedReference, PluginInstance};
 use vwb_render::preset::{Document, VolumeSource};
 use vwb_render::reference::ReferenceOptions;
 use vwb_render::renderer::Backend;
@@ -57,6 +57,11 @@ pub struct Experiment {
     pub grid: Vec<GridAxis>,
     #[serde(default)]
     pub reference: ReferenceSpec,
+    /// Options of the converged reference a plugin supplies (the Monte-Carlo
+    /// integral of `shade.dos`: `directions`, `replicas`, `seed`, `eye_step`,
+    /// `cone_step`); an error for a stack whose reference is refined slices.
+    #[serde(default)]
+    pub reference_options: BTreeMap<String, f64>,
     /// The columns of the report's tables (all metrics are in the CSV and JSON).
     #[serde(default = "default_metrics")]
     pub metrics: Vec<Metric>,
@@ -104,7 +109,9 @@ pub enum Scene {
 pub struct Variant {
     pub name: String,
     /// `"<plugin id>.<key>"` (its first instance) or `render.slice_spacing`,
-    /// `render.backend` (raster, compute), `render.target`, `render.early_termination`.
+    /// `render.slices` (the spacing that gives about this many slices in the scene's
+    /// frame), `render.backend` (raster, compute), `render.target`,
+    /// `render.early_termination`.
     #[serde(default)]
     pub set: BTreeMap<String, SetValue>,
     /// (from, to): the first instance of plugin `from` is replaced by plugin `to` with
@@ -117,6 +124,10 @@ pub struct Variant {
     /// Plugin ids whose instances are switched on.
     #[serde(default)]
     pub enable: Vec<String>,
+    /// This variant's reference instead of the experiment's (e.g. one variant against
+    /// another variant's converged reference, or against a plugin-free variant).
+    #[serde(default)]
+    pub reference: Option<ReferenceSpec>,
 }
 
 /// A value in a variant's `set`: checked against the parameter's spec.
@@ -162,6 +173,10 @@ pub enum ReferenceSpec {
     /// one per scene and grid point, shared by the variants
     /// (`vwb_render::reference::render_single_scattering`).
     SingleScattering(ScatteringSpec),
+    /// No reference: the rows are timed only (their error metrics are NaN, shown as —,
+    /// and an assertion on them fails). Not `None`, which a variant's optional
+    /// `reference` would read as "the experiment's".
+    TimeOnly,
 }
 
 /// The light and effort of a [`ReferenceSpec::SingleScattering`] reference.
@@ -265,6 +280,9 @@ impl Metric {
 
     fn cell(self, row: &Row) -> String {
         let v = self.of(row);
+        if v.is_nan() {
+            return "—".into();
+        }
         match self {
             Metric::ShareAbove6 => format!("{:.1} %", 100.0 * v),
             Metric::Slices => format!("{v}"),
@@ -311,8 +329,9 @@ pub struct Row {
     pub metrics: Metrics,
     /// The image file, relative to the report's folder.
     pub image: String,
-    /// Which reference it was compared with (an index into the report's references).
-    pub reference: usize,
+    /// Which reference it was compared with (an index into the report's references);
+    /// `None` with `reference: TimeOnly`.
+    pub reference: Option<usize>,
     pub pareto: bool,
 }
 
@@ -376,13 +395,36 @@ pub fn parse(text: &str, path: &Path) -> Result<Experiment> {
         }
     }
     let named = |n: &str| e.variants.iter().any(|v| v.name == n);
-    match &e.reference {
-        ReferenceSpec::ConvergedOf(n) | ReferenceSpec::Variant(n) if !named(n) => {
-            bail!(
-                "{file}: the reference names variant '{n}', which the experiment does not declare"
-            )
+    let specs = std::iter::once((None, &e.reference)).chain(
+        e.variants
+            .iter()
+            .filter_map(|v| v.reference.as_ref().map(|r| (Some(v.name.as_str()), r))),
+    );
+    for (owner, spec) in specs {
+        let whose = owner.map_or_else(String::new, |v| format!(" of variant '{v}'"));
+        match spec {
+            ReferenceSpec::ConvergedOf(n) | ReferenceSpec::Variant(n) if !named(n) => {
+                bail!(
+                    "{file}: the reference{whose} names variant '{n}', which the experiment does not declare"
+                )
+            }
+            ReferenceSpec::Variant(n) if owner == Some(n.as_str()) => {
+                bail!("{file}: variant '{n}' is its own reference")
+            }
+            _ => {}
         }
-        _ => {}
+    }
+    let spacing_axis = e.grid.iter().any(|a| a.param == "render.slice_spacing");
+    for v in &e.variants {
+        if v.set.contains_key("render.slices")
+            && (spacing_axis || v.set.contains_key("render.slice_spacing"))
+        {
+            bail!(
+                "{file}: variant '{}' sets render.slices, which fixes the slice spacing; \
+                 leave render.slice_spacing out of its set and of the grid",
+                v.name
+            );
+        }
     }
     for a in &e.grid {
         axis_values(a).map_err(|err| anyhow!("{file}: grid axis '{}': {err}", a.param))?;
@@ -628,6 +670,9 @@ pub fn set_value(doc: &mut Document, key: &str, value: &SetValue) -> Result<()> 
             }
             doc.render.early_termination = (v > 0.0).then_some(v as f32);
         }
+        "render.slices" => {
+            bail!("'{key}' depends on the scene's volume; it is set in an experiment's variants")
+        }
         "render.backend" => doc.render.backend = parse_backend(text()?).map_err(|e| anyhow!(e))?,
         "render.target" => doc.render.target = parse_target(text()?).map_err(|e| anyhow!(e))?,
         _ => {
@@ -685,9 +730,28 @@ pub fn parse_target(s: &str) -> Result<TargetFormat, String> {
     }
 }
 
+/// The slice spacing (voxels) that gives about `slices` slices in a document's frame
+/// through `volume`: the count at one voxel scaled, so the count comes within a slice or
+/// two of the target.
+pub fn spacing_for_slices(doc: &Document, volume: &Volume, slices: f64) -> Result<f32> {
+    if !(slices.fract() == 0.0 && (1.0..=vwb_render::slicing::MAX_SLICES as f64).contains(&slices))
+    {
+        bail!(
+            "'render.slices' must be a whole number in 1..={}, got {slices}",
+            vwb_render::slicing::MAX_SLICES
+        );
+    }
+    let at_one = vwb_render::validate::check_slices(&doc.camera, doc.render.size, 1.0, volume)
+        .map_err(|e| anyhow!("{e}"))?;
+    if at_one == 0 {
+        bail!("'render.slices': no slice of the frame meets the volume");
+    }
+    Ok((at_one as f64 / slices) as f32)
+}
+
 impl Variant {
-    /// The variant of a scene's document.
-    fn apply(&self, base: &Document) -> Result<Document> {
+    /// The variant of a scene's document (`volume`: the scene's, for `render.slices`).
+    fn apply(&self, base: &Document, volume: &Volume) -> Result<Document> {
         let registry = vwb_plugins::registry();
         let mut doc = base.clone();
         for (from, to) in &self.swap {
@@ -718,8 +782,14 @@ impl Variant {
                 }
             }
         }
-        for (key, value) in &self.set {
+        for (key, value) in self.set.iter().filter(|(k, _)| *k != "render.slices") {
             set_value(&mut doc, key, value)?;
+        }
+        if let Some(n) = self.set.get("render.slices") {
+            let SetValue::Number(n) = n else {
+                bail!("'render.slices' needs a number (a slice count)");
+            };
+            doc.render.slice_spacing = spacing_for_slices(&doc, volume, *n)?;
         }
         Ok(doc)
     }
@@ -781,23 +851,24 @@ fn load_scene(scene: &Scene, dir: &Path, e: &Experiment) -> Result<SceneDoc> {
     Ok(SceneDoc { name, doc, volume })
 }
 
-/// The key of a converged reference: the plugin stack and frame without the spacing.
-fn reference_key(scene: &str, doc: &Document) -> String {
+/// The key of a converged reference: the plugin stack (or what the supplied reference
+/// depends on, [`ConvergedReference::key`]) and frame without the spacing.
+fn reference_key(scene: &str, doc: &Document, supplier: Option<&dyn ConvergedReference>) -> String {
     let mut d = doc.clone();
     d.render.slice_spacing = 1.0;
     d.render.early_termination = None;
-    let stack: Vec<String> = d
-        .stack
-        .iter()
-        .filter(|i| i.enabled)
-        .map(|i| format!("{}:{:?}", i.plugin.id(), i.params))
-        .collect();
+    let stack = supplier.and_then(|r| r.key(&d.stack)).unwrap_or_else(|| {
+        let parts: Vec<String> = d
+            .stack
+            .iter()
+            .filter(|i| i.enabled)
+            .map(|i| format!("{}:{:?}", i.plugin.id(), i.params))
+            .collect();
+        parts.join(";")
+    });
     format!(
-        "{scene}|{:?}|{:?}|{:?}|{}",
-        d.render.size,
-        d.camera,
-        d.render.background,
-        stack.join(";")
+        "{scene}|{:?}|{:?}|{:?}|{stack}",
+        d.render.size, d.camera, d.render.background,
     )
 }
 
@@ -845,7 +916,7 @@ pub fn run(
         // every variant's document and axes, checked before anything renders
         let mut docs = Vec::new();
         for v in variants {
-            let d = v.apply(&sc.doc).map_err(|err| {
+            let d = v.apply(&sc.doc, &sc.volume).map_err(|err| {
                 anyhow!(
                     "{fname}: variant '{}' on scene '{}': {err}",
                     v.name,
@@ -893,35 +964,50 @@ pub fn run(
                 let timing = measure::time_frames(&mut r, &s, 1, e.frames)?;
                 let img = measure::gpu_image(&r, &d)?;
                 let memory: u64 = r.plugin_memory().iter().map(|(_, _, b)| b).sum();
-                let reference = match &e.reference {
+                let spec = v.reference.as_ref().unwrap_or(&e.reference);
+                let reference = match spec {
                     ReferenceSpec::Converged | ReferenceSpec::ConvergedOf(_) => {
-                        let rd = match &e.reference {
+                        let rd = match spec {
                             ReferenceSpec::ConvergedOf(n) => {
                                 let (_, od, oa) = find(n);
                                 at(od, oa, values)
                             }
                             _ => d.clone(),
                         };
-                        let key = reference_key(&sc.name, &rd);
+                        let supplier = measure::configured_supplier(&rd, &e.reference_options)
+                            .map_err(|err| anyhow!("{fname}: reference_options: {err}"))?;
+                        let key = reference_key(&sc.name, &rd, supplier.as_deref());
                         if let Some((i, _)) = converged.get(&key) {
-                            *i
+                            Some(*i)
                         } else {
-                            let what = match &e.reference {
-                                ReferenceSpec::ConvergedOf(n) => {
-                                    format!("converged reference of '{n}'")
-                                }
-                                _ => format!("converged reference of '{}'", v.name),
+                            let whose = match spec {
+                                ReferenceSpec::ConvergedOf(n) => n.as_str(),
+                                _ => v.name.as_str(),
+                            };
+                            let at: Vec<String> = e
+                                .grid
+                                .iter()
+                                .zip(values)
+                                // the spacing does not change a converged reference
+                                .filter(|(a, _)| a.param != "render.slice_spacing")
+                                .map(|(a, x)| format!("{} = {x}", a.param))
+                                .collect();
+                            let what = if at.is_empty() {
+                                format!("converged reference of '{whose}'")
+                            } else {
+                                format!("converged reference of '{whose}' at {}", at.join(", "))
                             };
                             observer(Event::Reference {
                                 scene: &sc.name,
                                 what: &what,
                             });
-                            let (img, mut info) = measure::converged_image(
+                            let (img, mut info) = measure::converged_image_with(
                                 &sc.volume,
                                 &rd,
                                 &rd.frame_settings(),
                                 e.tolerance,
                                 &ReferenceOptions::default(),
+                                &e.reference_options,
                             )?;
                             info["scene"] = json!(sc.name);
                             info["what"] = json!(what);
@@ -933,13 +1019,13 @@ pub fn run(
                             )?;
                             references.push(info);
                             converged.insert(key, (i, img));
-                            i
+                            Some(i)
                         }
                     }
                     ReferenceSpec::SingleScattering(spec) => {
                         let key = format!("{}|single_scattering|{values:?}", sc.name);
                         if let Some((i, _)) = converged.get(&key) {
-                            *i
+                            Some(*i)
                         } else {
                             observer(Event::Reference {
                                 scene: &sc.name,
@@ -1004,7 +1090,7 @@ pub fn run(
                                 &out.join(format!("images/reference_{i:02}.png")),
                             )?;
                             converged.insert(key, (i, img));
-                            i
+                            Some(i)
                         }
                     }
                     ReferenceSpec::Twin => {
@@ -1019,7 +1105,7 @@ pub fn run(
                             &out.join(format!("images/reference_{i:02}.png")),
                         )?;
                         images.push(img);
-                        i
+                        Some(i)
                     }
                     ReferenceSpec::Variant(n) => {
                         let key = format!("{}|{n}|{values:?}", sc.name);
@@ -1035,20 +1121,41 @@ pub fn run(
                             "scene": sc.name, "kind": "variant", "variant": n, "values": values,
                         }));
                         images.push(gpu_images[&key].clone());
-                        i
+                        Some(i)
                     }
+                    ReferenceSpec::TimeOnly => None,
                 };
-                let theirs = match &e.reference {
-                    ReferenceSpec::Converged
-                    | ReferenceSpec::ConvergedOf(_)
-                    | ReferenceSpec::SingleScattering(_) => converged
-                        .values()
-                        .find(|(i, _)| *i == reference)
-                        .map(|(_, img)| img)
-                        .expect("just stored"),
-                    _ => images.last().expect("just pushed"),
+                let theirs = match (spec, reference) {
+                    (_, None) => None,
+                    (
+                        ReferenceSpec::Converged
+                        | ReferenceSpec::ConvergedOf(_)
+                        | ReferenceSpec::SingleScattering(_),
+                        Some(i),
+                    ) => Some(
+                        converged
+                            .values()
+                            .find(|(j, _)| *j == i)
+                            .map(|(_, img)| img)
+                            .expect("just stored"),
+                    ),
+                    _ => Some(images.last().expect("just pushed")),
                 };
-                let m = metrics::try_compare(&img, theirs).map_err(|err| anyhow!(err))?;
+                let m = match theirs {
+                    Some(theirs) => {
+                        metrics::try_compare(&img, theirs).map_err(|err| anyhow!(err))?
+                    }
+                    None => Metrics {
+                        width: img.width,
+                        height: img.height,
+                        rms_delta_e: f64::NAN,
+                        mean_delta_e: f64::NAN,
+                        max_delta_e: f64::NAN,
+                        share_above_6: f64::NAN,
+                        psnr_db: f64::NAN,
+                        ssim: f64::NAN,
+                    },
+                };
                 let (ms, clock) = timing.frame_ms();
                 let image = format!("images/row_{:03}.png", rows.len());
                 headless::save_png(&img.to_rgb8(), &out.join(&image))?;
@@ -1071,14 +1178,18 @@ pub fn run(
                 });
             }
         }
+        // the front of the rows with an error (rows timed only have none)
+        let measured: Vec<usize> = (first_row..rows.len())
+            .filter(|&i| rows[i].metrics.rms_delta_e.is_finite())
+            .collect();
         let front = measure::pareto_front(
-            &rows[first_row..]
+            &measured
                 .iter()
-                .map(|r| (r.frame_ms, r.metrics.rms_delta_e))
+                .map(|&i| (rows[i].frame_ms, rows[i].metrics.rms_delta_e))
                 .collect::<Vec<_>>(),
         );
-        for (r, f) in rows[first_row..].iter_mut().zip(front) {
-            r.pareto = f;
+        for (&i, f) in measured.iter().zip(front) {
+            rows[i].pareto = f;
         }
     }
     let assertions: Vec<Checked> = e
@@ -1100,6 +1211,18 @@ pub fn run(
     outcome.markdown = markdown(e, file, gpu, &outcome);
     write_outputs(e, file, gpu, out, &outcome)?;
     Ok(outcome)
+}
+
+/// A number for a report line: whole numbers as they are, others to four significant
+/// digits.
+fn short(x: f64) -> String {
+    if x.fract() == 0.0 || !x.is_finite() {
+        format!("{x}")
+    } else if x.abs() >= 0.01 {
+        format!("{}", (x * 1e4).round() / 1e4)
+    } else {
+        format!("{x:.3e}")
+    }
 }
 
 /// The report's Markdown (the part a doc block receives).
@@ -1144,26 +1267,60 @@ fn markdown(e: &Experiment, file: &Path, gpu: &GpuContext, o: &Outcome) -> Strin
                 r["seconds"].as_f64().unwrap_or(f64::NAN),
             );
         } else if r["kind"] != json!("twin") && r["kind"] != json!("variant") {
+            // a supplied reference's own notes (sample counts, steps, statistical error)
+            let notes: Vec<String> = r
+                .as_object()
+                .into_iter()
+                .flatten()
+                .filter(|(k, v)| {
+                    v.is_number()
+                        && ![
+                            "seconds",
+                            "seed_to_seed_rms_delta_e",
+                            "ci95_mean",
+                            "ci95_max",
+                            "samples",
+                        ]
+                        .contains(&k.as_str())
+                })
+                .map(|(k, v)| format!("{k} {}", v.as_f64().map_or_else(|| v.to_string(), short)))
+                .collect();
             let _ = writeln!(
                 s,
-                "- Reference for `{}`: {what} ({}), {:.1} s on the CPU.",
+                "- Reference for `{}`: {what} ({}{}), {:.1} s on the CPU.",
                 r["scene"].as_str().unwrap_or(""),
                 r["kind"].as_str().unwrap_or(""),
+                if notes.is_empty() {
+                    String::new()
+                } else {
+                    format!(": {}", notes.join(", "))
+                },
                 r["seconds"].as_f64().unwrap_or(f64::NAN),
             );
         }
     }
-    match &e.reference {
-        ReferenceSpec::Twin => {
-            let _ = writeln!(s, "- Reference: the CPU twin with the same slices.");
-        }
+    let describe = |spec: &ReferenceSpec| match spec {
+        ReferenceSpec::Twin => Some("the CPU twin with the same slices".to_string()),
         ReferenceSpec::Variant(n) => {
-            let _ = writeln!(
-                s,
-                "- Reference: variant `{n}`'s GPU image at the same grid point."
-            );
+            Some(format!("variant `{n}`'s GPU image at the same grid point"))
         }
-        _ => {}
+        ReferenceSpec::ConvergedOf(n) => Some(format!("the converged reference of variant `{n}`")),
+        ReferenceSpec::TimeOnly => Some("none (timed only)".to_string()),
+        _ => None,
+    };
+    if let Some(d) = describe(&e.reference) {
+        let _ = writeln!(s, "- Reference: {d}.");
+    }
+    for v in &e.variants {
+        if v.reference == Some(ReferenceSpec::TimeOnly) {
+            let _ = writeln!(s, "- Variant `{}` is timed only (no reference).", v.name);
+        } else if let Some(spec) = &v.reference {
+            let d = describe(spec).unwrap_or_else(|| match spec {
+                ReferenceSpec::SingleScattering(_) => "the single-scattering ground truth".into(),
+                _ => "the converged reference of its own stack".into(),
+            });
+            let _ = writeln!(s, "- Variant `{}` is compared with {d}.", v.name);
+        }
     }
     let _ = writeln!(s);
     let mut header = vec!["scene".to_string(), "variant".to_string()];
@@ -1417,6 +1574,12 @@ pub fn run_file(file: &Path, out: Option<&Path>) -> Result<Outcome> {
     eprintln!("adapter: {}", gpu.describe());
     let o = run(&gpu, &e, file, &out, &mut |ev| match ev {
         Event::Reference { scene, what } => eprintln!("{scene}: computing the {what}"),
+        Event::Row { index, row } if row.reference.is_none() => eprintln!(
+            "[{index:>3}] {}: {:>4} slices {:>8.2} ms  (timed only)",
+            row.label(),
+            row.slices,
+            row.frame_ms,
+        ),
         Event::Row { index, row } => eprintln!(
             "[{index:>3}] {}: {:>4} slices {:>8.2} ms  RMS ΔE*uv {:.3}  >6 {:.2}%",
             row.label(),
@@ -1503,7 +1666,7 @@ mod tests {
                 ssim: 1.0,
             },
             image: String::new(),
-            reference: 0,
+            reference: Some(0),
             pareto: false,
         }
     }
@@ -1553,6 +1716,35 @@ mod tests {
             "Experiment(name: \"x\", scenes: [Preset(\"a.ron\")], grid: [(param: \"render.slice_spacing\")])",
         );
         assert!(e.contains("grid axis"), "{e}");
+        // per-variant references name declared variants, never themselves
+        let e = err(
+            "Experiment(name: \"x\", scenes: [Preset(\"a.ron\")], variants: [(name: \"a\", reference: Variant(\"b\"))])",
+        );
+        assert!(
+            e.contains("reference of variant 'a' names variant 'b'"),
+            "{e}"
+        );
+        let e = err(
+            "Experiment(name: \"x\", scenes: [Preset(\"a.ron\")], variants: [(name: \"a\", reference: Variant(\"a\"))])",
+        );
+        assert!(e.contains("variant 'a' is its own reference"), "{e}");
+        // a slice count fixes the spacing: no spacing axis beside it
+        let e = err(
+            "Experiment(name: \"x\", scenes: [Preset(\"a.ron\")], variants: [(name: \"a\", set: {\"render.slices\": 100})], grid: [(param: \"render.slice_spacing\", values: [1.0])])",
+        );
+        assert!(e.contains("variant 'a' sets render.slices"), "{e}");
+        let ok = parse(
+            "Experiment(name: \"x\", scenes: [Preset(\"a.ron\")], variants: [(name: \"a\"), (name: \"b\", reference: ConvergedOf(\"a\")), (name: \"c\", reference: TimeOnly)], reference: TimeOnly, reference_options: {\"directions\": 8})",
+            p,
+        )
+        .unwrap();
+        assert_eq!(ok.reference, ReferenceSpec::TimeOnly);
+        assert_eq!(
+            ok.variants[1].reference,
+            Some(ReferenceSpec::ConvergedOf("a".into()))
+        );
+        assert_eq!(ok.variants[2].reference, Some(ReferenceSpec::TimeOnly));
+        assert_eq!(ok.reference_options["directions"], 8.0);
         let ok = parse(
             "Experiment(name: \"x\", scenes: [Preset(\"a.ron\"), Sample(\"ct_head\")], variants: [(name: \"a\", set: {\"classify.tf1d.mode\": \"pre\", \"render.slice_spacing\": 0.5})], grid: [(param: \"render.slice_spacing\", range: \"0.5..2:3:log\")], reference: ConvergedOf(\"a\"), assertions: [\"time < 1e9\"], seed: Some(3))",
             p,
@@ -1565,6 +1757,7 @@ mod tests {
     #[test]
     fn variants_set_swap_and_switch_with_checks() {
         let base = crate::document::load_document(None).unwrap();
+        let volume = headless::load_volume(&base.volume).unwrap();
         let v = |set: &[(&str, SetValue)]| Variant {
             name: "v".into(),
             set: set
@@ -1577,7 +1770,7 @@ mod tests {
             ("classify.tf1d.mode", SetValue::Text("pre".into())),
             ("render.slice_spacing", SetValue::Number(0.5)),
         ])
-        .apply(&base)
+        .apply(&base, &volume)
         .unwrap();
         assert_eq!(d.render.slice_spacing, 0.5);
         let inst = d
@@ -1613,7 +1806,10 @@ mod tests {
             ),
             ("render.slice_spacing", SetValue::Number(-1.0), "> 0"),
         ] {
-            let e = v(&[(key, value)]).apply(&base).unwrap_err().to_string();
+            let e = v(&[(key, value)])
+                .apply(&base, &volume)
+                .unwrap_err()
+                .to_string();
             assert!(e.contains(expect), "{key}: {e}");
         }
         let swapped = Variant {
@@ -1621,7 +1817,7 @@ mod tests {
             swap: vec![("classify.tf1d".into(), "classify.tf2d".into())],
             ..Default::default()
         }
-        .apply(&base)
+        .apply(&base, &volume)
         .unwrap();
         assert!(
             swapped
@@ -1640,13 +1836,42 @@ mod tests {
             disable: vec!["classify.tf1d".into()],
             ..Default::default()
         }
-        .apply(&base)
+        .apply(&base, &volume)
         .unwrap();
         assert!(
             off.stack
                 .iter()
                 .all(|i| i.plugin.id() != "classify.tf1d" || !i.enabled)
         );
+        // render.slices: the spacing that gives about that many slices in the frame
+        for n in [10.0, 1000.0] {
+            let d = v(&[("render.slices", SetValue::Number(n))])
+                .apply(&base, &volume)
+                .unwrap();
+            let count = vwb_render::validate::check_slices(
+                &d.camera,
+                d.render.size,
+                d.render.slice_spacing,
+                &volume,
+            )
+            .unwrap() as f64;
+            assert!(
+                (count - n).abs() <= 2.0,
+                "{n} slices asked, {count} planned"
+            );
+        }
+        for bad in [0.0, 2.5, -3.0] {
+            let e = v(&[("render.slices", SetValue::Number(bad))])
+                .apply(&base, &volume)
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains("whole number"), "{bad}: {e}");
+        }
+        let mut d = base.clone();
+        let e = set_value(&mut d, "render.slices", &SetValue::Number(10.0))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("set in an experiment's variants"), "{e}");
     }
 
     #[test]

@@ -1,9 +1,9 @@
 //! `vwb-lab`: everything the workbench does without a window. Headless rendering
 //! ([`headless`]), the measurement engine (timing, comparison against converged
 //! references, per-plugin cost, sweeps with Pareto fronts, scene JSON: [`measure`]),
-//! the studies that regenerate the docs ([`studies`]), background jobs ([`job`]),
-//! document loading ([`document`]), the output-path rules ([`outputs`]) and experiment
-//! files, studies declared in RON ([`experiment`], `vwb run`).
+//! background jobs ([`job`]), document loading ([`document`]), the output-path rules
+//! ([`outputs`]) and experiment files, the studies declared in RON that regenerate the
+//! docs ([`experiment`], `vwb run`).
 //!
 //! It depends on the renderer and the built-in plugins, never on egui: the app's CLI
 //! and window are thin layers over it, and scripts or other front ends (a Python
@@ -17,4 +17,3 @@ pub mod measure;
 pub mod outputs;
 pub mod progress;
 pub mod search;
-pub mod studies;

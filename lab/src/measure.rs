@@ -249,8 +249,41 @@ pub fn converged_image(
     tolerance: f64,
     opts: &ReferenceOptions,
 ) -> Result<(RgbImageF, serde_json::Value)> {
+    converged_image_with(volume, doc, s, tolerance, opts, &BTreeMap::new())
+}
+
+/// The reference a plugin of the stack supplies ([`supplied_reference`]) with named
+/// options (an experiment's `reference_options`), `None` for the refined-slices
+/// reference. Options for a stack whose reference is refined slices are an error:
+/// that one takes only the tolerance.
+pub fn configured_supplier(
+    doc: &Document,
+    options: &BTreeMap<String, f64>,
+) -> Result<Option<Arc<dyn ConvergedReference>>> {
+    match supplied_reference(doc) {
+        Some(r) if options.is_empty() => Ok(Some(r)),
+        Some(r) => r.with_options(options).map(Some).map_err(|e| anyhow!(e)),
+        None if options.is_empty() => Ok(None),
+        None => bail!(
+            "reference options ({}) are for a reference a plugin supplies; this stack's \
+             converged reference is refined slices, which takes only the tolerance",
+            options.keys().cloned().collect::<Vec<_>>().join(", ")
+        ),
+    }
+}
+
+/// [`converged_image`] with options for the reference a plugin supplies
+/// ([`configured_supplier`]).
+pub fn converged_image_with(
+    volume: &Volume,
+    doc: &Document,
+    s: &FrameSettings,
+    tolerance: f64,
+    opts: &ReferenceOptions,
+    supplied_options: &BTreeMap<String, f64>,
+) -> Result<(RgbImageF, serde_json::Value)> {
     let start = Instant::now();
-    if let Some(supplier) = supplied_reference(doc) {
+    if let Some(supplier) = configured_supplier(doc, supplied_options)? {
         let r = supplier
             .render(volume, &doc.stack, s, opts.cancel.as_deref())
             .map_err(|e| anyhow!(e))?;

@@ -659,6 +659,26 @@ pub trait ConvergedReference: Send + Sync {
         settings: &crate::renderer::FrameSettings,
         cancel: Option<&std::sync::atomic::AtomicBool>,
     ) -> Result<SuppliedReference, String>;
+    /// What the reference of this stack depends on, as a cache key (two stacks with the
+    /// same key give the same image for the same frame), or `None` to key it by the
+    /// whole enabled stack. A Monte-Carlo integral ignores the slice algorithm's own
+    /// knobs (kernel, buffers), so one reference serves all of them.
+    fn key(&self, _stack: &[PluginInstance]) -> Option<String> {
+        None
+    }
+    /// This reference with named options (an experiment's `reference_options`, e.g. the
+    /// Monte-Carlo sample counts). Unknown names and values out of range are errors; the
+    /// default takes no options.
+    fn with_options(
+        &self,
+        options: &std::collections::BTreeMap<String, f64>,
+    ) -> Result<Arc<dyn ConvergedReference>, String> {
+        Err(format!(
+            "the {} reference takes no options (got {})",
+            self.label(),
+            options.keys().cloned().collect::<Vec<_>>().join(", ")
+        ))
+    }
 }
 
 /// An image from a [`ConvergedReference`].

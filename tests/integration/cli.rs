@@ -349,9 +349,10 @@ fn suggest_tf_writes_a_valid_transfer_function() {
 }
 
 /// For a stack with shade.dos, `--against converged` is the Monte-Carlo reference
-/// (`dos-study` and the docs use the same integral); `dos-study` writes its report.
+/// (the same integral as docs/dos.md's experiment files, at half their resolution); the
+/// bench's ablation charges DOS's passes to it.
 #[test]
-fn dos_compares_against_monte_carlo_and_the_study_writes_its_report() {
+fn dos_compares_against_monte_carlo_and_its_cost_is_measured() {
     gpu();
     let dir = tmp("compare-dos");
     let o = vwb()
@@ -414,34 +415,32 @@ fn dos_compares_against_monte_carlo_and_the_study_writes_its_report() {
         tf.abs() < frame,
         "classify.tf1d: {tf} ms of {frame}\n{text}"
     );
+}
 
-    let report = tmp("dos.md");
+/// `vwb run` takes several experiment files; `-o` names one report folder, so it goes
+/// with one file only, and a missing file is named.
+#[test]
+fn run_takes_several_files_and_one_output_folder_for_one() {
     let o = vwb()
-        .args([
-            "dos-study",
-            "--size",
-            "12",
-            "--directions",
-            "4",
-            "--frames",
-            "1",
-            "--ct",
-            "skip",
-            "-o",
-        ])
-        .arg(&report)
+        .args(["run", "experiments/dos.ron", "experiments/dos_ct.ron", "-o"])
+        .arg(tmp("two"))
         .output()
         .unwrap();
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let text = std::fs::read_to_string(&report).unwrap();
-    for needle in [
-        "## Cone aperture θ",
-        "## Pareto front",
-        "10 000 slices",
-        "θ = 89°",
-    ] {
-        assert!(text.contains(needle), "{needle} in the report");
-    }
+    assert!(!o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("-o names one report folder"), "{err}");
+    let o = vwb()
+        .args(["run", "/nonexistent/a.ron", "/nonexistent/b.ron"])
+        .output()
+        .unwrap();
+    assert!(!o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("/nonexistent/a.ron")
+            && err.contains("/nonexistent/b.ron")
+            && err.contains("2 of 2 experiments failed"),
+        "{err}"
+    );
 }
 
 /// The real window under Xvfb: `vwb --screenshot` opens it on the embedded demo,

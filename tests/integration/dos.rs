@@ -289,8 +289,8 @@ fn dos_converges_towards_its_monte_carlo_reference() {
 
 /// The window's and `vwb compare`'s converged DOS reference (`MonteCarloReference`,
 /// `McOptions::default()`: eye step 0.5, cone step 1 voxel, 32 directions) is cheaper
-/// than the one docs/dos.md uses (`vwb dos-study`: eye step 0.25, cone step 0.5, 48
-/// directions). On the demo DOS preset the two agree to well under the slice
+/// than the one docs/dos.md's experiment files ask for (`reference_options`: eye step
+/// 0.25, cone step 0.5, 48 directions). On the demo DOS preset the two agree to well under the slice
 /// algorithm's own error (≈ 8 ΔE*uv), so either measures DOS; the figure is in
 /// docs/dos.md.
 #[test]

@@ -47,7 +47,7 @@ fn a_small_experiment_runs_and_checks_what_it_measured() {
     assert_eq!(o.rows.len(), 4);
     assert_eq!(events, (1, 4));
     assert_eq!(o.references.len(), 1);
-    assert!(o.rows.iter().all(|r| r.reference == 0));
+    assert!(o.rows.iter().all(|r| r.reference == Some(0)));
     // coarser slices: fewer of them, more error for post-classification
     let post: Vec<_> = o.rows.iter().filter(|r| r.variant == "post").collect();
     assert!(post[0].slices > post[1].slices);
@@ -204,7 +204,7 @@ fn a_single_scattering_reference_is_shared_by_the_illumination_variants() {
     let o = experiment::run(gpu(), &e, &file, &out, &mut |_| {}).unwrap();
     assert_eq!(o.rows.len(), 2);
     assert_eq!(o.references.len(), 1, "{:?}", o.references);
-    assert!(o.rows.iter().all(|r| r.reference == 0));
+    assert!(o.rows.iter().all(|r| r.reference == Some(0)));
     assert_eq!(o.references[0]["kind"], "single_scattering");
     assert!(o.references[0]["ci95_mean"].as_f64().unwrap() > 0.0);
     assert!(
@@ -218,5 +218,110 @@ fn a_single_scattering_reference_is_shared_by_the_illumination_variants() {
     assert!(
         report.contains("single-scattering ground truth (16 paths per pixel"),
         "{report}"
+    );
+}
+
+/// A shipped experiment file made small: 16², one frame, 8 Monte-Carlo directions, no
+/// doc block (the test never writes docs/), optionally only some variants.
+fn shipped_small(name: &str, keep: &[&str]) -> (std::path::PathBuf, experiment::Experiment) {
+    let file = repo().join("experiments").join(name);
+    let mut e = experiment::load(&file).unwrap();
+    e.render.size = Some((16, 16));
+    e.frames = 1;
+    e.doc_block = None;
+    e.reference_options.insert("directions".into(), 8.0);
+    if !keep.is_empty() {
+        e.variants.retain(|v| keep.contains(&v.name.as_str()));
+        e.assertions.clear();
+    }
+    (file, e)
+}
+
+/// The DOS study as experiment files (they replaced `vwb dos-study`): per-variant
+/// references (another variant's GPU image, none for the timed-only variants), the
+/// Monte-Carlo reference's options, and one reference for the variants the integral
+/// does not depend on (kernel, distance mode, buffers).
+#[test]
+fn the_dos_experiments_run_with_variant_references_and_shared_monte_carlo() {
+    let (file, e) = shipped_small("dos_extremes.ron", &[]);
+    let out = tmp("dos-extremes");
+    let o = experiment::run(gpu(), &e, &file, &out, &mut |_| {}).unwrap();
+    assert!(o.failed().is_empty(), "{:#?}", o.assertions);
+    let row = |v: &str| o.rows.iter().find(|r| r.variant == v).unwrap();
+    // the timed-only variants: no reference, NaN errors, off the front, — in the table
+    for v in ["head-on transmittance", "no occlusion"] {
+        let r = row(v);
+        assert_eq!(r.reference, None, "{v}");
+        assert!(r.metrics.rms_delta_e.is_nan() && !r.pareto, "{v}");
+        assert!(r.frame_ms > 0.0 && r.slices > 0, "{v}");
+    }
+    assert!(
+        o.markdown.contains("| demo_dos | no occlusion | "),
+        "{}",
+        o.markdown
+    );
+    assert!(o.markdown.contains(" — "), "{}", o.markdown);
+    // θ = 0 is the head-on transmittance, not the unshaded image
+    let theta0 = row("θ = 0");
+    let kinds = |r: &experiment::Row| o.references[r.reference.unwrap()]["kind"].clone();
+    assert_eq!(kinds(theta0), "variant");
+    assert!(theta0.metrics.rms_delta_e < 0.5, "{:?}", theta0.metrics);
+    assert!(row("θ = 0 against no occlusion").metrics.rms_delta_e > 5.0);
+    // θ = 89° against the Monte-Carlo integral, with the options the file gives
+    let mc = &o.references[row("θ = 89°").reference.unwrap()];
+    assert_eq!(mc["kind"], "monte_carlo");
+    assert_eq!(mc["directions"], 8.0);
+    assert_eq!(mc["eye_step_voxels"], 0.25);
+    assert!(
+        o.markdown
+            .contains("Variant `θ = 0` is compared with variant `head-on transmittance`")
+    );
+    assert!(o.markdown.contains("directions 8"), "{}", o.markdown);
+
+    // kernel and buffer variants share one Monte-Carlo reference
+    let (file, e) = shipped_small(
+        "dos_variants.ron",
+        &[
+            "grid 4×4 (the preset)",
+            "exact distance (Algorithm 2)",
+            "fp16 buffer, 0.5× eye buffer",
+        ],
+    );
+    let mut e = e;
+    e.assertions = vec![
+        "rms_delta_e(exact distance (Algorithm 2)) / rms_delta_e(grid 4×4 (the preset)) < 0.8"
+            .into(),
+    ];
+    let o = experiment::run(gpu(), &e, &file, &tmp("dos-variants"), &mut |_| {}).unwrap();
+    assert_eq!(o.rows.len(), 3);
+    assert_eq!(o.references.len(), 1, "{:#?}", o.references);
+    assert!(o.rows.iter().all(|r| r.reference == Some(0)));
+    // Algorithm 2 is closer to the integral than Algorithm 3 (docs/dos.md)
+    assert!(o.failed().is_empty(), "{:#?}", o.assertions);
+    assert_eq!(o.assertions.len(), 1);
+
+    // options the reference does not know, and options for a refined-slices stack
+    let mut bad = e.clone();
+    bad.reference_options.insert("rays".into(), 3.0);
+    let err = experiment::run(gpu(), &bad, &file, &tmp("dos-bad"), &mut |_| {})
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("dos_variants.ron") && err.contains("unknown Monte-Carlo option 'rays'"),
+        "{err}"
+    );
+    let mut bad = e.clone();
+    bad.variants = vec![experiment::Variant {
+        name: "flat".into(),
+        disable: vec!["shade.dos".into()],
+        ..Default::default()
+    }];
+    bad.assertions.clear();
+    let err = experiment::run(gpu(), &bad, &file, &tmp("dos-bad2"), &mut |_| {})
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("dos_variants.ron") && err.contains("refined slices"),
+        "{err}"
     );
 }

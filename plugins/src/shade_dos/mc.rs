@@ -96,6 +96,68 @@ impl ConvergedReference for MonteCarloReference {
             pixels: mc.pixels,
         })
     }
+    /// θ, L_a, the ambient term and κ of `shade.dos`, the other enabled plugins and the
+    /// options: the kernel, the distance mode and the buffers do not change the integral.
+    fn key(&self, stack: &[PluginInstance]) -> Option<String> {
+        let mut parts = Vec::new();
+        for i in stack.iter().filter(|i| i.enabled) {
+            if i.plugin.id() == "shade.dos" {
+                let p = &i.params;
+                parts.push(format!(
+                    "shade.dos:{}|{}|{}|{:?}",
+                    p.float("theta_deg"),
+                    p.float("la"),
+                    p.float("ambient"),
+                    super::extinction(p).unwrap_or(DVec3::ONE)
+                ));
+            } else {
+                parts.push(format!("{}:{:?}", i.plugin.id(), i.params));
+            }
+        }
+        Some(format!("{}|{:?}", parts.join(";"), self.0))
+    }
+    /// `directions`, `replicas`, `seed`, `eye_step` and `cone_step` (voxels).
+    fn with_options(
+        &self,
+        options: &std::collections::BTreeMap<String, f64>,
+    ) -> Result<std::sync::Arc<dyn ConvergedReference>, String> {
+        let mut o = self.0.clone();
+        for (k, &v) in options {
+            let count = |lo: f64, hi: f64| {
+                if v.fract() == 0.0 && (lo..=hi).contains(&v) {
+                    Ok(v)
+                } else {
+                    Err(format!("{k} must be a whole number in {lo}..={hi}, got {v}"))
+                }
+            };
+            let step = || {
+                if v.is_finite() && v > 0.0 && v <= 8.0 {
+                    Ok(v)
+                } else {
+                    Err(format!("{k} must be in (0, 8] voxels, got {v}"))
+                }
+            };
+            match k.as_str() {
+                "directions" => o.directions = count(1.0, 65536.0)? as usize,
+                "replicas" => o.replicas = count(1.0, 256.0)? as usize,
+                "seed" => o.seed = count(0.0, 2f64.powi(53))? as u64,
+                "eye_step" => o.eye_step = step()?,
+                "cone_step" => o.cone_step = step()?,
+                _ => {
+                    return Err(format!(
+                        "unknown Monte-Carlo option '{k}' (directions, replicas, seed, eye_step, cone_step)"
+                    ));
+                }
+            }
+        }
+        if o.directions < o.replicas {
+            return Err(format!(
+                "directions ({}) must be at least replicas ({})",
+                o.directions, o.replicas
+            ));
+        }
+        Ok(std::sync::Arc::new(MonteCarloReference(o)))
+    }
 }
 
 /// The Monte-Carlo image: premultiplied RGBA per pixel (row-major) and the standard

@@ -170,3 +170,59 @@ fn monte_carlo_noise_falls_as_one_over_root_n() {
     // a stack without shade.dos is refused
     assert!(render_mc(&volume, &[tf], &settings, &McOptions::default(), None).is_err());
 }
+
+/// The Monte-Carlo reference's cache key follows what the integral depends on (θ, κ),
+/// not the slice algorithm's knobs (kernel, distance mode, buffers); its options are
+/// checked by name and range.
+#[test]
+fn the_monte_carlo_reference_keys_on_the_integral_and_checks_its_options() {
+    use std::collections::BTreeMap;
+    use vwb_render::plugin::ConvergedReference;
+    let r = mc::MonteCarloReference::default();
+    let stack = |set: &[(&str, ParamValue)]| {
+        let mut i = PluginInstance::new(Arc::new(Dos::default()));
+        for (k, v) in set {
+            i.params.set(k, v.clone());
+        }
+        vec![i]
+    };
+    let key = |set: &[(&str, ParamValue)]| r.key(&stack(set)).unwrap();
+    let base = key(&[]);
+    for same in [
+        ("grid", ParamValue::Int(8)),
+        ("kernel", ParamValue::Enum("poisson".into())),
+        ("distance", ParamValue::Enum("exact".into())),
+        ("buffer_format", ParamValue::Enum("fp16".into())),
+        ("buffer_scale", ParamValue::Enum("0.5".into())),
+        // κ (1, 1, 1) is the achromatic integral
+        ("extinction", ParamValue::Enum("chromatic".into())),
+    ] {
+        assert_eq!(key(std::slice::from_ref(&same)), base, "{same:?}");
+    }
+    for different in [
+        vec![("theta_deg", ParamValue::Float(30.0))],
+        vec![("ambient", ParamValue::Float(0.2))],
+        vec![
+            ("extinction", ParamValue::Enum("chromatic".into())),
+            ("extinction_rgb", ParamValue::Vec3([0.4, 1.0, 2.5])),
+        ],
+    ] {
+        assert_ne!(key(&different), base, "{different:?}");
+    }
+    let opts = |pairs: &[(&str, f64)]| -> BTreeMap<String, f64> {
+        pairs.iter().map(|(k, v)| (k.to_string(), *v)).collect()
+    };
+    let finer = r
+        .with_options(&opts(&[("directions", 48.0), ("eye_step", 0.25)]))
+        .unwrap();
+    assert_ne!(finer.key(&stack(&[])).unwrap(), base, "options change the image");
+    for (bad, why) in [
+        (opts(&[("rays", 3.0)]), "unknown Monte-Carlo option 'rays'"),
+        (opts(&[("directions", 2.5)]), "whole number"),
+        (opts(&[("eye_step", 0.0)]), "(0, 8]"),
+        (opts(&[("directions", 2.0)]), "at least replicas"),
+    ] {
+        let e = r.with_options(&bad).err().expect("refused");
+        assert!(e.contains(why), "{bad:?}: {e}");
+    }
+}
