@@ -106,18 +106,44 @@ impl ShaderSource {
         name: &str,
         stub: &str,
     ) -> Self {
-        let (begin, end) = (format!("// {name}: begin"), format!("// {name}: end"));
+        Self::without_regions(file, source, &[(name, stub)])
+    }
+
+    /// [`ShaderSource::without_region`] for several regions, each `(name, stub)`: one
+    /// file can hold the variants of a plugin's shaders (e.g. a pre-pass and two sample
+    /// hooks), each shader keeping the regions it needs.
+    pub fn without_regions(
+        file: &'static str,
+        source: &'static str,
+        regions: &[(&str, &str)],
+    ) -> Self {
+        let marks: Vec<(String, String, &str)> = regions
+            .iter()
+            .map(|(name, stub)| {
+                (
+                    format!("// {name}: begin"),
+                    format!("// {name}: end"),
+                    *stub,
+                )
+            })
+            .collect();
         let mut out = String::with_capacity(source.len());
-        let mut inside = false;
+        let mut inside: Option<usize> = None;
         for line in source.lines() {
             let t = line.trim_start();
-            if t.starts_with(&begin) {
-                inside = true;
-                out.push_str(stub);
-            } else if t.starts_with(&end) {
-                inside = false;
-            } else if !inside {
-                out.push_str(line);
+            match inside {
+                None => match marks.iter().position(|(b, _, _)| t.starts_with(b.as_str())) {
+                    Some(i) => {
+                        inside = Some(i);
+                        out.push_str(marks[i].2);
+                    }
+                    None => out.push_str(line),
+                },
+                Some(i) => {
+                    if t.starts_with(marks[i].1.as_str()) {
+                        inside = None;
+                    }
+                }
             }
             out.push('\n');
         }

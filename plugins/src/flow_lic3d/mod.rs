@@ -1,23 +1,30 @@
 //! `flow.lic3d`: 3D line integral convolution of a vector volume (Rezk-Salama 2001
-//! §9.3, eqs 9.9–9.10), precomputed: a pre-pass integrates the streamline through every
-//! voxel of the LIC grid (`frequency` × the data's resolution) over a seeded noise
-//! volume and writes the intensity to `lic` (r32float); the `sample` hook replaces the
-//! sample's value by it (optionally modulated by the field's normalised magnitude), for
-//! the classification after it. The pre-pass reruns only when the volume or an
-//! integration or noise parameter changes.
+//! §9.3, eqs 9.9–9.10) over a seeded noise volume on the LIC grid (`frequency` × the
+//! data's resolution), in one of two modes (`mode`, structural):
+//! - `precomputed`: a pre-pass integrates the streamline through every voxel of the LIC
+//!   grid and writes the intensity to `lic` (r32float); the pre-pass reruns only when
+//!   the volume or an integration or noise parameter changes;
+//! - `on_the_fly`: the `sample` hook integrates at the sample itself, so only the
+//!   samples the slice loop reaches pay (inside the clip region, before early
+//!   termination, outside skipped space; Falk and Weiskopf 2008), with no LIC volume in
+//!   memory and no pre-pass.
+//!
+//! Either way the `sample` hook replaces the sample's value by the intensity (optionally
+//! modulated by the field's normalised magnitude), for the classification after it.
 //!
 //! The field is the volume's 2 or 3 components in voxels per unit time (each divided by
 //! the voxel size along its axis, `vwb_render::flow::GridField::from_volume`), uploaded
 //! as the plugin's own rgba32float texture; a scalar volume has no flow (a zero field:
 //! the LIC is the noise). Streamlines use unit speed; the choices and their measured
 //! trade are in docs/flow.md. The CPU twin computes the same LIC volume with
-//! `vwb_render::flow::lic_volume` in f64 over the same noise.
+//! `vwb_render::flow::lic_volume` in f64 over the same noise, or, on the fly, the same
+//! integral at the sample (`vwb_render::flow::lic_at`).
 
 use std::sync::Arc;
 
 use glam::DVec3;
 use vwb_render::flow::{
-    Field, GridField, Integrator, Kernel, LicParams, Noise, Scaled, Speed, lic_volume,
+    Field, GridField, Integrator, Kernel, LicParams, Noise, Scaled, Speed, lic_at, lic_volume,
     noise_volume,
 };
 use vwb_render::params::{ParamSpec, ParamValues};
@@ -34,16 +41,26 @@ const KERNELS: [&str; 3] = ["box", "tent", "gaussian"];
 const INTEGRATORS: [&str; 3] = ["euler", "rk2", "rk4"];
 const NOISES: [&str; 3] = ["white", "gaussian", "sparse"];
 const FREQUENCIES: [&str; 2] = ["1", "2"];
+const MODES: [&str; 2] = ["precomputed", "on_the_fly"];
 
-/// The plugin, configured by its LIC grid's `frequency` (the pre-pass target's scale).
-#[derive(Debug, Clone, Copy)]
+const SHADER_FILE: &str = "plugins/src/flow_lic3d/lic.wgsl";
+const SHADER: &str = include_str!("lic.wgsl");
+
+/// The plugin, configured by its LIC grid's `frequency` (the pre-pass target's scale)
+/// and its `mode`.
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Lic3d {
     pub frequency: u32,
+    /// `mode: on_the_fly`: the sample hook integrates; no pre-pass, no LIC volume.
+    pub on_the_fly: bool,
 }
 
 impl Default for Lic3d {
     fn default() -> Self {
-        Self { frequency: 1 }
+        Self {
+            frequency: 1,
+            on_the_fly: false,
+        }
     }
 }
 
@@ -136,13 +153,18 @@ impl Plugin for Lic3d {
         "flow.lic3d"
     }
     fn display_name(&self) -> &'static str {
-        "3D LIC (precomputed)"
+        "3D LIC"
     }
     fn description(&self) -> &'static str {
         "Line integral convolution of the vector volume over seeded noise, for the classification after it"
     }
     fn params(&self) -> Vec<ParamSpec> {
         vec![
+            ParamSpec::enumeration("mode", "Mode", &MODES, 0)
+                .structural()
+                .with_doc(
+                    "precomputed: a pre-pass writes the LIC volume; on_the_fly: each sample integrates (no volume, output-sensitive)",
+                ),
             ParamSpec::enumeration("frequency", "Noise frequency", &FREQUENCIES, 0)
                 .structural()
                 .with_doc("LIC grid (and noise) resolution per data voxel and axis"),
@@ -163,7 +185,19 @@ impl Plugin for Lic3d {
         ]
     }
     fn shader(&self) -> ShaderSource {
-        ShaderSource::new_static("plugins/src/flow_lic3d/lic.wgsl", include_str!("lic.wgsl"))
+        if self.on_the_fly {
+            ShaderSource::without_regions(
+                SHADER_FILE,
+                SHADER,
+                &[("prepass", ""), ("precomputed", "")],
+            )
+        } else {
+            ShaderSource::without_regions(
+                SHADER_FILE,
+                SHADER,
+                &[("integral", ""), ("prepass", ""), ("on_the_fly", "")],
+            )
+        }
     }
     fn resources(&self) -> Vec<ResourceDecl> {
         vec![
@@ -178,20 +212,27 @@ impl Plugin for Lic3d {
         ]
     }
     fn prepass(&self) -> Option<PrepassDecl> {
+        if self.on_the_fly {
+            return None;
+        }
         Some(PrepassDecl {
             target: "lic",
             format: StorageFormat::R32Float,
             scale: self.frequency as f32,
-            shader: ShaderSource::new_static(
-                "plugins/src/flow_lic3d/prepass.wgsl",
-                include_str!("prepass.wgsl"),
+            shader: ShaderSource::without_regions(
+                SHADER_FILE,
+                SHADER,
+                &[("precomputed", ""), ("on_the_fly", "")],
             ),
             depends_on: vec!["noise", "density", "seed", "kernel", "length", "step", "integrator"],
         })
     }
     fn configure(&self, params: &ParamValues) -> Option<Arc<dyn Plugin>> {
-        let frequency = params.enumeration("frequency").parse().unwrap_or(1);
-        (frequency != self.frequency).then(|| Arc::new(Lic3d { frequency }) as Arc<dyn Plugin>)
+        let c = Lic3d {
+            frequency: params.enumeration("frequency").parse().unwrap_or(1),
+            on_the_fly: params.enumeration("mode") == "on_the_fly",
+        };
+        (c != *self).then(|| Arc::new(c) as Arc<dyn Plugin>)
     }
     fn create_resources(
         &self,
@@ -247,34 +288,86 @@ impl Plugin for Lic3d {
     fn cpu_twin(&self, params: &ParamValues) -> Option<Box<dyn CpuTwin>> {
         Some(Box::new(Lic3dTwin {
             frequency: self.frequency,
+            on_the_fly: self.on_the_fly,
             params: params.clone(),
             modulate: params.float("modulate") as f64,
             lic: None,
+            fly: None,
         }))
     }
 }
 
-/// CPU twin: the LIC volume computed once (`prepare`), sampled trilinearly as the GPU
-/// samples `lic`.
+/// What the on-the-fly twin integrates over: the field (none for a scalar volume) and
+/// the noise, both on the LIC grid.
+pub struct FlyInputs {
+    pub field: Option<GridField>,
+    pub noise: GridField,
+    pub frequency: f64,
+    pub params: LicParams,
+}
+
+impl FlyInputs {
+    /// I at a point of the LIC grid (voxel coordinates), as the on-the-fly hook computes it.
+    pub fn at(&self, p: DVec3) -> f64 {
+        match &self.field {
+            Some(f) => lic_at(
+                &Scaled {
+                    inner: f,
+                    factor: self.frequency,
+                },
+                &self.noise,
+                p,
+                &self.params,
+            ),
+            None => lic_at(&NoFlow, &self.noise, p, &self.params),
+        }
+    }
+}
+
+/// CPU twin: precomputed, the LIC volume computed once (`prepare`), sampled trilinearly
+/// as the GPU samples `lic`; on the fly, the integral at each sample.
 pub struct Lic3dTwin {
     pub frequency: u32,
+    pub on_the_fly: bool,
     pub params: ParamValues,
     pub modulate: f64,
     pub lic: Option<Arc<GridField>>,
+    pub fly: Option<Arc<FlyInputs>>,
 }
 
 impl CpuTwin for Lic3dTwin {
     fn prepare(&mut self, ctx: &CpuContext) {
-        if self.lic.is_none() {
+        if self.on_the_fly {
+            if self.fly.is_none() {
+                let dims = lic_dims(ctx.volume, self.frequency);
+                self.fly = Some(Arc::new(FlyInputs {
+                    field: field_of(ctx.volume),
+                    noise: noise_volume(
+                        dims,
+                        noise_kind(&self.params),
+                        self.params.int("seed") as u64,
+                    ),
+                    frequency: self.frequency as f64,
+                    params: lic_params(&self.params),
+                }));
+            }
+        } else if self.lic.is_none() {
             self.lic = Some(Arc::new(lic_of(ctx.volume, self.frequency, &self.params)));
         }
     }
     fn sample(&self, _ctx: &CpuContext, s: &mut CpuSample) {
-        let Some(lic) = &self.lic else { return };
-        let d = DVec3::from(lic.dims.map(f64::from));
         // texture coordinates to LIC-grid voxel coordinates, clamped into the box
-        let p = (s.tex * d - DVec3::splat(0.5)).clamp(DVec3::splat(-0.5), d - DVec3::splat(0.5));
-        let i = lic.at(p).map_or(0.0, |v| v.x);
+        let grid = |dims: [u32; 3]| {
+            let d = DVec3::from(dims.map(f64::from));
+            (s.tex * d - DVec3::splat(0.5)).clamp(DVec3::splat(-0.5), d - DVec3::splat(0.5))
+        };
+        let i = if let Some(fly) = &self.fly {
+            fly.at(grid(fly.noise.dims))
+        } else if let Some(lic) = &self.lic {
+            lic.at(grid(lic.dims)).map_or(0.0, |v| v.x)
+        } else {
+            return;
+        };
         s.value = i + (i * s.value - i) * self.modulate;
     }
 }

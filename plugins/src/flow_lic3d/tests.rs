@@ -33,5 +33,19 @@ fn parameters_select_the_integral_and_the_grid() {
     p.set("frequency", ParamValue::Enum("2".into()));
     let c = Lic3d::default().configure(&p).expect("another grid");
     assert_eq!(c.prepass().unwrap().scale, 2.0);
-    assert!(Lic3d { frequency: 2 }.configure(&p).is_none());
+    let twice = Lic3d {
+        frequency: 2,
+        on_the_fly: false,
+    };
+    assert!(twice.configure(&p).is_none());
+    // on the fly: no pre-pass, and the hook integrates (no `lic` texture in the shader)
+    p.set("mode", ParamValue::Enum("on_the_fly".into()));
+    let fly = twice.configure(&p).expect("another mode");
+    assert!(fly.prepass().is_none());
+    let src = fly.shader().source;
+    assert!(src.contains("lic_integral(x0, d)") && !src.contains("textureSampleLevel(lic,"));
+    let pre = twice.shader().source;
+    assert!(pre.contains("textureSampleLevel(lic,") && !pre.contains("fn lic_integral"));
+    let prepass = twice.prepass().unwrap().shader.source;
+    assert!(prepass.contains("fn prepass") && !prepass.contains("fn sample"));
 }
