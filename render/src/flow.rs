@@ -329,17 +329,28 @@ pub fn rotation_drift(
 }
 
 /// The convolution kernel of LIC.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Kernel {
     Box,
     Tent,
     Gaussian,
+    /// The animation kernel of Cabral and Leedom (1993): a Hann window times a ripple
+    /// of `ripples` periods per half length, shifted by `phase` (radians) along the
+    /// streamline, ¼·(1 + cos πx)·(1 + cos(2π·ripples·x − phase)) with x = s/L signed
+    /// (downstream positive). Advancing the phase moves the ripple downstream, so a
+    /// sequence of phases animates the flow over one noise.
+    Periodic {
+        ripples: f64,
+        phase: f64,
+    },
 }
 
 impl Kernel {
-    /// The weight at arc length `s` of a kernel of half length `l`.
+    /// The weight at signed arc length `s` (downstream positive) of a kernel of half
+    /// length `l`.
     pub fn weight(self, s: f64, l: f64) -> f64 {
-        let x = (s / l.max(1e-12)).abs();
+        let signed = s / l.max(1e-12);
+        let x = signed.abs();
         if x > 1.0 {
             return 0.0;
         }
@@ -348,6 +359,10 @@ impl Kernel {
             Kernel::Tent => 1.0 - x,
             // σ = L/3
             Kernel::Gaussian => (-4.5 * x * x).exp(),
+            Kernel::Periodic { ripples, phase } => {
+                0.25 * (1.0 + (std::f64::consts::PI * x).cos())
+                    * (1.0 + (std::f64::consts::TAU * ripples * signed - phase).cos())
+            }
         }
     }
 }
@@ -432,7 +447,7 @@ pub fn lic_at(field: &dyn Field, noise: &GridField, x0: DVec3, p: &LicParams) ->
             };
             q = next;
             let Some(t) = noise_at(noise, q) else { break };
-            let w = p.kernel.weight(i as f64 * p.step, p.length);
+            let w = p.kernel.weight(dir * i as f64 * p.step, p.length);
             sum += w * t;
             wsum += w;
         }
@@ -485,6 +500,35 @@ mod tests {
             assert_eq!(k.weight(0.0, 4.0), 1.0);
             assert_eq!(k.weight(4.5, 4.0), 0.0);
             assert!(k.weight(2.0, 4.0) <= 1.0 && k.weight(2.0, 4.0) > 0.0);
+        }
+        // the periodic kernel: 1 at the centre with phase 0, 0 at ±L, within [0, 1];
+        // symmetric at phase 0; a phase advance of 2π·r·δ moves the ripple δ (in units
+        // of L) downstream under the fixed window
+        let periodic = |phase: f64| Kernel::Periodic {
+            ripples: 2.0,
+            phase,
+        };
+        assert!((periodic(0.0).weight(0.0, 4.0) - 1.0).abs() < 1e-12);
+        assert!(periodic(0.7).weight(4.0, 4.0).abs() < 1e-12);
+        let window = |x: f64| 0.5 * (1.0 + (std::f64::consts::PI * x).cos());
+        for i in -20..=20 {
+            let x = i as f64 / 20.0;
+            let w = periodic(1.3).weight(4.0 * x, 4.0);
+            assert!((0.0..=1.0).contains(&w), "{x}: {w}");
+            assert!(
+                (periodic(0.0).weight(4.0 * x, 4.0) - periodic(0.0).weight(-4.0 * x, 4.0)).abs()
+                    < 1e-12
+            );
+            let delta = 0.1;
+            let shifted =
+                periodic(std::f64::consts::TAU * 2.0 * delta).weight(4.0 * x, 4.0) / window(x);
+            let ripple = periodic(0.0).weight(4.0 * (x - delta), 4.0) / window(x - delta);
+            if (x - delta).abs() < 1.0 && window(x) > 1e-6 && window(x - delta) > 1e-6 {
+                assert!(
+                    (shifted - ripple).abs() < 1e-9,
+                    "{x}: {shifted} vs {ripple}"
+                );
+            }
         }
         let sparse = noise_volume([32; 3], Noise::Sparse { density: 0.02 }, 5);
         let share =

@@ -53,9 +53,11 @@ fn lic_step(p: vec3<f32>, h: f32, d: vec3<f32>) -> vec4<f32> {
     return vec4<f32>(p + (k1.xyz + 2.0 * k2.xyz + 2.0 * k3.xyz + k4.xyz) * (h / 6.0), 1.0);
 }
 
-// The kernel weight at arc length s (0 box, 1 tent, 2 Gaussian with σ = L/3).
+// The kernel weight at signed arc length s, downstream positive (0 box, 1 tent,
+// 2 Gaussian with σ = L/3, 3 periodic: Hann window × ripple shifted by the phase).
 fn lic_weight(s: f32) -> f32 {
-    let x = abs(s / max(params.length, 1.0e-12));
+    let signed = s / max(params.length, 1.0e-12);
+    let x = abs(signed);
     if (x > 1.0) {
         return 0.0;
     }
@@ -64,6 +66,10 @@ fn lic_weight(s: f32) -> f32 {
     }
     if (params.kernel == 2u) {
         return exp(-4.5 * x * x);
+    }
+    if (params.kernel == 3u) {
+        let ripple = 6.283185307 * params.ripples * signed - radians(params.phase_deg);
+        return 0.25 * (1.0 + cos(3.141592654 * x)) * (1.0 + cos(ripple));
     }
     return 1.0;
 }
@@ -91,7 +97,7 @@ fn lic_integral(x0: vec3<f32>, d: vec3<f32>) -> f32 {
             if (any(q < vec3<f32>(-0.5)) || any(q > d - vec3<f32>(0.5))) {
                 break;
             }
-            let w = lic_weight(f32(i) * params.step);
+            let w = lic_weight(f32(i) * h);
             sum += w * lic_noise(q, d);
             wsum += w;
         }

@@ -37,7 +37,7 @@ use vwb_render::volume::Volume;
 #[cfg(test)]
 mod tests;
 
-const KERNELS: [&str; 3] = ["box", "tent", "gaussian"];
+const KERNELS: [&str; 4] = ["box", "tent", "gaussian", "periodic"];
 const INTEGRATORS: [&str; 3] = ["euler", "rk2", "rk4"];
 const NOISES: [&str; 3] = ["white", "gaussian", "sparse"];
 const FREQUENCIES: [&str; 2] = ["1", "2"];
@@ -77,6 +77,10 @@ pub fn lic_params(p: &ParamValues) -> LicParams {
         kernel: match p.enumeration("kernel") {
             "box" => Kernel::Box,
             "gaussian" => Kernel::Gaussian,
+            "periodic" => Kernel::Periodic {
+                ripples: p.float("ripples") as f64,
+                phase: (p.float("phase_deg") as f64).to_radians(),
+            },
             _ => Kernel::Tent,
         },
         length: p.float("length") as f64,
@@ -174,7 +178,14 @@ impl Plugin for Lic3d {
                 .with_doc("share of lit voxels of sparse noise"),
             ParamSpec::int("seed", "Seed", 0, 1_000_000, 1),
             ParamSpec::enumeration("kernel", "Kernel", &KERNELS, 1)
-                .with_doc("box, tent 1 − |s|/L, or Gaussian with σ = L/3"),
+                .with_doc(
+                    "box, tent 1 − |s|/L, Gaussian with σ = L/3, or periodic (Hann window × a ripple moved by the phase: animation)",
+                ),
+            ParamSpec::float("ripples", "Ripples per half length", 0.5, 8.0, 2.0)
+                .shown_when("kernel", "periodic"),
+            ParamSpec::float("phase_deg", "Phase (°)", 0.0, 360.0, 0.0)
+                .shown_when("kernel", "periodic")
+                .with_doc("advancing it moves the ripple downstream; on the fly nothing is recomputed"),
             ParamSpec::float("length", "Half length L (voxels)", 1.0, 32.0, 8.0)
                 .with_doc("streamline length each way, in voxels of the LIC grid"),
             ParamSpec::float_log("step", "Step h (voxels)", 0.1, 2.0, 0.5),
@@ -224,7 +235,17 @@ impl Plugin for Lic3d {
                 SHADER,
                 &[("precomputed", ""), ("on_the_fly", "")],
             ),
-            depends_on: vec!["noise", "density", "seed", "kernel", "length", "step", "integrator"],
+            depends_on: vec![
+                "noise",
+                "density",
+                "seed",
+                "kernel",
+                "ripples",
+                "phase_deg",
+                "length",
+                "step",
+                "integrator",
+            ],
         })
     }
     fn configure(&self, params: &ParamValues) -> Option<Arc<dyn Plugin>> {
