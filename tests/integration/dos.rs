@@ -8,7 +8,7 @@ use vwb_render::preset::Document;
 use vwb_render::{Backend, FrameSettings, PluginInstance, Renderer, TargetFormat};
 
 use crate::common::*;
-use crate::reference::{delta_e_rms, gpu_and_reference};
+use crate::reference::{delta_e_rms, gpu_and_reference, gpu_delta_e_rms};
 
 /// An opaque-ish block floating in front of a wall (z grows away from an axis view
 /// along +z), and a TF that shows both with colour `rgba`.
@@ -102,12 +102,7 @@ fn zero_aperture_is_the_head_on_transmittance() {
         TargetFormat::Rgba32Float,
         &s,
     );
-    let rms = delta_e_rms(
-        &a,
-        &b.iter().map(|p| p.map(f64::from)).collect::<Vec<_>>(),
-        48,
-        48,
-    );
+    let rms = gpu_delta_e_rms(&a, &b, 48, 48);
     eprintln!("θ = 0 vs head-on transmittance: ΔE RMS {rms:.5}");
     assert!(rms < 0.01, "{rms}");
 }

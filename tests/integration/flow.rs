@@ -15,6 +15,17 @@ use vwb_render::{Backend, Renderer, TargetFormat};
 
 use crate::common::*;
 
+/// RMS difference of two scalar volumes, in 1/255 units.
+fn rms_255(a: &[f32], b: &[f32]) -> f64 {
+    assert_eq!(a.len(), b.len());
+    (a.iter()
+        .zip(b)
+        .map(|(x, y)| ((x - y) as f64 * 255.0).powi(2))
+        .sum::<f64>()
+        / a.len().max(1) as f64)
+        .sqrt()
+}
+
 /// The storm's LIC volume at `factor` times its resolution, and its field on that grid.
 fn storm_lic(factor: u32, p: &LicParams, kind: Noise) -> (Volume, GridField) {
     let storm =
@@ -184,13 +195,7 @@ fn flow_study() {
             let t = Instant::now();
             let lic = lic_volume(&abc, &noise, &p);
             let secs = t.elapsed().as_secs_f64();
-            let rms = (lic
-                .iter()
-                .zip(&reference)
-                .map(|(a, b)| ((a - b) as f64 * 255.0).powi(2))
-                .sum::<f64>()
-                / lic.len() as f64)
-                .sqrt();
+            let rms = rms_255(&lic, &reference);
             points.push((integrator.name(), h, 8.0, secs, rms));
         }
     }
@@ -256,13 +261,7 @@ fn flow_study() {
             let secs = t.elapsed().as_secs_f64();
             let (dims, gpu_lic) = r.read_prepass(lic.uid).expect("the LIC volume");
             assert_eq!(dims, twin.dims);
-            let rms = (gpu_lic
-                .iter()
-                .zip(&twin.data)
-                .map(|(g, c)| ((g - c) as f64 * 255.0).powi(2))
-                .sum::<f64>()
-                / twin.data.len() as f64)
-                .sqrt();
+            let rms = rms_255(&gpu_lic, &twin.data);
             assert!(rms <= 0.5, "{side}³: GPU vs twin {rms}/255");
             (format!("{secs:.1}"), format!("{rms:.2e}"))
         } else {
@@ -348,15 +347,7 @@ fn flow_study() {
         rows.push((label, t.wall_ms.median, covered, memory, prepass));
         images.push(px);
     }
-    let fly_vs_pre = crate::reference::delta_e_rms(
-        &images[0],
-        &images[1]
-            .iter()
-            .map(|p| p.map(f64::from))
-            .collect::<Vec<_>>(),
-        128,
-        128,
-    );
+    let fly_vs_pre = crate::reference::gpu_delta_e_rms(&images[0], &images[1], 128, 128);
     let _ = writeln!(
         o,
         "ABC flow (period 64) on 64³, `flow.lic3d` defaults (frequency 1, RK4, h = 0.5, L = 8, tent), the default 1D TF, \
@@ -518,23 +509,10 @@ fn lic_prepass_matches_its_twin() {
         let f: u32 = frequency.parse().unwrap();
         let twin = vwb_plugins::flow_lic3d::lic_of(&vol, f, &lic.params);
         assert_eq!(got_dims, twin.dims);
-        let rms = (gpu_lic
-            .chunks_exact(1)
-            .zip(&twin.data)
-            .map(|(g, c)| ((g[0] - c) as f64 * 255.0).powi(2))
-            .sum::<f64>()
-            / twin.data.len() as f64)
-            .sqrt();
+        let rms = rms_255(&gpu_lic, &twin.data);
         // the convolution did something: the LIC is not the noise
         let noise = vwb_render::flow::noise_volume(twin.dims, Noise::White, 1);
-        let smoothing = (noise
-            .data
-            .iter()
-            .zip(&twin.data)
-            .map(|(n, c)| ((n - c) as f64 * 255.0).powi(2))
-            .sum::<f64>()
-            / twin.data.len() as f64)
-            .sqrt();
+        let smoothing = rms_255(&noise.data, &twin.data);
         assert!(smoothing > 20.0, "LIC vs its noise: {smoothing}/255");
         eprintln!(
             "flow.lic3d {integrator} {kernel} ×{frequency}: GPU vs f64 twin LIC RMS {rms:.2e}/255 (LIC vs noise {smoothing:.1}/255)"
@@ -568,7 +546,7 @@ fn lic_prepass_matches_its_twin() {
 /// precomputed mode's trilinear blend.
 #[test]
 fn lic_on_the_fly_matches_its_twin_without_a_prepass() {
-    use crate::reference::{delta_e_rms, gpu_and_reference};
+    use crate::reference::{delta_e_rms, gpu_and_reference, gpu_delta_e_rms};
     use vwb_render::params::ParamValue;
     let vol = std::sync::Arc::new(vector_volume(
         &Abc {
@@ -650,15 +628,7 @@ fn lic_on_the_fly_matches_its_twin_without_a_prepass() {
             }
             frames.push(r.read_pixels().unwrap().2);
         }
-        let moved = delta_e_rms(
-            &frames[1],
-            &frames[0]
-                .iter()
-                .map(|p| p.map(f64::from))
-                .collect::<Vec<_>>(),
-            32,
-            32,
-        );
+        let moved = gpu_delta_e_rms(&frames[1], &frames[0], 32, 32);
         assert!(moved > 0.5, "{mode}: the phase moves the ripple ({moved})");
     }
     let mut pre = fly.clone();

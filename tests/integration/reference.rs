@@ -17,6 +17,12 @@ pub fn delta_e_rms(gpu_px: &[[f32; 4]], reference: &[[f64; 4]], w: u32, h: u32) 
     compare(&a, &b).rms_delta_e
 }
 
+/// RMS ΔE*uv between two GPU images (premultiplied RGBA over black).
+pub fn gpu_delta_e_rms(a: &[[f32; 4]], b: &[[f32; 4]], w: u32, h: u32) -> f64 {
+    let b: Vec<[f64; 4]> = b.iter().map(|p| p.map(f64::from)).collect();
+    delta_e_rms(a, &b, w, h)
+}
+
 /// GPU pixels and the matching reference of a stack on a volume.
 pub fn gpu_and_reference(
     volume: std::sync::Arc<vwb_render::Volume>,
