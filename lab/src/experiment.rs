@@ -1001,13 +1001,13 @@ pub fn run(
                                 scene: &sc.name,
                                 what: &what,
                             });
-                            let (img, mut info) = measure::converged_image_with(
+                            let (img, mut info) = measure::converged_image_by(
                                 &sc.volume,
                                 &rd,
+                                supplier,
                                 &rd.frame_settings(),
                                 e.tolerance,
                                 &ReferenceOptions::default(),
-                                &e.reference_options,
                             )?;
                             info["scene"] = json!(sc.name);
                             info["what"] = json!(what);

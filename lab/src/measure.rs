@@ -249,7 +249,7 @@ pub fn converged_image(
     tolerance: f64,
     opts: &ReferenceOptions,
 ) -> Result<(RgbImageF, serde_json::Value)> {
-    converged_image_with(volume, doc, s, tolerance, opts, &BTreeMap::new())
+    converged_image_by(volume, doc, supplied_reference(doc), s, tolerance, opts)
 }
 
 /// The reference a plugin of the stack supplies ([`supplied_reference`]) with named
@@ -272,18 +272,18 @@ pub fn configured_supplier(
     }
 }
 
-/// [`converged_image`] with options for the reference a plugin supplies
-/// ([`configured_supplier`]).
-pub fn converged_image_with(
+/// [`converged_image`] by a given supplied reference (the stack's, configured with
+/// options: [`configured_supplier`]), or refined slices for `None`.
+pub fn converged_image_by(
     volume: &Volume,
     doc: &Document,
+    supplier: Option<Arc<dyn ConvergedReference>>,
     s: &FrameSettings,
     tolerance: f64,
     opts: &ReferenceOptions,
-    supplied_options: &BTreeMap<String, f64>,
 ) -> Result<(RgbImageF, serde_json::Value)> {
     let start = Instant::now();
-    if let Some(supplier) = configured_supplier(doc, supplied_options)? {
+    if let Some(supplier) = supplier {
         let r = supplier
             .render(volume, &doc.stack, s, opts.cancel.as_deref())
             .map_err(|e| anyhow!(e))?;

@@ -125,27 +125,62 @@ impl Field for NoFlow {
     }
 }
 
+/// The seeded noise volume on a LIC grid of `dims` (the values the GPU uploads and the
+/// twins convolve).
+fn noise_of(dims: [u32; 3], params: &ParamValues) -> GridField {
+    noise_volume(dims, noise_kind(params), params.int("seed") as u64)
+}
+
+/// What the LIC integrates, on the LIC grid: the field (none for a scalar volume),
+/// the noise and the integration parameters. Both twins use it: the precomputed one
+/// integrates at every voxel ([`LicInputs::volume`]), the on-the-fly one at each
+/// sample ([`LicInputs::at`]).
+pub struct LicInputs {
+    pub field: Option<GridField>,
+    pub noise: GridField,
+    pub frequency: f64,
+    pub params: LicParams,
+}
+
+impl LicInputs {
+    pub fn new(volume: &Volume, frequency: u32, params: &ParamValues) -> Self {
+        Self {
+            field: field_of(volume),
+            noise: noise_of(lic_dims(volume, frequency), params),
+            frequency: frequency as f64,
+            params: lic_params(params),
+        }
+    }
+
+    /// Runs `f` with the field in LIC-grid voxel coordinates.
+    fn with_field<R>(&self, f: impl FnOnce(&dyn Field) -> R) -> R {
+        match &self.field {
+            Some(inner) => f(&Scaled {
+                inner,
+                factor: self.frequency,
+            }),
+            None => f(&NoFlow),
+        }
+    }
+
+    /// I at a point of the LIC grid (voxel coordinates), as the on-the-fly hook computes it.
+    pub fn at(&self, p: DVec3) -> f64 {
+        self.with_field(|field| lic_at(field, &self.noise, p, &self.params))
+    }
+
+    /// I at every voxel of the LIC grid (the twin of the pre-pass), x fastest.
+    pub fn volume(&self) -> GridField {
+        GridField {
+            dims: self.noise.dims,
+            components: 1,
+            data: self.with_field(|field| lic_volume(field, &self.noise, &self.params)),
+        }
+    }
+}
+
 /// The LIC volume on the LIC grid (the twin of the pre-pass), x fastest.
 pub fn lic_of(volume: &Volume, frequency: u32, params: &ParamValues) -> GridField {
-    let dims = lic_dims(volume, frequency);
-    let noise = noise_volume(dims, noise_kind(params), params.int("seed") as u64);
-    let p = lic_params(params);
-    let data = match field_of(volume) {
-        Some(f) => lic_volume(
-            &Scaled {
-                inner: &f,
-                factor: frequency as f64,
-            },
-            &noise,
-            &p,
-        ),
-        None => lic_volume(&NoFlow, &noise, &p),
-    };
-    GridField {
-        dims,
-        components: 1,
-        data,
-    }
+    LicInputs::new(volume, frequency, params).volume()
 }
 
 impl Plugin for Lic3d {
@@ -301,8 +336,7 @@ impl Plugin for Lic3d {
         let Some(noise) = resources.get(1) else {
             return Err(error("noise texture missing".into()));
         };
-        let dims = lic_dims(gpu.volume, self.frequency);
-        let n = noise_volume(dims, noise_kind(params), params.int("seed") as u64);
+        let n = noise_of(lic_dims(gpu.volume, self.frequency), params);
         gpu.write_floats(noise, &n.data);
         Ok(())
     }
@@ -318,33 +352,6 @@ impl Plugin for Lic3d {
     }
 }
 
-/// What the on-the-fly twin integrates over: the field (none for a scalar volume) and
-/// the noise, both on the LIC grid.
-pub struct FlyInputs {
-    pub field: Option<GridField>,
-    pub noise: GridField,
-    pub frequency: f64,
-    pub params: LicParams,
-}
-
-impl FlyInputs {
-    /// I at a point of the LIC grid (voxel coordinates), as the on-the-fly hook computes it.
-    pub fn at(&self, p: DVec3) -> f64 {
-        match &self.field {
-            Some(f) => lic_at(
-                &Scaled {
-                    inner: f,
-                    factor: self.frequency,
-                },
-                &self.noise,
-                p,
-                &self.params,
-            ),
-            None => lic_at(&NoFlow, &self.noise, p, &self.params),
-        }
-    }
-}
-
 /// CPU twin: precomputed, the LIC volume computed once (`prepare`), sampled trilinearly
 /// as the GPU samples `lic`; on the fly, the integral at each sample.
 pub struct Lic3dTwin {
@@ -353,24 +360,18 @@ pub struct Lic3dTwin {
     pub params: ParamValues,
     pub modulate: f64,
     pub lic: Option<Arc<GridField>>,
-    pub fly: Option<Arc<FlyInputs>>,
+    pub fly: Option<Arc<LicInputs>>,
 }
 
 impl CpuTwin for Lic3dTwin {
     fn prepare(&mut self, ctx: &CpuContext) {
         if self.on_the_fly {
             if self.fly.is_none() {
-                let dims = lic_dims(ctx.volume, self.frequency);
-                self.fly = Some(Arc::new(FlyInputs {
-                    field: field_of(ctx.volume),
-                    noise: noise_volume(
-                        dims,
-                        noise_kind(&self.params),
-                        self.params.int("seed") as u64,
-                    ),
-                    frequency: self.frequency as f64,
-                    params: lic_params(&self.params),
-                }));
+                self.fly = Some(Arc::new(LicInputs::new(
+                    ctx.volume,
+                    self.frequency,
+                    &self.params,
+                )));
             }
         } else if self.lic.is_none() {
             self.lic = Some(Arc::new(lic_of(ctx.volume, self.frequency, &self.params)));

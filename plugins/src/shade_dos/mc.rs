@@ -102,14 +102,7 @@ impl ConvergedReference for MonteCarloReference {
         let mut parts = Vec::new();
         for i in stack.iter().filter(|i| i.enabled) {
             if i.plugin.id() == "shade.dos" {
-                let p = &i.params;
-                parts.push(format!(
-                    "shade.dos:{}|{}|{}|{:?}",
-                    p.float("theta_deg"),
-                    p.float("la"),
-                    p.float("ambient"),
-                    super::extinction(p).unwrap_or(DVec3::ONE)
-                ));
+                parts.push(format!("shade.dos:{:?}", Integral::of(&i.params)));
             } else {
                 parts.push(format!("{}:{:?}", i.plugin.id(), i.params));
             }
@@ -178,14 +171,34 @@ impl McImage {
     }
 }
 
-/// The DOS parameters of the stack's enabled `shade.dos` and the twins of every other
-/// enabled plugin.
-struct Scene {
+/// The parameters of `shade.dos` the cone integral depends on (the kernel, the distance
+/// mode and the buffers belong to the slice algorithm only): what the reference renders
+/// with and what its cache key holds.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Integral {
+    /// The cone aperture in radians.
     theta: f64,
     la: f64,
     ambient: f64,
     /// κ of the chromatic extinction ((1, 1, 1) when achromatic).
     kappa: DVec3,
+}
+
+impl Integral {
+    fn of(p: &vwb_render::params::ParamValues) -> Self {
+        Self {
+            theta: (p.float("theta_deg") as f64).to_radians(),
+            la: p.float("la") as f64,
+            ambient: p.float("ambient") as f64,
+            kappa: super::extinction(p).unwrap_or(DVec3::ONE),
+        }
+    }
+}
+
+/// The DOS parameters of the stack's enabled `shade.dos` and the twins of every other
+/// enabled plugin.
+struct Scene {
+    integral: Integral,
     twins: Vec<Box<dyn CpuTwin>>,
 }
 
@@ -207,10 +220,7 @@ fn scene(stack: &[PluginInstance], ctx: &CpuContext) -> Result<Scene, String> {
         twins.push(t);
     }
     Ok(Scene {
-        theta: (dos.params.float("theta_deg") as f64).to_radians(),
-        la: dos.params.float("la") as f64,
-        ambient: dos.params.float("ambient") as f64,
-        kappa: super::extinction(&dos.params).unwrap_or(DVec3::ONE),
+        integral: Integral::of(&dos.params),
         twins,
     })
 }
@@ -308,7 +318,7 @@ pub fn render_mc(
     let (he, hc) = (opts.eye_step * voxel, opts.cone_step * voxel);
 
     // T < 10⁻⁴ in every channel
-    let tau_max = 9.3 / sc.kappa.min_element().max(1.0e-9);
+    let tau_max = 9.3 / sc.integral.kappa.min_element().max(1.0e-9);
     let transmittance = |from: DVec3, dir: DVec3| -> DVec3 {
         let Some((_, t_out)) = slab(from, dir, lo, hi) else {
             return DVec3::ONE;
@@ -325,7 +335,7 @@ pub fn render_mc(
                 return DVec3::ZERO;
             }
         }
-        (-tau * sc.kappa).exp()
+        (-tau * sc.integral.kappa).exp()
     };
 
     let pixel = |x: u32, y: u32| -> ([f64; 4], [f64; 3]) {
@@ -356,11 +366,11 @@ pub fn render_mc(
                 for (r, rng) in rngs.iter_mut().enumerate() {
                     let mut v = DVec3::ZERO;
                     for _ in 0..per_replica {
-                        let omega = cone_direction(-dir, sc.theta, rng);
+                        let omega = cone_direction(-dir, sc.integral.theta, rng);
                         v += transmittance(pos, omega);
                     }
                     v /= per_replica as f64;
-                    let c = rgb * (v * sc.la + sc.ambient) * a * t_eye;
+                    let c = rgb * (v * sc.integral.la + sc.integral.ambient) * a * t_eye;
                     sums[r] += c.extend(a * t_eye);
                 }
             }
