@@ -46,6 +46,11 @@ def run(vwb, preset, backend, size, frames, env, extra=()):
     }
 
 
+def ms(x: float) -> str:
+    """One decimal, two below 10 ms (GPU frames take fractions of one)."""
+    return f"{x:.1f}" if x >= 10 else f"{x:.2f}"
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--vwb", default=default_vwb())
@@ -75,8 +80,8 @@ def main():
             w = r["wall"]
             rows.append(
                 f"| {name} | {backend} | {r['slices']} | "
-                + (f"{g[0]:.1f} ({g[1]:.1f}–{g[2]:.1f})" if g else "n/a")
-                + f" | {w[0]:.1f} |"
+                + (f"{ms(g[0])} ({ms(g[1])}–{ms(g[2])})" if g else "n/a")
+                + f" | {ms(w[0])} |"
             )
     cmd = "python3 bench/perf.py" + (" --gpu --block " + a.block if a.gpu else "")
     lines = [

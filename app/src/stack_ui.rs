@@ -8,7 +8,7 @@
 
 use std::path::PathBuf;
 
-use vwb_render::params::{ParamKind, ParamSpec, ParamValue, ParamValues};
+use vwb_render::params::{Animation, ParamKind, ParamSpec, ParamValue, ParamValues};
 use vwb_render::plugin::{Category, PluginInstance, Registry};
 
 /// A change to the stack's order or membership.
@@ -76,11 +76,24 @@ pub fn param_widgets(
         let mut new = current.clone();
         let response = match (&spec.kind, &mut new) {
             (ParamKind::Float { min, max, log, .. }, ParamValue::Float(v)) => Some(
-                ui.add(
-                    egui::Slider::new(v, *min..=*max)
-                        .logarithmic(*log)
-                        .text(spec.label),
-                ),
+                ui.horizontal(|ui| {
+                    let r = ui.add(
+                        egui::Slider::new(v, *min..=*max)
+                            .logarithmic(*log)
+                            .text(spec.label),
+                    );
+                    if let Some(animation) = spec.animation {
+                        playback(
+                            ui,
+                            egui::Id::unique((salt, spec.key)),
+                            animation,
+                            v,
+                            [*min, *max],
+                        );
+                    }
+                    r
+                })
+                .inner,
             ),
             (ParamKind::Int { min, max, .. }, ParamValue::Int(v)) => {
                 Some(ui.add(egui::Slider::new(v, *min..=*max).text(spec.label)))
@@ -148,6 +161,73 @@ pub fn param_widgets(
         }
     }
     changed
+}
+
+/// How an animated parameter plays ([`playback`]): kept in egui's memory per plugin
+/// instance and parameter.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Playback {
+    pub playing: bool,
+    /// Units of the parameter per second.
+    pub speed: f32,
+    /// Start again at the minimum after the maximum (else stop there).
+    pub looping: bool,
+}
+
+impl Playback {
+    fn new(animation: Animation, [min, max]: [f32; 2]) -> Self {
+        Self {
+            playing: false,
+            speed: (max - min) / 10.0,
+            looping: animation == Animation::Cycle,
+        }
+    }
+
+    /// The value `dt` seconds after `v` in `[min, max]`; stops at the maximum unless
+    /// looping.
+    pub fn advance(&mut self, v: f32, dt: f32, [min, max]: [f32; 2]) -> f32 {
+        let next = v + self.speed * dt;
+        if next <= max {
+            return next.max(min);
+        }
+        if self.looping && max > min {
+            min + (next - max).rem_euclid(max - min)
+        } else {
+            self.playing = false;
+            max
+        }
+    }
+}
+
+/// Play / pause, speed and loop for an animated float ([`vwb_render::params::Animation`]):
+/// while playing, the value advances by speed × the frame time each frame, and the
+/// window renders again (the parameter's uniform only, where the plugin keeps it out
+/// of its passes).
+fn playback(ui: &mut egui::Ui, id: egui::Id, animation: Animation, v: &mut f32, range: [f32; 2]) {
+    let mut state = ui
+        .data(|d| d.get_temp::<Playback>(id))
+        .unwrap_or_else(|| Playback::new(animation, range));
+    let label = if state.playing { "Pause" } else { "Play" };
+    if ui.button(label).clicked() {
+        if !state.playing && *v >= range[1] && !state.looping {
+            *v = range[0];
+        }
+        state.playing = !state.playing;
+    }
+    ui.add(
+        egui::DragValue::new(&mut state.speed)
+            .speed(0.1)
+            .range(0.0..=(range[1] - range[0]) * 10.0)
+            .suffix("/s"),
+    )
+    .on_hover_text("speed: units per second");
+    ui.checkbox(&mut state.looping, "loop");
+    if state.playing {
+        let dt = ui.input(|i| i.stable_dt).min(0.1);
+        *v = state.advance(*v, dt, range);
+        ui.ctx().request_repaint();
+    }
+    ui.data_mut(|d| d.insert_temp(id, state));
 }
 
 /// A path field that applies its text when editing ends (Enter or focus lost), so that
@@ -362,6 +442,67 @@ mod tests {
         for (from, to) in [(1, 1), (1, 2), (0, 4), (5, 0)] {
             assert!(!apply(&mut s, StackOp::Move { from, to }), "{from}→{to}");
         }
+    }
+
+    /// Playing advances by speed × time, stops at the maximum or loops to the minimum.
+    #[test]
+    fn playback_advances_loops_and_stops() {
+        let mut p = Playback::new(Animation::Clock, [0.0, 100.0]);
+        assert!(!p.looping && p.speed == 10.0);
+        p.playing = true;
+        assert_eq!(p.advance(20.0, 0.5, [0.0, 100.0]), 25.0);
+        assert_eq!(p.advance(98.0, 0.5, [0.0, 100.0]), 100.0);
+        assert!(!p.playing, "a clock stops at its end");
+        let mut c = Playback::new(Animation::Cycle, [0.0, 360.0]);
+        assert!(c.looping);
+        c.playing = true;
+        assert!((c.advance(350.0, 1.0, [0.0, 360.0]) - 26.0).abs() < 1e-4);
+        assert!(c.playing);
+    }
+
+    /// A playing parameter advances frame by frame in the real widget: `flow.arrival`'s
+    /// time, after a click on Play, at the speed shown.
+    #[test]
+    fn a_played_time_advances_with_the_frames() {
+        let r = vwb_plugins::builtin_registry();
+        let mut i = PluginInstance::new(r.get("flow.arrival").unwrap());
+        let specs = i.plugin.params();
+        let ctx = egui::Context::default();
+        let id = egui::Id::unique((7u64, "time"));
+        let before = i.params.float("time");
+        let mut time = 0.0;
+        for frame in 0..6 {
+            if frame == 1 {
+                // what the Play button does
+                ctx.data_mut(|d| {
+                    let mut p = Playback::new(Animation::Clock, [0.0, 1024.0]);
+                    p.playing = true;
+                    d.insert_temp(id, p)
+                });
+            }
+            let input = egui::RawInput {
+                time: Some(time),
+                ..Default::default()
+            };
+            time += 0.05;
+            let mut out = ctx.run_ui(input, |ui| {
+                let cx = StackUi {
+                    registry: &r,
+                    error: None,
+                    histogram: &[],
+                    volume: None,
+                };
+                param_widgets(ui, 7, &specs, &mut i.params, &cx);
+            });
+            out.textures_delta.clear();
+        }
+        let after = i.params.float("time");
+        // five frames played at 102.4 per second, each at most 0.1 s
+        assert!(after > before + 1.0, "{before} → {after}");
+        assert!(
+            after <= before + 5.0 * 0.1 * 102.4 + 1e-3,
+            "{before} → {after}"
+        );
     }
 
     /// Every built-in plugin's parameters lay out headless without panicking, and

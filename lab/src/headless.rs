@@ -17,6 +17,7 @@ pub fn load_volume(src: &VolumeSource) -> Result<Arc<Volume>> {
         VolumeSource::Demo => vwb_render::volume::demo(),
         VolumeSource::File(p) => load_volume_file(p)?,
         VolumeSource::Sample(name) => load_volume_file(&vwb_render::samples::resolve(name)?)?,
+        VolumeSource::Analytic(a) => a.volume().map_err(anyhow::Error::msg)?,
     }))
 }
 

@@ -9,6 +9,7 @@
 //! and window are thin layers over it, and scripts or other front ends (a Python
 //! binding, an experiment runner) can use it directly. No module here imports the app.
 
+pub mod animation;
 pub mod document;
 pub mod experiment;
 pub mod headless;

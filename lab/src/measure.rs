@@ -1403,6 +1403,7 @@ pub fn scene_json(doc: &Document, volume: &Volume, preset: &Path) -> serde_json:
                 .map(|p| std::fs::canonicalize(&p).unwrap_or(p)),
             None,
         ),
+        VolumeSource::Analytic(_) => (None, None),
     };
     // Blinn–Phong material of an enabled shade.blinn_phong (for peers' shading)
     let shading = doc

@@ -108,6 +108,78 @@ impl Field for Tornado {
     }
 }
 
+/// The analytic fields a preset can name ([`AnalyticField`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub enum AnalyticKind {
+    /// [`Rotation`] about the grid's vertical centre line.
+    Rotation,
+    /// [`Abc`] flow with the period of the grid's x side.
+    Abc,
+    /// A [`Tornado`] on the grid's centre line, its core a sixth of the x side.
+    Tornado,
+}
+
+/// A generated vector volume: an analytic field sampled at the voxel centres of `size`
+/// (3 components, voxels per unit time, unit spacing), for presets that need no data.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct AnalyticField {
+    pub field: AnalyticKind,
+    pub size: [u32; 3],
+}
+
+impl AnalyticField {
+    /// Sides from 2 to 512 voxels.
+    pub fn check(&self) -> Result<(), String> {
+        if self.size.iter().all(|s| (2..=512).contains(s)) {
+            Ok(())
+        } else {
+            Err(format!(
+                "an analytic field's size must be 2–512 voxels per side, got {:?}",
+                self.size
+            ))
+        }
+    }
+
+    /// Its name as a volume name, e.g. `tornado_64x64x64`.
+    pub fn name(&self) -> String {
+        let [x, y, z] = self.size;
+        format!("{}_{x}x{y}x{z}", format!("{:?}", self.field).to_lowercase())
+    }
+
+    /// The field itself, placed on the grid.
+    pub fn field(&self) -> Box<dyn Field> {
+        let s = DVec3::from(self.size.map(f64::from));
+        let mid = s / 2.0 - DVec3::splat(0.5);
+        match self.field {
+            AnalyticKind::Rotation => Box::new(Rotation { center: mid }),
+            AnalyticKind::Abc => Box::new(Abc {
+                period: s.x,
+                ..Default::default()
+            }),
+            AnalyticKind::Tornado => Box::new(Tornado {
+                center: DVec3::new(mid.x, mid.y, s.z / 8.0),
+                core: s.x / 6.0,
+                inflow: 0.3,
+                updraft: 0.4,
+            }),
+        }
+    }
+
+    /// The volume: the field sampled at the voxel centres.
+    pub fn volume(&self) -> Result<crate::volume::Volume, String> {
+        self.check()?;
+        let g = GridField::sample(self.field().as_ref(), self.size);
+        crate::volume::Volume::new(
+            self.name(),
+            self.size,
+            3,
+            [1.0; 3],
+            crate::volume::VoxelData::F32(g.data),
+        )
+        .map_err(|e| e.to_string())
+    }
+}
+
 /// A field on a grid: `components` (2 or 3; a missing w is 0) per voxel, x fastest,
 /// interpolated trilinearly between voxel centres and clamped at the border.
 #[derive(Debug, Clone, PartialEq)]
@@ -455,17 +527,148 @@ pub fn lic_at(field: &dyn Field, noise: &GridField, x0: DVec3, p: &LicParams) ->
     sum / wsum
 }
 
+/// The centre of voxel `i` (x fastest) of a grid of `dims`, in voxel coordinates.
+pub fn voxel_centre(i: usize, dims: [u32; 3]) -> DVec3 {
+    let (nx, ny) = (dims[0] as usize, dims[1] as usize);
+    DVec3::new(
+        (i % nx) as f64,
+        ((i / nx) % ny) as f64,
+        (i / (nx * ny)) as f64,
+    )
+}
+
 /// The LIC volume of `field` over `noise`'s grid: I at every voxel centre, x fastest.
 pub fn lic_volume(field: &dyn Field, noise: &GridField, p: &LicParams) -> Vec<f32> {
     let d = noise.dims;
     let n: usize = d.iter().map(|&v| v as usize).product();
     (0..n)
         .into_par_iter()
+        .map(|i| lic_at(field, noise, voxel_centre(i, d), p) as f32)
+        .collect()
+}
+
+/// The arrival time of voxels that the flow from the seed never reaches (within the
+/// path length, or because it stagnates or leaves the volume first), as stored in the
+/// arrival volume (an f32 the GPU writes and interpolates without overflow).
+pub const NEVER: f32 = 3.0e38;
+
+/// The seed region of an arrival-time volume: a box in texture coordinates ([0, 1]³
+/// over the volume box), e.g. a flat box across the flow (the thesis's start mesh).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SeedBox {
+    pub min: DVec3,
+    pub max: DVec3,
+}
+
+impl SeedBox {
+    pub fn contains(&self, t: DVec3) -> bool {
+        (0..3).all(|a| t[a] >= self.min[a] && t[a] <= self.max[a])
+    }
+
+    /// Where the segment from `a` to `b` (texture coordinates, `a` outside) first
+    /// enters the box, as a fraction of the segment in [0, 1]; `None` if it does not.
+    /// The slab method, axis by axis; the GPU's `arrival_entry` mirrors it.
+    pub fn entry(&self, a: DVec3, b: DVec3) -> Option<f64> {
+        let (mut lo, mut hi) = (0.0f64, 1.0f64);
+        for k in 0..3 {
+            let d = b[k] - a[k];
+            if d.abs() < 1e-12 {
+                if a[k] < self.min[k] || a[k] > self.max[k] {
+                    return None;
+                }
+                continue;
+            }
+            let t0 = (self.min[k] - a[k]) / d;
+            let t1 = (self.max[k] - a[k]) / d;
+            lo = lo.max(t0.min(t1));
+            hi = hi.min(t0.max(t1));
+        }
+        (lo <= hi).then_some(lo)
+    }
+}
+
+/// Parameters of the arrival-time volume.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ArrivalParams {
+    /// Path length per step, voxels: each step's time is `step / |v|`.
+    pub step: f64,
+    /// The longest path traced back from a voxel, voxels.
+    pub max_length: f64,
+    pub integrator: Integrator,
+}
+
+impl Default for ArrivalParams {
+    fn default() -> Self {
+        Self {
+            step: 0.5,
+            max_length: 256.0,
+            integrator: Integrator::Rk4,
+        }
+    }
+}
+
+/// The arrival time at `p` (voxel coordinates of a grid of `dims`) of matter released
+/// from `seed` at t = 0 and carried by `field` (Rezk-Salama's time surfaces, §9.3, as
+/// one volume: the surface at time t is its level set t). Traced backwards in time from
+/// `p` until the path enters the seed, with steps of `dt = step / |v(q)|` (a path
+/// length of about `step` each) and the integrator on the vectors as they are; the
+/// entry is interpolated along the last step. Time is in the field's units (voxels
+/// per unit time; `flow.arrival` scales the field to a top speed of 1, so its times
+/// are in voxels at the top speed). [`f64::INFINITY`] where the path leaves the
+/// volume, stagnates (|v| < 1e-6) or exceeds `max_length` first.
+pub fn arrival_at(
+    field: &dyn Field,
+    dims: [u32; 3],
+    seed: &SeedBox,
+    p: DVec3,
+    a: &ArrivalParams,
+) -> f64 {
+    let d = DVec3::from(dims.map(f64::from));
+    let tex = |q: DVec3| (q + DVec3::splat(0.5)) / d;
+    if seed.contains(tex(p)) {
+        return 0.0;
+    }
+    let n = (a.max_length / a.step).ceil() as usize;
+    let (mut t, mut q) = (0.0, p);
+    for _ in 0..n {
+        let Some(v) = field.at(q) else {
+            return f64::INFINITY;
+        };
+        let speed = v.length();
+        if !(speed >= 1e-6 && speed.is_finite()) {
+            return f64::INFINITY;
+        }
+        let dt = a.step / speed;
+        let Some(next) = step(field, q, -dt, a.integrator, Speed::Magnitude) else {
+            return f64::INFINITY;
+        };
+        if let Some(f) = seed.entry(tex(q), tex(next)) {
+            return t + f * dt;
+        }
+        t += dt;
+        q = next;
+    }
+    f64::INFINITY
+}
+
+/// The arrival time at every voxel centre of `dims`, x fastest, as f32 with [`NEVER`]
+/// for the voxels never reached.
+pub fn arrival_volume(
+    field: &dyn Field,
+    dims: [u32; 3],
+    seed: &SeedBox,
+    a: &ArrivalParams,
+) -> Vec<f32> {
+    let n: usize = dims.iter().map(|&v| v as usize).product();
+    (0..n)
+        .into_par_iter()
         .map(|i| {
-            let x = i % d[0] as usize;
-            let y = (i / d[0] as usize) % d[1] as usize;
-            let z = i / (d[0] as usize * d[1] as usize);
-            lic_at(field, noise, DVec3::new(x as f64, y as f64, z as f64), p) as f32
+            let t = arrival_at(field, dims, seed, voxel_centre(i, dims), a);
+            if t.is_finite() {
+                (t as f32).min(NEVER)
+            } else {
+                NEVER
+            }
         })
         .collect()
 }
@@ -473,6 +676,71 @@ pub fn lic_volume(field: &dyn Field, noise: &GridField, p: &LicParams) -> Vec<f3
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn arrival_in_a_uniform_flow_is_the_distance_from_the_seed() {
+        // v = (2, 0, 0) voxels per unit time from a slab at x ∈ [0, 0.1] of 40 voxels:
+        // the slab's far face is at x = 3.5 voxels, so voxel x arrives at (x − 3.5) / 2
+        struct Uniform;
+        impl Field for Uniform {
+            fn at(&self, _p: DVec3) -> Option<DVec3> {
+                Some(DVec3::new(2.0, 0.0, 0.0))
+            }
+        }
+        let dims = [40, 4, 4];
+        let seed = SeedBox {
+            min: DVec3::ZERO,
+            max: DVec3::new(0.1, 1.0, 1.0),
+        };
+        for integrator in Integrator::ALL {
+            let a = ArrivalParams {
+                integrator,
+                ..Default::default()
+            };
+            for x in [0u32, 3, 4, 10, 39] {
+                let t = arrival_at(&Uniform, dims, &seed, DVec3::new(x as f64, 1.0, 1.0), &a);
+                let want = ((x as f64 - 3.5) / 2.0).max(0.0);
+                assert!(
+                    (t - want).abs() < 1e-9,
+                    "{integrator:?} x {x}: {t} vs {want}"
+                );
+            }
+        }
+        // upstream of the seed nothing arrives; a short path does not reach
+        let v = arrival_volume(&Uniform, dims, &seed, &ArrivalParams::default());
+        assert_eq!(v[0], 0.0);
+        let short = ArrivalParams {
+            max_length: 4.0,
+            ..Default::default()
+        };
+        assert!(
+            arrival_at(&Uniform, dims, &seed, DVec3::new(20.0, 1.0, 1.0), &short).is_infinite()
+        );
+        assert_eq!(
+            arrival_volume(&Uniform, dims, &seed, &short)[20 + 40 * (1 + 4)],
+            NEVER
+        );
+    }
+
+    #[test]
+    fn arrival_on_the_rotation_is_the_angle_over_the_angular_speed() {
+        // v = (−y, x, 0) about c: angular speed 1, so the arrival from a thin seed
+        // on the ray θ = 0 is θ (any radius); RK4 at half a voxel within 1e-3
+        let c = DVec3::new(32.0, 32.0, 2.0);
+        let field = Rotation { center: c };
+        let dims = [64, 64, 4];
+        let seed = SeedBox {
+            min: DVec3::new(32.5 / 64.0, 32.0 / 64.0, 0.0),
+            max: DVec3::new(1.0, 33.0 / 64.0, 1.0),
+        };
+        for (r, theta) in [(10.0f64, 1.0f64), (20.0, 2.5), (25.0, 4.0)] {
+            let p = c + DVec3::new(r * theta.cos(), r * theta.sin(), 0.0);
+            let t = arrival_at(&field, dims, &seed, p, &ArrivalParams::default());
+            // the seed spans y ∈ [31.5, 32.5] voxels: the path enters its upper face
+            let want = theta - (0.5 / r).asin();
+            assert!((t - want).abs() < 2e-2, "r {r} θ {theta}: {t} vs {want}");
+        }
+    }
 
     #[test]
     fn rk4_follows_the_rotation_and_euler_spirals_out() {

@@ -69,6 +69,22 @@ pub struct ParamSpec {
     /// Shown in the UI only while the enumeration `.0` has the value `.1` (a parameter
     /// that one mode reads); presets and uniforms hold it whatever the mode.
     pub shown_when: Option<(&'static str, &'static str)>,
+    /// A float the window can play (advance at a speed each frame) and `vwb render`
+    /// can sweep into an image sequence ([`Animation`]).
+    pub animation: Option<Animation>,
+}
+
+/// How a float parameter animates. Where the parameter stays out of the plugin's
+/// passes' `depends_on` (`flow.arrival`'s `time`), playing it changes only a uniform
+/// and every frame costs a static frame; where it is in them (`flow.lic3d`'s phase in
+/// precomputed mode) every frame reruns them (docs/flow.md measures both).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Animation {
+    /// A time (e.g. `flow.arrival`'s `time`): plays from its minimum to its maximum
+    /// once; `vwb render --time T` sets it.
+    Clock,
+    /// A periodic value (e.g. a phase in degrees): plays in a loop.
+    Cycle,
 }
 
 impl ParamSpec {
@@ -154,7 +170,18 @@ impl ParamSpec {
             kind,
             structural: false,
             shown_when: None,
+            animation: None,
         }
+    }
+    /// The animation clock ([`Animation::Clock`]).
+    pub fn clock(mut self) -> Self {
+        self.animation = Some(Animation::Clock);
+        self
+    }
+    /// A periodic animated value ([`Animation::Cycle`]).
+    pub fn cycle(mut self) -> Self {
+        self.animation = Some(Animation::Cycle);
+        self
     }
     pub fn with_doc(mut self, doc: &'static str) -> Self {
         self.doc = doc;

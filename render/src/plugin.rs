@@ -313,12 +313,25 @@ impl GpuInit<'_> {
     /// `linear_clamp`: 32-bit where the device filters those, else 16-bit. Fill it with
     /// [`GpuInit::write_floats`].
     pub fn create_volume_texture(&self, label: &str, dims: [u32; 3], channels: u32) -> GpuResource {
-        let f32_ok = self.features.contains(wgpu::Features::FLOAT32_FILTERABLE);
-        let format = match (channels, f32_ok) {
-            (1, true) => wgpu::TextureFormat::R32Float,
-            (1, false) => wgpu::TextureFormat::R16Float,
-            (_, true) => wgpu::TextureFormat::Rgba32Float,
-            (_, false) => wgpu::TextureFormat::Rgba16Float,
+        self.create_volume_texture_as(label, dims, channels, false)
+    }
+
+    /// Like [`GpuInit::create_volume_texture`], in r16float / rgba16float also where
+    /// 32-bit floats are filterable when `half` (half the memory and texture traffic;
+    /// [`GpuInit::write_floats`] rounds to fp16).
+    pub fn create_volume_texture_as(
+        &self,
+        label: &str,
+        dims: [u32; 3],
+        channels: u32,
+        half: bool,
+    ) -> GpuResource {
+        let half = half || !self.features.contains(wgpu::Features::FLOAT32_FILTERABLE);
+        let format = match (channels, half) {
+            (1, false) => wgpu::TextureFormat::R32Float,
+            (1, true) => wgpu::TextureFormat::R16Float,
+            (_, false) => wgpu::TextureFormat::Rgba32Float,
+            (_, true) => wgpu::TextureFormat::Rgba16Float,
         };
         let texture = self.device.create_texture(&wgpu::TextureDescriptor {
             label: Some(label),

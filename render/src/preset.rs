@@ -31,6 +31,9 @@ pub enum VolumeSource {
     /// A sample data set by name (`render/data/samples.ron`), found in the data
     /// directory ([`crate::samples::data_dir`]).
     Sample(String),
+    /// A generated analytic vector field ([`crate::flow::AnalyticField`]), e.g.
+    /// `Analytic((field: Tornado, size: (64, 64, 64)))`.
+    Analytic(crate::flow::AnalyticField),
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -231,6 +234,9 @@ impl Document {
             crate::samples::manifest()
                 .get(name)
                 .map_err(|e| value_err("volume".into(), e.to_string()))?;
+        }
+        if let VolumeSource::Analytic(a) = &raw.volume {
+            a.check().map_err(|e| value_err("volume".into(), e))?;
         }
         crate::validate::check_camera(&raw.camera).map_err(|e| value_err(e.field, e.message))?;
         let mut stack = Vec::new();

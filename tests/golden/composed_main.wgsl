@@ -426,12 +426,19 @@ fn under(acc: vec4<f32>, c: vec4<f32>) -> vec4<f32> {
 }
 
 // Round to fp16 like an rgba16float blend target does, so that both backends
-// accumulate with the same precision.
+// accumulate with the same precision: round to nearest, ties to even, with integer
+// operations (NVIDIA's compiler folds unpack2x16float(pack2x16float(v)) to v, which
+// left the compute backend accumulating in fp32 there). Normal range: keep 10 of the
+// 23 mantissa bits; fp16's subnormal range (|v| < 2^-14): multiples of 2^-24, where
+// round() ties to even. Values beyond fp16's range (65504) are not made infinite.
 fn round_like_target(v: vec4<f32>) -> vec4<f32> {
     if (frame.counts.y == 0u) {
         return v;
     }
-    return vec4<f32>(unpack2x16float(pack2x16float(v.xy)), unpack2x16float(pack2x16float(v.zw)));
+    let b = bitcast<vec4<u32>>(v);
+    let normal = bitcast<vec4<f32>>((b + vec4<u32>(0x0FFFu) + ((b >> vec4<u32>(13u)) & vec4<u32>(1u))) & vec4<u32>(0xFFFFE000u));
+    let subnormal = round(v * 16777216.0) * (1.0 / 16777216.0);
+    return select(normal, subnormal, abs(v) < vec4<f32>(6.103515625e-5));
 }
 
 // ---------------------------------------------------------------- raster backend

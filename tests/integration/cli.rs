@@ -157,6 +157,102 @@ fn failures_name_the_file_and_exit_non_zero() {
     assert_eq!(stderr.matches("No such file").count(), 1, "{stderr}");
 }
 
+/// `--time` sets the stack's clock, `--sequence` writes numbered frames with it
+/// advancing (no pre-pass reruns), and wrong uses say why.
+#[test]
+fn render_time_and_sequence() {
+    let dir = tmp("sequence");
+    // the storm's time surfaces at 48², with `extra` arguments, to `out`
+    let storm = |extra: &[&str], out: &std::path::Path| {
+        let o = vwb()
+            .args([
+                "render",
+                "--preset",
+                "presets/storm_time_surfaces.ron",
+                "--size",
+                "48x48",
+            ])
+            .args(extra)
+            .arg("-o")
+            .arg(out)
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        String::from_utf8_lossy(&o.stdout).to_string()
+    };
+    let stdout = storm(&["--sequence", "0:60:3"], &dir.join("storm.png"));
+    assert!(
+        stdout.contains("wrote 3 frames") && stdout.contains("flow.arrival.time"),
+        "{stdout}"
+    );
+    assert!(stdout.contains("0 pre-/volume passes reran"), "{stdout}");
+    let frames: Vec<Vec<u8>> = (0..3)
+        .map(|i| std::fs::read(dir.join(format!("storm_000{i}.png"))).unwrap())
+        .collect();
+    assert!(
+        frames[0] != frames[1] && frames[1] != frames[2],
+        "the frames differ"
+    );
+    // --time T renders what frame T of a sequence renders
+    let one = dir.join("t30.png");
+    storm(&["--time", "30"], &one);
+    assert_eq!(std::fs::read(&one).unwrap(), frames[1]);
+    for (args, says) in [
+        (
+            vec!["--preset", "presets/demo.ron", "--time", "3"],
+            "no clock parameter",
+        ),
+        (
+            vec![
+                "--preset",
+                "presets/storm_time_surfaces.ron",
+                "--time",
+                "5000",
+            ],
+            "outside flow.arrival's time range",
+        ),
+        (
+            vec![
+                "--preset",
+                "presets/storm_lic.ron",
+                "--animate",
+                "nope",
+                "--time",
+                "1",
+            ],
+            "'nope'",
+        ),
+        (
+            vec!["--preset", "presets/storm_lic.ron", "--sequence", "0:10"],
+            "is not A:B:N",
+        ),
+        (
+            vec![
+                "--preset",
+                "presets/storm_time_surfaces.ron",
+                "--time",
+                "1",
+                "--sequence",
+                "0:1:2",
+            ],
+            "give one of them",
+        ),
+    ] {
+        let o = vwb()
+            .arg("render")
+            .args(&args)
+            .arg("-o")
+            .arg(dir.join("x.png"))
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&o.stderr);
+        assert!(
+            !o.status.success() && stderr.contains(says),
+            "{args:?}: {stderr}"
+        );
+    }
+}
+
 #[test]
 fn info_lists_adapter_and_plugins() {
     let o = vwb().arg("info").output().unwrap();

@@ -58,6 +58,50 @@ pub fn gpu() -> &'static GpuContext {
     })
 }
 
+/// Whether the tests run on a GPU (`VWB_TEST_GPU=1` on a machine with one) rather than
+/// on a CPU adapter such as lavapipe.
+pub fn on_gpu() -> bool {
+    gpu().info.device_type != wgpu::DeviceType::Cpu
+}
+
+/// Milliseconds with three significant digits or so, for benchmark tables (GPU
+/// frames take fractions of one).
+pub fn fmt_ms(ms: f64) -> String {
+    match ms {
+        m if m >= 100.0 => format!("{m:.0}"),
+        m if m >= 10.0 => format!("{m:.1}"),
+        m => format!("{m:.2}"),
+    }
+}
+
+/// Where a benchmark writes `name` (a path under docs/): docs/ on a CPU adapter
+/// (lavapipe, the figures the documents cite), docs/gpu/ on a GPU, so that a run on a
+/// GPU never overwrites them.
+pub fn bench_doc(name: &str) -> PathBuf {
+    let p = repo()
+        .join(if on_gpu() { "docs/gpu" } else { "docs" })
+        .join(name);
+    std::fs::create_dir_all(p.parent().expect("a file under docs/")).unwrap();
+    p
+}
+
+/// The GPU ms of the timestamped passes whose label passes `pick`, summed; `None`
+/// on a CPU adapter (lavapipe reports zeros for compute passes and books one pass's
+/// time to the next, since it overlaps consecutive dispatches) or where the adapter
+/// reports none.
+pub fn stamped_ms(
+    stats: &vwb_render::renderer::FrameStats,
+    pick: impl Fn(&str) -> bool,
+) -> Option<f64> {
+    let ms: f64 = stats
+        .gpu_passes
+        .iter()
+        .filter(|(label, _)| pick(label))
+        .map(|(_, ms)| ms)
+        .sum();
+    (on_gpu() && ms > 0.0).then_some(ms)
+}
+
 /// Bytes of one voxel of the renderer's volume texture on the test adapter (r32float
 /// where it is filterable, else r16float).
 pub fn texel_bytes() -> u64 {

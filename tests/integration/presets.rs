@@ -49,6 +49,12 @@ fn every_shipped_preset_loads_and_composes() {
                 vwb_render::samples::resolve(name)
                     .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
             }
+            VolumeSource::Analytic(a) => {
+                let v = a
+                    .volume()
+                    .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+                assert_eq!(v.components, 3, "{}", path.display());
+            }
             VolumeSource::Demo => {}
         }
         let configured: Vec<_> = doc
@@ -138,6 +144,14 @@ fn bad_values_fail_with_their_path() {
         (
             r#"(version: 1, volume: Sample("ct_hed"))"#,
             "volume: unknown sample 'ct_hed' (known: ct_head,",
+        ),
+        (
+            r#"(version: 1, volume: Analytic((field: Tornado, size: (64, 0, 100000))))"#,
+            "volume: an analytic field's size must be 2–512 voxels per side",
+        ),
+        (
+            r#"(version: 1, volume: Analytic((field: Hurricane, size: (8, 8, 8))))"#,
+            "Hurricane",
         ),
     ];
     for (text, want) in cases {

@@ -12,6 +12,11 @@
 //! |∇f| is in normalised value per voxel; the table's y axis is
 //! clamp(|∇f|·`gradient_scale`, 0, 1). [`histogram2d`] gives the UI the log-count
 //! histogram over the same axes.
+//!
+//! `y_axis: data` (structural) puts the volume's own normalised value at the sample on
+//! the y axis instead (no gradient): after `flow.lic3d` has replaced the sample's value
+//! by the LIC intensity, the table is over LIC × |v| (the field's magnitude), the
+//! thesis's classification of LIC by speed (§9.3).
 
 use std::sync::Arc;
 
@@ -52,7 +57,11 @@ impl Estimator {
 #[derive(Debug, Clone, Copy, Default)]
 pub struct Tf2dPlugin {
     pub estimator: Estimator,
+    /// `y_axis: data`: the y axis is the data's value at the sample, not |∇f|.
+    pub y_data: bool,
 }
+
+const Y_AXES: [&str; 2] = ["gradient", "data"];
 
 /// The default: a triangle on the demo's soft-tissue boundary and a rectangle on dense,
 /// strongly varying tissue.
@@ -137,9 +146,18 @@ impl Plugin for Tf2dPlugin {
             ParamSpec::float_log("gradient_scale", "Gradient scale", 0.1, 100.0, 4.0)
                 .with_doc("|∇f| (normalised value per voxel) times this is the table's y"),
             ParamSpec::float_log("opacity", "Opacity scale", 0.01, 100.0, 1.0),
+            ParamSpec::enumeration("y_axis", "Y axis", &Y_AXES, 0)
+                .structural()
+                .with_doc("gradient: |∇f| × the gradient scale; data: the volume's own value at the sample (|v| under flow.lic3d's LIC)"),
         ]
     }
     fn shader(&self) -> ShaderSource {
+        if self.y_data {
+            return ShaderSource::new_static(
+                "plugins/src/classify_tf2d/tf2d_data.wgsl",
+                include_str!("tf2d_data.wgsl"),
+            );
+        }
         match self.estimator {
             Estimator::Central => ShaderSource::new_static(
                 "plugins/src/classify_tf2d/tf2d_central.wgsl",
@@ -158,7 +176,7 @@ impl Plugin for Tf2dPlugin {
         }]
     }
     fn prepass(&self) -> Option<PrepassDecl> {
-        (self.estimator == Estimator::Precomputed).then(|| PrepassDecl {
+        (self.estimator == Estimator::Precomputed && !self.y_data).then(|| PrepassDecl {
             target: "gradient",
             format: StorageFormat::R32Float,
             scale: 1.0,
@@ -171,7 +189,9 @@ impl Plugin for Tf2dPlugin {
     }
     fn configure(&self, params: &ParamValues) -> Option<Arc<dyn Plugin>> {
         let estimator = Estimator::from_name(params.enumeration("estimator")).unwrap_or_default();
-        (estimator != self.estimator).then(|| Arc::new(Tf2dPlugin { estimator }) as Arc<dyn Plugin>)
+        let y_data = params.enumeration("y_axis") == "data";
+        (estimator != self.estimator || y_data != self.y_data)
+            .then(|| Arc::new(Tf2dPlugin { estimator, y_data }) as Arc<dyn Plugin>)
     }
     fn create_resources(
         &self,
@@ -214,6 +234,7 @@ impl Plugin for Tf2dPlugin {
             gradient_scale: params.float("gradient_scale") as f64,
             opacity: params.float("opacity") as f64,
             estimator: self.estimator,
+            y_data: self.y_data,
             gradients: None,
         }))
     }
@@ -225,6 +246,7 @@ pub struct Tf2dTwin {
     pub gradient_scale: f64,
     pub opacity: f64,
     pub estimator: Estimator,
+    pub y_data: bool,
     /// Per-voxel |∇f| (precomputed estimator), built in `prepare`.
     pub gradients: Option<Vec<f32>>,
 }
@@ -252,12 +274,16 @@ impl Tf2dTwin {
 
 impl CpuTwin for Tf2dTwin {
     fn prepare(&mut self, ctx: &CpuContext) {
-        if self.estimator == Estimator::Precomputed && self.gradients.is_none() {
+        if self.estimator == Estimator::Precomputed && !self.y_data && self.gradients.is_none() {
             self.gradients = Some(voxel_gradients(ctx.volume, ctx.scalars));
         }
     }
     fn classify(&self, ctx: &CpuContext, s: &mut CpuSample) {
-        let g = self.gradient_magnitude(ctx, s.tex) * self.gradient_scale;
+        let g = if self.y_data {
+            ctx.value(s.tex)
+        } else {
+            self.gradient_magnitude(ctx, s.tex) * self.gradient_scale
+        };
         let c = eval_table(
             &self.table,
             TABLE_SIZE,

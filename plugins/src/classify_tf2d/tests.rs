@@ -21,6 +21,7 @@ fn both_estimators_measure_a_linear_ramp() {
             gradient_scale: 1.0,
             opacity: 1.0,
             estimator,
+            y_data: false,
             gradients: None,
         };
         twin.prepare(&ctx);
@@ -82,4 +83,52 @@ fn estimator_configures_the_prepass() {
     let p = base.configure(&params).unwrap();
     assert_eq!(p.prepass().unwrap().target, "gradient");
     assert!(base.prepass().is_none());
+}
+
+/// `y_axis: data`: the table's y is the data's own value at the sample, whatever the
+/// sample's value has become (flow.lic3d replaces it), and it needs no gradients.
+#[test]
+fn the_data_axis_reads_the_volume_not_the_gradient() {
+    let v = Volume::new("c", [4, 4, 4], 1, [1.0; 3], VoxelData::F32((0..64).map(|i| if i == 0 { 0.0 } else { 1.0 }).collect())).unwrap();
+    let scalars = v.normalized_scalars();
+    let ctx = CpuContext::new(&v, &scalars);
+    let mut params = ParamValues::defaults(&Tf2dPlugin::default().params());
+    params.set(
+        "tf",
+        ParamValue::Tf2d(Tf2d {
+            primitives: vec![Primitive2d {
+                shape: Shape2d::Rectangle,
+                centre: [0.5, 0.85],
+                size: [1.0, 0.5],
+                color: [1.0, 0.5, 0.0, 0.8],
+            }],
+        }),
+    );
+    let configured = Tf2dPlugin::default().configure(&{
+        let mut p = params.clone();
+        p.set("y_axis", ParamValue::Enum("data".into()));
+        p
+    });
+    let data = configured.expect("another mode");
+    assert!(data.prepass().is_none());
+    assert!(data.shader().source.contains("volume_value(s.tex)"));
+    let tex = DVec3::splat(0.8);
+    for (y_data, visible) in [(true, true), (false, false)] {
+        let mut twin = Tf2dTwin {
+            table: tf(&params).bake(TABLE_SIZE),
+            gradient_scale: 1.0,
+            opacity: 1.0,
+            estimator: Estimator::Central,
+            y_data,
+            gradients: None,
+        };
+        twin.prepare(&ctx);
+        let mut sample = CpuSample {
+            tex,
+            value: 0.5,
+            ..Default::default()
+        };
+        twin.classify(&ctx, &mut sample);
+        assert_eq!(sample.color.w > 0.5, visible, "y_data {y_data}: {:?}", sample.color);
+    }
 }

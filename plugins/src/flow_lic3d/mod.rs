@@ -14,7 +14,8 @@
 //!
 //! The field is the volume's 2 or 3 components in voxels per unit time (each divided by
 //! the voxel size along its axis, `vwb_render::flow::GridField::from_volume`), uploaded
-//! as the plugin's own rgba32float texture; a scalar volume has no flow (a zero field:
+//! as the plugin's own rgba32float texture (rgba16float, and the noise r16float, with
+//! `storage: f16`, the twins then rounding both alike); a scalar volume has no flow (a zero field:
 //! the LIC is the noise). Streamlines use unit speed; the choices and their measured
 //! trade are in docs/flow.md. The CPU twin computes the same LIC volume with
 //! `vwb_render::flow::lic_volume` in f64 over the same noise, or, on the fly, the same
@@ -42,6 +43,7 @@ const INTEGRATORS: [&str; 3] = ["euler", "rk2", "rk4"];
 const NOISES: [&str; 3] = ["white", "gaussian", "sparse"];
 const FREQUENCIES: [&str; 2] = ["1", "2"];
 const MODES: [&str; 2] = ["precomputed", "on_the_fly"];
+const STORAGES: [&str; 2] = ["f32", "f16"];
 
 const SHADER_FILE: &str = "plugins/src/flow_lic3d/lic.wgsl";
 const SHADER: &str = include_str!("lic.wgsl");
@@ -53,6 +55,8 @@ pub struct Lic3d {
     pub frequency: u32,
     /// `mode: on_the_fly`: the sample hook integrates; no pre-pass, no LIC volume.
     pub on_the_fly: bool,
+    /// `storage: f16`: the field and the noise in half floats.
+    pub half: bool,
 }
 
 impl Default for Lic3d {
@@ -60,6 +64,7 @@ impl Default for Lic3d {
         Self {
             frequency: 1,
             on_the_fly: false,
+            half: false,
         }
     }
 }
@@ -116,6 +121,26 @@ fn field_of(volume: &Volume) -> Option<GridField> {
     GridField::from_volume(volume).ok()
 }
 
+/// A field as the flow plugins' shaders sample it: an rgba texture of its vectors (w =
+/// 0, and v = 0 too for a 2-component field), half floats when `half`; a 1-voxel zero
+/// field for none.
+pub fn field_texture(gpu: &GpuInit, label: &str, field: Option<&GridField>, half: bool) -> GpuResource {
+    let Some(f) = field else {
+        let r = gpu.create_volume_texture(&format!("{label} (none)"), [1, 1, 1], 4);
+        gpu.write_floats(&r, &[0.0; 4]);
+        return r;
+    };
+    let c = f.components as usize;
+    let texels: Vec<f32> = f
+        .data
+        .chunks_exact(c)
+        .flat_map(|v| [v[0], v[1], if c > 2 { v[2] } else { 0.0 }, 0.0])
+        .collect();
+    let r = gpu.create_volume_texture_as(label, f.dims, 4, half);
+    gpu.write_floats(&r, &texels);
+    r
+}
+
 /// No flow: the LIC of a scalar volume is its noise.
 struct NoFlow;
 
@@ -143,10 +168,23 @@ pub struct LicInputs {
 }
 
 impl LicInputs {
+    /// The inputs as the GPU holds them: with `storage: f16`, the field and the noise
+    /// rounded to half floats, as their textures store them.
     pub fn new(volume: &Volume, frequency: u32, params: &ParamValues) -> Self {
+        let mut field = field_of(volume);
+        let mut noise = noise_of(lic_dims(volume, frequency), params);
+        if half_storage(params) {
+            let round = |g: &mut GridField| {
+                for v in &mut g.data {
+                    *v = half::f16::from_f32(*v).to_f32();
+                }
+            };
+            field.iter_mut().for_each(round);
+            round(&mut noise);
+        }
         Self {
-            field: field_of(volume),
-            noise: noise_of(lic_dims(volume, frequency), params),
+            field,
+            noise,
             frequency: frequency as f64,
             params: lic_params(params),
         }
@@ -176,6 +214,11 @@ impl LicInputs {
             data: self.with_field(|field| lic_volume(field, &self.noise, &self.params)),
         }
     }
+}
+
+/// Whether the values select half-float storage for the field and the noise.
+pub fn half_storage(p: &ParamValues) -> bool {
+    p.enumeration("storage") == "f16"
 }
 
 /// The LIC volume on the LIC grid (the twin of the pre-pass), x fastest.
@@ -219,6 +262,7 @@ impl Plugin for Lic3d {
             ParamSpec::float("ripples", "Ripples per half length", 0.5, 8.0, 2.0)
                 .shown_when("kernel", "periodic"),
             ParamSpec::float("phase_deg", "Phase (°)", 0.0, 360.0, 0.0)
+                .cycle()
                 .shown_when("kernel", "periodic")
                 .with_doc("advancing it moves the ripple downstream; on the fly nothing is recomputed"),
             ParamSpec::float("length", "Half length L (voxels)", 1.0, 32.0, 8.0)
@@ -228,6 +272,9 @@ impl Plugin for Lic3d {
                 .with_doc("RK4 at half a voxel drifts < 10⁻⁶ voxels per turn (docs/flow.md)"),
             ParamSpec::float("modulate", "Modulate by |v|", 0.0, 1.0, 0.0)
                 .with_doc("0: LIC intensity; 1: LIC × normalised field magnitude"),
+            ParamSpec::enumeration("storage", "Field and noise storage", &STORAGES, 0)
+                .structural()
+                .with_doc("f16 halves their memory and the texture traffic of the integration; its error is in docs/flow.md"),
         ]
     }
     fn shader(&self) -> ShaderSource {
@@ -287,6 +334,7 @@ impl Plugin for Lic3d {
         let c = Lic3d {
             frequency: params.enumeration("frequency").parse().unwrap_or(1),
             on_the_fly: params.enumeration("mode") == "on_the_fly",
+            half: half_storage(params),
         };
         (c != *self).then(|| Arc::new(c) as Arc<dyn Plugin>)
     }
@@ -304,25 +352,11 @@ impl Plugin for Lic3d {
                 "the LIC grid {dims:?} exceeds the device's 3D texture limit; lower the frequency"
             )));
         }
-        let field = match field_of(gpu.volume) {
-            Some(f) => {
-                let c = f.components as usize;
-                let texels: Vec<f32> = f
-                    .data
-                    .chunks_exact(c)
-                    .flat_map(|v| [v[0], v[1], if c > 2 { v[2] } else { 0.0 }, 0.0])
-                    .collect();
-                let r = gpu.create_volume_texture("flow.lic3d field", f.dims, 4);
-                gpu.write_floats(&r, &texels);
-                r
-            }
-            None => {
-                let r = gpu.create_volume_texture("flow.lic3d field (none)", [1, 1, 1], 4);
-                gpu.write_floats(&r, &[0.0; 4]);
-                r
-            }
-        };
-        let res = vec![field, gpu.create_volume_texture("flow.lic3d noise", dims, 1)];
+        let field = field_texture(gpu, "flow.lic3d field", field_of(gpu.volume).as_ref(), self.half);
+        let res = vec![
+            field,
+            gpu.create_volume_texture_as("flow.lic3d noise", dims, 1, self.half),
+        ];
         self.update_resources(gpu, params, &res)?;
         Ok(res)
     }

@@ -35,7 +35,7 @@ fn parameters_select_the_integral_and_the_grid() {
     assert_eq!(c.prepass().unwrap().scale, 2.0);
     let twice = Lic3d {
         frequency: 2,
-        on_the_fly: false,
+        ..Lic3d::default()
     };
     assert!(twice.configure(&p).is_none());
     // on the fly: no pre-pass, and the hook integrates (no `lic` texture in the shader)

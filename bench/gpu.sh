@@ -1,0 +1,35 @@
+#!/usr/bin/env bash
+# The GPU figures, on a machine with a GPU and without a Rust toolchain: runs the
+# release `vwb` and the integration-test binary built on another machine (same
+# x86-64 Linux), each step under a time limit, and copies what they write to OUT.
+#
+#   bash bench/gpu.sh VWB INTEGRATION DATA_DIR OUT
+#
+# VWB: target/release/vwb; INTEGRATION: the binary `cargo test --locked --test
+# integration --no-run` prints; DATA_DIR: the sample data (VWB_DATA_DIR). Writes to OUT:
+#   perf.md            docs/perf.md with its `foundation-gpu` block (bench/perf.py --gpu)
+#   gpu-docs.tar       docs/gpu/: flow.md and hernell.md (`flow_study`,
+#                      `hernell_benchmark`, `hernell_blocking_benchmark` on the GPU)
+#   suite.log          the integration suite on the GPU (a check, not a figure)
+#   *.log              each step's output
+# The integration binary finds the repository through the path it was built in
+# (CARGO_MANIFEST_DIR); run this from a checkout at that path or link it there.
+set -uo pipefail
+cd "$(dirname "$0")/.."
+vwb=$(realpath "$1") integration=$(realpath "$2") data=$(realpath "$3") out=$(realpath "$4")
+export VWB_DATA_DIR="$data" XDG_RUNTIME_DIR="${XDG_RUNTIME_DIR:-/tmp}" VWB_TEST_GPU=1
+unset LP_NUM_THREADS  # VK_DRIVER_FILES: the caller's (the GPU's ICD where the loader does not find it)
+mkdir -p "$out"
+step() { # name limit_s command...
+    local name=$1 limit=$2; shift 2
+    local t0=$SECONDS
+    timeout "$limit" "$@" >"$out/$name.log" 2>&1
+    echo "$name: rc=$? in $((SECONDS - t0)) s" | tee -a "$out/steps.txt"
+}
+step perf 90 python3 bench/perf.py --vwb "$vwb" --gpu --block foundation-gpu --frames 20
+cp docs/perf.md "$out/perf.md"
+step benchmarks 240 "$integration" --ignored --test-threads=1 --nocapture \
+    flow::flow_study hernell::hernell_benchmark hernell::hernell_blocking_benchmark
+tar cf "$out/gpu-docs.tar" docs/gpu 2>/dev/null
+step suite 120 "$integration" --test-threads=8
+grep -E "^test result|FAILED|panicked" "$out/suite.log" | head -40 >>"$out/steps.txt"

@@ -1,0 +1,232 @@
+//! `flow.arrival`: the thesis's time surfaces (Rezk-Salama 2001 §9.3, Figs 9.10–9.11)
+//! as one arrival-time volume. The thesis animates 3D LIC by switching between closed
+//! "time surface" clip meshes advected from a start mesh; here a pre-pass stores, for
+//! every voxel, the time at which matter released from a seed box (a flat box across
+//! the flow, the start mesh) reaches it, and the `clip` hook keeps the samples reached
+//! by `time`: the time surface at t is the arrival volume's level set t. Playing `time`
+//! changes one uniform, so the animation runs at the frame rate of a static frame; the
+//! pre-pass reruns only when the seed or an integration parameter changes.
+//!
+//! Choices where the thesis is silent (measured in docs/flow.md):
+//! - each voxel's path is traced backwards in time until it enters the seed box, with
+//!   steps of `dt = step / |v|` (a path length of about `step` voxels each), Euler,
+//!   RK2 or RK4 on the vectors as they are, and the entry interpolated along the last
+//!   step (`vwb_render::flow::arrival_at`, the f64 twin);
+//! - the field is the volume's vectors in voxels per unit time, scaled to a top speed
+//!   of 1, so times are in voxels travelled at the field's top speed, whatever the
+//!   data's units;
+//! - voxels whose path leaves the volume, stagnates (|v| < 10⁻⁶ of the top speed) or
+//!   runs past `max_length` voxels first are never reached ([`NEVER`]);
+//! - `band` > 0 keeps only the samples that arrived within `band` of `time` (a moving
+//!   front of that thickness) instead of everything reached so far.
+//!
+//! A scalar volume has no flow: only the seed is ever reached. Put the plugin before
+//! `flow.lic3d` to mask the LIC (clipped samples never integrate on the fly).
+
+use std::sync::Arc;
+
+use glam::{DVec3, DVec4};
+use vwb_render::flow::{
+    ArrivalParams, GridField, Integrator, NEVER, SeedBox, arrival_volume, voxel_centre,
+};
+use vwb_render::params::{ParamSpec, ParamValue, ParamValues};
+use vwb_render::plugin::{
+    CpuContext, CpuSample, CpuTwin, GpuInit, GpuResource, Plugin, PluginError, PrepassDecl,
+    ResourceDecl, ResourceKind, ShaderSource, StorageFormat, Transparency, trilinear_grid,
+};
+use vwb_render::volume::Volume;
+
+#[cfg(test)]
+mod tests;
+
+const INTEGRATORS: [&str; 3] = ["euler", "rk2", "rk4"];
+const SHADER_FILE: &str = "plugins/src/flow_arrival/arrival.wgsl";
+const SHADER: &str = include_str!("arrival.wgsl");
+
+/// The plugin (no structural parameters).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Arrival;
+
+fn error(message: String) -> PluginError {
+    PluginError::Invalid {
+        plugin: "flow.arrival".into(),
+        message,
+    }
+}
+
+/// The seed box the values select (texture coordinates).
+pub fn seed_box(p: &ParamValues) -> SeedBox {
+    let [a, b] = ["seed_min", "seed_max"].map(|k| DVec3::from(p.vec3(k).map(f64::from)));
+    SeedBox {
+        min: a.min(b),
+        max: a.max(b),
+    }
+}
+
+/// The integration parameters the values select.
+pub fn arrival_params(p: &ParamValues) -> ArrivalParams {
+    ArrivalParams {
+        step: p.float("step") as f64,
+        max_length: p.float("max_length") as f64,
+        integrator: match p.enumeration("integrator") {
+            "euler" => Integrator::Euler,
+            "rk2" => Integrator::Rk2,
+            _ => Integrator::Rk4,
+        },
+    }
+}
+
+/// The field the pre-pass integrates: the volume's vectors scaled to a top speed of 1
+/// (none for a scalar volume or a field that vanishes everywhere).
+pub fn unit_field(volume: &Volume) -> Option<GridField> {
+    let mut f = GridField::from_volume(volume).ok()?;
+    let c = f.components as usize;
+    let top = f
+        .data
+        .chunks_exact(c)
+        .map(|v| v.iter().map(|x| (*x as f64).powi(2)).sum::<f64>().sqrt())
+        .filter(|s| s.is_finite())
+        .fold(0.0f64, f64::max);
+    if top <= 0.0 {
+        return None;
+    }
+    for x in &mut f.data {
+        *x = (*x as f64 / top) as f32;
+    }
+    Some(f)
+}
+
+/// The arrival volume of the pre-pass (its f64 twin, stored as f32 with [`NEVER`]).
+pub fn arrival_of(volume: &Volume, p: &ParamValues) -> Vec<f32> {
+    let seed = seed_box(p);
+    match unit_field(volume) {
+        Some(f) => arrival_volume(&f, volume.dims, &seed, &arrival_params(p)),
+        // no flow: only the seed is reached
+        None => {
+            let d = DVec3::from(volume.dims.map(f64::from));
+            (0..volume.voxel_count())
+                .map(|i| {
+                    let t = (voxel_centre(i, volume.dims) + DVec3::splat(0.5)) / d;
+                    if seed.contains(t) { 0.0 } else { NEVER }
+                })
+                .collect()
+        }
+    }
+}
+
+/// Whether a sample with arrival time `t` is kept at `time` with `band`.
+pub fn kept(t: f64, time: f64, band: f64) -> bool {
+    t <= time && (band <= 0.0 || t > time - band)
+}
+
+impl Plugin for Arrival {
+    /// Its pre-pass follows paths through the whole vector volume.
+    fn splits_into_bricks(&self) -> bool {
+        false
+    }
+    fn id(&self) -> &'static str {
+        "flow.arrival"
+    }
+    fn display_name(&self) -> &'static str {
+        "Time surfaces"
+    }
+    fn description(&self) -> &'static str {
+        "Keeps what the flow from a seed box has reached by a time (an arrival-time volume): play the time to animate"
+    }
+    fn params(&self) -> Vec<ParamSpec> {
+        vec![
+            ParamSpec::float("time", "Time", 0.0, 1024.0, 32.0)
+                .clock()
+                .with_doc("voxels travelled at the field's top speed; playing it recomputes nothing"),
+            ParamSpec::float("band", "Front width", 0.0, 256.0, 0.0)
+                .with_doc("0: everything reached by the time; > 0: only what arrived within this time of it"),
+            ParamSpec::vec3("seed_min", "Seed box min", 0.0, 1.0, [0.0, 0.0, 0.0])
+                .with_doc("corner of the seed box, texture coordinates of the volume box"),
+            ParamSpec::vec3("seed_max", "Seed box max", 0.0, 1.0, [0.05, 1.0, 1.0])
+                .with_doc("opposite corner: by default a flat box across x at the low end"),
+            ParamSpec::float_log("step", "Step (voxels)", 0.1, 2.0, 0.5)
+                .with_doc("path length per integration step"),
+            ParamSpec::float("max_length", "Longest path (voxels)", 8.0, 2048.0, 256.0)
+                .with_doc("paths longer than this never arrive"),
+            ParamSpec::enumeration("integrator", "Integrator", &INTEGRATORS, 2),
+        ]
+    }
+    fn shader(&self) -> ShaderSource {
+        ShaderSource::without_regions(SHADER_FILE, SHADER, &[("prepass", "")])
+    }
+    fn resources(&self) -> Vec<ResourceDecl> {
+        vec![ResourceDecl {
+            name: "field",
+            kind: ResourceKind::Texture3d,
+        }]
+    }
+    fn prepass(&self) -> Option<PrepassDecl> {
+        Some(PrepassDecl {
+            target: "arrival",
+            format: StorageFormat::R32Float,
+            scale: 1.0,
+            shader: ShaderSource::without_regions(SHADER_FILE, SHADER, &[("hook", "")]),
+            depends_on: vec!["seed_min", "seed_max", "step", "max_length", "integrator"],
+        })
+    }
+    fn create_resources(
+        &self,
+        gpu: &GpuInit,
+        _params: &ParamValues,
+    ) -> Result<Vec<GpuResource>, PluginError> {
+        if gpu.volume.dims.iter().any(|&d| d > gpu.device.limits().max_texture_dimension_3d) {
+            return Err(error("the volume exceeds the device's 3D texture limit".into()));
+        }
+        let field = crate::flow_lic3d::field_texture(
+            gpu,
+            "flow.arrival field",
+            unit_field(gpu.volume).as_ref(),
+            false,
+        );
+        Ok(vec![field])
+    }
+    /// The demo volume is scalar (no flow: only the seed is reached): a seed box over
+    /// half of it, so that the clip keeps something to compare.
+    fn demo_params(&self) -> Option<ParamValues> {
+        let mut p = ParamValues::defaults(&self.params());
+        p.set("seed_max", ParamValue::Vec3([0.6, 1.0, 1.0]));
+        Some(p)
+    }
+    fn cpu_twin(&self, params: &ParamValues) -> Option<Box<dyn CpuTwin>> {
+        Some(Box::new(ArrivalTwin {
+            params: params.clone(),
+            time: params.float("time") as f64,
+            band: params.float("band") as f64,
+            arrival: None,
+        }))
+    }
+    /// Samples are dropped, never made more opaque.
+    fn transparency(&self, _params: &ParamValues) -> Transparency {
+        Transparency::Keeps
+    }
+}
+
+/// CPU twin: the arrival volume computed once (`prepare`), sampled trilinearly as the
+/// GPU samples `arrival`.
+pub struct ArrivalTwin {
+    pub params: ParamValues,
+    pub time: f64,
+    pub band: f64,
+    pub arrival: Option<Arc<([u32; 3], Vec<f32>)>>,
+}
+
+impl CpuTwin for ArrivalTwin {
+    fn prepare(&mut self, ctx: &CpuContext) {
+        if self.arrival.is_none() {
+            self.arrival = Some(Arc::new((ctx.volume.dims, arrival_of(ctx.volume, &self.params))));
+        }
+    }
+    fn clip(&self, s: &CpuSample) -> bool {
+        let Some(a) = &self.arrival else {
+            return true;
+        };
+        let (dims, data) = (&a.0, &a.1);
+        let t = trilinear_grid(*dims, s.tex, |i| DVec4::splat(data[i] as f64)).x;
+        kept(t, self.time, self.band)
+    }
+}
