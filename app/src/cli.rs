@@ -571,8 +571,8 @@ pub fn run_render(preset: Option<&std::path::Path>, a: &RenderArgs) -> Result<()
         }
         if let Some((from, to, _)) = a.sequence {
             // both ends must be in range before anything renders
-            animation::set(&mut doc.stack.clone(), &params, from)?;
-            animation::set(&mut doc.stack.clone(), &params, to)?;
+            animation::check(&params, from)?;
+            animation::check(&params, to)?;
         }
         params
     } else {
@@ -582,16 +582,8 @@ pub fn run_render(preset: Option<&std::path::Path>, a: &RenderArgs) -> Result<()
         return render_sequence(preset, doc, &animated, seq, &a.output);
     }
     let progress = vwb_lab::progress::Steps::new("vwb render");
-    progress.step("loading the volume");
-    let volume = headless::load_volume(&doc.volume)?;
-    vwb_lab::outputs::check_output(&a.output)?;
-    headless::preflight(Some(preset), &doc, &volume)?;
-    progress.step("opening the GPU");
-    let gpu = GpuContext::new_headless()?;
-    progress.note(&format!("adapter: {}", gpu.describe()));
-    progress.step("uploading the volume and composing the stack");
-    let mut r = headless::renderer_for(&gpu, &doc, volume.clone())
-        .with_context(|| format!("{}", preset.display()))?;
+    let (gpu, volume, mut r) =
+        open_renderer(preset, &doc, &progress, std::slice::from_ref(&a.output))?;
     let settings = doc.frame_settings();
     progress.step("rendering");
     let (img, _, first) = headless::render_image(&mut r, &settings, doc.render.background)?;
@@ -624,6 +616,34 @@ pub fn run_render(preset: Option<&std::path::Path>, a: &RenderArgs) -> Result<()
     Ok(())
 }
 
+/// What `vwb render` does before it renders, one frame or a sequence: loads the
+/// document's volume, checks that the `outputs` may be written, runs the preflight
+/// checks, opens the GPU and sets up a renderer for the document.
+fn open_renderer(
+    preset: &std::path::Path,
+    doc: &Document,
+    progress: &vwb_lab::progress::Steps,
+    outputs: &[PathBuf],
+) -> Result<(
+    GpuContext,
+    std::sync::Arc<vwb_render::Volume>,
+    vwb_render::Renderer,
+)> {
+    progress.step("loading the volume");
+    let volume = headless::load_volume(&doc.volume)?;
+    for o in outputs {
+        vwb_lab::outputs::check_output(o)?;
+    }
+    headless::preflight(Some(preset), doc, &volume)?;
+    progress.step("opening the GPU");
+    let gpu = GpuContext::new_headless()?;
+    progress.note(&format!("adapter: {}", gpu.describe()));
+    progress.step("uploading the volume and composing the stack");
+    let r = headless::renderer_for(&gpu, doc, volume.clone())
+        .with_context(|| format!("{}", preset.display()))?;
+    Ok((gpu, volume, r))
+}
+
 /// `vwb render --sequence`: one renderer, the animated parameters set per frame (a
 /// parameter outside the passes' inputs, like flow.arrival's time, reruns nothing).
 fn render_sequence(
@@ -634,22 +654,13 @@ fn render_sequence(
     output: &std::path::Path,
 ) -> Result<()> {
     let progress = vwb_lab::progress::Steps::new("vwb render --sequence");
-    progress.step("loading the volume");
-    let volume = headless::load_volume(&doc.volume)?;
-    for i in [0, count - 1] {
-        vwb_lab::outputs::check_output(&animation::frame_path(output, i, count))?;
-    }
+    let ends = [0, count - 1].map(|i| animation::frame_path(output, i, count));
+    let (_, _, mut r) = open_renderer(preset, &doc, &progress, &ends)?;
     // the sequence's folder (e.g. frames/) is made
     if let Some(dir) = output.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir)
             .with_context(|| format!("{}: cannot create the folder", dir.display()))?;
     }
-    headless::preflight(Some(preset), &doc, &volume)?;
-    progress.step("opening the GPU");
-    let gpu = GpuContext::new_headless()?;
-    progress.note(&format!("adapter: {}", gpu.describe()));
-    let mut r = headless::renderer_for(&gpu, &doc, volume.clone())
-        .with_context(|| format!("{}", preset.display()))?;
     let settings = doc.frame_settings();
     let (mut passes, mut wall) = (0usize, Vec::new());
     for (i, t) in animation::sequence_values(from, to, count)

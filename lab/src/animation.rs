@@ -66,8 +66,8 @@ pub fn animated(stack: &[PluginInstance], name: Option<&str>) -> Result<Vec<Anim
     Ok(found)
 }
 
-/// Sets each of `params` to `value`; an error when it lies outside a range.
-pub fn set(stack: &mut [PluginInstance], params: &[Animated], value: f32) -> Result<()> {
+/// An error when `value` lies outside the range of one of `params`.
+pub fn check(params: &[Animated], value: f32) -> Result<()> {
     for a in params {
         let [lo, hi] = a.range;
         if !(value >= lo && value <= hi) {
@@ -77,6 +77,14 @@ pub fn set(stack: &mut [PluginInstance], params: &[Animated], value: f32) -> Res
                 a.key
             );
         }
+    }
+    Ok(())
+}
+
+/// Sets each of `params` to `value` ([`check`]ed first: nothing is set when it fails).
+pub fn set(stack: &mut [PluginInstance], params: &[Animated], value: f32) -> Result<()> {
+    check(params, value)?;
+    for a in params {
         stack[a.instance]
             .params
             .set(a.key, ParamValue::Float(value));

@@ -38,6 +38,17 @@ impl Field for Rotation {
     }
 }
 
+/// No flow anywhere: what the flow plugins integrate over a scalar volume (the LIC is
+/// the noise; only the seed box is ever reached).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct NoFlow;
+
+impl Field for NoFlow {
+    fn at(&self, _p: DVec3) -> Option<DVec3> {
+        Some(DVec3::ZERO)
+    }
+}
+
 /// Arnold–Beltrami–Childress flow with period `period` voxels:
 /// v = (A sin z′ + C cos y′, B sin x′ + A cos z′, C sin y′ + B cos x′), x′ = 2πx/period.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -305,6 +316,15 @@ pub enum Integrator {
 
 impl Integrator {
     pub const ALL: [Integrator; 3] = [Integrator::Euler, Integrator::Rk2, Integrator::Rk4];
+    /// The flow plugins' `integrator` options, in the order of [`Integrator::ALL`].
+    pub const KEYS: [&'static str; 3] = ["euler", "rk2", "rk4"];
+    /// The integrator an `integrator` option names (RK4 for anything else).
+    pub fn from_key(key: &str) -> Self {
+        Self::KEYS
+            .iter()
+            .position(|k| *k == key)
+            .map_or(Integrator::Rk4, |i| Self::ALL[i])
+    }
     pub fn name(self) -> &'static str {
         match self {
             Integrator::Euler => "Euler",

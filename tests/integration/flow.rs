@@ -270,15 +270,9 @@ fn flow_study() {
         }
         lic.params.set("storage", ParamValue::Enum(storage.into()));
         let steps = (lic.params.float("length") / lic.params.float("step")).round();
-        let stack = vec![lic.clone(), instance("classify.tf1d")];
-        let mut r = Renderer::new(gpu(), vol.clone()).unwrap();
-        r.update_stack(&stack, TargetFormat::Rgba32Float).unwrap();
-        let s = settings(32, 32, Backend::Compute);
-        let first = r.render(&s).unwrap();
-        assert_eq!(first.prepasses_run, 1);
-        let second = r.render(&s).unwrap();
-        assert_eq!(second.prepasses_run, 0);
-        let gpu_s = (first.wall_ms - second.wall_ms) / 1e3;
+        let (mut r, s, first, once_ms) =
+            prepass_once(&vol, vec![lic.clone(), instance("classify.tf1d")]);
+        let gpu_s = once_ms / 1e3;
         // on a GPU the median of 7 reruns (the first run pays for first use and the
         // clocks ramp up): `density` is an input of the pre-pass that white noise
         // ignores, so each rerun computes the same volume
@@ -579,6 +573,61 @@ fn flow_study() {
     std::fs::write(bench_doc("flow.md"), o).unwrap();
 }
 
+/// A renderer for `vol` and `stack` at 32² (compute) after the frame that runs the
+/// pre-pass and one that runs none: the first frame's stats and its wall time minus
+/// the second's (the pre-pass's time where a CPU adapter has no timestamps).
+fn prepass_once(
+    vol: &std::sync::Arc<Volume>,
+    stack: Vec<vwb_render::PluginInstance>,
+) -> (
+    Renderer,
+    vwb_render::FrameSettings,
+    vwb_render::FrameStats,
+    f64,
+) {
+    let mut r = Renderer::new(gpu(), vol.clone()).unwrap();
+    r.update_stack(&stack, TargetFormat::Rgba32Float).unwrap();
+    let s = settings(32, 32, Backend::Compute);
+    let first = r.render(&s).unwrap();
+    assert_eq!(first.prepasses_run, 1);
+    let second = r.render(&s).unwrap();
+    assert_eq!(second.prepasses_run, 0);
+    let ms = first.wall_ms - second.wall_ms;
+    (r, s, first, ms)
+}
+
+/// An arrival volume read back from the GPU against its twin's: voxels where one is
+/// reached and the other not, and over the voxels both reach, |Δt| / (1 + t).
+struct ArrivalAgreement {
+    disagree: usize,
+    reached: usize,
+    rms: f64,
+    worst: f64,
+}
+
+impl ArrivalAgreement {
+    fn of(gpu_t: &[f32], twin: &[f32]) -> Self {
+        let never = vwb_render::flow::NEVER;
+        let (mut disagree, mut reached, mut worst, mut sq) = (0usize, 0usize, 0.0f64, 0.0f64);
+        for (g, c) in gpu_t.iter().zip(twin) {
+            if (*g == never) != (*c == never) {
+                disagree += 1;
+            } else if *c != never {
+                reached += 1;
+                let e = (*g as f64 - *c as f64).abs() / (1.0 + *c as f64);
+                worst = worst.max(e);
+                sq += e * e;
+            }
+        }
+        Self {
+            disagree,
+            reached,
+            rms: (sq / reached.max(1) as f64).sqrt(),
+            worst,
+        }
+    }
+}
+
 /// On a GPU, the median of 7 pre-pass timestamps, each run forced by the stack
 /// `stack_at(k)` gives (an input of the pre-pass changed in a way that leaves its result
 /// the same): a first run pays for first use and the clocks ramp up. `None` on a CPU
@@ -702,13 +751,8 @@ fn arrival_study(o: &mut String) {
         arrival
             .params
             .set("seed_max", ParamValue::Vec3([1.0, 1.0, 0.08]));
-        let stack = vec![arrival.clone(), instance("classify.tf1d")];
-        let mut r = Renderer::new(gpu(), vol.clone()).unwrap();
-        r.update_stack(&stack, TargetFormat::Rgba32Float).unwrap();
-        let s = settings(32, 32, Backend::Compute);
-        let first = r.render(&s).unwrap();
-        assert_eq!(first.prepasses_run, 1);
-        let second = r.render(&s).unwrap();
+        let (mut r, s, _, once_ms) =
+            prepass_once(&vol, vec![arrival.clone(), instance("classify.tf1d")]);
         // on a GPU the median of 7 reruns: paths of up to 255.9 or 256 voxels take the
         // same ⌈L/h⌉ = 512 steps, so each rerun computes the same volume
         let stamped = rerun_median_ms(&mut r, &s, |k| {
@@ -717,30 +761,21 @@ fn arrival_study(o: &mut String) {
             again.params.set("max_length", ParamValue::Float(l));
             vec![again, instance("classify.tf1d")]
         });
-        let gpu_s = stamped.map_or((first.wall_ms - second.wall_ms) / 1e3, |ms| ms / 1e3);
+        let gpu_s = stamped.unwrap_or(once_ms) / 1e3;
         let (_, gpu_t) = r.read_prepass(arrival.uid).expect("the arrival volume");
         let (twin_s, agreement) = if side <= 128 {
             let t = Instant::now();
             let twin = vwb_plugins::flow_arrival::arrival_of(&vol, &arrival.params);
             let secs = t.elapsed().as_secs_f64();
-            let never = vwb_render::flow::NEVER;
-            let (mut disagree, mut sq, mut n) = (0usize, 0.0f64, 0usize);
-            for (g, c) in gpu_t.iter().zip(&twin) {
-                if (*g == never) != (*c == never) {
-                    disagree += 1;
-                } else if *c != never {
-                    let e = (*g as f64 - *c as f64).abs() / (1.0 + *c as f64);
-                    sq += e * e;
-                    n += 1;
-                }
-            }
+            let a = ArrivalAgreement::of(&gpu_t, &twin);
             assert!(
-                disagree * 1000 <= twin.len(),
-                "{side}³: {disagree} disagree"
+                a.disagree * 1000 <= twin.len(),
+                "{side}³: {} disagree",
+                a.disagree
             );
             (
                 format!("{secs:.1}"),
-                format!("{disagree} | {:.1e}", (sq / n.max(1) as f64).sqrt()),
+                format!("{} | {:.1e}", a.disagree, a.rms),
             )
         } else {
             ("—".into(), "— | —".into())
@@ -1078,19 +1113,12 @@ fn arrival_volume_matches_its_twin_and_the_time_plays_without_a_prepass() {
     let (dims, gpu_t) = r.read_prepass(arrival.uid).expect("the arrival volume");
     assert_eq!(dims, vol.dims);
     let twin = vwb_plugins::flow_arrival::arrival_of(&vol, &arrival.params);
-    let never = vwb_render::flow::NEVER;
-    let (mut disagree, mut reached, mut worst, mut sq) = (0usize, 0usize, 0.0f64, 0.0f64);
-    for (g, c) in gpu_t.iter().zip(&twin) {
-        if (*g == never) != (*c == never) {
-            disagree += 1;
-        } else if *c != never {
-            reached += 1;
-            let e = (*g as f64 - *c as f64).abs() / (1.0 + *c as f64);
-            worst = worst.max(e);
-            sq += e * e;
-        }
-    }
-    let rms = (sq / reached.max(1) as f64).sqrt();
+    let ArrivalAgreement {
+        disagree,
+        reached,
+        rms,
+        worst,
+    } = ArrivalAgreement::of(&gpu_t, &twin);
     eprintln!(
         "flow.arrival: {reached} of {} voxels reached, {disagree} disagree on reached/never; \
          time error RMS {rms:.2e}, worst {worst:.2e} (relative to 1 + t)",

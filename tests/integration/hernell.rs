@@ -657,25 +657,15 @@ fn light_update_at_512(
     stack: &[PluginInstance],
     s: &vwb_render::FrameSettings,
 ) -> String {
-    let head = "## The light update at 512³\n\n";
+    let n = 512u32;
+    let head = format!("## The light update at {n}³\n\n");
     if !on_gpu() {
         return format!(
-            "{head}GPU only (an exact update at 512³ takes minutes on a CPU adapter): \
+            "{head}GPU only (an exact update at {n}³ takes minutes on a CPU adapter): \
              `VWB_TEST_GPU=1 bash bench/hernell.sh` on a machine with a GPU writes this section \
              into docs/gpu/hernell.md. The target: (A) in ≤ 10 ms on an H100-class GPU."
         );
     }
-    light_update_table(ct, stack, s, 512)
-}
-
-/// The table of [`light_update_at_512`] for the CT head upsampled to n³.
-fn light_update_table(
-    ct: &Volume,
-    stack: &[PluginInstance],
-    s: &vwb_render::FrameSettings,
-    n: u32,
-) -> String {
-    let head = format!("## The light update at {n}³\n\n");
     let VoxelData::I16(src) = &ct.data else {
         panic!("the CT head is int16")
     };

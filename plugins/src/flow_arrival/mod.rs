@@ -16,7 +16,7 @@
 //!   of 1, so times are in voxels travelled at the field's top speed, whatever the
 //!   data's units;
 //! - voxels whose path leaves the volume, stagnates (|v| < 10⁻⁶ of the top speed) or
-//!   runs past `max_length` voxels first are never reached ([`NEVER`]);
+//!   runs past `max_length` voxels first are never reached ([`NEVER`](vwb_render::flow::NEVER));
 //! - `band` > 0 keeps only the samples that arrived within `band` of `time` (a moving
 //!   front of that thickness) instead of everything reached so far.
 //!
@@ -27,7 +27,7 @@ use std::sync::Arc;
 
 use glam::{DVec3, DVec4};
 use vwb_render::flow::{
-    ArrivalParams, GridField, Integrator, NEVER, SeedBox, arrival_volume, voxel_centre,
+    ArrivalParams, Field, GridField, Integrator, NoFlow, SeedBox, arrival_volume,
 };
 use vwb_render::params::{ParamSpec, ParamValue, ParamValues};
 use vwb_render::plugin::{
@@ -39,7 +39,6 @@ use vwb_render::volume::Volume;
 #[cfg(test)]
 mod tests;
 
-const INTEGRATORS: [&str; 3] = ["euler", "rk2", "rk4"];
 const SHADER_FILE: &str = "plugins/src/flow_arrival/arrival.wgsl";
 const SHADER: &str = include_str!("arrival.wgsl");
 
@@ -68,11 +67,7 @@ pub fn arrival_params(p: &ParamValues) -> ArrivalParams {
     ArrivalParams {
         step: p.float("step") as f64,
         max_length: p.float("max_length") as f64,
-        integrator: match p.enumeration("integrator") {
-            "euler" => Integrator::Euler,
-            "rk2" => Integrator::Rk2,
-            _ => Integrator::Rk4,
-        },
+        integrator: Integrator::from_key(p.enumeration("integrator")),
     }
 }
 
@@ -96,22 +91,15 @@ pub fn unit_field(volume: &Volume) -> Option<GridField> {
     Some(f)
 }
 
-/// The arrival volume of the pre-pass (its f64 twin, stored as f32 with [`NEVER`]).
+/// The arrival volume of the pre-pass (its f64 twin, stored as f32 with [`NEVER`](vwb_render::flow::NEVER)).
 pub fn arrival_of(volume: &Volume, p: &ParamValues) -> Vec<f32> {
-    let seed = seed_box(p);
-    match unit_field(volume) {
-        Some(f) => arrival_volume(&f, volume.dims, &seed, &arrival_params(p)),
-        // no flow: only the seed is reached
-        None => {
-            let d = DVec3::from(volume.dims.map(f64::from));
-            (0..volume.voxel_count())
-                .map(|i| {
-                    let t = (voxel_centre(i, volume.dims) + DVec3::splat(0.5)) / d;
-                    if seed.contains(t) { 0.0 } else { NEVER }
-                })
-                .collect()
-        }
-    }
+    // no flow (the GPU's 1-voxel zero field): only the seed is reached
+    let unit = unit_field(volume);
+    let field: &dyn Field = match &unit {
+        Some(f) => f,
+        None => &NoFlow,
+    };
+    arrival_volume(field, volume.dims, &seed_box(p), &arrival_params(p))
 }
 
 /// Whether a sample with arrival time `t` is kept at `time` with `band`.
@@ -148,7 +136,7 @@ impl Plugin for Arrival {
                 .with_doc("path length per integration step"),
             ParamSpec::float("max_length", "Longest path (voxels)", 8.0, 2048.0, 256.0)
                 .with_doc("paths longer than this never arrive"),
-            ParamSpec::enumeration("integrator", "Integrator", &INTEGRATORS, 2),
+            ParamSpec::enumeration("integrator", "Integrator", &Integrator::KEYS, 2),
         ]
     }
     fn shader(&self) -> ShaderSource {

@@ -1,4 +1,5 @@
 use super::*;
+use vwb_render::flow::NEVER;
 use vwb_render::params::{Animation, ParamValue};
 use vwb_render::volume::VoxelData;
 

@@ -25,8 +25,8 @@ use std::sync::Arc;
 
 use glam::DVec3;
 use vwb_render::flow::{
-    Field, GridField, Integrator, Kernel, LicParams, Noise, Scaled, Speed, lic_at, lic_volume,
-    noise_volume,
+    Field, GridField, Integrator, Kernel, LicParams, NoFlow, Noise, Scaled, Speed, lic_at,
+    lic_volume, noise_volume,
 };
 use vwb_render::params::{ParamSpec, ParamValues};
 use vwb_render::plugin::{
@@ -39,7 +39,6 @@ use vwb_render::volume::Volume;
 mod tests;
 
 const KERNELS: [&str; 4] = ["box", "tent", "gaussian", "periodic"];
-const INTEGRATORS: [&str; 3] = ["euler", "rk2", "rk4"];
 const NOISES: [&str; 3] = ["white", "gaussian", "sparse"];
 const FREQUENCIES: [&str; 2] = ["1", "2"];
 const MODES: [&str; 2] = ["precomputed", "on_the_fly"];
@@ -90,11 +89,7 @@ pub fn lic_params(p: &ParamValues) -> LicParams {
         },
         length: p.float("length") as f64,
         step: p.float("step") as f64,
-        integrator: match p.enumeration("integrator") {
-            "euler" => Integrator::Euler,
-            "rk2" => Integrator::Rk2,
-            _ => Integrator::Rk4,
-        },
+        integrator: Integrator::from_key(p.enumeration("integrator")),
         speed: Speed::Normalized,
     }
 }
@@ -139,15 +134,6 @@ pub fn field_texture(gpu: &GpuInit, label: &str, field: Option<&GridField>, half
     let r = gpu.create_volume_texture_as(label, f.dims, 4, half);
     gpu.write_floats(&r, &texels);
     r
-}
-
-/// No flow: the LIC of a scalar volume is its noise.
-struct NoFlow;
-
-impl Field for NoFlow {
-    fn at(&self, _p: DVec3) -> Option<DVec3> {
-        Some(DVec3::ZERO)
-    }
 }
 
 /// The seeded noise volume on a LIC grid of `dims` (the values the GPU uploads and the
@@ -268,7 +254,7 @@ impl Plugin for Lic3d {
             ParamSpec::float("length", "Half length L (voxels)", 1.0, 32.0, 8.0)
                 .with_doc("streamline length each way, in voxels of the LIC grid"),
             ParamSpec::float_log("step", "Step h (voxels)", 0.1, 2.0, 0.5),
-            ParamSpec::enumeration("integrator", "Integrator", &INTEGRATORS, 2)
+            ParamSpec::enumeration("integrator", "Integrator", &Integrator::KEYS, 2)
                 .with_doc("RK4 at half a voxel drifts < 10⁻⁶ voxels per turn (docs/flow.md)"),
             ParamSpec::float("modulate", "Modulate by |v|", 0.0, 1.0, 0.0)
                 .with_doc("0: LIC intensity; 1: LIC × normalised field magnitude"),
