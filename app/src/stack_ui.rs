@@ -59,12 +59,9 @@ pub fn param_widgets(
     values: &mut ParamValues,
     cx: &StackUi<'_>,
 ) -> bool {
-    // the y axis of a 2D TF's histogram (classify.tf2d's `gradient_scale`; plugins
-    // without one have no 2D TF)
-    let gradient_scale = match values.get("gradient_scale") {
-        Some(ParamValue::Float(x)) => *x as f64,
-        _ => 1.0,
-    };
+    // the y axis of a 2D TF's histogram (classify.tf2d's `y_axis` and
+    // `gradient_scale`; plugins without them have no 2D TF)
+    let y_axis = crate::tf2d_editor::YAxis::of(values);
     let mut changed = false;
     for spec in specs {
         if !spec.is_shown(values) {
@@ -144,8 +141,8 @@ pub fn param_widgets(
                 ui.label(spec.label);
                 let texture = cx
                     .volume
-                    .map(|v| crate::tf2d_editor::histogram_texture(ui.ctx(), v, gradient_scale));
-                crate::tf2d_editor::tf2d_editor(ui, (salt, spec.key), t, texture.as_ref());
+                    .map(|v| crate::tf2d_editor::histogram_texture(ui.ctx(), v, y_axis));
+                crate::tf2d_editor::tf2d_editor(ui, (salt, spec.key), t, texture.as_ref(), y_axis);
                 None
             }
             _ => None,

@@ -36,6 +36,43 @@ const PREVIEW: usize = 48;
 /// Histogram textures kept per context.
 const CACHE_LEN: usize = 4;
 
+/// What the y axis shows: classify.tf2d's `y_axis` (the gradient magnitude times its
+/// `gradient_scale`, or the volume's own value, |v| under a LIC).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum YAxis {
+    Gradient { scale: f64 },
+    Data,
+}
+
+impl YAxis {
+    /// The axis of a tf2d instance's values (`y_axis`, `gradient_scale`).
+    pub fn of(values: &vwb_render::params::ParamValues) -> Self {
+        use vwb_render::params::ParamValue;
+        match (values.get("y_axis"), values.get("gradient_scale")) {
+            (Some(ParamValue::Enum(y)), _) if y == "data" => Self::Data,
+            (_, Some(ParamValue::Float(x))) => Self::Gradient { scale: *x as f64 },
+            _ => Self::Gradient { scale: 1.0 },
+        }
+    }
+    /// The plot's labels along x and y.
+    fn labels(self) -> (&'static str, &'static str) {
+        match self {
+            Self::Gradient { .. } => ("value", "gradient magnitude"),
+            Self::Data => (
+                "value the sample hooks give (LIC intensity)",
+                "volume value (|v| under a LIC)",
+            ),
+        }
+    }
+    /// A cache key: the scale's bits, or NaN's for the data axis.
+    fn key(self) -> u64 {
+        match self {
+            Self::Gradient { scale } => scale.to_bits(),
+            Self::Data => f64::NAN.to_bits(),
+        }
+    }
+}
+
 /// Screen position of (value, gradient magnitude); not clamped.
 fn to_screen(rect: egui::Rect, v: f32, g: f32) -> egui::Pos2 {
     egui::pos2(
@@ -179,8 +216,9 @@ pub fn tf2d_editor(
     salt: impl Hash + std::fmt::Debug,
     tf: &mut Tf2d,
     histogram: Option<&egui::TextureHandle>,
+    y_axis: YAxis,
 ) -> (bool, egui::Rect) {
-    let out = editor(ui, salt, tf, histogram);
+    let out = editor(ui, salt, tf, histogram, y_axis);
     (out.changed, out.plot)
 }
 
@@ -189,6 +227,7 @@ fn editor(
     salt: impl Hash + std::fmt::Debug,
     tf: &mut Tf2d,
     histogram: Option<&egui::TextureHandle>,
+    y_axis: YAxis,
 ) -> Output {
     let id = ui.scope_id().with(("tf2d editor", salt));
     let mut state: State = ui.data(|d| d.get_temp(id)).unwrap_or_default();
@@ -363,17 +402,18 @@ fn editor(
     }
     let weak = ui.visuals().weak_text_color();
     let font = egui::FontId::proportional(10.0);
+    let (x_label, y_label) = y_axis.labels();
     painter.text(
         rect.right_bottom() + egui::vec2(-4.0, -2.0),
         egui::Align2::RIGHT_BOTTOM,
-        "value",
+        x_label,
         font.clone(),
         weak,
     );
     painter.text(
         rect.left_top() + egui::vec2(4.0, 2.0),
         egui::Align2::LEFT_TOP,
-        "gradient magnitude",
+        y_label,
         font,
         weak,
     );
@@ -492,42 +532,49 @@ fn histogram_image(hist: &[f32], bins: usize) -> egui::ColorImage {
 }
 
 /// One cached histogram texture: the volume (weak, so that its address cannot be
-/// reused while the entry lives), the gradient scale's bits and the texture.
+/// reused while the entry lives), the y axis's key and the texture.
 #[derive(Clone)]
 struct CachedHistogram {
     volume: Weak<Volume>,
-    gradient_scale: u64,
+    y_axis: u64,
     texture: egui::TextureHandle,
 }
 
-/// The 2D histogram of `volume` over (value, clamp(|∇f|·`gradient_scale`, 0, 1))
-/// as a [`HISTOGRAM_BINS`]² grey texture for [`tf2d_editor`]: computed once per
-/// (volume, gradient scale) and cached in `ctx` (the last few pairs).
+/// The histogram under [`tf2d_editor`] as a [`HISTOGRAM_BINS`]² grey texture: over
+/// (value, clamp(|∇f|·scale, 0, 1)) for the gradient axis; for the data axis, the
+/// volume's values along y in every column
+/// ([`vwb_plugins::classify_tf2d::histogram_data_rows`]: x is what the stack's sample
+/// hooks give). Computed once per (volume, y axis) and cached in `ctx` (the last few).
 pub fn histogram_texture(
     ctx: &egui::Context,
     volume: &Arc<Volume>,
-    gradient_scale: f64,
+    y_axis: YAxis,
 ) -> egui::TextureHandle {
     let id = egui::Id::unique("vwb tf2d editor histogram textures");
     let mut cache: Vec<CachedHistogram> = ctx.data(|d| d.get_temp(id)).unwrap_or_default();
     cache.retain(|e| e.volume.strong_count() > 0);
     let hit = cache.iter().position(|e| {
-        std::ptr::eq(e.volume.as_ptr(), Arc::as_ptr(volume))
-            && e.gradient_scale == gradient_scale.to_bits()
+        std::ptr::eq(e.volume.as_ptr(), Arc::as_ptr(volume)) && e.y_axis == y_axis.key()
     });
     let entry = match hit {
         Some(k) => cache.remove(k),
         None => {
-            let hist =
-                vwb_plugins::classify_tf2d::histogram2d(volume, gradient_scale, HISTOGRAM_BINS);
+            let hist = match y_axis {
+                YAxis::Gradient { scale } => {
+                    vwb_plugins::classify_tf2d::histogram2d(volume, scale, HISTOGRAM_BINS)
+                }
+                YAxis::Data => {
+                    vwb_plugins::classify_tf2d::histogram_data_rows(volume, HISTOGRAM_BINS)
+                }
+            };
             let texture = ctx.load_texture(
-                format!("tf2d histogram {} ×{gradient_scale}", volume.name),
+                format!("tf2d histogram {} {y_axis:?}", volume.name),
                 histogram_image(&hist, HISTOGRAM_BINS),
                 egui::TextureOptions::LINEAR,
             );
             CachedHistogram {
                 volume: Arc::downgrade(volume),
-                gradient_scale: gradient_scale.to_bits(),
+                y_axis: y_axis.key(),
                 texture,
             }
         }
@@ -584,7 +631,7 @@ mod tests {
             let mut result = None;
             let mut out = self.ctx.run_ui(input, |ui| {
                 egui::CentralPanel::default().show(ui, |ui| {
-                    result = Some(editor(ui, 1, tf, None));
+                    result = Some(editor(ui, 1, tf, None, YAxis::Gradient { scale: 1.0 }));
                 });
             });
             out.textures_delta.clear();
@@ -762,20 +809,63 @@ mod tests {
         assert!(inside(&p, [p.centre[0], 0.5 * p.size[1]]));
     }
 
-    /// (e) The histogram texture is computed once per (volume, gradient scale).
+    /// (e) The histogram texture is computed once per (volume, y axis).
     #[test]
-    fn histogram_texture_is_cached_per_volume_and_scale() {
+    fn histogram_texture_is_cached_per_volume_and_axis() {
         let ctx = egui::Context::default();
         let volume = Arc::new(vwb_render::volume::demo());
-        let first = histogram_texture(&ctx, &volume, 4.0);
+        let g = |scale| YAxis::Gradient { scale };
+        let first = histogram_texture(&ctx, &volume, g(4.0));
         assert_eq!(first.size(), [HISTOGRAM_BINS, HISTOGRAM_BINS]);
-        assert_eq!(histogram_texture(&ctx, &volume, 4.0).id(), first.id());
-        let other_scale = histogram_texture(&ctx, &volume, 8.0);
+        assert_eq!(histogram_texture(&ctx, &volume, g(4.0)).id(), first.id());
+        let other_scale = histogram_texture(&ctx, &volume, g(8.0));
         assert_ne!(other_scale.id(), first.id());
-        assert_eq!(histogram_texture(&ctx, &volume, 4.0).id(), first.id());
+        assert_eq!(histogram_texture(&ctx, &volume, g(4.0)).id(), first.id());
         let other_volume = Arc::new(vwb_render::volume::demo());
-        assert_ne!(histogram_texture(&ctx, &other_volume, 4.0).id(), first.id());
-        assert_eq!(histogram_texture(&ctx, &volume, 8.0).id(), other_scale.id());
+        assert_ne!(
+            histogram_texture(&ctx, &other_volume, g(4.0)).id(),
+            first.id()
+        );
+        assert_eq!(
+            histogram_texture(&ctx, &volume, g(8.0)).id(),
+            other_scale.id()
+        );
+        let data = histogram_texture(&ctx, &volume, YAxis::Data);
+        assert_ne!(data.id(), first.id());
+        assert_eq!(
+            histogram_texture(&ctx, &volume, YAxis::Data).id(),
+            data.id()
+        );
+    }
+
+    /// With `y_axis: data` the histogram is the volume's values along y, the same in
+    /// every column, and the axes say what they show.
+    #[test]
+    fn the_data_axis_shows_the_volume_values_along_y() {
+        use vwb_render::params::{ParamValue, ParamValues};
+        let volume = vwb_render::volume::demo();
+        let bins = 16;
+        let hist = vwb_plugins::classify_tf2d::histogram_data_rows(&volume, bins);
+        assert_eq!(hist.len(), bins * bins);
+        for row in hist.chunks(bins) {
+            assert!(row.iter().all(|&c| c == row[0]), "{row:?}");
+        }
+        // the rows are the log counts of the values (the demo's background is 0)
+        let total: f64 = hist
+            .chunks(bins)
+            .map(|row| (row[0] as f64).exp_m1().round())
+            .sum();
+        assert_eq!(total as usize, volume.normalized_scalars().len());
+        assert!(
+            hist[0] > hist[(bins - 1) * bins],
+            "most of the demo is background"
+        );
+        let mut values = ParamValues::default();
+        values.set("gradient_scale", ParamValue::Float(4.0));
+        assert_eq!(YAxis::of(&values), YAxis::Gradient { scale: 4.0 });
+        values.set("y_axis", ParamValue::Enum("data".into()));
+        assert_eq!(YAxis::of(&values), YAxis::Data);
+        assert!(YAxis::Data.labels().1.contains("volume value"));
     }
 
     /// The grey image: the largest log count white, gradient 0 at the bottom,

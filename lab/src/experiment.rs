@@ -111,7 +111,7 @@ pub struct Variant {
     /// `"<plugin id>.<key>"` (its first instance) or `render.slice_spacing`,
     /// `render.slices` (the spacing that gives about this many slices in the scene's
     /// frame), `render.backend` (raster, compute), `render.target`,
-    /// `render.early_termination`.
+    /// `render.early_termination`, `render.skipping` (true, false).
     #[serde(default)]
     pub set: BTreeMap<String, SetValue>,
     /// (from, to): the first instance of plugin `from` is replaced by plugin `to` with
@@ -213,10 +213,13 @@ pub enum Metric {
     FrameMs,
     Slices,
     GpuMemoryMib,
+    /// The share of empty-space-skipping bricks that no sample can make visible (the
+    /// transfer function's and the clipping's), NaN with skipping off.
+    EmptyBrickShare,
 }
 
 impl Metric {
-    pub const ALL: [Metric; 9] = [
+    pub const ALL: [Metric; 10] = [
         Metric::RmsDeltaE,
         Metric::MeanDeltaE,
         Metric::MaxDeltaE,
@@ -226,6 +229,7 @@ impl Metric {
         Metric::FrameMs,
         Metric::Slices,
         Metric::GpuMemoryMib,
+        Metric::EmptyBrickShare,
     ];
 
     pub fn name(self) -> &'static str {
@@ -239,6 +243,7 @@ impl Metric {
             Metric::FrameMs => "frame_ms",
             Metric::Slices => "slices",
             Metric::GpuMemoryMib => "gpu_memory_mib",
+            Metric::EmptyBrickShare => "empty_brick_share",
         }
     }
 
@@ -253,6 +258,7 @@ impl Metric {
             Metric::FrameMs => "time (ms)",
             Metric::Slices => "slices",
             Metric::GpuMemoryMib => "GPU memory (MiB)",
+            Metric::EmptyBrickShare => "empty bricks",
         }
     }
 
@@ -275,6 +281,7 @@ impl Metric {
             Metric::FrameMs => row.frame_ms,
             Metric::Slices => row.slices as f64,
             Metric::GpuMemoryMib => row.gpu_memory_bytes as f64 / (1u64 << 20) as f64,
+            Metric::EmptyBrickShare => row.empty_brick_share,
         }
     }
 
@@ -288,6 +295,7 @@ impl Metric {
             Metric::Slices => format!("{v}"),
             Metric::Ssim => format!("{v:.4}"),
             Metric::GpuMemoryMib => format!("{v:.1}"),
+            Metric::EmptyBrickShare => format!("{v:.3}"),
             _ => format!("{v:.2}"),
         }
     }
@@ -326,6 +334,8 @@ pub struct Row {
     /// `gpu` (timestamps) or `wall`.
     pub clock: &'static str,
     pub gpu_memory_bytes: u64,
+    /// [`Metric::EmptyBrickShare`] (NaN with skipping off).
+    pub empty_brick_share: f64,
     pub metrics: Metrics,
     /// The image file, relative to the report's folder.
     pub image: String,
@@ -674,6 +684,10 @@ pub fn set_value(doc: &mut Document, key: &str, value: &SetValue) -> Result<()> 
             bail!("'{key}' depends on the scene's volume; it is set in an experiment's variants")
         }
         "render.backend" => doc.render.backend = parse_backend(text()?).map_err(|e| anyhow!(e))?,
+        "render.skipping" => match value {
+            SetValue::Bool(on) => doc.render.empty_space_skipping = *on,
+            _ => bail!("'{key}' needs true or false"),
+        },
         "render.target" => doc.render.target = parse_target(text()?).map_err(|e| anyhow!(e))?,
         _ => {
             let (id, k) = key.rsplit_once('.').ok_or_else(|| {
@@ -1167,6 +1181,7 @@ pub fn run(
                     frame_ms: ms,
                     clock,
                     gpu_memory_bytes: memory,
+                    empty_brick_share: r.empty_brick_share().unwrap_or(f64::NAN),
                     metrics: m,
                     image,
                     reference,
@@ -1655,6 +1670,7 @@ mod tests {
             frame_ms: ms,
             clock: "gpu",
             gpu_memory_bytes: 0,
+            empty_brick_share: f64::NAN,
             metrics: Metrics {
                 width: 1,
                 height: 1,

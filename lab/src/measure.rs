@@ -65,15 +65,24 @@ pub struct Timing {
     pub gpu_ms: Option<Summary>,
     /// Per pass (see `FrameStats::gpu_passes`).
     pub passes: Vec<(String, Summary)>,
+    /// The adapter is a CPU (lavapipe): its "GPU" runs on the CPU the wall clock
+    /// measures, so a true frame is most of its wall time.
+    pub cpu_adapter: bool,
 }
 
 impl Timing {
-    /// The frame time to compare: GPU median where timestamps exist, else wall median,
-    /// with the clock's name.
+    /// The frame time to compare, with the clock's name: the median of the
+    /// timestamps where the adapter has them and they are plausible, else the wall
+    /// median. lavapipe's stamps are at times wrong: nearly equal around a compute frame
+    /// of hundreds of milliseconds (seen after another renderer on the same device was
+    /// dropped). A CPU adapter's frame runs on the CPU the wall clock measures, so its
+    /// stamps must cover at least a quarter of the wall time; a GPU's, which can be far
+    /// below its submit-and-wait, at least 1 %.
     pub fn frame_ms(&self) -> (f64, &'static str) {
+        let least = if self.cpu_adapter { 0.25 } else { 0.01 };
         match self.gpu_ms {
-            Some(g) => (g.median, "gpu"),
-            None => (self.wall_ms.median, "wall"),
+            Some(g) if g.median >= least * self.wall_ms.median => (g.median, "gpu"),
+            _ => (self.wall_ms.median, "wall"),
         }
     }
 }
@@ -101,6 +110,7 @@ pub fn time_frames(
         }
     }
     Ok(Timing {
+        cpu_adapter: r.gpu().info.device_type == wgpu::DeviceType::Cpu,
         frames: frames.max(1),
         warmup,
         slices,
@@ -1445,6 +1455,31 @@ pub fn scene_json(doc: &Document, volume: &Volume, preset: &Path) -> serde_json:
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn implausible_timestamps_fall_back_to_the_wall_clock() {
+        let timing = |gpu: f64, wall: f64| Timing {
+            cpu_adapter: false,
+            frames: 3,
+            warmup: 1,
+            slices: 10,
+            wall_ms: Summary::of(&[wall]).unwrap(),
+            gpu_ms: Summary::of(&[gpu]),
+            passes: Vec::new(),
+        };
+        // a GPU frame well below its submit-and-wait is the GPU's
+        assert_eq!(timing(0.29, 2.0).frame_ms(), (0.29, "gpu"));
+        // 0.03 ms stamped around an 800 ms frame is not
+        assert_eq!(timing(0.03, 800.0).frame_ms(), (800.0, "wall"));
+        assert_eq!(timing(f64::NAN, 5.0).frame_ms(), (5.0, "wall"));
+        // a CPU adapter's frame is most of its wall time
+        let cpu = |gpu, wall| Timing {
+            cpu_adapter: true,
+            ..timing(gpu, wall)
+        };
+        assert_eq!(cpu(0.29, 2.0).frame_ms(), (2.0, "wall"));
+        assert_eq!(cpu(1.8, 2.0).frame_ms(), (1.8, "gpu"));
+    }
 
     #[test]
     fn plugin_cost_is_never_negative() {

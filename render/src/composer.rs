@@ -71,6 +71,8 @@ fn hook_signature(name: &str) -> Option<(&'static [&'static str], &'static str)>
         "composite" => (&["Sample", "vec4<f32>"], "vec4<f32>"),
         "slice_update" => (&["Sample", "vec4<f32>", "vec2<f32>"], "vec4<f32>"),
         "prepass" => (&["vec3<u32>", "vec3<u32>"], "vec4<f32>"),
+        "scalar" => (&["vec3<f32>"], "f32"),
+        "scalar_grid" => (&[], "vec3<f32>"),
         _ => return None,
     })
 }
@@ -275,6 +277,49 @@ pub struct PassLayout {
 pub const PASS_BINDING_BASE: u32 = 2;
 
 /// What `stack_classify` is, for checking a plugin file in isolation.
+/// The functions a plugin's hook file may define besides its hooks to supply the scalar
+/// its `sample` hook gives (shading from it): `scalar(tex)`, and the grid it lives on,
+/// `scalar_grid()` (the volume's when absent).
+pub const SCALAR_FUNCTIONS: [&str; 2] = ["scalar", "scalar_grid"];
+
+/// `shading_value(tex)` and `shading_grid()`, the scalar the gradient estimators of
+/// shaders/common.wgsl differentiate and its grid: the provider's `scalar` and
+/// `scalar_grid` when the stack has one (the instance prefix, and whether it defines
+/// `scalar_grid`), else the volume's value and grid. Every module that includes
+/// common.wgsl gets it right after.
+fn shading_scalar_wgsl(provider: Option<(&str, bool)>) -> String {
+    let (value, grid) = match provider {
+        None => (
+            "volume_value(tex)".to_string(),
+            "frame.volume_dims.xyz".to_string(),
+        ),
+        Some((p, true)) => (format!("{p}scalar(tex)"), format!("{p}scalar_grid()")),
+        Some((p, false)) => (
+            format!("{p}scalar(tex)"),
+            "frame.volume_dims.xyz".to_string(),
+        ),
+    };
+    format!(
+        "fn shading_value(tex: vec3<f32>) -> f32 {{\n    return {value};\n}}\n\
+         fn shading_grid() -> vec3<f32> {{\n    return {grid};\n}}\n"
+    )
+}
+
+/// Whether a pre-pass shader reads the gradient estimators or the shading scalar (its
+/// module has the volume's value as the shading scalar whatever the stack holds).
+fn differentiates_the_shading_scalar(source: &str) -> bool {
+    ["gradient_central", "gradient_sobel", "shading_value"]
+        .iter()
+        .any(|name| {
+            source.match_indices(name).any(|(i, _)| {
+                let before = source[..i].chars().next_back();
+                let after = source[i + name.len()..].chars().next();
+                let word = |c: Option<char>| c.is_some_and(|c| c.is_alphanumeric() || c == '_');
+                !word(before) && !word(after)
+            })
+        })
+}
+
 const STACK_CLASSIFY_STUB: &str = "fn stack_classify(tex: vec3<f32>, dir: vec3<f32>) -> vec4<f32> { return vec4<f32>(tex + dir, 0.0); }";
 
 /// The composed pipeline description.
@@ -622,7 +667,10 @@ fn check_plugin_file(
     decls_unprefixed: &str,
     allowed_hooks: &[&str],
 ) -> Result<Vec<Decl>, ComposeError> {
-    let head = format!("{COMMON_WGSL}\n{decls_unprefixed}\n");
+    let head = format!(
+        "{COMMON_WGSL}\n{}{decls_unprefixed}\n",
+        shading_scalar_wgsl(None)
+    );
     let head_lines = head.matches('\n').count() as u32;
     let full = format!("{head}{source}\n");
     let shader_err = |msg: String, offset: Option<usize>| {
@@ -643,17 +691,24 @@ fn check_plugin_file(
     };
     let module = naga_check(&full).map_err(|(m, o)| shader_err(m, o))?;
     let decls = module_decls(source);
-    let common_names: HashSet<String> = module_decls(COMMON_WGSL)
-        .into_iter()
-        .map(|d| d.name)
-        .collect();
+    let names_of =
+        |src: &str| -> HashSet<String> { module_decls(src).into_iter().map(|d| d.name).collect() };
+    let (common_names, generated_names) =
+        (names_of(COMMON_WGSL), names_of(&shading_scalar_wgsl(None)));
     for d in &decls {
-        if common_names.contains(&d.name) {
+        let shared = if common_names.contains(&d.name) {
+            Some(COMMON_FILE)
+        } else if generated_names.contains(&d.name) {
+            Some("every module (the shading scalar; a plugin supplies its own as `scalar`)")
+        } else {
+            None
+        };
+        if let Some(place) = shared {
             return Err(ComposeError::Shader {
                 file: file.to_string(),
                 line: d.line,
                 column: 1,
-                message: format!("'{}' is already declared in {COMMON_FILE}", d.name),
+                message: format!("'{}' is already declared in {place}", d.name),
                 plugin: Some(plugin.id().to_string()),
             });
         }
@@ -790,6 +845,10 @@ pub fn compose_with(
     let mut instances = Vec::new();
     let mut segments = Vec::new();
     let (mut g1, mut g2) = (0u32, 0u32);
+    // the last instance that supplies its scalar (prefix, defines scalar_grid, index)
+    let mut scalar_provider: Option<(String, bool, usize)> = None;
+    // instances whose pre-pass differentiates the shading scalar (a gradient volume)
+    let mut gradient_prepasses: Vec<&'static str> = Vec::new();
 
     for (index, plugin) in plugins.iter().enumerate() {
         let plugin = *plugin;
@@ -811,6 +870,7 @@ pub fn compose_with(
         let iso_bindings =
             instance_bindings(plugin, index, &uniform, false, &mut iso_g1, &mut iso_g2);
         let mut allowed: Vec<&str> = HOOKS[..5].to_vec();
+        allowed.extend(SCALAR_FUNCTIONS);
         if plugin.slice_state().is_some() {
             allowed.push("slice_update");
         }
@@ -847,6 +907,15 @@ pub fn compose_with(
             .copied()
             .filter(|h| decls.iter().any(|d| d.is_fn && d.name == *h))
             .collect();
+        let defines = |name: &str| decls.iter().any(|d| d.is_fn && d.name == name);
+        if defines("scalar") {
+            scalar_provider = Some((prefix.clone(), defines("scalar_grid"), index));
+        } else if defines("scalar_grid") {
+            return Err(ComposeError::Plugin {
+                plugin: plugin.id().to_string(),
+                message: format!("{} defines scalar_grid but no scalar", shader.file),
+            });
+        }
         if plugin.slice_state().is_some() && !hooks.contains(&"slice_update") {
             return Err(ComposeError::Plugin {
                 plugin: plugin.id().to_string(),
@@ -863,7 +932,12 @@ pub fn compose_with(
 
         // the pre-pass module
         let prepass = match plugin.prepass() {
-            Some(pp) => Some(compose_prepass(plugin, index, &prefix, &uniform, &pp)?),
+            Some(pp) => {
+                if differentiates_the_shading_scalar(&pp.shader.source) {
+                    gradient_prepasses.push(plugin.id());
+                }
+                Some(compose_prepass(plugin, index, &prefix, &uniform, &pp)?)
+            }
             None => None,
         };
 
@@ -924,10 +998,29 @@ pub fn compose_with(
     }
 
     check_limits(&bindings, limits)?;
+    if let (Some((_, _, index)), Some(reader)) = (&scalar_provider, gradient_prepasses.first()) {
+        // a pre-pass sees its own plugin only: its gradient volume would be the data's
+        return Err(ComposeError::Plugin {
+            plugin: reader.to_string(),
+            message: format!(
+                "its precomputed gradient volume is the data's, but {} replaces the value that shading differentiates; choose the central or sobel estimator",
+                plugins[*index].id()
+            ),
+        });
+    }
 
     // assemble
     let mut m = ComposedModule::new();
     m.push_file(COMMON_FILE, COMMON_WGSL, None);
+    m.push_generated(
+        "shading scalar",
+        &shading_scalar_wgsl(
+            scalar_provider
+                .as_ref()
+                .map(|(p, grid, _)| (p.as_str(), *grid)),
+        ),
+        scalar_provider.as_ref().map(|(_, _, i)| *i),
+    );
     for (i, line) in TEMPLATE_WGSL.lines().enumerate() {
         let origin = Origin::File {
             file: TEMPLATE_FILE.to_string(),
@@ -1020,6 +1113,7 @@ fn compose_prepass(
     names.extend(iso.iter().map(|b| b.local_name.clone()));
     let mut m = ComposedModule::new();
     m.push_file(COMMON_FILE, COMMON_WGSL, None);
+    m.push_generated("shading scalar", &shading_scalar_wgsl(None), None);
     m.push_generated("bindings", &decls_text(&iso, prefix, uniform), Some(index));
     m.push_file(
         &pp.shader.file,

@@ -504,6 +504,17 @@ pub struct CpuContext<'a> {
     pub spacing: f64,
     /// The frame's camera.
     pub view: CpuView,
+    /// The scalar the stack's sample hooks give, where a twin supplies it
+    /// ([`CpuTwin::scalar`]); the gradient estimators differentiate it
+    /// ([`CpuContext::shading_value`]).
+    pub scalar: Option<&'a dyn ScalarField>,
+}
+
+/// The twin of a plugin's `scalar(tex)` and `scalar_grid()` (render/src/composer.rs):
+/// the value its `sample` hook gives at a texture coordinate, and the grid it lives on.
+pub trait ScalarField: Send + Sync {
+    fn value(&self, ctx: &CpuContext, tex: DVec3) -> f64;
+    fn grid(&self, ctx: &CpuContext) -> [u32; 3];
 }
 
 /// A per-slice state image on the CPU (the twin of a `state_prev` texture).
@@ -551,6 +562,42 @@ impl<'a> CpuContext<'a> {
             state: None,
             spacing: 1.0,
             view: CpuView::default(),
+            scalar: None,
+        }
+    }
+
+    /// The same context with the shading scalar of the last twin that supplies one
+    /// (the GPU's `shading_value` is the last provider's `scalar`).
+    pub fn with_scalar_of(self, twins: &'a [Box<dyn CpuTwin>]) -> Self {
+        Self {
+            scalar: twins.iter().rev().find_map(|t| t.scalar()),
+            ..self
+        }
+    }
+
+    /// `shading_value(tex)`: the scalar the gradient estimators differentiate (the
+    /// volume's value unless a twin supplies its own).
+    pub fn shading_value(&self, tex: DVec3) -> f64 {
+        match self.scalar {
+            Some(f) => f.value(
+                &Self {
+                    scalar: None,
+                    ..*self
+                },
+                tex,
+            ),
+            None => self.value(tex),
+        }
+    }
+
+    /// `shading_grid()`: the grid of [`CpuContext::shading_value`].
+    pub fn shading_grid(&self) -> [u32; 3] {
+        match self.scalar {
+            Some(f) => f.grid(&Self {
+                scalar: None,
+                ..*self
+            }),
+            None => self.volume.dims,
         }
     }
 
@@ -645,6 +692,11 @@ pub trait CpuTwin: Send + Sync {
     /// [`CpuTwin::prepare`]: `classify(tex, dir)` is `stack_classify` (the other
     /// twins' clip, sample and classify at a texture coordinate; zero where clipped).
     fn prepare_passes(&mut self, _ctx: &CpuContext, _classify: &StackClassify<'_>) {}
+    /// The twin of the hook file's `scalar` and `scalar_grid` (a plugin whose `sample`
+    /// hook replaces the value and supplies it for shading).
+    fn scalar(&self) -> Option<&dyn ScalarField> {
+        None
+    }
 }
 
 /// The CPU twin of `stack_classify(tex, dir)` ([`CpuTwin::prepare_passes`]).

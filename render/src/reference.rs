@@ -302,6 +302,7 @@ impl<'a> Prepared<'a> {
             let others = |tex: DVec3, dir: DVec3| stack_classify(&ctx, [before, after], tex, dir);
             me.prepare_passes(&ctx, &others);
         }
+        let ctx = ctx.with_scalar_of(&self.twins);
         if self.states.iter().any(Option::is_some) {
             return self.render_slice_major(&frame, &ctx, opts);
         }

@@ -149,28 +149,32 @@ pub fn gradient_volume_bytes(dims: [u32; 3]) -> u64 {
     dims.iter().map(|&d| d.max(1) as u64).product::<u64>() * 8
 }
 
-/// `voxel_size_world()`: world size of a voxel along each axis.
-fn voxel_world(ctx: &CpuContext) -> DVec3 {
+/// World size of a texel of the shading scalar's grid (`(box_max − box_min) / n` in
+/// the estimators; `voxel_size_world()` for the volume's grid).
+fn texel_world(ctx: &CpuContext, grid: [u32; 3]) -> DVec3 {
     let (lo, hi) = ctx.volume_box();
-    let d = ctx.volume.dims.map(|n| n.max(1) as f64);
-    (hi - lo) / DVec3::from(d)
+    (hi - lo) / DVec3::from(grid.map(|n| n.max(1) as f64))
 }
 
-/// `gradient_central`: central differences one voxel apart at `tex`, times Δs0.
+/// `gradient_central`: central differences one texel of the shading scalar's grid apart
+/// at `tex` ([`CpuContext::shading_value`]), times Δs0.
 pub fn gradient_central(ctx: &CpuContext, tex: DVec3) -> DVec3 {
-    let d = DVec3::from(ctx.volume.dims.map(|n| 1.0 / n.max(1) as f64));
-    let axis = |e: DVec3| ctx.value(tex + e) - ctx.value(tex - e);
+    let grid = ctx.shading_grid();
+    let d = DVec3::from(grid.map(|n| 1.0 / n.max(1) as f64));
+    let axis = |e: DVec3| ctx.shading_value(tex + e) - ctx.shading_value(tex - e);
     let g = DVec3::new(
         axis(DVec3::new(d.x, 0.0, 0.0)),
         axis(DVec3::new(0.0, d.y, 0.0)),
         axis(DVec3::new(0.0, 0.0, d.z)),
     );
-    g * 0.5 * ctx.reference_step() / voxel_world(ctx)
+    g * 0.5 * ctx.reference_step() / texel_world(ctx, grid)
 }
 
-/// `gradient_sobel`: the 3×3×3 Sobel operator at `tex` (26 trilinear reads), times Δs0.
+/// `gradient_sobel`: the 3×3×3 Sobel operator at `tex` (26 reads of the shading
+/// scalar), times Δs0.
 pub fn gradient_sobel(ctx: &CpuContext, tex: DVec3) -> DVec3 {
-    let d = DVec3::from(ctx.volume.dims.map(|n| 1.0 / n.max(1) as f64));
+    let grid = ctx.shading_grid();
+    let d = DVec3::from(grid.map(|n| 1.0 / n.max(1) as f64));
     let mut g = DVec3::ZERO;
     for z in -1..=1 {
         for y in -1..=1 {
@@ -179,13 +183,13 @@ pub fn gradient_sobel(ctx: &CpuContext, tex: DVec3) -> DVec3 {
                     continue;
                 }
                 let o = DVec3::new(x as f64, y as f64, z as f64);
-                let f = ctx.value(tex + o * d);
+                let f = ctx.shading_value(tex + o * d);
                 let w = DVec3::splat(2.0) - o.abs();
                 g += o * DVec3::new(w.y * w.z, w.x * w.z, w.x * w.y) * f;
             }
         }
     }
-    g / 32.0 * ctx.reference_step() / voxel_world(ctx)
+    g / 32.0 * ctx.reference_step() / texel_world(ctx, grid)
 }
 
 /// The per-voxel gradient volume of the pre-pass: (g, |g|) at every voxel centre,

@@ -153,18 +153,26 @@ fn voxel_size_world() -> vec3<f32> {
     return (frame.box_max.xyz - frame.box_min.xyz) / frame.volume_dims.xyz;
 }
 
-// ∇f·Δs0 by central differences one voxel apart (6 trilinear reads).
+// The gradient estimators differentiate `shading_value(tex)`, the scalar the stack's
+// `sample` hooks give at a texture coordinate, one texel of its grid `shading_grid()`
+// apart. Both are generated with the composed module (render/src/composer.rs): the
+// volume's value on the volume's grid, unless a plugin that replaces the value supplies
+// its own through `scalar(tex)` and `scalar_grid()` (flow.lic3d: shading from LIC).
+
+// ∇f·Δs0 by central differences one texel apart (6 reads of the scalar).
 fn gradient_central(tex: vec3<f32>) -> vec3<f32> {
-    let d = 1.0 / frame.volume_dims.xyz;
-    let gx = volume_value(tex + vec3<f32>(d.x, 0.0, 0.0)) - volume_value(tex - vec3<f32>(d.x, 0.0, 0.0));
-    let gy = volume_value(tex + vec3<f32>(0.0, d.y, 0.0)) - volume_value(tex - vec3<f32>(0.0, d.y, 0.0));
-    let gz = volume_value(tex + vec3<f32>(0.0, 0.0, d.z)) - volume_value(tex - vec3<f32>(0.0, 0.0, d.z));
-    return vec3<f32>(gx, gy, gz) * 0.5 * frame.box_min.w / voxel_size_world();
+    let n = shading_grid();
+    let d = 1.0 / n;
+    let gx = shading_value(tex + vec3<f32>(d.x, 0.0, 0.0)) - shading_value(tex - vec3<f32>(d.x, 0.0, 0.0));
+    let gy = shading_value(tex + vec3<f32>(0.0, d.y, 0.0)) - shading_value(tex - vec3<f32>(0.0, d.y, 0.0));
+    let gz = shading_value(tex + vec3<f32>(0.0, 0.0, d.z)) - shading_value(tex - vec3<f32>(0.0, 0.0, d.z));
+    return vec3<f32>(gx, gy, gz) * 0.5 * frame.box_min.w / ((frame.box_max.xyz - frame.box_min.xyz) / n);
 }
 
-// ∇f·Δs0 by the 3×3×3 Sobel operator (26 trilinear reads).
+// ∇f·Δs0 by the 3×3×3 Sobel operator (26 reads of the scalar).
 fn gradient_sobel(tex: vec3<f32>) -> vec3<f32> {
-    let d = 1.0 / frame.volume_dims.xyz;
+    let n = shading_grid();
+    let d = 1.0 / n;
     var g = vec3<f32>(0.0);
     for (var z = -1; z <= 1; z = z + 1) {
         for (var y = -1; y <= 1; y = y + 1) {
@@ -173,13 +181,13 @@ fn gradient_sobel(tex: vec3<f32>) -> vec3<f32> {
                     continue;
                 }
                 let o = vec3<f32>(f32(x), f32(y), f32(z));
-                let f = volume_value(tex + o * d);
+                let f = shading_value(tex + o * d);
                 let w = vec3<f32>(2.0) - abs(o);
                 g = g + o * vec3<f32>(w.y * w.z, w.x * w.z, w.x * w.y) * f;
             }
         }
     }
-    return g / 32.0 * frame.box_min.w / voxel_size_world();
+    return g / 32.0 * frame.box_min.w / ((frame.box_max.xyz - frame.box_min.xyz) / n);
 }
 
 fn safe_normalize(v: vec3<f32>) -> vec3<f32> {
@@ -239,6 +247,12 @@ fn blinn_phong_factors(n: vec3<f32>, v: vec3<f32>, l: vec3<f32>, shininess: f32)
         spec = pow(ndh, shininess);
     }
     return vec2<f32>(diff, spec);
+}
+fn shading_value(tex: vec3<f32>) -> f32 {
+    return volume_value(tex);
+}
+fn shading_grid() -> vec3<f32> {
+    return frame.volume_dims.xyz;
 }
 struct p0_smooth_Params {
     radius: i32,

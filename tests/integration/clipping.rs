@@ -398,17 +398,6 @@ fn a_cut_through_matter_matches_the_cropped_phantom() {
     assert!(plain < 0.15, "{plain}");
 }
 
-/// Planes tangent to a sphere of radius `r` around the centre (normals on a spiral).
-fn planes(c: &mut PluginInstance, count: usize, r: f32) {
-    for i in 0..count {
-        let z = 1.0 - (2.0 * i as f32 + 1.0) / count as f32;
-        let rr = (1.0 - z * z).sqrt();
-        let phi = i as f32 * 2.399_963;
-        let n = [rr * phi.cos(), rr * phi.sin(), z];
-        shape(c, i, "plane", n.map(|v| v * r), n, [0.0; 3]);
-    }
-}
-
 /// A plane keeping x ≤ offset (world units).
 fn half_space(offset: f32) -> PluginInstance {
     let mut c = clip();
@@ -487,55 +476,9 @@ pub(crate) fn least_times(
 #[test]
 #[ignore = "benchmark: bash bench/clipping.sh"]
 fn clipping_benchmark() {
-    let s = settings(128, 128, Backend::Compute);
-    let tf = instance("classify.tf1d");
-    // overhead: planes outside the volume (nothing clipped, every plane evaluated)
-    let mut stacks = vec![vec![tf.clone()]];
-    for count in [1usize, 4, 16] {
-        let mut c = clip();
-        planes(&mut c, count, 0.9);
-        stacks.push(vec![tf.clone(), c]);
-    }
-    // three repetitions: the least time of each, and the range of the overheads
-    let reps: Vec<Vec<f64>> = (0..3)
-        .map(|_| least_times(&stacks, &[true; 4], &s))
-        .collect();
-    let best = |i: usize| reps.iter().map(|r| r[i]).fold(f64::INFINITY, f64::min);
-    let none = best(0);
-    let mut overhead = String::new();
-    for (i, count) in [1usize, 4, 16].into_iter().enumerate() {
-        let o: Vec<f64> = reps
-            .iter()
-            .map(|r| (r[i + 1] / r[0] - 1.0) * 100.0)
-            .collect();
-        let (lo, hi) = (
-            o.iter().copied().fold(f64::INFINITY, f64::min),
-            o.iter().copied().fold(f64::NEG_INFINITY, f64::max),
-        );
-        overhead += &format!(
-            "| {count} | {:.2} | {:+.1} % | {lo:+.1} … {hi:+.1} % |\n",
-            best(i + 1),
-            (best(i + 1) / none - 1.0) * 100.0
-        );
-    }
-    // skipping: one plane keeping x ≤ offset, skipping on and off
-    let mut skip = String::new();
-    for offset in [0.5f32, 0.2, 0.0, -0.2, -0.4] {
-        let stack = vec![tf.clone(), half_space(offset)];
-        let share = {
-            let mut r = Renderer::new(gpu(), demo()).unwrap();
-            render(&mut r, &stack, TargetFormat::Rgba16Float, &s);
-            r.empty_brick_share().unwrap_or(0.0)
-        };
-        let t = least_times(&[stack.clone(), stack], &[true, false], &s);
-        skip += &format!(
-            "| {:.2} | {share:.3} | {:.2} | {:.2} | {:.2}× |\n",
-            (0.5 - offset) as f64,
-            t[1],
-            t[0],
-            t[1] / t[0]
-        );
-    }
+    // the plane overhead and the skipping tables are experiment files' blocks
+    let old = std::fs::read_to_string(repo().join("docs/clipping.md")).unwrap_or_default();
+    let experiments = kept_experiment_blocks(&old, &["clip_planes", "clip_skipping"]);
     let (clipped, unclipped) = dos_consistency();
     let (m_dos, m_plain) = (
         cut_through_matter(-35.0, true),
@@ -573,35 +516,17 @@ fn clipping_benchmark() {
          stencil). The hard cut is the `clip` hook, \
          which runs before any other hook, so per-slice state (DOS) never sees clipped \
          matter. Bricks wholly clipped are skipped (`Transparency::Region`).\n\n\
-         ## Overhead of clip planes\n\n\
-         Embedded demo volume, `classify.tf1d`, compute backend, 128², spacing 1, \
-         rgba16float, one renderer per stack, least time of 60 frames (30 rounds of 2, \
-         the stacks in turn; render and read back; the machine is shared with other \
-         jobs, and the least disturbed frame repeats best). The planes lie \
-         outside the volume (nothing is clipped; every plane is evaluated per sample); \
-         the shape kinds are structural, so the code holds exactly those planes. \
-         No planes: {none:.2} ms.\n\n\
-         | planes | frame ms (least) | overhead (least times) | overhead per repetition (3) |\n|---|---|---|---|\n{overhead}\n\
-         The issue's target is ≤ 5 % at 16 planes on the compute backend. It is not \
-         met on lavapipe: the baseline costs only one trilinear read and one table \
-         lookup per sample on the CPU, every plane adds ALU work on the same two cores, \
-         and branches are masked (the clip hook's early return makes the whole \
-         sample divergent). The kinds are structural, so slots that are off cost \
-         nothing. A GPU figure is open (no GPU on this machine). The machine may be \
-         shared with other jobs (load average {load} on 2 cores when this ended), hence \
-         three repetitions, each interleaving the stacks frame by frame; their spread \
-         is the last column, so only the trend is firm.\n\n\
-         ## Skipping wholly clipped bricks\n\n\
-         One plane keeps x ≤ 0.5 − (clipped width); least time of 60 frames (as above) with empty-space \
-         skipping on and off. Bricks of 8³ voxels; the share counts bricks the TF or \
-         the cut leaves empty.\n\n\
-         | clipped width (world) | empty brick share | skipping off ms | on ms | speed-up |\n\
-         |---|---|---|---|---|\n{skip}\n\
-         The share includes the bricks the transfer function already leaves empty \
-         (0.70 with nothing clipped); the test \
-         `wholly_clipped_bricks_are_skipped_without_changing_the_image` checks that \
-         the clipped bricks are added and that the image is bit for bit the same with \
-         skipping off. Timing noise as above.\n\n\
+         ## Overhead of clip planes, and skipping wholly clipped bricks\n\n\
+         Written by the experiment files `vwb run experiments/clip_planes.ron` and \
+         `experiments/clip_skipping.ron` into the blocks below (this benchmark keeps them). \
+         The issue's target for the overhead is ≤ 5 % at 16 planes on the compute backend. \
+         It is not met on lavapipe: the baseline costs only one trilinear read and one \
+         table lookup per sample on the CPU, every plane adds ALU work on the same two \
+         cores, and branches are masked (the clip hook's early return makes the whole \
+         sample divergent). A GPU figure is open. The test \
+         `wholly_clipped_bricks_are_skipped_without_changing_the_image` checks that the \
+         clipped bricks are added to the empty ones.\n\n\
+         {experiments}\
          ## Consistency with DOS\n\n\
          A block in front of a wall (32³), DOS θ = 60°, fp32 buffer, compute, 64², \
          orthographic along +z; a plane on a voxel boundary removes the block. \
@@ -664,7 +589,6 @@ fn clipping_benchmark() {
          `presets/data/nuclei_labels.nrrd` from `bench/make_nuclei_labels.py`).\n",
         machine = vwb_lab::measure::machine(),
         adapter = gpu().describe(),
-        load = load_average(),
     );
     vwb_render::preset::write_atomic(&repo().join("docs/clipping.md"), md.as_bytes()).unwrap();
     eprintln!("{md}");

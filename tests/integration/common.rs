@@ -29,6 +29,28 @@ pub fn load_average() -> String {
         .unwrap_or_else(|| "unknown".into())
 }
 
+/// The blocks of the experiment files `names` (`experiments/NAME.ron`, block
+/// `experiment NAME`) as `old` (a doc a benchmark is about to rewrite) holds them,
+/// markers included, each followed by a blank line; a placeholder for a block it lacks.
+pub fn kept_experiment_blocks(old: &str, names: &[&str]) -> String {
+    let mut out = String::new();
+    for name in names {
+        let (begin, end) = (
+            format!("<!-- BEGIN experiment {name} -->"),
+            format!("<!-- END experiment {name} -->"),
+        );
+        let kept = old.find(&begin).and_then(|i| {
+            let j = old[i..].find(&end)? + i;
+            Some(old[i..j + end.len()].to_string())
+        });
+        out += &kept.unwrap_or_else(|| {
+            format!("{begin}\nNot run yet: `vwb run experiments/{name}.ron`.\n{end}")
+        });
+        out += "\n\n";
+    }
+    out
+}
+
 /// A path in this test run's scratch directory.
 pub fn tmp(name: &str) -> PathBuf {
     let d = std::env::temp_dir().join(format!("vwb-test-{}", std::process::id()));

@@ -174,6 +174,80 @@ fn wrong_hook_signature_names_the_function_line() {
     );
 }
 
+/// A plugin may supply the scalar its sample hook gives (`scalar`, `scalar_grid`):
+/// the stack's gradient estimators then differentiate it (`shading_value`). Its
+/// signature is checked like a hook's, `scalar_grid` alone is refused, and
+/// `shading_value` is a shared name.
+#[test]
+fn a_supplied_scalar_is_what_the_gradients_differentiate() {
+    let fixture = |id: &'static str, file: &'static str, src: &'static str| Fixture {
+        id,
+        shader: ShaderSource::new_static(file, src),
+    };
+    let limits = wgpu::Limits::default();
+    let p = fixture(
+        "sample.doubled",
+        "fixtures/doubled.wgsl",
+        "fn sample(s: Sample) -> Sample {\n    var o = s;\n    o.value = 2.0 * s.value;\n    return o;\n}\n\nfn scalar(tex: vec3<f32>) -> f32 {\n    return 2.0 * volume_value(tex);\n}\n",
+    );
+    let c = compose(&[&p], TargetFormat::Rgba16Float, &limits).unwrap();
+    assert!(
+        c.main.source.contains(
+            "fn shading_value(tex: vec3<f32>) -> f32 {\n    return p0_doubled_scalar(tex);"
+        ),
+        "the provider's scalar"
+    );
+    // without scalar_grid, the volume's grid
+    assert!(
+        c.main
+            .source
+            .contains("fn shading_grid() -> vec3<f32> {\n    return frame.volume_dims.xyz;")
+    );
+    let plain = compose(
+        &[&*instance("classify.tf1d").plugin],
+        TargetFormat::Rgba16Float,
+        &limits,
+    )
+    .unwrap();
+    assert!(
+        plain
+            .main
+            .source
+            .contains("fn shading_value(tex: vec3<f32>) -> f32 {\n    return volume_value(tex);")
+    );
+    let bad = fixture(
+        "sample.bad_scalar",
+        "fixtures/bad_scalar.wgsl",
+        "fn sample(s: Sample) -> Sample { return s; }\n\nfn scalar(tex: vec3<f32>) -> vec4<f32> {\n    return vec4<f32>(0.0);\n}\n",
+    );
+    let msg = compose(&[&bad], TargetFormat::Rgba16Float, &limits)
+        .unwrap_err()
+        .to_string();
+    assert!(msg.starts_with("fixtures/bad_scalar.wgsl:3:"), "{msg}");
+    assert!(msg.contains("must be fn scalar(vec3<f32>) -> f32"), "{msg}");
+    let grid_only = fixture(
+        "sample.grid_only",
+        "fixtures/grid_only.wgsl",
+        "fn sample(s: Sample) -> Sample { return s; }\nfn scalar_grid() -> vec3<f32> { return vec3<f32>(1.0); }\n",
+    );
+    let msg = compose(&[&grid_only], TargetFormat::Rgba16Float, &limits)
+        .unwrap_err()
+        .to_string();
+    assert!(msg.contains("scalar_grid but no scalar"), "{msg}");
+    let clash = fixture(
+        "shade.clash3",
+        "fixtures/clash3.wgsl",
+        "fn shade(s: Sample) -> Sample { return s; }\n\nfn shading_value(t: vec3<f32>) -> f32 { return 0.0; }\n",
+    );
+    let msg = compose(&[&clash], TargetFormat::Rgba16Float, &limits)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        msg.starts_with("fixtures/clash3.wgsl:3:") && msg.contains("shading_value"),
+        "{msg}"
+    );
+}
+
 #[test]
 fn clash_with_shared_names_is_reported() {
     let p = Fixture {

@@ -165,6 +165,22 @@ fn shipped_experiment_files_load() {
                     );
                 }
             }
+            // the doc it regenerates holds its block's markers (or the run would fail
+            // after all its rendering)
+            if let Some(b) = &e.doc_block {
+                let doc = std::fs::read_to_string(dir.join(&b.file)).unwrap();
+                for marker in [
+                    format!("<!-- BEGIN {} -->", b.block),
+                    format!("<!-- END {} -->", b.block),
+                ] {
+                    assert!(
+                        doc.contains(&marker),
+                        "{}: {} has no '{marker}'",
+                        p.display(),
+                        b.file.display()
+                    );
+                }
+            }
             n += 1;
         }
     }

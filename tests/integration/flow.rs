@@ -500,6 +500,7 @@ fn flow_study() {
         fmt_ms(rows[5].1)
     );
 
+    experiment_blocks(&mut o);
     arrival_study(&mut o);
 
     // the storm
@@ -571,6 +572,20 @@ fn flow_study() {
          wind carried from a seed box on the low-x side.\n\n![storm time surfaces](images/storm_time_surfaces.png)\n"
     );
     std::fs::write(bench_doc("flow.md"), o).unwrap();
+}
+
+/// The section holding the blocks of the experiment files that write into
+/// docs/flow.md, each kept as the last run of its experiment wrote it (the study
+/// rewrites the rest of the document).
+fn experiment_blocks(o: &mut String) {
+    let old = std::fs::read_to_string(bench_doc("flow.md")).unwrap_or_default();
+    let _ = write!(
+        o,
+        "## Lighting, occlusion and clipping of the LIC\n\n\
+         Each block below is written by its experiment file (`vwb run experiments/NAME.ron`, the name in its \
+         marker) and kept by this study.\n\n{}",
+        kept_experiment_blocks(&old, &["flow_lit", "flow_dos", "flow_clip"])
+    );
 }
 
 /// A renderer for `vol` and `stack` at 32² (compute) after the frame that runs the
@@ -1077,6 +1092,86 @@ fn lic_on_the_fly_matches_its_twin_without_a_prepass() {
         24 * 20 * 12 * 4,
         "{pre_bytes} vs {fly_bytes}"
     );
+}
+
+/// Shading from LIC gradients: with `flow.lic3d` in the stack, a shading plugin's
+/// central and Sobel estimators differentiate the LIC on its grid (the value the
+/// sample hook gives), precomputed and on the fly; the image matches the f64 twin on
+/// both backends, and differs from the unlit LIC. The precomputed estimators' gradient
+/// volume would be the data's: that stack is refused, naming both plugins, and the
+/// last good pipeline keeps drawing.
+#[test]
+fn shading_from_lic_gradients_matches_its_twin() {
+    use crate::reference::{delta_e_rms, gpu_and_reference};
+    let vol = std::sync::Arc::new(vector_volume(
+        &Abc {
+            period: 16.0,
+            ..Default::default()
+        },
+        [24, 20, 12],
+    ));
+    let stack_of = |mode: &str, frequency: &str, gradient: &str| {
+        let mut lic = instance("flow.lic3d");
+        lic.params.set("mode", ParamValue::Enum(mode.into()));
+        lic.params
+            .set("frequency", ParamValue::Enum(frequency.into()));
+        lic.params.set("length", ParamValue::Float(4.0));
+        let mut phong = instance("shade.blinn_phong");
+        phong
+            .params
+            .set("gradient", ParamValue::Enum(gradient.into()));
+        vec![lic, instance("classify.tf1d"), phong]
+    };
+    for (mode, frequency, gradient) in [
+        ("precomputed", "1", "central"),
+        ("precomputed", "2", "sobel"),
+        ("on_the_fly", "1", "central"),
+    ] {
+        let stack = stack_of(mode, frequency, gradient);
+        // the bounds of lic_on_the_fly_matches_its_twin_without_a_prepass
+        for (backend, bound) in [(Backend::Compute, 0.15), (Backend::Raster, 1.0)] {
+            let s = settings(48, 48, backend);
+            let (px, reference) =
+                gpu_and_reference(vol.clone(), &stack, TargetFormat::Rgba32Float, &s);
+            assert!(
+                reference.iter().filter(|p| p[3] > 0.05).count() > 48 * 48 / 20,
+                "the volume is visible"
+            );
+            let rms = delta_e_rms(&px, &reference, 48, 48);
+            let (unlit, _) =
+                gpu_and_reference(vol.clone(), &stack[..2], TargetFormat::Rgba32Float, &s);
+            let lit = delta_e_rms(&unlit, &reference, 48, 48);
+            eprintln!(
+                "shading from LIC gradients, {mode} ×{frequency} {gradient}, {}: ΔE*uv RMS {rms:.4} against the twin ({lit:.2} from the unlit LIC)",
+                backend.name()
+            );
+            assert!(lit > 2.0, "the lighting shows: {lit}");
+            assert!(rms < bound, "{mode} {gradient} {}: {rms}", backend.name());
+        }
+    }
+    let s = settings(32, 32, Backend::Compute);
+    let mut r = Renderer::new(gpu(), vol.clone()).unwrap();
+    let good = render(
+        &mut r,
+        &stack_of("precomputed", "1", "central"),
+        TargetFormat::Rgba16Float,
+        &s,
+    );
+    let e = r
+        .update_stack(
+            &stack_of("precomputed", "1", "precomputed_central"),
+            TargetFormat::Rgba16Float,
+        )
+        .expect_err("a gradient volume of the data under a LIC is refused")
+        .to_string();
+    assert!(
+        e.contains("shade.blinn_phong")
+            && e.contains("flow.lic3d")
+            && e.contains("central or sobel"),
+        "{e}"
+    );
+    r.render(&s).unwrap();
+    assert_eq!(good, r.read_pixels().unwrap().2);
 }
 
 /// A tornado (swirl, inflow, updraft) on 24×24×16 and a flat seed box across its

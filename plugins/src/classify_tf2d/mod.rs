@@ -127,6 +127,23 @@ pub fn histogram2d(volume: &Volume, gradient_scale: f64, bins: usize) -> Vec<f32
     counts.iter().map(|&c| (c as f32).ln_1p()).collect()
 }
 
+/// The editor's histogram for `y_axis: data`: the log counts of the volume's
+/// normalised values along y (`bins` rows from 0 up), the same in every column, since x
+/// is the value the stack's sample hooks give (the LIC intensity under `flow.lic3d`),
+/// which only the stack computes. Laid out as [`histogram2d`] (x fastest).
+pub fn histogram_data_rows(volume: &Volume, bins: usize) -> Vec<f32> {
+    let mut counts = vec![0u64; bins];
+    for v in volume.normalized_scalars() {
+        if v.is_finite() {
+            counts[((v.clamp(0.0, 1.0) * bins as f32) as usize).min(bins - 1)] += 1;
+        }
+    }
+    counts
+        .iter()
+        .flat_map(|&c| std::iter::repeat_n((c as f32).ln_1p(), bins))
+        .collect()
+}
+
 impl Plugin for Tf2dPlugin {
     fn id(&self) -> &'static str {
         "classify.tf2d"

@@ -119,6 +119,17 @@ fn sample(s: Sample) -> Sample {
     o.value = mix(i, i * s.value, params.modulate);
     return o;
 }
+
+// The value `sample` gives at tex, on the LIC grid: what the gradient estimators of the
+// shading plugins differentiate (shading from LIC gradients).
+fn scalar(tex: vec3<f32>) -> f32 {
+    let i = textureSampleLevel(lic, linear_clamp, tex, 0.0).r;
+    return mix(i, i * volume_value(tex), params.modulate);
+}
+
+fn scalar_grid() -> vec3<f32> {
+    return vec3<f32>(textureDimensions(lic));
+}
 // precomputed: end
 
 // on_the_fly: begin
@@ -129,5 +140,18 @@ fn sample(s: Sample) -> Sample {
     let i = lic_integral(x0, d);
     o.value = mix(i, i * s.value, params.modulate);
     return o;
+}
+
+// The value `sample` gives at tex, integrated there: shading from LIC gradients costs
+// one integral per read of the estimator (6 central, 26 Sobel).
+fn scalar(tex: vec3<f32>) -> f32 {
+    let d = vec3<f32>(textureDimensions(noise));
+    let x0 = clamp(tex * d - vec3<f32>(0.5), vec3<f32>(-0.5), d - vec3<f32>(0.5));
+    let i = lic_integral(x0, d);
+    return mix(i, i * volume_value(tex), params.modulate);
+}
+
+fn scalar_grid() -> vec3<f32> {
+    return vec3<f32>(textureDimensions(noise));
 }
 // on_the_fly: end

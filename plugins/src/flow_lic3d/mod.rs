@@ -31,7 +31,7 @@ use vwb_render::flow::{
 use vwb_render::params::{ParamSpec, ParamValues};
 use vwb_render::plugin::{
     CpuContext, CpuSample, CpuTwin, GpuInit, GpuResource, Plugin, PluginError, PrepassDecl,
-    ResourceDecl, ResourceKind, ShaderSource, StorageFormat,
+    ResourceDecl, ResourceKind, ScalarField, ShaderSource, StorageFormat,
 };
 use vwb_render::volume::Volume;
 
@@ -398,18 +398,47 @@ impl CpuTwin for Lic3dTwin {
         }
     }
     fn sample(&self, _ctx: &CpuContext, s: &mut CpuSample) {
+        if let Some(i) = self.intensity(s.tex) {
+            s.value = self.modulated(i, s.value);
+        }
+    }
+    fn scalar(&self) -> Option<&dyn ScalarField> {
+        Some(self)
+    }
+}
+
+impl Lic3dTwin {
+    /// I at a texture coordinate: the LIC volume sampled trilinearly, or integrated
+    /// there on the fly (None before `prepare`).
+    fn intensity(&self, tex: DVec3) -> Option<f64> {
         // texture coordinates to LIC-grid voxel coordinates, clamped into the box
         let grid = |dims: [u32; 3]| {
             let d = DVec3::from(dims.map(f64::from));
-            (s.tex * d - DVec3::splat(0.5)).clamp(DVec3::splat(-0.5), d - DVec3::splat(0.5))
+            (tex * d - DVec3::splat(0.5)).clamp(DVec3::splat(-0.5), d - DVec3::splat(0.5))
         };
-        let i = if let Some(fly) = &self.fly {
-            fly.at(grid(fly.noise.dims))
-        } else if let Some(lic) = &self.lic {
-            lic.at(grid(lic.dims)).map_or(0.0, |v| v.x)
+        if let Some(fly) = &self.fly {
+            Some(fly.at(grid(fly.noise.dims)))
         } else {
-            return;
-        };
-        s.value = i + (i * s.value - i) * self.modulate;
+            self.lic
+                .as_ref()
+                .map(|lic| lic.at(grid(lic.dims)).map_or(0.0, |v| v.x))
+        }
+    }
+
+    /// The sample's value: I, modulated by the normalised magnitude `m`.
+    fn modulated(&self, i: f64, m: f64) -> f64 {
+        i + (i * m - i) * self.modulate
+    }
+}
+
+/// The twin of `scalar` and `scalar_grid`: the value `sample` gives at a texture
+/// coordinate, on the LIC grid (shading from LIC gradients).
+impl ScalarField for Lic3dTwin {
+    fn value(&self, ctx: &CpuContext, tex: DVec3) -> f64 {
+        let m = ctx.value(tex);
+        self.intensity(tex).map_or(m, |i| self.modulated(i, m))
+    }
+    fn grid(&self, ctx: &CpuContext) -> [u32; 3] {
+        lic_dims(ctx.volume, self.frequency)
     }
 }

@@ -49,3 +49,50 @@ fn parameters_select_the_integral_and_the_grid() {
     let prepass = twice.prepass().unwrap().shader.source;
     assert!(prepass.contains("fn prepass") && !prepass.contains("fn sample"));
 }
+
+/// The twin supplies what the sample hook gives as the shading scalar: the gradient
+/// estimators then differentiate the LIC one texel of its grid apart, not the data.
+#[test]
+fn the_twin_supplies_the_lic_as_the_shading_scalar() {
+    // a rotation about the z axis through the centre of an 8³ box
+    let n = 8usize;
+    let c = (n as f32 - 1.0) / 2.0;
+    let data: Vec<f32> = (0..n * n * n)
+        .flat_map(|i| {
+            let (x, y) = ((i % n) as f32 - c, ((i / n) % n) as f32 - c);
+            [-y, x, 0.0]
+        })
+        .collect();
+    let v = Volume::new("rotation", [8; 3], 3, [1.0; 3], VoxelData::F32(data)).unwrap();
+    let mut p = defaults();
+    p.set("frequency", ParamValue::Enum("2".into()));
+    let plugin = Lic3d {
+        frequency: 2,
+        ..Lic3d::default()
+    };
+    let scalars = v.normalized_scalars();
+    let ctx = CpuContext::new(&v, &scalars);
+    let mut twin = plugin.cpu_twin(&p).unwrap();
+    twin.prepare(&ctx);
+    let twins = vec![twin];
+    let shaded = ctx.with_scalar_of(&twins);
+    assert_eq!(shaded.shading_grid(), [16; 3]);
+    assert_eq!(ctx.shading_grid(), [8; 3]);
+    let lic = lic_of(&v, 2, &p);
+    let at = |x: usize, y: usize, z: usize| lic.data[(z * 16 + y) * 16 + x] as f64;
+    // at a texel centre of the LIC grid the scalar is that texel
+    let (x, y, z) = (5, 7, 9);
+    let tex = (DVec3::new(x as f64, y as f64, z as f64) + 0.5) / 16.0;
+    assert!((shaded.shading_value(tex) - at(x, y, z)).abs() < 1e-9);
+    // central differences one LIC texel apart, in ∇f·Δs0 units (Δs0 = 1/8, texel 1/16)
+    let g = vwb_render::shading::gradient_central(&shaded, tex);
+    let expected = DVec3::new(
+        at(x + 1, y, z) - at(x - 1, y, z),
+        at(x, y + 1, z) - at(x, y - 1, z),
+        at(x, y, z + 1) - at(x, y, z - 1),
+    );
+    assert!((g - expected).length() < 1e-9, "{g} vs {expected}");
+    // not the data's gradient (the normalised magnitude grows with the radius)
+    let data = vwb_render::shading::gradient_central(&ctx, tex);
+    assert!((g - data).length() > 0.05, "{g} vs {data}");
+}

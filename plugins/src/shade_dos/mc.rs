@@ -255,8 +255,9 @@ impl Scene {
             t.classify(ctx, &mut s);
         }
         if shade {
+            let ctx = ctx.with_scalar_of(&self.twins);
             for t in &self.twins {
-                t.shade(ctx, &mut s);
+                t.shade(&ctx, &mut s);
             }
         }
         let a = if s.color.w.is_nan() {
