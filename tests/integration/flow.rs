@@ -896,6 +896,17 @@ fn arrival_study(o: &mut String) {
     );
 }
 
+/// The twin tests' vector volume: an ABC flow (period 16 voxels) on 24×20×12.
+fn small_abc() -> std::sync::Arc<Volume> {
+    std::sync::Arc::new(vector_volume(
+        &Abc {
+            period: 16.0,
+            ..Default::default()
+        },
+        [24, 20, 12],
+    ))
+}
+
 /// A 3-component volume of `field` sampled at the voxel centres of `dims`.
 fn vector_volume(field: &dyn Field, dims: [u32; 3]) -> Volume {
     let g = GridField::sample(field, dims);
@@ -908,14 +919,7 @@ fn vector_volume(field: &dyn Field, dims: [u32; 3]) -> Volume {
 /// integration parameter changes.
 #[test]
 fn lic_prepass_matches_its_twin() {
-    let dims = [24, 20, 12];
-    let vol = std::sync::Arc::new(vector_volume(
-        &Abc {
-            period: 16.0,
-            ..Default::default()
-        },
-        dims,
-    ));
+    let vol = small_abc();
     let mut r = Renderer::new(gpu(), vol.clone()).unwrap();
     let s = settings(48, 48, Backend::Compute);
     let mut worst: f64 = 0.0;
@@ -1003,13 +1007,7 @@ fn lic_prepass_matches_its_twin() {
 #[test]
 fn lic_on_the_fly_matches_its_twin_without_a_prepass() {
     use crate::reference::{delta_e_rms, gpu_and_reference, gpu_delta_e_rms};
-    let vol = std::sync::Arc::new(vector_volume(
-        &Abc {
-            period: 16.0,
-            ..Default::default()
-        },
-        [24, 20, 12],
-    ));
+    let vol = small_abc();
     let mut fly = instance("flow.lic3d");
     fly.params
         .set("mode", ParamValue::Enum("on_the_fly".into()));
@@ -1103,13 +1101,7 @@ fn lic_on_the_fly_matches_its_twin_without_a_prepass() {
 #[test]
 fn shading_from_lic_gradients_matches_its_twin() {
     use crate::reference::{delta_e_rms, gpu_and_reference};
-    let vol = std::sync::Arc::new(vector_volume(
-        &Abc {
-            period: 16.0,
-            ..Default::default()
-        },
-        [24, 20, 12],
-    ));
+    let vol = small_abc();
     let stack_of = |mode: &str, frequency: &str, gradient: &str| {
         let mut lic = instance("flow.lic3d");
         lic.params.set("mode", ParamValue::Enum(mode.into()));
