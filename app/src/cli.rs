@@ -910,7 +910,7 @@ pub fn run_suggest_tf(a: &SuggestTfArgs) -> Result<()> {
         .filter(|(_, a)| **a > 0.0)
         .max_by(|a, b| a.1.total_cmp(b.1))
         .map_or(
-            "no boundary found: the transfer function is transparent".to_string(),
+            "no boundary found above the noise: the transfer function is transparent".to_string(),
             |(i, _)| {
                 format!(
                     "most opaque value {:.3}",
@@ -918,9 +918,16 @@ pub fn run_suggest_tf(a: &SuggestTfArgs) -> Result<()> {
                 )
             },
         );
+    let background = s
+        .background
+        .map_or("no background peak".to_string(), |(p, end)| {
+            format!("background peak at {p:.3}, transparent below {end:.3}")
+        });
     eprintln!(
-        "{name}: boundary blur σ = {:.2} voxels; {peak}; {} of {} value bins on a boundary; wrote {}",
+        "{name}: pre-filter σ {} voxels, boundary blur σ = {:.2} voxels, noise floor |∇f| {:.4}, {background}; {peak}; {} of {} value bins on a boundary; wrote {}",
+        s.smoothing,
         s.sigma,
+        s.noise_floor,
         s.alpha.iter().filter(|&&a| a > 0.0).count(),
         s.alpha.len(),
         a.output.display()

@@ -130,7 +130,12 @@ pub fn param_widgets(
             ),
             (ParamKind::Path { .. }, ParamValue::Path(p)) => Some(path_field(ui, salt, spec, p)),
             (ParamKind::Tf { .. }, ParamValue::Tf(t)) => {
-                ui.label(spec.label);
+                ui.horizontal(|ui| {
+                    ui.label(spec.label);
+                    if let Some(volume) = cx.volume {
+                        suggest_button(ui, (salt, spec.key), volume, t);
+                    }
+                });
                 // one editor state per plugin instance and parameter (classify.labels
                 // has eight curves)
                 crate::tf_editor::tf_editor(ui, (salt, spec.key), t, cx.histogram);
@@ -260,6 +265,40 @@ pub struct StackUi<'a> {
     pub histogram: &'a [u64],
     /// The volume (the 2D TF editor's histogram).
     pub volume: Option<&'a std::sync::Arc<vwb_render::Volume>>,
+}
+
+/// "Suggest" beside a 1D TF editor: replaces `tf` by the data-driven suggestion for the
+/// volume (boundaries found by Kindlmann and Durkin's method, noise filtered, the
+/// background transparent: `vwb_render::suggest`), or says beside the button why it
+/// kept it (no boundary above the noise, a vector volume).
+fn suggest_button(
+    ui: &mut egui::Ui,
+    salt: impl std::hash::Hash + std::fmt::Debug,
+    volume: &vwb_render::Volume,
+    tf: &mut vwb_render::tf::TfCurve,
+) {
+    use vwb_render::suggest::{SuggestOptions, suggest};
+    let note_id = ui.scope_id().with(("suggest note", salt));
+    let clicked = ui
+        .button("Suggest")
+        .on_hover_text(
+            "a transfer function from the volume's boundaries (Kindlmann–Durkin, noise filtered, background transparent)",
+        )
+        .clicked();
+    if clicked {
+        let note = match suggest(volume, &SuggestOptions::default()) {
+            Ok(s) if s.found() => {
+                *tf = s.curve;
+                format!("boundaries found (pre-filter σ {} voxels)", s.smoothing)
+            }
+            Ok(_) => "no boundary found above the noise: the TF is unchanged".to_string(),
+            Err(e) => format!("{e}: the TF is unchanged"),
+        };
+        ui.data_mut(|d| d.insert_temp(note_id, note));
+    }
+    if let Some(note) = ui.data(|d| d.get_temp::<String>(note_id)) {
+        ui.small(note);
+    }
 }
 
 /// What happened in the stack editor this frame.
@@ -586,5 +625,40 @@ mod kittest_tests {
         );
         assert!(h.query_by_label("Add gaussian").is_some());
         assert_eq!(h.query_all_by_label("Add plugin").count(), 1);
+    }
+
+    /// "Suggest" beside the 1D TF editor puts the volume's suggestion into the curve,
+    /// and says so.
+    #[test]
+    fn suggest_replaces_the_tf_by_the_volumes_suggestion() {
+        let r = vwb_plugins::builtin_registry();
+        let volume = std::sync::Arc::new(vwb_render::volume::demo());
+        let expected = vwb_render::suggest::suggest(&volume, &Default::default())
+            .unwrap()
+            .curve;
+        let stack = vec![PluginInstance::new(r.get("classify.tf1d").unwrap())];
+        assert_ne!(
+            stack[0].params.get("tf"),
+            Some(&ParamValue::Tf(expected.clone()))
+        );
+        let mut h = Harness::builder().with_size([420.0, 900.0]).build_ui_state(
+            move |ui, stack: &mut Vec<PluginInstance>| {
+                let cx = StackUi {
+                    registry: &r,
+                    error: None,
+                    histogram: &volume.histogram,
+                    volume: Some(&volume),
+                };
+                stack_editor(ui, &cx, stack);
+            },
+            stack,
+        );
+        h.get_by_label("Suggest").click();
+        h.run();
+        assert_eq!(
+            h.state()[0].params.get("tf"),
+            Some(&ParamValue::Tf(expected))
+        );
+        assert!(h.query_by_label_contains("boundaries found").is_some());
     }
 }

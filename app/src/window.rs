@@ -77,6 +77,13 @@ fn startup_or_demo(
             doc.volume = headless::volume_arg(v);
         }
         let volume = headless::load_volume(&doc.volume)?;
+        if cli.preset.is_none() && cli.volume.is_some() {
+            // a volume opened without a preset starts from its suggested TF
+            match vwb_lab::document::start_from_suggestion(&mut doc, &volume) {
+                Ok(note) => eprintln!("{note}"),
+                Err(why) => eprintln!("note: {why}"),
+            }
+        }
         headless::check_frame(cli.preset.as_deref(), &doc, &volume)?;
         anyhow::Ok((doc, volume))
     })();

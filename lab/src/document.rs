@@ -49,6 +49,36 @@ pub fn default_document(registry: &Registry) -> Document {
     }
 }
 
+/// Starts the first enabled `classify.tf1d` of `doc` from the data-driven suggestion
+/// for `volume` (`vwb_render::suggest`: boundaries by Kindlmann and Durkin's method,
+/// noise filtered, the background transparent), as a volume opened without a preset
+/// is shown. `Ok` says what was set; `Err` why the TF stays (no boundary above the
+/// noise, a vector volume, no 1D TF in the stack).
+pub fn start_from_suggestion(
+    doc: &mut Document,
+    volume: &vwb_render::Volume,
+) -> std::result::Result<String, String> {
+    use vwb_render::params::ParamValue;
+    use vwb_render::suggest::{SuggestOptions, suggest};
+    let tf = doc
+        .stack
+        .iter_mut()
+        .find(|i| i.enabled && i.plugin.id() == "classify.tf1d")
+        .ok_or("the stack has no 1D transfer function to suggest")?;
+    let s = suggest(volume, &SuggestOptions::default()).map_err(|e| e.to_string())?;
+    if !s.found() {
+        return Err(format!(
+            "{}: no boundary found above the noise; the transfer function stays",
+            volume.name
+        ));
+    }
+    tf.params.set("tf", ParamValue::Tf(s.curve));
+    Ok(format!(
+        "{}: transfer function suggested from its boundaries (pre-filter σ {} voxels)",
+        volume.name, s.smoothing
+    ))
+}
+
 /// Loads a preset (or the built-in default document) with the built-in plugins and
 /// prints its warnings; the volume it names is protected from being overwritten by
 /// outputs.
@@ -63,4 +93,55 @@ pub fn load_document(preset: Option<&Path>) -> Result<Document> {
     }
     crate::outputs::protect_document(Some(path), &loaded.document);
     Ok(loaded.document)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A volume opened without a preset starts from its suggestion; a volume with no
+    /// boundary (or a stack without a 1D TF) keeps its TF and says why.
+    #[test]
+    fn a_volume_without_a_preset_starts_from_its_suggestion() {
+        let registry = vwb_plugins::registry();
+        let volume = vwb_render::volume::demo();
+        let mut doc = first_document(&registry);
+        let note = start_from_suggestion(&mut doc, &volume).unwrap();
+        assert!(note.contains("suggested"), "{note}");
+        let expected = vwb_render::suggest::suggest(&volume, &Default::default())
+            .unwrap()
+            .curve;
+        let tf = doc
+            .stack
+            .iter()
+            .find(|i| i.plugin.id() == "classify.tf1d")
+            .unwrap();
+        assert_eq!(
+            tf.params.get("tf"),
+            Some(&vwb_render::params::ParamValue::Tf(expected))
+        );
+        // a linear ramp: the same gradient everywhere, no boundary
+        let flat = vwb_render::Volume::new(
+            "ramp",
+            [16, 16, 16],
+            1,
+            [1.0; 3],
+            vwb_render::volume::VoxelData::F32((0..4096).map(|i| (i % 16) as f32).collect()),
+        )
+        .unwrap();
+        let mut kept = first_document(&registry);
+        let before = kept.stack.clone();
+        let e = start_from_suggestion(&mut kept, &flat).unwrap_err();
+        assert!(e.contains("ramp") && e.contains("no boundary"), "{e}");
+        assert_eq!(kept.stack.len(), before.len());
+        for (a, b) in kept.stack.iter().zip(&before) {
+            assert_eq!(a.params, b.params);
+        }
+        doc.stack.retain(|i| i.plugin.id() != "classify.tf1d");
+        assert!(
+            start_from_suggestion(&mut doc, &volume)
+                .unwrap_err()
+                .contains("no 1D")
+        );
+    }
 }

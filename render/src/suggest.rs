@@ -38,6 +38,28 @@ pub struct SuggestOptions {
     pub max_opacity: f64,
     /// Share of g_max below which a value is not on a boundary.
     pub min_gradient: f64,
+    /// Gaussian pre-filter width σ (voxels) applied before the derivatives, against
+    /// noise (0: none).
+    pub smoothing: f64,
+    /// A value is on a boundary only where its mean gradient exceeds this multiple of
+    /// the noise floor (the median gradient magnitude over all interior voxels, which
+    /// lie mostly inside homogeneous regions).
+    pub noise_factor: f64,
+    /// Leave the values of the background and its noise transparent ([`background`]).
+    pub drop_background: bool,
+}
+
+impl SuggestOptions {
+    /// The suggestion as it was before the noise handling: no pre-filter, no noise
+    /// floor, the background kept (for measuring the fog it left).
+    pub fn unfiltered() -> Self {
+        Self {
+            smoothing: 0.0,
+            noise_factor: 0.0,
+            drop_background: false,
+            ..Self::default()
+        }
+    }
 }
 
 impl Default for SuggestOptions {
@@ -48,6 +70,9 @@ impl Default for SuggestOptions {
             thickness: 1.0,
             max_opacity: 0.6,
             min_gradient: 0.05,
+            smoothing: 1.0,
+            noise_factor: 3.0,
+            drop_background: true,
         }
     }
 }
@@ -99,10 +124,38 @@ pub struct Suggestion {
     pub p: Vec<f64>,
     /// Boundary blur σ (voxels).
     pub sigma: f64,
+    /// The noise floor: the median gradient magnitude over the interior voxels (after
+    /// the pre-filter), in normalised value per voxel.
+    pub noise_floor: f64,
+    /// The background, where found: the value of the lowest histogram peak (normalised)
+    /// and the value below which the suggestion is transparent ([`background`]).
+    pub background: Option<(f64, f64)>,
+    /// The pre-filter width (voxels) the derivatives were taken at.
+    pub smoothing: f64,
     /// Opacity per value bin.
     pub alpha: Vec<f64>,
     /// The suggested transfer function.
     pub curve: TfCurve,
+}
+
+impl Suggestion {
+    /// Whether some value is on a boundary (else the suggestion is transparent).
+    pub fn found(&self) -> bool {
+        self.alpha.iter().any(|&a| a > 0.0)
+    }
+
+    /// The middle of the first boundary above the background: the first value above
+    /// the background peak (0 without one) where p(v) crosses from negative to
+    /// positive (K&D: the sign of −h/g flips at a boundary's middle value).
+    pub fn first_boundary(&self) -> Option<f64> {
+        let n = self.p.len();
+        let start = self
+            .background
+            .map_or(1, |(peak, _)| ((peak * n as f64) as usize + 1).max(1));
+        (start..n)
+            .find(|&i| self.p[i - 1] < 0.0 && self.p[i] >= 0.0)
+            .map(|i| i as f64 / n as f64)
+    }
 }
 
 #[derive(Debug, thiserror::Error, PartialEq)]
@@ -171,8 +224,68 @@ impl SuggestOptions {
                 "a number in [0, 1)",
             );
         }
+        if !(self.smoothing.is_finite() && (0.0..=8.0).contains(&self.smoothing)) {
+            return bad(
+                "smoothing",
+                self.smoothing.to_string(),
+                "a number in [0, 8] (voxels)",
+            );
+        }
+        if !(self.noise_factor.is_finite() && self.noise_factor >= 0.0) {
+            return bad(
+                "noise_factor",
+                self.noise_factor.to_string(),
+                "a finite number ≥ 0",
+            );
+        }
         Ok(())
     }
+}
+
+/// Bins of the value histogram [`background`] reads: coarse enough that integer data
+/// over a short range (u8 over 0–202 in the MRI demo) leaves no empty bins between
+/// filled ones.
+const BACKGROUND_BINS: usize = 64;
+
+/// The background of a volume from its value histogram ([`BACKGROUND_BINS`] bins of the
+/// normalised scalars `s`, a 3-bin running mean): the lowest peak that holds at least
+/// 5 % of the finite voxels (air in CT and MRI, the dark of a micrograph, a fill value),
+/// and where it ends: 2.6 half widths at half maximum above the peak (measured on its
+/// upper side; for a Gaussian peak, where it falls to 1 %), or earlier where the count
+/// falls below 1 % of the peak's or the histogram stops falling (a valley). Returns
+/// (peak, end) as normalised values; None when no peak holds 5 %. Values below the end
+/// are noise about the background, not a boundary: the suggestion leaves them
+/// transparent (its fog otherwise).
+pub fn background(s: &[f32]) -> Option<(f64, f64)> {
+    let bins = BACKGROUND_BINS;
+    let mut counts = vec![0u64; bins];
+    for v in s.iter().filter(|v| v.is_finite()) {
+        counts[((v.clamp(0.0, 1.0) * bins as f32) as usize).min(bins - 1)] += 1;
+    }
+    let total: u64 = counts.iter().sum();
+    let smooth: Vec<f64> = (0..bins)
+        .map(|i| {
+            let (a, b) = (i.saturating_sub(1), (i + 1).min(bins - 1));
+            counts[a..=b].iter().sum::<u64>() as f64 / (b - a + 1) as f64
+        })
+        .collect();
+    let peak = (0..bins).find(|&i| {
+        let c = smooth[i];
+        c >= 0.05 * total as f64 / 3.0
+            && (i == 0 || c >= smooth[i - 1])
+            && (i + 1 == bins || c >= smooth[i + 1])
+    })?;
+    let mut half = peak + 1;
+    while half < bins && smooth[half] >= 0.5 * smooth[peak] {
+        half += 1;
+    }
+    let mut end = peak + 1;
+    while end < bins && smooth[end] >= 0.01 * smooth[peak] && smooth[end] <= smooth[end - 1] {
+        end += 1;
+    }
+    let at = |i: f64| i / bins as f64;
+    let end = (end as f64).min(peak as f64 + 2.6 * (half - peak) as f64);
+    Some((at(peak as f64 + 0.5), at(end)))
 }
 
 /// An empty vector with room for `n` values, or `None` when it cannot be allocated.
@@ -215,17 +328,77 @@ fn derivatives(s: &[f32], d: [usize; 3], x: usize, y: usize, z: usize) -> Option
     r.iter().all(|v| v.is_finite()).then_some(r)
 }
 
-fn percentile(mut v: Vec<f64>, q: f64) -> f64 {
-    if v.is_empty() {
-        return 0.0;
-    }
-    let k = ((v.len() - 1) as f64 * q).round() as usize;
-    let (_, x, _) = v.select_nth_unstable_by(k, |a, b| a.total_cmp(b));
-    *x
+/// The `q`-quantiles of `v` (0 for an empty one), in the order given; reorders `v`.
+fn percentiles<const N: usize>(v: &mut [f64], q: [f64; N]) -> [f64; N] {
+    q.map(|q| {
+        if v.is_empty() {
+            return 0.0;
+        }
+        let k = ((v.len() - 1) as f64 * q).round() as usize;
+        let (_, x, _) = v.select_nth_unstable_by(k, |a, b| a.total_cmp(b));
+        *x
+    })
 }
 
-/// Builds the histogram volume and the suggestion for a scalar volume.
+/// `s` (x fastest, dims `d`) filtered by a Gaussian of width `sigma` voxels along each
+/// axis in turn (radius ⌈3σ⌉, clamped at the faces). Non-finite voxels take no part:
+/// each output is the weighted mean of its finite neighbours (NaN where it has none).
+fn gaussian_smooth(s: &[f32], d: [usize; 3], sigma: f64) -> Vec<f32> {
+    let r = (3.0 * sigma).ceil() as isize;
+    let w: Vec<f64> = (-r..=r)
+        .map(|i| (-0.5 * (i as f64 / sigma).powi(2)).exp())
+        .collect();
+    let mut cur = s.to_vec();
+    for axis in 0..3 {
+        let stride = [1, d[0], d[0] * d[1]][axis];
+        let n = d[axis] as isize;
+        let src = cur;
+        cur = (0..src.len())
+            .into_par_iter()
+            .map(|i| {
+                let pos = ((i / stride) % d[axis]) as isize;
+                let (mut sum, mut weight) = (0.0, 0.0);
+                for (k, wk) in (-r..=r).zip(&w) {
+                    let p = (pos + k).clamp(0, n - 1);
+                    let v = src[(i as isize + (p - pos) * stride as isize) as usize];
+                    if v.is_finite() {
+                        sum += wk * v as f64;
+                        weight += wk;
+                    }
+                }
+                if weight > 0.0 {
+                    (sum / weight) as f32
+                } else {
+                    f32::NAN
+                }
+            })
+            .collect();
+    }
+    cur
+}
+
+/// Largest pre-filter width (voxels) [`suggest`] widens to.
+const MAX_SMOOTHING: f64 = 4.0;
+
+/// Builds the histogram volume and the suggestion for a scalar volume. Where no value
+/// is on a boundary at the pre-filter width `opts.smoothing`, the width is doubled (up to
+/// [`MAX_SMOOTHING`] voxels): low-contrast boundaries in noisy data (a tomogram) stand
+/// out of the noise only once it is averaged down. [`Suggestion::smoothing`] says which
+/// width gave the result; with none, the suggestion is transparent and
+/// [`Suggestion::found`] false.
 pub fn suggest(volume: &Volume, opts: &SuggestOptions) -> Result<Suggestion, SuggestError> {
+    let mut o = *opts;
+    loop {
+        let s = suggest_filtered(volume, &o)?;
+        if s.found() || o.smoothing <= 0.0 || o.smoothing * 2.0 > MAX_SMOOTHING {
+            return Ok(s);
+        }
+        o.smoothing *= 2.0;
+    }
+}
+
+/// [`suggest`] at one pre-filter width.
+fn suggest_filtered(volume: &Volume, opts: &SuggestOptions) -> Result<Suggestion, SuggestError> {
     if volume.components != 1 {
         return Err(SuggestError::NotScalar(volume.name.clone()));
     }
@@ -240,12 +413,12 @@ pub fn suggest(volume: &Volume, opts: &SuggestOptions) -> Result<Suggestion, Sug
     if d.iter().any(|&n| n < 3) {
         return Err(SuggestError::TooSmall(volume.name.clone()));
     }
-    // working memory: the normalised scalars (4 bytes per voxel), (v, f', f'') per
-    // interior voxel (24 bytes, built in parallel parts and then joined: twice) and one
-    // percentile column (8 bytes)
+    // working memory: the normalised scalars and their filtered copy (2 × 4 bytes per
+    // voxel), (v, f', f'') per interior voxel (24 bytes, built in parallel parts and
+    // then joined: twice) and one percentile column (8 bytes)
     let interior = d.iter().map(|&n| (n - 2) as u64).product::<u64>();
     let need = (volume.voxel_count() as u64)
-        .saturating_mul(4)
+        .saturating_mul(8)
         .saturating_add(interior.saturating_mul(2 * 24 + 8));
     let oom = |available: u64| SuggestError::OutOfMemory {
         name: volume.name.clone(),
@@ -258,7 +431,11 @@ pub fn suggest(volume: &Volume, opts: &SuggestOptions) -> Result<Suggestion, Sug
     {
         return Err(oom(available));
     }
-    let s = volume.normalized_scalars();
+    let mut s = volume.normalized_scalars();
+    if opts.smoothing > 0.0 {
+        s = gaussian_smooth(&s, d, opts.smoothing);
+    }
+    let background = background(&s);
     // every interior voxel's (v, f', f''), slab by slab in parallel
     let mut samples: Vec<[f64; 3]> = try_with_capacity(interior as usize).ok_or_else(|| oom(0))?;
     samples.par_extend((1..d[2] - 1).into_par_iter().flat_map_iter(|z| {
@@ -268,11 +445,12 @@ pub fn suggest(volume: &Volume, opts: &SuggestOptions) -> Result<Suggestion, Sug
     }));
     let mut column = try_with_capacity(samples.len()).ok_or_else(|| oom(0))?;
     column.extend(samples.iter().map(|r| r[1]));
-    let raw_g_hi = percentile(column, 0.995);
+    let [noise_floor, raw_g_hi] = percentiles(&mut column, [0.5, 0.995]);
     let g_hi = raw_g_hi.max(1e-12);
-    let mut column = try_with_capacity(samples.len()).ok_or_else(|| oom(0))?;
+    column.clear();
     column.extend(samples.iter().map(|r| r[2].abs()));
-    let h_hi = percentile(column, 0.995).max(1e-12);
+    let [h_hi] = percentiles(&mut column, [0.995]);
+    let h_hi = h_hi.max(1e-12);
     // an odd number of bins puts a bin centre on f'' = 0
     let (vb, db) = (opts.value_bins, opts.derivative_bins | 1);
     let mut histogram = HistogramVolume {
@@ -341,17 +519,23 @@ pub fn suggest(volume: &Volume, opts: &SuggestOptions) -> Result<Suggestion, Sug
     };
     let p: Vec<f64> = (0..vb)
         .map(|v| {
-            if g_max > 0.0 && g_mean[v] > opts.min_gradient * g_max {
+            let floor = (opts.min_gradient * g_max).max(opts.noise_factor * noise_floor);
+            if g_max > 0.0 && g_mean[v] > floor {
                 -sigma * sigma * h_mean[v] / g_mean[v]
             } else {
                 f64::NAN
             }
         })
         .collect();
+    let transparent_below = match background {
+        Some((_, end)) if opts.drop_background => end,
+        _ => 0.0,
+    };
     let alpha: Vec<f64> = p
         .iter()
-        .map(|&p| {
-            if p.is_finite() {
+        .enumerate()
+        .map(|(v, &p)| {
+            if p.is_finite() && (v as f64 + 0.5) / vb as f64 >= transparent_below {
                 opts.max_opacity * (1.0 - p.abs() / opts.thickness).max(0.0)
             } else {
                 0.0
@@ -365,6 +549,9 @@ pub fn suggest(volume: &Volume, opts: &SuggestOptions) -> Result<Suggestion, Sug
         h: h_mean,
         p,
         sigma,
+        noise_floor,
+        background,
+        smoothing: opts.smoothing,
         alpha,
         curve,
     })
@@ -410,6 +597,44 @@ fn curve_from(alpha: &[f64]) -> TfCurve {
             })
             .collect(),
     )
+}
+
+/// A synthetic tomogram, for tests and measurements: a ball of radius 14 voxels and
+/// value `contrast` (its edge a logistic of width 1.5 voxels) on 0, in seeded Gaussian
+/// noise of σ 0.1, on 48³ voxels (f32). At contrast 0.15 its boundary is hidden in the
+/// noise, as in a low-dose cryo-electron tomogram.
+pub fn noisy_ball(contrast: f64) -> Volume {
+    let n = 48u32;
+    let mut state = 0x2545_f491_4f6c_dd1du64;
+    let mut uniform = || {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        (state >> 11) as f64 / (1u64 << 53) as f64
+    };
+    let c = (n as f64 - 1.0) / 2.0;
+    let mut v = Vec::with_capacity(n.pow(3) as usize);
+    for z in 0..n {
+        for y in 0..n {
+            for x in 0..n {
+                let r = ((x as f64 - c).powi(2) + (y as f64 - c).powi(2) + (z as f64 - c).powi(2))
+                    .sqrt();
+                let ball = contrast / (1.0 + ((r - 14.0) / 1.5).exp());
+                // Box–Muller
+                let g = (-2.0 * uniform().max(1e-300).ln()).sqrt()
+                    * (std::f64::consts::TAU * uniform()).cos();
+                v.push((ball + 0.1 * g) as f32);
+            }
+        }
+    }
+    Volume::new(
+        "noisy ball",
+        [n; 3],
+        1,
+        [1.0; 3],
+        crate::volume::VoxelData::F32(v),
+    )
+    .expect("a valid volume")
 }
 
 #[cfg(test)]
@@ -463,6 +688,50 @@ mod tests {
         // the histogram volume holds every interior voxel
         let total: u64 = s.histogram.counts.iter().map(|&c| c as u64).sum();
         assert_eq!(total, 38u64.pow(3));
+    }
+
+    /// In noise, the unfiltered suggestion marks nearly every value bin as a boundary
+    /// (a solid block); the pre-filter, widened until it finds something, marks only
+    /// the ball's boundary values. Pure noise has no boundary, and says so.
+    #[test]
+    fn noise_is_filtered_and_a_boundary_is_found_or_none_is_claimed() {
+        let v = noisy_ball(0.15);
+        let old = suggest(&v, &SuggestOptions::unfiltered()).unwrap();
+        let bins = |s: &Suggestion| s.alpha.iter().filter(|&&a| a > 0.0).count();
+        assert!(bins(&old) > 200, "unfiltered: {} of 256", bins(&old));
+        let s = suggest(&v, &SuggestOptions::default()).unwrap();
+        assert!(s.found(), "the ball's boundary is found");
+        assert!(bins(&s) < 26, "{} of 256 bins", bins(&s));
+        assert!(s.smoothing >= 1.0 && s.noise_floor > 0.0);
+        // its opaque values lie between the background and the ball (normalised: the
+        // background's mean and the ball's, 0.15 apart in a range of about 1.1)
+        let (peak, _) = s.background.expect("the noise is the background peak");
+        let opaque: Vec<f64> = (0..256)
+            .filter(|&i| s.alpha[i] > 0.0)
+            .map(|i| (i as f64 + 0.5) / 256.0)
+            .collect();
+        assert!(
+            opaque.iter().all(|&x| x > peak && x < peak + 0.2),
+            "{peak} {opaque:?}"
+        );
+        let nothing = suggest(&noisy_ball(0.0), &SuggestOptions::default()).unwrap();
+        assert!(!nothing.found(), "{} bins in pure noise", bins(&nothing));
+        assert_eq!(nothing.smoothing, MAX_SMOOTHING);
+    }
+
+    /// The background of the MRI demo: the lowest peak (air, values near 0) and its
+    /// noise end well below the skin.
+    #[test]
+    fn the_background_is_the_lowest_peak_and_its_noise() {
+        let demo = crate::volume::demo();
+        let (peak, end) = background(&demo.normalized_scalars()).unwrap();
+        assert!(peak < 0.02 && end > 0.04 && end < 0.12, "{peak} {end}");
+        let s = suggest(&demo, &SuggestOptions::default()).unwrap();
+        let first = s.first_boundary().expect("the skin");
+        assert!(first > end && first < 0.3, "{first}");
+        // no background peak in a volume without one
+        let ramp: Vec<f32> = (0..1000).map(|i| i as f32 / 999.0).collect();
+        assert_eq!(background(&ramp), None);
     }
 
     #[test]
