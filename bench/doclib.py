@@ -34,10 +34,11 @@ def vwb_env(gpu: bool) -> dict:
 
 
 def default_vwb() -> str:
-    for build in ("release", "debug"):
-        p = REPO / "target" / build / "vwb"
-        if p.exists():
-            return str(p)
+    """The most recently built `vwb` (release or debug): an older release binary left
+    from before a change would measure the old code."""
+    built = [p for p in (REPO / "target" / b / "vwb" for b in ("release", "debug")) if p.exists()]
+    if built:
+        return str(max(built, key=lambda p: p.stat().st_mtime))
     return str(REPO / "target/release/vwb")
 
 
