@@ -587,18 +587,16 @@ mod kittest_tests {
     use egui_kittest::Harness;
     use egui_kittest::kittest::Queryable;
 
-    #[test]
-    fn every_builtin_plugin_ui_has_its_glyphs_and_accessible_names() {
+    /// The stack editor over `stack` with the demo volume (its histogram, its
+    /// suggestion), in a scroll area `height` points tall.
+    fn demo_harness(
+        stack: Vec<PluginInstance>,
+        height: f32,
+    ) -> Harness<'static, Vec<PluginInstance>> {
         let r = vwb_plugins::builtin_registry();
-        let stack: Vec<PluginInstance> = r
-            .plugins()
-            .iter()
-            .map(|p| PluginInstance::new(p.clone()))
-            .collect();
-        let n = stack.len();
         let volume = std::sync::Arc::new(vwb_render::volume::demo());
-        let mut h = Harness::builder()
-            .with_size([420.0, 8000.0])
+        Harness::builder()
+            .with_size([420.0, height])
             .build_ui_state(
                 move |ui, stack: &mut Vec<PluginInstance>| {
                     let cx = StackUi {
@@ -612,7 +610,18 @@ mod kittest_tests {
                     });
                 },
                 stack,
-            );
+            )
+    }
+
+    #[test]
+    fn every_builtin_plugin_ui_has_its_glyphs_and_accessible_names() {
+        let stack: Vec<PluginInstance> = vwb_plugins::builtin_registry()
+            .plugins()
+            .iter()
+            .map(|p| PluginInstance::new(p.clone()))
+            .collect();
+        let n = stack.len();
+        let mut h = demo_harness(stack, 8000.0);
         // open every plugin's parameters (the first is open already)
         for i in 1..n {
             h.get_all_by_label("parameters").nth(i).unwrap().click();
@@ -631,28 +640,17 @@ mod kittest_tests {
     /// and says so.
     #[test]
     fn suggest_replaces_the_tf_by_the_volumes_suggestion() {
-        let r = vwb_plugins::builtin_registry();
-        let volume = std::sync::Arc::new(vwb_render::volume::demo());
+        let volume = vwb_render::volume::demo();
         let expected = vwb_render::suggest::suggest(&volume, &Default::default())
             .unwrap()
             .curve;
+        let r = vwb_plugins::builtin_registry();
         let stack = vec![PluginInstance::new(r.get("classify.tf1d").unwrap())];
         assert_ne!(
             stack[0].params.get("tf"),
             Some(&ParamValue::Tf(expected.clone()))
         );
-        let mut h = Harness::builder().with_size([420.0, 900.0]).build_ui_state(
-            move |ui, stack: &mut Vec<PluginInstance>| {
-                let cx = StackUi {
-                    registry: &r,
-                    error: None,
-                    histogram: &volume.histogram,
-                    volume: Some(&volume),
-                };
-                stack_editor(ui, &cx, stack);
-            },
-            stack,
-        );
+        let mut h = demo_harness(stack, 900.0);
         h.get_by_label("Suggest").click();
         h.run();
         assert_eq!(
