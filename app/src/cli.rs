@@ -928,7 +928,7 @@ pub fn run_suggest_tf(a: &SuggestTfArgs) -> Result<()> {
         s.smoothing,
         s.sigma,
         s.noise_floor,
-        s.alpha.iter().filter(|&&a| a > 0.0).count(),
+        s.boundary_bins(),
         s.alpha.len(),
         a.output.display()
     );

@@ -268,16 +268,14 @@ pub struct StackUi<'a> {
 }
 
 /// "Suggest" beside a 1D TF editor: replaces `tf` by the data-driven suggestion for the
-/// volume (boundaries found by Kindlmann and Durkin's method, noise filtered, the
-/// background transparent: `vwb_render::suggest`), or says beside the button why it
-/// kept it (no boundary above the noise, a vector volume).
+/// volume ([`vwb_lab::document::suggested_tf`]), or says beside the button why it kept
+/// it (no boundary above the noise, a vector volume).
 fn suggest_button(
     ui: &mut egui::Ui,
     salt: impl std::hash::Hash + std::fmt::Debug,
     volume: &vwb_render::Volume,
     tf: &mut vwb_render::tf::TfCurve,
 ) {
-    use vwb_render::suggest::{SuggestOptions, suggest};
     let note_id = ui.scope_id().with(("suggest note", salt));
     let clicked = ui
         .button("Suggest")
@@ -286,13 +284,12 @@ fn suggest_button(
         )
         .clicked();
     if clicked {
-        let note = match suggest(volume, &SuggestOptions::default()) {
-            Ok(s) if s.found() => {
-                *tf = s.curve;
-                format!("boundaries found (pre-filter σ {} voxels)", s.smoothing)
+        let note = match vwb_lab::document::suggested_tf(volume) {
+            Ok((curve, note)) => {
+                *tf = curve;
+                note
             }
-            Ok(_) => "no boundary found above the noise: the TF is unchanged".to_string(),
-            Err(e) => format!("{e}: the TF is unchanged"),
+            Err(why) => why,
         };
         ui.data_mut(|d| d.insert_temp(note_id, note));
     }

@@ -49,22 +49,14 @@ pub fn default_document(registry: &Registry) -> Document {
     }
 }
 
-/// Starts the first enabled `classify.tf1d` of `doc` from the data-driven suggestion
-/// for `volume` (`vwb_render::suggest`: boundaries by Kindlmann and Durkin's method,
-/// noise filtered, the background transparent), as a volume opened without a preset
-/// is shown. `Ok` says what was set; `Err` why the TF stays (no boundary above the
-/// noise, a vector volume, no 1D TF in the stack).
-pub fn start_from_suggestion(
-    doc: &mut Document,
+/// The data-driven suggestion for `volume` as a 1D TF (`vwb_render::suggest`:
+/// boundaries by Kindlmann and Durkin's method, noise filtered, the background
+/// transparent) and a note saying so, or why there is none (no boundary above the
+/// noise, a vector volume).
+pub fn suggested_tf(
     volume: &vwb_render::Volume,
-) -> std::result::Result<String, String> {
-    use vwb_render::params::ParamValue;
+) -> std::result::Result<(vwb_render::tf::TfCurve, String), String> {
     use vwb_render::suggest::{SuggestOptions, suggest};
-    let tf = doc
-        .stack
-        .iter_mut()
-        .find(|i| i.enabled && i.plugin.id() == "classify.tf1d")
-        .ok_or("the stack has no 1D transfer function to suggest")?;
     let s = suggest(volume, &SuggestOptions::default()).map_err(|e| e.to_string())?;
     if !s.found() {
         return Err(format!(
@@ -72,11 +64,30 @@ pub fn start_from_suggestion(
             volume.name
         ));
     }
-    tf.params.set("tf", ParamValue::Tf(s.curve));
-    Ok(format!(
-        "{}: transfer function suggested from its boundaries (pre-filter σ {} voxels)",
+    let note = format!(
+        "{}: boundaries found, transfer function suggested (pre-filter σ {} voxels)",
         volume.name, s.smoothing
-    ))
+    );
+    Ok((s.curve, note))
+}
+
+/// Starts the first enabled `classify.tf1d` of `doc` from [`suggested_tf`] for
+/// `volume`, as a volume opened without a preset is shown. `Ok` says what was set;
+/// `Err` why the TF stays (no boundary above the noise, a vector volume, no 1D TF in
+/// the stack).
+pub fn start_from_suggestion(
+    doc: &mut Document,
+    volume: &vwb_render::Volume,
+) -> std::result::Result<String, String> {
+    let tf = doc
+        .stack
+        .iter_mut()
+        .find(|i| i.enabled && i.plugin.id() == "classify.tf1d")
+        .ok_or("the stack has no 1D transfer function to suggest")?;
+    let (curve, note) = suggested_tf(volume)?;
+    tf.params
+        .set("tf", vwb_render::params::ParamValue::Tf(curve));
+    Ok(note)
 }
 
 /// Loads a preset (or the built-in default document) with the built-in plugins and

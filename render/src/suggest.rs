@@ -139,9 +139,14 @@ pub struct Suggestion {
 }
 
 impl Suggestion {
+    /// The value bins on a boundary (α > 0).
+    pub fn boundary_bins(&self) -> usize {
+        self.alpha.iter().filter(|&&a| a > 0.0).count()
+    }
+
     /// Whether some value is on a boundary (else the suggestion is transparent).
     pub fn found(&self) -> bool {
-        self.alpha.iter().any(|&a| a > 0.0)
+        self.boundary_bins() > 0
     }
 
     /// The middle of the first boundary above the background: the first value above
@@ -387,18 +392,6 @@ const MAX_SMOOTHING: f64 = 4.0;
 /// width gave the result; with none, the suggestion is transparent and
 /// [`Suggestion::found`] false.
 pub fn suggest(volume: &Volume, opts: &SuggestOptions) -> Result<Suggestion, SuggestError> {
-    let mut o = *opts;
-    loop {
-        let s = suggest_filtered(volume, &o)?;
-        if s.found() || o.smoothing <= 0.0 || o.smoothing * 2.0 > MAX_SMOOTHING {
-            return Ok(s);
-        }
-        o.smoothing *= 2.0;
-    }
-}
-
-/// [`suggest`] at one pre-filter width.
-fn suggest_filtered(volume: &Volume, opts: &SuggestOptions) -> Result<Suggestion, SuggestError> {
     if volume.components != 1 {
         return Err(SuggestError::NotScalar(volume.name.clone()));
     }
@@ -431,15 +424,37 @@ fn suggest_filtered(volume: &Volume, opts: &SuggestOptions) -> Result<Suggestion
     {
         return Err(oom(available));
     }
-    let mut s = volume.normalized_scalars();
-    if opts.smoothing > 0.0 {
-        s = gaussian_smooth(&s, d, opts.smoothing);
+    let raw = volume.normalized_scalars();
+    let mut o = *opts;
+    loop {
+        let filtered;
+        let s = if o.smoothing > 0.0 {
+            filtered = gaussian_smooth(&raw, d, o.smoothing);
+            &filtered
+        } else {
+            &raw
+        };
+        let found = suggest_filtered(s, d, interior, &o, &oom)?;
+        if found.found() || o.smoothing <= 0.0 || o.smoothing * 2.0 > MAX_SMOOTHING {
+            return Ok(found);
+        }
+        o.smoothing *= 2.0;
     }
-    let background = background(&s);
+}
+
+/// [`suggest`] over the normalised scalars `s` (dims `d`, `interior` interior voxels)
+/// filtered at `opts.smoothing`.
+fn suggest_filtered(
+    s: &[f32],
+    d: [usize; 3],
+    interior: u64,
+    opts: &SuggestOptions,
+    oom: &dyn Fn(u64) -> SuggestError,
+) -> Result<Suggestion, SuggestError> {
+    let background = background(s);
     // every interior voxel's (v, f', f''), slab by slab in parallel
     let mut samples: Vec<[f64; 3]> = try_with_capacity(interior as usize).ok_or_else(|| oom(0))?;
     samples.par_extend((1..d[2] - 1).into_par_iter().flat_map_iter(|z| {
-        let s = &s;
         (1..d[1] - 1)
             .flat_map(move |y| (1..d[0] - 1).filter_map(move |x| derivatives(s, d, x, y, z)))
     }));
@@ -697,7 +712,7 @@ mod tests {
     fn noise_is_filtered_and_a_boundary_is_found_or_none_is_claimed() {
         let v = noisy_ball(0.15);
         let old = suggest(&v, &SuggestOptions::unfiltered()).unwrap();
-        let bins = |s: &Suggestion| s.alpha.iter().filter(|&&a| a > 0.0).count();
+        let bins = Suggestion::boundary_bins;
         assert!(bins(&old) > 200, "unfiltered: {} of 256", bins(&old));
         let s = suggest(&v, &SuggestOptions::default()).unwrap();
         assert!(s.found(), "the ball's boundary is found");

@@ -487,6 +487,26 @@ fn the_window_gallery_panel_renders_refines_and_steps_back() {
     assert_eq!(panel.history.len(), 1);
 }
 
+/// The image of `curve` with the opacity of the control points outside `keep` set to
+/// 0 (rgba32float, `classify.tf1d` alone).
+fn image_of(
+    volume: &std::sync::Arc<vwb_render::Volume>,
+    curve: &vwb_render::tf::TfCurve,
+    keep: &dyn Fn(f64) -> bool,
+    s: &vwb_render::FrameSettings,
+) -> Vec<[f32; 4]> {
+    let mut c = curve.clone();
+    for p in &mut c.points {
+        if !keep(p.x as f64) {
+            p.color[3] = 0.0;
+        }
+    }
+    let mut tf = instance("classify.tf1d");
+    tf.params.set("tf", vwb_render::params::ParamValue::Tf(c));
+    let mut r = Renderer::new(gpu(), volume.clone()).unwrap();
+    render(&mut r, &[tf], vwb_render::TargetFormat::Rgba32Float, s)
+}
+
 /// The fog of a suggested transfer function: the pixels whose only contribution comes
 /// from values below `first` (the middle of the first boundary above the background),
 /// that is, those the TF cut to values below `first` covers (α ≥ 0.05) and the TF cut
@@ -499,20 +519,8 @@ fn fog_share(
     first: f64,
     s: &vwb_render::FrameSettings,
 ) -> (f64, f64) {
-    let image = |keep: &dyn Fn(f64) -> bool| {
-        let mut c = curve.clone();
-        for p in &mut c.points {
-            if !keep(p.x as f64) {
-                p.color[3] = 0.0;
-            }
-        }
-        let mut tf = instance("classify.tf1d");
-        tf.params.set("tf", vwb_render::params::ParamValue::Tf(c));
-        let mut r = Renderer::new(gpu(), volume.clone()).unwrap();
-        render(&mut r, &[tf], vwb_render::TargetFormat::Rgba32Float, s)
-    };
-    let below = image(&|x| x < first);
-    let above = image(&|x| x >= first);
+    let below = image_of(volume, curve, &|x| x < first, s);
+    let above = image_of(volume, curve, &|x| x >= first, s);
     let (w, h) = (s.width as i64, s.height as i64);
     let shown = |x: i64, y: i64| {
         x >= 0 && y >= 0 && x < w && y < h && above[(y * w + x) as usize][3] >= 0.05
@@ -535,7 +543,8 @@ fn covered(
     curve: &vwb_render::tf::TfCurve,
     s: &vwb_render::FrameSettings,
 ) -> f64 {
-    fog_share(volume, curve, 2.0, s).0
+    let px = image_of(volume, curve, &|_| true, s);
+    px.iter().filter(|p| p[3] >= 0.05).count() as f64 / px.len() as f64
 }
 
 /// The first TF a user sees (issue 18, item 7): on the MRI demo the data-driven
@@ -604,8 +613,7 @@ fn suggestion_benchmark() {
         };
         let (new, new_ms) = timed(&SuggestOptions::default());
         let (old, old_ms) = timed(&SuggestOptions::unfiltered());
-        let bins =
-            |x: &vwb_render::suggest::Suggestion| x.alpha.iter().filter(|&&a| a > 0.0).count();
+        let bins = vwb_render::suggest::Suggestion::boundary_bins;
         let first = new.first_boundary().unwrap_or(0.0);
         let (fog_old, fog_new) = (
             fog_share(volume, &old.curve, first, s),
@@ -631,8 +639,7 @@ fn suggestion_benchmark() {
             suggest(&v, &SuggestOptions::unfiltered()).unwrap(),
             suggest(&v, &SuggestOptions::default()).unwrap(),
         );
-        let bins =
-            |x: &vwb_render::suggest::Suggestion| x.alpha.iter().filter(|&&a| a > 0.0).count();
+        let bins = vwb_render::suggest::Suggestion::boundary_bins;
         let _ = writeln!(
             tomo,
             "| {contrast} | {} | {} | {} | {} |",

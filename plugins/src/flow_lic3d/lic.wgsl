@@ -2,12 +2,13 @@
 // (Rezk-Salama 2001, eqs 9.9–9.10), along the streamline σ through x₀ traced both ways
 // with unit speed and step h over the noise `noise`. Coordinates are voxel coordinates
 // of the LIC grid; `field` and `noise` cover the same box. Twin: vwb_render::flow::lic_at
-// (f64). One file for both modes (mod.rs keeps the regions a shader needs):
+// (f64). One file for both modes (mod.rs keeps the regions a shader needs); the
+// modes differ only in `lic_here`, I at a texture coordinate, which the hooks read:
 // - precomputed: the pre-pass writes I at every voxel of the LIC grid into `lic`, and
-//   the sample hook reads it;
-// - on the fly: the sample hook integrates at the sample itself, so only samples the
-//   slice loop reaches (inside the clip region, before early termination, outside
-//   skipped space) pay for it (Falk and Weiskopf 2008).
+//   `lic_here` reads it;
+// - on the fly: `lic_here` integrates at the sample itself, so only samples the slice
+//   loop reaches (inside the clip region, before early termination, outside skipped
+//   space) pay for it (Falk and Weiskopf 2008).
 // In both, the sample's value becomes I, optionally modulated by the field's magnitude
 // (the volume's normalised value), for the classification plugins after it.
 
@@ -113,18 +114,9 @@ fn prepass(voxel: vec3<u32>, dims: vec3<u32>) -> vec4<f32> {
 // prepass: end
 
 // precomputed: begin
-fn sample(s: Sample) -> Sample {
-    var o = s;
-    let i = textureSampleLevel(lic, linear_clamp, s.tex, 0.0).r;
-    o.value = mix(i, i * s.value, params.modulate);
-    return o;
-}
-
-// The value `sample` gives at tex, on the LIC grid: what the gradient estimators of the
-// shading plugins differentiate (shading from LIC gradients).
-fn scalar(tex: vec3<f32>) -> f32 {
-    let i = textureSampleLevel(lic, linear_clamp, tex, 0.0).r;
-    return mix(i, i * volume_value(tex), params.modulate);
+// I at a texture coordinate: the LIC volume, read trilinearly.
+fn lic_here(tex: vec3<f32>) -> f32 {
+    return textureSampleLevel(lic, linear_clamp, tex, 0.0).r;
 }
 
 fn scalar_grid() -> vec3<f32> {
@@ -133,25 +125,31 @@ fn scalar_grid() -> vec3<f32> {
 // precomputed: end
 
 // on_the_fly: begin
-fn sample(s: Sample) -> Sample {
-    var o = s;
-    let d = vec3<f32>(textureDimensions(noise));
-    let x0 = clamp(s.tex * d - vec3<f32>(0.5), vec3<f32>(-0.5), d - vec3<f32>(0.5));
-    let i = lic_integral(x0, d);
-    o.value = mix(i, i * s.value, params.modulate);
-    return o;
-}
-
-// The value `sample` gives at tex, integrated there: shading from LIC gradients costs
-// one integral per read of the estimator (6 central, 26 Sobel).
-fn scalar(tex: vec3<f32>) -> f32 {
+// I at a texture coordinate, integrated there: shading from LIC gradients costs one
+// integral per read of the estimator (6 central, 26 Sobel).
+fn lic_here(tex: vec3<f32>) -> f32 {
     let d = vec3<f32>(textureDimensions(noise));
     let x0 = clamp(tex * d - vec3<f32>(0.5), vec3<f32>(-0.5), d - vec3<f32>(0.5));
-    let i = lic_integral(x0, d);
-    return mix(i, i * volume_value(tex), params.modulate);
+    return lic_integral(x0, d);
 }
 
 fn scalar_grid() -> vec3<f32> {
     return vec3<f32>(textureDimensions(noise));
 }
 // on_the_fly: end
+
+// hooks: begin
+fn sample(s: Sample) -> Sample {
+    var o = s;
+    let i = lic_here(s.tex);
+    o.value = mix(i, i * s.value, params.modulate);
+    return o;
+}
+
+// The value `sample` gives at tex, on the LIC grid: what the gradient estimators of the
+// shading plugins differentiate (shading from LIC gradients).
+fn scalar(tex: vec3<f32>) -> f32 {
+    let i = lic_here(tex);
+    return mix(i, i * volume_value(tex), params.modulate);
+}
+// hooks: end

@@ -301,7 +301,7 @@ impl Plugin for Lic3d {
             shader: ShaderSource::without_regions(
                 SHADER_FILE,
                 SHADER,
-                &[("precomputed", ""), ("on_the_fly", "")],
+                &[("precomputed", ""), ("on_the_fly", ""), ("hooks", "")],
             ),
             depends_on: vec![
                 "noise",
