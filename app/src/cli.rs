@@ -192,23 +192,28 @@ pub struct EvolveArgs {
     /// the target (score: RMS ΔE*uv).
     #[arg(
         long,
-        required_unless_present = "objective",
-        conflicts_with = "objective"
+        required_unless_present_any = ["objective", "target"],
+        conflicts_with_all = ["objective", "target"]
     )]
     pub target_preset: Option<PathBuf>,
-    /// Or an image objective to maximise: entropy, edge_energy or histogram_variance
-    /// (score: minus the objective).
+    /// Or a target image: the views side by side (square tiles from the run's
+    /// viewpoints, as `target.png` and `best.png` hold them); its height sets the tile.
+    #[arg(long, conflicts_with = "objective")]
+    pub target: Option<PathBuf>,
+    /// Or an objective to maximise: an image objective (entropy, edge_energy,
+    /// histogram_variance) or the data's visible-boundary coverage
+    /// (boundary_coverage); score: minus the objective.
     #[arg(long, value_parser = parse_objective)]
-    pub objective: Option<vwb_render::search::genetic::Objective>,
+    pub objective: Option<vwb_lab::search::EvolveTarget>,
     #[arg(long, default_value_t = 32, value_parser = clap::value_parser!(u32).range(4..=512))]
     pub population: u32,
     #[arg(long, default_value_t = 20, value_parser = clap::value_parser!(u32).range(1..=1000))]
     pub generations: u32,
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// Thumbnail side in pixels.
-    #[arg(long, default_value_t = 48, value_parser = clap::value_parser!(u32).range(16..=256))]
-    pub tile: u32,
+    /// Thumbnail side in pixels [default: 48, or a target image's height].
+    #[arg(long, value_parser = clap::value_parser!(u32).range(16..=256))]
+    pub tile: Option<u32>,
     #[arg(short, long)]
     pub output: PathBuf,
 }
@@ -218,17 +223,34 @@ pub fn run_evolve(preset: Option<&std::path::Path>, a: &EvolveArgs) -> Result<()
     let Some(preset) = preset else {
         bail!("vwb evolve needs --preset P.ron (a stack with classify.tf1d)");
     };
+    let target_tile = match &a.target {
+        Some(file) => Some(
+            image::image_dimensions(file)
+                .with_context(|| format!("{}: cannot read the target image", file.display()))?
+                .1,
+        ),
+        None => None,
+    };
+    let tile = match (a.tile, target_tile) {
+        (Some(t), Some(h)) if t != h => bail!(
+            "--tile {t} differs from the target image's height {h}: the tiles are the target's"
+        ),
+        (t, h) => t.or(h).unwrap_or(48),
+    };
     let o = vwb_render::search::genetic::GaOptions {
         population: a.population as usize,
         generations: a.generations as usize,
         seed: a.seed,
-        tile: a.tile,
+        tile,
         ..Default::default()
     };
-    let target = match (&a.target_preset, a.objective) {
-        (Some(p), _) => vwb_lab::search::EvolveTarget::Preset(p.clone()),
-        (None, Some(o)) => vwb_lab::search::EvolveTarget::Objective(o),
-        (None, None) => bail!("vwb evolve needs --target-preset Q.ron or --objective NAME"),
+    let target = match (&a.target_preset, &a.target, &a.objective) {
+        (Some(p), _, _) => vwb_lab::search::EvolveTarget::Preset(p.clone()),
+        (None, Some(f), _) => vwb_lab::search::EvolveTarget::Image(f.clone()),
+        (None, None, Some(o)) => o.clone(),
+        (None, None, None) => {
+            bail!("vwb evolve needs --target-preset Q.ron, --target views.png or --objective NAME")
+        }
     };
     let h = vwb_lab::search::run_evolve(preset, &target, &o, &a.output)?;
     let (first, last) = (h[0].best_score, h[h.len() - 1].best_score);
@@ -521,11 +543,20 @@ pub fn parse_size(s: &str) -> Result<[u32; 2], String> {
     Ok([p(w)?, p(h)?])
 }
 
-/// An evolve objective by name.
-pub fn parse_objective(s: &str) -> Result<vwb_render::search::genetic::Objective, String> {
-    vwb_render::search::genetic::Objective::from_name(s).ok_or_else(|| {
-        format!("'{s}' is not an objective (entropy, edge_energy, histogram_variance)")
-    })
+/// An evolve objective by name: an image objective, or the data's visible-boundary
+/// coverage.
+pub fn parse_objective(s: &str) -> Result<vwb_lab::search::EvolveTarget, String> {
+    if s == vwb_lab::search::BOUNDARY_COVERAGE {
+        return Ok(vwb_lab::search::EvolveTarget::Coverage);
+    }
+    vwb_render::search::genetic::Objective::from_name(s)
+        .map(vwb_lab::search::EvolveTarget::Objective)
+        .ok_or_else(|| {
+            format!(
+                "'{s}' is not an objective (entropy, edge_energy, histogram_variance, {})",
+                vwb_lab::search::BOUNDARY_COVERAGE
+            )
+        })
 }
 
 /// A finite number > 0.

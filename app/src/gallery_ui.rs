@@ -1,9 +1,12 @@
 //! The window's transfer-function gallery (design galleries, docs/search.md): "New
 //! gallery" draws a seeded pool for the current scene and shows the most dispersed
 //! genomes on their MDS grid; clicking a thumbnail refines around it (a smaller mutation
-//! radius each time); "Apply" puts a genome's TF into the stack's classify.tf1d (the
-//! preset is then saved as usual); "Back" steps through the history of galleries. The
-//! renders run in a background job on the window's device.
+//! radius each time); right-click puts a genome's TF into the stack's classify.tf1d
+//! (the preset is then saved as usual); hovering shows a genome's views enlarged. The
+//! visited galleries form an image graph (after Ma 1999): each refinement hangs under
+//! the gallery it was picked from, "Back" goes to the parent, and clicking a node of
+//! the graph returns to that gallery, so a branch once left is not lost. The renders
+//! run in a background job on the window's device.
 
 use std::sync::Arc;
 
@@ -23,17 +26,33 @@ pub struct Page {
     pub genomes: Vec<Genome>,
     pub cells: Vec<[u32; 2]>,
     pub cols: u32,
-    pub textures: Vec<egui::TextureHandle>,
+    /// Per genome, a texture per view (the first view is the thumbnail).
+    pub textures: Vec<Vec<egui::TextureHandle>>,
     pub radius: f64,
     pub summary: String,
+    /// The gallery this one refines (None: a new gallery, a root of the graph).
+    pub parent: Option<usize>,
+    /// The image of the graph's node: the pick this gallery refines, or for a new
+    /// gallery its first thumbnail.
+    node: egui::TextureHandle,
 }
+
+/// A gallery being rendered: the job, its radius, and the gallery it refines with
+/// the pick's thumbnail (None: a new gallery).
+type PendingGallery = (
+    Job<gallery::Gallery>,
+    f64,
+    Option<(usize, egui::TextureHandle)>,
+);
 
 /// The panel's state.
 #[derive(Default)]
 pub struct GalleryPanel {
-    /// Visited galleries, the last one shown.
+    /// Every visited gallery: the nodes of the image graph, in the order made.
     pub history: Vec<Page>,
-    job: Option<(Job<gallery::Gallery>, f64)>,
+    /// The gallery shown (an index into `history`).
+    pub current: usize,
+    job: Option<PendingGallery>,
     pub error: Option<String>,
     seed: u64,
 }
@@ -46,12 +65,12 @@ pub enum GalleryAction {
 
 fn texture(
     ctx: &egui::Context,
-    i: usize,
+    name: String,
     img: &vwb_render::metrics::RgbImageF,
 ) -> egui::TextureHandle {
     let rgb = img.to_rgb8();
     let c = egui::ColorImage::from_rgb([rgb.width() as usize, rgb.height() as usize], rgb.as_raw());
-    ctx.load_texture(format!("gallery {i}"), c, egui::TextureOptions::LINEAR)
+    ctx.load_texture(name, c, egui::TextureOptions::LINEAR)
 }
 
 impl GalleryPanel {
@@ -65,6 +84,13 @@ impl GalleryPanel {
     ) {
         self.seed += 1;
         let radius = around.as_ref().map_or(1.0, |(_, r)| *r);
+        // a refinement hangs under the gallery shown, its node the pick's thumbnail; a
+        // new gallery is a root
+        let parent = around.as_ref().and_then(|(g, _)| {
+            let page = self.page()?;
+            let i = page.genomes.iter().position(|x| x == g)?;
+            Some((self.current, page.textures[i][0].clone()))
+        });
         let o = GalleryOptions {
             pool: 48,
             k: 16,
@@ -88,7 +114,20 @@ impl GalleryPanel {
                 gallery::gallery(&mut r, &stack, &camera, bg, &o).map_err(|e| e.to_string())
             }),
             radius,
+            parent,
         ));
+    }
+
+    /// The gallery shown.
+    pub fn page(&self) -> Option<&Page> {
+        self.history.get(self.current)
+    }
+
+    /// Shows the parent of the gallery shown (the graph keeps every gallery).
+    pub fn back(&mut self) {
+        if let Some(p) = self.page().and_then(|p| p.parent) {
+            self.current = p;
+        }
     }
 
     /// Whether a gallery is being rendered.
@@ -98,10 +137,10 @@ impl GalleryPanel {
 
     /// Takes a finished job's gallery into the history.
     pub fn poll(&mut self, ctx: &egui::Context) {
-        let Some((job, radius)) = &self.job else {
+        let Some((job, radius, parent)) = &self.job else {
             return;
         };
-        let radius = *radius;
+        let (radius, parent) = (*radius, parent.clone());
         match job.poll() {
             None => ctx.request_repaint(),
             Some(Err(e)) => {
@@ -110,19 +149,34 @@ impl GalleryPanel {
             }
             Some(Ok(g)) => {
                 let summary = vwb_lab::search::summary(&g);
+                let page = self.history.len();
+                let textures: Vec<Vec<egui::TextureHandle>> = g
+                    .views
+                    .iter()
+                    .enumerate()
+                    .map(|(i, views)| {
+                        views
+                            .iter()
+                            .enumerate()
+                            .map(|(v, t)| texture(ctx, format!("gallery {page} {i} {v}"), t))
+                            .collect()
+                    })
+                    .collect();
+                let (parent, node) = match parent {
+                    Some((p, node)) => (Some(p), node),
+                    None => (None, textures[0][0].clone()),
+                };
                 self.history.push(Page {
                     genomes: g.chosen.iter().map(|&i| g.pool[i].clone()).collect(),
                     cells: g.cells.clone(),
                     cols: g.cols,
-                    textures: g
-                        .thumbnails
-                        .iter()
-                        .enumerate()
-                        .map(|(i, t)| texture(ctx, i, t))
-                        .collect(),
+                    textures,
                     radius,
                     summary,
+                    parent,
+                    node,
                 });
+                self.current = page;
                 self.job = None;
             }
         }
@@ -146,14 +200,13 @@ impl GalleryPanel {
             {
                 *new_gallery = true;
             }
+            let has_parent = self.page().is_some_and(|p| p.parent.is_some());
             if ui
-                .add_enabled(
-                    self.history.len() > 1 && !self.busy(),
-                    egui::Button::new("Back"),
-                )
+                .add_enabled(has_parent && !self.busy(), egui::Button::new("Back"))
+                .on_hover_text("the gallery this one refines (the graph keeps both)")
                 .clicked()
             {
-                self.history.pop();
+                self.back();
             }
             if self.busy() {
                 ui.spinner();
@@ -163,13 +216,17 @@ impl GalleryPanel {
         if let Some(e) = &self.error {
             ui.colored_label(egui::Color32::RED, e);
         }
-        let Some(page) = self.history.last() else {
+        if self.history.len() > 1 {
+            self.graph_ui(ui);
+        }
+        let Some(page) = self.page() else {
             ui.weak("No gallery yet.");
             return None;
         };
         ui.small(format!(
-            "{} · step {} · radius {:.2}",
+            "{} · gallery {} of {} · radius {:.2}",
             page.summary,
+            self.current + 1,
             self.history.len(),
             page.radius
         ));
@@ -182,15 +239,23 @@ impl GalleryPanel {
                     for col in 0..page.cols {
                         match page.cells.iter().position(|c| *c == [col, row]) {
                             Some(i) => {
+                                let views = &page.textures[i];
                                 let r = ui
                                     .add(
-                                        egui::Image::new((page.textures[i].id(), size))
+                                        egui::Image::new((views[0].id(), size))
                                             .alt_text(format!("gallery TF {i}"))
                                             .sense(egui::Sense::click()),
                                     )
-                                    .on_hover_text(
-                                        "click: refine around this TF · right-click: apply it",
-                                    );
+                                    .on_hover_ui(|ui| {
+                                        ui.horizontal(|ui| {
+                                            for t in views {
+                                                ui.image((t.id(), 3.0 * size));
+                                            }
+                                        });
+                                        ui.label(
+                                            "click: refine around this TF · right-click: apply it",
+                                        );
+                                    });
                                 if r.clicked() {
                                     *refine = Some((
                                         page.genomes[i].clone(),
@@ -210,5 +275,58 @@ impl GalleryPanel {
                 }
             });
         action
+    }
+
+    /// The image graph: every visited gallery as its first thumbnail (for a refinement,
+    /// the pick it refines), indented under the gallery it was picked from; the
+    /// gallery shown is framed, and a click shows another.
+    fn graph_ui(&mut self, ui: &mut egui::Ui) {
+        // depth-first order from the roots
+        let mut order = Vec::new();
+        let mut stack: Vec<(usize, usize)> = (0..self.history.len())
+            .rev()
+            .filter(|&i| self.history[i].parent.is_none())
+            .map(|i| (i, 0))
+            .collect();
+        while let Some((i, depth)) = stack.pop() {
+            order.push((i, depth));
+            for c in (0..self.history.len()).rev() {
+                if self.history[c].parent == Some(i) {
+                    stack.push((c, depth + 1));
+                }
+            }
+        }
+        let size = egui::vec2(20.0, 20.0);
+        let mut go = None;
+        egui::CollapsingHeader::new("Visited galleries")
+            .default_open(true)
+            .show(ui, |ui| {
+                for (i, depth) in order {
+                    let page = &self.history[i];
+                    ui.horizontal(|ui| {
+                        ui.add_space(12.0 * depth as f32);
+                        let r = ui.add(
+                            egui::Image::new((page.node.id(), size))
+                                .alt_text(format!("visited gallery {}", i + 1))
+                                .sense(egui::Sense::click()),
+                        );
+                        if i == self.current {
+                            ui.painter().rect_stroke(
+                                r.rect,
+                                0.0,
+                                egui::Stroke::new(2.0, egui::Color32::YELLOW),
+                                egui::StrokeKind::Outside,
+                            );
+                        }
+                        if r.clicked() {
+                            go = Some(i);
+                        }
+                        ui.small(format!("gallery {} · radius {:.2}", i + 1, page.radius));
+                    });
+                }
+            });
+        if let Some(i) = go {
+            self.current = i;
+        }
     }
 }

@@ -11,6 +11,7 @@ pub mod compare_ui;
 pub mod crop;
 pub mod data_cmd;
 pub mod data_ui;
+pub mod evolve_ui;
 pub mod gallery_ui;
 pub mod loading;
 pub mod stack_ui;

@@ -234,6 +234,8 @@ pub struct Workbench {
     plugin_watch_at: std::time::Instant,
     /// The transfer-function gallery panel.
     pub gallery: crate::gallery_ui::GalleryPanel,
+    /// The genetic-search panel.
+    pub evolve: crate::evolve_ui::GaPanel,
     /// The preset path field (open / save).
     preset_path: String,
     /// The volume path field.
@@ -332,6 +334,7 @@ impl Workbench {
             plugin_watch: Default::default(),
             plugin_watch_at: std::time::Instant::now(),
             gallery: Default::default(),
+            evolve: Default::default(),
             dialog: None,
             wgsl: None,
             quality_scale: 1.0,
@@ -546,7 +549,8 @@ impl Workbench {
         true
     }
 
-    /// Puts a gallery genome's TF into the stack's first enabled classify.tf1d.
+    /// Puts a genome's TF (from the gallery or the genetic search) into the stack's
+    /// first enabled classify.tf1d.
     pub fn apply_genome(&mut self, g: &vwb_render::search::genome::Genome) {
         match self
             .doc
@@ -558,9 +562,7 @@ impl Workbench {
                 tf.params
                     .set("tf", vwb_render::params::ParamValue::Tf(g.to_curve()));
                 self.apply_stack();
-                self.file_status = Some(Ok(
-                    "applied the gallery's TF (save the preset to keep it)".into(),
-                ));
+                self.file_status = Some(Ok("applied the TF (save the preset to keep it)".into()));
             }
             None => {
                 self.file_status = Some(Err(
@@ -799,6 +801,19 @@ impl Workbench {
         }
         if let Some(crate::gallery_ui::GalleryAction::Apply(g)) = applied {
             self.apply_genome(&g);
+        }
+        let ga = egui::CollapsingHeader::new("Genetic search")
+            .show(ui, |ui| self.evolve.ui(ui))
+            .body_returned
+            .flatten();
+        match ga {
+            Some(crate::evolve_ui::GaAction::Apply(g)) => self.apply_genome(&g),
+            Some(crate::evolve_ui::GaAction::Advance(n)) => {
+                let volume = self.renderer.volume().clone();
+                let gpu = self.renderer.gpu().clone();
+                self.evolve.advance(&gpu, &self.doc, volume, n);
+            }
+            None => {}
         }
         ui.separator();
         ui.label("Plugins");

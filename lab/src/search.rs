@@ -62,7 +62,8 @@ pub fn run_gallery(preset: &Path, o: &GalleryOptions, out: &Path) -> Result<Gall
     let t = o.tile;
     let rows = g.cells.iter().map(|c| c[1]).max().map_or(1, |r| r + 1);
     let mut img = image::RgbImage::new(g.cols * (t + 2), rows * (t + 2));
-    for (thumb, cell) in g.thumbnails.iter().zip(&g.cells) {
+    for (views, cell) in g.views.iter().zip(&g.cells) {
+        let thumb = &views[0];
         let rgb = thumb.to_rgb8();
         image::imageops::replace(
             &mut img,
@@ -155,13 +156,24 @@ pub fn apply_pick(preset: &Path, g: &Genome, out: &Path) -> Result<Document> {
 pub enum EvolveTarget {
     /// The images a preset's stack gives from the run's viewpoints (same volume).
     Preset(PathBuf),
+    /// An image: the run's views side by side (square tiles, left to right as
+    /// `best.png` and `target.png` hold them), for example a render the user made.
+    Image(PathBuf),
     /// An image objective to maximise.
     Objective(vwb_render::search::genetic::Objective),
+    /// The data's visible-boundary coverage, to maximise
+    /// (`vwb_render::search::coverage`).
+    Coverage,
 }
+
+/// The name of the visible-boundary coverage objective (`--objective`).
+pub const BOUNDARY_COVERAGE: &str = "boundary_coverage";
 
 /// Genetic search on a preset's scene toward a target (a preset's images or an
 /// objective): writes `best.ron` (the best genome), `history.csv` (per generation best
-/// and mean score, radius) and `best.png` (first view).
+/// and mean score, radius), `best.png` (the best genome's views side by side) and, for
+/// a target preset, `target.png` (its views, as `--target` reads them). A target image
+/// sets the tile size (its height) and must hold as many views as the run takes.
 pub fn run_evolve(
     preset: &Path,
     target: &EvolveTarget,
@@ -180,6 +192,14 @@ pub fn run_evolve(
     let cams = gallery::viewpoints(&doc.camera, o.views);
     let fitness = match target {
         EvolveTarget::Objective(obj) => genetic::Fitness::Objective(*obj),
+        EvolveTarget::Coverage => genetic::Fitness::Coverage(std::sync::Arc::new(
+            vwb_render::search::coverage::Coverage::new(&volume, &cams, o.tile)
+                .map_err(|e| anyhow!("{}: {e}", preset.display()))?,
+        )),
+        EvolveTarget::Image(file) => {
+            let views = read_target(file, o)?;
+            genetic::Fitness::Target(gallery::descriptor(&views))
+        }
         EvolveTarget::Preset(target_preset) => {
             let target_doc = crate::document::load_document(Some(target_preset))?;
             // the target: the target preset's own stack from the run's viewpoints
@@ -217,6 +237,10 @@ pub fn run_evolve(
                     )
                 })
                 .collect();
+            headless::save_png(
+                &genetic::side_by_side(&views).to_rgb8(),
+                &out.join("target.png"),
+            )?;
             genetic::Fitness::Target(gallery::descriptor(&views))
         }
     };
@@ -247,15 +271,40 @@ pub fn run_evolve(
         &mut r,
         &doc.stack,
         std::slice::from_ref(&best.best),
-        &cams[..1],
+        &cams,
         o.tile,
         o.slice_spacing,
         bg,
-        1,
+        cams.len(),
     )
     .map_err(|e| anyhow!("{e}"))?;
-    headless::save_png(&thumb[0][0].to_rgb8(), &out.join("best.png"))?;
+    headless::save_png(
+        &genetic::side_by_side(&thumb[0]).to_rgb8(),
+        &out.join("best.png"),
+    )?;
     Ok(history)
+}
+
+/// A target image's views: `o.views` square tiles of side `o.tile` side by side.
+pub fn read_target(
+    file: &Path,
+    o: &vwb_render::search::genetic::GaOptions,
+) -> Result<Vec<vwb_render::metrics::RgbImageF>> {
+    let strip = vwb_render::metrics::RgbImageF::load_png(file).map_err(|e| anyhow!("{e}"))?;
+    let views = vwb_render::search::genetic::split_side_by_side(&strip)
+        .map_err(|e| anyhow!("{}: {e}", file.display()))?;
+    if views.len() != o.views || strip.height != o.tile {
+        bail!(
+            "{}: holds {} view(s) of {}², the search takes {} of {}² (fitness is taken over \
+             every viewpoint: the views of `vwb evolve`'s target.png or best.png)",
+            file.display(),
+            views.len(),
+            strip.height,
+            o.views,
+            o.tile
+        );
+    }
+    Ok(views)
 }
 
 /// `vwb adapt-tf`: moves a transfer function designed for the reference volume onto

@@ -203,7 +203,8 @@ fn the_cut_is_lit_by_its_own_normal() {
         let px = render(&mut r, &stack, TargetFormat::Rgba32Float, &s);
         luma.push(mean_luma(&rgb(&px)));
         let reference = render_reference(&vol, &stack, &s, &ReferenceOptions::default()).unwrap();
-        assert!(delta_e_rms(&px, &reference.pixels, 48, 48) < 0.15);
+        let rms = delta_e_rms(&px, &reference.pixels, 48, 48);
+        assert!(rms < twin_bound(Backend::Compute, false), "{rms}");
     }
     eprintln!(
         "mean luminance of the cut: data gradient {:.4}, cut normal {:.4}, substitution {:.4}",

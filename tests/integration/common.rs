@@ -86,6 +86,27 @@ pub fn on_gpu() -> bool {
     gpu().info.device_type != wgpu::DeviceType::Cpu
 }
 
+/// A bound on a GPU image against its f64 twin or a golden image: `lavapipe`'s on the
+/// CPU device, where CI runs and which reproduces the twins within these bounds, and
+/// `gpu` on a GPU adapter. GPUs filter textures with few fractional bits (NVIDIA: 8,
+/// so a trilinear weight is off by up to 1/512), which gradients, LIC integrals and 2D
+/// lookups amplify; docs/gpu/README.md gives what an H200 measured against each bound.
+pub fn adapter_bound(lavapipe: f64, gpu: f64) -> f64 {
+    if on_gpu() { gpu } else { lavapipe }
+}
+
+/// The bound of a GPU image against its CPU twins, in RMS ΔE*uv: the compute backend
+/// casts the same rays as the twins (0.01–0.09 measured on lavapipe); raster
+/// interpolates positions over proxy polygons, and per-slice state (shade.dos) carries
+/// those differences from slice to slice.
+pub fn twin_bound(backend: vwb_render::Backend, per_slice: bool) -> f64 {
+    match (backend, per_slice) {
+        (vwb_render::Backend::Compute, _) => adapter_bound(0.15, 0.5),
+        (vwb_render::Backend::Raster, false) => adapter_bound(0.5, 1.0),
+        (vwb_render::Backend::Raster, true) => adapter_bound(1.0, 1.5),
+    }
+}
+
 /// Milliseconds with three significant digits or so, for benchmark tables (GPU
 /// frames take fractions of one).
 pub fn fmt_ms(ms: f64) -> String {

@@ -27,6 +27,7 @@ fn stack_for(id: &str, values: &ParamValues) -> Vec<PluginInstance> {
 fn every_registered_plugin_in_every_mode_matches_its_cpu_twin() {
     let registry = registry();
     let mut covered = Vec::new();
+    let mut failed = Vec::new();
     let mut worst = (0.0f64, String::new());
     for plugin in registry.plugins() {
         let id = plugin.id();
@@ -49,16 +50,9 @@ fn every_registered_plugin_in_every_mode_matches_its_cpu_twin() {
                 let rms = delta_e_rms(&px, &reference, 48, 48);
                 eprintln!("{id} ({mode}) {}: ΔE*uv RMS {rms:.4}", backend.name());
                 // the bounds of every_shipped_preset_matches_its_cpu_twins
-                let bound = match (backend, per_slice) {
-                    (Backend::Compute, _) => 0.15,
-                    (Backend::Raster, false) => 0.5,
-                    (Backend::Raster, true) => 1.0,
-                };
-                assert!(
-                    rms < bound,
-                    "{id} ({mode}) {}: ΔE*uv RMS {rms}",
-                    backend.name()
-                );
+                if rms >= twin_bound(backend, per_slice) {
+                    failed.push(format!("{id} ({mode}) {}: ΔE*uv RMS {rms}", backend.name()));
+                }
                 if rms > worst.0 {
                     worst = (rms, format!("{id} ({mode}) {}", backend.name()));
                 }
@@ -72,6 +66,8 @@ fn every_registered_plugin_in_every_mode_matches_its_cpu_twin() {
         worst.0,
         worst.1
     );
+    // every mode measured before failing, so that one run shows them all
+    assert!(failed.is_empty(), "{failed:#?}");
     for id in registry.ids() {
         assert!(
             covered.iter().any(|c| c.starts_with(&format!("{id} ("))),

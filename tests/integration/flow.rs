@@ -1016,7 +1016,10 @@ fn lic_on_the_fly_matches_its_twin_without_a_prepass() {
     // raster interpolates the texture coordinates across the proxy polygons, and the
     // integral over noise amplifies those differences (precomputed 0.31, on the fly
     // 0.54 on lavapipe): the coverage test's raster bound for per-slice plugins
-    for (backend, bound) in [(Backend::Compute, 0.15), (Backend::Raster, 1.0)] {
+    for (backend, bound) in [
+        (Backend::Compute, twin_bound(Backend::Compute, false)),
+        (Backend::Raster, twin_bound(Backend::Raster, true)),
+    ] {
         let s = settings(48, 48, backend);
         let (px, reference) = gpu_and_reference(vol.clone(), &stack, TargetFormat::Rgba32Float, &s);
         assert!(
@@ -1121,7 +1124,10 @@ fn shading_from_lic_gradients_matches_its_twin() {
     ] {
         let stack = stack_of(mode, frequency, gradient);
         // the bounds of lic_on_the_fly_matches_its_twin_without_a_prepass
-        for (backend, bound) in [(Backend::Compute, 0.15), (Backend::Raster, 1.0)] {
+        for (backend, bound) in [
+            (Backend::Compute, twin_bound(Backend::Compute, false)),
+            (Backend::Raster, twin_bound(Backend::Raster, true)),
+        ] {
             let s = settings(48, 48, backend);
             let (px, reference) =
                 gpu_and_reference(vol.clone(), &stack, TargetFormat::Rgba32Float, &s);
@@ -1221,7 +1227,10 @@ fn arrival_volume_matches_its_twin_and_the_time_plays_without_a_prepass() {
 
     // the image against the twins (raster interpolates texture coordinates across the
     // proxy polygons: the coverage test's raster bound)
-    for (backend, bound) in [(Backend::Compute, 0.15), (Backend::Raster, 1.0)] {
+    for (backend, bound) in [
+        (Backend::Compute, twin_bound(Backend::Compute, false)),
+        (Backend::Raster, twin_bound(Backend::Raster, true)),
+    ] {
         let s = settings(48, 48, backend);
         let (px, reference) = gpu_and_reference(vol.clone(), &stack, TargetFormat::Rgba32Float, &s);
         let rms = delta_e_rms(&px, &reference, 48, 48);

@@ -215,7 +215,7 @@ fn environment_maps_from_files_and_bad_files() {
     let st = vec![instance("classify.tf1d"), env.clone()];
     let (px, reference) = gpu_and_reference(demo(), &st, TargetFormat::Rgba32Float, &s);
     let rms = delta_e_rms(&px, &reference, 48, 48);
-    assert!(rms < 0.5, "image map vs twin {rms}");
+    assert!(rms < adapter_bound(0.5, 1.0), "image map vs twin {rms}");
     let (change, _) = diff(&sky, &rgb(&px));
     assert!(change > 0.01, "the map changes the image: {change}");
     // a file that is not an image: refused with its name, the last pipeline renders

@@ -70,8 +70,8 @@ pub struct Gallery {
     pub dispersion: f64,
     /// ... and among the first K of the pool (K drawn at random), for comparison.
     pub random_dispersion: f64,
-    /// Thumbnails of the chosen genomes from the first viewpoint, composited.
-    pub thumbnails: Vec<RgbImageF>,
+    /// The chosen genomes' views (every viewpoint, the first first), composited.
+    pub views: Vec<Vec<RgbImageF>>,
     /// Thumbnails rendered and the time it took (GPU and read-back), ms.
     pub rendered: usize,
     pub render_ms: f64,
@@ -332,7 +332,7 @@ pub fn gallery(
     Ok(Gallery {
         dispersion: min_pairwise(&desc, &chosen),
         random_dispersion: min_pairwise(&desc, &random),
-        thumbnails: chosen.iter().map(|&i| thumbs[i][0].clone()).collect(),
+        views: chosen.iter().map(|&i| thumbs[i].clone()).collect(),
         rendered: pool.len() * cameras.len(),
         render_ms,
         pool,

@@ -8,6 +8,7 @@
 //! run is bit-reproducible.
 
 use crate::camera::Camera;
+use crate::metrics::RgbImageF;
 use crate::plugin::PluginInstance;
 use crate::renderer::{RenderError, Renderer};
 use crate::rng::Rng;
@@ -16,7 +17,7 @@ use crate::search::genome::{Genome, MAX_PRIMITIVES};
 use crate::tf::TfPrimitive;
 
 /// Settings of a run.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct GaOptions {
     pub population: usize,
     pub generations: usize,
@@ -58,6 +59,9 @@ pub enum Fitness {
     Target(Vec<[f64; 3]>),
     /// An image objective to maximise, averaged over the views (its score is minus it).
     Objective(Objective),
+    /// Visible-boundary coverage of the data's boundaries, to maximise (its score is
+    /// minus it): [`crate::search::coverage`].
+    Coverage(std::sync::Arc<crate::search::coverage::Coverage>),
 }
 
 /// Image objectives after He et al. (1996), on the thumbnails' L*.
@@ -130,15 +134,52 @@ impl Objective {
 }
 
 impl Fitness {
-    /// The score of a genome's views (lower is better).
-    pub fn score(&self, views: &[crate::metrics::RgbImageF]) -> f64 {
+    /// The score of a genome and its views (lower is better).
+    pub fn score(&self, genome: &Genome, views: &[crate::metrics::RgbImageF]) -> f64 {
         match self {
+            Fitness::Coverage(c) => -c.objective(genome).0,
             Fitness::Target(t) => distance(&descriptor(views), t),
             Fitness::Objective(o) => {
                 -views.iter().map(|v| o.of(v)).sum::<f64>() / views.len().max(1) as f64
             }
         }
     }
+}
+
+/// A genome's views side by side, left to right in viewpoint order: what `vwb evolve`
+/// writes as `best.png` and `target.png`, and reads as `--target`.
+pub fn side_by_side(views: &[RgbImageF]) -> RgbImageF {
+    let (w, h) = views.first().map_or((0, 0), |v| (v.width, v.height));
+    let mut pixels = Vec::with_capacity(views.len() * (w * h) as usize);
+    for y in 0..h as usize {
+        for v in views {
+            assert_eq!((v.width, v.height), (w, h), "views of one size");
+            pixels.extend_from_slice(&v.pixels[y * w as usize..(y + 1) * w as usize]);
+        }
+    }
+    RgbImageF::new(w * views.len() as u32, h, pixels)
+}
+
+/// The inverse of [`side_by_side`]: a strip of square views, as many as it holds. A
+/// strip that is not a whole number of square views is refused with its size.
+pub fn split_side_by_side(strip: &RgbImageF) -> Result<Vec<RgbImageF>, String> {
+    let (w, h) = (strip.width, strip.height);
+    if h == 0 || w % h != 0 {
+        return Err(format!(
+            "a target is square views side by side (width a multiple of the height); this one is {w}×{h}"
+        ));
+    }
+    Ok((0..w / h)
+        .map(|i| {
+            let pixels = (0..h as usize)
+                .flat_map(|y| {
+                    let row = y * w as usize + (i * h) as usize;
+                    strip.pixels[row..row + h as usize].iter().copied()
+                })
+                .collect();
+            RgbImageF::new(h, h, pixels)
+        })
+        .collect())
 }
 
 /// One generation's outcome.
@@ -176,7 +217,48 @@ pub fn target_of(
     Ok(descriptor(&t[0]))
 }
 
+/// The GA's variation of a child with radius `radius`: half the time
+/// [`Genome::mutate`] (every parameter moves, a primitive may come or go), half the
+/// time one parameter of one primitive moves (its centre, width, height or colour, by
+/// the same law, or its shape). Near an optimum a move of every parameter at once is nearly always
+/// worse, which stalls the search; single moves keep improving it.
+fn vary(g: &Genome, rng: &mut Rng, radius: f64) -> Genome {
+    if rng.uniform() < 0.5 {
+        return g.mutate(rng, radius);
+    }
+    let r = radius.clamp(0.0, 1.0);
+    let mut out = g.clone();
+    let n = out.primitives.len();
+    let p = &mut out.primitives[((rng.uniform() * n as f64) as usize).min(n - 1)];
+    match (rng.uniform() * 5.0) as usize {
+        0 => p.centre = (p.centre as f64 + rng.normal() * r * 0.25).clamp(0.0, 1.0) as f32,
+        1 => {
+            p.width = (p.width as f64 * (rng.normal() * r).exp())
+                .clamp(crate::search::genome::WIDTH.0, 1.0) as f32
+        }
+        2 => p.height = (p.height as f64 * (rng.normal() * r).exp()).clamp(1.0e-4, 1.0) as f32,
+        3 => {
+            for c in &mut p.color {
+                *c = (*c as f64 + rng.normal() * r * 0.5).clamp(0.0, 1.0) as f32;
+            }
+        }
+        _ => {
+            let shapes = crate::tf::PrimitiveShape::ALL;
+            p.shape = shapes[(rng.uniform() * shapes.len() as f64) as usize % shapes.len()];
+        }
+    }
+    out
+}
+
+/// Blends two parents primitive by primitive, after ordering each parent's primitives
+/// by centre so that a primitive meets the other parent's nearest in value.
 fn blend(a: &Genome, b: &Genome, rng: &mut Rng) -> Genome {
+    let by_centre = |g: &Genome| {
+        let mut g = g.clone();
+        g.primitives.sort_by(|p, q| p.centre.total_cmp(&q.centre));
+        g
+    };
+    let (a, b) = (&by_centre(a), &by_centre(b));
     let n = a
         .primitives
         .len()
@@ -214,6 +296,258 @@ fn blend(a: &Genome, b: &Genome, rng: &mut Rng) -> Genome {
     Genome { primitives: out }
 }
 
+/// A search in progress, one generation at a time: the current population, bred from
+/// the previous generation's scores. [`evolve`] runs it against a fitness; the window
+/// runs it by the user's picks ([`Ga::breed_from_picks`]), one generation per click.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Ga {
+    pub options: GaOptions,
+    /// The generation `population` belongs to (0: the seeded random one).
+    pub generation: usize,
+    pub population: Vec<Genome>,
+    /// The mutation radius the current population was bred with (`options.radius`
+    /// for the first, then × `options.decay` per generation).
+    pub radius: f64,
+    /// The pattern search around the best genome (second half of a run).
+    poll: Option<Poll>,
+}
+
+/// A compass (pattern) search around the best genome, run inside the GA's
+/// generations: each generation holds, after the elite, one child per parameter and
+/// sign, the best moved by ± that parameter's step. A step that improved on the
+/// best grows by 1.5, one that did not halves. The parameters are each primitive's
+/// centre, ln width, ln height and RGB ([`param`]); shapes and the number of
+/// primitives are left to the GA's children.
+#[derive(Debug, Clone, PartialEq)]
+struct Poll {
+    /// The genome polled around, and its score.
+    centre: Genome,
+    score: f64,
+    steps: Vec<f64>,
+    /// For each poll child, in population order after the elite: (parameter, sign).
+    moves: Vec<(usize, f64)>,
+}
+
+/// Parameters per primitive in the pattern search.
+const PARAMS: usize = 6;
+
+/// Parameter `p` of a genome in the pattern search's coordinates: per primitive,
+/// centre, ln width, ln height, red, green, blue.
+fn param(g: &Genome, p: usize) -> f64 {
+    let q = &g.primitives[p / PARAMS];
+    match p % PARAMS {
+        0 => q.centre as f64,
+        1 => (q.width as f64).ln(),
+        2 => (q.height as f64).ln(),
+        c => q.color[c - 3] as f64,
+    }
+}
+
+/// Sets parameter `p` (clamped to the genome's ranges).
+fn set_param(g: &mut Genome, p: usize, v: f64) {
+    let q = &mut g.primitives[p / PARAMS];
+    match p % PARAMS {
+        0 => q.centre = v.clamp(0.0, 1.0) as f32,
+        1 => q.width = v.exp().clamp(crate::search::genome::WIDTH.0, 1.0) as f32,
+        2 => q.height = v.exp().clamp(1.0e-4, 1.0) as f32,
+        c => q.color[c - 3] = v.clamp(0.0, 1.0) as f32,
+    }
+}
+
+/// First steps of the pattern search at mutation radius `r`, the scales
+/// [`Genome::mutate`] uses.
+fn initial_steps(g: &Genome, r: f64) -> Vec<f64> {
+    (0..g.primitives.len() * PARAMS)
+        .map(|p| match p % PARAMS {
+            0 => r * 0.25,
+            1 | 2 => r,
+            _ => r * 0.5,
+        })
+        .collect()
+}
+
+impl Ga {
+    /// The seeded random first generation.
+    pub fn new(o: &GaOptions) -> Ga {
+        let pop = o.population.max(2);
+        Ga {
+            options: o.clone(),
+            generation: 0,
+            population: (0..pop)
+                .map(|i| Genome::random(&mut Rng::at(o.seed, i as u64), o.max_primitives))
+                .collect(),
+            radius: o.radius,
+            poll: None,
+        }
+    }
+
+    /// Every genome's views from the run's viewpoints, in batched atlases.
+    pub fn render(
+        &self,
+        r: &mut Renderer,
+        stack: &[PluginInstance],
+        camera: &Camera,
+        background: [f64; 3],
+    ) -> Result<Vec<Vec<RgbImageF>>, RenderError> {
+        let o = &self.options;
+        thumbnails(
+            r,
+            stack,
+            &self.population,
+            &viewpoints(camera, o.views),
+            o.tile,
+            o.slice_spacing,
+            background,
+            o.batch,
+        )
+    }
+
+    /// The order of the population by score (best first; ties by index).
+    fn ranking(&self, scores: &[f64]) -> Vec<usize> {
+        let mut order: Vec<usize> = (0..self.population.len()).collect();
+        order.sort_by(|&a, &b| scores[a].total_cmp(&scores[b]).then(a.cmp(&b)));
+        order
+    }
+
+    /// This generation's outcome for its scores (lower is better).
+    pub fn summary(&self, scores: &[f64]) -> Generation {
+        let best = self.ranking(scores)[0];
+        Generation {
+            best: self.population[best].clone(),
+            best_score: scores[best],
+            mean_score: scores.iter().sum::<f64>() / scores.len().max(1) as f64,
+            radius: self.radius,
+        }
+    }
+
+    /// Breeds the next generation from this one's scores (lower is better): the
+    /// `options.elite` best survive; the others are children of tournament winners,
+    /// blended primitive by primitive and mutated with the current radius.
+    pub fn breed(&mut self, scores: &[f64]) {
+        let elite = self.options.elite;
+        self.breed_with(scores, elite, None);
+    }
+
+    /// Breeds the next generation from the user's picks (indices into the
+    /// population): every pick survives (up to half the population) and wins every
+    /// and the parents of every child are picks. With no picks, every genome is as
+    /// fit as any other.
+    pub fn breed_from_picks(&mut self, picks: &[usize]) {
+        let pop = self.population.len();
+        let picks: Vec<usize> = (0..pop).filter(|i| picks.contains(i)).collect();
+        let scores: Vec<f64> = (0..pop)
+            .map(|i| if picks.contains(&i) { 0.0 } else { 1.0 })
+            .collect();
+        let elite = picks.len().min(pop / 2);
+        let parents = (!picks.is_empty()).then_some(picks.as_slice());
+        self.breed_with(&scores, elite, parents);
+    }
+
+    /// The next poll: around the best genome, with the steps the last poll's outcome
+    /// gives (fresh steps when the best has another number of primitives), and as
+    /// many moves as fit in three quarters of the children (the rest stay the GA's).
+    fn next_poll(&self, scores: &[f64], order: &[usize]) -> Poll {
+        let best = &self.population[order[0]];
+        let n = best.primitives.len() * PARAMS;
+        let steps = match &self.poll {
+            Some(last) if last.steps.len() == n => {
+                // the last poll's children follow the elite in the population
+                let first = self.options.elite.min(self.population.len());
+                let mut improved = vec![false; n];
+                for (k, &(p, _)) in last.moves.iter().enumerate() {
+                    if scores.get(first + k).is_some_and(|&s| s < last.score) {
+                        improved[p] = true;
+                    }
+                }
+                last.steps
+                    .iter()
+                    .zip(&improved)
+                    .map(|(&s, &up)| if up { s * 1.5 } else { s * 0.5 })
+                    .collect()
+            }
+            _ => initial_steps(best, self.radius),
+        };
+        let room = (self.population.len() - self.options.elite.min(self.population.len())) * 3 / 4;
+        // the parameters in turn, both signs, starting where the generation says, so
+        // that a poll too large for the room still visits every parameter in turn
+        let start = self.generation * (room / 2).max(1) % n.max(1);
+        let moves = (0..n.min(room / 2))
+            .map(|i| (start + i) % n)
+            .flat_map(|p| [(p, 1.0), (p, -1.0)])
+            .collect();
+        Poll {
+            centre: best.clone(),
+            score: scores[order[0]],
+            steps,
+            moves,
+        }
+    }
+
+    /// `parents`: where given, every parent is drawn from these; else from tournaments
+    /// of two by score.
+    fn breed_with(&mut self, scores: &[f64], elite: usize, parents: Option<&[usize]>) {
+        let pop = self.population.len();
+        assert_eq!(scores.len(), pop, "one score per genome");
+        let order = self.ranking(scores);
+        let (seed, generation, radius) = (self.options.seed, self.generation, self.radius);
+        let mut next: Vec<Genome> = order
+            .iter()
+            .take(elite.min(pop))
+            .map(|&i| self.population[i].clone())
+            .collect();
+        // the pattern search around the best, in the second half of a run
+        let late = 4 * generation >= self.options.generations;
+        self.poll = match (parents, late) {
+            (None, true) => Some(self.next_poll(scores, &order)),
+            _ => None,
+        };
+        if let Some(poll) = &self.poll {
+            for &(p, sign) in &poll.moves {
+                let mut g = poll.centre.clone();
+                let v = param(&g, p) + sign * poll.steps[p];
+                set_param(&mut g, p, v);
+                next.push(g);
+            }
+            // and each primitive in the other shapes
+            for (i, q) in poll.centre.primitives.iter().enumerate() {
+                for shape in crate::tf::PrimitiveShape::ALL {
+                    if shape != q.shape && next.len() < pop {
+                        let mut g = poll.centre.clone();
+                        g.primitives[i].shape = shape;
+                        next.push(g);
+                    }
+                }
+            }
+        }
+        let mut k = 0u64;
+        while next.len() < pop {
+            let mut rng = Rng::at(
+                seed ^ 0xA5A5_5A5A,
+                ((generation as u64 + 1) << 32) | (next.len() as u64) << 8 | k,
+            );
+            k += 1;
+            let pick = |rng: &mut Rng| match parents {
+                Some(p) => p[(rng.uniform() * p.len() as f64) as usize % p.len()],
+                None => {
+                    let a = (rng.uniform() * pop as f64) as usize % pop;
+                    let b = (rng.uniform() * pop as f64) as usize % pop;
+                    if scores[a] <= scores[b] { a } else { b }
+                }
+            };
+            let (pa, pb) = (pick(&mut rng), pick(&mut rng));
+            let child = vary(
+                &blend(&self.population[pa], &self.population[pb], &mut rng),
+                &mut rng,
+                radius,
+            );
+            next.push(child);
+        }
+        self.population = next;
+        self.generation += 1;
+        self.radius *= self.options.decay;
+    }
+}
+
 /// Runs the search from a seeded random population; `observer` sees every generation.
 #[allow(clippy::too_many_arguments)]
 pub fn evolve(
@@ -225,69 +559,84 @@ pub fn evolve(
     o: &GaOptions,
     observer: &mut dyn FnMut(usize, &Generation),
 ) -> Result<Vec<Generation>, RenderError> {
-    let cams = viewpoints(camera, o.views);
-    let pop = o.population.max(2);
-    let mut population: Vec<Genome> = (0..pop)
-        .map(|i| Genome::random(&mut Rng::at(o.seed, i as u64), o.max_primitives))
-        .collect();
+    let mut ga = Ga::new(o);
     let mut history = Vec::new();
-    let mut radius = o.radius;
-    for generation in 0..o.generations.max(1) {
-        let thumbs = thumbnails(
-            r,
-            stack,
-            &population,
-            &cams,
-            o.tile,
-            o.slice_spacing,
-            background,
-            o.batch,
-        )?;
-        let scores: Vec<f64> = thumbs.iter().map(|v| fitness.score(v)).collect();
-        let mut order: Vec<usize> = (0..pop).collect();
-        order.sort_by(|&a, &b| scores[a].total_cmp(&scores[b]).then(a.cmp(&b)));
-        let g = Generation {
-            best: population[order[0]].clone(),
-            best_score: scores[order[0]],
-            mean_score: scores.iter().sum::<f64>() / pop as f64,
-            radius,
-        };
-        observer(generation, &g);
-        history.push(g);
-        if generation + 1 == o.generations.max(1) {
-            break;
-        }
-        // the next generation
-        let mut next: Vec<Genome> = order
+    let generations = o.generations.max(1);
+    loop {
+        let thumbs = ga.render(r, stack, camera, background)?;
+        let scores: Vec<f64> = ga
+            .population
             .iter()
-            .take(o.elite.min(pop))
-            .map(|&i| population[i].clone())
+            .zip(&thumbs)
+            .map(|(g, v)| fitness.score(g, v))
             .collect();
-        let mut k = 0u64;
-        while next.len() < pop {
-            let mut rng = Rng::at(
-                o.seed ^ 0xA5A5_5A5A,
-                ((generation as u64 + 1) << 32) | (next.len() as u64) << 8 | k,
-            );
-            k += 1;
-            let pick = |rng: &mut Rng| {
-                let a = (rng.uniform() * pop as f64) as usize % pop;
-                let b = (rng.uniform() * pop as f64) as usize % pop;
-                if scores[a] <= scores[b] { a } else { b }
-            };
-            let (pa, pb) = (pick(&mut rng), pick(&mut rng));
-            let child = blend(&population[pa], &population[pb], &mut rng).mutate(&mut rng, radius);
-            next.push(child);
+        let g = ga.summary(&scores);
+        observer(ga.generation, &g);
+        history.push(g);
+        if ga.generation + 1 == generations {
+            return Ok(history);
         }
-        population = next;
-        radius *= o.decay;
+        ga.breed(&scores);
     }
-    Ok(history)
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn views_go_side_by_side_and_back() {
+        let views: Vec<RgbImageF> = (0..3)
+            .map(|v| {
+                RgbImageF::new(
+                    4,
+                    4,
+                    (0..16).map(|i| [v as f64, i as f64 / 16.0, 0.5]).collect(),
+                )
+            })
+            .collect();
+        let strip = side_by_side(&views);
+        assert_eq!((strip.width, strip.height), (12, 4));
+        assert_eq!(strip.pixels[4], [1.0, 0.0, 0.5], "row 0 of view 1");
+        assert_eq!(split_side_by_side(&strip).unwrap(), views);
+        let e = split_side_by_side(&RgbImageF::new(10, 4, vec![[0.0; 3]; 40])).unwrap_err();
+        assert!(e.contains("10×4"), "{e}");
+    }
+
+    #[test]
+    fn picks_survive_and_parent_the_next_generation() {
+        let o = GaOptions {
+            population: 8,
+            ..Default::default()
+        };
+        let mut ga = Ga::new(&o);
+        let first = ga.population.clone();
+        let again = Ga::new(&o);
+        assert_eq!(again, ga, "seeded");
+        ga.breed_from_picks(&[5, 2]);
+        assert_eq!(ga.generation, 1);
+        assert!((ga.radius - o.radius * o.decay).abs() < 1e-12);
+        // the picks survive, in index order (ties by index), and no other genome does
+        assert_eq!(ga.population[0], first[2]);
+        assert_eq!(ga.population[1], first[5]);
+        for g in &ga.population[2..] {
+            assert!(!first.contains(g), "a child, not a survivor");
+        }
+        // children descend from the picks: with a tiny radius, each is near one of them
+        let mut ga = Ga::new(&GaOptions {
+            radius: 1e-4,
+            ..o.clone()
+        });
+        ga.breed_from_picks(&[3]);
+        for g in &ga.population {
+            let p = &g.primitives[0];
+            assert!(
+                (p.centre - first[3].primitives[0].centre).abs() < 0.01,
+                "{p:?} against {:?}",
+                first[3].primitives[0]
+            );
+        }
+    }
 
     #[test]
     fn blends_stay_valid_and_seeded() {

@@ -18,7 +18,7 @@ pub struct Genome {
 }
 
 /// Ranges random genomes are drawn from.
-const WIDTH: (f64, f64) = (0.02, 0.35);
+pub(crate) const WIDTH: (f64, f64) = (0.02, 0.35);
 const HEIGHT: (f64, f64) = (0.004, 0.6);
 
 impl Genome {

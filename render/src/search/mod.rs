@@ -6,6 +6,7 @@
 //! genomes and the same images.
 
 pub mod adapt;
+pub mod coverage;
 pub mod gallery;
 pub mod genetic;
 pub mod genome;
