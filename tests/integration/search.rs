@@ -397,6 +397,84 @@ fn adaptation_recovers_a_three_knot_warp_of_the_ct_values() {
         worst,
         found.signature
     );
+    // the shipped bone TF adapted to the warped CT renders the bone of the converged
+    // reference (the original TF on the original CT, f64, spacing halved until it
+    // settles): converged, and on the GPU at the preset's spacing as closely as the
+    // original TF on its own data; the same TF unadapted does not
+    {
+        use vwb_render::metrics::{RgbImageF, compare};
+        use vwb_render::params::ParamValue;
+        use vwb_render::reference::{
+            DEFAULT_TOLERANCE_DELTA_E, ReferenceOptions, render_converged,
+        };
+        let doc = Document::load(&repo().join("presets/ct_bone.ron"), &registry())
+            .unwrap()
+            .document;
+        let mut s = doc.frame_settings();
+        (s.width, s.height) = (64, 64);
+        let bg = vwb_lab::measure::background(&doc);
+        let reference = render_converged(
+            &a,
+            &doc.stack,
+            &s,
+            &ReferenceOptions::default(),
+            DEFAULT_TOLERANCE_DELTA_E,
+            bg,
+        )
+        .unwrap();
+        let reference =
+            RgbImageF::from_rgba_premultiplied_over(&reference.image.pixels, 64, 64, bg);
+        let b = std::sync::Arc::new(b.clone());
+        let mut r = Renderer::new(gpu(), b.clone()).unwrap();
+        let mut on_b = |stack: &[vwb_render::PluginInstance]| {
+            let px = render(&mut r, stack, doc.render.target, &s);
+            compare(
+                &RgbImageF::from_rgba_f32_premultiplied_over(&px, 64, 64, bg),
+                &reference,
+            )
+            .rms_delta_e
+        };
+        let Some(ParamValue::Tf(tf)) = doc.stack[0].params.get("tf").cloned() else {
+            panic!("ct_bone has a 1D TF")
+        };
+        let mut adapted = doc.stack.clone();
+        adapted[0]
+            .params
+            .set("tf", ParamValue::Tf(adapt::adapt_curve(&tf, &found)));
+        let (moved, kept) = (on_b(&adapted), on_b(&doc.stack));
+        // the adapted TF's own converged image, and the original's GPU error: the
+        // preset's spacing is not converged on its own data either
+        let converged_b = render_converged(
+            &b,
+            &adapted,
+            &s,
+            &ReferenceOptions::default(),
+            DEFAULT_TOLERANCE_DELTA_E,
+            bg,
+        )
+        .unwrap();
+        let converged_b =
+            RgbImageF::from_rgba_premultiplied_over(&converged_b.image.pixels, 64, 64, bg);
+        let mut ra = Renderer::new(gpu(), a.clone()).unwrap();
+        let px = render(&mut ra, &doc.stack, doc.render.target, &s);
+        let baseline = compare(
+            &RgbImageF::from_rgba_f32_premultiplied_over(&px, 64, 64, bg),
+            &reference,
+        )
+        .rms_delta_e;
+        let converged = compare(&converged_b, &reference).rms_delta_e;
+        eprintln!(
+            "ct_bone adapted to the warped CT against the converged reference (RMS ΔE*uv): \
+             converged {converged:.2}; at the preset's spacing on the GPU {moved:.2} (the \
+             original on the original CT: {baseline:.2}); unadapted {kept:.2}"
+        );
+        assert!(converged <= 3.0, "adapted, converged: {converged}");
+        assert!(
+            moved <= baseline + 0.5,
+            "the adapted TF on the GPU {moved} against the original's own {baseline}"
+        );
+        assert!(kept > 3.0 * moved, "unadapted {kept} vs adapted {moved}");
+    }
     // the CLI: a bone TF from the CT moves with the warp
     let nii = tmp("ct_warped.nii");
     let sp = a.spacing.map(|x| x as f32);
