@@ -70,7 +70,11 @@ Examples:
   # search the demo's TF space for the pre-integrated demo's look, 20 generations of 32
   vwb evolve --preset presets/demo.ron --target-preset presets/demo_preintegrated.ron --seed 1 -o out/evolve
   # or for the TF whose images show the most edges
-  vwb evolve --preset presets/ct_head.ron --objective edge_energy --seed 1 -o out/edges";
+  vwb evolve --preset presets/ct_head.ron --objective edge_energy --seed 1 -o out/edges
+  # or for the TF that shows each boundary of the data, without fog
+  vwb evolve --preset presets/ct_head.ron --objective boundary_coverage --seed 1 -o out/boundaries
+  # toward an image: the three views side by side (here the first run's target)
+  vwb evolve --preset presets/demo.ron --target out/evolve/target.png --seed 2 -o out/from_image";
 
 pub const ADAPT_TF: &str = "\
 Example:
