@@ -257,29 +257,7 @@ impl GaPanel {
                 self.job = None;
             }
             Some(Ok(step)) => {
-                self.textures = step
-                    .views
-                    .iter()
-                    .enumerate()
-                    .map(|(i, views)| {
-                        views
-                            .iter()
-                            .enumerate()
-                            .map(|(v, img)| {
-                                let rgb = img.to_rgb8();
-                                let c = egui::ColorImage::from_rgb(
-                                    [rgb.width() as usize, rgb.height() as usize],
-                                    rgb.as_raw(),
-                                );
-                                ctx.load_texture(
-                                    format!("ga {i} view {v}"),
-                                    c,
-                                    egui::TextureOptions::LINEAR,
-                                )
-                            })
-                            .collect()
-                    })
-                    .collect();
+                self.textures = crate::gallery_ui::view_textures(ctx, "ga", &step.views);
                 self.progress.extend(step.generations);
                 self.ga = Some(step.ga);
                 self.views = step.views;

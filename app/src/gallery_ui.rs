@@ -63,14 +63,30 @@ pub enum GalleryAction {
     Apply(Genome),
 }
 
-fn texture(
+/// Textures of every genome's views (`views[genome][view]`), named `prefix genome view`.
+pub fn view_textures(
     ctx: &egui::Context,
-    name: String,
-    img: &vwb_render::metrics::RgbImageF,
-) -> egui::TextureHandle {
-    let rgb = img.to_rgb8();
-    let c = egui::ColorImage::from_rgb([rgb.width() as usize, rgb.height() as usize], rgb.as_raw());
-    ctx.load_texture(name, c, egui::TextureOptions::LINEAR)
+    prefix: &str,
+    views: &[Vec<vwb_render::metrics::RgbImageF>],
+) -> Vec<Vec<egui::TextureHandle>> {
+    views
+        .iter()
+        .enumerate()
+        .map(|(i, views)| {
+            views
+                .iter()
+                .enumerate()
+                .map(|(v, img)| {
+                    let rgb = img.to_rgb8();
+                    let c = egui::ColorImage::from_rgb(
+                        [rgb.width() as usize, rgb.height() as usize],
+                        rgb.as_raw(),
+                    );
+                    ctx.load_texture(format!("{prefix} {i} {v}"), c, egui::TextureOptions::LINEAR)
+                })
+                .collect()
+        })
+        .collect()
 }
 
 impl GalleryPanel {
@@ -150,18 +166,7 @@ impl GalleryPanel {
             Some(Ok(g)) => {
                 let summary = vwb_lab::search::summary(&g);
                 let page = self.history.len();
-                let textures: Vec<Vec<egui::TextureHandle>> = g
-                    .views
-                    .iter()
-                    .enumerate()
-                    .map(|(i, views)| {
-                        views
-                            .iter()
-                            .enumerate()
-                            .map(|(v, t)| texture(ctx, format!("gallery {page} {i} {v}"), t))
-                            .collect()
-                    })
-                    .collect();
+                let textures = view_textures(ctx, &format!("gallery {page}"), &g.views);
                 let (parent, node) = match parent {
                     Some((p, node)) => (Some(p), node),
                     None => (None, textures[0][0].clone()),

@@ -914,42 +914,37 @@ fn inverse_cases() -> Vec<(&'static str, vwb_render::search::genome::Genome)> {
         color,
     };
     use PrimitiveShape::{Gaussian, Ramp};
+    let two = |a, b| Genome {
+        primitives: vec![a, b],
+    };
     vec![
         (
             "presets/ct_head.ron",
-            Genome {
-                primitives: vec![
-                    p(Gaussian, 0.245, 0.03, 0.04, [0.85, 0.55, 0.45]),
-                    p(Ramp, 0.42, 0.2, 0.5, [1.0, 0.95, 0.85]),
-                ],
-            },
+            two(
+                p(Gaussian, 0.245, 0.03, 0.04, [0.85, 0.55, 0.45]),
+                p(Ramp, 0.42, 0.2, 0.5, [1.0, 0.95, 0.85]),
+            ),
         ),
         (
             "presets/mri_head.ron",
-            Genome {
-                primitives: vec![
-                    p(Gaussian, 0.25, 0.1, 0.08, [0.95, 0.7, 0.6]),
-                    p(Gaussian, 0.55, 0.15, 0.3, [1.0, 0.9, 0.85]),
-                ],
-            },
+            two(
+                p(Gaussian, 0.25, 0.1, 0.08, [0.95, 0.7, 0.6]),
+                p(Gaussian, 0.55, 0.15, 0.3, [1.0, 0.9, 0.85]),
+            ),
         ),
         (
             "presets/nuclei.ron",
-            Genome {
-                primitives: vec![
-                    p(Gaussian, 0.3, 0.12, 0.1, [0.3, 0.9, 0.5]),
-                    p(Gaussian, 0.62, 0.15, 0.5, [0.9, 1.0, 0.9]),
-                ],
-            },
+            two(
+                p(Gaussian, 0.3, 0.12, 0.1, [0.3, 0.9, 0.5]),
+                p(Gaussian, 0.62, 0.15, 0.5, [0.9, 1.0, 0.9]),
+            ),
         ),
         (
             "presets/demo.ron",
-            Genome {
-                primitives: vec![
-                    p(Gaussian, 0.3, 0.12, 0.15, [0.9, 0.55, 0.35]),
-                    p(Gaussian, 0.62, 0.1, 0.5, [0.35, 0.6, 1.0]),
-                ],
-            },
+            two(
+                p(Gaussian, 0.3, 0.12, 0.15, [0.9, 0.55, 0.35]),
+                p(Gaussian, 0.62, 0.1, 0.5, [0.35, 0.6, 1.0]),
+            ),
         ),
     ]
 }
