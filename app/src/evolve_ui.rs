@@ -12,8 +12,10 @@ use std::sync::Arc;
 
 use vwb_lab::job::Job;
 use vwb_render::GpuContext;
+use vwb_render::camera::Camera;
 use vwb_render::metrics::RgbImageF;
 use vwb_render::preset::Document;
+use vwb_render::search::coverage::Coverage;
 use vwb_render::search::genetic::{Fitness, Ga, GaOptions, Generation, Objective};
 use vwb_render::search::genome::Genome;
 use vwb_render::volume::Volume;
@@ -73,6 +75,8 @@ struct Step {
     views: Vec<Vec<RgbImageF>>,
     scores: Option<Vec<f64>>,
     generations: Vec<Generation>,
+    /// The coverage model the job used, for the next job.
+    coverage: Option<CoverageCache>,
 }
 
 /// The panel's state.
@@ -92,6 +96,7 @@ pub struct GaPanel {
     job: Option<(Job<Step>, usize)>,
     pub error: Option<String>,
     seed: u64,
+    coverage: Option<CoverageCache>,
 }
 
 impl Default for GaPanel {
@@ -107,6 +112,7 @@ impl Default for GaPanel {
             job: None,
             error: None,
             seed: 0,
+            coverage: None,
         }
     }
 }
@@ -119,25 +125,29 @@ pub enum GaAction {
     Apply(Genome),
 }
 
-/// The fitness a judge gives (None for picks); `volume` and `camera` for the coverage
-/// (None: not available here).
+/// The coverage model of a volume from a camera's viewpoints, kept between
+/// generations: it is recomputed only when the volume or the camera changes.
+type CoverageCache = (Arc<Volume>, Camera, Arc<Coverage>);
+
+/// The fitness a judge gives (None for picks), on `volume` seen from `camera`'s
+/// viewpoints; `cached`: the coverage model of that volume and camera, where known.
 fn fitness(
     judge: &Judge,
     o: &GaOptions,
-    scene: Option<(&Volume, &vwb_render::camera::Camera)>,
+    volume: &Volume,
+    camera: &Camera,
+    cached: Option<Arc<Coverage>>,
 ) -> Result<Option<Fitness>, String> {
     Ok(match judge {
         Judge::Picks => None,
         Judge::Objective(obj) => Some(Fitness::Objective(*obj)),
-        Judge::Coverage => match scene {
-            Some((volume, camera)) => {
+        Judge::Coverage => Some(Fitness::Coverage(match cached {
+            Some(c) => c,
+            None => {
                 let cams = vwb_render::search::gallery::viewpoints(camera, o.views);
-                Some(Fitness::Coverage(Arc::new(
-                    vwb_render::search::coverage::Coverage::new(volume, &cams, o.tile)?,
-                )))
+                Arc::new(Coverage::new(volume, &cams, o.tile)?)
             }
-            None => None,
-        },
+        })),
         Judge::Target(path) => {
             let views = vwb_lab::search::read_target(std::path::Path::new(path), o)
                 .map_err(|e| format!("{e:#}"))?;
@@ -182,13 +192,22 @@ impl GaPanel {
             return;
         }
         let (judge, current) = (self.judge.clone(), self.views.clone());
+        let cached = self
+            .coverage
+            .as_ref()
+            .filter(|(v, c, _)| Arc::ptr_eq(v, &volume) && *c == doc.camera)
+            .map(|(_, _, model)| model.clone());
         let (gpu, stack, camera) = (gpu.clone(), doc.stack.clone(), doc.camera);
         let bg = vwb_lab::measure::background(doc);
         let d = doc.clone();
         self.error = None;
         self.job = Some((
             Job::spawn("genetic search", move || {
-                let fitness = fitness(&judge, &ga.options, Some((&volume, &camera)))?;
+                let fitness = fitness(&judge, &ga.options, &volume, &camera, cached)?;
+                let coverage = match &fitness {
+                    Some(Fitness::Coverage(c)) => Some((volume.clone(), camera, c.clone())),
+                    _ => None,
+                };
                 let score = |ga: &Ga, views: &[Vec<RgbImageF>]| {
                     fitness.as_ref().map(|f| {
                         ga.population
@@ -220,6 +239,7 @@ impl GaPanel {
                         views,
                         scores: s,
                         generations,
+                        coverage,
                     });
                 }
                 let mut last = None;
@@ -239,6 +259,7 @@ impl GaPanel {
                     views,
                     scores,
                     generations,
+                    coverage,
                 })
             }),
             n,
@@ -259,6 +280,9 @@ impl GaPanel {
             Some(Ok(step)) => {
                 self.textures = crate::gallery_ui::view_textures(ctx, "ga", &step.views);
                 self.progress.extend(step.generations);
+                if step.coverage.is_some() {
+                    self.coverage = step.coverage;
+                }
                 self.ga = Some(step.ga);
                 self.views = step.views;
                 self.scores = step.scores;
@@ -266,6 +290,12 @@ impl GaPanel {
                 self.job = None;
             }
         }
+    }
+
+    /// The coverage model the last coverage-judged generation used (kept until the
+    /// volume or the camera changes).
+    pub fn coverage_model(&self) -> Option<&Arc<Coverage>> {
+        self.coverage.as_ref().map(|(_, _, c)| c)
     }
 
     /// The genome the panel would apply: the best scored, or the first pick.

@@ -1092,6 +1092,28 @@ fn window_evolves_by_picks_and_by_an_objective() {
     assert_eq!(got.primitives.len(), best.primitives.len());
     assert!(rms(&before, &image(&h)) > 1.0, "the applied TF shows");
 
+    // boundary coverage: the model of the data is made once and kept between
+    // generations while the volume and the camera stay
+    h.state_mut().evolve.judge = Judge::Coverage;
+    h.run_steps(2);
+    let generation = h.state().evolve.ga.as_ref().unwrap().generation;
+    for k in 1..=2 {
+        click(&mut h, "Next generation");
+        step_until(&mut h, Duration::from_secs(120), |h| {
+            idle(h) && h.state().evolve.ga.as_ref().unwrap().generation == generation + k
+        });
+    }
+    let model = h.state().evolve.coverage_model().cloned().unwrap();
+    assert!(h.state().evolve.scores.is_some(), "scored by coverage");
+    click(&mut h, "Next generation");
+    step_until(&mut h, Duration::from_secs(120), |h| {
+        idle(h) && h.state().evolve.ga.as_ref().unwrap().generation == generation + 3
+    });
+    assert!(
+        std::sync::Arc::ptr_eq(&model, h.state().evolve.coverage_model().unwrap()),
+        "the coverage model is reused"
+    );
+
     // a target image of the wrong shape is refused with its name
     let bad = tmp("window_ga_target.png");
     image::RgbImage::new(48, 48).save(&bad).unwrap();
