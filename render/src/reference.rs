@@ -793,15 +793,12 @@ pub fn render_single_scattering(
         .map(|y| {
             (0..w)
                 .map(|x| {
-                    let mut state = opts.seed.wrapping_mul(0x9E37_79B9_7F4A_7C15).wrapping_add(
-                        ((y as u64) << 32 | x as u64).wrapping_mul(0xD1B5_4A32_D192_ED03),
-                    ) | 1;
-                    let mut rnd = || {
-                        state ^= state << 13;
-                        state ^= state >> 7;
-                        state ^= state << 17;
-                        (state >> 11) as f64 / (1u64 << 53) as f64
-                    };
+                    let mut rng = crate::rng::XorShift(
+                        opts.seed.wrapping_mul(0x9E37_79B9_7F4A_7C15).wrapping_add(
+                            ((y as u64) << 32 | x as u64).wrapping_mul(0xD1B5_4A32_D192_ED03),
+                        ) | 1,
+                    );
+                    let mut rnd = || rng.uniform();
                     let (origin, dir) = frame.ray(frame.uv(x, y));
                     let Some((t0, t1)) = span(origin, dir) else {
                         return ([0.0; 4], 0.0);

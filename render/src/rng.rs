@@ -33,6 +33,27 @@ impl Rng {
     }
 }
 
+/// A xorshift64 stream (Marsaglia 2003): sequential and cheap, for fixed sequences
+/// where a counter-based stream is not needed (test volumes, sample patterns, one
+/// stream per pixel).
+#[derive(Debug, Clone)]
+pub struct XorShift(pub u64);
+
+impl XorShift {
+    /// The next state (never 0 from a state that is not 0).
+    pub fn next_u64(&mut self) -> u64 {
+        self.0 ^= self.0 << 13;
+        self.0 ^= self.0 >> 7;
+        self.0 ^= self.0 << 17;
+        self.0
+    }
+
+    /// Uniform in [0, 1).
+    pub fn uniform(&mut self) -> f64 {
+        (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

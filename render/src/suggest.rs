@@ -620,13 +620,8 @@ fn curve_from(alpha: &[f64]) -> TfCurve {
 /// noise, as in a low-dose cryo-electron tomogram.
 pub fn noisy_ball(contrast: f64) -> Volume {
     let n = 48u32;
-    let mut state = 0x2545_f491_4f6c_dd1du64;
-    let mut uniform = || {
-        state ^= state << 13;
-        state ^= state >> 7;
-        state ^= state << 17;
-        (state >> 11) as f64 / (1u64 << 53) as f64
-    };
+    let mut rng = crate::rng::XorShift(0x2545_f491_4f6c_dd1d);
+    let mut uniform = || rng.uniform();
     let c = (n as f64 - 1.0) / 2.0;
     let mut v = Vec::with_capacity(n.pow(3) as usize);
     for z in 0..n {

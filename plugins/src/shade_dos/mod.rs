@@ -86,13 +86,8 @@ impl Default for Dos {
 /// `count` points in the unit disk with a Poisson-disk spacing (dart throwing with a
 /// fixed seed and a shrinking minimum distance), deterministic.
 pub fn poisson_disk(count: usize) -> Vec<DVec2> {
-    let mut state = 0x2545_F491_4F6C_DD1Du64;
-    let mut next = || {
-        state ^= state << 13;
-        state ^= state >> 7;
-        state ^= state << 17;
-        (state >> 11) as f64 / (1u64 << 53) as f64
-    };
+    let mut rng = vwb_render::rng::XorShift(0x2545_F491_4F6C_DD1D);
+    let mut next = || rng.uniform();
     let mut r_min = 1.6 / (count as f64).sqrt();
     let mut pts: Vec<DVec2> = Vec::with_capacity(count);
     let mut tries = 0;

@@ -13,7 +13,7 @@ use crate::plugin::PluginInstance;
 use crate::renderer::{RenderError, Renderer};
 use crate::rng::Rng;
 use crate::search::gallery::{descriptor, distance, thumbnails, viewpoints};
-use crate::search::genome::{Genome, MAX_PRIMITIVES};
+use crate::search::genome::{Gene, Genome, MAX_PRIMITIVES, MIN_HEIGHT, WIDTH};
 use crate::tf::TfPrimitive;
 
 /// Settings of a run.
@@ -219,9 +219,10 @@ pub fn target_of(
 
 /// The GA's variation of a child with radius `radius`: half the time
 /// [`Genome::mutate`] (every parameter moves, a primitive may come or go), half the
-/// time one parameter of one primitive moves (its centre, width, height or colour, by
-/// the same law, or its shape). Near an optimum a move of every parameter at once is nearly always
-/// worse, which stalls the search; single moves keep improving it.
+/// time one parameter of one primitive moves (its centre, width, height or colour by
+/// the same law, [`Gene::nudge`], or its shape). Near an optimum a move of every
+/// parameter at once is nearly always worse, which stalls the search; single moves
+/// keep improving it.
 fn vary(g: &Genome, rng: &mut Rng, radius: f64) -> Genome {
     if rng.uniform() < 0.5 {
         return g.mutate(rng, radius);
@@ -230,19 +231,9 @@ fn vary(g: &Genome, rng: &mut Rng, radius: f64) -> Genome {
     let mut out = g.clone();
     let n = out.primitives.len();
     let p = &mut out.primitives[((rng.uniform() * n as f64) as usize).min(n - 1)];
-    match (rng.uniform() * 5.0) as usize {
-        0 => p.centre = (p.centre as f64 + rng.normal() * r * 0.25).clamp(0.0, 1.0) as f32,
-        1 => {
-            p.width = (p.width as f64 * (rng.normal() * r).exp())
-                .clamp(crate::search::genome::WIDTH.0, 1.0) as f32
-        }
-        2 => p.height = (p.height as f64 * (rng.normal() * r).exp()).clamp(1.0e-4, 1.0) as f32,
-        3 => {
-            for c in &mut p.color {
-                *c = (*c as f64 + rng.normal() * r * 0.5).clamp(0.0, 1.0) as f32;
-            }
-        }
-        _ => {
+    match Gene::ALL.get((rng.uniform() * 5.0) as usize) {
+        Some(gene) => gene.nudge(p, rng, r),
+        None => {
             let shapes = crate::tf::PrimitiveShape::ALL;
             p.shape = shapes[(rng.uniform() * shapes.len() as f64) as usize % shapes.len()];
         }
@@ -308,7 +299,7 @@ pub struct Ga {
     /// The mutation radius the current population was bred with (`options.radius`
     /// for the first, then × `options.decay` per generation).
     pub radius: f64,
-    /// The pattern search around the best genome (second half of a run).
+    /// The pattern search around the best genome (from a quarter of a run on).
     poll: Option<Poll>,
 }
 
@@ -348,8 +339,8 @@ fn set_param(g: &mut Genome, p: usize, v: f64) {
     let q = &mut g.primitives[p / PARAMS];
     match p % PARAMS {
         0 => q.centre = v.clamp(0.0, 1.0) as f32,
-        1 => q.width = v.exp().clamp(crate::search::genome::WIDTH.0, 1.0) as f32,
-        2 => q.height = v.exp().clamp(1.0e-4, 1.0) as f32,
+        1 => q.width = v.exp().clamp(WIDTH.0, 1.0) as f32,
+        2 => q.height = v.exp().clamp(MIN_HEIGHT, 1.0) as f32,
         c => q.color[c - 3] = v.clamp(0.0, 1.0) as f32,
     }
 }
@@ -429,9 +420,9 @@ impl Ga {
     }
 
     /// Breeds the next generation from the user's picks (indices into the
-    /// population): every pick survives (up to half the population) and wins every
-    /// and the parents of every child are picks. With no picks, every genome is as
-    /// fit as any other.
+    /// population): every pick survives (up to half the population), and both
+    /// parents of every child are picks. With no picks, every genome is as fit as any
+    /// other.
     pub fn breed_from_picks(&mut self, picks: &[usize]) {
         let pop = self.population.len();
         let picks: Vec<usize> = (0..pop).filter(|i| picks.contains(i)).collect();
@@ -495,7 +486,7 @@ impl Ga {
             .take(elite.min(pop))
             .map(|&i| self.population[i].clone())
             .collect();
-        // the pattern search around the best, in the second half of a run
+        // the pattern search around the best, from a quarter of a run on
         let late = 4 * generation >= self.options.generations;
         self.poll = match (parents, late) {
             (None, true) => Some(self.next_poll(scores, &order)),

@@ -20,6 +20,44 @@ pub struct Genome {
 /// Ranges random genomes are drawn from.
 pub(crate) const WIDTH: (f64, f64) = (0.02, 0.35);
 const HEIGHT: (f64, f64) = (0.004, 0.6);
+/// The least height a variation leaves a primitive (it keeps its place in the genome).
+pub(crate) const MIN_HEIGHT: f64 = 1.0e-4;
+
+/// A parameter of a primitive as variations move it, within radius r: the centre by
+/// N(0, r/4), the width and the height by a factor e^N(0, r), each colour channel by
+/// N(0, r/2); each clamped to its range.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Gene {
+    Centre,
+    Width,
+    Height,
+    Colour,
+}
+
+impl Gene {
+    pub(crate) const ALL: [Gene; 4] = [Gene::Centre, Gene::Width, Gene::Height, Gene::Colour];
+
+    /// Moves this parameter of `p` within radius `r` (0–1).
+    pub(crate) fn nudge(self, p: &mut TfPrimitive, rng: &mut Rng, r: f64) {
+        match self {
+            Gene::Centre => {
+                p.centre = (p.centre as f64 + rng.normal() * r * 0.25).clamp(0.0, 1.0) as f32
+            }
+            Gene::Width => {
+                p.width = (p.width as f64 * (rng.normal() * r).exp()).clamp(WIDTH.0, 1.0) as f32
+            }
+            Gene::Height => {
+                p.height =
+                    (p.height as f64 * (rng.normal() * r).exp()).clamp(MIN_HEIGHT, 1.0) as f32
+            }
+            Gene::Colour => {
+                for c in &mut p.color {
+                    *c = (*c as f64 + rng.normal() * r * 0.5).clamp(0.0, 1.0) as f32;
+                }
+            }
+        }
+    }
+}
 
 impl Genome {
     /// The `tf` curve: transparent end points and the primitives.
@@ -65,9 +103,10 @@ impl Genome {
         }
     }
 
-    /// A variation within `radius` (0–1): centres move by about radius/4, widths and
-    /// heights scale by about e^(±radius), colours move by about radius/2; with
-    /// probability radius/2 a primitive is added or removed.
+    /// A variation within `radius` (0–1): every parameter of every primitive moves
+    /// ([`Gene::nudge`]: centres by about radius/4, widths and heights by a factor of
+    /// about e^(±radius), colours by about radius/2); with probability radius/2 a
+    /// primitive is added or removed.
     pub fn mutate(&self, rng: &mut Rng, radius: f64) -> Genome {
         let r = radius.clamp(0.0, 1.0);
         let mut out: Vec<TfPrimitive> = self
@@ -75,11 +114,8 @@ impl Genome {
             .iter()
             .map(|p| {
                 let mut q = *p;
-                q.centre = (p.centre as f64 + rng.normal() * r * 0.25).clamp(0.0, 1.0) as f32;
-                q.width = (p.width as f64 * (rng.normal() * r).exp()).clamp(WIDTH.0, 1.0) as f32;
-                q.height = (p.height as f64 * (rng.normal() * r).exp()).clamp(1.0e-4, 1.0) as f32;
-                for c in &mut q.color {
-                    *c = (*c as f64 + rng.normal() * r * 0.5).clamp(0.0, 1.0) as f32;
+                for gene in Gene::ALL {
+                    gene.nudge(&mut q, rng, r);
                 }
                 q
             })

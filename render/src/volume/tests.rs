@@ -1599,13 +1599,8 @@ fn damaged_files_never_panic() {
         &small_fields(&["endian: big", "encoding: gzip"]),
         &gzip(&be_u16(&values)),
     );
-    let mut state: u64 = 0x9E37_79B9_7F4A_7C15;
-    let mut next = move || {
-        state ^= state << 13;
-        state ^= state >> 7;
-        state ^= state << 17;
-        state
-    };
+    let mut rng = crate::rng::XorShift(0x9E37_79B9_7F4A_7C15);
+    let mut next = move || rng.next_u64();
     let mut outcomes = [0usize; 2];
     for original in [&raw, &gz] {
         for cut in 0..original.len() {
