@@ -8,11 +8,19 @@ must not regress speed.
 Each round runs `vwb bench` of every preset with A, then with B (B first in odd
 rounds); the figure per build is the median over rounds of the frame's GPU median
 (wall time where the adapter has no timestamps). Prints a Markdown table.
+
+    python3 bench/ab.py --a OLD/vwb --b NEW/vwb --gallery presets/demo_tf2d.ron ...
+        [--rounds 4] [--pool 512] [--tile 16]
+
+times design galleries instead (`vwb gallery --preset P --pool N --k 4 --tile T`, the
+time it reports for its thumbnails: set-up, renders and read-back), and checks that
+both builds choose the same genomes with the same dispersion.
 """
 import argparse
 import csv
 import json
 import os
+import re
 import statistics
 import subprocess
 import tempfile
@@ -33,6 +41,35 @@ def frame_ms(binary, preset, frames, size, backend):
     raise RuntimeError(f"{binary}: no frame row for {preset}")
 
 
+def gallery_ms(binary, preset, pool, tile):
+    """The thumbnails' time `vwb gallery` reports, and its summary line after the time."""
+    with tempfile.TemporaryDirectory() as d:
+        p = subprocess.run([binary, "gallery", "--preset", preset, "--pool", str(pool), "--k", "4",
+                            "--tile", str(tile), "-o", d], check=True, capture_output=True, text=True)
+    m = re.search(r"thumbnails in (\d+) ms \([^)]*\); (.*)", p.stderr)
+    if not m:
+        raise RuntimeError(f"{binary}: no timing in\n{p.stderr}")
+    return float(m.group(1)), m.group(2)
+
+
+def galleries(a):
+    times, summaries = {}, {}
+    for r in range(a.rounds):
+        order = [("a", a.a), ("b", a.b)] if r % 2 == 0 else [("b", a.b), ("a", a.a)]
+        for p in a.gallery:
+            for name, binary in order:
+                ms, summary = gallery_ms(binary, p, a.pool, a.tile)
+                times.setdefault((p, name), []).append(ms)
+                summaries.setdefault(p, set()).add(summary)
+    print(f"| preset | pool × 3 views, {a.tile}² | A ms | B ms | B / A | same picks |")
+    print("|---|---:|---:|---:|---:|---|")
+    for p in a.gallery:
+        ta = statistics.median(times[(p, "a")])
+        tb = statistics.median(times[(p, "b")])
+        same = "yes" if len(summaries[p]) == 1 else "NO"
+        print(f"| {p} | {a.pool} | {ta:.0f} | {tb:.0f} | {tb / ta:.3f} | {same} |")
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--a", required=True)
@@ -43,7 +80,13 @@ def main():
     ap.add_argument("--frames", type=int, default=5)
     ap.add_argument("--size", default="512x512")
     ap.add_argument("-o")
+    ap.add_argument("--gallery", action="append", help="time design galleries of this preset instead")
+    ap.add_argument("--pool", type=int, default=512)
+    ap.add_argument("--tile", type=int, default=16)
     a = ap.parse_args()
+    if a.gallery:
+        galleries(a)
+        return
     presets = a.preset or ["presets/demo.ron", "presets/ct_head.ron"]
     backends = a.backend or ["compute", "raster"]
     times = {}

@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Design galleries measured: thumbnail throughput of the batched atlas at 64² and 128²
-and the dispersion of the 36 chosen against 36 drawn at random, on the CT head and the
-nuclei, each from `vwb gallery` (gallery.json). Rewrites the block between
+and the dispersion of the 36 chosen against 36 drawn at random, on the CT head, the
+nuclei and the demo with a 2D TF (classify.tf2d: 2D genomes), each from `vwb gallery` (gallery.json). Rewrites the block between
 <!-- BEGIN search --> and <!-- END search --> in docs/search.md and copies the CT
 gallery image to docs/images/gallery_ct.png.
 
@@ -24,6 +24,7 @@ RUNS = [
     ("presets/ct_head.ron", 1024, 64),
     ("presets/ct_head.ron", 256, 128),
     ("presets/nuclei.ron", 1024, 64),
+    ("presets/demo_tf2d.ron", 1024, 64),
 ]
 
 

@@ -155,7 +155,7 @@ pub struct GalleryArgs {
 /// `vwb gallery`.
 pub fn run_gallery(preset: Option<&std::path::Path>, a: &GalleryArgs) -> Result<()> {
     let Some(preset) = preset else {
-        bail!("vwb gallery needs --preset P.ron (a stack with classify.tf1d)");
+        bail!("vwb gallery needs --preset P.ron (a stack with classify.tf1d or classify.tf2d)");
     };
     let around = match &a.around {
         Some(f) => Some(vwb_lab::search::read_pick(f, a.pick)?),
@@ -221,7 +221,7 @@ pub struct EvolveArgs {
 /// `vwb evolve`.
 pub fn run_evolve(preset: Option<&std::path::Path>, a: &EvolveArgs) -> Result<()> {
     let Some(preset) = preset else {
-        bail!("vwb evolve needs --preset P.ron (a stack with classify.tf1d)");
+        bail!("vwb evolve needs --preset P.ron (a stack with classify.tf1d or classify.tf2d)");
     };
     let target_tile = match &a.target {
         Some(file) => Some(

@@ -17,7 +17,7 @@ use vwb_render::metrics::RgbImageF;
 use vwb_render::preset::Document;
 use vwb_render::search::coverage::Coverage;
 use vwb_render::search::genetic::{Fitness, Ga, GaOptions, Generation, Objective};
-use vwb_render::search::genome::Genome;
+use vwb_render::search::genome::{Genome, Space};
 use vwb_render::volume::Volume;
 
 /// Thumbnail side, population and viewpoints in the window (small: it renders on the
@@ -144,6 +144,7 @@ fn fitness(
         Judge::Coverage => Some(Fitness::Coverage(match cached {
             Some(c) => c,
             None => {
+                Coverage::supports(o.space)?;
                 let cams = vwb_render::search::gallery::viewpoints(camera, o.views);
                 Arc::new(Coverage::new(volume, &cams, o.tile)?)
             }
@@ -182,9 +183,23 @@ impl GaPanel {
         let (ga, picks) = match (&self.ga, n) {
             (Some(ga), n) if n > 0 => (ga.clone(), self.picks.clone()),
             _ => {
+                // the TF model of the stack: classify.tf1d or classify.tf2d
+                let space = match Space::of_stack(&doc.stack) {
+                    Ok(s) => s,
+                    Err(e) => {
+                        self.error = Some(e);
+                        return;
+                    }
+                };
                 self.seed += 1;
                 self.progress.clear();
-                (Ga::new(&self.options()), Vec::new())
+                (
+                    Ga::new(&GaOptions {
+                        space,
+                        ..self.options()
+                    }),
+                    Vec::new(),
+                )
             }
         };
         if n > 0 && self.judge == Judge::Picks && picks.is_empty() {

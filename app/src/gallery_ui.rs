@@ -2,7 +2,8 @@
 //! gallery" draws a seeded pool for the current scene and shows the most dispersed
 //! genomes on their MDS grid; clicking a thumbnail refines around it (a smaller mutation
 //! radius each time); right-click puts a genome's TF into the stack's classify.tf1d
-//! (the preset is then saved as usual); hovering shows a genome's views enlarged. The
+//! (classify.tf2d on a 2D stack; the preset is then saved as usual); hovering shows a
+//! genome's views enlarged. The
 //! visited galleries form an image graph (after Ma 1999): each refinement hangs under
 //! the gallery it was picked from, "Back" goes to the parent, and clicking a node of
 //! the graph returns to that gallery, so a branch once left is not lost. The renders

@@ -550,25 +550,14 @@ impl Workbench {
     }
 
     /// Puts a genome's TF (from the gallery or the genetic search) into the stack's
-    /// first enabled classify.tf1d.
+    /// first enabled classify.tf1d (classify.tf2d for a 2D genome).
     pub fn apply_genome(&mut self, g: &vwb_render::search::genome::Genome) {
-        match self
-            .doc
-            .stack
-            .iter_mut()
-            .find(|i| i.enabled && i.plugin.id() == "classify.tf1d")
-        {
-            Some(tf) => {
-                tf.params
-                    .set("tf", vwb_render::params::ParamValue::Tf(g.to_curve()));
+        match g.apply(&mut self.doc.stack) {
+            Ok(()) => {
                 self.apply_stack();
                 self.file_status = Some(Ok("applied the TF (save the preset to keep it)".into()));
             }
-            None => {
-                self.file_status = Some(Err(
-                    "the stack has no enabled classify.tf1d to apply the TF to".into(),
-                ));
-            }
+            Err(e) => self.file_status = Some(Err(e)),
         }
     }
 

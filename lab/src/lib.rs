@@ -18,3 +18,4 @@ pub mod measure;
 pub mod outputs;
 pub mod progress;
 pub mod search;
+pub mod thumbnail;

@@ -9,10 +9,9 @@ use anyhow::{Context, Result, anyhow, bail};
 use serde::{Deserialize, Serialize};
 use serde_json::json;
 use vwb_render::GpuContext;
-use vwb_render::params::ParamValue;
 use vwb_render::preset::Document;
 use vwb_render::search::gallery::{self, Gallery, GalleryOptions};
-use vwb_render::search::genome::Genome;
+use vwb_render::search::genome::{Genome, Space};
 
 use crate::{headless, measure};
 
@@ -122,24 +121,17 @@ pub fn summary(g: &Gallery) -> String {
     s
 }
 
-/// Writes the preset with its first `classify.tf1d` showing the genome (atomically).
+/// Writes the preset with its first `classify.tf1d` (`classify.tf2d` for a 2D genome)
+/// showing the genome (atomically), and its thumbnail beside it (`NAME.thumb.png`,
+/// [`crate::thumbnail`]).
 pub fn apply_pick(preset: &Path, g: &Genome, out: &Path) -> Result<Document> {
     crate::outputs::check_extension(out, "ron", "a preset")?;
-    if g.primitives.is_empty() {
+    if g.is_empty() {
         bail!("the pick has no primitives");
     }
     let mut doc = crate::document::load_document(Some(preset))?;
-    let tf = doc
-        .stack
-        .iter_mut()
-        .find(|i| i.enabled && i.plugin.id() == "classify.tf1d")
-        .ok_or_else(|| {
-            anyhow!(
-                "{}: no enabled classify.tf1d to apply the TF to",
-                preset.display()
-            )
-        })?;
-    tf.params.set("tf", ParamValue::Tf(g.to_curve()));
+    g.apply(&mut doc.stack)
+        .map_err(|e| anyhow!("{}: {e}", preset.display()))?;
     if doc.description.is_empty() {
         doc.description = "a TF picked from a design gallery".into();
     } else {
@@ -148,6 +140,12 @@ pub fn apply_pick(preset: &Path, g: &Genome, out: &Path) -> Result<Document> {
     crate::outputs::check_output(out)?;
     doc.save(out)
         .with_context(|| format!("{}: cannot save", out.display()))?;
+    // its thumbnail beside it, as the window writes one, for the preset browser
+    let thumb = crate::thumbnail::thumbnail_path(out, None);
+    let gpu = GpuContext::new_headless()?;
+    crate::thumbnail::render_thumbnail(&gpu, out)
+        .and_then(|img| crate::thumbnail::save_thumbnail(&img, &thumb))
+        .with_context(|| format!("saved {}, but not its thumbnail", out.display()))?;
     Ok(doc)
 }
 
@@ -187,15 +185,23 @@ pub fn run_evolve(
     std::fs::create_dir_all(out).with_context(|| format!("{}: cannot create", out.display()))?;
     let gpu = GpuContext::new_headless()?;
     eprintln!("adapter: {}", gpu.describe());
+    // the space of the stack's TF plugin: classify.tf1d or classify.tf2d
+    let o = &genetic::GaOptions {
+        space: Space::of_stack(&doc.stack).map_err(|e| anyhow!("{}: {e}", preset.display()))?,
+        ..o.clone()
+    };
     let mut r = headless::renderer_for(&gpu, &doc, volume.clone())?;
     let bg = measure::background(&doc);
     let cams = gallery::viewpoints(&doc.camera, o.views);
     let fitness = match target {
         EvolveTarget::Objective(obj) => genetic::Fitness::Objective(*obj),
-        EvolveTarget::Coverage => genetic::Fitness::Coverage(std::sync::Arc::new(
-            vwb_render::search::coverage::Coverage::new(&volume, &cams, o.tile)
-                .map_err(|e| anyhow!("{}: {e}", preset.display()))?,
-        )),
+        EvolveTarget::Coverage => {
+            use vwb_render::search::coverage::Coverage;
+            let cover = Coverage::supports(o.space)
+                .and_then(|()| Coverage::new(&volume, &cams, o.tile))
+                .map_err(|e| anyhow!("{}: {e}", preset.display()))?;
+            genetic::Fitness::Coverage(std::sync::Arc::new(cover))
+        }
         EvolveTarget::Image(file) => {
             let views = read_target(file, o)?;
             genetic::Fitness::Target(gallery::descriptor(&views))

@@ -141,16 +141,33 @@ impl Tf2d {
         [rgb[0], rgb[1], rgb[2], 1.0 - transmit]
     }
 
-    /// The n × n table (value along x, gradient magnitude along y), entries at
-    /// i/(n − 1).
-    pub fn bake(&self, n: usize) -> Vec<[f32; 4]> {
+    /// Entry (i, j) of the n × n table: value i/(n − 1), gradient j/(n − 1).
+    fn entry(&self, n: usize, i: usize, j: usize) -> [f32; 4] {
         let step = 1.0 / (n.max(2) - 1) as f64;
+        self.eval(i as f64 * step, j as f64 * step)
+            .map(|x| x as f32)
+    }
+
+    /// The n × n table (value along x, gradient magnitude along y), entries at
+    /// i/(n − 1). Entries are independent and evaluated in parallel (a 256² table of
+    /// a few Gaussians takes milliseconds serially, and a TF search bakes one per
+    /// genome).
+    pub fn bake(&self, n: usize) -> Vec<[f32; 4]> {
+        use rayon::prelude::*;
         (0..n * n)
-            .map(|k| {
-                let (i, j) = (k % n, k / n);
-                self.eval(i as f64 * step, j as f64 * step)
-                    .map(|x| x as f32)
-            })
+            .into_par_iter()
+            .map(|k| self.entry(n, k % n, k / n))
+            .collect()
+    }
+
+    /// Per value column of the n × n table, whether some entry's opacity × `opacity`
+    /// is above 0: what `bake` would give, without baking the table (a column stops at
+    /// its first visible entry).
+    pub fn visible_columns(&self, n: usize, opacity: f32) -> Vec<bool> {
+        use rayon::prelude::*;
+        (0..n)
+            .into_par_iter()
+            .map(|i| (0..n).any(|j| self.entry(n, i, j)[3] * opacity > 0.0))
             .collect()
     }
 }
@@ -205,6 +222,16 @@ mod tests {
         };
         let n = 64;
         let table = tf.bake(n);
+        // the visible columns are the baked table's
+        let mut sparse = tf.clone();
+        sparse.primitives[1].shape = Shape2d::Triangle;
+        for t in [&tf, &sparse] {
+            let baked = t.bake(n);
+            let columns: Vec<bool> = (0..n)
+                .map(|i| (0..n).any(|j| baked[j * n + i][3] * 0.5 > 0.0))
+                .collect();
+            assert_eq!(t.visible_columns(n, 0.5), columns);
+        }
         for (i, j) in [(0, 0), (10, 40), (32, 31), (63, 63)] {
             let (v, g) = (i as f64 / 63.0, j as f64 / 63.0);
             let got = eval_table(&table, n, v, g);

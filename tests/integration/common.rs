@@ -35,20 +35,40 @@ pub fn load_average() -> String {
 pub fn kept_experiment_blocks(old: &str, names: &[&str]) -> String {
     let mut out = String::new();
     for name in names {
-        let (begin, end) = (
-            format!("<!-- BEGIN experiment {name} -->"),
-            format!("<!-- END experiment {name} -->"),
+        out += &kept_block(
+            old,
+            &format!("experiment {name}"),
+            &format!("`vwb run experiments/{name}.ron`"),
         );
-        let kept = old.find(&begin).and_then(|i| {
-            let j = old[i..].find(&end)? + i;
-            Some(old[i..j + end.len()].to_string())
-        });
-        out += &kept.unwrap_or_else(|| {
-            format!("{begin}\nNot run yet: `vwb run experiments/{name}.ron`.\n{end}")
-        });
         out += "\n\n";
     }
     out
+}
+
+/// The block `name` of a document's old text (markers included), or an empty one that
+/// says how to run what writes it.
+pub fn kept_block(old: &str, name: &str, run: &str) -> String {
+    let (begin, end) = (
+        format!("<!-- BEGIN {name} -->"),
+        format!("<!-- END {name} -->"),
+    );
+    let kept = old.find(&begin).and_then(|i| {
+        let j = old[i..].find(&end)? + i;
+        Some(old[i..j + end.len()].to_string())
+    });
+    kept.unwrap_or_else(|| format!("{begin}\nNot run yet: {run}.\n{end}"))
+}
+
+/// Writes `body` into the block `name` of `doc`, first adding the block under
+/// `heading` at the end where the document has none (a GPU's copy written before the
+/// block existed).
+pub fn write_or_add_block(doc: &Path, name: &str, heading: &str, body: &str) {
+    let mut text = std::fs::read_to_string(doc).unwrap_or_default();
+    if !text.contains(&format!("<!-- BEGIN {name} -->")) {
+        text += &format!("\n{heading}\n\n<!-- BEGIN {name} -->\n<!-- END {name} -->\n");
+        std::fs::write(doc, text).unwrap();
+    }
+    vwb_lab::experiment::write_block(doc, name, body).unwrap();
 }
 
 /// A path in this test run's scratch directory.

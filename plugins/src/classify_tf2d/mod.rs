@@ -237,13 +237,18 @@ impl Plugin for Tf2dPlugin {
     /// A value range can be visible when the table has α > 0 for some value entry of
     /// the range at any gradient magnitude.
     fn transparency(&self, params: &ParamValues) -> Transparency {
-        let opacity = params.float("opacity");
-        let table = tf(params).bake(TABLE_SIZE);
         vwb_render::skipping::visible_by_table(
-            (0..TABLE_SIZE)
-                .map(|i| (0..TABLE_SIZE).any(|j| table[j * TABLE_SIZE + i][3] * opacity > 0.0))
-                .collect(),
+            tf(params).visible_columns(TABLE_SIZE, params.float("opacity")),
         )
+    }
+    /// A classification drops values, not regions (and its promise, `transparency`,
+    /// costs a pass over the table: not asked twice).
+    fn region(
+        &self,
+        _params: &ParamValues,
+        _volume: &Volume,
+    ) -> Option<Arc<vwb_render::plugin::RegionFn>> {
+        None
     }
     fn cpu_twin(&self, params: &ParamValues) -> Option<Box<dyn CpuTwin>> {
         Some(Box::new(Tf2dTwin {

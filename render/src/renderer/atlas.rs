@@ -286,23 +286,29 @@ impl Renderer {
                 .filter_map(|b| self.bind_entry(&uids0, b, Some(0)))
                 .collect::<Vec<_>>(),
         });
+        // empty-space skipping by each tile's own classification, as its single render
+        // would skip: one occupancy grid per distinct stack (the views of one variant
+        // share it), made and uploaded once
+        let mut occupancies = std::collections::HashMap::new();
         for (i, (stack, (view, plan))) in stacks.iter().zip(views.iter().zip(&plans)).enumerate() {
             let settings = FrameSettings {
                 camera: tiles[i].camera,
                 ..*s
             };
-            // empty-space skipping by each tile's own classification, as its single
-            // render would skip
-            let occupancy = self.occupancy_of(tiles[i].stack);
+            let uids: Vec<u64> = stack.iter().map(|(u, _)| *u).collect();
+            let occupancy_texture = occupancies
+                .entry(uids.clone())
+                .or_insert_with(|| {
+                    self.occupancy_of(tiles[i].stack)
+                        .map(|b| upload_occupancy(&self.gpu, self.bricks.dims, &b))
+                })
+                .as_ref();
             let mut u = self.frame_uniform(&settings, plan, view, [tw, th], target);
-            u.settings[1] = if occupancy.is_some() {
+            u.settings[1] = if occupancy_texture.is_some() {
                 BRICK as f32
             } else {
                 0.0
             };
-            let occupancy_texture = occupancy
-                .as_ref()
-                .map(|b| upload_occupancy(&self.gpu, self.bricks.dims, b));
             let frame = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
                 label: Some("vwb atlas frame"),
                 contents: bytemuck::bytes_of(&u),
@@ -316,15 +322,12 @@ impl Renderer {
                 &self.linear,
                 &self.nearest,
                 &self.slice_info,
-                occupancy_texture
-                    .as_ref()
-                    .map_or(&self.occupancy.1, |o| &o.1),
+                occupancy_texture.map_or(&self.occupancy.1, |o| &o.1),
             );
-            let uids: Vec<u64> = stack.iter().map(|(u, _)| *u).collect();
             let g1 = self.group1_for(&compiled, &uids);
             {
                 let mut pass = enc.begin_compute_pass(&Default::default());
-                pass.set_pipeline(if occupancy.is_some() {
+                pass.set_pipeline(if occupancy_texture.is_some() {
                     &compiled.cs_main_skip
                 } else {
                     &compiled.cs_main

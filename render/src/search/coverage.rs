@@ -25,7 +25,7 @@
 //! length, as the renderer's Δs0.
 
 use crate::camera::Camera;
-use crate::search::genome::Genome;
+use crate::search::genome::{Genome, Space};
 use crate::slicing::VolumeBox;
 use crate::suggest::{SuggestError, SuggestOptions, suggest};
 use crate::volume::{Volume, VoxelData};
@@ -50,6 +50,15 @@ pub struct Coverage {
 }
 
 impl Coverage {
+    /// Whether genomes of `space` can be scored: coverage reads the TF along the value
+    /// axis, where the boundaries lie, so it takes 1D TFs only.
+    pub fn supports(space: Space) -> Result<(), String> {
+        match space {
+            Space::Tf1d => Ok(()),
+            Space::Tf2d => Err("boundary coverage scores 1D TFs (classify.tf1d); a 2D search takes picks, an image objective or a target image".into()),
+        }
+    }
+
     /// The boundaries of `volume` and `rays`² rays from each viewpoint. Fails when the
     /// suggestion finds no boundary (the objective would have nothing to cover).
     pub fn new(volume: &Volume, viewpoints: &[Camera], rays: u32) -> Result<Coverage, String> {
@@ -126,9 +135,13 @@ impl Coverage {
     }
 
     /// The visibility histogram of a genome: per value bin, the mean over rays of
-    /// opacity × transmittance.
+    /// opacity × transmittance. Coverage is defined on the value axis of a 1D TF: a
+    /// 2D genome shows nothing here (callers refuse the objective for 2D searches,
+    /// [`Coverage::supports`]).
     pub fn visibility(&self, g: &Genome) -> Vec<f64> {
-        let curve = g.to_curve();
+        let Some(curve) = g.to_curve() else {
+            return vec![0.0; self.bins];
+        };
         let alpha: Vec<f64> = (0..self.bins)
             .map(|b| curve.eval((b as f64 + 0.5) / self.bins as f64)[3].clamp(0.0, 1.0))
             .collect();
@@ -221,33 +234,25 @@ mod tests {
         let centre = |r: &std::ops::Range<usize>| (r.start + r.end) as f32 / 2.0 / c.bins as f32;
         let (b0, b1) = (centre(&c.boundaries[0]), centre(&c.boundaries[1]));
         // the visibility histogram sums to the image's opacity, at most 1
-        let both = Genome {
-            primitives: vec![gauss(b0, 0.03, 0.05), gauss(b1, 0.03, 0.5)],
-        };
+        let both = Genome::Tf1d(vec![gauss(b0, 0.03, 0.05), gauss(b1, 0.03, 0.5)]);
         let vis: f64 = c.visibility(&both).iter().sum();
         assert!(vis > 0.0 && vis <= 1.0 + 1e-9, "{vis}");
         let (both_c, shares, fog) = c.objective(&both);
         assert!(shares.iter().take(2).all(|&s| s > 0.0), "{shares:?}");
         // one boundary only covers half as much
-        let one = Genome {
-            primitives: vec![gauss(b0, 0.03, 0.05)],
-        };
+        let one = Genome::Tf1d(vec![gauss(b0, 0.03, 0.05)]);
         let (one_c, ..) = c.objective(&one);
         assert!(both_c > one_c, "{both_c} vs {one_c}");
         // an opaque outer shell hides the inner boundary
-        let shell = Genome {
-            primitives: vec![gauss(b0, 0.03, 1.0), gauss(b1, 0.03, 0.5)],
-        };
+        let shell = Genome::Tf1d(vec![gauss(b0, 0.03, 1.0), gauss(b1, 0.03, 0.5)]);
         let (_, hidden, _) = c.objective(&shell);
         assert!(hidden[1] < shares[1], "{hidden:?} vs {shares:?}");
         // fog: opacity on the outer ball's plateau (100 of 200), on no boundary
-        let foggy = Genome {
-            primitives: vec![
-                gauss(b0, 0.03, 0.05),
-                gauss(b1, 0.03, 0.5),
-                gauss(0.5, 0.02, 0.05),
-            ],
-        };
+        let foggy = Genome::Tf1d(vec![
+            gauss(b0, 0.03, 0.05),
+            gauss(b1, 0.03, 0.5),
+            gauss(0.5, 0.02, 0.05),
+        ]);
         let (fog_c, _, f) = c.objective(&foggy);
         assert!(
             f > fog && fog_c < both_c,

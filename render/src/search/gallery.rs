@@ -14,11 +14,10 @@ use std::time::Instant;
 use crate::camera::Camera;
 use crate::composer::TargetFormat;
 use crate::metrics::{RgbImageF, srgb_to_luv};
-use crate::params::ParamValue;
 use crate::plugin::PluginInstance;
 use crate::renderer::{AtlasTile, Backend, FrameSettings, RenderError, Renderer};
 use crate::rng::Rng;
-use crate::search::genome::Genome;
+use crate::search::genome::{Genome, Space};
 
 /// What a gallery draws and keeps.
 #[derive(Debug, Clone)]
@@ -88,15 +87,12 @@ pub fn viewpoints(base: &Camera, n: usize) -> Vec<Camera> {
         .collect()
 }
 
-/// The stack with its first `classify.tf1d` showing the genome, on fresh instances (so
-/// that each genome keeps its own lookup table in an atlas).
+/// The stack with its first `classify.tf1d` (or `classify.tf2d`, for a 2D genome)
+/// showing the genome, on fresh instances (so that each genome keeps its own lookup
+/// table in an atlas).
 pub fn stack_with(stack: &[PluginInstance], g: &Genome) -> Result<Vec<PluginInstance>, String> {
     let mut out: Vec<PluginInstance> = stack.iter().map(PluginInstance::duplicate).collect();
-    let tf = out
-        .iter_mut()
-        .find(|i| i.enabled && i.plugin.id() == "classify.tf1d")
-        .ok_or("the stack has no enabled classify.tf1d to search")?;
-    tf.params.set("tf", ParamValue::Tf(g.to_curve()));
+    g.apply(&mut out)?;
     Ok(out)
 }
 
@@ -282,7 +278,8 @@ pub fn mds_grid(d: &[Vec<f64>]) -> (Vec<[u32; 2]>, u32) {
     (cells, cols as u32)
 }
 
-/// Draws the pool (seeded; around a genome when refining), renders every genome from
+/// Draws the pool (seeded; around a genome when refining; in the space of the stack's
+/// first TF plugin, [`Space::of_stack`]), renders every genome from
 /// `views` viewpoints, keeps the `k` most dispersed and lays them out.
 pub fn gallery(
     r: &mut Renderer,
@@ -291,6 +288,7 @@ pub fn gallery(
     background: [f64; 3],
     o: &GalleryOptions,
 ) -> Result<Gallery, RenderError> {
+    let space = Space::of_stack(stack).map_err(RenderError::Atlas)?;
     let pool: Vec<Genome> = (0..o.pool.max(1))
         .map(|i| {
             let mut rng = Rng::at(o.seed, i as u64);
@@ -298,7 +296,7 @@ pub fn gallery(
                 // the picked genome itself is part of its refinement
                 Some((g, _)) if i == 0 => g.clone(),
                 Some((g, radius)) => g.mutate(&mut rng, *radius),
-                None => Genome::random(&mut rng, o.max_primitives),
+                None => Genome::random(space, &mut rng, o.max_primitives),
             }
         })
         .collect();

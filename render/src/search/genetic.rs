@@ -13,8 +13,7 @@ use crate::plugin::PluginInstance;
 use crate::renderer::{RenderError, Renderer};
 use crate::rng::Rng;
 use crate::search::gallery::{descriptor, distance, thumbnails, viewpoints};
-use crate::search::genome::{Gene, Genome, MAX_PRIMITIVES, MIN_HEIGHT, WIDTH};
-use crate::tf::TfPrimitive;
+use crate::search::genome::{Genome, Space};
 
 /// Settings of a run.
 #[derive(Debug, Clone, PartialEq)]
@@ -32,6 +31,8 @@ pub struct GaOptions {
     pub slice_spacing: f32,
     pub max_primitives: usize,
     pub batch: usize,
+    /// The TF model searched ([`Space::of_stack`] gives the stack's).
+    pub space: Space,
 }
 
 impl Default for GaOptions {
@@ -48,6 +49,7 @@ impl Default for GaOptions {
             slice_spacing: 1.0,
             max_primitives: 3,
             batch: 96,
+            space: Space::Tf1d,
         }
     }
 }
@@ -219,72 +221,15 @@ pub fn target_of(
 
 /// The GA's variation of a child with radius `radius`: half the time
 /// [`Genome::mutate`] (every parameter moves, a primitive may come or go), half the
-/// time one parameter of one primitive moves (its centre, width, height or colour by
-/// the same law, [`Gene::nudge`], or its shape). Near an optimum a move of every
+/// time one parameter of one primitive moves ([`Genome::vary_one`]: its centre, size,
+/// height or colour by the same law, or its shape). Near an optimum a move of every
 /// parameter at once is nearly always worse, which stalls the search; single moves
 /// keep improving it.
 fn vary(g: &Genome, rng: &mut Rng, radius: f64) -> Genome {
     if rng.uniform() < 0.5 {
         return g.mutate(rng, radius);
     }
-    let r = radius.clamp(0.0, 1.0);
-    let mut out = g.clone();
-    let n = out.primitives.len();
-    let p = &mut out.primitives[((rng.uniform() * n as f64) as usize).min(n - 1)];
-    match Gene::ALL.get((rng.uniform() * 5.0) as usize) {
-        Some(gene) => gene.nudge(p, rng, r),
-        None => {
-            let shapes = crate::tf::PrimitiveShape::ALL;
-            p.shape = shapes[(rng.uniform() * shapes.len() as f64) as usize % shapes.len()];
-        }
-    }
-    out
-}
-
-/// Blends two parents primitive by primitive, after ordering each parent's primitives
-/// by centre so that a primitive meets the other parent's nearest in value.
-fn blend(a: &Genome, b: &Genome, rng: &mut Rng) -> Genome {
-    let by_centre = |g: &Genome| {
-        let mut g = g.clone();
-        g.primitives.sort_by(|p, q| p.centre.total_cmp(&q.centre));
-        g
-    };
-    let (a, b) = (&by_centre(a), &by_centre(b));
-    let n = a
-        .primitives
-        .len()
-        .max(b.primitives.len())
-        .min(MAX_PRIMITIVES);
-    let mut out: Vec<TfPrimitive> = Vec::new();
-    for i in 0..n {
-        match (a.primitives.get(i), b.primitives.get(i)) {
-            (Some(p), Some(q)) => {
-                let t = rng.uniform() as f32;
-                let mix = |x: f32, y: f32| x + (y - x) * t;
-                out.push(TfPrimitive {
-                    shape: if rng.uniform() < 0.5 {
-                        p.shape
-                    } else {
-                        q.shape
-                    },
-                    centre: mix(p.centre, q.centre),
-                    width: mix(p.width, q.width),
-                    height: mix(p.height, q.height),
-                    color: std::array::from_fn(|c| mix(p.color[c], q.color[c])),
-                });
-            }
-            (Some(p), None) | (None, Some(p)) => {
-                if rng.uniform() < 0.5 {
-                    out.push(*p);
-                }
-            }
-            (None, None) => {}
-        }
-    }
-    if out.is_empty() {
-        out.push(a.primitives[0]);
-    }
-    Genome { primitives: out }
+    g.vary_one(rng, radius)
 }
 
 /// A search in progress, one generation at a time: the current population, bred from
@@ -307,8 +252,8 @@ pub struct Ga {
 /// generations: each generation holds, after the elite, one child per parameter and
 /// sign, the best moved by ± that parameter's step. A step that improved on the
 /// best grows by 1.5, one that did not halves. The parameters are each primitive's
-/// centre, ln width, ln height and RGB ([`param`]); shapes and the number of
-/// primitives are left to the GA's children.
+/// centre, ln sizes, ln height and RGB (`genome::Primitive`); then each primitive in
+/// its other shapes; the number of primitives is left to the GA's children.
 #[derive(Debug, Clone, PartialEq)]
 struct Poll {
     /// The genome polled around, and its score.
@@ -319,44 +264,6 @@ struct Poll {
     moves: Vec<(usize, f64)>,
 }
 
-/// Parameters per primitive in the pattern search.
-const PARAMS: usize = 6;
-
-/// Parameter `p` of a genome in the pattern search's coordinates: per primitive,
-/// centre, ln width, ln height, red, green, blue.
-fn param(g: &Genome, p: usize) -> f64 {
-    let q = &g.primitives[p / PARAMS];
-    match p % PARAMS {
-        0 => q.centre as f64,
-        1 => (q.width as f64).ln(),
-        2 => (q.height as f64).ln(),
-        c => q.color[c - 3] as f64,
-    }
-}
-
-/// Sets parameter `p` (clamped to the genome's ranges).
-fn set_param(g: &mut Genome, p: usize, v: f64) {
-    let q = &mut g.primitives[p / PARAMS];
-    match p % PARAMS {
-        0 => q.centre = v.clamp(0.0, 1.0) as f32,
-        1 => q.width = v.exp().clamp(WIDTH.0, 1.0) as f32,
-        2 => q.height = v.exp().clamp(MIN_HEIGHT, 1.0) as f32,
-        c => q.color[c - 3] = v.clamp(0.0, 1.0) as f32,
-    }
-}
-
-/// First steps of the pattern search at mutation radius `r`, the scales
-/// [`Genome::mutate`] uses.
-fn initial_steps(g: &Genome, r: f64) -> Vec<f64> {
-    (0..g.primitives.len() * PARAMS)
-        .map(|p| match p % PARAMS {
-            0 => r * 0.25,
-            1 | 2 => r,
-            _ => r * 0.5,
-        })
-        .collect()
-}
-
 impl Ga {
     /// The seeded random first generation.
     pub fn new(o: &GaOptions) -> Ga {
@@ -365,7 +272,7 @@ impl Ga {
             options: o.clone(),
             generation: 0,
             population: (0..pop)
-                .map(|i| Genome::random(&mut Rng::at(o.seed, i as u64), o.max_primitives))
+                .map(|i| Genome::random(o.space, &mut Rng::at(o.seed, i as u64), o.max_primitives))
                 .collect(),
             radius: o.radius,
             poll: None,
@@ -439,7 +346,7 @@ impl Ga {
     /// many moves as fit in three quarters of the children (the rest stay the GA's).
     fn next_poll(&self, scores: &[f64], order: &[usize]) -> Poll {
         let best = &self.population[order[0]];
-        let n = best.primitives.len() * PARAMS;
+        let n = best.param_count();
         let steps = match &self.poll {
             Some(last) if last.steps.len() == n => {
                 // the last poll's children follow the elite in the population
@@ -456,7 +363,7 @@ impl Ga {
                     .map(|(&s, &up)| if up { s * 1.5 } else { s * 0.5 })
                     .collect()
             }
-            _ => initial_steps(best, self.radius),
+            _ => best.initial_steps(self.radius),
         };
         let room = (self.population.len() - self.options.elite.min(self.population.len())) * 3 / 4;
         // the parameters in turn, both signs, starting where the generation says, so
@@ -495,18 +402,14 @@ impl Ga {
         if let Some(poll) = &self.poll {
             for &(p, sign) in &poll.moves {
                 let mut g = poll.centre.clone();
-                let v = param(&g, p) + sign * poll.steps[p];
-                set_param(&mut g, p, v);
+                let v = g.param(p) + sign * poll.steps[p];
+                g.set_param(p, v);
                 next.push(g);
             }
             // and each primitive in the other shapes
-            for (i, q) in poll.centre.primitives.iter().enumerate() {
-                for shape in crate::tf::PrimitiveShape::ALL {
-                    if shape != q.shape && next.len() < pop {
-                        let mut g = poll.centre.clone();
-                        g.primitives[i].shape = shape;
-                        next.push(g);
-                    }
+            for g in poll.centre.shape_variants() {
+                if next.len() < pop {
+                    next.push(g);
                 }
             }
         }
@@ -527,7 +430,7 @@ impl Ga {
             };
             let (pa, pb) = (pick(&mut rng), pick(&mut rng));
             let child = vary(
-                &blend(&self.population[pa], &self.population[pb], &mut rng),
+                &Genome::blend(&self.population[pa], &self.population[pb], &mut rng),
                 &mut rng,
                 radius,
             );
@@ -620,28 +523,50 @@ mod tests {
         });
         ga.breed_from_picks(&[3]);
         for g in &ga.population {
-            let p = &g.primitives[0];
             assert!(
-                (p.centre - first[3].primitives[0].centre).abs() < 0.01,
-                "{p:?} against {:?}",
-                first[3].primitives[0]
+                (g.centre(0) - first[3].centre(0)).abs() < 0.01,
+                "{g:?} against {:?}",
+                first[3]
             );
         }
     }
 
     #[test]
     fn blends_stay_valid_and_seeded() {
-        let a = Genome::random(&mut Rng::at(1, 1), 4);
-        let b = Genome::random(&mut Rng::at(1, 2), 2);
-        let c1 = blend(&a, &b, &mut Rng::at(5, 5));
-        let c2 = blend(&a, &b, &mut Rng::at(5, 5));
-        assert_eq!(c1, c2);
-        c1.to_curve().validate().unwrap();
-        assert!(!c1.primitives.is_empty() && c1.primitives.len() <= 4);
-        // blending a genome with itself keeps it
-        let same = blend(&a, &a, &mut Rng::at(3, 3));
-        for (p, q) in same.primitives.iter().zip(&a.primitives) {
-            assert!((p.centre - q.centre).abs() < 1e-6 && (p.height - q.height).abs() < 1e-6);
+        for space in [Space::Tf1d, Space::Tf2d] {
+            let a = Genome::random(space, &mut Rng::at(1, 1), 4);
+            let b = Genome::random(space, &mut Rng::at(1, 2), 2);
+            let c1 = Genome::blend(&a, &b, &mut Rng::at(5, 5));
+            let c2 = Genome::blend(&a, &b, &mut Rng::at(5, 5));
+            assert_eq!(c1, c2);
+            assert_eq!(c1.space(), space);
+            assert!(!c1.is_empty() && c1.len() <= 4);
+            // blending a genome with itself keeps it (up to the order of primitives)
+            let same = Genome::blend(&a, &a, &mut Rng::at(3, 3));
+            assert_eq!(same.len(), a.len());
+            for p in 0..same.param_count() {
+                let near = (0..a.param_count()).any(|q| (same.param(p) - a.param(q)).abs() < 1e-5);
+                assert!(near, "{same:?} vs {a:?}");
+            }
+        }
+    }
+
+    #[test]
+    fn a_2d_search_breeds_2d_genomes() {
+        let o = GaOptions {
+            population: 12,
+            generations: 4,
+            space: Space::Tf2d,
+            ..Default::default()
+        };
+        let mut ga = Ga::new(&o);
+        for generation in 0..3 {
+            let scores: Vec<f64> = ga.population.iter().map(|g| g.centre(0) as f64).collect();
+            ga.breed(&scores);
+            assert!(
+                ga.population.iter().all(|g| g.space() == Space::Tf2d),
+                "generation {generation}"
+            );
         }
     }
 }
