@@ -126,29 +126,34 @@ pub enum GaAction {
 }
 
 /// The coverage model of a volume from a camera's viewpoints, kept between
-/// generations: it is recomputed only when the volume or the camera changes.
+/// generations: it is recomputed only when the volume, the camera or what the stack's
+/// TF needs of it (`Coverage::gradient_scale_of`) changes.
 type CoverageCache = (Arc<Volume>, Camera, Arc<Coverage>);
 
 /// The fitness a judge gives (None for picks), on `volume` seen from `camera`'s
-/// viewpoints; `cached`: the coverage model of that volume and camera, where known.
+/// viewpoints with `stack`'s TF; `cached`: the coverage model of that volume and
+/// camera, where known.
 fn fitness(
     judge: &Judge,
     o: &GaOptions,
     volume: &Volume,
     camera: &Camera,
+    stack: &[vwb_render::plugin::PluginInstance],
     cached: Option<Arc<Coverage>>,
 ) -> Result<Option<Fitness>, String> {
     Ok(match judge {
         Judge::Picks => None,
         Judge::Objective(obj) => Some(Fitness::Objective(*obj)),
-        Judge::Coverage => Some(Fitness::Coverage(match cached {
-            Some(c) => c,
-            None => {
-                Coverage::supports(o.space)?;
-                let cams = vwb_render::search::gallery::viewpoints(camera, o.views);
-                Arc::new(Coverage::new(volume, &cams, o.tile)?)
-            }
-        })),
+        Judge::Coverage => {
+            let scale = Coverage::gradient_scale_of(stack)?;
+            Some(Fitness::Coverage(match cached {
+                Some(c) if c.gradient_scale() == scale => c,
+                _ => {
+                    let cams = vwb_render::search::gallery::viewpoints(camera, o.views);
+                    Arc::new(Coverage::for_stack(volume, &cams, o.tile, stack)?)
+                }
+            }))
+        }
         Judge::Target(path) => {
             let views = vwb_lab::search::read_target(std::path::Path::new(path), o)
                 .map_err(|e| format!("{e:#}"))?;
@@ -218,7 +223,7 @@ impl GaPanel {
         self.error = None;
         self.job = Some((
             Job::spawn("genetic search", move || {
-                let fitness = fitness(&judge, &ga.options, &volume, &camera, cached)?;
+                let fitness = fitness(&judge, &ga.options, &volume, &camera, &stack, cached)?;
                 let coverage = match &fitness {
                     Some(Fitness::Coverage(c)) => Some((volume.clone(), camera, c.clone())),
                     _ => None,

@@ -197,8 +197,7 @@ pub fn run_evolve(
         EvolveTarget::Objective(obj) => genetic::Fitness::Objective(*obj),
         EvolveTarget::Coverage => {
             use vwb_render::search::coverage::Coverage;
-            let cover = Coverage::supports(o.space)
-                .and_then(|()| Coverage::new(&volume, &cams, o.tile))
+            let cover = Coverage::for_stack(&volume, &cams, o.tile, &doc.stack)
                 .map_err(|e| anyhow!("{}: {e}", preset.display()))?;
             genetic::Fitness::Coverage(std::sync::Arc::new(cover))
         }

@@ -23,8 +23,15 @@
 //! are seen); one sample per voxel length at the nearest voxel, so that a genome's
 //! histogram is a pass over precomputed bin indices; opacities are the TF's per voxel
 //! length, as the renderer's Δs0.
+//!
+//! 2D TFs (`classify.tf2d`, value × gradient magnitude): each sample also keeps the bin
+//! of its gradient magnitude on the TF's axis (central differences at its voxel, times
+//! the plugin's `gradient_scale`, [`GRADIENT_BINS`] bins), and a genome's opacity is
+//! read at both bins. The boundaries stay the value axis's: a 2D TF covers a boundary
+//! when it shows the boundary's values, wherever on the gradient axis it does.
 
 use crate::camera::Camera;
+use crate::plugin::PluginInstance;
 use crate::search::genome::{Genome, Space};
 use crate::slicing::VolumeBox;
 use crate::suggest::{SuggestError, SuggestOptions, suggest};
@@ -47,21 +54,70 @@ pub struct Coverage {
     pub boundaries: Vec<std::ops::Range<usize>>,
     /// Per ray, the value bins of its samples front to back.
     rays: Vec<Vec<u16>>,
+    /// For 2D TFs: the scale from |∇f| to the TF's gradient axis, and per ray the
+    /// gradient bin ([`GRADIENT_BINS`] over that axis) of each sample.
+    gradients: Option<(f64, Vec<Vec<u8>>)>,
 }
 
+/// Bins along a 2D TF's gradient-magnitude axis.
+pub const GRADIENT_BINS: usize = 64;
+
 impl Coverage {
-    /// Whether genomes of `space` can be scored: coverage reads the TF along the value
-    /// axis, where the boundaries lie, so it takes 1D TFs only.
-    pub fn supports(space: Space) -> Result<(), String> {
-        match space {
-            Space::Tf1d => Ok(()),
-            Space::Tf2d => Err("boundary coverage scores 1D TFs (classify.tf1d); a 2D search takes picks, an image objective or a target image".into()),
+    /// What a stack's TF needs of the model: `None` for `classify.tf1d`; for
+    /// `classify.tf2d` its `gradient_scale` (|∇f| per voxel to the table's gradient
+    /// axis). A 2D TF over the data axis (`y_axis: data`) has no gradient axis to read
+    /// and is refused with that reason.
+    pub fn gradient_scale_of(stack: &[PluginInstance]) -> Result<Option<f64>, String> {
+        match Space::of_stack(stack)? {
+            Space::Tf1d => Ok(None),
+            Space::Tf2d => {
+                let tf = stack
+                    .iter()
+                    .find(|i| i.enabled && i.plugin.id() == Space::Tf2d.plugin_id())
+                    .expect("of_stack found it");
+                if tf.params.enumeration("y_axis") == "data" {
+                    return Err(
+                        "boundary coverage reads a 2D TF over value × gradient magnitude; \
+                                this classify.tf2d reads the data along y (y_axis: data)"
+                            .into(),
+                    );
+                }
+                Ok(Some(tf.params.float("gradient_scale") as f64))
+            }
         }
     }
 
-    /// The boundaries of `volume` and `rays`² rays from each viewpoint. Fails when the
-    /// suggestion finds no boundary (the objective would have nothing to cover).
+    /// The model for a stack's TF plugin ([`Coverage::gradient_scale_of`]).
+    pub fn for_stack(
+        volume: &Volume,
+        viewpoints: &[Camera],
+        rays: u32,
+        stack: &[PluginInstance],
+    ) -> Result<Coverage, String> {
+        Self::build(volume, viewpoints, rays, Self::gradient_scale_of(stack)?)
+    }
+
+    /// The gradient scale the model was built for (`None`: 1D TFs only).
+    pub fn gradient_scale(&self) -> Option<f64> {
+        self.gradients.as_ref().map(|(s, _)| *s)
+    }
+
+    /// The boundaries of `volume` and `rays`² rays from each viewpoint, for 1D TFs.
+    /// Fails when the suggestion finds no boundary (the objective would have nothing to
+    /// cover).
     pub fn new(volume: &Volume, viewpoints: &[Camera], rays: u32) -> Result<Coverage, String> {
+        Self::build(volume, viewpoints, rays, None)
+    }
+
+    /// With `gradient_scale`, each sample also keeps its gradient magnitude's bin on a
+    /// 2D TF's axis: |∇f| by central differences at the sample's voxel (neighbours
+    /// clamped), in normalised value per voxel, times the scale, clamped to [0, 1].
+    fn build(
+        volume: &Volume,
+        viewpoints: &[Camera],
+        rays: u32,
+        gradient_scale: Option<f64>,
+    ) -> Result<Coverage, String> {
         let s =
             suggest(volume, &SuggestOptions::default()).map_err(|e: SuggestError| e.to_string())?;
         if !s.found() {
@@ -98,6 +154,20 @@ impl Coverage {
         let radius = vbox.max.length();
         let n = rays.max(1);
         let mut all = Vec::with_capacity(viewpoints.len() * (n * n) as usize);
+        let mut all_g: Vec<Vec<u8>> = Vec::new();
+        let at = |x: usize, y: usize, z: usize| scalars[x + d[0] * (y + d[1] * z)] as f64;
+        let gradient_bin = |[x, y, z]: [usize; 3], scale: f64| {
+            let c = |i: usize, step: isize, a: usize| i.saturating_add_signed(step).min(d[a] - 1);
+            let gx = at(c(x, 1, 0), y, z) - at(c(x, -1, 0), y, z);
+            let gy = at(x, c(y, 1, 1), z) - at(x, c(y, -1, 1), z);
+            let gz = at(x, y, c(z, 1, 2)) - at(x, y, c(z, -1, 2));
+            let g = 0.5 * (gx * gx + gy * gy + gz * gz).sqrt() * scale;
+            if g.is_finite() {
+                ((g.clamp(0.0, 1.0) * GRADIENT_BINS as f64) as usize).min(GRADIENT_BINS - 1) as u8
+            } else {
+                0
+            }
+        };
         for cam in viewpoints {
             let (forward, right, up) = cam.basis();
             for j in 0..n {
@@ -106,6 +176,7 @@ impl Coverage {
                     let y = (1.0 - (j as f32 + 0.5) / n as f32 * 2.0) * radius;
                     let start = right * x + up * y - forward * radius;
                     let mut samples = Vec::new();
+                    let mut grads = Vec::new();
                     let mut t = 0.0;
                     while t <= 2.0 * radius {
                         let p = start + forward * t;
@@ -120,9 +191,15 @@ impl Coverage {
                         let s = scalars[idx[0] + d[0] * (idx[1] + d[1] * idx[2])];
                         if s.is_finite() {
                             samples.push(((s as f64 * bins as f64) as usize).min(bins - 1) as u16);
+                            if let Some(scale) = gradient_scale {
+                                grads.push(gradient_bin(idx, scale));
+                            }
                         }
                     }
                     all.push(samples);
+                    if gradient_scale.is_some() {
+                        all_g.push(grads);
+                    }
                 }
             }
         }
@@ -131,25 +208,47 @@ impl Coverage {
             boundary_of,
             boundaries,
             rays: all,
+            gradients: gradient_scale.map(|scale| (scale, all_g)),
         })
     }
 
     /// The visibility histogram of a genome: per value bin, the mean over rays of
-    /// opacity × transmittance. Coverage is defined on the value axis of a 1D TF: a
-    /// 2D genome shows nothing here (callers refuse the objective for 2D searches,
-    /// [`Coverage::supports`]).
+    /// opacity × transmittance. A 2D genome's opacity is read at each sample's value
+    /// and gradient bins; on a model built without gradients (a 1D stack's) it shows
+    /// nothing.
     pub fn visibility(&self, g: &Genome) -> Vec<f64> {
-        let Some(curve) = g.to_curve() else {
-            return vec![0.0; self.bins];
+        let bin = |b: usize, n: usize| (b as f64 + 0.5) / n as f64;
+        // opacity per (value bin, gradient bin), one gradient bin for a 1D TF
+        let (alpha, per_value, grads): (Vec<f64>, usize, Option<&Vec<Vec<u8>>>) = match g {
+            Genome::Tf1d(_) => {
+                let curve = g.to_curve().expect("1D");
+                let a = (0..self.bins)
+                    .map(|b| curve.eval(bin(b, self.bins))[3].clamp(0.0, 1.0))
+                    .collect();
+                (a, 1, None)
+            }
+            Genome::Tf2d(p) => {
+                let Some((_, grads)) = &self.gradients else {
+                    return vec![0.0; self.bins];
+                };
+                let tf = crate::tf2d::Tf2d {
+                    primitives: p.clone(),
+                };
+                let a = (0..self.bins * GRADIENT_BINS)
+                    .map(|k| {
+                        let (v, gb) = (k / GRADIENT_BINS, k % GRADIENT_BINS);
+                        tf.eval(bin(v, self.bins), bin(gb, GRADIENT_BINS))[3].clamp(0.0, 1.0)
+                    })
+                    .collect();
+                (a, GRADIENT_BINS, Some(grads))
+            }
         };
-        let alpha: Vec<f64> = (0..self.bins)
-            .map(|b| curve.eval((b as f64 + 0.5) / self.bins as f64)[3].clamp(0.0, 1.0))
-            .collect();
         let mut v = vec![0.0; self.bins];
-        for ray in &self.rays {
+        for (r, ray) in self.rays.iter().enumerate() {
             let mut t = 1.0;
-            for &b in ray {
-                let a = alpha[b as usize];
+            for (i, &b) in ray.iter().enumerate() {
+                let gb = grads.map_or(0, |g| g[r][i] as usize);
+                let a = alpha[b as usize * per_value + gb];
                 v[b as usize] += a * t;
                 t *= 1.0 - a;
                 if t < 1e-3 {
@@ -258,6 +357,35 @@ mod tests {
             f > fog && fog_c < both_c,
             "fog {f} vs {fog}: {fog_c} vs {both_c}"
         );
+        // a 2D TF: triangles over each boundary's values (the boundary's voxels have
+        // large gradients) cover both; a rectangle at small gradients over the outer
+        // ball's plateau adds fog; a 1D model shows a 2D genome nothing
+        use crate::tf2d::{Primitive2d, Shape2d};
+        let c2 = Coverage::build(&v, &cams, 24, Some(4.0)).unwrap();
+        assert_eq!(c2.boundaries, c.boundaries);
+        assert_eq!(c2.gradient_scale(), Some(4.0));
+        let tri = |centre: f32, a: f32| Primitive2d {
+            shape: Shape2d::Triangle,
+            centre: [centre, 0.0],
+            size: [0.1, 1.0],
+            color: [1.0, 1.0, 1.0, a],
+        };
+        let both2 = Genome::Tf2d(vec![tri(b0, 0.1), tri(b1, 0.6)]);
+        let (both2_c, shares2, fog2) = c2.objective(&both2);
+        assert!(shares2.iter().take(2).all(|&s| s > 0.0), "{shares2:?}");
+        let one2 = Genome::Tf2d(vec![tri(b0, 0.1)]);
+        assert!(c2.objective(&one2).0 < both2_c);
+        let plateau = Primitive2d {
+            shape: Shape2d::Rectangle,
+            centre: [0.5, 0.02],
+            size: [0.1, 0.04],
+            color: [1.0, 1.0, 1.0, 0.05],
+        };
+        let foggy2 = Genome::Tf2d(vec![tri(b0, 0.1), tri(b1, 0.6), plateau]);
+        let (fog2_c, _, f2) = c2.objective(&foggy2);
+        assert!(f2 > fog2 && fog2_c < both2_c, "fog {f2} vs {fog2}");
+        assert!(c.visibility(&both2).iter().all(|&x| x == 0.0));
+
         // nothing to cover on a constant volume
         let flat = Volume::new("flat", [8; 3], 1, [1.0; 3], VoxelData::U8(vec![7; 512])).unwrap();
         assert!(Coverage::new(&flat, &cams, 8).is_err());
