@@ -338,12 +338,9 @@ fn a_2d_tf_is_searched_through_classify_tf2d() {
     // boundary coverage of a 2D TF: the model reads the plugin's gradient scale; a 2D
     // TF over the data axis has no gradient axis and is refused with that reason
     let out = tmp("evolve_2d_coverage");
-    let o = Command::new(env!("CARGO_BIN_EXE_vwb"))
-        .current_dir(repo())
-        .args([
-            "evolve",
-            "--preset",
-            "presets/demo_tf2d.ron",
+    let o = vwb_evolve(
+        "presets/demo_tf2d.ron",
+        &[
             "--objective",
             "boundary_coverage",
             "--generations",
@@ -352,21 +349,14 @@ fn a_2d_tf_is_searched_through_classify_tf2d() {
             "8",
             "--tile",
             "24",
-            "-o",
-        ])
-        .arg(&out)
-        .output()
-        .unwrap();
+        ],
+        &out,
+    );
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let best: Genome =
         ron::from_str(&std::fs::read_to_string(out.join("best.ron")).unwrap()).unwrap();
     assert_eq!(best.space(), Space::Tf2d);
-    let csv = std::fs::read_to_string(out.join("history.csv")).unwrap();
-    let scores: Vec<f64> = csv
-        .lines()
-        .skip(1)
-        .map(|l| l.split(',').nth(1).unwrap().parse().unwrap())
-        .collect();
+    let scores = best_scores(&out);
     assert!(scores[2] <= scores[0] && scores[2] < 0.0, "{scores:?}");
     let mut data_axis = instance("classify.tf2d");
     data_axis.params.set(
@@ -377,15 +367,34 @@ fn a_2d_tf_is_searched_through_classify_tf2d() {
     assert!(e.contains("y_axis: data"), "{e}");
 }
 
+/// `vwb evolve --preset PRESET ARGS -o OUT` from the repository.
+fn vwb_evolve(preset: &str, args: &[&str], out: &std::path::Path) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_vwb"))
+        .current_dir(repo())
+        .args(["evolve", "--preset", preset])
+        .args(args)
+        .arg("-o")
+        .arg(out)
+        .output()
+        .unwrap()
+}
+
+/// The best score per generation of `vwb evolve`'s history.csv in `out`.
+fn best_scores(out: &std::path::Path) -> Vec<f64> {
+    std::fs::read_to_string(out.join("history.csv"))
+        .unwrap()
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').nth(1).unwrap().parse().unwrap())
+        .collect()
+}
+
 #[test]
 fn vwb_evolve_writes_the_best_genome_and_its_history() {
     let out = tmp("evolve_cli");
-    let o = Command::new(env!("CARGO_BIN_EXE_vwb"))
-        .current_dir(repo())
-        .args([
-            "evolve",
-            "--preset",
-            "presets/demo.ron",
+    let o = vwb_evolve(
+        "presets/demo.ron",
+        &[
             "--target-preset",
             "presets/demo_preintegrated.ron",
             "--generations",
@@ -394,18 +403,11 @@ fn vwb_evolve_writes_the_best_genome_and_its_history() {
             "8",
             "--tile",
             "24",
-            "-o",
-        ])
-        .arg(&out)
-        .output()
-        .unwrap();
+        ],
+        &out,
+    );
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let csv = std::fs::read_to_string(out.join("history.csv")).unwrap();
-    let best: Vec<f64> = csv
-        .lines()
-        .skip(1)
-        .map(|l| l.split(',').nth(1).unwrap().parse().unwrap())
-        .collect();
+    let best = best_scores(&out);
     assert_eq!(best.len(), 3);
     assert!(best[2] <= best[0], "{best:?}");
     let g: vwb_render::search::genome::Genome =
@@ -423,25 +425,13 @@ fn vwb_evolve_writes_the_best_genome_and_its_history() {
     // the same run toward the target as an image: the same search but for the
     // target's 8-bit rounding
     let evolve = |extra: &[&str], dir: &str| {
-        Command::new(env!("CARGO_BIN_EXE_vwb"))
-            .current_dir(repo())
-            .args(["evolve", "--preset", "presets/demo.ron"])
-            .args(["--generations", "3", "--population", "8"])
-            .args(extra)
-            .arg("-o")
-            .arg(out.join(dir))
-            .output()
-            .unwrap()
+        let args = [&["--generations", "3", "--population", "8"], extra].concat();
+        vwb_evolve("presets/demo.ron", &args, &out.join(dir))
     };
     let target = out.join("target.png");
     let o = evolve(&["--target", target.to_str().unwrap()], "from_image");
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let csv = std::fs::read_to_string(out.join("from_image/history.csv")).unwrap();
-    let from_image: Vec<f64> = csv
-        .lines()
-        .skip(1)
-        .map(|l| l.split(',').nth(1).unwrap().parse().unwrap())
-        .collect();
+    let from_image = best_scores(&out.join("from_image"));
     for (a, b) in best.iter().zip(&from_image) {
         assert!((a - b).abs() < 0.5, "{best:?} against {from_image:?}");
     }
@@ -763,27 +753,17 @@ fn a_coverage_run_shows_the_boundaries_without_fog() {
         "more than half the boundaries covered, net of fog: {c1}"
     );
     let run = |objective: &str| {
-        Command::new(env!("CARGO_BIN_EXE_vwb"))
-            .current_dir(repo())
-            .args([
-                "evolve",
-                "--preset",
-                "presets/demo.ron",
-                "--objective",
-                objective,
-            ])
-            .args([
-                "--generations",
-                "2",
-                "--population",
-                "6",
-                "--tile",
-                "16",
-                "-o",
-            ])
-            .arg(tmp("evolve_coverage"))
-            .output()
-            .unwrap()
+        let args = [
+            "--objective",
+            objective,
+            "--generations",
+            "2",
+            "--population",
+            "6",
+            "--tile",
+            "16",
+        ];
+        vwb_evolve("presets/demo.ron", &args, &tmp("evolve_coverage"))
     };
     // the same search with a 2D TF (classify.tf2d, 2D genomes): its model reads the
     // samples' gradients too
