@@ -172,6 +172,22 @@ impl Tf2d {
     }
 }
 
+/// |∇f| at voxel `at` of a scalar grid of `dims` (x fastest): central differences with
+/// clamped neighbours, in value per voxel, f32 as the GPU's pre-pass stores it. The
+/// 2D TF's gradient axis reads it (`classify.tf2d`'s pre-pass and histogram, the
+/// coverage objective's samples).
+pub fn voxel_gradient(scalars: &[f32], dims: [usize; 3], at: [usize; 3]) -> f32 {
+    let idx = |p: [usize; 3]| (p[2] * dims[1] + p[1]) * dims[0] + p[0];
+    let diff = |a: usize| {
+        let (mut lo, mut hi) = (at, at);
+        lo[a] = at[a].saturating_sub(1);
+        hi[a] = (at[a] + 1).min(dims[a] - 1);
+        scalars[idx(hi)] - scalars[idx(lo)]
+    };
+    let (gx, gy, gz) = (diff(0), diff(1), diff(2));
+    0.5 * (gx * gx + gy * gy + gz * gz).sqrt()
+}
+
 /// Bilinear lookup of a baked n × n table at (v, g) ∈ [0,1]², as the GPU's filtered
 /// read at ((v·(n−1) + 0.5)/n, (g·(n−1) + 0.5)/n).
 pub fn eval_table(table: &[[f32; 4]], n: usize, v: f64, g: f64) -> [f64; 4] {

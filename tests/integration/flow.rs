@@ -41,6 +41,19 @@ fn covered(px: &[[f32; 4]]) -> f64 {
     px.iter().filter(|p| p[3] > 0.01).count() as f64 / px.len() as f64
 }
 
+/// The time a study quotes for a frame: its GPU time on a GPU (the wall time there is
+/// mostly overhead), else its wall time.
+fn quoted_ms(wall: f64, gpu: Option<f64>) -> f64 {
+    if on_gpu() { gpu.unwrap_or(wall) } else { wall }
+}
+
+/// Frames of `r` timed as the studies time them: on a GPU 9 after 10 warm-up frames
+/// (its clocks ramp up), else 3 after 1.
+fn study_timing(r: &mut Renderer, s: &vwb_render::FrameSettings) -> vwb_lab::measure::Timing {
+    let (warm, frames) = if on_gpu() { (10, 9) } else { (1, 3) };
+    vwb_lab::measure::time_frames(r, s, warm, frames).unwrap()
+}
+
 /// The storm's LIC volume at `factor` times its resolution, and its field on that grid.
 fn storm_lic(factor: u32, p: &LicParams, kind: Noise) -> (Volume, GridField) {
     let storm =
@@ -339,13 +352,6 @@ fn flow_study() {
     let (vol, with_mode, plane, tf) = lic_half_scene();
     // on a GPU a larger image and the frame's GPU time (its wall time is mostly overhead)
     let side = if on_gpu() { 512 } else { 128 };
-    let frame_ms = |wall: f64, gpu_ms: Option<f64>| {
-        if on_gpu() {
-            gpu_ms.unwrap_or(wall)
-        } else {
-            wall
-        }
-    };
     let s = head_on(side);
     let mut images = Vec::new();
     let mut rows = Vec::new();
@@ -364,9 +370,7 @@ fn flow_study() {
         let mut r = Renderer::new(gpu(), vol.clone()).unwrap();
         r.update_stack(&stack, TargetFormat::Rgba32Float).unwrap();
         let first = r.render(&s).unwrap();
-        // a GPU ramps its clocks up: more warm-up frames there
-        let (warm, frames) = if on_gpu() { (10, 9) } else { (1, 3) };
-        let t = vwb_lab::measure::time_frames(&mut r, &s, warm, frames).unwrap();
+        let t = study_timing(&mut r, &s);
         let (_, _, px) = r.read_pixels().unwrap();
         let prepass = if first.prepasses_run > 0 {
             let ms = stamped_ms(&first, |l| l.starts_with("prepass"))
@@ -375,7 +379,7 @@ fn flow_study() {
         } else {
             "—".into()
         };
-        let ms = frame_ms(t.wall_ms.median, t.gpu_ms.map(|g| g.median));
+        let ms = quoted_ms(t.wall_ms.median, t.gpu_ms.map(|g| g.median));
         eprintln!("LIC {label}: {ms:.2} ms");
         rows.push((
             label,
@@ -411,7 +415,7 @@ fn flow_study() {
             let stats = r.render(&s).unwrap();
             // the first frame also compiles and uploads
             if frame > 0 {
-                times.push(frame_ms(stats.wall_ms, stats.gpu_ms));
+                times.push(quoted_ms(stats.wall_ms, stats.gpu_ms));
                 reruns.push(stats.prepasses_run);
             }
         }
@@ -629,13 +633,9 @@ fn lic_output_sensitivity() {
         ] {
             let mut r = Renderer::new(gpu(), vol.clone()).unwrap();
             r.update_stack(&stack, TargetFormat::Rgba32Float).unwrap();
-            let (warm, frames) = if on_gpu() { (10, 9) } else { (1, 3) };
-            let t = vwb_lab::measure::time_frames(&mut r, &s, warm, frames).unwrap();
+            let t = study_timing(&mut r, &s);
             let (_, _, px) = r.read_pixels().unwrap();
-            let frame = match (on_gpu(), t.gpu_ms) {
-                (true, Some(g)) => g.median,
-                _ => t.wall_ms.median,
-            };
+            let frame = quoted_ms(t.wall_ms.median, t.gpu_ms.map(|g| g.median));
             ms.push((frame, covered(&px)));
         }
         let (full, half) = (ms[0], ms[1]);
@@ -951,13 +951,6 @@ fn arrival_study(o: &mut String) {
         let mut lic = instance("flow.lic3d");
         lic.params.set("mode", ParamValue::Enum(mode.into()));
         let mut r = Renderer::new(gpu(), vol.clone()).unwrap();
-        let frame_ms = |st: &vwb_render::FrameStats| {
-            if on_gpu() {
-                st.gpu_ms.unwrap_or(st.wall_ms)
-            } else {
-                st.wall_ms
-            }
-        };
         let mut timed = |r: &mut Renderer, t: f32| {
             arrival.params.set("time", ParamValue::Float(t));
             r.update_stack(
@@ -977,8 +970,9 @@ fn arrival_study(o: &mut String) {
             let t = 8.0 * (f + 1) as f32;
             let st = timed(&mut r, t);
             reruns += st.prepasses_run;
-            moving.push(frame_ms(&st));
-            statics.push(frame_ms(&timed(&mut r, t)));
+            moving.push(quoted_ms(st.wall_ms, st.gpu_ms));
+            let still = timed(&mut r, t);
+            statics.push(quoted_ms(still.wall_ms, still.gpu_ms));
         }
         assert_eq!(reruns, 0, "{mode}: playing the time reran a pre-pass");
         let a = vwb_lab::measure::Summary::of(&statics).unwrap().median;

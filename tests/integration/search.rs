@@ -340,16 +340,7 @@ fn a_2d_tf_is_searched_through_classify_tf2d() {
     let out = tmp("evolve_2d_coverage");
     let o = vwb_evolve(
         "presets/demo_tf2d.ron",
-        &[
-            "--objective",
-            "boundary_coverage",
-            "--generations",
-            "3",
-            "--population",
-            "8",
-            "--tile",
-            "24",
-        ],
+        &[&["--objective", "boundary_coverage"], &SMALL_RUN[..]].concat(),
         &out,
     );
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
@@ -366,6 +357,9 @@ fn a_2d_tf_is_searched_through_classify_tf2d() {
     let e = vwb_render::search::coverage::Coverage::gradient_scale_of(&[data_axis]).unwrap_err();
     assert!(e.contains("y_axis: data"), "{e}");
 }
+
+/// A short `vwb evolve` run: 3 generations of 8 at 24².
+const SMALL_RUN: [&str; 6] = ["--generations", "3", "--population", "8", "--tile", "24"];
 
 /// `vwb evolve --preset PRESET ARGS -o OUT` from the repository.
 fn vwb_evolve(preset: &str, args: &[&str], out: &std::path::Path) -> std::process::Output {
@@ -395,15 +389,10 @@ fn vwb_evolve_writes_the_best_genome_and_its_history() {
     let o = vwb_evolve(
         "presets/demo.ron",
         &[
-            "--target-preset",
-            "presets/demo_preintegrated.ron",
-            "--generations",
-            "3",
-            "--population",
-            "8",
-            "--tile",
-            "24",
-        ],
+            &["--target-preset", "presets/demo_preintegrated.ron"],
+            &SMALL_RUN[..],
+        ]
+        .concat(),
         &out,
     );
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
@@ -425,7 +414,8 @@ fn vwb_evolve_writes_the_best_genome_and_its_history() {
     // the same run toward the target as an image: the same search but for the
     // target's 8-bit rounding
     let evolve = |extra: &[&str], dir: &str| {
-        let args = [&["--generations", "3", "--population", "8"], extra].concat();
+        // the tile is the target image's
+        let args = [&SMALL_RUN[..4], extra].concat();
         vwb_evolve("presets/demo.ron", &args, &out.join(dir))
     };
     let target = out.join("target.png");

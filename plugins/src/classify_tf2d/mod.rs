@@ -26,7 +26,7 @@ use vwb_render::plugin::{
     CpuContext, CpuSample, CpuTwin, GpuInit, GpuResource, Plugin, PluginError, PrepassDecl,
     ResourceDecl, ResourceKind, ShaderSource, StorageFormat, Transparency,
 };
-use vwb_render::tf2d::{Primitive2d, Shape2d, Tf2d, eval_table};
+use vwb_render::tf2d::{Primitive2d, Shape2d, Tf2d, eval_table, voxel_gradient};
 use vwb_render::volume::Volume;
 
 #[cfg(test)]
@@ -88,27 +88,14 @@ fn tf(params: &ParamValues) -> Tf2d {
     params.tf2d("tf").cloned().unwrap_or_else(default_tf)
 }
 
-/// |∇f| per voxel by central differences with clamped neighbours (the pre-pass), f32.
+/// |∇f| per voxel by central differences with clamped neighbours (the pre-pass), f32
+/// ([`vwb_render::tf2d::voxel_gradient`]).
 pub fn voxel_gradients(volume: &Volume, scalars: &[f32]) -> Vec<f32> {
     use rayon::prelude::*;
-    let d = volume.dims.map(|n| n.max(1) as i64);
-    let at = |x: i64, y: i64, z: i64| {
-        let c = |v: i64, n: i64| v.clamp(0, n - 1) as usize;
-        scalars[(c(z, d[2]) * d[1] as usize + c(y, d[1])) * d[0] as usize + c(x, d[0])]
-    };
+    let d = volume.dims.map(|n| n.max(1) as usize);
     (0..scalars.len())
         .into_par_iter()
-        .map(|i| {
-            let (x, y, z) = (
-                i as i64 % d[0],
-                (i as i64 / d[0]) % d[1],
-                i as i64 / (d[0] * d[1]),
-            );
-            let gx = at(x + 1, y, z) - at(x - 1, y, z);
-            let gy = at(x, y + 1, z) - at(x, y - 1, z);
-            let gz = at(x, y, z + 1) - at(x, y, z - 1);
-            0.5 * (gx * gx + gy * gy + gz * gz).sqrt()
-        })
+        .map(|i| voxel_gradient(scalars, d, [i % d[0], (i / d[0]) % d[1], i / (d[0] * d[1])]))
         .collect()
 }
 

@@ -110,8 +110,8 @@ impl Coverage {
     }
 
     /// With `gradient_scale`, each sample also keeps its gradient magnitude's bin on a
-    /// 2D TF's axis: |∇f| by central differences at the sample's voxel (neighbours
-    /// clamped), in normalised value per voxel, times the scale, clamped to [0, 1].
+    /// 2D TF's axis: |∇f| at the sample's voxel as `classify.tf2d`'s pre-pass computes
+    /// it ([`crate::tf2d::voxel_gradient`]), times the scale, clamped to [0, 1].
     fn build(
         volume: &Volume,
         viewpoints: &[Camera],
@@ -155,13 +155,8 @@ impl Coverage {
         let n = rays.max(1);
         let mut all = Vec::with_capacity(viewpoints.len() * (n * n) as usize);
         let mut all_g: Vec<Vec<u8>> = Vec::new();
-        let at = |x: usize, y: usize, z: usize| scalars[x + d[0] * (y + d[1] * z)] as f64;
-        let gradient_bin = |[x, y, z]: [usize; 3], scale: f64| {
-            let c = |i: usize, step: isize, a: usize| i.saturating_add_signed(step).min(d[a] - 1);
-            let gx = at(c(x, 1, 0), y, z) - at(c(x, -1, 0), y, z);
-            let gy = at(x, c(y, 1, 1), z) - at(x, c(y, -1, 1), z);
-            let gz = at(x, y, c(z, 1, 2)) - at(x, y, c(z, -1, 2));
-            let g = 0.5 * (gx * gx + gy * gy + gz * gz).sqrt() * scale;
+        let gradient_bin = |at: [usize; 3], scale: f64| {
+            let g = crate::tf2d::voxel_gradient(&scalars, d, at) as f64 * scale;
             if g.is_finite() {
                 ((g.clamp(0.0, 1.0) * GRADIENT_BINS as f64) as usize).min(GRADIENT_BINS - 1) as u8
             } else {

@@ -330,15 +330,20 @@ macro_rules! each {
     };
 }
 
-/// Builds a genome of the same space as `$g` from `$body`, with `$p` bound to its
-/// primitives.
-macro_rules! remap {
-    ($g:expr, $p:ident => $body:expr) => {
-        match $g {
-            Genome::Tf1d($p) => Genome::Tf1d($body),
-            Genome::Tf2d($p) => Genome::Tf2d($body),
-        }
-    };
+/// The 1D genome's curve: transparent end points and the primitives.
+fn curve_of(primitives: &[TfPrimitive]) -> TfCurve {
+    let clear = |x| TfPoint { x, color: [0.0; 4] };
+    TfCurve {
+        points: vec![clear(0.0), clear(1.0)],
+        primitives: primitives.to_vec(),
+        log_opacity: false,
+    }
+}
+
+fn tf2d_of(primitives: &[Primitive2d]) -> Tf2d {
+    Tf2d {
+        primitives: primitives.to_vec(),
+    }
 }
 
 fn random_list<P: Primitive>(rng: &mut Rng, max: usize) -> Vec<P> {
@@ -406,6 +411,25 @@ fn blend_lists<P: Primitive>(a: &[P], b: &[P], rng: &mut Rng) -> Vec<P> {
     out
 }
 
+/// Pattern-search coordinates of a list of primitives.
+fn coordinates<P: Primitive>(ps: &[P]) -> usize {
+    ps.len() * P::PARAMS
+}
+
+fn coordinate<P: Primitive>(ps: &[P], i: usize) -> f64 {
+    ps[i / P::PARAMS].param(i % P::PARAMS)
+}
+
+fn set_coordinate<P: Primitive>(ps: &mut [P], i: usize, v: f64) {
+    ps[i / P::PARAMS].set_param(i % P::PARAMS, v)
+}
+
+fn initial_steps<P: Primitive>(ps: &[P], r: f64) -> Vec<f64> {
+    (0..coordinates(ps))
+        .map(|i| P::initial_step(i % P::PARAMS, r))
+        .collect()
+}
+
 fn shape_variants<P: Primitive>(ps: &[P]) -> Vec<Vec<P>> {
     let mut out = Vec::new();
     for (i, q) in ps.iter().enumerate() {
@@ -440,24 +464,17 @@ impl Genome {
     /// The `tf` curve of `classify.tf1d` (transparent end points and the primitives);
     /// `None` for a 2D genome.
     pub fn to_curve(&self) -> Option<TfCurve> {
-        let Genome::Tf1d(primitives) = self else {
-            return None;
-        };
-        let clear = |x| TfPoint { x, color: [0.0; 4] };
-        Some(TfCurve {
-            points: vec![clear(0.0), clear(1.0)],
-            primitives: primitives.clone(),
-            log_opacity: false,
-        })
+        match self {
+            Genome::Tf1d(p) => Some(curve_of(p)),
+            Genome::Tf2d(_) => None,
+        }
     }
 
     /// The value of its plugin's `tf` parameter.
     pub fn to_param(&self) -> ParamValue {
         match self {
-            Genome::Tf1d(_) => ParamValue::Tf(self.to_curve().expect("1D")),
-            Genome::Tf2d(p) => ParamValue::Tf2d(Tf2d {
-                primitives: p.clone(),
-            }),
+            Genome::Tf1d(p) => ParamValue::Tf(curve_of(p)),
+            Genome::Tf2d(p) => ParamValue::Tf2d(tf2d_of(p)),
         }
     }
 
@@ -519,7 +536,10 @@ impl Genome {
     /// is added or removed.
     pub fn mutate(&self, rng: &mut Rng, radius: f64) -> Genome {
         let r = radius.clamp(0.0, 1.0);
-        remap!(self, p => mutate_list(p, rng, r))
+        match self {
+            Genome::Tf1d(p) => Genome::Tf1d(mutate_list(p, rng, r)),
+            Genome::Tf2d(p) => Genome::Tf2d(mutate_list(p, rng, r)),
+        }
     }
 
     /// One parameter of one primitive moved within `radius` (its centre, size,
@@ -544,39 +564,22 @@ impl Genome {
 
     /// The number of pattern-search coordinates.
     pub(crate) fn param_count(&self) -> usize {
-        match self {
-            Genome::Tf1d(p) => p.len() * TfPrimitive::PARAMS,
-            Genome::Tf2d(p) => p.len() * Primitive2d::PARAMS,
-        }
+        each!(self, p => coordinates(p))
     }
 
     /// Pattern-search coordinate `i` ([`Primitive`]).
     pub(crate) fn param(&self, i: usize) -> f64 {
-        match self {
-            Genome::Tf1d(p) => p[i / TfPrimitive::PARAMS].param(i % TfPrimitive::PARAMS),
-            Genome::Tf2d(p) => p[i / Primitive2d::PARAMS].param(i % Primitive2d::PARAMS),
-        }
+        each!(self, p => coordinate(p, i))
     }
 
     /// Sets coordinate `i` (clamped to the genome's ranges).
     pub(crate) fn set_param(&mut self, i: usize, v: f64) {
-        match self {
-            Genome::Tf1d(p) => p[i / TfPrimitive::PARAMS].set_param(i % TfPrimitive::PARAMS, v),
-            Genome::Tf2d(p) => p[i / Primitive2d::PARAMS].set_param(i % Primitive2d::PARAMS, v),
-        }
+        each!(self, p => set_coordinate(p, i, v))
     }
 
     /// First steps of the pattern search at mutation radius `r`.
     pub(crate) fn initial_steps(&self, r: f64) -> Vec<f64> {
-        fn steps<P: Primitive>(n: usize, r: f64) -> Vec<f64> {
-            (0..n * P::PARAMS)
-                .map(|i| P::initial_step(i % P::PARAMS, r))
-                .collect()
-        }
-        match self {
-            Genome::Tf1d(p) => steps::<TfPrimitive>(p.len(), r),
-            Genome::Tf2d(p) => steps::<Primitive2d>(p.len(), r),
-        }
+        each!(self, p => initial_steps(p, r))
     }
 
     /// The genome with one primitive in another shape, for every primitive and shape.
@@ -584,6 +587,15 @@ impl Genome {
         match self {
             Genome::Tf1d(p) => shape_variants(p).into_iter().map(Genome::Tf1d).collect(),
             Genome::Tf2d(p) => shape_variants(p).into_iter().map(Genome::Tf2d).collect(),
+        }
+    }
+
+    /// Checks the genome as its plugin checks its `tf` (the message names the
+    /// offending part).
+    pub fn validate(&self) -> Result<(), String> {
+        match self {
+            Genome::Tf1d(p) => curve_of(p).validate(),
+            Genome::Tf2d(p) => tf2d_of(p).validate(),
         }
     }
 
@@ -648,10 +660,8 @@ mod tests {
                 g.vary_one(&mut rng, 0.7),
                 Genome::blend(&g, &other, &mut rng),
             ] {
-                let ParamValue::Tf2d(t) = v.to_param() else {
-                    unreachable!()
-                };
-                t.validate().unwrap();
+                assert_eq!(v.space(), Space::Tf2d);
+                v.validate().unwrap();
                 assert!(!v.is_empty() && v.len() <= MAX_PRIMITIVES);
             }
             // the pattern search's coordinates read back what they set
