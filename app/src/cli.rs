@@ -354,6 +354,10 @@ pub struct FrameArgs {
     /// Empty-space skipping on or off (default: the preset's, normally on).
     #[arg(long)]
     pub skipping: Option<OnOff>,
+    /// How the volume is stored on the GPU: auto (r32float where the adapter filters
+    /// it), r32float, r16float or r16unorm (default: the preset's).
+    #[arg(long, value_parser = vwb_render::renderer::VolumeFormat::parse)]
+    pub volume_format: Option<vwb_render::renderer::VolumeFormat>,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -402,6 +406,9 @@ impl FrameArgs {
         }
         if let Some(on) = self.skipping {
             doc.render.empty_space_skipping = on == OnOff::On;
+        }
+        if let Some(f) = self.volume_format {
+            doc.render.volume_format = f;
         }
         Ok(())
     }

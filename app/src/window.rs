@@ -312,7 +312,11 @@ impl Workbench {
             rs.queue.clone(),
         )?;
         log::info!("window adapter: {}", gpu.describe());
-        let mut renderer = Renderer::new(&gpu, volume)?;
+        let options = vwb_render::renderer::RendererOptions {
+            volume_format: doc.render.volume_format,
+            ..vwb_render::renderer::RendererOptions::from_env()
+        };
+        let mut renderer = Renderer::with_options(&gpu, volume, options)?;
         // progressive light passes refine one step per frame, the window redraws meanwhile
         renderer.set_refinement_budget(Some(1));
         let error = renderer
@@ -581,11 +585,12 @@ impl Workbench {
     /// A renderer for `volume` and `doc` on the window's device, with the current
     /// renderer's WGSL overrides; nothing changes on screen until it is swapped in.
     fn fresh_renderer(&self, volume: Arc<vwb_render::Volume>, doc: &Document) -> Result<Renderer> {
-        let mut renderer = Renderer::with_gpu_memory_budget(
-            self.renderer.gpu(),
-            volume,
-            self.renderer.gpu_memory_budget(),
-        )?;
+        let options = vwb_render::renderer::RendererOptions {
+            gpu_memory_budget: self.renderer.gpu_memory_budget(),
+            volume_format: doc.render.volume_format,
+            ..vwb_render::renderer::RendererOptions::from_env()
+        };
+        let mut renderer = Renderer::with_options(self.renderer.gpu(), volume, options)?;
         renderer.set_refinement_budget(Some(1));
         for (file, source) in self.renderer.shader_overrides() {
             renderer.set_shader_override(file, Some(source.to_string()));
@@ -1371,6 +1376,7 @@ impl Workbench {
             // that their resources and pre-pass results stay; on an error the last good
             // pipeline keeps drawing
             vwb_render::plugin::carry_identities(&self.doc.stack, &mut doc.stack);
+            self.renderer.set_volume_format(doc.render.volume_format)?;
             self.renderer.update_stack(&doc.stack, doc.render.target)?;
         } else {
             self.renderer = self.fresh_renderer(volume, &doc)?;

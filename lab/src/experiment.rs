@@ -111,7 +111,8 @@ pub struct Variant {
     /// `"<plugin id>.<key>"` (its first instance) or `render.slice_spacing`,
     /// `render.slices` (the spacing that gives about this many slices in the scene's
     /// frame), `render.backend` (raster, compute), `render.target`,
-    /// `render.early_termination`, `render.skipping` (true, false).
+    /// `render.early_termination`, `render.skipping` (true, false),
+    /// `render.volume_format` (auto, r32float, r16float, r16unorm).
     #[serde(default)]
     pub set: BTreeMap<String, SetValue>,
     /// (from, to): the first instance of plugin `from` is replaced by plugin `to` with
@@ -296,6 +297,10 @@ impl Metric {
             Metric::Ssim => format!("{v:.4}"),
             Metric::GpuMemoryMib => format!("{v:.1}"),
             Metric::EmptyBrickShare => format!("{v:.3}"),
+            // small errors keep a third digit (a fine variant against a finer one)
+            Metric::RmsDeltaE | Metric::MeanDeltaE if v != 0.0 && v.abs() < 0.1 => {
+                format!("{v:.3}")
+            }
             _ => format!("{v:.2}"),
         }
     }
@@ -689,6 +694,10 @@ pub fn set_value(doc: &mut Document, key: &str, value: &SetValue) -> Result<()> 
             _ => bail!("'{key}' needs true or false"),
         },
         "render.target" => doc.render.target = parse_target(text()?).map_err(|e| anyhow!(e))?,
+        "render.volume_format" => {
+            doc.render.volume_format =
+                vwb_render::renderer::VolumeFormat::parse(text()?).map_err(|e| anyhow!(e))?
+        }
         _ => {
             let (id, k) = key.rsplit_once('.').ok_or_else(|| {
                 anyhow!("'{key}': expected <plugin id>.<key> or render.slice_spacing")
@@ -1341,7 +1350,11 @@ fn markdown(e: &Experiment, file: &Path, gpu: &GpuContext, o: &Outcome) -> Strin
     let mut header = vec!["scene".to_string(), "variant".to_string()];
     header.extend(e.grid.iter().map(|a| a.param.clone()));
     header.extend(e.metrics.iter().map(|m| m.header().to_string()));
-    header.push("Pareto".into());
+    // the front is time against error: without the time in the table it says nothing
+    let timed = e.metrics.contains(&Metric::FrameMs);
+    if timed {
+        header.push("Pareto".into());
+    }
     let _ = writeln!(s, "| {} |", header.join(" | "));
     let align: Vec<&str> = header
         .iter()
@@ -1353,11 +1366,13 @@ fn markdown(e: &Experiment, file: &Path, gpu: &GpuContext, o: &Outcome) -> Strin
         let mut cells = vec![r.scene.clone(), r.variant.clone()];
         cells.extend(r.values.iter().map(|v| format!("{v}")));
         cells.extend(e.metrics.iter().map(|m| m.cell(r)));
-        cells.push(if r.pareto {
-            "●".into()
-        } else {
-            String::new()
-        });
+        if timed {
+            cells.push(if r.pareto {
+                "●".into()
+            } else {
+                String::new()
+            });
+        }
         let _ = writeln!(s, "| {} |", cells.join(" | "));
     }
     if !o.assertions.is_empty() {
@@ -1480,7 +1495,27 @@ fn write_outputs(
     measure::save_text(&out.join("junit.xml"), &junit(e, o))?;
     if let Some(block) = &e.doc_block {
         let dir = file.parent().unwrap_or(Path::new("."));
-        write_block(&dir.join(&block.file), &block.block, &o.markdown)?;
+        let doc = dir.join(&block.file);
+        if gpu.info.device_type == wgpu::DeviceType::Cpu {
+            write_block(&doc, &block.block, &o.markdown)?;
+        } else {
+            // a GPU's figures go beside the CPU device's, in docs/gpu/ (the doc's
+            // folder's `gpu/`), as the benchmarks write theirs
+            let name = doc.file_name().unwrap_or_default();
+            let gpu_doc = gpu_doc_path(&doc);
+            if !gpu_doc.exists() {
+                let title = format!(
+                    "# {0} on a GPU\n\nThe blocks of experiment files run on a GPU adapter; the \
+                     CPU device's are in ../{0}.\n",
+                    name.to_string_lossy()
+                );
+                std::fs::create_dir_all(gpu_doc.parent().unwrap_or(Path::new(".")))
+                    .with_context(|| format!("{}: cannot create the folder", gpu_doc.display()))?;
+                measure::save_text(&gpu_doc, &title)?;
+            }
+            let heading = format!("## Experiment `{}` ({})", e.name, e.description);
+            write_or_add_block(&gpu_doc, &block.block, &heading, &o.markdown)?;
+        }
     }
     Ok(())
 }
@@ -1573,6 +1608,32 @@ pub fn write_block(path: &Path, name: &str, body: &str) -> Result<()> {
         .ok_or_else(|| anyhow!("{}: no '{end}' marker after '{begin}'", path.display()))?;
     let new = format!("{}{begin}\n{}{}", &text[..i], body, &text[j..]);
     measure::save_text(path, &new)
+}
+
+/// Where a GPU adapter's copy of `doc` lives: `gpu/` beside it (docs/gpu/perf.md for
+/// docs/perf.md).
+pub fn gpu_doc_path(doc: &Path) -> PathBuf {
+    let name = doc.file_name().unwrap_or_default();
+    doc.parent()
+        .unwrap_or(Path::new("."))
+        .join("gpu")
+        .join(name)
+}
+
+/// Writes `body` into the block `name` of `doc`, first adding the block under
+/// `heading` at the end where the document has none (or creating the document): a
+/// GPU's copy of a doc written before the block existed.
+pub fn write_or_add_block(doc: &Path, name: &str, heading: &str, body: &str) -> Result<()> {
+    let mut text = std::fs::read_to_string(doc).unwrap_or_default();
+    if !text.contains(&format!("<!-- BEGIN {name} -->")) {
+        text += &format!("\n{heading}\n\n<!-- BEGIN {name} -->\n<!-- END {name} -->\n");
+        if let Some(dir) = doc.parent() {
+            std::fs::create_dir_all(dir)
+                .with_context(|| format!("{}: cannot create the folder", dir.display()))?;
+        }
+        measure::save_text(doc, &text)?;
+    }
+    write_block(doc, name, body)
 }
 
 /// Loads and runs an experiment file, printing progress to stderr; the report goes to
@@ -1888,6 +1949,29 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("set in an experiment's variants"), "{e}");
+    }
+
+    #[test]
+    fn gpu_copies_of_docs_gain_their_block() {
+        assert_eq!(
+            gpu_doc_path(Path::new("../docs/perf.md")),
+            Path::new("../docs/gpu/perf.md")
+        );
+        let dir = std::env::temp_dir().join(format!("vwb-gpu-doc-{}", std::process::id()));
+        let doc = dir.join("gpu").join("x.md");
+        let _ = std::fs::remove_dir_all(&dir);
+        write_or_add_block(&doc, "b", "## B", "one\n").unwrap();
+        let text = std::fs::read_to_string(&doc).unwrap();
+        assert!(
+            text.contains("## B\n\n<!-- BEGIN b -->\none\n<!-- END b -->"),
+            "{text}"
+        );
+        // a second write replaces the block and adds no second heading
+        write_or_add_block(&doc, "b", "## B", "two\n").unwrap();
+        let text = std::fs::read_to_string(&doc).unwrap();
+        assert_eq!(text.matches("## B").count(), 1, "{text}");
+        assert!(text.contains("two") && !text.contains("one"), "{text}");
+        let _ = std::fs::remove_dir_all(&dir);
     }
 
     #[test]

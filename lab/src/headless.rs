@@ -41,7 +41,11 @@ pub fn load_volume_file(path: &Path) -> Result<Volume> {
 
 /// A renderer with a document's plugin stack applied.
 pub fn renderer_for(gpu: &GpuContext, doc: &Document, volume: Arc<Volume>) -> Result<Renderer> {
-    let mut r = Renderer::new(gpu, volume)?;
+    let options = vwb_render::renderer::RendererOptions {
+        volume_format: doc.render.volume_format,
+        ..vwb_render::renderer::RendererOptions::from_env()
+    };
+    let mut r = Renderer::with_options(gpu, volume, options)?;
     if let Some(level) = r.level() {
         eprintln!("note: {}", level.notice());
     }

@@ -13,7 +13,8 @@ use std::fmt;
 pub const OPTIONAL_FEATURES: wgpu::Features = wgpu::Features::FLOAT32_FILTERABLE
     .union(wgpu::Features::FLOAT32_BLENDABLE)
     .union(wgpu::Features::TIMESTAMP_QUERY)
-    .union(wgpu::Features::TIMESTAMP_QUERY_INSIDE_ENCODERS);
+    .union(wgpu::Features::TIMESTAMP_QUERY_INSIDE_ENCODERS)
+    .union(wgpu::Features::TEXTURE_FORMAT_16BIT_NORM);
 
 /// The backends vwb may use: everything but GL.
 pub const BACKENDS: wgpu::Backends = wgpu::Backends::PRIMARY;

@@ -52,6 +52,10 @@ pub struct RenderSection {
     /// Skip the hooks of samples in bricks that cannot be visible (render/src/skipping.rs);
     /// never changes the image.
     pub empty_space_skipping: bool,
+    /// How the volume is stored on the GPU ([`crate::renderer::VolumeFormat`]);
+    /// written only when not `Auto`.
+    #[serde(skip_serializing_if = "crate::renderer::VolumeFormat::is_auto")]
+    pub volume_format: crate::renderer::VolumeFormat,
 }
 
 impl Default for RenderSection {
@@ -64,6 +68,7 @@ impl Default for RenderSection {
             background: [0.0, 0.0, 0.0, 1.0],
             size: [512, 512],
             empty_space_skipping: true,
+            volume_format: crate::renderer::VolumeFormat::Auto,
         }
     }
 }

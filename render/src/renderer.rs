@@ -140,6 +140,8 @@ pub enum RenderError {
     Atlas(String),
     #[error("bricks: {0}")]
     Bricks(String),
+    #[error("volume format {0}: this adapter lacks {1}; use auto or r32float")]
+    VolumeFormatUnsupported(&'static str, &'static str),
     #[error(transparent)]
     Camera(#[from] crate::validate::FieldError),
 }
@@ -474,15 +476,89 @@ fn target_bytes(w: u32, h: u32, format: TargetFormat) -> u64 {
     u64::from(w) * u64::from(h) * (texel + 16 + 4)
 }
 
-/// Bytes of `volume` as [`upload_volume`] stores it (r32float, or r16float without
-/// float32 filtering).
-fn volume_texture_bytes(gpu: &GpuContext, volume: &Volume) -> u64 {
-    volume.dims.iter().map(|&d| u64::from(d)).product::<u64>() * texel_bytes(gpu)
+/// Bytes of `volume` stored as `format` ([`upload_volume`]).
+fn volume_texture_bytes(format: wgpu::TextureFormat, volume: &Volume) -> u64 {
+    volume.dims.iter().map(|&d| u64::from(d)).product::<u64>() * texel_bytes(format)
 }
 
-/// Bytes of one voxel of the volume texture ([`upload_volume`]'s format).
-fn texel_bytes(gpu: &GpuContext) -> u64 {
-    if gpu.float32_filterable() { 4 } else { 2 }
+/// Bytes of one voxel of the volume texture.
+fn texel_bytes(format: wgpu::TextureFormat) -> u64 {
+    u64::from(format.block_copy_size(None).unwrap_or(4))
+}
+
+/// How the normalised scalar volume is stored on the GPU (the preset's
+/// `render.volume_format`, `--volume-format`). Every format is filtered by the
+/// sampler; they differ in bytes per voxel and in what sampling costs on an adapter
+/// (issue 23, item 4: docs/perf.md measures them). The CPU twins read the f64 values:
+/// r32float is the exact one, r16unorm keeps 1/65535 steps (within half a data step of
+/// 16-bit data), r16float keeps 11 significant bits.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+pub enum VolumeFormat {
+    /// r32float where the adapter filters it, else r16float.
+    #[default]
+    Auto,
+    R32Float,
+    R16Float,
+    R16Unorm,
+}
+
+impl VolumeFormat {
+    pub const ALL: [VolumeFormat; 4] = [
+        VolumeFormat::Auto,
+        VolumeFormat::R32Float,
+        VolumeFormat::R16Float,
+        VolumeFormat::R16Unorm,
+    ];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            VolumeFormat::Auto => "auto",
+            VolumeFormat::R32Float => "r32float",
+            VolumeFormat::R16Float => "r16float",
+            VolumeFormat::R16Unorm => "r16unorm",
+        }
+    }
+
+    pub fn parse(s: &str) -> Result<Self, String> {
+        Self::ALL
+            .into_iter()
+            .find(|f| f.name() == s)
+            .ok_or_else(|| {
+                format!("unknown volume format '{s}' (auto, r32float, r16float or r16unorm)")
+            })
+    }
+
+    pub fn is_auto(&self) -> bool {
+        *self == VolumeFormat::Auto
+    }
+
+    /// The texture format on `gpu`, or why the adapter cannot filter it.
+    pub fn texture_format(self, gpu: &GpuContext) -> Result<wgpu::TextureFormat, RenderError> {
+        let f32_ok = gpu.float32_filterable();
+        Ok(match self {
+            VolumeFormat::Auto if f32_ok => wgpu::TextureFormat::R32Float,
+            VolumeFormat::Auto | VolumeFormat::R16Float => wgpu::TextureFormat::R16Float,
+            VolumeFormat::R32Float if f32_ok => wgpu::TextureFormat::R32Float,
+            VolumeFormat::R32Float => {
+                return Err(RenderError::VolumeFormatUnsupported(
+                    self.name(),
+                    "FLOAT32_FILTERABLE",
+                ));
+            }
+            VolumeFormat::R16Unorm => {
+                if !gpu
+                    .features
+                    .contains(wgpu::Features::TEXTURE_FORMAT_16BIT_NORM)
+                {
+                    return Err(RenderError::VolumeFormatUnsupported(
+                        self.name(),
+                        "TEXTURE_FORMAT_16BIT_NORM",
+                    ));
+                }
+                wgpu::TextureFormat::R16Unorm
+            }
+        })
+    }
 }
 
 /// Result of [`Renderer::update_stack`].
@@ -529,6 +605,8 @@ pub struct Renderer {
     target: Option<Target>,
     /// Bytes of the uploaded volume texture.
     volume_bytes: u64,
+    /// How the volume is stored ([`RendererOptions::volume_format`]).
+    volume_format: VolumeFormat,
     /// GPU memory the renderer may hold (`VWB_GPU_MEMORY_LIMIT` bytes, or
     /// [`Renderer::set_gpu_memory_budget`]); `None`: only the driver refuses.
     gpu_budget: Option<u64>,
@@ -639,14 +717,23 @@ impl Renderer {
         }
         // beyond the budget: a coarser level, in the full volume's box and Δs0
         let vbox = VolumeBox::new(volume.dims, volume.spacing);
-        let (volume, level) = match level_for(gpu, &volume, budget)? {
-            Some((level, info)) => (level, Some(info)),
-            None => (volume, None),
-        };
+        let (volume, level) =
+            match level_for(&volume, budget, options.volume_format.texture_format(gpu)?)? {
+                Some((level, info)) => (level, Some(info)),
+                None => (volume, None),
+            };
         let max_brick_bytes = options.max_brick_bytes;
-        let (volume_view, volume_bytes, bricks, split) =
-            upload_or_split(gpu, &volume, &vbox, brick_limit, max_brick_bytes, budget)?
-                .into_parts(gpu, &volume);
+        let volume_format = options.volume_format;
+        let (volume_view, volume_bytes, bricks, split) = upload_or_split(
+            gpu,
+            &volume,
+            &vbox,
+            brick_limit,
+            max_brick_bytes,
+            budget,
+            volume_format,
+        )?
+        .into_parts(gpu, &volume);
         let sampler = |filter| {
             device.create_sampler(&wgpu::SamplerDescriptor {
                 label: Some("vwb sampler"),
@@ -725,6 +812,7 @@ impl Renderer {
             target: None,
             volume_bytes,
             gpu_budget: budget,
+            volume_format,
             vertices: None,
             timestamps: None,
             display_pipeline: None,
@@ -821,14 +909,38 @@ impl Renderer {
                 limit: self.gpu.limits.max_texture_dimension_3d,
             });
         }
-        let bytes = volume_texture_bytes(&self.gpu, &volume);
+        self.upload(volume)
+    }
+
+    /// How the volume is stored on the GPU.
+    pub fn volume_format(&self) -> VolumeFormat {
+        self.volume_format
+    }
+
+    /// Stores the volume as `format` from now on (uploading it again when that changes
+    /// what is stored); an adapter that cannot filter the format is refused and the
+    /// volume stays as it was.
+    pub fn set_volume_format(&mut self, format: VolumeFormat) -> Result<(), RenderError> {
+        let old = self.volume_format.texture_format(&self.gpu)?;
+        let new = format.texture_format(&self.gpu)?;
+        self.volume_format = format;
+        if old != new {
+            self.upload(self.volume.clone())?;
+        }
+        Ok(())
+    }
+
+    fn upload(&mut self, volume: Arc<Volume>) -> Result<(), RenderError> {
+        let format = self.volume_format.texture_format(&self.gpu)?;
+        let bytes = volume_texture_bytes(format, &volume);
         let what = format!("volume {} ({:?})", volume.name, volume.dims);
-        let held = self.volume_bytes
+        // the old volume (or its bricks) is freed
+        let freeing = self.volume_bytes
             + self
                 .brick_renderers()
                 .map(Renderer::gpu_memory)
                 .sum::<u64>();
-        self.check_budget(&what, bytes, held)?;
+        self.check_budget(&what, bytes, freeing)?;
         let vbox = VolumeBox::new(volume.dims, volume.spacing);
         let upload = upload_or_split(
             &self.gpu,
@@ -837,6 +949,7 @@ impl Renderer {
             self.brick_limit,
             self.max_brick_bytes,
             None,
+            self.volume_format,
         )?;
         self.vbox = vbox;
         self.level = None;
@@ -2794,22 +2907,23 @@ fn upload_occupancy(
     crate::gpu::upload_r8_3d(&gpu.device, &gpu.queue, "vwb brick occupancy", dims, bytes)
 }
 
-/// Uploads the normalised scalar volume (R32Float where filterable, else R16Float).
-fn upload_volume(gpu: &GpuContext, volume: &Volume) -> wgpu::TextureView {
+/// Uploads the normalised scalar volume as `format` ([`VolumeFormat::texture_format`]).
+fn upload_volume(
+    gpu: &GpuContext,
+    volume: &Volume,
+    format: wgpu::TextureFormat,
+) -> wgpu::TextureView {
     let scalars = volume.normalized_scalars();
-    let (format, bytes): (wgpu::TextureFormat, Vec<u8>) = if gpu.float32_filterable() {
-        (
-            wgpu::TextureFormat::R32Float,
-            bytemuck::cast_slice(&scalars).to_vec(),
-        )
-    } else {
-        (
-            wgpu::TextureFormat::R16Float,
-            scalars
-                .iter()
-                .flat_map(|v| half::f16::from_f32(*v).to_le_bytes())
-                .collect(),
-        )
+    let bytes: Vec<u8> = match format {
+        wgpu::TextureFormat::R16Float => scalars
+            .iter()
+            .flat_map(|v| half::f16::from_f32(*v).to_le_bytes())
+            .collect(),
+        wgpu::TextureFormat::R16Unorm => scalars
+            .iter()
+            .flat_map(|v| ((v.clamp(0.0, 1.0) * 65535.0).round() as u16).to_le_bytes())
+            .collect(),
+        _ => bytemuck::cast_slice(&scalars).to_vec(),
     };
     let [w, h, d] = volume.dims;
     let texture = gpu.device.create_texture_with_data(

@@ -263,13 +263,13 @@ fn matter_removed_by_a_mesh_casts_no_occlusion_in_dos() {
 }
 
 /// Writes docs/clip_mesh.md: the mesh pass's time by mesh and grid, how often it
-/// reruns while the camera orbits, the frame-time cost, the voxelised sphere against
-/// the analytic one by resolution and tessellation, GPU against twin, and the DOS
-/// consistency gate with a mesh cut. Run: `bash bench/clipping.sh`.
+/// reruns while the camera orbits, the frame-time cost, GPU against twin, and the DOS
+/// consistency gate with a mesh cut; it keeps the block of
+/// `experiments/clip_mesh_accuracy.ron` (the voxelised sphere against the analytic one).
+/// Run: `bash bench/clipping.sh`.
 #[test]
 #[ignore = "benchmark: bash bench/clipping.sh"]
 fn clip_mesh_benchmark() {
-    use vwb_render::reference::{ReferenceOptions, render_reference};
     let v = demo();
     // 1. the mesh pass
     let mut pass = String::new();
@@ -347,47 +347,11 @@ fn clip_mesh_benchmark() {
     };
     let skip = least_times(&[kept.clone(), kept], &[false, true], &s);
     let best = |i: usize| reps.iter().map(|r| r[i]).fold(f64::INFINITY, f64::min);
-    // 3. accuracy against the analytic sphere (the f64 reference of clip.shapes)
-    let small = settings(96, 96, Backend::Compute);
-    let phong = instance("shade.blinn_phong");
-    let mut cut_analytic = analytic.clone();
-    cut_analytic
-        .params
-        .set("cut_shading", ParamValue::Enum("clip_normal".into()));
-    let mut keep_out = cut_analytic.clone();
-    keep_out.params.set(k.invert, ParamValue::Bool(true));
-    let reference = render_reference(
-        &v,
-        &[tf.clone(), keep_out, phong.clone()],
-        &small,
-        &ReferenceOptions::default(),
-    )
-    .unwrap()
-    .pixels;
-    let mut accuracy = String::new();
-    for segments in [16, 48, 256] {
-        for resolution in ["1:2", "1:1", "2:1"] {
-            let mut c = ball.clone();
-            c.params.set("segments", ParamValue::Int(segments));
-            c.params
-                .set("resolution", ParamValue::Enum(resolution.into()));
-            c.params.set("keep", ParamValue::Enum("outside".into()));
-            c.params
-                .set("cut_shading", ParamValue::Enum("clip_normal".into()));
-            let mut r = Renderer::new(gpu(), v.clone()).unwrap();
-            let px = render(
-                &mut r,
-                &[tf.clone(), c, phong.clone()],
-                TargetFormat::Rgba32Float,
-                &small,
-            );
-            accuracy += &format!(
-                "| {segments} | {resolution} | {:.3} |\n",
-                delta_e_rms(&px, &reference, 96, 96)
-            );
-        }
-    }
-    // 4. twins and 5. DOS
+    // 3. twins and 4. DOS (the accuracy against the analytic sphere is the experiment
+    // file's block, kept)
+    let old = std::fs::read_to_string(repo().join("docs/clip_mesh.md")).unwrap_or_default();
+    let accuracy = kept_experiment_blocks(&old, &["clip_mesh_accuracy"]);
+    let accuracy = accuracy.trim_end();
     let mut twins = String::new();
     for (label, backend, rms) in twin_errors() {
         twins += &format!("| {label} | {} | {rms:.4} |\n", backend.name());
@@ -440,16 +404,11 @@ fn clip_mesh_benchmark() {
          `bricks_the_mesh_removes_are_skipped_without_changing_the_image`: the same \
          pixels).\n\n\
          ## The voxelised surface against the analytic sphere\n\n\
-         A ball of radius 0.35 cut out of the demo (keep outside, shading at the cut, \
-         Blinn–Phong), 96², rgba32float: ΔE*uv RMS of the GPU image with `clip.mesh` \
-         against the f64 reference of `clip.shapes`' analytic sphere. Errors come from \
-         the tessellation (segments), the grid (resolution) and f16 storage.\n\n\
-         | segments | resolution | ΔE*uv RMS |\n|---|---|---|\n{accuracy}\n\
+         {accuracy}\n\n\
          The tessellation dominates: an inscribed UV sphere lies inside the true one \
          by up to its sagitta, so the error falls with the segments; the grid \
          resolution matters once the facets are fine (the trilinear distance rounds \
-         the surface between texel centres). The default (48 segments, 1:1) is \
-         within 0.2 of the analytic cut.\n\n\
+         the surface between texel centres).\n\n\
          ## GPU against the CPU twin\n\n\
          Demo volume, `classify.tf1d` + `clip.mesh` + `shade.blinn_phong`, 48², \
          rgba32float.\n\n\

@@ -15,7 +15,7 @@ use vwb_render::renderer::{Backend, FrameSettings};
 use vwb_render::tf::{TfCurve, TfPoint};
 
 use crate::common::*;
-use crate::reference::delta_e_rms;
+use crate::reference::{delta_e_rms, gpu_delta_e_rms};
 
 const ONE_LEVEL: f64 = 1.0 / 255.0;
 
@@ -539,6 +539,70 @@ fn empty_space_skipping_leaves_images_unchanged() {
             }
         }
     }
+}
+
+/// How the volume is stored (issue 23, item 4): r16unorm and r16float render the demo
+/// within small bounds of r32float (`auto` is r32float where the adapter filters it);
+/// a format change uploads the volume again only when it changes what is stored; a
+/// preset names the format, and `auto` is not written.
+#[test]
+fn volume_formats_render_within_bounds_and_upload_only_on_change() {
+    use vwb_render::renderer::{RendererOptions, VolumeFormat};
+    let (w, h) = (48, 48);
+    let s = settings(w, h, Backend::Compute);
+    let stack = vec![instance("classify.tf1d"), instance("shade.blinn_phong")];
+    let t = TargetFormat::Rgba32Float;
+    let image = |volume_format| {
+        let options = RendererOptions {
+            volume_format,
+            ..Default::default()
+        };
+        let mut r = Renderer::with_options(gpu(), demo(), options).unwrap();
+        assert_eq!(r.volume_format(), volume_format);
+        render(&mut r, &stack, t, &s)
+    };
+    let exact = image(VolumeFormat::R32Float);
+    assert_eq!(
+        gpu_delta_e_rms(&image(VolumeFormat::Auto), &exact, w, h),
+        0.0
+    );
+    // the demo is u8: k/255 is 257·k/65535, which r16unorm holds exactly
+    let unorm = gpu_delta_e_rms(&image(VolumeFormat::R16Unorm), &exact, w, h);
+    let half = gpu_delta_e_rms(&image(VolumeFormat::R16Float), &exact, w, h);
+    eprintln!("r16unorm {unorm:.5}, r16float {half:.5} ΔE*uv RMS against r32float");
+    assert!(unorm < 0.01, "{unorm}");
+    assert!(half < 0.5, "{half}");
+
+    let mut r = Renderer::new(gpu(), demo()).unwrap();
+    render(&mut r, &stack, t, &s);
+    let uploads = r.counters().volume_uploads;
+    // auto is stored as r32float here: naming it changes nothing
+    r.set_volume_format(VolumeFormat::R32Float).unwrap();
+    assert_eq!(r.counters().volume_uploads, uploads);
+    r.set_volume_format(VolumeFormat::R16Float).unwrap();
+    assert_eq!(r.counters().volume_uploads, uploads + 1);
+    let again = render(&mut r, &stack, t, &s);
+    assert!(gpu_delta_e_rms(&again, &exact, w, h) < 0.5);
+
+    let text = std::fs::read_to_string(repo().join("presets/demo.ron"))
+        .unwrap()
+        .replace("render: (", "render: (volume_format: R16Unorm, ");
+    let doc = Document::parse(&text, "demo with r16unorm", &registry())
+        .unwrap()
+        .document;
+    assert_eq!(doc.render.volume_format, VolumeFormat::R16Unorm);
+    assert!(doc.to_ron().contains("volume_format: R16Unorm"));
+    let plain = Document::parse(
+        &std::fs::read_to_string(repo().join("presets/demo.ron")).unwrap(),
+        "demo",
+        &registry(),
+    )
+    .unwrap()
+    .document;
+    assert!(!plain.to_ron().contains("volume_format"));
+    let bad = text.replace("R16Unorm", "R8Unorm");
+    let err = Document::parse(&bad, "demo with r8unorm", &registry()).unwrap_err();
+    assert!(err.to_string().contains("R8Unorm"), "{err}");
 }
 
 /// Model only what the scene needs: compiled stacks are cached by their structure, so

@@ -53,6 +53,8 @@ pub struct RendererOptions {
     /// cap one allocation; lavapipe refuses 2.2 GB) is split into bricks of half its
     /// size.
     pub max_brick_bytes: Option<u64>,
+    /// How the volume is stored on the GPU (the preset's `render.volume_format`).
+    pub volume_format: VolumeFormat,
 }
 
 impl RendererOptions {
@@ -64,6 +66,7 @@ impl RendererOptions {
             gpu_memory_budget: var("VWB_GPU_MEMORY_LIMIT").and_then(|v| v.trim().parse().ok()),
             brick_limit: var("VWB_BRICK_LIMIT").and_then(|v| v.trim().parse().ok()),
             max_brick_bytes: var("VWB_MAX_BRICK_BYTES").and_then(|v| v.trim().parse().ok()),
+            volume_format: VolumeFormat::Auto,
         }
     }
 
@@ -225,26 +228,29 @@ pub(super) fn upload_or_split(
     limit: u32,
     max_bytes: Option<u64>,
     budget: Option<u64>,
+    volume_format: VolumeFormat,
 ) -> Result<Upload, RenderError> {
-    let single = volume_texture_bytes(gpu, volume);
+    let format = volume_format.texture_format(gpu)?;
+    let single = volume_texture_bytes(format, volume);
     let what = format!("volume {} ({:?})", volume.name, volume.dims);
     if let Some(b) = budget
         && single > b
     {
         return Err(over_budget(what, single, b));
     }
-    let texel = texel_bytes(gpu);
+    let texel = texel_bytes(format);
     let mut cap = max_bytes;
     loop {
         let bricked = volume.dims.iter().any(|&d| d > limit) || cap.is_some_and(|c| single > c);
         let (attempt, largest) = if bricked {
             let pieces = split_volume(volume.dims, limit, cap, texel);
             let largest = largest_brick_texels(volume.dims, &pieces) * texel;
-            let split = Split::new(gpu, volume, whole, limit, pieces, budget).map(Upload::Split);
+            let split = Split::new(gpu, volume, whole, limit, pieces, budget, volume_format)
+                .map(Upload::Split);
             (split, largest)
         } else {
             let scope = gpu.device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
-            let view = upload_volume(gpu, volume);
+            let view = upload_volume(gpu, volume, format);
             let attempt = match pollster::block_on(scope.pop()) {
                 None => Ok(Upload::Single(view, single)),
                 Some(e) => Err(RenderError::OutOfMemory {
@@ -350,9 +356,10 @@ impl Split {
         limit: u32,
         pieces: [Vec<(u32, u32)>; 3],
         budget: Option<u64>,
+        volume_format: VolumeFormat,
     ) -> Result<Self, RenderError> {
         let dims = volume.dims;
-        let texel = texel_bytes(gpu);
+        let texel = texel_bytes(volume_format.texture_format(gpu)?);
         let ghosted = |a: usize, (s, e): (u32, u32)| {
             [
                 s.saturating_sub(BRICK_GHOST),
@@ -398,6 +405,7 @@ impl Split {
                             gpu_memory_budget: None,
                             brick_limit: Some(limit),
                             max_brick_bytes: Some(u64::MAX),
+                            volume_format,
                         },
                     )?;
                     let open = (0..3)

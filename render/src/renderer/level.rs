@@ -105,20 +105,20 @@ pub fn halve(volume: &Volume) -> Result<Volume, RenderError> {
 /// at most the budget; else the volume halved until its texture takes at most half of
 /// it (the rest is for eye buffers and plugins), with what was done.
 pub(super) fn level_for(
-    gpu: &GpuContext,
     volume: &Arc<Volume>,
     budget: Option<u64>,
+    format: wgpu::TextureFormat,
 ) -> Result<Option<(Arc<Volume>, LevelInfo)>, RenderError> {
     let Some(budget) = budget else {
         return Ok(None);
     };
-    let full_bytes = volume_texture_bytes(gpu, volume);
+    let full_bytes = volume_texture_bytes(format, volume);
     if full_bytes <= budget {
         return Ok(None);
     }
     let mut level = volume.clone();
     let mut factor = 1;
-    while volume_texture_bytes(gpu, &level) > budget / 2 {
+    while volume_texture_bytes(format, &level) > budget / 2 {
         if level.dims.iter().all(|&d| d <= 1) {
             return Err(RenderError::OutOfMemory {
                 what: format!("volume {} ({:?})", volume.name, volume.dims),
