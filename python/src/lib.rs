@@ -107,6 +107,8 @@ impl Scene {
             self.renderer = Some(headless::renderer_for(gpu()?, d, self.volume.clone()).map_err(err)?);
         }
         let r = self.renderer.as_mut().expect("just made");
+        r.set_volume_format(d.render.volume_format)
+            .map_err(|e| err(e.into()))?;
         r.update_stack(&d.stack, d.render.target)
             .map_err(|e| err(e.into()))?;
         Ok(r)
@@ -136,8 +138,9 @@ impl Scene {
         })
     }
 
-    /// Sets `<plugin id>.<key>` or `render.slice_spacing|backend|target|early_termination`
-    /// (checked against the parameter's spec, as in experiment files).
+    /// Sets `<plugin id>.<key>` or `render.slice_spacing|backend|target|early_termination|
+    /// skipping|volume_format` (checked against the parameter's spec, as in experiment
+    /// files).
     fn set(&mut self, key: &str, value: Bound<'_, PyAny>) -> PyResult<()> {
         let v = if let Ok(b) = value.extract::<bool>() {
             SetValue::Bool(b)

@@ -48,6 +48,18 @@ def test_parameters_change_the_image_and_bad_ones_are_refused():
         vwb.Scene("nonexistent.ron")
 
 
+def test_volume_format_is_a_render_setting():
+    s = vwb.Scene(DEMO)
+    full = s.render(size=(40, 40))
+    s.set("render.volume_format", "r16float")
+    half = s.render(size=(40, 40))
+    assert 0.0 < vwb.compare(full, half)["rms_delta_e"] < 0.5, "11-bit values, nearly the image"
+    s.set("render.volume_format", "auto")
+    assert vwb.compare(full, s.render(size=(40, 40)))["rms_delta_e"] == 0.0
+    with pytest.raises(ValueError, match="r8unorm"):
+        s.set("render.volume_format", "r8unorm")
+
+
 def test_vector_parameters_are_set_from_sequences():
     s = vwb.Scene(str(REPO / "presets" / "demo_dos.ron"))
     grey = s.render(size=(32, 32))

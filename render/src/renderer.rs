@@ -532,6 +532,46 @@ impl VolumeFormat {
         *self == VolumeFormat::Auto
     }
 
+    /// What `auto` stands for on `gpu` (r32float where filterable, else r16float); the
+    /// other formats are themselves.
+    pub fn concrete(self, gpu: &GpuContext) -> VolumeFormat {
+        match self {
+            VolumeFormat::Auto if gpu.float32_filterable() => VolumeFormat::R32Float,
+            VolumeFormat::Auto => VolumeFormat::R16Float,
+            f => f,
+        }
+    }
+
+    /// The format `volume` is stored in when `self` is asked for under a GPU memory
+    /// `budget`: `auto` takes a 16-bit format (r16unorm where the adapter has it, else
+    /// r16float) when the volume's r32float texture would pass the budget, before a
+    /// coarser level is considered: half the bytes for a few hundredths of ΔE*uv (docs/
+    /// perf.md) against a level's ΔE of 5–15. A named format is kept.
+    pub fn for_budget(
+        self,
+        gpu: &GpuContext,
+        volume: &Volume,
+        budget: Option<u64>,
+    ) -> Result<VolumeFormat, RenderError> {
+        let concrete = self.concrete(gpu);
+        concrete.texture_format(gpu)?;
+        let over = |f: VolumeFormat| {
+            f.texture_format(gpu)
+                .is_ok_and(|t| budget.is_some_and(|b| volume_texture_bytes(t, volume) > b))
+        };
+        if self.is_auto() && concrete == VolumeFormat::R32Float && over(concrete) {
+            let unorm = gpu
+                .features
+                .contains(wgpu::Features::TEXTURE_FORMAT_16BIT_NORM);
+            return Ok(if unorm {
+                VolumeFormat::R16Unorm
+            } else {
+                VolumeFormat::R16Float
+            });
+        }
+        Ok(concrete)
+    }
+
     /// The texture format on `gpu`, or why the adapter cannot filter it.
     pub fn texture_format(self, gpu: &GpuContext) -> Result<wgpu::TextureFormat, RenderError> {
         let f32_ok = gpu.float32_filterable();
@@ -605,8 +645,10 @@ pub struct Renderer {
     target: Option<Target>,
     /// Bytes of the uploaded volume texture.
     volume_bytes: u64,
-    /// How the volume is stored ([`RendererOptions::volume_format`]).
+    /// How the volume is asked to be stored ([`RendererOptions::volume_format`]).
     volume_format: VolumeFormat,
+    /// How it is stored ([`VolumeFormat::for_budget`]: never `Auto`).
+    stored_format: VolumeFormat,
     /// GPU memory the renderer may hold (`VWB_GPU_MEMORY_LIMIT` bytes, or
     /// [`Renderer::set_gpu_memory_budget`]); `None`: only the driver refuses.
     gpu_budget: Option<u64>,
@@ -715,13 +757,15 @@ impl Renderer {
                 limit: gpu.limits.max_texture_dimension_3d,
             });
         }
-        // beyond the budget: a coarser level, in the full volume's box and Δs0
+        // beyond the budget: 16-bit storage where `auto`, then a coarser level, in the
+        // full volume's box and Δs0
         let vbox = VolumeBox::new(volume.dims, volume.spacing);
-        let (volume, level) =
-            match level_for(&volume, budget, options.volume_format.texture_format(gpu)?)? {
-                Some((level, info)) => (level, Some(info)),
-                None => (volume, None),
-            };
+        let stored_format = options.volume_format.for_budget(gpu, &volume, budget)?;
+        let (volume, level) = match level_for(&volume, budget, stored_format.texture_format(gpu)?)?
+        {
+            Some((level, info)) => (level, Some(info)),
+            None => (volume, None),
+        };
         let max_brick_bytes = options.max_brick_bytes;
         let volume_format = options.volume_format;
         let (volume_view, volume_bytes, bricks, split) = upload_or_split(
@@ -731,7 +775,7 @@ impl Renderer {
             brick_limit,
             max_brick_bytes,
             budget,
-            volume_format,
+            stored_format,
         )?
         .into_parts(gpu, &volume);
         let sampler = |filter| {
@@ -813,6 +857,7 @@ impl Renderer {
             volume_bytes,
             gpu_budget: budget,
             volume_format,
+            stored_format,
             vertices: None,
             timestamps: None,
             display_pipeline: None,
@@ -912,27 +957,35 @@ impl Renderer {
         self.upload(volume)
     }
 
-    /// How the volume is stored on the GPU.
+    /// How the volume is asked to be stored on the GPU.
     pub fn volume_format(&self) -> VolumeFormat {
         self.volume_format
+    }
+
+    /// How it is stored: the asked format, or for `auto` r32float (r16float without
+    /// float32 filtering) or, under a GPU memory budget the r32float texture would pass,
+    /// a 16-bit format ([`VolumeFormat::for_budget`]).
+    pub fn stored_volume_format(&self) -> VolumeFormat {
+        self.stored_format
     }
 
     /// Stores the volume as `format` from now on (uploading it again when that changes
     /// what is stored); an adapter that cannot filter the format is refused and the
     /// volume stays as it was.
     pub fn set_volume_format(&mut self, format: VolumeFormat) -> Result<(), RenderError> {
-        let old = self.volume_format.texture_format(&self.gpu)?;
-        let new = format.texture_format(&self.gpu)?;
+        let stored = format.for_budget(&self.gpu, &self.volume, self.gpu_budget)?;
         self.volume_format = format;
-        if old != new {
+        if stored != self.stored_format {
             self.upload(self.volume.clone())?;
         }
         Ok(())
     }
 
     fn upload(&mut self, volume: Arc<Volume>) -> Result<(), RenderError> {
-        let format = self.volume_format.texture_format(&self.gpu)?;
-        let bytes = volume_texture_bytes(format, &volume);
+        let stored = self
+            .volume_format
+            .for_budget(&self.gpu, &volume, self.gpu_budget)?;
+        let bytes = volume_texture_bytes(stored.texture_format(&self.gpu)?, &volume);
         let what = format!("volume {} ({:?})", volume.name, volume.dims);
         // the old volume (or its bricks) is freed
         let freeing = self.volume_bytes
@@ -949,8 +1002,9 @@ impl Renderer {
             self.brick_limit,
             self.max_brick_bytes,
             None,
-            self.volume_format,
+            stored,
         )?;
+        self.stored_format = stored;
         self.vbox = vbox;
         self.level = None;
         (self.volume_view, self.volume_bytes, self.bricks, self.split) =

@@ -366,13 +366,12 @@ fn bricks_benchmark() {
         }
     }
 
-    // beyond the GPU memory budget: a coarser level (CT head)
+    // beyond the GPU memory budget: 16-bit storage, then a coarser level (CT head)
     let texel = texel_bytes();
     let full_bytes = volume.dims.iter().map(|&d| d as u64).product::<u64>() * texel;
     let mut level_rows = String::new();
     let full_img = base.get("raster").map(|b| b.1.clone()).unwrap();
-    for divisor in [3u64, 10] {
-        let budget = full_bytes / divisor;
+    for budget in [full_bytes * 3 / 4, full_bytes / 3, full_bytes / 10] {
         let options = RendererOptions {
             gpu_memory_budget: Some(budget),
             ..Default::default()
@@ -385,14 +384,15 @@ fn bricks_benchmark() {
         };
         let img = image(&render(&mut r, &doc.stack, doc.render.target, &s), 256, 256);
         let first_ms = t0.elapsed().as_secs_f64() * 1e3;
-        let level = r.level().cloned().expect("a level");
+        let (level, dims) = r.level().map_or(("full".to_string(), volume.dims), |l| {
+            (format!("1/{}", l.factor), l.level_dims)
+        });
         let m = compare(&full_img, &img);
         let to_reference = compare(&reference, &img).rms_delta_e;
         level_rows += &format!(
-            "| {} MiB | 1/{} | {:?} | {first_ms:.0} | {:.3} | {:.3} | {to_reference:.3} |\n",
+            "| {} MiB | {} | {level} | {dims:?} | {first_ms:.0} | {:.3} | {:.3} | {to_reference:.3} |\n",
             budget >> 20,
-            level.factor,
-            level.level_dims,
+            r.stored_volume_format().name(),
             m.rms_delta_e,
             m.ssim
         );
@@ -535,14 +535,16 @@ fn bricks_benchmark() {
          warm-up (docs/images/tall_volume.png).\n\n\
          | limit | why split | bricks (owned z) | upload s | backend | slices | frame ms |\n\
          |---|---|---|---|---|---|---|\n{tall_rows}\n\
-         **Beyond the GPU memory budget: a coarser level.** With a budget set \
-         (`VWB_GPU_MEMORY_LIMIT`, or the window's), a volume whose texture passes it is \
+         **Beyond the GPU memory budget: 16-bit storage, then a coarser level.** With a \
+         budget set (`VWB_GPU_MEMORY_LIMIT`, or the window's), a volume whose r32float \
+         texture passes it is first stored in 16 bits (r16unorm where the adapter has it, \
+         else r16float; `render.volume_format: Auto` only); if that passes it too, it is \
          averaged over 2×2×2 blocks until it takes at most half the budget, and shown with \
          a notice. CT head, raster, 256²: time from `Renderer::with_options` to the first \
          image, ΔE*uv RMS and SSIM against the full volume's image, and ΔE*uv to the f64 \
          reference of the full volume.\n\n\
-         | budget | level | dims | first image ms | ΔE to full | SSIM | ΔE to f64 reference |\n\
-         |---|---|---|---|---|---|---|\n{level_rows}\n\
+         | budget | stored as | level | dims | first image ms | ΔE to full | SSIM | ΔE to f64 reference |\n\
+         |---|---|---|---|---|---|---|---|\n{level_rows}\n\
          The 512×512×2100 volume with a budget of {} MiB: a 1/{} level ({:?}), its first \
          512² image {tall_first_s:.1} s after the volume was in memory.\n\
          <!-- bricks:end -->",
@@ -592,6 +594,58 @@ fn a_byte_cap_splits_a_volume_within_the_dimension_limit() {
     let b = render(&mut r, &stack, TargetFormat::Rgba32Float, &s);
     let worst = worst_channel(&a, &b);
     assert!(worst <= 1.0e-3, "{worst}");
+}
+
+/// Under a budget that the volume's r32float texture passes and its 16-bit one fits,
+/// `auto` keeps the full resolution in 16 bits (the demo is u8: r16unorm holds it
+/// exactly) instead of a coarser level; a named r32float is kept and gets the level; a
+/// format change under the budget uploads again.
+#[test]
+fn auto_stores_16_bit_before_a_coarser_level() {
+    use vwb_render::renderer::VolumeFormat;
+    let full = 128 * 128 * 84 * 4;
+    let budget = full * 3 / 4;
+    let with = |volume_format| {
+        let options = RendererOptions {
+            gpu_memory_budget: Some(budget),
+            volume_format,
+            ..Default::default()
+        };
+        Renderer::with_options(gpu(), demo(), options).unwrap()
+    };
+    let mut r = with(VolumeFormat::Auto);
+    assert!(r.level().is_none(), "{:?}", r.level());
+    assert!(
+        matches!(
+            r.stored_volume_format(),
+            VolumeFormat::R16Unorm | VolumeFormat::R16Float
+        ),
+        "{:?}",
+        r.stored_volume_format()
+    );
+    assert!(r.gpu_memory() <= budget, "{} > {budget}", r.gpu_memory());
+    let s = settings(48, 48, Backend::Compute);
+    let stack = vec![instance("classify.tf1d")];
+    let t = TargetFormat::Rgba32Float;
+    let mut one = Renderer::new(gpu(), demo()).unwrap();
+    assert_eq!(one.stored_volume_format(), VolumeFormat::R32Float);
+    let a = render(&mut one, &stack, t, &s);
+    let b = render(&mut r, &stack, t, &s);
+    let rms = crate::reference::gpu_delta_e_rms(&b, &a, 48, 48);
+    assert!(rms < 0.05, "{rms}");
+    // a named r32float is what the user asked for: the budget then needs a level
+    let named = with(VolumeFormat::R32Float);
+    assert_eq!(named.stored_volume_format(), VolumeFormat::R32Float);
+    assert_eq!(named.level().map(|l| l.factor), Some(2));
+    // r16float asked for under the budget: stored so, uploaded again
+    let (uploads, before) = (r.counters().volume_uploads, r.stored_volume_format());
+    r.set_volume_format(VolumeFormat::R16Float).unwrap();
+    assert_eq!(r.stored_volume_format(), VolumeFormat::R16Float);
+    let expected = uploads + u64::from(before != VolumeFormat::R16Float);
+    assert_eq!(r.counters().volume_uploads, expected);
+    // and back to auto: the 16-bit format the budget picks
+    r.set_volume_format(VolumeFormat::Auto).unwrap();
+    assert_eq!(r.stored_volume_format(), before);
 }
 
 /// A volume beyond the GPU memory budget is shown as a coarser level, with a notice,
