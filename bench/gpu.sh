@@ -10,7 +10,8 @@
 #   perf.md            docs/perf.md with its `foundation-gpu` block (bench/perf.py --gpu)
 #   gpu-docs.tar       docs/gpu/: flow.md and hernell.md (`flow_study`,
 #                      `hernell_benchmark`, `hernell_blocking_benchmark` on the GPU)
-#                      and perf.md (experiments/volume_format.ron)
+#                      and perf.md (experiments/volume_format.ron; the hernell_extremes
+#                      block of hernell.md)
 #   suite.log          the integration suite on the GPU (a check, not a figure)
 #   *.log              each step's output
 # The integration binary finds the repository through the path it was built in
@@ -31,7 +32,7 @@ step perf 90 python3 bench/perf.py --vwb "$vwb" --gpu --block foundation-gpu --f
 cp docs/perf.md "$out/perf.md"
 step benchmarks 240 "$integration" --ignored --test-threads=1 --nocapture \
     flow::flow_study hernell::hernell_benchmark hernell::hernell_blocking_benchmark
-step experiments 120 "$vwb" run experiments/volume_format.ron
+step experiments 180 "$vwb" run experiments/volume_format.ron experiments/hernell_extremes.ron
 tar cf "$out/gpu-docs.tar" docs/gpu 2>/dev/null
 step suite 120 "$integration" --test-threads=8
 grep -E "^test result|FAILED|panicked" "$out/suite.log" | head -40 >>"$out/steps.txt"

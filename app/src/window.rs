@@ -661,6 +661,9 @@ impl Workbench {
         if let Some(level) = renderer.level() {
             msg += &format!("; {}", level.notice());
         }
+        if let Some(notice) = renderer.storage_notice() {
+            msg += &format!("; {notice}");
+        }
         let vbox = *renderer.volume_box();
         self.doc.camera.fit(vbox.min, vbox.max);
         self.renderer = renderer;
@@ -754,6 +757,9 @@ impl Workbench {
                 egui::Color32::from_rgb(230, 160, 40),
                 format!("⚠ {}", level.notice()),
             );
+        }
+        if let Some(notice) = self.renderer.storage_notice() {
+            ui.label(notice);
         }
         let bricks = self.renderer.bricks().len();
         if bricks > 0 {

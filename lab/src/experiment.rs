@@ -292,13 +292,15 @@ impl Metric {
             return "—".into();
         }
         match self {
+            // small shares keep a second digit
+            Metric::ShareAbove6 if v > 0.0 && v < 0.01 => format!("{:.2} %", 100.0 * v),
             Metric::ShareAbove6 => format!("{:.1} %", 100.0 * v),
             Metric::Slices => format!("{v}"),
             Metric::Ssim => format!("{v:.4}"),
             Metric::GpuMemoryMib => format!("{v:.1}"),
             Metric::EmptyBrickShare => format!("{v:.3}"),
-            // small errors keep a third digit (a fine variant against a finer one)
-            Metric::RmsDeltaE | Metric::MeanDeltaE if v != 0.0 && v.abs() < 0.1 => {
+            // errors below 1 keep a third digit (a fine variant against a finer one)
+            Metric::RmsDeltaE | Metric::MeanDeltaE if v != 0.0 && v.abs() < 1.0 => {
                 format!("{v:.3}")
             }
             _ => format!("{v:.2}"),

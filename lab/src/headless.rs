@@ -49,12 +49,8 @@ pub fn renderer_for(gpu: &GpuContext, doc: &Document, volume: Arc<Volume>) -> Re
     if let Some(level) = r.level() {
         eprintln!("note: {}", level.notice());
     }
-    let stored = r.stored_volume_format();
-    if doc.render.volume_format.is_auto() && stored != doc.render.volume_format.concrete(gpu) {
-        eprintln!(
-            "note: the volume is stored as {} to fit the GPU memory budget",
-            stored.name()
-        );
+    if let Some(notice) = r.storage_notice() {
+        eprintln!("note: {notice}");
     }
     r.set_empty_space_skipping(doc.render.empty_space_skipping);
     r.update_stack(&doc.stack, doc.render.target)?;

@@ -969,6 +969,19 @@ impl Renderer {
         self.stored_format
     }
 
+    /// What the user should know about how the volume is stored: that a GPU memory
+    /// budget made `auto` keep it in 16 bits (`None` otherwise).
+    pub fn storage_notice(&self) -> Option<String> {
+        let usual = self.volume_format.concrete(&self.gpu);
+        (self.volume_format.is_auto() && self.stored_format != usual).then(|| {
+            format!(
+                "volume stored as {} (16 bits) to fit the GPU memory budget of {} MiB",
+                self.stored_format.name(),
+                self.gpu_budget.unwrap_or(0) >> 20
+            )
+        })
+    }
+
     /// Stores the volume as `format` from now on (uploading it again when that changes
     /// what is stored); an adapter that cannot filter the format is refused and the
     /// volume stays as it was.
@@ -994,7 +1007,14 @@ impl Renderer {
                 .map(Renderer::gpu_memory)
                 .sum::<u64>();
         self.check_budget(&what, bytes, freeing)?;
-        let vbox = VolumeBox::new(volume.dims, volume.spacing);
+        // the same volume again (in another format) keeps its box, and its level if it
+        // is one (a level keeps the full volume's box and Δs0)
+        let same = Arc::ptr_eq(&volume, &self.volume);
+        let vbox = if same {
+            self.vbox
+        } else {
+            VolumeBox::new(volume.dims, volume.spacing)
+        };
         let upload = upload_or_split(
             &self.gpu,
             &volume,
@@ -1006,7 +1026,9 @@ impl Renderer {
         )?;
         self.stored_format = stored;
         self.vbox = vbox;
-        self.level = None;
+        if !same {
+            self.level = None;
+        }
         (self.volume_view, self.volume_bytes, self.bricks, self.split) =
             upload.into_parts(&self.gpu, &volume);
         self.counters.volume_uploads += self.split.is_none() as u64;

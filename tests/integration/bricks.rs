@@ -624,19 +624,32 @@ fn auto_stores_16_bit_before_a_coarser_level() {
         r.stored_volume_format()
     );
     assert!(r.gpu_memory() <= budget, "{} > {budget}", r.gpu_memory());
+    let notice = r.storage_notice().expect("a notice");
+    assert!(
+        notice.contains("16 bits") && notice.contains("budget"),
+        "{notice}"
+    );
     let s = settings(48, 48, Backend::Compute);
     let stack = vec![instance("classify.tf1d")];
     let t = TargetFormat::Rgba32Float;
     let mut one = Renderer::new(gpu(), demo()).unwrap();
     assert_eq!(one.stored_volume_format(), VolumeFormat::R32Float);
+    assert_eq!(one.storage_notice(), None);
     let a = render(&mut one, &stack, t, &s);
     let b = render(&mut r, &stack, t, &s);
     let rms = crate::reference::gpu_delta_e_rms(&b, &a, 48, 48);
     assert!(rms < 0.05, "{rms}");
     // a named r32float is what the user asked for: the budget then needs a level
-    let named = with(VolumeFormat::R32Float);
+    let mut named = with(VolumeFormat::R32Float);
     assert_eq!(named.stored_volume_format(), VolumeFormat::R32Float);
     assert_eq!(named.level().map(|l| l.factor), Some(2));
+    assert_eq!(named.storage_notice(), None, "what was asked for");
+    // another format for the level keeps the level, its box and its Δs0
+    let vbox = *named.volume_box();
+    named.set_volume_format(VolumeFormat::R16Float).unwrap();
+    assert_eq!(named.stored_volume_format(), VolumeFormat::R16Float);
+    assert_eq!(named.level().map(|l| l.factor), Some(2));
+    assert_eq!(*named.volume_box(), vbox);
     // r16float asked for under the budget: stored so, uploaded again
     let (uploads, before) = (r.counters().volume_uploads, r.stored_volume_format());
     r.set_volume_format(VolumeFormat::R16Float).unwrap();

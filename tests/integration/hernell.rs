@@ -558,44 +558,11 @@ fn hernell_benchmark() {
         );
     }
 
-    // extremes, each against its own exact integration
-    let mut extremes = String::new();
-    let cases: Vec<(&str, Vec<(&str, ParamValue)>)> = vec![
-        (
-            "point light at the centre",
-            vec![
-                ("light_type", ParamValue::Enum("point".into())),
-                ("light", ParamValue::Vec3([0.0, 0.0, 0.0])),
-            ],
-        ),
-        (
-            "directional light grazing at 89°",
-            vec![(
-                "light",
-                ParamValue::Vec3([89f32.to_radians().sin(), 0.0, 89f32.to_radians().cos()]),
-            )],
-        ),
-        (
-            "segment 1, SVR 1:1",
-            vec![
-                ("segment", ParamValue::Int(1)),
-                ("svr", ParamValue::Enum("1:1".into())),
-            ],
-        ),
-    ];
-    for (label, edit) in cases {
-        let mut e = edit.clone();
-        e.push(direct.clone());
-        let run = run_config(&volume, &doc.stack, &s, &e);
-        e.push(exact_mode.clone());
-        let reference = run_config(&volume, &doc.stack, &s, &e);
-        let m = against(&run.px, &reference.px, w, h);
-        extremes += &format!(
-            "| {label} | {:.3} | {:.2} % |\n",
-            m.rms_delta_e,
-            m.share_above_6 * 100.0
-        );
-    }
+    // the extremes are the experiment file's block (experiments/hernell_extremes.ron),
+    // kept
+    let old = std::fs::read_to_string(bench_doc("hernell.md")).unwrap_or_default();
+    let extremes = kept_experiment_blocks(&old, &["hernell_extremes"]);
+    let extremes = extremes.trim_end();
 
     let large = light_update_at_512(&volume, &doc.stack, &s);
 
@@ -653,8 +620,7 @@ fn hernell_benchmark() {
          |---|---|---|---|---|---|\n\
          {scatter}\n\
          ## Extremes\n\n\
-         Each against its own exact integration (same light), direct light.\n\n\
-         | case | ΔE*uv RMS | ΔE > 6 |\n|---|---|---|\n{extremes}\n\
+         {extremes}\n\n\
          Unit tests (plugins/src/shade_hernell/tests.rs) hold: an empty volume lit by I0 \
          with and without scattering; segment 1 on an axis-aligned light equal to the exact \
          integration (1e-5); a point light inside the volume not shadowed by matter behind \

@@ -837,7 +837,10 @@ fn window_retries_at_a_lower_resolution_when_gpu_memory_runs_out() {
     assert_eq!(h.state().renderer().volume().dims, level.level_dims);
     let status = format!("{:?}", h.state().file_status());
     assert!(
-        status.contains("opened") && status.contains("level") && status.contains("budget"),
+        status.contains("opened")
+            && status.contains("level")
+            && status.contains("budget")
+            && status.contains("16 bits"),
         "{status}"
     );
     h.run_steps(2);
