@@ -1503,20 +1503,14 @@ fn write_outputs(
         } else {
             // a GPU's figures go beside the CPU device's, in docs/gpu/ (the doc's
             // folder's `gpu/`), as the benchmarks write theirs
-            let name = doc.file_name().unwrap_or_default();
             let gpu_doc = gpu_doc_path(&doc);
-            if !gpu_doc.exists() {
-                let title = format!(
-                    "# {0} on a GPU\n\nThe blocks of experiment files run on a GPU adapter; the \
-                     CPU device's are in ../{0}.\n",
-                    name.to_string_lossy()
-                );
-                std::fs::create_dir_all(gpu_doc.parent().unwrap_or(Path::new(".")))
-                    .with_context(|| format!("{}: cannot create the folder", gpu_doc.display()))?;
-                measure::save_text(&gpu_doc, &title)?;
-            }
+            let title = format!(
+                "# {0} on a GPU\n\nThe blocks of experiment files run on a GPU adapter; the \
+                 CPU device's are in ../{0}.\n",
+                gpu_doc.file_name().unwrap_or_default().to_string_lossy()
+            );
             let heading = format!("## Experiment `{}` ({})", e.name, e.description);
-            write_or_add_block(&gpu_doc, &block.block, &heading, &o.markdown)?;
+            write_or_add_block(&gpu_doc, &title, &block.block, &heading, &o.markdown)?;
         }
     }
     Ok(())
@@ -1623,10 +1617,16 @@ pub fn gpu_doc_path(doc: &Path) -> PathBuf {
 }
 
 /// Writes `body` into the block `name` of `doc`, first adding the block under
-/// `heading` at the end where the document has none (or creating the document): a
-/// GPU's copy of a doc written before the block existed.
-pub fn write_or_add_block(doc: &Path, name: &str, heading: &str, body: &str) -> Result<()> {
-    let mut text = std::fs::read_to_string(doc).unwrap_or_default();
+/// `heading` at the end where the document has none, or creating the document from
+/// `new_doc` (its folder too): a GPU's copy of a doc written before the block existed.
+pub fn write_or_add_block(
+    doc: &Path,
+    new_doc: &str,
+    name: &str,
+    heading: &str,
+    body: &str,
+) -> Result<()> {
+    let mut text = std::fs::read_to_string(doc).unwrap_or_else(|_| new_doc.to_string());
     if !text.contains(&format!("<!-- BEGIN {name} -->")) {
         text += &format!("\n{heading}\n\n<!-- BEGIN {name} -->\n<!-- END {name} -->\n");
         if let Some(dir) = doc.parent() {
@@ -1962,14 +1962,14 @@ mod tests {
         let dir = std::env::temp_dir().join(format!("vwb-gpu-doc-{}", std::process::id()));
         let doc = dir.join("gpu").join("x.md");
         let _ = std::fs::remove_dir_all(&dir);
-        write_or_add_block(&doc, "b", "## B", "one\n").unwrap();
+        write_or_add_block(&doc, "# X\n", "b", "## B", "one\n").unwrap();
         let text = std::fs::read_to_string(&doc).unwrap();
         assert!(
-            text.contains("## B\n\n<!-- BEGIN b -->\none\n<!-- END b -->"),
+            text.starts_with("# X\n\n## B\n\n<!-- BEGIN b -->\none\n<!-- END b -->"),
             "{text}"
         );
         // a second write replaces the block and adds no second heading
-        write_or_add_block(&doc, "b", "## B", "two\n").unwrap();
+        write_or_add_block(&doc, "# X\n", "b", "## B", "two\n").unwrap();
         let text = std::fs::read_to_string(&doc).unwrap();
         assert_eq!(text.matches("## B").count(), 1, "{text}");
         assert!(text.contains("two") && !text.contains("one"), "{text}");

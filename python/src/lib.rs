@@ -109,6 +109,7 @@ impl Scene {
         let r = self.renderer.as_mut().expect("just made");
         r.set_volume_format(d.render.volume_format)
             .map_err(|e| err(e.into()))?;
+        r.set_empty_space_skipping(d.render.empty_space_skipping);
         r.update_stack(&d.stack, d.render.target)
             .map_err(|e| err(e.into()))?;
         Ok(r)

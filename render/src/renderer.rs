@@ -554,15 +554,10 @@ impl VolumeFormat {
         budget: Option<u64>,
     ) -> Result<VolumeFormat, RenderError> {
         let concrete = self.concrete(gpu);
-        concrete.texture_format(gpu)?;
-        let over = |f: VolumeFormat| {
-            f.texture_format(gpu)
-                .is_ok_and(|t| budget.is_some_and(|b| volume_texture_bytes(t, volume) > b))
-        };
-        if self.is_auto() && concrete == VolumeFormat::R32Float && over(concrete) {
-            let unorm = gpu
-                .features
-                .contains(wgpu::Features::TEXTURE_FORMAT_16BIT_NORM);
+        let texture = concrete.texture_format(gpu)?;
+        let over = budget.is_some_and(|b| volume_texture_bytes(texture, volume) > b);
+        if self.is_auto() && concrete == VolumeFormat::R32Float && over {
+            let unorm = VolumeFormat::R16Unorm.texture_format(gpu).is_ok();
             return Ok(if unorm {
                 VolumeFormat::R16Unorm
             } else {
@@ -574,30 +569,20 @@ impl VolumeFormat {
 
     /// The texture format on `gpu`, or why the adapter cannot filter it.
     pub fn texture_format(self, gpu: &GpuContext) -> Result<wgpu::TextureFormat, RenderError> {
-        let f32_ok = gpu.float32_filterable();
-        Ok(match self {
-            VolumeFormat::Auto if f32_ok => wgpu::TextureFormat::R32Float,
-            VolumeFormat::Auto | VolumeFormat::R16Float => wgpu::TextureFormat::R16Float,
-            VolumeFormat::R32Float if f32_ok => wgpu::TextureFormat::R32Float,
-            VolumeFormat::R32Float => {
-                return Err(RenderError::VolumeFormatUnsupported(
-                    self.name(),
-                    "FLOAT32_FILTERABLE",
-                ));
-            }
-            VolumeFormat::R16Unorm => {
-                if !gpu
+        let lacks = |feature| Err(RenderError::VolumeFormatUnsupported(self.name(), feature));
+        match self.concrete(gpu) {
+            VolumeFormat::R32Float if gpu.float32_filterable() => Ok(wgpu::TextureFormat::R32Float),
+            VolumeFormat::R32Float => lacks("FLOAT32_FILTERABLE"),
+            VolumeFormat::R16Unorm
+                if gpu
                     .features
-                    .contains(wgpu::Features::TEXTURE_FORMAT_16BIT_NORM)
-                {
-                    return Err(RenderError::VolumeFormatUnsupported(
-                        self.name(),
-                        "TEXTURE_FORMAT_16BIT_NORM",
-                    ));
-                }
-                wgpu::TextureFormat::R16Unorm
+                    .contains(wgpu::Features::TEXTURE_FORMAT_16BIT_NORM) =>
+            {
+                Ok(wgpu::TextureFormat::R16Unorm)
             }
-        })
+            VolumeFormat::R16Unorm => lacks("TEXTURE_FORMAT_16BIT_NORM"),
+            VolumeFormat::R16Float | VolumeFormat::Auto => Ok(wgpu::TextureFormat::R16Float),
+        }
     }
 }
 

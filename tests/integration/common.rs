@@ -63,7 +63,7 @@ pub fn kept_block(old: &str, name: &str, run: &str) -> String {
 /// `heading` at the end where the document has none (a GPU's copy written before the
 /// block existed).
 pub fn write_or_add_block(doc: &Path, name: &str, heading: &str, body: &str) {
-    vwb_lab::experiment::write_or_add_block(doc, name, heading, body).unwrap();
+    vwb_lab::experiment::write_or_add_block(doc, "", name, heading, body).unwrap();
 }
 
 /// A path in this test run's scratch directory.
