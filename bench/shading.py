@@ -30,7 +30,7 @@ from doclib import REPO, default_vwb, machine_line, vwb_env, write_block
 MODELS = [("none", "none"), ("phong", "Blinn–Phong"), ("envmap", "environment map"),
           ("iso", "isosurface (+DVR)")]
 VOLUMES = [("ct", "CT head 256×256×108"), ("nuclei", "nuclei 256×256×60")]
-ESTIMATORS = ["central", "sobel", "precomputed_central", "precomputed_sobel"]
+ESTIMATORS = ["central", "sobel", "precomputed_central", "precomputed_sobel", "quantized"]
 
 
 def run(cmd, env):

@@ -212,6 +212,50 @@ fn shading_normal(g: vec3<f32>, fade: f32, v: vec3<f32>, two_sided: bool) -> vec
     return vec4<f32>(n, clamp(m / max(fade, 1.0e-12), 0.0, 1.0));
 }
 
+// Octahedral map of a unit vector onto [-1, 1]² (Meyer et al. 2010); (0, 0) for the
+// zero vector. Twin: shading::oct_encode.
+fn oct_encode(n: vec3<f32>) -> vec2<f32> {
+    let s = abs(n.x) + abs(n.y) + abs(n.z);
+    if (!(s > 0.0 && s < 3.0e38)) {
+        return vec2<f32>(0.0);
+    }
+    let p = n.xy / s;
+    if (n.z < 0.0) {
+        return (vec2<f32>(1.0) - abs(p.yx)) * select(vec2<f32>(-1.0), vec2<f32>(1.0), p >= vec2<f32>(0.0));
+    }
+    return p;
+}
+
+// The unit vector of an octahedral point. Twin: shading::oct_decode.
+fn oct_decode(e: vec2<f32>) -> vec3<f32> {
+    let z = 1.0 - abs(e.x) - abs(e.y);
+    var xy = e;
+    if (z < 0.0) {
+        xy = (vec2<f32>(1.0) - abs(e.yx)) * select(vec2<f32>(-1.0), vec2<f32>(1.0), e >= vec2<f32>(0.0));
+    }
+    return safe_normalize(vec3<f32>(xy, z));
+}
+
+// The quantized estimator's code of a gradient (rgba8unorm: direction in 16 bits,
+// √magnitude in 8), rounded here to k/255 so that the store's conversion is exact.
+// Twin: shading::gradient_code.
+fn gradient_encode(g: vec3<f32>) -> vec4<f32> {
+    let m = length(g);
+    var e = vec2<f32>(0.0);
+    var mm = 0.0;
+    if (m > 0.0 && m < 3.0e38) {
+        e = oct_encode(g / m);
+        mm = min(m, 1.0);
+    }
+    let c = vec3<f32>(e * 0.5 + vec2<f32>(0.5), sqrt(mm));
+    return vec4<f32>(round(clamp(c, vec3<f32>(0.0), vec3<f32>(1.0)) * 255.0) / 255.0, 0.0);
+}
+
+// The gradient of a code of gradient_encode. Twin: shading::gradient_decode.
+fn gradient_decode(c: vec4<f32>) -> vec3<f32> {
+    return oct_decode(c.xy * 2.0 - vec2<f32>(1.0)) * (c.z * c.z);
+}
+
 fn view_right() -> vec3<f32> {
     return normalize(frame.ray_basis[0].xyz);
 }

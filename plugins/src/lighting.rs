@@ -101,26 +101,58 @@ pub fn light_params(n: usize) -> Vec<ParamSpec> {
         .collect()
 }
 
+/// The regions of a hook file around each light's `add_light` call
+/// (`// light{i}: begin` … `// light{i}: end`).
+const LIGHT_REGIONS: [&str; 4] = ["light0", "light1", "light2", "light3"];
+
+/// The hook file with only the lights in `compiled` left in: the others' calls are
+/// blanked ([`ShaderSource::without_regions`]). A branch on a light's `on` flag does not
+/// save its cost on a CPU device, which runs the code of both sides of a branch when
+/// its lanes may differ (measured on lavapipe: docs/perf.md, "Cheap shading"), so a
+/// light that is off is compiled out; switching it on recomposes the pipeline.
+pub fn with_lights(file: &'static str, source: &'static str, compiled: [bool; 4]) -> ShaderSource {
+    let off: Vec<(&str, &str)> = LIGHT_REGIONS
+        .iter()
+        .zip(compiled)
+        .filter(|(_, on)| !on)
+        .map(|(r, _)| (*r, ""))
+        .collect();
+    ShaderSource::without_regions(file, source, &off)
+}
+
+/// Which of the four lights are on.
+pub fn lights_on(p: &ParamValues) -> [bool; 4] {
+    std::array::from_fn(|i| p.boolean(LIGHT_KEYS[i][0]))
+}
+
 /// The lights that are on, for the CPU twin.
 pub fn lights(p: &ParamValues, n: usize) -> Vec<Light> {
+    light_slots(p, n).into_iter().flatten().collect()
+}
+
+/// Each of the `n` light slots: its light, or None where it is off.
+pub fn light_slots(p: &ParamValues, n: usize) -> Vec<Option<Light>> {
     LIGHT_KEYS[..n]
         .iter()
-        .filter(|k| p.boolean(k[0]))
-        .map(|k| Light {
-            kind: if p.enumeration(k[1]) == "point" {
-                LightKind::Point
-            } else {
-                LightKind::Directional
-            },
-            space: if p.enumeration(k[2]) == "world" {
-                LightSpace::World
-            } else {
-                LightSpace::View
-            },
-            vector: DVec3::from(p.vec3(k[3]).map(f64::from)),
-            color: DVec3::from([0, 1, 2].map(|c| p.color(k[4])[c] as f64)),
-        })
+        .map(|k| p.boolean(k[0]).then(|| light_of(p, k)))
         .collect()
+}
+
+fn light_of(p: &ParamValues, k: &[&str; 5]) -> Light {
+    Light {
+        kind: if p.enumeration(k[1]) == "point" {
+            LightKind::Point
+        } else {
+            LightKind::Directional
+        },
+        space: if p.enumeration(k[2]) == "world" {
+            LightSpace::World
+        } else {
+            LightSpace::View
+        },
+        vector: DVec3::from(p.vec3(k[3]).map(f64::from)),
+        color: DVec3::from([0, 1, 2].map(|c| p.color(k[4])[c] as f64)),
+    }
 }
 
 /// A single view-space directional light (the head light of the isosurface and
@@ -183,13 +215,20 @@ pub trait LitColour: Send + Sync + 'static {
 /// model's parameters, `two_sided`, `gradient_floor` and four lights; opacity is kept.
 pub struct Lit<M> {
     pub gradient: GradientEstimator,
+    /// The lights compiled in (those that are on: [`with_lights`]).
+    pub lights: [bool; 4],
     model: PhantomData<fn() -> M>,
 }
 
 impl<M> Lit<M> {
+    /// The model with light 0 on (the default parameters).
     pub fn new(gradient: GradientEstimator) -> Self {
+        Self::with(gradient, [true, false, false, false])
+    }
+    pub fn with(gradient: GradientEstimator, lights: [bool; 4]) -> Self {
         Self {
             gradient,
+            lights,
             model: PhantomData,
         }
     }
@@ -223,14 +262,17 @@ impl<M: LightingModel> Plugin for Lit<M> {
         p
     }
     fn shader(&self) -> ShaderSource {
-        self.gradient.hook_source(M::FILE, M::SOURCE)
+        self.gradient
+            .append_to(with_lights(M::FILE, M::SOURCE, self.lights))
     }
     fn prepass(&self) -> Option<PrepassDecl> {
         self.gradient.prepass()
     }
     fn configure(&self, params: &ParamValues) -> Option<Arc<dyn Plugin>> {
         let gradient = GradientEstimator::from_params(params);
-        (gradient != self.gradient).then(|| Arc::new(Self::new(gradient)) as Arc<dyn Plugin>)
+        let on = lights_on(params);
+        (gradient != self.gradient || on != self.lights)
+            .then(|| Arc::new(Self::with(gradient, on)) as Arc<dyn Plugin>)
     }
     /// Shading changes colours only.
     fn transparency(&self, _params: &ParamValues) -> Transparency {

@@ -825,6 +825,50 @@ fn check_limits(bindings: &[Binding], limits: &wgpu::Limits) -> Result<(), Compo
 }
 
 /// Composes the enabled plugins (in stack order) into the slice shader.
+/// The workgroup shape of the template's whole-frame compute entry points.
+pub const MAIN_WORKGROUP: [u32; 2] = [8, 8];
+
+/// The whole-frame passes' workgroup shape on `gpu`: `requested` where the device
+/// allows it, else the shape measured fastest for the adapter's kind (docs/perf.md,
+/// "Workgroup shapes"): [`MAIN_WORKGROUP`] on GPUs, [`CPU_WORKGROUP`] on CPU devices.
+pub fn main_workgroup(gpu: &crate::gpu::GpuContext, requested: Option<[u32; 2]>) -> [u32; 2] {
+    let l = &gpu.limits;
+    let fits = |[x, y]: [u32; 2]| {
+        x > 0
+            && y > 0
+            && x <= l.max_compute_workgroup_size_x
+            && y <= l.max_compute_workgroup_size_y
+            && x * y <= l.max_compute_invocations_per_workgroup
+    };
+    match requested {
+        Some(wg) if fits(wg) => wg,
+        _ if gpu.adapter.get_info().device_type == wgpu::DeviceType::Cpu && fits(CPU_WORKGROUP) => {
+            CPU_WORKGROUP
+        }
+        _ => MAIN_WORKGROUP,
+    }
+}
+
+/// The shape chosen on CPU devices (lavapipe).
+pub const CPU_WORKGROUP: [u32; 2] = [8, 8];
+
+/// The composed module with `cs_main` and `cs_main_skip` in workgroups of `wg` (the
+/// template declares [`MAIN_WORKGROUP`]); the other entry points keep theirs.
+pub fn with_main_workgroup(source: &str, wg: [u32; 2]) -> std::borrow::Cow<'_, str> {
+    if wg == MAIN_WORKGROUP {
+        return source.into();
+    }
+    let from = format!(
+        "@compute @workgroup_size({}, {}, 1)\nfn cs_main",
+        MAIN_WORKGROUP[0], MAIN_WORKGROUP[1]
+    );
+    let to = format!(
+        "@compute @workgroup_size({}, {}, 1)\nfn cs_main",
+        wg[0], wg[1]
+    );
+    source.replace(&from, &to).into()
+}
+
 pub fn compose(
     plugins: &[&dyn Plugin],
     target: TargetFormat,

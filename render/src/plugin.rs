@@ -190,6 +190,9 @@ pub enum StorageFormat {
     R32Float,
     Rgba16Float,
     Rgba32Float,
+    /// Four 8-bit unsigned normalised channels (k/255), e.g. packed codes such as the
+    /// quantised gradients (`vwb_render::shading`), read with `textureLoad`.
+    Rgba8Unorm,
 }
 
 impl StorageFormat {
@@ -198,6 +201,7 @@ impl StorageFormat {
             StorageFormat::R32Float => "r32float",
             StorageFormat::Rgba16Float => "rgba16float",
             StorageFormat::Rgba32Float => "rgba32float",
+            StorageFormat::Rgba8Unorm => "rgba8unorm",
         }
     }
     pub fn wgpu(self) -> wgpu::TextureFormat {
@@ -205,11 +209,12 @@ impl StorageFormat {
             StorageFormat::R32Float => wgpu::TextureFormat::R32Float,
             StorageFormat::Rgba16Float => wgpu::TextureFormat::Rgba16Float,
             StorageFormat::Rgba32Float => wgpu::TextureFormat::Rgba32Float,
+            StorageFormat::Rgba8Unorm => wgpu::TextureFormat::Rgba8Unorm,
         }
     }
     /// Sampling 32-bit float formats with filtering needs FLOAT32_FILTERABLE.
     pub fn needs_float32_filterable(self) -> bool {
-        !matches!(self, StorageFormat::Rgba16Float)
+        !matches!(self, StorageFormat::Rgba16Float | StorageFormat::Rgba8Unorm)
     }
 }
 

@@ -434,6 +434,7 @@ fn round_state(v: DVec4, format: StorageFormat) -> DVec4 {
         StorageFormat::Rgba16Float => round_f16(v),
         StorageFormat::Rgba32Float => v.as_vec4().as_dvec4(),
         StorageFormat::R32Float => DVec4::new(v.x as f32 as f64, 0.0, 0.0, 1.0),
+        StorageFormat::Rgba8Unorm => (v.clamp(DVec4::ZERO, DVec4::ONE) * 255.0).round() / 255.0,
     }
 }
 

@@ -632,6 +632,8 @@ pub struct Renderer {
     volume_bytes: u64,
     /// How the volume is asked to be stored ([`RendererOptions::volume_format`]).
     volume_format: VolumeFormat,
+    /// Workgroup shape of the whole-frame compute passes (`cs_main`, `cs_main_skip`).
+    main_workgroup: [u32; 2],
     /// How it is stored ([`VolumeFormat::for_budget`]: never `Auto`).
     stored_format: VolumeFormat,
     /// GPU memory the renderer may hold (`VWB_GPU_MEMORY_LIMIT` bytes, or
@@ -753,6 +755,7 @@ impl Renderer {
         };
         let max_brick_bytes = options.max_brick_bytes;
         let volume_format = options.volume_format;
+        let main_workgroup = crate::composer::main_workgroup(gpu, options.workgroup);
         let (volume_view, volume_bytes, bricks, split) = upload_or_split(
             gpu,
             &volume,
@@ -829,6 +832,7 @@ impl Renderer {
             occupancy_bytes: None,
             skipping_enabled: true,
             shader_overrides: Default::default(),
+            main_workgroup,
             overrides_generation: 0,
             pipelines: None,
             compiled: Vec::new(),
@@ -1056,6 +1060,12 @@ impl Renderer {
     /// at the next [`Renderer::update_stack`].
     pub fn set_empty_space_skipping(&mut self, on: bool) {
         self.skipping_enabled = on;
+    }
+
+    /// Workgroup shape of the whole-frame compute passes
+    /// ([`crate::composer::main_workgroup`]).
+    pub fn main_workgroup(&self) -> [u32; 2] {
+        self.main_workgroup
     }
 
     /// Share of bricks skipped for the current stack, `None` when skipping is off.
@@ -1554,7 +1564,10 @@ impl Renderer {
         });
         let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some("vwb composed slice shader"),
-            source: wgpu::ShaderSource::Wgsl(composition.main.source.as_str().into()),
+            source: wgpu::ShaderSource::Wgsl(crate::composer::with_main_workgroup(
+                composition.main.source.as_str(),
+                self.main_workgroup,
+            )),
         });
         let raster_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
             label: Some("vwb raster"),
@@ -2572,9 +2585,12 @@ impl Renderer {
         let wg = (t.width.div_ceil(8), t.height.div_ceil(8));
         // a brick dispatches its footprint only (offset in frame.settings.zw)
         let rect = self.pixel_rect(&view, [t.width, t.height]);
+        // cs_main and cs_main_skip run in workgroups of the renderer's shape
+        let [mx, my] = self.main_workgroup;
+        let wg_main = (t.width.div_ceil(mx), t.height.div_ceil(my));
         let wg_own = (
-            (rect[2] - rect[0]).div_ceil(8),
-            (rect[3] - rect[1]).div_ceil(8),
+            (rect[2] - rect[0]).div_ceil(mx),
+            (rect[3] - rect[1]).div_ceil(my),
         );
         let run_updates = |enc: &mut wgpu::CommandEncoder, k: u32| {
             let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
@@ -2674,7 +2690,8 @@ impl Renderer {
                     pass.set_bind_group(1, &g1, &[]);
                     pass.set_bind_group(2, &g2[0], &[]);
                     pass.set_bind_group(3, &g3, &[]);
-                    pass.dispatch_workgroups(wg.0, wg.1, 1);
+                    let n = if plan.count == 0 { wg_main } else { wg };
+                    pass.dispatch_workgroups(n.0, n.1, 1);
                 } else {
                     let mut pass = enc.begin_compute_pass(&Default::default());
                     pass.set_pipeline(if self.occupancy_bytes.is_some() {

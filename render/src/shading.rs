@@ -16,11 +16,22 @@
 //! | `sobel` | 26 trilinear | none | 3×3×3 Sobel (derivative ⊗ [1,2,1] ⊗ [1,2,1] / 32) at the sample |
 //! | `precomputed_central` | 1 trilinear | 8 B/voxel | `central` at every voxel centre, rgba16float, interpolated |
 //! | `precomputed_sobel` | 1 trilinear | 8 B/voxel | `sobel` at every voxel centre, rgba16float, interpolated |
+//! | `quantized` | 1 nearest | 4 B/voxel | `central` at every voxel centre, direction in 16 bits, magnitude in 8, not interpolated |
 //!
 //! The pre-pass (`shaders/gradient_prepass.wgsl`) evaluates the on-the-fly estimator at
 //! voxel centres, where trilinear interpolation returns the voxel itself, and stores
 //! (g, |g|) as rgba16float; it reruns only when the volume changes. The CPU twin rounds
 //! the stored values to fp16 like the GPU.
+//!
+//! `quantized` is the cheap estimator of CPU ray casters such as VTK's fixed-point
+//! caster (issue 23, item 3): the pre-pass stores the direction of `central`'s gradient
+//! in 16 bits (the octahedral map of the unit sphere onto [−1, 1]², Meyer et al. 2010,
+//! 8 bits per coordinate) and its magnitude in 8 (√|g| in 1/255 steps, clamped to
+//! |g| ≤ 1, so the steps are finest near the fade floor), as rgba8unorm; a sample reads
+//! its nearest voxel's code with one `textureLoad` (codes are not interpolated). The
+//! direction error is below 1° ([`oct_decode`] of [`gradient_code`]); the nearest-voxel
+//! lookup facets the shading at the voxel scale, which the experiment
+//! `experiments/cheap_shading.ron` measures against the converged reference.
 //!
 //! # Shading normal and the fade rule
 //!
@@ -42,7 +53,7 @@
 //! - `additive` (the thesis's semi-transparent mode, §7.3): rgb = base + Σ (k_d·diff + k_s·spec)·L,
 //!   with k_a scaling base (k_a = 1 is the thesis's "emission is the ambient term").
 
-use glam::{DVec3, DVec4};
+use glam::{DVec2, DVec3, DVec4};
 
 use crate::params::{ParamSpec, ParamValues};
 use crate::plugin::{CpuContext, PrepassDecl, ShaderSource, StorageFormat};
@@ -55,20 +66,23 @@ pub enum GradientEstimator {
     Sobel,
     PrecomputedCentral,
     PrecomputedSobel,
+    Quantized,
 }
 
 impl GradientEstimator {
-    pub const ALL: [Self; 4] = [
+    pub const ALL: [Self; 5] = [
         Self::Central,
         Self::Sobel,
         Self::PrecomputedCentral,
         Self::PrecomputedSobel,
+        Self::Quantized,
     ];
-    pub const NAMES: [&'static str; 4] = [
+    pub const NAMES: [&'static str; 5] = [
         "central",
         "sobel",
         "precomputed_central",
         "precomputed_sobel",
+        "quantized",
     ];
 
     pub fn name(self) -> &'static str {
@@ -81,8 +95,13 @@ impl GradientEstimator {
     pub fn from_params(params: &ParamValues) -> Self {
         Self::from_name(params.enumeration("gradient")).unwrap_or_default()
     }
+    /// Whether a pre-pass volume holds the gradients (the `precomputed_*` ones and
+    /// `quantized`).
     pub fn is_precomputed(self) -> bool {
-        matches!(self, Self::PrecomputedCentral | Self::PrecomputedSobel)
+        matches!(
+            self,
+            Self::PrecomputedCentral | Self::PrecomputedSobel | Self::Quantized
+        )
     }
     pub fn is_sobel(self) -> bool {
         matches!(self, Self::Sobel | Self::PrecomputedSobel)
@@ -94,7 +113,9 @@ impl GradientEstimator {
             .structural()
             .with_doc(
                 "central: 6 reads per sample; sobel: 26 reads; precomputed_*: a pre-pass \
-                 volume (rgba16float, 8 bytes per voxel), 1 read",
+                 volume (rgba16float, 8 bytes per voxel), 1 interpolated read; quantized: \
+                 central's direction in 16 bits and magnitude in 8 (4 bytes per voxel), \
+                 1 read of the nearest voxel",
             )
     }
 
@@ -102,41 +123,58 @@ impl GradientEstimator {
     /// (the estimator's gradient, or the clip cut's where a clip hook set one: `cut_gradient`)
     /// (appended, so that the file's own line numbers stay those of the file).
     pub fn hook_source(self, file: &'static str, source: &'static str) -> ShaderSource {
+        self.append_to(ShaderSource::new_static(file, source))
+    }
+
+    /// [`GradientEstimator::hook_source`] for a source already built (e.g. with regions
+    /// left out).
+    pub fn append_to(self, shader: ShaderSource) -> ShaderSource {
         let body = match self {
             Self::Central => "return cut_gradient(gradient_central(tex));",
             Self::Sobel => "return cut_gradient(gradient_sobel(tex));",
             Self::PrecomputedCentral | Self::PrecomputedSobel => {
                 "return cut_gradient(textureSampleLevel(gradient, linear_clamp, tex, 0.0).xyz);"
             }
+            Self::Quantized => {
+                "let dims = vec3<i32>(textureDimensions(gradient));\n    \
+                 let v = clamp(vec3<i32>(floor(tex * vec3<f32>(dims))), vec3<i32>(0), dims - vec3<i32>(1));\n    \
+                 return cut_gradient(gradient_decode(textureLoad(gradient, v, 0)));"
+            }
         };
         ShaderSource {
-            file: file.into(),
             source: format!(
-                "{source}\n// appended by vwb_render::shading ({} gradient)\nfn gradient_at(tex: vec3<f32>) -> vec3<f32> {{\n    {body}\n}}\n",
+                "{}\n// appended by vwb_render::shading ({} gradient)\nfn gradient_at(tex: vec3<f32>) -> vec3<f32> {{\n    {body}\n}}\n",
+                shader.source,
                 self.name()
             )
             .into(),
+            file: shader.file,
         }
     }
 
-    /// The gradient pre-pass (target `gradient`, rgba16float: g and |g|) of the
-    /// precomputed estimators.
+    /// The gradient pre-pass (target `gradient`: rgba16float g and |g|, or for
+    /// `quantized` the rgba8unorm code of [`gradient_code`]) of the precomputed
+    /// estimators.
     pub fn prepass(self) -> Option<PrepassDecl> {
+        let (format, estimator) = match self {
+            Self::Quantized => (StorageFormat::Rgba8Unorm, "gradient_central"),
+            Self::PrecomputedSobel => (StorageFormat::Rgba16Float, "gradient_sobel"),
+            _ => (StorageFormat::Rgba16Float, "gradient_central"),
+        };
+        let store = if self == Self::Quantized {
+            "gradient_encode(g)"
+        } else {
+            "vec4<f32>(g, length(g))"
+        };
         self.is_precomputed().then(|| PrepassDecl {
             target: "gradient",
-            format: StorageFormat::Rgba16Float,
+            format,
             scale: 1.0,
             shader: ShaderSource {
                 file: "shaders/gradient_prepass.wgsl".into(),
                 source: include_str!("../../shaders/gradient_prepass.wgsl")
-                    .replace(
-                        "gradient_ESTIMATOR",
-                        if self.is_sobel() {
-                            "gradient_sobel"
-                        } else {
-                            "gradient_central"
-                        },
-                    )
+                    .replace("gradient_ESTIMATOR", estimator)
+                    .replace("STORED", store)
                     .into(),
             },
             depends_on: vec![],
@@ -147,6 +185,60 @@ impl GradientEstimator {
 /// Bytes of the gradient pre-pass volume for `dims` (rgba16float).
 pub fn gradient_volume_bytes(dims: [u32; 3]) -> u64 {
     dims.iter().map(|&d| d.max(1) as u64).product::<u64>() * 8
+}
+
+/// `oct_encode`: the octahedral map of a unit vector onto [−1, 1]² (the upper
+/// hemisphere onto the inner diamond, the lower one folded onto the corners); (0, 0)
+/// for the zero vector.
+pub fn oct_encode(n: DVec3) -> DVec2 {
+    let s = n.x.abs() + n.y.abs() + n.z.abs();
+    if !(s > 0.0 && s.is_finite()) {
+        return DVec2::ZERO;
+    }
+    let p = DVec2::new(n.x, n.y) / s;
+    if n.z < 0.0 {
+        let sign = DVec2::new(
+            if p.x >= 0.0 { 1.0 } else { -1.0 },
+            if p.y >= 0.0 { 1.0 } else { -1.0 },
+        );
+        (DVec2::ONE - DVec2::new(p.y.abs(), p.x.abs())) * sign
+    } else {
+        p
+    }
+}
+
+/// `oct_decode`: the unit vector of an octahedral point of [−1, 1]².
+pub fn oct_decode(e: DVec2) -> DVec3 {
+    let z = 1.0 - e.x.abs() - e.y.abs();
+    let xy = if z < 0.0 {
+        let sign = DVec2::new(
+            if e.x >= 0.0 { 1.0 } else { -1.0 },
+            if e.y >= 0.0 { 1.0 } else { -1.0 },
+        );
+        (DVec2::ONE - DVec2::new(e.y.abs(), e.x.abs())) * sign
+    } else {
+        e
+    };
+    safe_normalize(DVec3::new(xy.x, xy.y, z))
+}
+
+/// `gradient_encode`: the 8-bit codes (direction u, direction v, magnitude) of a
+/// gradient, as the rgba8unorm pre-pass target stores them (module docs).
+pub fn gradient_code(g: DVec3) -> [u8; 3] {
+    let m = g.length();
+    let (e, m) = if m > 0.0 && m.is_finite() {
+        (oct_encode(g / m), m.min(1.0))
+    } else {
+        (DVec2::ZERO, 0.0)
+    };
+    let q = |x: f64| (x.clamp(0.0, 1.0) * 255.0).round() as u8;
+    [q(e.x * 0.5 + 0.5), q(e.y * 0.5 + 0.5), q(m.sqrt())]
+}
+
+/// `gradient_decode`: the gradient of a code of [`gradient_code`].
+pub fn gradient_decode(code: [u8; 3]) -> DVec3 {
+    let f = code.map(|c| c as f64 / 255.0);
+    oct_decode(DVec2::new(f[0], f[1]) * 2.0 - 1.0) * (f[2] * f[2])
 }
 
 /// World size of a texel of the shading scalar's grid (`(box_max − box_min) / n` in
@@ -192,9 +284,9 @@ pub fn gradient_sobel(ctx: &CpuContext, tex: DVec3) -> DVec3 {
     g / 32.0 * ctx.reference_step() / texel_world(ctx, grid)
 }
 
-/// The per-voxel gradient volume of the pre-pass: (g, |g|) at every voxel centre,
-/// rounded to fp16 as the rgba16float target stores it. x fastest.
-pub fn gradient_volume(ctx: &CpuContext, sobel: bool) -> Vec<[f32; 4]> {
+/// The estimator's gradient at every voxel centre (x fastest), as the pre-pass
+/// evaluates it.
+fn voxel_gradients(ctx: &CpuContext, sobel: bool) -> Vec<DVec3> {
     use rayon::prelude::*;
     let d = ctx.volume.dims.map(|n| n.max(1) as usize);
     (0..d[0] * d[1] * d[2])
@@ -205,13 +297,36 @@ pub fn gradient_volume(ctx: &CpuContext, sobel: bool) -> Vec<[f32; 4]> {
             let tex = DVec3::from(std::array::from_fn::<f64, 3, _>(|a| {
                 ((v[a] as f32 + 0.5) / d[a] as f32) as f64
             }));
-            let g = if sobel {
+            if sobel {
                 gradient_sobel(ctx, tex)
             } else {
                 gradient_central(ctx, tex)
-            };
+            }
+        })
+        .collect()
+}
+
+/// The per-voxel gradient volume of the pre-pass: (g, |g|) at every voxel centre,
+/// rounded to fp16 as the rgba16float target stores it. x fastest.
+pub fn gradient_volume(ctx: &CpuContext, sobel: bool) -> Vec<[f32; 4]> {
+    voxel_gradients(ctx, sobel)
+        .into_iter()
+        .map(|g| {
             let g32 = g.as_vec3();
             [g32.x, g32.y, g32.z, g32.length()].map(|c| half::f16::from_f32(c).to_f32())
+        })
+        .collect()
+}
+
+/// The `quantized` estimator's pre-pass volume, decoded: `central`'s gradient at every
+/// voxel centre after [`gradient_code`] and [`gradient_decode`] (the GPU encodes the
+/// f32 gradient). x fastest.
+pub fn quantized_gradient_volume(ctx: &CpuContext) -> Vec<[f32; 4]> {
+    voxel_gradients(ctx, false)
+        .into_iter()
+        .map(|g| {
+            let d = gradient_decode(gradient_code(g.as_vec3().as_dvec3())).as_vec3();
+            [d.x, d.y, d.z, d.length()]
         })
         .collect()
 }
@@ -250,7 +365,11 @@ impl Gradients {
     /// Builds the pre-pass volume once (precomputed estimators).
     pub fn prepare(&mut self, ctx: &CpuContext) {
         if self.estimator.is_precomputed() && self.volume.is_none() {
-            self.volume = Some(gradient_volume(ctx, self.estimator.is_sobel()));
+            self.volume = Some(if self.estimator == GradientEstimator::Quantized {
+                quantized_gradient_volume(ctx)
+            } else {
+                gradient_volume(ctx, self.estimator.is_sobel())
+            });
         }
     }
     /// `gradient_at(tex)`: the clip cut's gradient where a clip twin set one for the
@@ -262,6 +381,16 @@ impl Gradients {
         match (self.estimator, &self.volume) {
             (GradientEstimator::Central, _) => gradient_central(ctx, tex),
             (GradientEstimator::Sobel, _) => gradient_sobel(ctx, tex),
+            (GradientEstimator::Quantized, Some(v)) => {
+                let d = ctx.volume.dims.map(|n| n.max(1));
+                let i = std::array::from_fn::<usize, 3, _>(|a| {
+                    // floor(tex·dims) in f32, clamped to the grid, as the hook computes it
+                    let t = [tex.x, tex.y, tex.z][a] as f32 * d[a] as f32;
+                    (t.floor().max(0.0) as usize).min(d[a] as usize - 1)
+                });
+                let c = v[i[0] + d[0] as usize * (i[1] + d[1] as usize * i[2])];
+                DVec3::new(c[0] as f64, c[1] as f64, c[2] as f64)
+            }
             (_, Some(v)) => ctx
                 .trilinear(tex, |i| DVec4::from(v[i].map(f64::from)))
                 .truncate(),
@@ -375,8 +504,21 @@ pub fn blinn_phong(
     m: &Material,
     additive: bool,
 ) -> DVec3 {
-    let mut diffuse = DVec3::ZERO;
-    let mut specular = DVec3::ZERO;
+    blinn_phong_with(base, n, v, lights, m, additive, None)
+}
+
+/// [`blinn_phong`] with the (k_d-weighted diffuse, k_s-weighted specular) sums of
+/// further lights already evaluated, e.g. read from a lighting table.
+pub fn blinn_phong_with(
+    base: DVec3,
+    n: DVec3,
+    v: DVec3,
+    lights: &[(DVec3, DVec3)],
+    m: &Material,
+    additive: bool,
+    tabulated: Option<(DVec3, DVec3)>,
+) -> DVec3 {
+    let (mut diffuse, mut specular) = tabulated.unwrap_or((DVec3::ZERO, DVec3::ZERO));
     for (l, color) in lights {
         let (d, s) = blinn_phong_factors(n, v, *l, m.shininess);
         diffuse += *color * (m.kd * d);
@@ -427,8 +569,12 @@ mod tests {
             let mut g = Gradients::new(e);
             g.prepare(&ctx);
             let got = g.at(&ctx, tex);
-            // f32 scalars; fp16 storage for the pre-pass volume
-            let tol = if e.is_precomputed() { 2e-3 } else { 1e-6 };
+            // f32 scalars; fp16 storage for the pre-pass volume; 8-bit codes (1°)
+            let tol = match e {
+                GradientEstimator::Quantized => 2e-2,
+                e if e.is_precomputed() => 2e-3,
+                _ => 1e-6,
+            };
             assert!(
                 (got - expect).length() <= tol * expect.length(),
                 "{}: {got} vs {expect}",
@@ -537,5 +683,100 @@ mod tests {
             color: DVec3::ONE,
         };
         assert!((point.dir(&ctx, DVec3::new(0.0, 1.0, 0.0)) - DVec3::Y).length() < 1e-12);
+    }
+
+    /// Directions over the whole sphere (a Fibonacci spiral) plus the axes, the
+    /// octahedron's faces and the equator, where the map folds.
+    fn sphere_directions(n: usize) -> Vec<DVec3> {
+        let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
+        let mut d: Vec<DVec3> = (0..n)
+            .map(|i| {
+                let z = 1.0 - 2.0 * (i as f64 + 0.5) / n as f64;
+                let r = (1.0 - z * z).sqrt();
+                let phi = golden * i as f64;
+                DVec3::new(r * phi.cos(), r * phi.sin(), z)
+            })
+            .collect();
+        for a in [DVec3::X, DVec3::Y, DVec3::Z] {
+            d.extend([a, -a]);
+        }
+        for s in [
+            [1.0, 1.0, 1.0],
+            [-1.0, 1.0, -1.0],
+            [1.0, -1.0, 0.0],
+            [-1.0, 0.0, -1e-9],
+        ] {
+            d.push(DVec3::from(s).normalize());
+        }
+        d
+    }
+
+    #[test]
+    fn octahedral_map_is_its_own_inverse_over_the_sphere() {
+        for n in sphere_directions(4000) {
+            let e = oct_encode(n);
+            assert!(e.x.abs() <= 1.0 && e.y.abs() <= 1.0, "{n} -> {e}");
+            let back = oct_decode(e);
+            assert!((back - n).length() < 1e-12, "{n} -> {e} -> {back}");
+        }
+        assert_eq!(oct_encode(DVec3::ZERO), DVec2::ZERO);
+        assert_eq!(oct_encode(DVec3::splat(f64::NAN)), DVec2::ZERO);
+    }
+
+    /// The quantised codes keep the direction within 1° and the magnitude within half
+    /// a step of √|g| (|g| within √|g|/255 + 1/255²); zero, NaN and
+    /// huge gradients give finite codes.
+    #[test]
+    fn quantized_codes_keep_direction_and_magnitude() {
+        let mut worst = 0.0f64;
+        for (i, n) in sphere_directions(20000).into_iter().enumerate() {
+            let m = 0.02 + 0.9 * (i % 97) as f64 / 96.0;
+            let g = gradient_decode(gradient_code(n * m));
+            worst = worst.max(g.normalize().dot(n).clamp(-1.0, 1.0).acos().to_degrees());
+            let step = 2.0 * m.sqrt() / 255.0;
+            assert!(
+                (g.length() - m).abs() <= 0.5 * step + 4e-6,
+                "{m} vs {}",
+                g.length()
+            );
+        }
+        assert!(worst < 1.0, "worst direction error {worst}°");
+        assert!(worst > 0.1, "the codes do quantise: {worst}°");
+        assert_eq!(gradient_decode(gradient_code(DVec3::ZERO)).length(), 0.0);
+        assert_eq!(
+            gradient_decode(gradient_code(DVec3::splat(f64::NAN))).length(),
+            0.0
+        );
+        let huge = gradient_decode(gradient_code(DVec3::new(0.0, 5.0, 0.0)));
+        assert!(
+            (huge - DVec3::Y).length() < 1e-2,
+            "{huge}: clamped to |g| = 1"
+        );
+    }
+
+    /// The twin of the quantized estimator reads the nearest voxel's code: constant
+    /// within a voxel, and the code of `central` at that voxel's centre.
+    #[test]
+    fn quantized_estimator_reads_the_nearest_voxel() {
+        let vol = ramp([8, 8, 8], [1.0; 3], |x, y, z| x * x + 2.0 * y - z);
+        let scalars = vol.normalized_scalars();
+        let ctx = CpuContext::new(&vol, &scalars);
+        let mut g = Gradients::new(GradientEstimator::Quantized);
+        g.prepare(&ctx);
+        let centre = (DVec3::new(3.0, 4.0, 2.0) + 0.5) / 8.0;
+        let expect = gradient_decode(gradient_code(
+            gradient_central(&ctx, centre).as_vec3().as_dvec3(),
+        ));
+        for off in [
+            DVec3::ZERO,
+            DVec3::splat(0.45 / 8.0),
+            DVec3::splat(-0.45 / 8.0),
+        ] {
+            let got = g.at(&ctx, centre + off);
+            assert!((got - expect).length() < 1e-6, "{got} vs {expect}");
+        }
+        // the next voxel along x holds another gradient (f = x² grows faster)
+        let next = g.at(&ctx, centre + DVec3::new(1.0 / 8.0, 0.0, 0.0));
+        assert!((next - expect).length() > 1e-3);
     }
 }

@@ -905,3 +905,50 @@ fn atlas_benchmark() {
     });
     vwb_lab::measure::save_json(&bench_doc("atlas_bench.json"), &out).expect("write");
 }
+
+/// The workgroup shape of the whole-frame compute passes (issue 23, item 4) changes
+/// how pixels are grouped, never a pixel: every shape gives the 8×8 image bit for bit,
+/// with and without empty-space skipping, at a size no shape divides, and in an atlas.
+/// A shape the device cannot run falls back to the adapter's default.
+#[test]
+fn workgroup_shapes_render_the_same_pixels() {
+    use vwb_render::renderer::{AtlasTile, RendererOptions};
+    let s = settings(50, 37, Backend::Compute);
+    let stack = vec![instance("classify.tf1d"), instance("shade.blinn_phong")];
+    let t = TargetFormat::Rgba32Float;
+    let mut cams = [s.camera; 2];
+    cams[1].yaw_deg += 70.0;
+    let run = |wg: [u32; 2]| {
+        let options = RendererOptions {
+            workgroup: Some(wg),
+            ..Default::default()
+        };
+        let mut r = Renderer::with_options(gpu(), demo(), options).unwrap();
+        let skip = render(&mut r, &stack, t, &s);
+        r.set_empty_space_skipping(false);
+        let all = render(&mut r, &stack, t, &s);
+        let tiles: Vec<_> = cams
+            .iter()
+            .map(|c| AtlasTile {
+                camera: *c,
+                stack: &stack,
+            })
+            .collect();
+        let atlas = r.render_atlas(&tiles, &s, t, 2).unwrap().pixels;
+        (r.main_workgroup(), skip, all, atlas)
+    };
+    let base = run([8, 8]);
+    assert_eq!(base.0, [8, 8]);
+    assert!(base.1.iter().any(|p| p[3] > 0.1), "the demo is visible");
+    for wg in [[16, 16], [16, 4], [4, 16], [32, 2], [1, 1]] {
+        let other = run(wg);
+        assert_eq!(other.0, wg);
+        assert!(other.1 == base.1, "{wg:?} with skipping");
+        assert!(other.2 == base.2, "{wg:?} without skipping");
+        assert!(other.3 == base.3, "{wg:?} in an atlas");
+    }
+    // 4096 invocations exceed every device's limit: the adapter's default instead
+    let fallback = run([64, 64]);
+    assert_ne!(fallback.0, [64, 64]);
+    assert!(fallback.1 == base.1);
+}

@@ -233,3 +233,61 @@ fn environment_maps_from_files_and_bad_files() {
     assert_eq!(still, px, "the last good pipeline keeps rendering");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// The lighting table of `shade.blinn_phong` is baked when the stack is built and again
+/// only when a tabulated light or k_d, k_s, the shininess change: not for a camera
+/// move, nor for parameters the table does not hold. The quantized estimator's codes
+/// are computed once per volume. Shaded through both, the image stays close to the
+/// per-sample one.
+#[test]
+fn lighting_table_rebakes_only_for_lights_and_material() {
+    use vwb_plugins::shade_blinn_phong::table;
+    let mut r = Renderer::new(gpu(), demo()).unwrap();
+    let mut s = settings(48, 48, Backend::Compute);
+    let direct = stack("shade.blinn_phong", GradientEstimator::Central);
+    let reference = render(&mut r, &direct, TargetFormat::Rgba32Float, &s);
+    let mut st = stack("shade.blinn_phong", GradientEstimator::Quantized);
+    st[1]
+        .params
+        .set("lighting", ParamValue::Enum("table".into()));
+    let before = table::bakes();
+    let px = render(&mut r, &st, TargetFormat::Rgba32Float, &s);
+    assert_eq!(table::bakes() - before, 1, "baked when built");
+    let rms = crate::reference::gpu_delta_e_rms(&px, &reference, 48, 48);
+    eprintln!("quantized + table vs central + direct: ΔE*uv RMS {rms:.3}");
+    assert!(rms > 0.0 && rms < 3.0, "{rms}");
+    // a camera move and a parameter outside the table: no bake, no pre-pass
+    s.camera.yaw_deg += 40.0;
+    st[1].params.set("gm_scale", ParamValue::Float(3.0));
+    r.update_stack(&st, TargetFormat::Rgba32Float).unwrap();
+    assert_eq!(r.render(&s).unwrap().prepasses_run, 0);
+    assert_eq!(table::bakes() - before, 1, "not baked for a camera move");
+    // the material and a light: baked again
+    st[1].params.set("ks", ParamValue::Float(0.8));
+    r.update_stack(&st, TargetFormat::Rgba32Float).unwrap();
+    r.render(&s).unwrap();
+    assert_eq!(table::bakes() - before, 2);
+    st[1]
+        .params
+        .set("light0_color", ParamValue::Color([1.0, 0.5, 0.5, 1.0]));
+    let reddish = render(&mut r, &st, TargetFormat::Rgba32Float, &s);
+    assert_eq!(table::bakes() - before, 3);
+    let red = |img: &[[f32; 4]]| img.iter().map(|p| (p[0] - p[1]) as f64).sum::<f64>();
+    let white = {
+        st[1]
+            .params
+            .set("light0_color", ParamValue::Color([1.0, 1.0, 1.0, 1.0]));
+        render(&mut r, &st, TargetFormat::Rgba32Float, &s)
+    };
+    assert!(red(&reddish) > red(&white) + 0.1, "the new table is drawn");
+    // the quantized codes: 4 bytes per voxel
+    let d = demo().dims;
+    let voxels = d.iter().map(|&n| n as u64).product::<u64>();
+    let mem = r.plugin_memory();
+    assert!(
+        mem.iter().any(|(_, id, bytes)| *id == "shade.blinn_phong"
+            && *bytes >= 4 * voxels
+            && *bytes < 8 * voxels),
+        "{mem:?}"
+    );
+}

@@ -102,3 +102,103 @@ fn every_estimator_gives_the_same_light_on_a_ramp() {
         assert!((*c - colours[0]).length() < 2e-3, "{colours:?}");
     }
 }
+
+fn configured(p: &ParamValues) -> Arc<dyn Plugin> {
+    BlinnPhong::default()
+        .configure(p)
+        .unwrap_or_else(|| Arc::new(BlinnPhong::default()))
+}
+
+/// Only the lights evaluated per sample are compiled in: those that are on, and in
+/// table mode not the view-space directional ones (the table holds them).
+#[test]
+fn only_the_lights_in_use_are_compiled_in() {
+    let mut p = defaults();
+    // the default plugin is what the default parameters configure
+    assert!(BlinnPhong::default().configure(&p).is_none());
+    let calls = |p: &ParamValues| {
+        let s = configured(p).shader();
+        (0..4)
+            .filter(|i| s.source.contains(&format!("add_light(t, params.light{i}_on")))
+            .collect::<Vec<_>>()
+    };
+    assert_eq!(calls(&p), [0]);
+    p.set("light2_on", ParamValue::Bool(true));
+    assert_eq!(calls(&p), [0, 2]);
+    p.set("lighting", ParamValue::Enum("table".into()));
+    assert_eq!(calls(&p), Vec::<usize>::new());
+    p.set("light2_space", ParamValue::Enum("world".into()));
+    assert_eq!(calls(&p), [2]);
+    p.set("light0_type", ParamValue::Enum("point".into()));
+    assert_eq!(calls(&p), [0, 2]);
+    // the compiled shader keeps the file's line numbers (regions are blanked)
+    let c = configured(&p);
+    let lines = c.shader().source.lines().count();
+    assert!(lines > include_str!("blinn_phong.wgsl").lines().count());
+    assert_eq!(c.resources().len(), 1);
+    assert!(configured(&defaults()).resources().is_empty());
+}
+
+/// The table holds k_d·diffuse and k_s·specular of the view-space directional lights
+/// for the view vector (0, 0, 1): a normal's cell gives them within the cell's
+/// direction error (256² cells: under 1°).
+#[test]
+fn the_lighting_table_matches_direct_evaluation() {
+    let mut p = defaults();
+    p.set("light1_on", ParamValue::Bool(true));
+    p.set("light1_color", ParamValue::Color([1.0, 0.2, 0.1, 1.0]));
+    let lights = lighting::lights(&p, 4);
+    let m = lighting::material(&p);
+    let texels = table::bake(&lights, &m);
+    assert_eq!(texels.len(), (2 * table::SIZE * table::SIZE) as usize);
+    let v = DVec3::Z;
+    let (mut worst, mut sum, mut n) = (0.0f64, 0.0, 0);
+    for k in 0..5000 {
+        let z = 1.0 - 2.0 * (k as f64 + 0.5) / 5000.0;
+        let r = (1.0 - z * z).sqrt();
+        let phi = 2.399_963_229_728_653 * k as f64;
+        let normal = DVec3::new(r * phi.cos(), r * phi.sin(), z);
+        let (d, s) = table::lookup(&texels, normal);
+        let (mut ed, mut es) = (DVec3::ZERO, DVec3::ZERO);
+        for l in &lights {
+            let (fd, fs) = vwb_render::shading::blinn_phong_factors(
+                normal,
+                v,
+                vwb_render::shading::safe_normalize(l.vector),
+                m.shininess,
+            );
+            ed += l.color * (m.kd * fd);
+            es += l.color * (m.ks * fs);
+        }
+        let e = (d - ed).length().max((s - es).length());
+        worst = worst.max(e);
+        sum += e;
+        n += 1;
+    }
+    assert!(worst < 0.05, "worst {worst}");
+    assert!(sum / (n as f64) < 0.005, "mean {}", sum / n as f64);
+    assert!(worst > 0.0, "the table quantises the normal");
+}
+
+/// Lights the table cannot hold (world space, point) are still evaluated per sample:
+/// with only such lights, table mode shades exactly as direct mode.
+#[test]
+fn table_mode_evaluates_untabulated_lights_per_sample() {
+    let mut p = defaults();
+    p.set("light0_space", ParamValue::Enum("world".into()));
+    p.set("light0_vector", ParamValue::Vec3([-1.0, 0.3, 0.0]));
+    p.set("gradient_floor", ParamValue::Float(0.001));
+    let direct = shaded(&ramp_x(9), &p, DVec3::X);
+    p.set("lighting", ParamValue::Enum("table".into()));
+    let table = shaded(&ramp_x(9), &p, DVec3::X);
+    assert_eq!(direct, table);
+    // a view-space light is read from the table: close to direct, not equal
+    p.set("light0_space", ParamValue::Enum("view".into()));
+    p.set("light0_vector", ParamValue::Vec3([-1.0, 0.2, 1.0]));
+    let table = shaded(&ramp_x(9), &p, DVec3::new(0.0, 0.0, -1.0));
+    p.set("lighting", ParamValue::Enum("direct".into()));
+    let direct = shaded(&ramp_x(9), &p, DVec3::new(0.0, 0.0, -1.0));
+    assert!(direct.x > 0.8 * 0.25 + 0.1, "lit: {direct}");
+    assert!((table - direct).length() < 0.02, "{table} vs {direct}");
+    assert_ne!(table, direct);
+}

@@ -59,10 +59,18 @@ fn shade(s: Sample) -> Sample {
     let v = -s.ray_dir;
     let nw = shading_normal(gradient_at(shading_tex(s)), params.gradient_floor, v, params.two_sided != 0u);
     var t = LightTerms(vec3<f32>(0.0), vec3<f32>(0.0));
+    // light0: begin
     t = add_light(t, params.light0_on, params.light0_type, params.light0_space, params.light0_vector, params.light0_color, s.pos, nw.xyz, v);
+    // light0: end
+    // light1: begin
     t = add_light(t, params.light1_on, params.light1_type, params.light1_space, params.light1_vector, params.light1_color, s.pos, nw.xyz, v);
+    // light1: end
+    // light2: begin
     t = add_light(t, params.light2_on, params.light2_type, params.light2_space, params.light2_vector, params.light2_color, s.pos, nw.xyz, v);
+    // light2: end
+    // light3: begin
     t = add_light(t, params.light3_on, params.light3_type, params.light3_space, params.light3_vector, params.light3_color, s.pos, nw.xyz, v);
+    // light3: end
     let lit = s.color.rgb * (vec3<f32>(params.ka) + t.diffuse) + t.specular;
     o.color = vec4<f32>(mix(s.color.rgb, lit, nw.w), s.color.a);
     o.normal = nw.xyz;

@@ -38,10 +38,18 @@ fn shade(s: Sample) -> Sample {
     let v = -s.ray_dir;
     let nw = shading_normal(gradient_at(shading_tex(s)), params.gradient_floor, v, params.two_sided != 0u);
     var d = vec3<f32>(0.0);
+    // light0: begin
     d = add_light(d, params.light0_on, params.light0_type, params.light0_space, params.light0_vector, params.light0_color, s.pos, nw.xyz, v);
+    // light0: end
+    // light1: begin
     d = add_light(d, params.light1_on, params.light1_type, params.light1_space, params.light1_vector, params.light1_color, s.pos, nw.xyz, v);
+    // light1: end
+    // light2: begin
     d = add_light(d, params.light2_on, params.light2_type, params.light2_space, params.light2_vector, params.light2_color, s.pos, nw.xyz, v);
+    // light2: end
+    // light3: begin
     d = add_light(d, params.light3_on, params.light3_type, params.light3_space, params.light3_vector, params.light3_color, s.pos, nw.xyz, v);
+    // light3: end
     let lit = s.color.rgb * (vec3<f32>(params.ka) + d);
     o.color = vec4<f32>(mix(s.color.rgb, lit, nw.w), s.color.a);
     o.normal = nw.xyz;

@@ -336,7 +336,8 @@ impl Renderer {
                 pass.set_bind_group(1, &g1, &[]);
                 pass.set_bind_group(2, &g2, &[]);
                 pass.set_bind_group(3, &g3, &[]);
-                pass.dispatch_workgroups(tw.div_ceil(8), th.div_ceil(8), 1);
+                let [mx, my] = self.main_workgroup;
+                pass.dispatch_workgroups(tw.div_ceil(mx), th.div_ceil(my), 1);
             }
             enc.copy_texture_to_texture(
                 t.texture.as_image_copy(),

@@ -55,11 +55,14 @@ pub struct RendererOptions {
     pub max_brick_bytes: Option<u64>,
     /// How the volume is stored on the GPU (the preset's `render.volume_format`).
     pub volume_format: VolumeFormat,
+    /// Workgroup shape (x, y) of the whole-frame compute passes (`cs_main`,
+    /// `cs_main_skip`); `None`: [`crate::composer::main_workgroup_for`] the adapter.
+    pub workgroup: Option<[u32; 2]>,
 }
 
 impl RendererOptions {
-    /// `VWB_GPU_MEMORY_LIMIT` (bytes), `VWB_BRICK_LIMIT` (voxels) and
-    /// `VWB_MAX_BRICK_BYTES` when set.
+    /// `VWB_GPU_MEMORY_LIMIT` (bytes), `VWB_BRICK_LIMIT` (voxels),
+    /// `VWB_MAX_BRICK_BYTES` and `VWB_WORKGROUP` (`XxY`, e.g. `16x4`) when set.
     pub fn from_env() -> Self {
         let var = |name: &str| std::env::var(name).ok();
         Self {
@@ -67,6 +70,10 @@ impl RendererOptions {
             brick_limit: var("VWB_BRICK_LIMIT").and_then(|v| v.trim().parse().ok()),
             max_brick_bytes: var("VWB_MAX_BRICK_BYTES").and_then(|v| v.trim().parse().ok()),
             volume_format: VolumeFormat::Auto,
+            workgroup: var("VWB_WORKGROUP").and_then(|v| {
+                let (x, y) = v.trim().split_once('x')?;
+                Some([x.parse().ok()?, y.parse().ok()?])
+            }),
         }
     }
 
@@ -406,6 +413,7 @@ impl Split {
                             brick_limit: Some(limit),
                             max_brick_bytes: Some(u64::MAX),
                             volume_format,
+                            workgroup: RendererOptions::from_env().workgroup,
                         },
                     )?;
                     let open = (0..3)
