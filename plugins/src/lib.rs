@@ -7,6 +7,7 @@
 pub use vwb_render::params;
 pub use vwb_render::plugin::*;
 
+pub mod held;
 pub mod lighting;
 #[cfg(feature = "ui")]
 pub mod ui;

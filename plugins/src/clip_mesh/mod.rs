@@ -271,18 +271,9 @@ fn grid_of_key(params: &ParamValues, volume: &Volume, key: u64) -> Result<Arc<Sd
     Ok(grid)
 }
 
-/// Which grid each texture holds (by the texture's hash), so that a parameter change
-/// that does not move the mesh uploads nothing.
-fn uploaded() -> &'static Mutex<HashMap<u64, u64>> {
-    static MAP: OnceLock<Mutex<HashMap<u64, u64>>> = OnceLock::new();
-    MAP.get_or_init(Default::default)
-}
-
-fn texture_id(t: &wgpu::Texture) -> u64 {
-    let mut h = std::collections::hash_map::DefaultHasher::new();
-    t.hash(&mut h);
-    h.finish()
-}
+/// Which grid each texture holds, so that a parameter change that does not move the
+/// mesh uploads nothing.
+static UPLOADED: crate::held::Held = crate::held::Held::new();
 
 /// Writes `grid` (of key `key`) into the distance texture and records which grid it
 /// holds. The texture is r32float where the device filters it, else r16float
@@ -291,9 +282,7 @@ fn texture_id(t: &wgpu::Texture) -> u64 {
 fn upload(gpu: &GpuInit, sdf: &GpuResource, grid: &SdfGrid, key: u64) {
     gpu.write_floats(sdf, &grid.values);
     count(key, 0, 1);
-    if let Ok(mut m) = uploaded().lock() {
-        m.insert(texture_id(&sdf.texture), key);
-    }
+    UPLOADED.record(&sdf.texture, key);
 }
 
 /// The plugin as its structural parameter `cut_shading` configures it.
@@ -423,8 +412,7 @@ impl Plugin for ClipMesh {
             return Err(error("distance texture missing".into()));
         };
         let key = grid_key(params, gpu.volume);
-        let id = texture_id(&sdf.texture);
-        if uploaded().lock().is_ok_and(|m| m.get(&id) == Some(&key)) {
+        if UPLOADED.holds(&sdf.texture, key) {
             return Ok(());
         }
         let grid = grid_of_key(params, gpu.volume, key).map_err(error)?;

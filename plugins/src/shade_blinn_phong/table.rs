@@ -16,10 +16,8 @@
 //!   sample. The table depends on k_d, k_s, the shininess and the lights, and is
 //!   baked again only when one of those changes ([`bakes`] counts).
 
-use std::collections::HashMap;
 use std::hash::{Hash, Hasher};
 use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::{Mutex, OnceLock};
 
 use glam::{DVec2, DVec3};
 use vwb_render::plugin::{GpuInit, GpuResource};
@@ -108,17 +106,8 @@ pub fn bakes() -> u64 {
     BAKES.load(Ordering::Relaxed)
 }
 
-/// Which key each table texture holds (by the texture's hash).
-fn baked() -> &'static Mutex<HashMap<u64, u64>> {
-    static MAP: OnceLock<Mutex<HashMap<u64, u64>>> = OnceLock::new();
-    MAP.get_or_init(Default::default)
-}
-
-fn texture_id(t: &wgpu::Texture) -> u64 {
-    let mut h = std::collections::hash_map::DefaultHasher::new();
-    t.hash(&mut h);
-    h.finish()
-}
+/// Which lights and material each table texture holds.
+static BAKED: crate::held::Held = crate::held::Held::new();
 
 /// A new table texture for the lights and material.
 pub fn create(gpu: &GpuInit, lights: &[Light], m: &Material) -> GpuResource {
@@ -130,15 +119,12 @@ pub fn create(gpu: &GpuInit, lights: &[Light], m: &Material) -> GpuResource {
 /// Bakes and uploads the table again unless it already holds these lights and material.
 pub fn upload(gpu: &GpuInit, t: &GpuResource, lights: &[Light], m: &Material) {
     let k = key(lights, m);
-    let id = texture_id(&t.texture);
-    if baked().lock().is_ok_and(|map| map.get(&id) == Some(&k)) {
+    if BAKED.holds(&t.texture, k) {
         return;
     }
     gpu.write_table(t, &bake(lights, m));
     BAKES.fetch_add(1, Ordering::Relaxed);
-    if let Ok(mut map) = baked().lock() {
-        map.insert(id, k);
-    }
+    BAKED.record(&t.texture, k);
 }
 
 /// The WGSL appended in table mode: the table lookup.
