@@ -25,6 +25,14 @@ the test set-up). Usage:
     python3 bench/vtk_peer.py --mapper smart         # vtkSmartVolumeMapper (or: fixed)
     python3 bench/vtk_peer.py --gl x                 # GLX (re-runs under xvfb-run -a)
     python3 bench/vtk_peer.py --write-docs           # rewrite the vtk-peer block in docs/perf.md
+    python3 bench/vtk_peer.py --self-error           # also the speed ratio at equal self-error
+
+Self-convergence error (--self-error): each renderer's image at its default step
+against its own image at 1/8 of that step (RMS, 8-bit RGB), VTK's and every vwb
+variant's (vwb's fine image with an rgba32float eye buffer). A renderer that is fast because it samples coarsely shows it here. For each
+vwb variant whose self-error exceeds VTK's, the script refines vwb's slice spacing
+(÷1.5, ÷2, ÷3, ÷4) until its self-error is at most VTK's, times it there, and quotes
+the speed ratio at that spacing: the ratio at equal (or lower) self-error.
 """
 
 import argparse
@@ -109,6 +117,27 @@ def vwb_render(vwb, scene, backend, frames, png, env, extra=()):
         "slices": int(slices.group(1)) if slices else None,
         "adapter": adapter.group(1).strip() if adapter else "?",
     }
+
+
+def with_spacing(scene, spacing):
+    """A copy of the scene sampled every `spacing` voxels (vwb slices and VTK steps)."""
+    return {**scene, "slice_spacing_voxels": spacing}
+
+
+# Refinements of vwb's slice spacing tried, in order, to reach VTK's self-error.
+REFINE = (1.5, 2.0, 3.0, 4.0)
+REFERENCE_DIVISOR = 8  # self-error reference: 1/8 of the default step
+
+
+def rms(a, b):
+    """RMS difference of two (h, w, 3) uint8 images in 8-bit units (None if sizes differ)."""
+    if a.shape != b.shape:
+        return None
+    return float(np.sqrt(np.mean((a.astype(np.float64) - b.astype(np.float64)) ** 2)))
+
+
+def read_png(path):
+    return np.asarray(Image.open(path).convert("RGB"))
 
 
 # ---------------------------------------------------------------------------- VTK
@@ -278,7 +307,46 @@ def compare(vwb_png, vtk_rgb, side_png):
     if ours.shape != vtk_rgb.shape:
         return None
     Image.fromarray(np.concatenate([ours, vtk_rgb], axis=1)).save(side_png)
-    return float(np.sqrt(np.mean((ours.astype(np.float64) - vtk_rgb.astype(np.float64)) ** 2)))
+    return rms(ours, vtk_rgb)
+
+
+def vtk_reference(scene, mapper_kind):
+    """VTK's own image at 1/8 of the scene's step (one frame after the warm-up)."""
+    fine = with_spacing(scene, scene["slice_spacing_voxels"] / REFERENCE_DIVISOR)
+    rw, camera, mapper = build_vtk(fine, mapper_kind)
+    rgb, _ = time_vtk(rw, camera, 0)
+    del rw, camera, mapper
+    return rgb
+
+
+def vwb_equal_error(a, scene, n, kind, extra, png, vtk_self, out, env):
+    """vwb's self-error for one variant and, when it exceeds VTK's, the coarsest
+    refined spacing whose self-error is at most VTK's, timed there.
+
+    Returns a dict: self (error at the default spacing), spacing, error and wall at the
+    equal-error spacing (the default one when it already qualifies)."""
+    stem = Path(scene["preset"]).stem
+    s0 = scene["slice_spacing_voxels"]
+    ref_png = out / f"{stem}_vwb_{n}_{kind}_ref.png"
+    # the reference accumulates in f32: 8× the slices in an fp16 eye buffer would add
+    # rounding that is not the renderer's at its default step
+    vwb_render(a.vwb, with_spacing(scene, s0 / REFERENCE_DIVISOR), kind, 1, ref_png, env,
+               [*extra, "--target", "rgba32float"])
+    ref = read_png(ref_png)
+    own = rms(read_png(png), ref)
+    found = {"self": own, "spacing": s0, "error": own, "wall": None}
+    if own <= vtk_self:
+        return found
+    for f in REFINE:
+        trial = out / f"{stem}_vwb_{n}_{kind}_refined_{f:g}.png"
+        r = vwb_render(a.vwb, with_spacing(scene, s0 / f), kind, a.frames, trial, env, extra)
+        err = rms(read_png(trial), ref)
+        print(f"  vwb {kind} {' '.join(extra)} spacing {s0 / f:.3g}: self-error {err:.2f}, "
+              f"wall {r['wall'][0]:.1f} ms", flush=True)
+        found.update(spacing=s0 / f, error=err, wall=r["wall"])
+        if err <= vtk_self:
+            break
+    return found
 
 
 def scene_label(scene):
@@ -329,6 +397,9 @@ def main():
     ap.add_argument("-o", "--out", type=Path, help="image folder (default: a new temporary one)")
     ap.add_argument("--write-docs", action="store_true",
                     help="rewrite the block in --doc with the results")
+    ap.add_argument("--self-error", action="store_true",
+                    help="also each renderer's self-convergence error (its default step against "
+                         "1/8 of it) and vwb's speed ratio at VTK's self-error")
     ap.add_argument("--block", default="vtk-peer")
     ap.add_argument("--doc", type=Path, default=REPO / "docs/perf.md")
     a = ap.parse_args()
@@ -342,7 +413,7 @@ def main():
         presets = a.preset or ["presets/demo.ron", a.ct_preset]
         scenes = [vwb_scene(a.vwb, p, a.size, a.spacing, env) for p in presets]
 
-    rows, adapter, gl, mapper_used = [], "?", "?", "?"
+    rows, equal, adapter, gl, mapper_used = [], [], "?", "?", "?"
     for scene in scenes:
         label = scene_label(scene)
         stem = Path(scene["preset"]).stem
@@ -357,25 +428,53 @@ def main():
         print(f"{label}: VTK {mapper_used} median {v[0]:.1f} ms (min {v[1]:.1f} max {v[2]:.1f}) "
               f"→ {vtk_png}", flush=True)
         del rw, camera, mapper  # release the GL context before vwb runs
+        vtk_self = rms(vtk_rgb, vtk_reference(scene, a.mapper)) if a.self_error else None
+        if vtk_self is not None:
+            print(f"{label}: VTK self-error {vtk_self:.2f}/255", flush=True)
         for n, (backend, kind, extra) in enumerate(VWB_VARIANTS):
             png = out / f"{stem}_vwb_{n}_{kind}.png"
             r = vwb_render(a.vwb, scene, kind, a.frames, png, env, extra)
             adapter = r["adapter"]
-            rms = compare(png, vtk_rgb, out / f"{stem}_vwb_{n}_{kind}_vs_vtk.png")
-            rows.append((label, size, r["slices"], backend, r["wall"], r["gpu"], v, rms))
-            shown = "n/a (sizes differ)" if rms is None else f"{rms:.2f}/255"
+            diff = compare(png, vtk_rgb, out / f"{stem}_vwb_{n}_{kind}_vs_vtk.png")
+            rows.append((label, size, r["slices"], backend, r["wall"], r["gpu"], v, diff))
+            shown = "n/a (sizes differ)" if diff is None else f"{diff:.2f}/255"
             print(f"{label}: vwb {backend} wall {r['wall'][0]:.1f} ms → {png}; RMS vs VTK {shown}",
                   flush=True)
+            if vtk_self is not None:
+                e = vwb_equal_error(a, scene, n, kind, extra, png, vtk_self, out, env)
+                e["wall"] = e["wall"] or r["wall"]
+                equal.append((label, size, backend, e, vtk_self, v))
+                print(f"{label}: vwb {backend} self-error {e['self']:.2f}/255; at spacing "
+                      f"{e['spacing']:.3g} {e['error']:.2f}/255, {e['wall'][0]:.1f} ms", flush=True)
 
     table = [
         "| scene | size | vwb slices | vwb backend | vwb wall ms | vwb GPU ms | VTK ms | vwb/VTK (wall) | RMS vs VTK (8-bit) |",
         "|---|---|---|---|---|---|---|---|---|",
     ]
-    for label, size, slices, backend, wall, gpu, v, rms in rows:
+    for label, size, slices, backend, wall, gpu, v, diff in rows:
         table.append(
             f"| {label} | {size} | {slices} | {backend} | {fmt(wall)} | {fmt(gpu)} | {fmt(v)} "
-            f"| {wall[0] / v[0]:.2f} | {'n/a' if rms is None else f'{rms:.1f}'} |"
+            f"| {wall[0] / v[0]:.2f} | {'n/a' if diff is None else f'{diff:.1f}'} |"
         )
+    if equal:
+        table += [
+            "",
+            f"Self-convergence error: each renderer's image at its default step against its own "
+            f"image at 1/{REFERENCE_DIVISOR} of that step (RMS, 8-bit RGB; vwb's with an "
+            "rgba32float eye buffer). Where vwb's exceeds "
+            f"VTK's, vwb's slice spacing is refined (÷{', ÷'.join(f'{f:g}' for f in REFINE)}) "
+            "until it does not, and timed there.",
+            "",
+            "| scene | size | vwb backend | vwb self-error | VTK self-error | vwb spacing at ≤ VTK's self-error (voxels) | vwb self-error there | vwb wall ms there | vwb/VTK at equal self-error |",
+            "|---|---|---|---|---|---|---|---|---|",
+        ]
+        for label, size, backend, e, vtk_self, v in equal:
+            reached = "" if e["error"] <= vtk_self else " (not reached)"
+            table.append(
+                f"| {label} | {size} | {backend} | {e['self']:.2f} | {vtk_self:.2f} "
+                f"| {e['spacing']:.3g}{reached} | {e['error']:.2f} | {fmt(e['wall'])} "
+                f"| {e['wall'][0] / v[0]:.2f} |"
+            )
     lp = os.environ.get("LP_NUM_THREADS")
     lines = [
         f"Command: `{shlex.join(['python3', 'bench/vtk_peer.py', *sys.argv[1:]])}`"

@@ -347,13 +347,17 @@ pub struct FrameArgs {
     /// Slice spacing in voxels overriding the preset's.
     #[arg(long)]
     pub spacing: Option<f32>,
-    /// Compute backend: stop a ray once its opacity reaches this value (0 < T ≤ 1);
-    /// `off` disables it.
+    /// Stop a ray once its opacity reaches this value (0 < T ≤ 1; the raster backend
+    /// at the end of a run of slices); `off` disables it.
     #[arg(long, value_parser = parse_early_termination)]
     pub early_termination: Option<EarlyTermination>,
     /// Empty-space skipping on or off (default: the preset's, normally on).
     #[arg(long)]
     pub skipping: Option<OnOff>,
+    /// Raster backend: proxy polygons cut to the occupied bricks' cells (needs
+    /// skipping; the same image up to float rounding; default: the preset's, normally off).
+    #[arg(long)]
+    pub occupied_proxy: Option<OnOff>,
     /// How the volume is stored on the GPU: auto (r32float where the adapter filters
     /// it), r32float, r16float or r16unorm (default: the preset's).
     #[arg(long, value_parser = vwb_render::renderer::VolumeFormat::parse)]
@@ -406,6 +410,9 @@ impl FrameArgs {
         }
         if let Some(on) = self.skipping {
             doc.render.empty_space_skipping = on == OnOff::On;
+        }
+        if let Some(on) = self.occupied_proxy {
+            doc.render.occupied_proxy = on == OnOff::On;
         }
         if let Some(f) = self.volume_format {
             doc.render.volume_format = f;

@@ -112,6 +112,7 @@ pub struct Variant {
     /// `render.slices` (the spacing that gives about this many slices in the scene's
     /// frame), `render.backend` (raster, compute), `render.target`,
     /// `render.early_termination`, `render.skipping` (true, false),
+    /// `render.occupied_proxy` (true, false),
     /// `render.volume_format` (auto, r32float, r16float, r16unorm).
     #[serde(default)]
     pub set: BTreeMap<String, SetValue>,
@@ -693,6 +694,10 @@ pub fn set_value(doc: &mut Document, key: &str, value: &SetValue) -> Result<()> 
         "render.backend" => doc.render.backend = parse_backend(text()?).map_err(|e| anyhow!(e))?,
         "render.skipping" => match value {
             SetValue::Bool(on) => doc.render.empty_space_skipping = *on,
+            _ => bail!("'{key}' needs true or false"),
+        },
+        "render.occupied_proxy" => match value {
+            SetValue::Bool(on) => doc.render.occupied_proxy = *on,
             _ => bail!("'{key}' needs true or false"),
         },
         "render.target" => doc.render.target = parse_target(text()?).map_err(|e| anyhow!(e))?,

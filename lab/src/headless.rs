@@ -53,6 +53,7 @@ pub fn renderer_for(gpu: &GpuContext, doc: &Document, volume: Arc<Volume>) -> Re
         eprintln!("note: {notice}");
     }
     r.set_empty_space_skipping(doc.render.empty_space_skipping);
+    r.set_occupied_proxy(doc.render.occupied_proxy);
     r.update_stack(&doc.stack, doc.render.target)?;
     Ok(r)
 }

@@ -1399,13 +1399,7 @@ pub fn scene_json(doc: &Document, volume: &Volume, preset: &Path) -> serde_json:
             .collect::<Vec<_>>()
     });
     let (path, demo_path) = match &doc.volume {
-        VolumeSource::Demo => (
-            None,
-            Some(concat!(
-                env!("CARGO_MANIFEST_DIR"),
-                "/render/data/demo_mri_head.nrrd"
-            )),
-        ),
+        VolumeSource::Demo => (None, Some(vwb_render::volume::DEMO_SOURCE_PATH)),
         VolumeSource::File(p) => (Some(std::fs::canonicalize(p).unwrap_or(p.clone())), None),
         VolumeSource::Sample(name) => (
             vwb_render::samples::resolve(name)

@@ -1273,6 +1273,7 @@ mod tests {
     fn standalone_shaders_are_valid() {
         naga_check(crate::renderer::DISPLAY_WGSL).expect("shaders/display.wgsl");
         naga_check(crate::renderer::COMPOSITE_WGSL).expect("shaders/composite.wgsl");
+        naga_check(crate::renderer::RASTER_MASK_WGSL).expect("shaders/raster_mask.wgsl");
     }
 
     #[test]

@@ -43,7 +43,8 @@ pub struct RenderSection {
     pub slice_spacing: f32,
     pub backend: Backend,
     pub target: TargetFormat,
-    /// Compute backend: stop rays at this opacity.
+    /// Stop rays at this opacity (the raster backend at the end of a run of slices,
+    /// [`crate::renderer::raster_et_interval`]).
     pub early_termination: Option<f32>,
     /// Background the image is composited over (straight RGBA; alpha ignored).
     pub background: [f32; 4],
@@ -52,6 +53,11 @@ pub struct RenderSection {
     /// Skip the hooks of samples in bricks that cannot be visible (render/src/skipping.rs);
     /// never changes the image.
     pub empty_space_skipping: bool,
+    /// Raster backend: proxy polygons cut to the occupied bricks' cells
+    /// ([`crate::Renderer::set_occupied_proxy`]); the same image up to float rounding.
+    /// Written only when on.
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    pub occupied_proxy: bool,
     /// How the volume is stored on the GPU ([`crate::renderer::VolumeFormat`]);
     /// written only when not `Auto`.
     #[serde(skip_serializing_if = "crate::renderer::VolumeFormat::is_auto")]
@@ -68,6 +74,7 @@ impl Default for RenderSection {
             background: [0.0, 0.0, 0.0, 1.0],
             size: [512, 512],
             empty_space_skipping: true,
+            occupied_proxy: false,
             volume_format: crate::renderer::VolumeFormat::Auto,
         }
     }

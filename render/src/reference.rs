@@ -21,9 +21,11 @@
 //! → rgb clamped to `[0, 10⁶]`, premultiplied → every twin's `composite` → front-to-back
 //! "under": `acc += (1 − acc.a)·c`.
 //!
-//! Early termination applies exactly when the GPU applies it: compute backend and
-//! `early_termination = Some(threshold)`; the ray stops after the slice that makes
-//! `acc.a ≥ threshold`. With [`ReferenceOptions::emulate_fp16`] the accumulator is
+//! Early termination applies exactly as the GPU applies it, with
+//! `early_termination = Some(threshold)`: the compute backend stops the ray after the
+//! slice that makes `acc.a ≥ threshold`; the raster backend at the end of the run of
+//! [`crate::renderer::raster_et_interval`] slices (counted from the frame's first
+//! slice) in which it does. With [`ReferenceOptions::emulate_fp16`] the accumulator is
 //! rounded to fp16 after every slice, like the compute backend writing an
 //! rgba16float eye buffer (`round_like_target`): the f64 value is first rounded to
 //! f32 (the GPU computes in f32) and then to the nearest fp16.
@@ -352,16 +354,25 @@ impl Prepared<'_> {
             })
             .collect();
         let mut rows_done = 0u64;
+        // pixels whose ray stopped (early termination), updated at every run boundary
+        let mut stopped = vec![false; acc.len()];
         for k in 0..frame.count {
             if opts.cancelled() {
                 return Err(ReferenceError::Cancelled);
             }
+            if let Some((t, run)) = frame.early
+                && k % run == 0
+            {
+                for (s, a) in stopped.iter_mut().zip(&acc) {
+                    *s = a.w >= t;
+                }
+            }
             acc.par_chunks_mut(w as usize)
+                .zip(stopped.par_chunks(w as usize))
                 .enumerate()
-                .for_each(|(y, row)| {
+                .for_each(|(y, (row, stopped))| {
                     for (x, a) in row.iter_mut().enumerate() {
-                        let done = frame.early.is_some_and(|t| a.w >= t);
-                        if done {
+                        if stopped[x] {
                             continue;
                         }
                         let uv = frame.uv(x as u32, y as u32);
@@ -453,7 +464,11 @@ struct Frame {
     count: u32,
     width: u32,
     height: u32,
-    early: Option<f64>,
+    /// Early termination: (threshold, slices per run). A ray stops at the first run
+    /// boundary (a slice index that is a multiple of the run length) at which its
+    /// opacity is at least the threshold: every slice for the compute backend, every
+    /// [`crate::renderer::raster_et_interval`] slices for the raster backend.
+    early: Option<(f64, u32)>,
     fp16: bool,
     view: crate::plugin::CpuView,
 }
@@ -471,8 +486,9 @@ impl Frame {
         let plan = SlicePlan::new(&view, &vbox, spacing_voxels)?;
         let view_proj: DMat4 = view.proj.as_dmat4() * view.view.as_dmat4();
         let early = match (settings.backend, settings.early_termination) {
-            (Backend::Compute, Some(t)) => Some(t as f64),
-            _ => None,
+            (Backend::Compute, Some(t)) => Some((t as f64, 1)),
+            (Backend::Raster, Some(t)) => Some((t as f64, crate::renderer::raster_et_interval())),
+            (_, None) => None,
         };
         Ok(Self {
             inv_view_proj: view_proj.inverse(),
@@ -610,6 +626,12 @@ impl Frame {
         let ratio = self.ratio(dir);
         let mut acc = DVec4::ZERO;
         for k in self.slice_range(origin, dir, depth0, dd) {
+            if let Some((threshold, run)) = self.early
+                && k % run == 0
+                && acc.w >= threshold
+            {
+                break;
+            }
             let Some(sample) = self.make_sample(origin, dir, uv, k) else {
                 continue;
             };
@@ -617,9 +639,6 @@ impl Frame {
             acc += (1.0 - acc.w) * c;
             if self.fp16 {
                 acc = round_f16(acc);
-            }
-            if self.early.is_some_and(|threshold| acc.w >= threshold) {
-                break;
             }
         }
         acc.to_array()
@@ -1278,8 +1297,8 @@ mod tests {
     }
 
     #[test]
-    fn early_termination_follows_the_compute_backend() {
-        let volume = homogeneous(16);
+    fn early_termination_follows_each_backend() {
+        let volume = homogeneous(64); // ≈ 85 slices: deeper than a raster run
         let stack = ramp([0.8, 0.4, 0.2, 0.1]);
         let full = render_reference(&volume, &stack, &ortho_z(33, 0.75), &opts()).unwrap();
         let early = FrameSettings {
@@ -1295,12 +1314,28 @@ mod tests {
         let a = img.pixel(16, 16)[3];
         assert!((a - want).abs() < 1e-9, "{a} vs {want}");
         assert!(a < full.pixel(16, 16)[3]);
-        // the raster backend has no early termination
+        // the raster backend stops at the end of the run of slices that reaches 0.5:
+        // m slices with n ≤ m < n + run
         let raster = FrameSettings {
             backend: Backend::Raster,
             ..early
         };
+        let run = crate::renderer::raster_et_interval() as f64;
         let img = render_reference(&volume, &stack, &raster, &opts()).unwrap();
+        let a = img.pixel(16, 16)[3];
+        let m = (1.0 - a).ln() / (1.0 - alpha).ln();
+        assert!((m - m.round()).abs() < 1e-6, "{m} slices");
+        assert!(
+            m.round() >= n && m.round() < n + run,
+            "{m} slices, compute {n}, run {run}"
+        );
+        assert!(a < full.pixel(16, 16)[3], "{a}");
+        // without a threshold both backends take every slice
+        let none = FrameSettings {
+            early_termination: None,
+            ..raster
+        };
+        let img = render_reference(&volume, &stack, &none, &opts()).unwrap();
         assert_eq!(img.pixels, full.pixels);
     }
 

@@ -41,11 +41,13 @@ use crate::volume::Volume;
 mod atlas;
 mod bricks;
 mod level;
+mod raster_et;
 pub use atlas::{Atlas, AtlasTile, EncodedAtlas};
 pub use bricks::{BRICK_GHOST, BrickInfo, MIN_BRICK_LIMIT, RendererOptions, over, split_axis};
 use bricks::{Region, Split, upload_or_split};
 use level::level_for;
 pub use level::{LevelInfo, halve};
+pub use raster_et::{RASTER_ET_INTERVAL, RASTER_MASK_WGSL, interval as raster_et_interval};
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
 pub enum Backend {
@@ -83,7 +85,9 @@ pub struct FrameSettings {
     /// Distance between slices in voxels (1 = one slice per voxel).
     pub slice_spacing: f32,
     pub backend: Backend,
-    /// Compute backend only: stop a ray once its opacity reaches this value.
+    /// Stop a ray once its opacity reaches this value: the compute backend after the
+    /// slice that reaches it, the raster backend at the end of the run of
+    /// [`raster_et_interval`] slices in which it does (a depth mask, `raster_et`).
     pub early_termination: Option<f32>,
 }
 
@@ -166,6 +170,9 @@ pub struct FrameStats {
     /// Plugin resources rebuilt for a new slice spacing before this frame (e.g.
     /// pre-integration tables; [`Plugin::uses_slice_spacing`]).
     pub spacing_updates: usize,
+    /// Raster backend: the share of the renderer's box that its proxy polygons cover
+    /// (1 for the full box, less with [`Renderer::set_occupied_proxy`]); `None` for compute.
+    pub proxy_share: Option<f64>,
 }
 
 #[repr(C)]
@@ -196,6 +203,120 @@ fn under_target(format: TargetFormat) -> wgpu::ColorTargetState {
             alpha: UNDER,
         }),
         write_mask: wgpu::ColorWrites::ALL,
+    }
+}
+
+/// The raster slice pipeline with a fragment entry point (`fs_main`: the proxy's
+/// interpolated position; `fs_exact`: the pixel's ray–plane point) and a depth test.
+fn raster_pipeline(
+    device: &wgpu::Device,
+    module: &wgpu::ShaderModule,
+    layout: &wgpu::PipelineLayout,
+    target: TargetFormat,
+    fragment: &str,
+    depth_stencil: Option<wgpu::DepthStencilState>,
+) -> wgpu::RenderPipeline {
+    device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+        label: Some("vwb raster slices"),
+        layout: Some(layout),
+        vertex: wgpu::VertexState {
+            module,
+            entry_point: Some("vs_main"),
+            compilation_options: Default::default(),
+            buffers: &[Some(wgpu::VertexBufferLayout {
+                array_stride: 16,
+                step_mode: wgpu::VertexStepMode::Vertex,
+                attributes: &[
+                    wgpu::VertexAttribute {
+                        format: wgpu::VertexFormat::Float32x3,
+                        offset: 0,
+                        shader_location: 0,
+                    },
+                    wgpu::VertexAttribute {
+                        format: wgpu::VertexFormat::Uint32,
+                        offset: 12,
+                        shader_location: 1,
+                    },
+                ],
+            })],
+        },
+        primitive: wgpu::PrimitiveState {
+            topology: wgpu::PrimitiveTopology::TriangleList,
+            cull_mode: None,
+            ..Default::default()
+        },
+        depth_stencil,
+        multisample: Default::default(),
+        fragment: Some(wgpu::FragmentState {
+            module,
+            entry_point: Some(fragment),
+            compilation_options: Default::default(),
+            targets: &[Some(under_target(target))],
+        }),
+        multiview_mask: None,
+        cache: None,
+    })
+}
+
+/// A full-screen pass (one triangle from `entries.0`, no vertex buffers, group 0 of
+/// `layout_entries`): the bricks' compositing and the raster backend's termination mask.
+fn fullscreen_pipeline(
+    device: &wgpu::Device,
+    label: &str,
+    wgsl: &str,
+    layout_entries: &[wgpu::BindGroupLayoutEntry],
+    entries: (&str, &str),
+    targets: &[Option<wgpu::ColorTargetState>],
+    depth_stencil: Option<wgpu::DepthStencilState>,
+) -> (wgpu::RenderPipeline, wgpu::BindGroupLayout) {
+    let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+        label: Some(label),
+        source: wgpu::ShaderSource::Wgsl(wgsl.into()),
+    });
+    let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+        label: Some(label),
+        entries: layout_entries,
+    });
+    let pl = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+        label: Some(label),
+        bind_group_layouts: &[Some(&layout)],
+        immediate_size: 0,
+    });
+    let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+        label: Some(label),
+        layout: Some(&pl),
+        vertex: wgpu::VertexState {
+            module: &module,
+            entry_point: Some(entries.0),
+            compilation_options: Default::default(),
+            buffers: &[],
+        },
+        primitive: Default::default(),
+        depth_stencil,
+        multisample: Default::default(),
+        fragment: Some(wgpu::FragmentState {
+            module: &module,
+            entry_point: Some(entries.1),
+            compilation_options: Default::default(),
+            targets,
+        }),
+        multiview_mask: None,
+        cache: None,
+    });
+    (pipeline, layout)
+}
+
+/// An unfilterable float 2D texture read by a fragment shader (an eye buffer).
+fn eye_texture_entry(binding: u32) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::FRAGMENT,
+        ty: wgpu::BindingType::Texture {
+            sample_type: wgpu::TextureSampleType::Float { filterable: false },
+            view_dimension: wgpu::TextureViewDimension::D2,
+            multisampled: false,
+        },
+        count: None,
     }
 }
 
@@ -317,6 +438,12 @@ struct CompiledStack {
     g2_layout: wgpu::BindGroupLayout,
     g3_layout: wgpu::BindGroupLayout,
     raster: wgpu::RenderPipeline,
+    /// The raster pipeline's other variants, made on first use: by (early-termination
+    /// depth test, fragment at the exact ray–plane point), index `et + 2·exact`.
+    raster_variants: [std::sync::OnceLock<wgpu::RenderPipeline>; 4],
+    module: wgpu::ShaderModule,
+    raster_layout: wgpu::PipelineLayout,
+    target: TargetFormat,
     cs_main: wgpu::ComputePipeline,
     /// `cs_main` with empty-space skipping.
     cs_main_skip: wgpu::ComputePipeline,
@@ -328,6 +455,26 @@ struct CompiledStack {
     prepasses: Vec<(usize, wgpu::ComputePipeline, wgpu::BindGroupLayout)>,
     /// Volume passes in stack order, each instance's in declaration order.
     volume_passes: Vec<CompiledPass>,
+}
+
+impl CompiledStack {
+    /// The raster pipeline for early termination (depth test) and the exact fragment
+    /// position (proxy cut to the occupied cells).
+    fn raster_for(&self, device: &wgpu::Device, et: bool, exact: bool) -> &wgpu::RenderPipeline {
+        if !et && !exact {
+            return &self.raster;
+        }
+        self.raster_variants[et as usize + 2 * exact as usize].get_or_init(|| {
+            raster_pipeline(
+                device,
+                &self.module,
+                &self.raster_layout,
+                self.target,
+                if exact { "fs_exact" } else { "fs_main" },
+                et.then(raster_et::slice_depth_state),
+            )
+        })
+    }
 }
 
 struct CompiledPass {
@@ -661,6 +808,10 @@ pub struct Renderer {
     /// Set when the volume is split into bricks: this renderer then only composites
     /// the bricks' partial images (and owns no volume texture of its own).
     split: Option<Split>,
+    /// The raster backend's early-termination mask, made on first use.
+    raster_et: Option<raster_et::RasterEt>,
+    /// Raster backend: proxy polygons cut to the occupied cells ([`Renderer::set_occupied_proxy`]).
+    occupied_proxy: bool,
 }
 
 fn uniform_entry(
@@ -843,6 +994,8 @@ impl Renderer {
             },
             instances: HashMap::new(),
             target: None,
+            raster_et: None,
+            occupied_proxy: false,
             volume_bytes,
             gpu_budget: budget,
             volume_format,
@@ -1062,6 +1215,16 @@ impl Renderer {
         self.skipping_enabled = on;
     }
 
+    /// Raster backend: cut the proxy polygons to the cells of bricks that can be
+    /// visible ([`crate::skipping::occupied_cells`]; needs empty-space skipping) and
+    /// sample each fragment at its pixel's exact ray–plane point (`fs_exact`, as the
+    /// compute backend does) instead of the interpolated proxy position, which slivers
+    /// of the cut polygons interpolate poorly. The image is the full proxy's up to
+    /// float rounding of the sample positions; off by default.
+    pub fn set_occupied_proxy(&mut self, on: bool) {
+        self.occupied_proxy = on;
+    }
+
     /// Workgroup shape of the whole-frame compute passes
     /// ([`crate::composer::main_workgroup`]).
     pub fn main_workgroup(&self) -> [u32; 2] {
@@ -1158,6 +1321,10 @@ impl Renderer {
             .sum::<u64>()
             + self.volume_bytes
             + self.target.as_ref().map_or(0, Target::bytes)
+            + self
+                .raster_et
+                .as_ref()
+                .map_or(0, raster_et::RasterEt::bytes)
             + self.instances.values().map(|g| g.bytes()).sum::<u64>()
     }
 
@@ -1584,46 +1751,7 @@ impl Renderer {
             ],
             immediate_size: 0,
         });
-        let raster = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-            label: Some("vwb raster slices"),
-            layout: Some(&raster_layout),
-            vertex: wgpu::VertexState {
-                module: &module,
-                entry_point: Some("vs_main"),
-                compilation_options: Default::default(),
-                buffers: &[Some(wgpu::VertexBufferLayout {
-                    array_stride: 16,
-                    step_mode: wgpu::VertexStepMode::Vertex,
-                    attributes: &[
-                        wgpu::VertexAttribute {
-                            format: wgpu::VertexFormat::Float32x3,
-                            offset: 0,
-                            shader_location: 0,
-                        },
-                        wgpu::VertexAttribute {
-                            format: wgpu::VertexFormat::Uint32,
-                            offset: 12,
-                            shader_location: 1,
-                        },
-                    ],
-                })],
-            },
-            primitive: wgpu::PrimitiveState {
-                topology: wgpu::PrimitiveTopology::TriangleList,
-                cull_mode: None,
-                ..Default::default()
-            },
-            depth_stencil: None,
-            multisample: Default::default(),
-            fragment: Some(wgpu::FragmentState {
-                module: &module,
-                entry_point: Some("fs_main"),
-                compilation_options: Default::default(),
-                targets: &[Some(under_target(target))],
-            }),
-            multiview_mask: None,
-            cache: None,
-        });
+        let raster = raster_pipeline(device, &module, &raster_layout, target, "fs_main", None);
         let compute = |entry: &str, layout: &wgpu::PipelineLayout, m: &wgpu::ShaderModule| {
             device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
                 label: Some(entry),
@@ -1706,6 +1834,10 @@ impl Renderer {
             g2_layout,
             g3_layout,
             raster,
+            raster_variants: Default::default(),
+            module,
+            raster_layout,
+            target,
             cs_main,
             cs_main_skip,
             cs_slice,
@@ -2020,6 +2152,30 @@ impl Renderer {
             Some(r) => (r.own, r.open),
             None => (self.vbox, 0),
         }
+    }
+
+    /// The boxes the raster backend's proxy polygons cover: its own box or, when
+    /// empty-space skipping knows which bricks can be visible, the occupied cells
+    /// ([`crate::skipping::occupied_cells`]) within it (none when nothing is visible).
+    fn proxy_boxes(&self) -> Vec<VolumeBox> {
+        let own = self.own_box().0;
+        let Some(occupancy) = &self.occupancy_bytes else {
+            return vec![own];
+        };
+        let cells = crate::skipping::occupied_cells(
+            occupancy,
+            self.bricks.dims,
+            self.volume.dims,
+            crate::skipping::proxy_cell(),
+        );
+        cells
+            .into_iter()
+            .filter_map(|r| {
+                let b = bricks::sub_box(&self.vbox, self.volume.dims, r);
+                let (min, max) = (b.min.max(own.min), b.max.min(own.max));
+                (min.cmplt(max).all()).then_some(VolumeBox { min, max, ..own })
+            })
+            .collect()
     }
 
     /// The pixels [x0, y0, x1, y1) this renderer's samples can cover in a `size` frame:
@@ -2479,11 +2635,36 @@ impl Renderer {
             _ => Vec::new(),
         };
         self.write_frame(s, &plan, &view);
+        // the raster backend's early-termination mask: its bind group for this eye buffer
+        let mask_group = match (s.backend, s.early_termination) {
+            (Backend::Raster, Some(threshold)) => {
+                let et = self
+                    .raster_et
+                    .get_or_insert_with(|| raster_et::RasterEt::new(&self.gpu.device));
+                let eye = self.target.as_ref().expect("target exists");
+                Some(et.prepare(&self.gpu, eye, threshold))
+            }
+            _ => None,
+        };
+        let et_interval = raster_et::interval();
+        // proxy polygons cut to the occupied cells, fragments at their exact points
+        let cut_proxy =
+            s.backend == Backend::Raster && self.occupied_proxy && self.occupancy_bytes.is_some();
 
         // vertices for the raster backend
         let mut slice_ranges = Vec::new();
+        let mut proxy_share = None;
         if s.backend == Backend::Raster {
-            let tris = plan.triangles(&self.own_box().0);
+            let own = self.own_box().0;
+            let boxes = if cut_proxy {
+                self.proxy_boxes()
+            } else {
+                vec![own]
+            };
+            let volume = |b: &VolumeBox| (b.max - b.min).as_dvec3().element_product();
+            proxy_share =
+                Some(boxes.iter().map(volume).sum::<f64>() / volume(&own).max(f64::MIN_POSITIVE));
+            let tris = plan.triangles_in(&boxes);
             let mut data = Vec::with_capacity(tris.len() * 16);
             let mut last = u32::MAX;
             for (i, (p, k)) in tris.iter().enumerate() {
@@ -2614,6 +2795,9 @@ impl Renderer {
         match s.backend {
             Backend::Raster => {
                 let vbuf = &self.vertices.as_ref().expect("vertex buffer").0;
+                // with early termination: the depth mask, the slice pipeline that tests it
+                let et = mask_group.as_ref().zip(self.raster_et.as_ref());
+                let raster = p.raster_for(device, et.is_some(), cut_proxy);
                 let begin = |enc: &'_ mut wgpu::CommandEncoder, clear: bool| {
                     enc.begin_render_pass(&wgpu::RenderPassDescriptor {
                         label: Some("vwb slices"),
@@ -2630,17 +2814,24 @@ impl Renderer {
                                 store: wgpu::StoreOp::Store,
                             },
                         })],
+                        depth_stencil_attachment: et.map(|(_, et)| et.attachment(clear)),
                         ..Default::default()
                     })
                     .forget_lifetime()
                 };
+                let mask = |enc: &mut wgpu::CommandEncoder| {
+                    if let Some((group, et)) = et {
+                        et.encode_mask(enc, group);
+                    }
+                };
                 if per_slice {
-                    // clear once, then one pass per slice followed by the updates
+                    // clear once, then one pass per slice followed by the updates (and,
+                    // with early termination, a mask at the end of every run of slices)
                     drop(begin(enc, true));
                     for k in 0..plan.count {
                         if let Some(&(_, a, b)) = slice_ranges.iter().find(|r| r.0 == k) {
                             let mut pass = begin(enc, false);
-                            pass.set_pipeline(&p.raster);
+                            pass.set_pipeline(raster);
                             pass.set_bind_group(0, &self.g0, &[0]);
                             pass.set_bind_group(1, &g1, &[]);
                             pass.set_bind_group(2, &g2[(k % 2) as usize], &[]);
@@ -2648,17 +2839,37 @@ impl Renderer {
                             pass.draw(a..b, 0..1);
                         }
                         run_updates(enc, k);
+                        if (k + 1) % et_interval == 0 && k + 1 < plan.count {
+                            mask(enc);
+                        }
                     }
                 } else {
-                    let n = slice_ranges.last().map_or(0, |r| r.2);
-                    let mut pass = begin(enc, true);
-                    pass.set_pipeline(&p.raster);
-                    pass.set_bind_group(0, &self.g0, &[0]);
-                    pass.set_bind_group(1, &g1, &[]);
-                    pass.set_bind_group(2, &g2[0], &[]);
-                    pass.set_vertex_buffer(0, vbuf.slice(..));
-                    if n > 0 {
-                        pass.draw(0..n, 0..1);
+                    // one pass, or with early termination one per run of slices, each
+                    // followed by the mask
+                    let runs = if et.is_some() {
+                        plan.count.div_ceil(et_interval).max(1)
+                    } else {
+                        1
+                    };
+                    let run_len = if et.is_some() { et_interval } else { u32::MAX };
+                    for r in 0..runs {
+                        let (k0, k1) = (r * run_len, (r + 1).saturating_mul(run_len));
+                        let in_run = slice_ranges.iter().filter(|s| s.0 >= k0 && s.0 < k1);
+                        let a = in_run.clone().map(|s| s.1).min();
+                        let b = in_run.map(|s| s.2).max();
+                        let mut pass = begin(enc, r == 0);
+                        pass.set_pipeline(raster);
+                        pass.set_bind_group(0, &self.g0, &[0]);
+                        pass.set_bind_group(1, &g1, &[]);
+                        pass.set_bind_group(2, &g2[0], &[]);
+                        pass.set_vertex_buffer(0, vbuf.slice(..));
+                        if let (Some(a), Some(b)) = (a, b) {
+                            pass.draw(a..b, 0..1);
+                        }
+                        drop(pass);
+                        if r + 1 < runs {
+                            mask(enc);
+                        }
                     }
                 }
             }
@@ -2728,6 +2939,7 @@ impl Renderer {
                 prepasses_run,
                 volume_passes_run,
                 spacing_updates,
+                proxy_share,
                 ..Default::default()
             },
         })

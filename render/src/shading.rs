@@ -509,6 +509,18 @@ pub fn blinn_phong(
 
 /// [`blinn_phong`] with the (k_d-weighted diffuse, k_s-weighted specular) sums of
 /// further lights already evaluated, e.g. read from a lighting table.
+/// The Blinn–Phong (diffuse, specular) sums of the lights (unit direction, colour) at unit
+/// normal `n` seen along unit `v`, weighted by k_d and k_s: what a lighting table holds.
+pub fn light_terms(n: DVec3, v: DVec3, lights: &[(DVec3, DVec3)], m: &Material) -> (DVec3, DVec3) {
+    let (mut diffuse, mut specular) = (DVec3::ZERO, DVec3::ZERO);
+    for (l, color) in lights {
+        let (d, s) = blinn_phong_factors(n, v, *l, m.shininess);
+        diffuse += *color * (m.kd * d);
+        specular += *color * (m.ks * s);
+    }
+    (diffuse, specular)
+}
+
 pub fn blinn_phong_with(
     base: DVec3,
     n: DVec3,
@@ -519,11 +531,9 @@ pub fn blinn_phong_with(
     tabulated: Option<(DVec3, DVec3)>,
 ) -> DVec3 {
     let (mut diffuse, mut specular) = tabulated.unwrap_or((DVec3::ZERO, DVec3::ZERO));
-    for (l, color) in lights {
-        let (d, s) = blinn_phong_factors(n, v, *l, m.shininess);
-        diffuse += *color * (m.kd * d);
-        specular += *color * (m.ks * s);
-    }
+    let (d, s) = light_terms(n, v, lights, m);
+    diffuse += d;
+    specular += s;
     if additive {
         base * m.ka + diffuse + specular
     } else {

@@ -5,8 +5,10 @@
 //! point `cs_main_skip`) jumps over the slices a ray spends inside an empty brick; the
 //! image is the same, since every skipped sample would have contributed exactly
 //! nothing. (A per-fragment early-out in the raster backend measured 15 % slower on
-//! lavapipe, whose fragment cost is dominated by rasterisation and blending, so the
-//! raster and per-slice paths do not skip.)
+//! lavapipe, whose fragment cost is dominated by rasterisation and blending.) The
+//! raster backend can instead cut its proxy polygons to [`occupied_cells`] (the
+//! occupied bricks' bounding box in cells of a few bricks per axis, the empty cells
+//! left out), so that fragments are made only where a sample can be visible.
 //!
 //! Exactness rests on the plugins' [`Transparency`] promises (see there): skipping is
 //! on only when every enabled plugin makes one. A brick of `BRICK`³ voxels covers the
@@ -120,6 +122,76 @@ pub fn stack_regions(
         .collect()
 }
 
+/// Bricks per axis of one proxy cell of the raster backend, unless
+/// `VWB_RASTER_PROXY_CELL` says otherwise (`bench/raster_options.py`, docs/perf.md: 2
+/// was the least slow on lavapipe, where no cell size pays).
+pub const PROXY_CELL: u32 = 2;
+
+/// Bricks per axis of one proxy cell: `VWB_RASTER_PROXY_CELL` (≥ 1) or [`PROXY_CELL`].
+pub fn proxy_cell() -> u32 {
+    std::env::var("VWB_RASTER_PROXY_CELL")
+        .ok()
+        .and_then(|v| v.trim().parse::<u32>().ok())
+        .filter(|&n| n >= 1)
+        .unwrap_or(PROXY_CELL)
+}
+
+/// The occupied parts of a volume of `dims` voxels, as boxes of whole voxels
+/// ([start, end) per axis). The bounding box of the occupied bricks (`bdims` bricks,
+/// x fastest, a nonzero `occupancy` byte per brick that can be visible) is cut into
+/// cells of `cell` bricks per axis from its low corner, and the cells holding an
+/// occupied brick are kept whole. Every sample that can be visible lies in one of the
+/// boxes (a sample belongs to the brick its voxel coordinate lies in), the boxes do not
+/// overlap, and neighbouring boxes share whole faces, so their slice polygons meet
+/// edge to edge without cracks or double cover (no T-junctions).
+pub fn occupied_cells(
+    occupancy: &[u8],
+    bdims: [u32; 3],
+    dims: [u32; 3],
+    cell: u32,
+) -> Vec<[[u32; 2]; 3]> {
+    let cell = cell.max(1);
+    let index = |b: [u32; 3]| ((b[2] * bdims[1] + b[1]) * bdims[0] + b[0]) as usize;
+    let occupied = |b: [u32; 3]| occupancy.get(index(b)).is_some_and(|&v| v != 0);
+    let bricks = || {
+        (0..bdims[2]).flat_map(move |z| {
+            (0..bdims[1]).flat_map(move |y| (0..bdims[0]).map(move |x| [x, y, z]))
+        })
+    };
+    // the bounding box of the occupied bricks, [lo, hi) in bricks
+    let (mut lo, mut hi) = ([u32::MAX; 3], [0u32; 3]);
+    for b in bricks().filter(|&b| occupied(b)) {
+        for a in 0..3 {
+            lo[a] = lo[a].min(b[a]);
+            hi[a] = hi[a].max(b[a] + 1);
+        }
+    }
+    if lo[0] == u32::MAX {
+        return Vec::new();
+    }
+    let cells: [u32; 3] = std::array::from_fn(|a| (hi[a] - lo[a]).div_ceil(cell));
+    let mut keep = vec![false; (cells[0] * cells[1] * cells[2]) as usize];
+    for b in bricks().filter(|&b| occupied(b)) {
+        let c: [u32; 3] = std::array::from_fn(|a| (b[a] - lo[a]) / cell);
+        keep[((c[2] * cells[1] + c[1]) * cells[0] + c[0]) as usize] = true;
+    }
+    let mut out = Vec::new();
+    for (i, _) in keep.iter().enumerate().filter(|(_, k)| **k) {
+        let i = i as u32;
+        let c = [
+            i % cells[0],
+            (i / cells[0]) % cells[1],
+            i / (cells[0] * cells[1]),
+        ];
+        out.push(std::array::from_fn(|a| {
+            let b0 = lo[a] + c[a] * cell;
+            let b1 = (b0 + cell).min(hi[a]);
+            [(b0 * BRICK).min(dims[a]), (b1 * BRICK).min(dims[a])]
+        }));
+    }
+    out
+}
+
 /// Marks empty (0) every brick of `occupancy` that lies wholly outside one of the
 /// `regions`: a brick of a volume of `dims` voxels in the world box `(lo, hi)` covers
 /// the samples whose `tex · dims` lies in it, widened by [`REGION_MARGIN`] of the box.
@@ -169,6 +241,74 @@ pub fn stack_visibility(stack: &[PluginInstance]) -> Option<Arc<VisibleFn>> {
 
 #[cfg(test)]
 mod tests {
+    /// Every occupied brick lies in exactly one box, the boxes are disjoint, cells
+    /// without an occupied brick give none, and one cell over the grid is the bounding box.
+    #[test]
+    fn occupied_cells_cover_the_occupied_bricks_once() {
+        let dims = [70u32, 45, 33]; // partial bricks at the far ends
+        let bdims = dims.map(|d| d.div_ceil(BRICK));
+        let n = (bdims[0] * bdims[1] * bdims[2]) as usize;
+        let mut rng = crate::rng::Rng::at(12345, 0);
+        let occupancy: Vec<u8> = (0..n)
+            .map(|_| if rng.uniform() < 0.2 { 255 } else { 0 })
+            .collect();
+        let inside =
+            |b: &[[u32; 2]; 3], v: [u32; 3]| (0..3).all(|a| b[a][0] <= v[a] && v[a] < b[a][1]);
+        for cell in [1, 2, 3, 100] {
+            let boxes = occupied_cells(&occupancy, bdims, dims, cell);
+            for (i, &o) in occupancy.iter().enumerate() {
+                let i = i as u32;
+                let b = [
+                    i % bdims[0],
+                    (i / bdims[0]) % bdims[1],
+                    i / (bdims[0] * bdims[1]),
+                ];
+                let voxel = b.map(|x| x * BRICK); // the brick's first voxel
+                let holders = boxes.iter().filter(|x| inside(x, voxel)).count();
+                if o != 0 {
+                    assert_eq!(holders, 1, "cell {cell}: brick {b:?} in {holders} boxes");
+                } else {
+                    assert!(holders <= 1, "cell {cell}: boxes overlap at {b:?}");
+                }
+            }
+            for x in &boxes {
+                assert!(
+                    (0..3).all(|a| x[a][0] < x[a][1] && x[a][1] <= dims[a]),
+                    "{x:?}"
+                );
+                // a box touching another along axis a has the same extent on the others
+                for y in &boxes {
+                    for a in 0..3 {
+                        let (b, c) = ((a + 1) % 3, (a + 2) % 3);
+                        let overlap = |p: usize| x[p][0] < y[p][1] && y[p][0] < x[p][1];
+                        if x[a][1] == y[a][0] && overlap(b) && overlap(c) {
+                            assert_eq!((x[b], x[c]), (y[b], y[c]), "T-junction {x:?} {y:?}");
+                        }
+                    }
+                }
+            }
+        }
+        // one cell over the whole grid: the bounding box of the occupied bricks
+        let one = occupied_cells(&occupancy, bdims, dims, 100);
+        assert_eq!(one.len(), 1);
+        assert_eq!(one[0], [[0, 70], [0, 45], [0, 33]]);
+        let sparse: Vec<u8> = (0..n)
+            .map(|i| if i == 7 || i == n - 1 { 1 } else { 0 })
+            .collect();
+        let one = occupied_cells(&sparse, bdims, dims, 100);
+        assert_eq!(one, vec![[[56, 70], [0, 45], [0, 33]]]);
+        assert_eq!(
+            occupied_cells(&sparse, bdims, dims, 2),
+            vec![[[56, 70], [0, 16], [0, 16]], [[56, 70], [32, 45], [32, 33]]]
+        );
+        let single: Vec<u8> = (0..n).map(|i| (i == 7) as u8).collect();
+        assert_eq!(
+            occupied_cells(&single, bdims, dims, 2),
+            vec![[[56, 64], [0, 8], [0, 8]]]
+        );
+        assert!(occupied_cells(&vec![0; n], bdims, dims, 2).is_empty());
+    }
+
     use super::*;
     use crate::plugin::CpuContext;
     use crate::volume::{Volume, VoxelData};

@@ -175,13 +175,21 @@ impl SlicePlan {
     /// All polygons as a triangle list (fan per slice), front to back, with the slice
     /// index of each vertex.
     pub fn triangles(&self, vbox: &VolumeBox) -> Vec<(Vec3, u32)> {
-        let mut out = Vec::with_capacity(self.count as usize * 12);
+        self.triangles_in(std::slice::from_ref(vbox))
+    }
+
+    /// [`SlicePlan::triangles`] over several disjoint boxes: each slice's polygons in
+    /// every box (in the order given) before the next slice's.
+    pub fn triangles_in(&self, boxes: &[VolumeBox]) -> Vec<(Vec3, u32)> {
+        let mut out = Vec::with_capacity(self.count as usize * 12 * boxes.len());
         for k in 0..self.count {
-            let poly = self.polygon(vbox, k);
-            for i in 1..poly.len().saturating_sub(1) {
-                out.push((poly[0], k));
-                out.push((poly[i], k));
-                out.push((poly[i + 1], k));
+            for vbox in boxes {
+                let poly = self.polygon(vbox, k);
+                for i in 1..poly.len().saturating_sub(1) {
+                    out.push((poly[0], k));
+                    out.push((poly[i], k));
+                    out.push((poly[i + 1], k));
+                }
             }
         }
         out

@@ -532,6 +532,20 @@ fn fs_main(in: VsOut) -> @location(0) vec4<f32> {
     return evaluate(s).c;
 }
 
+// The sample at the pixel's exact ray–plane point, as the compute backend takes it,
+// rather than at the position interpolated over the proxy polygon: used when the
+// proxies are cut to the occupied cells, whose sliver triangles interpolate poorly.
+@fragment
+fn fs_exact(in: VsOut) -> @location(0) vec4<f32> {
+    let uv = in.clip_pos.xy * frame.viewport.zw;
+    let r = pixel_ray(uv);
+    let t = slice_hit(r, in.slice);
+    if (t < 0.0) {
+        return vec4<f32>(0.0);
+    }
+    return evaluate(pixel_sample(r, t, uv, in.slice)).c;
+}
+
 // ---------------------------------------------------------------- compute backend
 // One invocation per pixel steps through the same slice planes: the sample of slice k
 // is where the pixel's ray meets the plane at distance d_k = d_0 + k·Δs from the eye.

@@ -381,6 +381,9 @@ fn compare_bench_and_scene() {
     let scene: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     assert_eq!(scene["tf"]["lut"].as_array().unwrap().len(), 256);
     assert_eq!(scene["volume"]["dims"], serde_json::json!([128, 128, 84]));
+    // tools such as bench/vtk_peer.py read the demo volume from this file
+    let demo = scene["volume"]["demo_path"].as_str().unwrap();
+    assert!(std::path::Path::new(demo).is_file(), "{demo}");
 
     // bad parameters name the cause
     for (args, needle) in [

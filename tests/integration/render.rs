@@ -359,6 +359,115 @@ fn early_termination_stops_opaque_rays_without_visible_change() {
     assert!(rms < ONE_LEVEL);
 }
 
+/// Early termination in the raster backend (issue 23, item 2): a depth mask drawn every
+/// `raster_et_interval()` slices stops the rays that reached the threshold at the end
+/// of that run of slices, as the reference renderer models it, in the single-pass and
+/// the per-slice (slice-state) paths alike; the compute backend stops them at the slice
+/// itself, and without a threshold no ray stops.
+#[test]
+fn raster_early_termination_stops_rays_at_the_end_of_a_run() {
+    // deep along the view axis (about 100 slices) and thin per slice, so that the
+    // compute backend (≈ 14 slices), a run of 32 slices and all slices differ clearly
+    let vol = synthetic(
+        [32, 32, 96],
+        |x, y, z| if x + y + z == 0 { 0.0 } else { 1.0 },
+    );
+    let mut tf = instance("classify.tf1d");
+    tf.params.set("tf", flat_tf(0.8, 0.05));
+    let mut shadow = instance("test.slice_shadow");
+    shadow.params.set("strength", ParamValue::Float(0.5));
+    assert!(vwb_render::renderer::raster_et_interval() > 1);
+    for stack in [vec![tf.clone()], vec![tf.clone(), shadow]] {
+        let per_slice = stack.len() > 1;
+        let mut alphas = Vec::new();
+        for (backend, et) in [
+            (Backend::Raster, None),
+            (Backend::Raster, Some(0.5)),
+            (Backend::Compute, Some(0.5)),
+        ] {
+            // no slice plane on a face of the box, where rounding decides per pixel
+            // whether the face's sample is taken and so which run a threshold falls in
+            let s = FrameSettings {
+                early_termination: et,
+                slice_spacing: 0.93,
+                ..ortho_axis(32, 32, backend)
+            };
+            let (px, reference) = crate::reference::gpu_and_reference(
+                vol.clone(),
+                &stack,
+                TargetFormat::Rgba32Float,
+                &s,
+            );
+            let e = delta_e_rms(&px, &reference, 32, 32);
+            let (gpu_a, ref_a) = (px[16 * 32 + 16][3] as f64, reference[16 * 32 + 16][3]);
+            eprintln!(
+                "per-slice {per_slice}, {backend:?} {et:?}: centre α {gpu_a:.4} (reference \
+                 {ref_a:.4}), ΔE {e:.3}"
+            );
+            assert!(
+                e < twin_bound(backend, per_slice),
+                "{backend:?} {et:?}: ΔE {e}"
+            );
+            assert!((gpu_a - ref_a).abs() < 2e-3, "{backend:?} {et:?}");
+            alphas.push(gpu_a);
+        }
+        assert!(
+            alphas[2] < alphas[1] - 0.05 && alphas[1] < alphas[0] - 0.05,
+            "compute stops first, raster at the end of the run, neither without ET: {alphas:?}"
+        );
+    }
+}
+
+/// The occupied proxy (issue 23, item 2): the raster backend's polygons cut to the
+/// cells of bricks that can be visible cover less of the box, on presets with empty
+/// space, clipping, per-slice state and a 2D transfer function, and the image stays the
+/// full proxy's up to the rounding of the sample positions.
+#[test]
+fn occupied_proxy_covers_less_and_keeps_the_image() {
+    let registry = registry();
+    for preset in [
+        "demo.ron",
+        "demo_clip_labels.ron",
+        "demo_dos.ron",
+        "demo_tf2d.ron",
+    ] {
+        let doc = Document::load(&repo().join("presets").join(preset), &registry)
+            .unwrap()
+            .document;
+        let volume = vwb_lab::headless::load_volume(&doc.volume).unwrap();
+        let s = FrameSettings {
+            width: 96,
+            height: 96,
+            backend: Backend::Raster,
+            ..doc.frame_settings()
+        };
+        let mut images = Vec::new();
+        let mut shares = Vec::new();
+        for on in [false, true] {
+            let mut r = Renderer::new(gpu(), volume.clone()).unwrap();
+            r.set_occupied_proxy(on);
+            r.update_stack(&doc.stack, doc.render.target).unwrap();
+            shares.push(r.render(&s).unwrap().proxy_share.unwrap());
+            images.push(rgb(&r.read_pixels().unwrap().2));
+        }
+        let (rms, max) = diff(&images[0], &images[1]);
+        eprintln!(
+            "{preset}: proxy covers {:.0} % of the box; RMS {:.3} levels, max {:.1} levels",
+            shares[1] * 100.0,
+            rms / ONE_LEVEL,
+            max / ONE_LEVEL
+        );
+        assert_eq!(shares[0], 1.0, "{preset}");
+        assert!(shares[1] < 0.7, "{preset}: {shares:?}");
+        assert!(mean_luma(&images[1]) > 0.02, "{preset}: something is drawn");
+        assert!(rms < 0.5 * ONE_LEVEL, "{preset}: RMS {rms}");
+        assert!(
+            max < adapter_bound(12.0, 32.0) * ONE_LEVEL,
+            "{preset}: max {max}"
+        );
+    }
+}
+
 /// An orthographic camera of height h maps the volume box to its exact footprint:
 /// seen along z with h = 1.2, the unit cube covers 40 of 48 rows and, at the 4:3
 /// aspect, 40 of 64 columns, centred, whatever the camera's distance. A perspective

@@ -22,7 +22,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use glam::{DVec2, DVec3};
 use vwb_render::plugin::{GpuInit, GpuResource};
 use vwb_render::shading::{
-    blinn_phong_factors, oct_decode, oct_encode, Light, LightKind, LightSpace, Material,
+    light_terms, oct_decode, oct_encode, Light, LightKind, LightSpace, Material,
 };
 
 /// Octahedral cells per side (N): 256 keeps the direction error under 1°.
@@ -47,12 +47,7 @@ pub fn bake(lights: &[Light], m: &Material) -> Vec<[f32; 4]> {
     for j in 0..n {
         for i in 0..n {
             let nv = cell_normal(i as u32, j as u32);
-            let (mut d, mut s) = (DVec3::ZERO, DVec3::ZERO);
-            for (l, c) in &dirs {
-                let (fd, fs) = blinn_phong_factors(nv, v, *l, m.shininess);
-                d += *c * (m.kd * fd);
-                s += *c * (m.ks * fs);
-            }
+            let (d, s) = light_terms(nv, v, &dirs, m);
             texels[j * 2 * n + i] = [d.x as f32, d.y as f32, d.z as f32, 1.0];
             texels[j * 2 * n + n + i] = [s.x as f32, s.y as f32, s.z as f32, 1.0];
         }

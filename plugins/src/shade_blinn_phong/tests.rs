@@ -152,6 +152,10 @@ fn the_lighting_table_matches_direct_evaluation() {
     let texels = table::bake(&lights, &m);
     assert_eq!(texels.len(), (2 * table::SIZE * table::SIZE) as usize);
     let v = DVec3::Z;
+    let dirs: Vec<_> = lights
+        .iter()
+        .map(|l| (vwb_render::shading::safe_normalize(l.vector), l.color))
+        .collect();
     let (mut worst, mut sum, mut n) = (0.0f64, 0.0, 0);
     for k in 0..5000 {
         let z = 1.0 - 2.0 * (k as f64 + 0.5) / 5000.0;
@@ -159,17 +163,7 @@ fn the_lighting_table_matches_direct_evaluation() {
         let phi = 2.399_963_229_728_653 * k as f64;
         let normal = DVec3::new(r * phi.cos(), r * phi.sin(), z);
         let (d, s) = table::lookup(&texels, normal);
-        let (mut ed, mut es) = (DVec3::ZERO, DVec3::ZERO);
-        for l in &lights {
-            let (fd, fs) = vwb_render::shading::blinn_phong_factors(
-                normal,
-                v,
-                vwb_render::shading::safe_normalize(l.vector),
-                m.shininess,
-            );
-            ed += l.color * (m.kd * fd);
-            es += l.color * (m.ks * fs);
-        }
+        let (ed, es) = vwb_render::shading::light_terms(normal, v, &dirs, &m);
         let e = (d - ed).length().max((s - es).length());
         worst = worst.max(e);
         sum += e;

@@ -308,7 +308,7 @@ fn edge_world(lo: f32, hi: f32, e: u32, dim: u32) -> f32 {
 }
 
 /// The box of voxel-edge ranges `r` (per axis) inside `whole`, with `whole`'s Δs0.
-fn sub_box(whole: &VolumeBox, dims: [u32; 3], r: [[u32; 2]; 3]) -> VolumeBox {
+pub(super) fn sub_box(whole: &VolumeBox, dims: [u32; 3], r: [[u32; 2]; 3]) -> VolumeBox {
     let (lo, hi) = (whole.min.to_array(), whole.max.to_array());
     let at = |a: usize, e: u32| edge_world(lo[a], hi[a], e, dims[a]);
     VolumeBox {
@@ -466,50 +466,15 @@ impl Split {
     /// The compositing pipeline for eye buffers of `format`.
     fn ensure_composite(&mut self, gpu: &GpuContext, format: TargetFormat) {
         if self.composite.as_ref().is_none_or(|c| c.0 != format) {
-            let device = &gpu.device;
-            let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-                label: Some("vwb composite"),
-                source: wgpu::ShaderSource::Wgsl(COMPOSITE_WGSL.into()),
-            });
-            let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-                label: Some("vwb composite"),
-                entries: &[wgpu::BindGroupLayoutEntry {
-                    binding: 0,
-                    visibility: wgpu::ShaderStages::FRAGMENT,
-                    ty: wgpu::BindingType::Texture {
-                        sample_type: wgpu::TextureSampleType::Float { filterable: false },
-                        view_dimension: wgpu::TextureViewDimension::D2,
-                        multisampled: false,
-                    },
-                    count: None,
-                }],
-            });
-            let pl = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-                label: Some("vwb composite"),
-                bind_group_layouts: &[Some(&layout)],
-                immediate_size: 0,
-            });
-            let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-                label: Some("vwb composite"),
-                layout: Some(&pl),
-                vertex: wgpu::VertexState {
-                    module: &module,
-                    entry_point: Some("vs_main"),
-                    compilation_options: Default::default(),
-                    buffers: &[],
-                },
-                primitive: Default::default(),
-                depth_stencil: None,
-                multisample: Default::default(),
-                fragment: Some(wgpu::FragmentState {
-                    module: &module,
-                    entry_point: Some("fs_main"),
-                    compilation_options: Default::default(),
-                    targets: &[Some(under_target(format))],
-                }),
-                multiview_mask: None,
-                cache: None,
-            });
+            let (pipeline, layout) = fullscreen_pipeline(
+                &gpu.device,
+                "vwb composite",
+                COMPOSITE_WGSL,
+                &[eye_texture_entry(0)],
+                ("vs_main", "fs_main"),
+                &[Some(under_target(format))],
+                None,
+            );
             self.composite = Some((format, pipeline, layout));
         }
     }
@@ -580,6 +545,7 @@ impl Renderer {
             r.shader_overrides = self.shader_overrides.clone();
             r.overrides_generation = self.overrides_generation;
             r.skipping_enabled = self.skipping_enabled;
+            r.occupied_proxy = self.occupied_proxy;
             for (h, compiled) in &cache {
                 if !r.compiled.iter().any(|(k, _)| k == h) {
                     r.compiled.push((*h, compiled.clone()));

@@ -6,6 +6,10 @@ use super::{Volume, load_nrrd_bytes};
 /// NRRD; provenance and licence in `data/LICENSE-demo.md`.
 const DEMO_NRRD: &[u8] = include_bytes!("../../data/demo_mri_head.nrrd");
 
+/// Where the embedded file sits in this source tree (for tools that read it themselves,
+/// such as `vwb scene`'s `demo_path`).
+pub const DEMO_SOURCE_PATH: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/data/demo_mri_head.nrrd");
+
 /// File name used in (impossible) error messages about the embedded file.
 const DEMO_FILE: &str = "demo_mri_head.nrrd";
 

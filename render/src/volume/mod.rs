@@ -50,7 +50,7 @@ use std::path::{Path, PathBuf};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-pub use demo::demo;
+pub use demo::{DEMO_SOURCE_PATH, demo};
 pub use nrrd::{
     ByteSkip, NrrdEncoding, NrrdHeader, NrrdType, load_nrrd, load_nrrd_bytes, parse_nrrd_header,
 };
