@@ -306,6 +306,16 @@ fn fullscreen_pipeline(
     (pipeline, layout)
 }
 
+/// A count (≥ 1) from the environment variable `name`, else `default`: the benchmark
+/// overrides of tuned constants (`VWB_RASTER_ET_INTERVAL`, `VWB_RASTER_PROXY_CELL`).
+pub(crate) fn env_count(name: &str, default: u32) -> u32 {
+    std::env::var(name)
+        .ok()
+        .and_then(|v| v.trim().parse::<u32>().ok())
+        .filter(|&n| n >= 1)
+        .unwrap_or(default)
+}
+
 /// An unfilterable float 2D texture read by a fragment shader (an eye buffer).
 fn eye_texture_entry(binding: u32) -> wgpu::BindGroupLayoutEntry {
     wgpu::BindGroupLayoutEntry {
@@ -437,10 +447,10 @@ struct CompiledStack {
     g1_layout: wgpu::BindGroupLayout,
     g2_layout: wgpu::BindGroupLayout,
     g3_layout: wgpu::BindGroupLayout,
-    raster: wgpu::RenderPipeline,
-    /// The raster pipeline's other variants, made on first use: by (early-termination
-    /// depth test, fragment at the exact ray–plane point), index `et + 2·exact`.
-    raster_variants: [std::sync::OnceLock<wgpu::RenderPipeline>; 4],
+    /// The raster pipelines by (early-termination depth test, fragment at the exact
+    /// ray–plane point), index `et + 2·exact`: the plain one built with the stack (so
+    /// that the device validates it), the others on first use.
+    raster: [std::sync::OnceLock<wgpu::RenderPipeline>; 4],
     module: wgpu::ShaderModule,
     raster_layout: wgpu::PipelineLayout,
     target: TargetFormat,
@@ -461,10 +471,7 @@ impl CompiledStack {
     /// The raster pipeline for early termination (depth test) and the exact fragment
     /// position (proxy cut to the occupied cells).
     fn raster_for(&self, device: &wgpu::Device, et: bool, exact: bool) -> &wgpu::RenderPipeline {
-        if !et && !exact {
-            return &self.raster;
-        }
-        self.raster_variants[et as usize + 2 * exact as usize].get_or_init(|| {
+        self.raster[et as usize + 2 * exact as usize].get_or_init(|| {
             raster_pipeline(
                 device,
                 &self.module,
@@ -1833,8 +1840,12 @@ impl Renderer {
             g1_layout,
             g2_layout,
             g3_layout,
-            raster,
-            raster_variants: Default::default(),
+            raster: [
+                raster.into(),
+                Default::default(),
+                Default::default(),
+                Default::default(),
+            ],
             module,
             raster_layout,
             target,
@@ -2846,14 +2857,14 @@ impl Renderer {
                 } else {
                     // one pass, or with early termination one per run of slices, each
                     // followed by the mask
-                    let runs = if et.is_some() {
-                        plan.count.div_ceil(et_interval).max(1)
+                    let run_len = if et.is_some() {
+                        et_interval
                     } else {
-                        1
+                        plan.count.max(1)
                     };
-                    let run_len = if et.is_some() { et_interval } else { u32::MAX };
+                    let runs = plan.count.div_ceil(run_len).max(1);
                     for r in 0..runs {
-                        let (k0, k1) = (r * run_len, (r + 1).saturating_mul(run_len));
+                        let (k0, k1) = (r * run_len, (r + 1) * run_len);
                         let in_run = slice_ranges.iter().filter(|s| s.0 >= k0 && s.0 < k1);
                         let a = in_run.clone().map(|s| s.1).min();
                         let b = in_run.map(|s| s.2).max();

@@ -129,11 +129,7 @@ pub const PROXY_CELL: u32 = 2;
 
 /// Bricks per axis of one proxy cell: `VWB_RASTER_PROXY_CELL` (≥ 1) or [`PROXY_CELL`].
 pub fn proxy_cell() -> u32 {
-    std::env::var("VWB_RASTER_PROXY_CELL")
-        .ok()
-        .and_then(|v| v.trim().parse::<u32>().ok())
-        .filter(|&n| n >= 1)
-        .unwrap_or(PROXY_CELL)
+    crate::renderer::env_count("VWB_RASTER_PROXY_CELL", PROXY_CELL)
 }
 
 /// The occupied parts of a volume of `dims` voxels, as boxes of whole voxels

@@ -31,11 +31,7 @@ pub const RASTER_ET_INTERVAL: u32 = 32;
 /// Slices per run between mask passes: `VWB_RASTER_ET_INTERVAL` (≥ 1) or
 /// [`RASTER_ET_INTERVAL`].
 pub fn interval() -> u32 {
-    std::env::var("VWB_RASTER_ET_INTERVAL")
-        .ok()
-        .and_then(|v| v.trim().parse::<u32>().ok())
-        .filter(|&n| n >= 1)
-        .unwrap_or(RASTER_ET_INTERVAL)
+    env_count("VWB_RASTER_ET_INTERVAL", RASTER_ET_INTERVAL)
 }
 
 /// The depth test of the slice pipeline when early termination is on.
