@@ -256,6 +256,9 @@ pub struct InstanceLayout {
     pub uniform: UniformLayout,
     /// Entry point of its state update, if it has per-slice state.
     pub update_entry: Option<String>,
+    /// Whether its `slice_update` reads the state through `state_at` (the update entry
+    /// points load the workgroup tile first).
+    pub state_tile: bool,
     /// Its pre-pass module (bindings in group 1) and the module's bindings.
     pub prepass: Option<(ComposedModule, Vec<Binding>)>,
     /// Its volume passes, in declaration order: the entry point in the main module
@@ -275,6 +278,10 @@ pub struct PassLayout {
 
 /// First group-3 binding of volume-pass targets (0 and 1 are the compute output).
 pub const PASS_BINDING_BASE: u32 = 2;
+
+/// Entry point of the fused slice step (the slice and every per-slice state update in
+/// one dispatch), generated when a plugin declares per-slice state.
+pub const FUSED_SLICE_ENTRY: &str = "cs_slice_fused";
 
 /// What `stack_classify` is, for checking a plugin file in isolation.
 /// The functions a plugin's hook file may define besides its hooks to supply the scalar
@@ -654,6 +661,83 @@ fn decls_text(bindings: &[Binding], prefix: &str, uniform: &UniformLayout) -> St
     s
 }
 
+/// Texels the per-slice state's workgroup tile reaches beyond the workgroup's 8 × 8
+/// texels on each side: the DOS kernel's taps lie within 1–3 texels at one sample per
+/// voxel (docs/perf.md, "Per-slice state in one dispatch"); farther taps read the texture.
+pub const STATE_TILE_HALO: u32 = 4;
+
+/// The builtins of the entry points that run `slice_update` hooks.
+const TILE_BUILTINS: &str = "@builtin(global_invocation_id) gid: vec3<u32>, \
+     @builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_index) lid: u32";
+
+/// WGSL that loads the state tiles of the instances that read them, then waits for the
+/// whole workgroup (before any invocation returns: the barrier needs uniform control flow).
+fn load_tiles(instances: &[InstanceLayout]) -> String {
+    let mut s: String = instances
+        .iter()
+        .filter(|i| i.state_tile)
+        .map(|i| format!("    {}load_state_tile(wid.xy, lid);\n", i.prefix))
+        .collect();
+    if !s.is_empty() {
+        s.push_str("    workgroupBarrier();\n");
+    }
+    s
+}
+
+/// Whether a plugin file reads its previous state through `state_at` (the composer
+/// then loads the workgroup tile in the entry points that run its `slice_update`).
+fn uses_state_tile(source: &str) -> bool {
+    source.contains("state_at(")
+}
+
+/// The workgroup tile of a per-slice state and `state_at`, which filters from it: the
+/// previous state around the workgroup's 8 × 8 texels, loaded once per dispatch. Only
+/// compute entry points may call `state_at` (the `slice_update` hook), the `shade` hook
+/// samples `state_prev` itself.
+fn state_tile_text(p: &str, format: crate::plugin::StorageFormat) -> String {
+    let n = 8 + 2 * STATE_TILE_HALO;
+    let halo = STATE_TILE_HALO;
+    let single = format == crate::plugin::StorageFormat::R32Float;
+    let (ty, channel, widen) = if single {
+        ("f32", ".r", "vec4<f32>(v, 0.0, 0.0, 1.0)")
+    } else {
+        ("vec4<f32>", "", "v")
+    };
+    format!(
+        "// The previous state around this workgroup's 8 x 8 texels, {halo} more on each side\n\
+         // (edge texels repeated, like linear_clamp), loaded once per dispatch.\n\
+         var<workgroup> {p}state_tile: array<{ty}, {nn}>;\n\
+         var<private> {p}state_tile_origin: vec2<i32>;\n\
+         fn {p}load_state_tile(wid: vec2<u32>, lid: u32) {{\n    \
+         let last = vec2<i32>(textureDimensions({p}state_prev)) - 1;\n    \
+         let origin = vec2<i32>(wid * 8u) - {halo};\n    \
+         for (var i = lid; i < {nn}u; i = i + 64u) {{\n        \
+         let t = clamp(origin + vec2<i32>(i32(i % {n}u), i32(i / {n}u)), vec2<i32>(0), last);\n        \
+         {p}state_tile[i] = textureLoad({p}state_prev, t, 0){channel};\n    \
+         }}\n    \
+         {p}state_tile_origin = origin;\n\
+         }}\n\
+         // The previous state at uv, bilinear with clamped edges like\n\
+         // textureSampleLevel(state_prev, linear_clamp, uv, 0.0): from the tile where the\n\
+         // four texels lie in it, else from the texture.\n\
+         fn {p}state_at(uv: vec2<f32>) -> vec4<f32> {{\n    \
+         let x = uv * vec2<f32>(textureDimensions({p}state_prev)) - 0.5;\n    \
+         let base = floor(x);\n    \
+         let l = vec2<i32>(base) - {p}state_tile_origin;\n    \
+         if (all(l >= vec2<i32>(0)) && all(l < vec2<i32>({last}))) {{\n        \
+         let f = x - base;\n        \
+         let j = u32(l.y * {n} + l.x);\n        \
+         let v = mix(mix({p}state_tile[j], {p}state_tile[j + 1u], f.x), mix({p}state_tile[j + {n}u], {p}state_tile[j + {n1}u], f.x), f.y);\n        \
+         return {widen};\n    \
+         }}\n    \
+         return textureSampleLevel({p}state_prev, linear_clamp, uv, 0.0);\n\
+         }}\n",
+        nn = n * n,
+        last = n - 1,
+        n1 = n + 1,
+    )
+}
+
 fn instance_prefix(plugin: &dyn Plugin, index: usize) -> String {
     let name = plugin.id().split('.').nth(1).unwrap_or("plugin");
     format!("p{index}_{name}_")
@@ -919,7 +1003,13 @@ pub fn compose_with(
             allowed.push("slice_update");
         }
         let passes = plugin.volume_passes();
+        let state_tile = plugin
+            .slice_state()
+            .filter(|_| uses_state_tile(&shader.source));
         let mut iso_decls = decls_text(&iso_bindings, "", &uniform);
+        if let Some(st) = state_tile {
+            iso_decls.push_str(&state_tile_text("", st.format));
+        }
         if !passes.is_empty() {
             iso_decls.push_str(STACK_CLASSIFY_STUB);
             iso_decls.push('\n');
@@ -971,6 +1061,9 @@ pub fn compose_with(
         }
         let mut names: HashSet<String> = decls.iter().map(|d| d.name.clone()).collect();
         names.extend(local_names.iter().cloned());
+        if state_tile.is_some() {
+            names.insert("state_at".to_string());
+        }
         names.insert("Params".to_string());
         let renamed = rename(&shader.source, &names, &prefix);
 
@@ -989,7 +1082,13 @@ pub fn compose_with(
         segments.push((
             index,
             shader.file.to_string(),
-            decls_text(&inst_bindings, &prefix, &uniform),
+            {
+                let mut d = decls_text(&inst_bindings, &prefix, &uniform);
+                if let Some(st) = state_tile {
+                    d.push_str(&state_tile_text(&prefix, st.format));
+                }
+                d
+            },
             renamed,
         ));
         bindings.extend(inst_bindings);
@@ -999,6 +1098,7 @@ pub fn compose_with(
             hooks,
             uniform,
             update_entry,
+            state_tile: state_tile.is_some(),
             prepass,
             passes: Vec::new(),
         });
@@ -1103,9 +1203,11 @@ pub fn compose_with(
             for inst in &instances {
                 if let Some(entry) = &inst.update_entry {
                     let p = &inst.prefix;
+                    let load = load_tiles(std::slice::from_ref(inst));
                     let code = format!(
                         "@compute @workgroup_size(8, 8, 1)\n\
-                         fn {entry}(@builtin(global_invocation_id) gid: vec3<u32>) {{\n    \
+                         fn {entry}({TILE_BUILTINS}) {{\n\
+                         {load}    \
                          let size = textureDimensions({p}state_next);\n    \
                          if (gid.x >= size.x || gid.y >= size.y) {{\n        return;\n    }}\n    \
                          let e = state_texel_sample(gid.xy, size);\n    \
@@ -1114,6 +1216,31 @@ pub fn compose_with(
                     );
                     m.push_generated("state update entry point", &code, Some(inst.input_index));
                 }
+            }
+            let stores: String = instances
+                .iter()
+                .filter(|inst| inst.update_entry.is_some())
+                .map(|inst| {
+                    let p = &inst.prefix;
+                    format!(
+                        "    textureStore({p}state_next, vec2<i32>(gid.xy), {p}slice_update(e.s, e.c, e.s.uv));\n"
+                    )
+                })
+                .collect();
+            if !stores.is_empty() {
+                let load = load_tiles(&instances);
+                let code = format!(
+                    "// The slice and every state update in one dispatch, each sample evaluated once\n\
+                     // (used when every per-slice state has the eye buffer's resolution).\n\
+                     @compute @workgroup_size(8, 8, 1)\n\
+                     fn {FUSED_SLICE_ENTRY}({TILE_BUILTINS}) {{\n\
+                     {load}    \
+                     let size = vec2<u32>(frame.viewport.xy);\n    \
+                     if (gid.x >= size.x || gid.y >= size.y) {{\n        return;\n    }}\n    \
+                     let e = slice_step(gid.xy, size, true);\n\
+                     {stores}}}"
+                );
+                m.push_generated("fused slice entry point", &code, None);
             }
         } else {
             m.push_line(&line.replace("{{TARGET_FORMAT}}", target.wgsl()), origin);

@@ -306,6 +306,13 @@ fn fullscreen_pipeline(
     (pipeline, layout)
 }
 
+/// Whether the compute backend runs the slice and the state updates in one dispatch per
+/// slice where it can (on unless `VWB_FUSED_SLICES=0`, a benchmark override that
+/// restores the dispatch per slice and per update).
+fn fused_slices() -> bool {
+    std::env::var("VWB_FUSED_SLICES").map_or(true, |v| v.trim() != "0")
+}
+
 /// A count (≥ 1) from the environment variable `name`, else `default`: the benchmark
 /// overrides of tuned constants (`VWB_RASTER_ET_INTERVAL`, `VWB_RASTER_PROXY_CELL`).
 pub(crate) fn env_count(name: &str, default: u32) -> u32 {
@@ -458,6 +465,8 @@ struct CompiledStack {
     /// `cs_main` with empty-space skipping.
     cs_main_skip: wgpu::ComputePipeline,
     cs_slice: wgpu::ComputePipeline,
+    /// The slice and every state update in one dispatch (with per-slice state).
+    cs_slice_fused: Option<wgpu::ComputePipeline>,
     cs_resolve: wgpu::ComputePipeline,
     /// (instance index, pipeline) per state update.
     updates: Vec<(usize, wgpu::ComputePipeline)>,
@@ -1773,6 +1782,11 @@ impl Renderer {
         let cs_main_skip = compute("cs_main_skip", &compute_layout, &module);
         let cs_slice = compute("cs_slice", &compute_layout, &module);
         let cs_resolve = compute("cs_resolve", &compute_layout, &module);
+        let cs_slice_fused = composition
+            .instances
+            .iter()
+            .any(|i| i.update_entry.is_some())
+            .then(|| compute(crate::composer::FUSED_SLICE_ENTRY, &compute_layout, &module));
         let mut updates = Vec::new();
         let mut prepasses = Vec::new();
         let mut volume_passes = Vec::new();
@@ -1852,6 +1866,7 @@ impl Renderer {
             cs_main,
             cs_main_skip,
             cs_slice,
+            cs_slice_fused,
             cs_resolve,
             updates,
             prepasses,
@@ -2886,10 +2901,24 @@ impl Renderer {
             }
             Backend::Compute => {
                 if per_slice {
+                    // one dispatch per slice where every state has the eye buffer's
+                    // resolution (the state texel is the pixel), else two
+                    let fused = p.cs_slice_fused.as_ref().filter(|_| {
+                        p.updates.iter().all(|(i, _)| {
+                            self.instances
+                                .get(&p.stack[*i].0)
+                                .and_then(|g| g.state.as_ref())
+                                .is_some_and(|st| {
+                                    let size = st[0].0.size();
+                                    (size.width, size.height) == (t.width, t.height)
+                                })
+                        })
+                    });
+                    let fused = fused.filter(|_| fused_slices());
                     for k in 0..plan.count {
                         {
                             let mut pass = enc.begin_compute_pass(&Default::default());
-                            pass.set_pipeline(&p.cs_slice);
+                            pass.set_pipeline(fused.unwrap_or(&p.cs_slice));
                             pass.set_bind_group(
                                 0,
                                 &self.g0,
@@ -2900,7 +2929,9 @@ impl Renderer {
                             pass.set_bind_group(3, &g3, &[]);
                             pass.dispatch_workgroups(wg.0, wg.1, 1);
                         }
-                        run_updates(enc, k);
+                        if fused.is_none() {
+                            run_updates(enc, k);
+                        }
                     }
                     let mut pass = enc.begin_compute_pass(&Default::default());
                     pass.set_pipeline(if plan.count == 0 {
