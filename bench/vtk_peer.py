@@ -26,6 +26,8 @@ the test set-up). Usage:
     python3 bench/vtk_peer.py --gl x                 # GLX (re-runs under xvfb-run -a)
     python3 bench/vtk_peer.py --write-docs           # rewrite the vtk-peer block in docs/perf.md
     python3 bench/vtk_peer.py --self-error           # also the speed ratio at equal self-error
+    python3 bench/vtk_peer.py --preset presets/ct_dos.ron --shadows 0.3,1.0
+                                                     # VTK's volumetric shadows against vwb's DOS
 
 Self-convergence error (--self-error): each renderer's image at its default step
 against its own image at 1/8 of that step (RMS, 8-bit RGB), VTK's and every vwb
@@ -174,8 +176,9 @@ class WorldToVtk:
         return (np.array(p, float) - self.box_min) * self.scale - 0.5 * self.spacing
 
 
-def build_vtk(scene, mapper_kind):
-    """A render window holding the scene; returns (window, camera, mapper)."""
+def build_vtk(scene, mapper_kind, shadows=None):
+    """A render window holding the scene; returns (window, camera, mapper). `shadows`:
+    (reach, blend) of the GPU mapper's volumetric shadows (shading on)."""
     vol, cam, img = scene["volume"], scene["camera"], scene["image"]
     scalars = load_scalars(scene)
     image = vtk.vtkImageData()
@@ -195,6 +198,8 @@ def build_vtk(scene, mapper_kind):
         prop.SetDiffuse(shading["kd"])
         prop.SetSpecular(shading["ks"])
         prop.SetSpecularPower(shading["shininess"])
+    elif shadows:  # VTK's volumetric scattering shades; its default material
+        prop.ShadeOn()
     else:
         prop.ShadeOff()
     unit = float(min(vol["spacing"]))  # vwb opacities are per smallest voxel side
@@ -216,6 +221,9 @@ def build_vtk(scene, mapper_kind):
         mapper = vtk.vtkGPUVolumeRayCastMapper()
         mapper.LockSampleDistanceToInputSpacingOff()
         mapper.UseJitteringOff()
+        if shadows:
+            mapper.SetGlobalIlluminationReach(shadows[0])
+            mapper.SetVolumetricScatteringBlending(shadows[1])
     elif mapper_kind == "smart":
         mapper = vtk.vtkSmartVolumeMapper()
         mapper.SetRequestedRenderModeToDefault()
@@ -310,10 +318,10 @@ def compare(vwb_png, vtk_rgb, side_png):
     return rms(ours, vtk_rgb)
 
 
-def vtk_reference(scene, mapper_kind):
+def vtk_reference(scene, mapper_kind, shadows=None):
     """VTK's own image at 1/8 of the scene's step (one frame after the warm-up)."""
     fine = with_spacing(scene, scene["slice_spacing_voxels"] / REFERENCE_DIVISOR)
-    rw, camera, mapper = build_vtk(fine, mapper_kind)
+    rw, camera, mapper = build_vtk(fine, mapper_kind, shadows)
     rgb, _ = time_vtk(rw, camera, 0)
     del rw, camera, mapper
     return rgb
@@ -400,9 +408,16 @@ def main():
     ap.add_argument("--self-error", action="store_true",
                     help="also each renderer's self-convergence error (its default step against "
                          "1/8 of it) and vwb's speed ratio at VTK's self-error")
+    ap.add_argument("--shadows", help="REACH,BLEND: VTK's GPU mapper with volumetric shadows "
+                    "(global illumination reach, volumetric scattering blending; shading on), "
+                    "against a vwb preset with shade.dos: a different algorithm, so the RMS is "
+                    "no check")
     ap.add_argument("--block", default="vtk-peer")
     ap.add_argument("--doc", type=Path, default=REPO / "docs/perf.md")
     a = ap.parse_args()
+    shadows = tuple(float(x) for x in a.shadows.split(",")) if a.shadows else None
+    if shadows and a.mapper != "gpu":
+        sys.exit("--shadows needs --mapper gpu (VTK's volumetric shadows are the GPU mapper's)")
     env = setup_env(a)
 
     out = a.out or Path(tempfile.mkdtemp(prefix="vwb-vtk-peer-"))
@@ -419,7 +434,7 @@ def main():
         stem = Path(scene["preset"]).stem
         img = scene["image"]
         size = f"{img['width']}x{img['height']}"
-        rw, camera, mapper = build_vtk(scene, a.mapper)
+        rw, camera, mapper = build_vtk(scene, a.mapper, shadows)
         vtk_rgb, vtk_ms = time_vtk(rw, camera, a.frames)
         gl, mapper_used = gl_renderer(rw), mapper_name(mapper)
         vtk_png = out / f"{stem}_vtk.png"
@@ -428,7 +443,7 @@ def main():
         print(f"{label}: VTK {mapper_used} median {v[0]:.1f} ms (min {v[1]:.1f} max {v[2]:.1f}) "
               f"→ {vtk_png}", flush=True)
         del rw, camera, mapper  # release the GL context before vwb runs
-        vtk_self = rms(vtk_rgb, vtk_reference(scene, a.mapper)) if a.self_error else None
+        vtk_self = rms(vtk_rgb, vtk_reference(scene, a.mapper, shadows)) if a.self_error else None
         if vtk_self is not None:
             print(f"{label}: VTK self-error {vtk_self:.2f}/255", flush=True)
         for n, (backend, kind, extra) in enumerate(VWB_VARIANTS):
@@ -488,6 +503,9 @@ def main():
         "background; VTK samples every slice spacing along each ray (linear interpolation, "
         "opacity unit distance = smallest voxel side; shading on with the preset's k_a, k_d, "
         "k_s and shininess where it has shade.blinn_phong, else off)",
+        *([f"- VTK with volumetric shadows: global illumination reach {shadows[0]:g}, volumetric "
+           f"scattering blending {shadows[1]:g} (shading on, VTK's default material); vwb with its "
+           "preset's shade.dos. Different algorithms: the RMS column is no check"] if shadows else []),
         "",
         *table,
     ]

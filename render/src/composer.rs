@@ -256,9 +256,6 @@ pub struct InstanceLayout {
     pub uniform: UniformLayout,
     /// Entry point of its state update, if it has per-slice state.
     pub update_entry: Option<String>,
-    /// Whether its `slice_update` reads the state through `state_at` (the update entry
-    /// points load the workgroup tile first).
-    pub state_tile: bool,
     /// Its pre-pass module (bindings in group 1) and the module's bindings.
     pub prepass: Option<(ComposedModule, Vec<Binding>)>,
     /// Its volume passes, in declaration order: the entry point in the main module
@@ -283,7 +280,6 @@ pub const PASS_BINDING_BASE: u32 = 2;
 /// one dispatch), generated when a plugin declares per-slice state.
 pub const FUSED_SLICE_ENTRY: &str = "cs_slice_fused";
 
-/// What `stack_classify` is, for checking a plugin file in isolation.
 /// The functions a plugin's hook file may define besides its hooks to supply the scalar
 /// its `sample` hook gives (shading from it): `scalar(tex)`, and the grid it lives on,
 /// `scalar_grid()` (the volume's when absent).
@@ -327,6 +323,7 @@ fn differentiates_the_shading_scalar(source: &str) -> bool {
         })
 }
 
+/// What `stack_classify` is, for checking a plugin file in isolation.
 const STACK_CLASSIFY_STUB: &str = "fn stack_classify(tex: vec3<f32>, dir: vec3<f32>) -> vec4<f32> { return vec4<f32>(tex + dir, 0.0); }";
 
 /// The composed pipeline description.
@@ -661,83 +658,6 @@ fn decls_text(bindings: &[Binding], prefix: &str, uniform: &UniformLayout) -> St
     s
 }
 
-/// Texels the per-slice state's workgroup tile reaches beyond the workgroup's 8 × 8
-/// texels on each side: the DOS kernel's taps lie within 1–3 texels at one sample per
-/// voxel (docs/perf.md, "Per-slice state in one dispatch"); farther taps read the texture.
-pub const STATE_TILE_HALO: u32 = 4;
-
-/// The builtins of the entry points that run `slice_update` hooks.
-const TILE_BUILTINS: &str = "@builtin(global_invocation_id) gid: vec3<u32>, \
-     @builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_index) lid: u32";
-
-/// WGSL that loads the state tiles of the instances that read them, then waits for the
-/// whole workgroup (before any invocation returns: the barrier needs uniform control flow).
-fn load_tiles(instances: &[InstanceLayout]) -> String {
-    let mut s: String = instances
-        .iter()
-        .filter(|i| i.state_tile)
-        .map(|i| format!("    {}load_state_tile(wid.xy, lid);\n", i.prefix))
-        .collect();
-    if !s.is_empty() {
-        s.push_str("    workgroupBarrier();\n");
-    }
-    s
-}
-
-/// Whether a plugin file reads its previous state through `state_at` (the composer
-/// then loads the workgroup tile in the entry points that run its `slice_update`).
-fn uses_state_tile(source: &str) -> bool {
-    source.contains("state_at(")
-}
-
-/// The workgroup tile of a per-slice state and `state_at`, which filters from it: the
-/// previous state around the workgroup's 8 × 8 texels, loaded once per dispatch. Only
-/// compute entry points may call `state_at` (the `slice_update` hook), the `shade` hook
-/// samples `state_prev` itself.
-fn state_tile_text(p: &str, format: crate::plugin::StorageFormat) -> String {
-    let n = 8 + 2 * STATE_TILE_HALO;
-    let halo = STATE_TILE_HALO;
-    let single = format == crate::plugin::StorageFormat::R32Float;
-    let (ty, channel, widen) = if single {
-        ("f32", ".r", "vec4<f32>(v, 0.0, 0.0, 1.0)")
-    } else {
-        ("vec4<f32>", "", "v")
-    };
-    format!(
-        "// The previous state around this workgroup's 8 x 8 texels, {halo} more on each side\n\
-         // (edge texels repeated, like linear_clamp), loaded once per dispatch.\n\
-         var<workgroup> {p}state_tile: array<{ty}, {nn}>;\n\
-         var<private> {p}state_tile_origin: vec2<i32>;\n\
-         fn {p}load_state_tile(wid: vec2<u32>, lid: u32) {{\n    \
-         let last = vec2<i32>(textureDimensions({p}state_prev)) - 1;\n    \
-         let origin = vec2<i32>(wid * 8u) - {halo};\n    \
-         for (var i = lid; i < {nn}u; i = i + 64u) {{\n        \
-         let t = clamp(origin + vec2<i32>(i32(i % {n}u), i32(i / {n}u)), vec2<i32>(0), last);\n        \
-         {p}state_tile[i] = textureLoad({p}state_prev, t, 0){channel};\n    \
-         }}\n    \
-         {p}state_tile_origin = origin;\n\
-         }}\n\
-         // The previous state at uv, bilinear with clamped edges like\n\
-         // textureSampleLevel(state_prev, linear_clamp, uv, 0.0): from the tile where the\n\
-         // four texels lie in it, else from the texture.\n\
-         fn {p}state_at(uv: vec2<f32>) -> vec4<f32> {{\n    \
-         let x = uv * vec2<f32>(textureDimensions({p}state_prev)) - 0.5;\n    \
-         let base = floor(x);\n    \
-         let l = vec2<i32>(base) - {p}state_tile_origin;\n    \
-         if (all(l >= vec2<i32>(0)) && all(l < vec2<i32>({last}))) {{\n        \
-         let f = x - base;\n        \
-         let j = u32(l.y * {n} + l.x);\n        \
-         let v = mix(mix({p}state_tile[j], {p}state_tile[j + 1u], f.x), mix({p}state_tile[j + {n}u], {p}state_tile[j + {n1}u], f.x), f.y);\n        \
-         return {widen};\n    \
-         }}\n    \
-         return textureSampleLevel({p}state_prev, linear_clamp, uv, 0.0);\n\
-         }}\n",
-        nn = n * n,
-        last = n - 1,
-        n1 = n + 1,
-    )
-}
-
 fn instance_prefix(plugin: &dyn Plugin, index: usize) -> String {
     let name = plugin.id().split('.').nth(1).unwrap_or("plugin");
     format!("p{index}_{name}_")
@@ -908,7 +828,6 @@ fn check_limits(bindings: &[Binding], limits: &wgpu::Limits) -> Result<(), Compo
     Ok(())
 }
 
-/// Composes the enabled plugins (in stack order) into the slice shader.
 /// The workgroup shape of the template's whole-frame compute entry points.
 pub const MAIN_WORKGROUP: [u32; 2] = [8, 8];
 
@@ -953,6 +872,7 @@ pub fn with_main_workgroup(source: &str, wg: [u32; 2]) -> std::borrow::Cow<'_, s
     source.replace(&from, &to).into()
 }
 
+/// Composes the enabled plugins (in stack order) into the slice shader.
 pub fn compose(
     plugins: &[&dyn Plugin],
     target: TargetFormat,
@@ -1003,13 +923,7 @@ pub fn compose_with(
             allowed.push("slice_update");
         }
         let passes = plugin.volume_passes();
-        let state_tile = plugin
-            .slice_state()
-            .filter(|_| uses_state_tile(&shader.source));
         let mut iso_decls = decls_text(&iso_bindings, "", &uniform);
-        if let Some(st) = state_tile {
-            iso_decls.push_str(&state_tile_text("", st.format));
-        }
         if !passes.is_empty() {
             iso_decls.push_str(STACK_CLASSIFY_STUB);
             iso_decls.push('\n');
@@ -1061,9 +975,6 @@ pub fn compose_with(
         }
         let mut names: HashSet<String> = decls.iter().map(|d| d.name.clone()).collect();
         names.extend(local_names.iter().cloned());
-        if state_tile.is_some() {
-            names.insert("state_at".to_string());
-        }
         names.insert("Params".to_string());
         let renamed = rename(&shader.source, &names, &prefix);
 
@@ -1082,13 +993,7 @@ pub fn compose_with(
         segments.push((
             index,
             shader.file.to_string(),
-            {
-                let mut d = decls_text(&inst_bindings, &prefix, &uniform);
-                if let Some(st) = state_tile {
-                    d.push_str(&state_tile_text(&prefix, st.format));
-                }
-                d
-            },
+            decls_text(&inst_bindings, &prefix, &uniform),
             renamed,
         ));
         bindings.extend(inst_bindings);
@@ -1098,7 +1003,6 @@ pub fn compose_with(
             hooks,
             uniform,
             update_entry,
-            state_tile: state_tile.is_some(),
             prepass,
             passes: Vec::new(),
         });
@@ -1203,11 +1107,9 @@ pub fn compose_with(
             for inst in &instances {
                 if let Some(entry) = &inst.update_entry {
                     let p = &inst.prefix;
-                    let load = load_tiles(std::slice::from_ref(inst));
                     let code = format!(
                         "@compute @workgroup_size(8, 8, 1)\n\
-                         fn {entry}({TILE_BUILTINS}) {{\n\
-                         {load}    \
+                         fn {entry}(@builtin(global_invocation_id) gid: vec3<u32>) {{\n    \
                          let size = textureDimensions({p}state_next);\n    \
                          if (gid.x >= size.x || gid.y >= size.y) {{\n        return;\n    }}\n    \
                          let e = state_texel_sample(gid.xy, size);\n    \
@@ -1228,13 +1130,11 @@ pub fn compose_with(
                 })
                 .collect();
             if !stores.is_empty() {
-                let load = load_tiles(&instances);
                 let code = format!(
                     "// The slice and every state update in one dispatch, each sample evaluated once\n\
                      // (used when every per-slice state has the eye buffer's resolution).\n\
                      @compute @workgroup_size(8, 8, 1)\n\
-                     fn {FUSED_SLICE_ENTRY}({TILE_BUILTINS}) {{\n\
-                     {load}    \
+                     fn {FUSED_SLICE_ENTRY}(@builtin(global_invocation_id) gid: vec3<u32>) {{\n    \
                      let size = vec2<u32>(frame.viewport.xy);\n    \
                      if (gid.x >= size.x || gid.y >= size.y) {{\n        return;\n    }}\n    \
                      let e = slice_step(gid.xy, size, true);\n\

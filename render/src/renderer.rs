@@ -173,6 +173,9 @@ pub struct FrameStats {
     /// Raster backend: the share of the renderer's box that its proxy polygons cover
     /// (1 for the full box, less with [`Renderer::set_occupied_proxy`]); `None` for compute.
     pub proxy_share: Option<f64>,
+    /// Compute backend with per-slice state: the slice and the state updates ran in one
+    /// dispatch per slice ([`Renderer::set_fused_slices`]).
+    pub fused_slices: bool,
 }
 
 #[repr(C)]
@@ -306,9 +309,8 @@ fn fullscreen_pipeline(
     (pipeline, layout)
 }
 
-/// Whether the compute backend runs the slice and the state updates in one dispatch per
-/// slice where it can (on unless `VWB_FUSED_SLICES=0`, a benchmark override that
-/// restores the dispatch per slice and per update).
+/// The default of [`Renderer::set_fused_slices`]: on unless `VWB_FUSED_SLICES=0` (a
+/// benchmark override that restores a dispatch per slice and per update).
 fn fused_slices() -> bool {
     std::env::var("VWB_FUSED_SLICES").map_or(true, |v| v.trim() != "0")
 }
@@ -828,6 +830,9 @@ pub struct Renderer {
     raster_et: Option<raster_et::RasterEt>,
     /// Raster backend: proxy polygons cut to the occupied cells ([`Renderer::set_occupied_proxy`]).
     occupied_proxy: bool,
+    /// Compute backend: the slice and the state updates in one dispatch per slice where
+    /// every state has the eye buffer's resolution ([`Renderer::set_fused_slices`]).
+    fused_slices: bool,
 }
 
 fn uniform_entry(
@@ -1012,6 +1017,7 @@ impl Renderer {
             target: None,
             raster_et: None,
             occupied_proxy: false,
+            fused_slices: fused_slices(),
             volume_bytes,
             gpu_budget: budget,
             volume_format,
@@ -1229,6 +1235,15 @@ impl Renderer {
     /// at the next [`Renderer::update_stack`].
     pub fn set_empty_space_skipping(&mut self, on: bool) {
         self.skipping_enabled = on;
+    }
+
+    /// Compute backend with per-slice state (e.g. shade.dos): evaluate each slice's
+    /// sample once and update every state in the same dispatch (on by default, and where
+    /// every state has the eye buffer's resolution; `VWB_FUSED_SLICES=0` starts
+    /// renderers with it off), or run the slice and each update as separate dispatches
+    /// (docs/perf.md, "Per-slice state in one dispatch"). The image is the same.
+    pub fn set_fused_slices(&mut self, on: bool) {
+        self.fused_slices = on;
     }
 
     /// Raster backend: cut the proxy polygons to the cells of bricks that can be
@@ -2680,6 +2695,7 @@ impl Renderer {
         // vertices for the raster backend
         let mut slice_ranges = Vec::new();
         let mut proxy_share = None;
+        let mut fused_run = false;
         if s.backend == Backend::Raster {
             let own = self.own_box().0;
             let boxes = if cut_proxy {
@@ -2914,7 +2930,8 @@ impl Renderer {
                                 })
                         })
                     });
-                    let fused = fused.filter(|_| fused_slices());
+                    let fused = fused.filter(|_| self.fused_slices);
+                    fused_run = fused.is_some();
                     for k in 0..plan.count {
                         {
                             let mut pass = enc.begin_compute_pass(&Default::default());
@@ -2982,6 +2999,7 @@ impl Renderer {
                 volume_passes_run,
                 spacing_updates,
                 proxy_share,
+                fused_slices: fused_run,
                 ..Default::default()
             },
         })

@@ -714,27 +714,42 @@ fn cs_main_skip(@builtin(global_invocation_id) gid: vec3<u32>) {
     textureStore(out_tex, vec2<i32>(px), march(pixel_ray(uv), uv, true));
 }
 
-// One slice per dispatch, accumulating in `accum` (used when a plugin has per-slice state).
+// Slice `slice_info.index` at pixel `px`: composites its sample into `accum` (unless
+// the pixel's ray has terminated early) and returns it. With `always`, the sample is
+// evaluated even where the ray terminated, for the per-slice state updates of the
+// fused entry point; `always` is a constant at both call sites.
+fn slice_step(px: vec2<u32>, size: vec2<u32>, always: bool) -> Evaluated {
+    let idx = px.y * size.x + px.x;
+    var acc = accum[idx];
+    if (slice_info.index == 0u) {
+        acc = vec4<f32>(0.0);
+    }
+    let early = frame.counts.z != 0u && acc.a >= frame.settings.x;
+    let uv = (vec2<f32>(px) + 0.5) * frame.viewport.zw;
+    let r = pixel_ray(uv);
+    let t = slice_hit(r, slice_info.index);
+    var e: Evaluated;
+    e.s = make_sample(r.origin, r.dir, uv, slice_info.index);
+    e.c = vec4<f32>(0.0);
+    if (t >= 0.0 && (always || !early)) {
+        e = evaluate(pixel_sample(r, t, uv, slice_info.index));
+        if (!early) {
+            acc = round_like_target(under(acc, e.c));
+        }
+    }
+    accum[idx] = acc;
+    return e;
+}
+
+// One slice per dispatch, accumulating in `accum` (used when a plugin has per-slice
+// state whose resolution differs from the eye buffer's; otherwise `cs_slice_fused`).
 @compute @workgroup_size(8, 8, 1)
 fn cs_slice(@builtin(global_invocation_id) gid: vec3<u32>) {
     let size = vec2<u32>(frame.viewport.xy);
     if (gid.x >= size.x || gid.y >= size.y) {
         return;
     }
-    let idx = gid.y * size.x + gid.x;
-    var acc = accum[idx];
-    if (slice_info.index == 0u) {
-        acc = vec4<f32>(0.0);
-    }
-    let early = frame.counts.z != 0u && acc.a >= frame.settings.x;
-    let uv = (vec2<f32>(gid.xy) + 0.5) * frame.viewport.zw;
-    let r = pixel_ray(uv);
-    let t = slice_hit(r, slice_info.index);
-    if (t >= 0.0 && !early) {
-        let e = evaluate(pixel_sample(r, t, uv, slice_info.index));
-        acc = round_like_target(under(acc, e.c));
-    }
-    accum[idx] = acc;
+    slice_step(gid.xy, size, false);
 }
 
 // Copy the accumulation buffer into the eye buffer.
@@ -769,5 +784,16 @@ fn cs_update_2(@builtin(global_invocation_id) gid: vec3<u32>) {
         return;
     }
     let e = state_texel_sample(gid.xy, size);
+    textureStore(p2_slice_shadow_state_next, vec2<i32>(gid.xy), p2_slice_shadow_slice_update(e.s, e.c, e.s.uv));
+}
+// The slice and every state update in one dispatch, each sample evaluated once
+// (used when every per-slice state has the eye buffer's resolution).
+@compute @workgroup_size(8, 8, 1)
+fn cs_slice_fused(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let size = vec2<u32>(frame.viewport.xy);
+    if (gid.x >= size.x || gid.y >= size.y) {
+        return;
+    }
+    let e = slice_step(gid.xy, size, true);
     textureStore(p2_slice_shadow_state_next, vec2<i32>(gid.xy), p2_slice_shadow_slice_update(e.s, e.c, e.s.uv));
 }

@@ -77,6 +77,38 @@ fn both_backends_match_the_twin_and_each_other() {
     }
 }
 
+/// The compute backend runs a slice and the occlusion update in one dispatch, each
+/// sample evaluated once, where the occlusion buffer has the eye buffer's resolution;
+/// the image is the two-dispatch one. At half resolution, and in the raster backend,
+/// the update stays a dispatch of its own.
+#[test]
+fn one_dispatch_per_slice_keeps_the_image() {
+    let mut r = Renderer::new(gpu(), demo()).unwrap();
+    for (scale, backend, fusable) in [
+        ("1", Backend::Compute, true),
+        ("0.5", Backend::Compute, false),
+        ("1", Backend::Raster, false),
+    ] {
+        let mut d = dos(60.0);
+        d.params.set("buffer_scale", ParamValue::Enum(scale.into()));
+        let stack = [instance("classify.tf1d"), d];
+        let mut s = settings(48, 48, backend);
+        s.early_termination = Some(0.9);
+        let mut images = Vec::new();
+        for fused in [true, false] {
+            r.set_fused_slices(fused);
+            r.update_stack(&stack, TargetFormat::Rgba32Float).unwrap();
+            let stats = r.render(&s).unwrap();
+            assert!(stats.per_slice_mode && stats.slices > 0);
+            assert_eq!(stats.fused_slices, fused && fusable, "×{scale} {backend:?}");
+            images.push(r.read_pixels().unwrap().2);
+        }
+        let (rms, max) = diff(&rgb(&images[0]), &rgb(&images[1]));
+        eprintln!("×{scale} {backend:?}: fused vs two dispatches RGB RMS {rms:.2e}, max {max:.2e}");
+        assert!(max < 1e-5 && mean_luma(&rgb(&images[0])) > 0.01, "{max}");
+    }
+}
+
 /// θ = 0: every tap reads its own texel, so V is the transmittance towards the
 /// viewer, what `test.slice_shadow` at strength 1 computes. Orthographic, so that the
 /// slice distance d of Algorithm 3 is also the ray's step (in perspective the rays off

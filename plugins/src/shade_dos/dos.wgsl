@@ -34,7 +34,7 @@ fn kernel_tap(q: vec2<f32>, uv: vec2<f32>, scale: vec2<f32>, extent: f32, d: f32
     if (params.distance == 1u) {
         dist = sqrt(d * d + dot(p, p));
     }
-    return state_at(pt).r * exp(-sigma_t * dist);
+    return textureSampleLevel(state_prev, linear_clamp, pt, 0.0).r * exp(-sigma_t * dist);
 }
 
 // chromatic: begin
@@ -62,7 +62,7 @@ fn chromatic_taps(uv: vec2<f32>, scale: vec2<f32>, extent: f32, d: f32, sigma_t:
         if (params.distance == 1u) {
             dist = sqrt(d * d + dot(p, p));
         }
-        let prev = state_at(pt).rgb;
+        let prev = textureSampleLevel(state_prev, linear_clamp, pt, 0.0).rgb;
         sum = sum + prev * exp(-(sigma_t * params.extinction_rgb) * dist);
         n = n + 1.0;
     }

@@ -546,6 +546,7 @@ impl Renderer {
             r.overrides_generation = self.overrides_generation;
             r.skipping_enabled = self.skipping_enabled;
             r.occupied_proxy = self.occupied_proxy;
+            r.fused_slices = self.fused_slices;
             for (h, compiled) in &cache {
                 if !r.compiled.iter().any(|(k, _)| k == h) {
                     r.compiled.push((*h, compiled.clone()));
@@ -668,6 +669,7 @@ impl Renderer {
         for (i, rec) in recorded {
             let st = split.children[i].renderer.submitted(rec);
             stats.per_slice_mode |= st.per_slice_mode;
+            stats.fused_slices |= st.fused_slices;
             stats.prepasses_run += st.prepasses_run;
             stats.spacing_updates += st.spacing_updates;
             stats.volume_passes_run.extend(st.volume_passes_run);
