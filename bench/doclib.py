@@ -23,6 +23,22 @@ def machine_line() -> str:
     return f"{cpu_model()}, {os.cpu_count()} cores, {platform.system()} {platform.release()}"
 
 
+def publish(command: str, how: str, adapter: str, gpu: bool, rows: list, block: str,
+            print_only: bool) -> None:
+    """The block of a benchmark table (command, how it was timed, machine, adapter,
+    rows), printed and, unless `print_only`, written to `block` in docs/perf.md."""
+    threads = os.environ.get("LP_NUM_THREADS")
+    text = (
+        f"Command: `{command}` — {how}\n\n"
+        f"- Machine: {machine_line()}\n"
+        f"- Adapter: {adapter}" + (f" (LP_NUM_THREADS={threads})" if threads and not gpu else "")
+        + "\n\n" + "\n".join(rows) + "\n"
+    )
+    print(text)
+    if not print_only:
+        write_block(REPO / "docs/perf.md", block, text)
+
+
 def vwb_env(gpu: bool) -> dict:
     """Environment for running vwb: lavapipe pinned with 2 threads unless `gpu`."""
     env = dict(os.environ)

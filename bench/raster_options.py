@@ -21,7 +21,6 @@ Needs numpy and pillow (`pip install numpy pillow`; not part of the test set-up)
 """
 
 import argparse
-import os
 import statistics
 import tempfile
 from pathlib import Path
@@ -30,7 +29,7 @@ import numpy as np
 from PIL import Image
 
 import perf
-from doclib import REPO, default_vwb, machine_line, vwb_env, write_block
+from doclib import default_vwb, publish, vwb_env
 
 ET = ["--early-termination", "0.99"]
 PROXY = ["--occupied-proxy", "on"]
@@ -94,19 +93,9 @@ def main():
             rms = float(np.sqrt(np.mean(d ** 2)))
             rows.append(f"| `{Path(p).stem}` | {label} | {perf.ms(m)} | {m / base:.2f} | {rms:.2f} "
                         f"| {int(np.abs(d).max())} |")
-    threads = os.environ.get("LP_NUM_THREADS")
-    block = (
-        f"Command: `python3 bench/raster_options.py{' --gpu --block ' + a.block if a.gpu else ''}` — "
-        f"{a.size}, median over {a.rounds} interleaved rounds of each render's median of "
-        f"{a.frames} frames (GPU ms).\n\n"
-        f"- Machine: {machine_line()}\n"
-        f"- Adapter: {adapter}" + (f" (LP_NUM_THREADS={threads})" if threads and not a.gpu else "") + "\n\n"
-        + "\n".join(rows) + "\n"
-    )
-    print(block)
-    if not a.print_only:
-        write_block(REPO / "docs/perf.md", a.block, block)
-
+    publish(f"python3 bench/raster_options.py{' --gpu --block ' + a.block if a.gpu else ''}",
+            f"{a.size}, median over {a.rounds} interleaved rounds of each render's median of "
+            f"{a.frames} frames (GPU ms).", adapter, a.gpu, rows, a.block, a.print_only)
 
 if __name__ == "__main__":
     main()

@@ -26,7 +26,6 @@ Needs numpy and pillow (`pip install numpy pillow`; not part of the test set-up)
 """
 
 import argparse
-import os
 import shlex
 import statistics
 import sys
@@ -34,17 +33,13 @@ import tempfile
 from pathlib import Path
 
 import numpy as np
-from PIL import Image
 
 import perf
-from doclib import REPO, default_vwb, machine_line, vwb_env, write_block
+from doclib import default_vwb, publish, vwb_env
+from raster_options import rgb
 
 PRESETS = ["presets/demo_dos.ron", "presets/ct_dos.ron"]
 TWO = {"VWB_FUSED_SLICES": "0"}
-
-
-def rgb(path):
-    return np.asarray(Image.open(path).convert("RGB")).astype(np.float64)
 
 
 def main():
@@ -104,19 +99,10 @@ def main():
     for p in presets:
         two, one = (statistics.median(small[(p, v[0])]) for v in variants[:2])
         rows.append(f"| `{Path(p).stem}` | {two:.3f} | {one:.3f} |")
-    threads = os.environ.get("LP_NUM_THREADS")
-    block = (
-        f"Command: `{shlex.join(['python3', 'bench/slice_state.py', *sys.argv[1:]])}` — "
-        f"{a.size}, median over {a.rounds} interleaved rounds of each render's median of "
-        f"{a.frames} frame(s) after 2 warm-up frames (GPU ms).\n\n"
-        f"- Machine: {machine_line()}\n"
-        f"- Adapter: {adapter}" + (f" (LP_NUM_THREADS={threads})" if threads and not a.gpu else "") + "\n\n"
-        + "\n".join(rows) + "\n"
-    )
-    print(block)
-    if not a.print_only:
-        write_block(REPO / "docs/perf.md", a.block, block)
-
+    publish(shlex.join(["python3", "bench/slice_state.py", *sys.argv[1:]]),
+            f"{a.size}, median over {a.rounds} interleaved rounds of each render's median of "
+            f"{a.frames} frame(s) after 2 warm-up frames (GPU ms).", adapter, a.gpu, rows, a.block,
+            a.print_only)
 
 if __name__ == "__main__":
     main()
