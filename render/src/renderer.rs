@@ -34,7 +34,7 @@ use crate::composer::{
 use crate::gpu::GpuContext;
 use crate::params::ParamValues;
 use crate::plugin::{Category, GpuInit, GpuResource, Plugin, PluginError, PluginInstance};
-use crate::skipping::{BRICK, BrickRanges, clear_outside_regions, stack_regions, stack_visibility};
+use crate::skipping::{BrickRanges, clear_outside_regions, stack_regions, stack_visibility};
 use crate::slicing::{SliceError, SlicePlan, VolumeBox};
 use crate::volume::Volume;
 
@@ -2173,7 +2173,7 @@ impl Renderer {
             settings: [
                 s.early_termination.unwrap_or(1.0),
                 if self.occupancy_bytes.is_some() {
-                    BRICK as f32
+                    crate::skipping::brick() as f32
                 } else {
                     0.0
                 },

@@ -11,7 +11,7 @@
 //! left out), so that fragments are made only where a sample can be visible.
 //!
 //! Exactness rests on the plugins' [`Transparency`] promises (see there): skipping is
-//! on only when every enabled plugin makes one. A brick of `BRICK`³ voxels covers the
+//! on only when every enabled plugin makes one. A brick of [`brick()`]³ voxels covers the
 //! samples whose voxel coordinate `tex · dims` lies in it; such a sample interpolates
 //! voxels up to one beyond the brick on each side, so the range is taken over the brick
 //! plus a one-voxel apron and widened by [`RANGE_MARGIN`] (more than the fp16 rounding
@@ -25,8 +25,16 @@ use glam::DVec3;
 
 use crate::plugin::{PluginInstance, RegionFn, Transparency, VisibleFn};
 
-/// Side of a brick in voxels.
+/// Side of a brick in voxels, unless `VWB_SKIP_BRICK` says otherwise
+/// (`bench/brick_size.py`, docs/perf.md "Brick size").
 pub const BRICK: u32 = 8;
+
+/// Side of a brick in voxels: `VWB_SKIP_BRICK` (≥ 1; a benchmark override, read once
+/// per process so that every grid agrees) or [`BRICK`].
+pub fn brick() -> u32 {
+    static SIDE: std::sync::OnceLock<u32> = std::sync::OnceLock::new();
+    *SIDE.get_or_init(|| crate::renderer::env_count("VWB_SKIP_BRICK", BRICK))
+}
 
 /// Widening of every brick's value range (normalised units).
 pub const RANGE_MARGIN: f64 = 1.0e-3;
@@ -34,21 +42,28 @@ pub const RANGE_MARGIN: f64 = 1.0e-3;
 /// Value range per brick, x fastest.
 #[derive(Debug, Clone, PartialEq)]
 pub struct BrickRanges {
-    /// Bricks per axis: ⌈dims / BRICK⌉.
+    /// Bricks per axis: ⌈dims / brick()⌉.
     pub dims: [u32; 3],
     pub ranges: Vec<[f32; 2]>,
 }
 
 impl BrickRanges {
-    /// From the normalised scalars of a volume of `dims` voxels (x fastest).
+    /// From the normalised scalars of a volume of `dims` voxels (x fastest), in bricks
+    /// of [`brick()`] voxels.
     pub fn new(dims: [u32; 3], scalars: &[f32]) -> Self {
-        let bdims = dims.map(|d| d.div_ceil(BRICK).max(1));
+        Self::with_side(dims, scalars, brick())
+    }
+
+    /// [`BrickRanges::new`] in bricks of `side` voxels.
+    pub fn with_side(dims: [u32; 3], scalars: &[f32], side: u32) -> Self {
+        let side = side.max(1);
+        let bdims = dims.map(|d| d.div_ceil(side).max(1));
         let at = |x: u32, y: u32, z: u32| {
             scalars[((z as usize * dims[1] as usize) + y as usize) * dims[0] as usize + x as usize]
         };
         let span = |b: u32, axis: usize| {
-            let lo = (b * BRICK).saturating_sub(1);
-            let hi = ((b + 1) * BRICK).min(dims[axis] - 1);
+            let lo = (b * side).saturating_sub(1);
+            let hi = ((b + 1) * side).min(dims[axis] - 1);
             lo..=hi
         };
         let count = (bdims[0] * bdims[1] * bdims[2]) as usize;
@@ -182,7 +197,7 @@ pub fn occupied_cells(
         out.push(std::array::from_fn(|a| {
             let b0 = lo[a] + c[a] * cell;
             let b1 = (b0 + cell).min(hi[a]);
-            [(b0 * BRICK).min(dims[a]), (b1 * BRICK).min(dims[a])]
+            [(b0 * brick()).min(dims[a]), (b1 * brick()).min(dims[a])]
         }));
     }
     out
@@ -210,8 +225,9 @@ pub fn clear_outside_regions(
             ((i / bricks[0] as usize) % bricks[1] as usize) as f64,
             (i / (bricks[0] as usize * bricks[1] as usize)) as f64,
         );
-        let t0 = (b * BRICK as f64 / d).min(DVec3::ONE);
-        let t1 = ((b + 1.0) * BRICK as f64 / d).min(DVec3::ONE);
+        let side = brick() as f64;
+        let t0 = (b * side / d).min(DVec3::ONE);
+        let t1 = ((b + 1.0) * side / d).min(DVec3::ONE);
         let (a, z) = (lo + extent * t0 - margin, lo + extent * t1 + margin);
         if !regions.iter().all(|r| r(a, z)) {
             *o = 0;
@@ -242,7 +258,7 @@ mod tests {
     #[test]
     fn occupied_cells_cover_the_occupied_bricks_once() {
         let dims = [70u32, 45, 33]; // partial bricks at the far ends
-        let bdims = dims.map(|d| d.div_ceil(BRICK));
+        let bdims = dims.map(|d| d.div_ceil(super::brick()));
         let n = (bdims[0] * bdims[1] * bdims[2]) as usize;
         let mut rng = crate::rng::Rng::at(12345, 0);
         let occupancy: Vec<u8> = (0..n)
@@ -259,7 +275,7 @@ mod tests {
                     (i / bdims[0]) % bdims[1],
                     i / (bdims[0] * bdims[1]),
                 ];
-                let voxel = b.map(|x| x * BRICK); // the brick's first voxel
+                let voxel = b.map(|x| x * super::brick()); // the brick's first voxel
                 let holders = boxes.iter().filter(|x| inside(x, voxel)).count();
                 if o != 0 {
                     assert_eq!(holders, 1, "cell {cell}: brick {b:?} in {holders} boxes");
@@ -326,22 +342,30 @@ mod tests {
             .collect();
         let volume = Volume::new("r", dims, 1, [1.0; 3], VoxelData::F32(data)).unwrap();
         let scalars = volume.normalized_scalars();
-        let bricks = BrickRanges::new(dims, &scalars);
-        assert_eq!(bricks.dims, [3, 1, 2]);
         let ctx = CpuContext::new(&volume, &scalars);
-        for i in 0..20_000u32 {
-            let f = |k: u32| (i as f64 * 0.6180339887 * (k as f64 + 1.0)).fract();
-            let tex = DVec3::new(f(0), f(1), f(2));
-            let v = ctx.value(tex) as f32;
-            let b = [0, 1, 2].map(|a| {
-                ((tex[a] * dims[a] as f64 / BRICK as f64).floor() as u32).min(bricks.dims[a] - 1)
-            });
-            let r =
-                bricks.ranges[((b[2] * bricks.dims[1] + b[1]) * bricks.dims[0] + b[0]) as usize];
-            assert!(
-                r[0] - 1e-6 <= v && v <= r[1] + 1e-6,
-                "{tex:?}: {v} outside {r:?}"
-            );
+        // every side bench/brick_size.py measures
+        for (side, bdims) in [
+            (4, [5, 2, 3]),
+            (8, [3, 1, 2]),
+            (16, [2, 1, 1]),
+            (32, [1, 1, 1]),
+        ] {
+            let bricks = BrickRanges::with_side(dims, &scalars, side);
+            assert_eq!(bricks.dims, bdims);
+            for i in 0..20_000u32 {
+                let f = |k: u32| (i as f64 * 0.6180339887 * (k as f64 + 1.0)).fract();
+                let tex = DVec3::new(f(0), f(1), f(2));
+                let v = ctx.value(tex) as f32;
+                let b = [0, 1, 2].map(|a| {
+                    ((tex[a] * dims[a] as f64 / side as f64).floor() as u32).min(bricks.dims[a] - 1)
+                });
+                let r = bricks.ranges
+                    [((b[2] * bricks.dims[1] + b[1]) * bricks.dims[0] + b[0]) as usize];
+                assert!(
+                    r[0] - 1e-6 <= v && v <= r[1] + 1e-6,
+                    "side {side}, {tex:?}: {v} outside {r:?}"
+                );
+            }
         }
     }
 

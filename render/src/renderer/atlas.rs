@@ -305,7 +305,7 @@ impl Renderer {
                 .as_ref();
             let mut u = self.frame_uniform(&settings, plan, view, [tw, th], target);
             u.settings[1] = if occupancy_texture.is_some() {
-                BRICK as f32
+                crate::skipping::brick() as f32
             } else {
                 0.0
             };
