@@ -16,7 +16,6 @@ is the one without skipping. Writes the `brick-size` block of docs/perf.md.
 Needs numpy and pillow (`pip install numpy pillow`; not part of the test set-up).
 """
 
-import argparse
 import shlex
 import statistics
 import sys
@@ -26,7 +25,7 @@ from pathlib import Path
 import numpy as np
 
 import perf
-from doclib import default_vwb, publish, vwb_env
+from doclib import bench_parser, publish, vwb_env
 from raster_options import PRESETS, rgb
 
 # (label, extra arguments, extra environment)
@@ -37,15 +36,7 @@ VARIANTS = [("skipping off", ["--skipping", "off"], {})] + [
 
 
 def main():
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--vwb", default=default_vwb())
-    ap.add_argument("--size", default="512x512")
-    ap.add_argument("--frames", type=int, default=3)
-    ap.add_argument("--rounds", type=int, default=2)
-    ap.add_argument("--preset", action="append", help="repeatable (default: CT and nuclei, shaded and not)")
-    ap.add_argument("--gpu", action="store_true")
-    ap.add_argument("--block", default="brick-size")
-    ap.add_argument("--print-only", action="store_true")
+    ap = bench_parser(__doc__, "brick-size", 3, 2, "CT and nuclei, shaded and not")
     a = ap.parse_args()
     presets = a.preset or PRESETS
     tmp = Path(tempfile.gettempdir())

@@ -1,6 +1,7 @@
 """Shared helpers of the benchmark scripts: the machine line, the environment that
 pins lavapipe, and rewriting a marked block of a Markdown file."""
 
+import argparse
 import os
 import platform
 from pathlib import Path
@@ -21,6 +22,21 @@ def cpu_model() -> str:
 
 def machine_line() -> str:
     return f"{cpu_model()}, {os.cpu_count()} cores, {platform.system()} {platform.release()}"
+
+
+def bench_parser(doc: str, block: str, frames: int, rounds: int, presets: str):
+    """The options every interleaved-rounds benchmark takes (the binary, image size,
+    frames per render, rounds, presets, --gpu, the docs block and --print-only)."""
+    ap = argparse.ArgumentParser(description=doc, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--vwb", default=default_vwb())
+    ap.add_argument("--size", default="512x512")
+    ap.add_argument("--frames", type=int, default=frames)
+    ap.add_argument("--rounds", type=int, default=rounds)
+    ap.add_argument("--preset", action="append", help=f"repeatable (default: {presets})")
+    ap.add_argument("--gpu", action="store_true")
+    ap.add_argument("--block", default=block)
+    ap.add_argument("--print-only", action="store_true")
+    return ap
 
 
 def publish(command: str, how: str, adapter: str, gpu: bool, rows: list, block: str,

@@ -20,7 +20,6 @@ largest channel difference) to the `raster-options` block of docs/perf.md. Varia
 Needs numpy and pillow (`pip install numpy pillow`; not part of the test set-up).
 """
 
-import argparse
 import statistics
 import tempfile
 from pathlib import Path
@@ -29,7 +28,7 @@ import numpy as np
 from PIL import Image
 
 import perf
-from doclib import default_vwb, publish, vwb_env
+from doclib import bench_parser, publish, vwb_env
 
 ET = ["--early-termination", "0.99"]
 PROXY = ["--occupied-proxy", "on"]
@@ -57,15 +56,7 @@ def rgb(path):
 
 
 def main():
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--vwb", default=default_vwb())
-    ap.add_argument("--size", default="512x512")
-    ap.add_argument("--frames", type=int, default=3)
-    ap.add_argument("--rounds", type=int, default=3)
-    ap.add_argument("--preset", action="append", help="repeatable (default: CT and nuclei, shaded and not)")
-    ap.add_argument("--gpu", action="store_true")
-    ap.add_argument("--block", default="raster-options")
-    ap.add_argument("--print-only", action="store_true")
+    ap = bench_parser(__doc__, "raster-options", 3, 3, "CT and nuclei, shaded and not")
     a = ap.parse_args()
     presets = a.preset or PRESETS
     tmp = Path(tempfile.gettempdir())

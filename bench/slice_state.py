@@ -25,7 +25,6 @@ Writes the `slice-state` block of docs/perf.md.
 Needs numpy and pillow (`pip install numpy pillow`; not part of the test set-up).
 """
 
-import argparse
 import shlex
 import statistics
 import sys
@@ -35,7 +34,7 @@ from pathlib import Path
 import numpy as np
 
 import perf
-from doclib import default_vwb, publish, vwb_env
+from doclib import bench_parser, publish, vwb_env
 from raster_options import rgb
 
 PRESETS = ["presets/demo_dos.ron", "presets/ct_dos.ron"]
@@ -43,16 +42,8 @@ TWO = {"VWB_FUSED_SLICES": "0"}
 
 
 def main():
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--vwb", default=default_vwb())
+    ap = bench_parser(__doc__, "slice-state", 1, 2, "the demo's and the CT head's DOS")
     ap.add_argument("--tile-vwb", help="a build of 9df58ca (state tile in workgroup memory)")
-    ap.add_argument("--size", default="512x512")
-    ap.add_argument("--frames", type=int, default=1)
-    ap.add_argument("--rounds", type=int, default=2)
-    ap.add_argument("--preset", action="append", help="repeatable (default: the demo's and the CT head's DOS)")
-    ap.add_argument("--gpu", action="store_true")
-    ap.add_argument("--block", default="slice-state")
-    ap.add_argument("--print-only", action="store_true")
     a = ap.parse_args()
     presets = a.preset or PRESETS
     # (label, binary, backend, extra environment)
