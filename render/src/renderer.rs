@@ -316,7 +316,8 @@ fn fused_slices() -> bool {
 }
 
 /// A count (≥ 1) from the environment variable `name`, else `default`: the benchmark
-/// overrides of tuned constants (`VWB_RASTER_ET_INTERVAL`, `VWB_RASTER_PROXY_CELL`).
+/// overrides of tuned constants (`VWB_RASTER_ET_INTERVAL`, `VWB_RASTER_PROXY_CELL`,
+/// `VWB_SKIP_BRICK`).
 pub(crate) fn env_count(name: &str, default: u32) -> u32 {
     std::env::var(name)
         .ok()
