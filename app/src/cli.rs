@@ -26,7 +26,7 @@ pub struct Cli {
     /// Preset to open in the window.
     #[arg(long, global = true)]
     pub preset: Option<PathBuf>,
-    /// Volume to open in the window: a file (NRRD) or a sample name (`vwb data list`).
+    /// Volume to open in the window: a volume file (any format `vwb info --volume` reads) or a sample name (`vwb data list`).
     #[arg(long)]
     pub volume: Option<PathBuf>,
     /// Open the window, render, save a screenshot to this PNG and exit.
@@ -332,7 +332,7 @@ pub fn run_experiment(a: &RunArgs) -> Result<()> {
 /// Overrides of the preset's volume and frame settings, shared by the subcommands.
 #[derive(Debug, Clone, Default, clap::Args)]
 pub struct FrameArgs {
-    /// Volume overriding the preset's: a file (NRRD) or a sample name (`vwb data list`).
+    /// Volume overriding the preset's: a volume file (any format `vwb info --volume` reads) or a sample name (`vwb data list`).
     #[arg(long)]
     pub volume: Option<PathBuf>,
     /// Image size WxH (default: the preset's).
@@ -522,7 +522,7 @@ pub struct SweepArgs {
 
 #[derive(Debug, clap::Args)]
 pub struct SuggestTfArgs {
-    /// The volume: a file (NRRD) or a sample name (`vwb data list`); the demo when
+    /// The volume: a volume file (any format `vwb info --volume` reads) or a sample name (`vwb data list`); the demo when
     /// absent.
     #[arg(long)]
     pub volume: Option<PathBuf>,
@@ -744,7 +744,7 @@ fn render_sequence(
 #[derive(Debug, Clone, Default, clap::Args)]
 pub struct InfoArgs {
     /// A volume file (NRRD, NIfTI .nii/.nii.gz, MetaImage .mhd/.mha, a TIFF stack, a DICOM
-    /// file or folder) or a sample name.
+    /// file or folder, an OME-Zarr folder) or a sample name.
     #[arg(long)]
     pub volume: Option<PathBuf>,
 }

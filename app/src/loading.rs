@@ -44,16 +44,20 @@ impl VolumeLoad {
         }
     }
 
-    /// Starts loading `path` in a thread (registered as an input, like every volume).
-    pub fn start(path: &Path) -> Self {
+    /// Starts loading `path` in a thread (registered as an input, like every volume);
+    /// under a GPU memory budget an OME-Zarr image reads only the stored level that
+    /// fits ([`vwb_render::volume::load_for_budget`]).
+    pub fn start(path: &Path, budget: Option<u64>) -> Self {
         vwb_lab::outputs::protect_volume(path);
         let progress = Arc::new(LoadProgress::default());
         let p = progress.clone();
         let owned = path.to_path_buf();
         let job = Job::spawn("volume loading", move || {
-            vwb_render::volume::load_with_progress(&owned, p)
-                .map(Arc::new)
-                .map_err(|e| e.to_string())
+            vwb_render::volume::with_progress(p, || {
+                vwb_render::volume::load_for_budget(&owned, budget)
+            })
+            .map(Arc::new)
+            .map_err(|e| e.to_string())
         });
         Self {
             path: path.to_path_buf(),

@@ -611,7 +611,8 @@ impl Workbench {
     /// (progress and Cancel under the path field), small ones at once.
     pub fn start_open_volume(&mut self, path: &std::path::Path) {
         if crate::loading::VolumeLoad::wanted(path, self.async_load_bytes) {
-            self.loading = Some(crate::loading::VolumeLoad::start(path));
+            let budget = self.renderer.gpu_memory_budget();
+            self.loading = Some(crate::loading::VolumeLoad::start(path, budget));
             self.file_status = None;
         } else {
             let outcome = self.open_volume(path);
@@ -1196,7 +1197,7 @@ impl Workbench {
                     .id_salt("volume path"),
             )
             .on_hover_text(
-                "volume file (NRRD .nhdr/.nrrd, NIfTI .nii/.nii.gz, MetaImage .mhd/.mha, a TIFF stack, a DICOM file or folder: the whole series loads) or a sample name such as ct_head (vwb data list); a mesh (.obj, .ply, .stl) chosen with … or dropped on the window clips the volume (clip.mesh)",
+                "volume file (NRRD .nhdr/.nrrd, NIfTI .nii/.nii.gz, MetaImage .mhd/.mha, a TIFF stack, a DICOM file or folder: the whole series loads, an OME-Zarr folder) or a sample name such as ct_head (vwb data list); a mesh (.obj, .ply, .stl) chosen with … or dropped on the window clips the volume (clip.mesh)",
             );
             if ui.button("Open volume").clicked() {
                 let path = PathBuf::from(self.volume_path.trim());
@@ -1356,7 +1357,8 @@ impl Workbench {
             VolumeSource::File(v)
                 if crate::loading::VolumeLoad::wanted(v, self.async_load_bytes) =>
             {
-                let mut load = crate::loading::VolumeLoad::start(v);
+                let budget = self.renderer.gpu_memory_budget();
+                let mut load = crate::loading::VolumeLoad::start(v, budget);
                 load.preset = Some((path.to_path_buf(), doc));
                 self.loading = Some(load);
                 self.file_status = None;

@@ -32,11 +32,14 @@ pub fn volume_arg(arg: &Path) -> VolumeSource {
     }
 }
 
-/// Loads a volume file (NRRD, attached or detached header) and registers it (and its
-/// data file) as an input no output may overwrite.
+/// Loads a volume file (any format [`vwb_render::volume::load`] reads) and registers
+/// it (and its data files) as an input no output may overwrite. Under a GPU memory
+/// budget (`VWB_GPU_MEMORY_LIMIT`) an OME-Zarr image reads only the stored level that
+/// fits ([`vwb_render::volume::load_for_budget`]).
 pub fn load_volume_file(path: &Path) -> Result<Volume> {
     crate::outputs::protect_volume(path);
-    Ok(vwb_render::volume::load(path)?)
+    let budget = vwb_render::renderer::RendererOptions::from_env().gpu_memory_budget;
+    Ok(vwb_render::volume::load_for_budget(path, budget)?)
 }
 
 /// A renderer with a document's plugin stack applied.

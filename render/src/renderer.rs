@@ -919,7 +919,7 @@ impl Renderer {
         }
         // beyond the budget: 16-bit storage where `auto`, then a coarser level, in the
         // full volume's box and Δs0
-        let vbox = VolumeBox::new(volume.dims, volume.spacing);
+        let vbox = level::full_box(&volume);
         let stored_format = options.volume_format.for_budget(gpu, &volume, budget)?;
         let (volume, level) = match level_for(&volume, budget, stored_format.texture_format(gpu)?)?
         {
@@ -1178,7 +1178,7 @@ impl Renderer {
         let vbox = if same {
             self.vbox
         } else {
-            VolumeBox::new(volume.dims, volume.spacing)
+            level::full_box(&volume)
         };
         let upload = upload_or_split(
             &self.gpu,
@@ -1192,7 +1192,8 @@ impl Renderer {
         self.stored_format = stored;
         self.vbox = vbox;
         if !same {
-            self.level = None;
+            let format = stored.texture_format(&self.gpu)?;
+            self.level = level::stored_level_info(&volume, self.gpu_budget, format);
         }
         (self.volume_view, self.volume_bytes, self.bricks, self.split) =
             upload.into_parts(&self.gpu, &volume);

@@ -768,6 +768,46 @@ fn fuzz_run(cases: usize) -> FuzzCounts {
             })
             .collect()
     };
+    // OME-Zarr: a two-level Zarr v3 store (gzip, vwb's writer) and a Zarr v2 store
+    // written by hand (uncompressed); a case mutates one file of a store
+    let zarr: Vec<Vec<(std::path::PathBuf, Vec<u8>)>> = {
+        use vwb_render::volume::{VoxelData, zarr};
+        let v =
+            vwb_render::Volume::new("ball", [8, 8, 8], 1, [1.0; 3], VoxelData::U8(ball())).unwrap();
+        let half = vwb_render::renderer::halve(&v).unwrap();
+        let v3 = d.join("zarr-seed-v3");
+        zarr::write(&v3, &[&v, &half]).unwrap();
+        let v2 = d.join("zarr-seed-v2");
+        std::fs::create_dir_all(v2.join("0/0/0")).unwrap();
+        std::fs::write(v2.join(".zgroup"), r#"{"zarr_format": 2}"#).unwrap();
+        std::fs::write(
+            v2.join(".zattrs"),
+            r#"{"multiscales": [{"version": "0.4", "axes": [{"name": "z", "type": "space"},
+            {"name": "y", "type": "space"}, {"name": "x", "type": "space"}], "datasets":
+            [{"path": "0", "coordinateTransformations": [{"type": "scale", "scale": [2, 1, 1]}]}]}]}"#,
+        )
+        .unwrap();
+        std::fs::write(
+            v2.join("0/.zarray"),
+            r#"{"zarr_format": 2, "shape": [8, 8, 8], "chunks": [8, 8, 8], "dtype": "|u1",
+            "compressor": null, "fill_value": 0, "order": "C", "filters": null,
+            "dimension_separator": "/"}"#,
+        )
+        .unwrap();
+        std::fs::write(v2.join("0/0/0/0"), ball()).unwrap();
+        [v3, v2]
+            .iter()
+            .map(|root| {
+                zarr::files(root)
+                    .into_iter()
+                    .map(|f| {
+                        let bytes = std::fs::read(&f).unwrap();
+                        (f.strip_prefix(root).unwrap().to_path_buf(), bytes)
+                    })
+                    .collect()
+            })
+            .collect()
+    };
     // VWB_FUZZ_ONLY=DICOM (or another name of FORMATS) fuzzes one format
     let only = std::env::var("VWB_FUZZ_ONLY").ok();
     let kinds: Vec<usize> = (0..FORMATS.len())
@@ -779,10 +819,18 @@ fn fuzz_run(cases: usize) -> FuzzCounts {
     assert!(!kinds.is_empty(), "VWB_FUZZ_ONLY names none of {FORMATS:?}");
     let mut counts = FuzzCounts::default();
     for i in 0..cases {
-        // NRRD, preset, NIfTI, MetaImage, mesh, DICOM in turn
+        // NRRD, preset, NIfTI, MetaImage, mesh, DICOM, OME-Zarr in turn
         let kind = kinds[i % kinds.len()];
         let nrrd = kind != 1 && kind != 4;
+        // OME-Zarr: the store and which of its files this case mutates
+        let (store, mutated) = if kind == 6 {
+            let store = &zarr[(next() % 2) as usize];
+            (store, (next() as usize) % store.len())
+        } else {
+            (&zarr[0], 0)
+        };
         let (seed, name) = match kind {
+            6 => (&store[mutated].1, "case.zarr"),
             0 => (&seeds_nrrd[(next() % 4) as usize], "case.nrrd"),
             1 => (&seeds_preset[(next() % 3) as usize], "case.ron"),
             2 if next() % 2 == 0 => (&nii, "case.nii"),
@@ -819,7 +867,16 @@ fn fuzz_run(cases: usize) -> FuzzCounts {
             }
         }
         let path = d.join(name);
-        std::fs::write(&path, &b).unwrap();
+        if kind == 6 {
+            let _ = std::fs::remove_dir_all(&path);
+            for (k, (rel, bytes)) in store.iter().enumerate() {
+                let f = path.join(rel);
+                std::fs::create_dir_all(f.parent().unwrap()).unwrap();
+                std::fs::write(&f, if k == mutated { &b } else { bytes }).unwrap();
+            }
+        } else {
+            std::fs::write(&path, &b).unwrap();
+        }
         let t_case = Instant::now();
         let outcome = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
             if kind == 4 {
@@ -838,7 +895,11 @@ fn fuzz_run(cases: usize) -> FuzzCounts {
         // VWB_FUZZ_SLOW=1 keeps each case slower than 50 ms (in the temp directory)
         if std::env::var_os("VWB_FUZZ_SLOW").is_some() && t_case.elapsed().as_millis() > 50 {
             let keep = std::env::temp_dir().join(format!("slow-{i}-{name}"));
-            std::fs::copy(&path, &keep).unwrap();
+            if kind == 6 {
+                let _ = std::fs::rename(&path, &keep);
+            } else {
+                std::fs::copy(&path, &keep).unwrap();
+            }
             let error = match &outcome {
                 Ok(Err(e)) => e.chars().take(150).collect::<String>(),
                 Ok(Ok(())) => "loaded".to_string(),
@@ -886,12 +947,21 @@ fn fuzz_run(cases: usize) -> FuzzCounts {
 }
 
 /// The fuzzed formats, in the order of [`FuzzCounts::per_format`].
-const FORMATS: [&str; 6] = ["NRRD", "preset", "NIfTI", "MetaImage", "mesh", "DICOM"];
+const FORMATS: [&str; 7] = [
+    "NRRD",
+    "preset",
+    "NIfTI",
+    "MetaImage",
+    "mesh",
+    "DICOM",
+    "OME-Zarr",
+];
 
 #[derive(Debug, Default)]
 struct FuzzCounts {
-    /// (cases, loaded, errors, panics) for NRRD, presets, NIfTI, MetaImage, meshes, DICOM.
-    per_format: [(usize, usize, usize, usize); 6],
+    /// (cases, loaded, errors, panics) for NRRD, presets, NIfTI, MetaImage, meshes, DICOM,
+    /// OME-Zarr.
+    per_format: [(usize, usize, usize, usize); 7],
     cases: usize,
     loaded: usize,
     errors: usize,

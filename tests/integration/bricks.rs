@@ -717,3 +717,85 @@ fn a_volume_beyond_the_budget_shows_a_coarser_level() {
     );
     assert_eq!(v.spacing, [1.5, 2.0, 2.0]);
 }
+
+/// An OME-Zarr image keeps its coarser levels: beyond the budget the renderer reads the
+/// stored level that fits rather than averaging the full one, and a level the loader
+/// read already (`zarr::load_within`) is shown with the same notice.
+#[test]
+fn an_ome_zarr_pyramid_gives_its_stored_level_under_the_budget() {
+    use vwb_render::volume::{VoxelData, zarr};
+    let full = demo();
+    // a stored level unlike the block means: every other voxel (nearest), as some
+    // pyramid writers make it
+    let VoxelData::U8(d) = &full.data else {
+        panic!("the demo is u8")
+    };
+    let [w, h, _] = full.dims.map(|v| v as usize);
+    let dims = full.dims.map(|v| v.div_ceil(2));
+    let mut coarse = Vec::new();
+    for z in 0..dims[2] as usize {
+        for y in 0..dims[1] as usize {
+            for x in 0..dims[0] as usize {
+                coarse.push(d[(2 * z * h + 2 * y) * w + 2 * x]);
+            }
+        }
+    }
+    let spacing = std::array::from_fn(|a| full.spacing[a] * 2.0);
+    let level = vwb_render::Volume::new("demo", dims, 1, spacing, VoxelData::U8(coarse)).unwrap();
+    let dir = std::env::temp_dir().join(format!("vwb-pyramid-{}.ome.zarr", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    zarr::write(&dir, &[&full, &level]).unwrap();
+    let loaded = Arc::new(vwb_render::volume::load(&dir).unwrap());
+    assert_eq!(loaded.data, full.data);
+    let budget = 128 * 128 * 84 * texel_bytes() / 3;
+    let options = || RendererOptions {
+        gpu_memory_budget: Some(budget),
+        ..Default::default()
+    };
+    let r = Renderer::with_options(gpu(), loaded.clone(), options()).unwrap();
+    let info = r.level().cloned().expect("a level");
+    assert_eq!(
+        (info.factor, info.stored, info.level_dims),
+        (2, Some(1), dims)
+    );
+    assert!(
+        info.notice().contains("stored level 1"),
+        "{}",
+        info.notice()
+    );
+    assert_eq!(
+        r.volume().data,
+        level.data,
+        "the stored level, not block means"
+    );
+    assert_eq!(
+        r.volume().range,
+        full.range,
+        "the full volume's value range"
+    );
+    let one = Renderer::new(gpu(), demo()).unwrap();
+    assert_eq!(r.volume_box(), one.volume_box(), "same box and Δs0");
+    // the loader can read only that level: the same level, with a notice
+    let within = zarr::load_within(&dir, Some(budget / 2), texel_bytes()).unwrap();
+    assert_eq!(within.dims, dims);
+    let r2 = Renderer::with_options(gpu(), Arc::new(within), RendererOptions::default()).unwrap();
+    let info2 = r2.level().cloned().expect("a level");
+    assert_eq!((info2.stored, info2.full_dims), (Some(1), full.dims));
+    assert!(
+        info2.notice().contains("chosen when loading"),
+        "{}",
+        info2.notice()
+    );
+    assert_eq!(
+        r2.volume_box(),
+        one.volume_box(),
+        "the full volume's box and Δs0"
+    );
+    // the same through set_volume
+    let mut r3 = Renderer::new(gpu(), demo()).unwrap();
+    r3.set_volume(Arc::new(zarr::load_level(&dir, 1).unwrap()))
+        .unwrap();
+    assert_eq!(r3.level().and_then(|l| l.stored), Some(1));
+    assert_eq!(r3.volume_box(), one.volume_box());
+    std::fs::remove_dir_all(&dir).unwrap();
+}

@@ -8,6 +8,11 @@
 //! as opaque as on the full volume). What a coarser level loses is detail: structures
 //! thinner than its voxels blur (docs/scale.md measures it). Refining the bricks in
 //! view from the full volume is not built.
+//!
+//! A volume read from a multiscale OME-Zarr image ([`crate::volume::zarr`]) has its
+//! coarser levels stored: the finest stored level that fits is read instead of
+//! averaging, and a volume the loader already read at a coarser level
+//! ([`crate::volume::zarr::load_within`]) is shown with the same notice.
 
 use super::*;
 use crate::volume::VoxelData;
@@ -21,20 +26,34 @@ pub struct LevelInfo {
     pub level_dims: [u32; 3],
     /// Why: the full volume's texture bytes and the budget.
     pub full_bytes: u64,
+    /// The budget in bytes; 0 when the loader chose a stored level without one.
     pub budget: u64,
+    /// The stored level of the source's pyramid shown (OME-Zarr), or `None` when the
+    /// level was averaged from the full volume.
+    pub stored: Option<usize>,
 }
 
 impl LevelInfo {
     /// One line for the window and the command line.
     pub fn notice(&self) -> String {
+        let what = match self.stored {
+            Some(i) => format!("stored level {i}, "),
+            None => String::new(),
+        };
+        let why = if self.budget == 0 {
+            "; the level was chosen when loading".to_owned()
+        } else {
+            format!(
+                ", more than half the GPU memory budget of {} MiB",
+                self.budget >> 20
+            )
+        };
         format!(
-            "showing a 1/{} level ({:?} of {:?} voxels): the volume needs {} MiB, more than \
-             half the GPU memory budget of {} MiB",
+            "showing a 1/{} level ({what}{:?} of {:?} voxels): the volume needs {} MiB{why}",
             self.factor,
             self.level_dims,
             self.full_dims,
             self.full_bytes.div_ceil(1 << 20),
-            self.budget >> 20
         )
     }
 }
@@ -109,12 +128,35 @@ pub(super) fn level_for(
     budget: Option<u64>,
     format: wgpu::TextureFormat,
 ) -> Result<Option<(Arc<Volume>, LevelInfo)>, RenderError> {
+    let per_voxel = texel_bytes(format);
+    if let Some(info) = stored_level_info(volume, budget, format) {
+        // the loader read a coarser stored level already
+        return Ok(Some((volume.clone(), info)));
+    }
     let Some(budget) = budget else {
         return Ok(None);
     };
     let full_bytes = volume_texture_bytes(format, volume);
     if full_bytes <= budget {
         return Ok(None);
+    }
+    if let Some(p) = &volume.pyramid
+        && let Some(i) = p.finest_within(budget / 2, per_voxel)
+    {
+        // a stored level of the source's pyramid: read it rather than average
+        let mut level = crate::volume::zarr::load_level(&p.root, i)
+            .map_err(|e| RenderError::Bricks(format!("volume {}: {e}", volume.name)))?;
+        level.range = volume.range;
+        level.histogram = volume.histogram.clone();
+        let info = LevelInfo {
+            factor: p.factor(i),
+            full_dims: volume.dims,
+            level_dims: level.dims,
+            full_bytes,
+            budget,
+            stored: Some(i),
+        };
+        return Ok(Some((Arc::new(level), info)));
     }
     let mut level = volume.clone();
     let mut factor = 1;
@@ -138,6 +180,36 @@ pub(super) fn level_for(
         level_dims: level.dims,
         full_bytes,
         budget,
+        stored: None,
     };
     Ok(Some((level, info)))
+}
+
+/// What a volume that is itself a coarser stored level of its source's pyramid (read
+/// alone by [`crate::volume::zarr::load_within`]) shows; `None` for any other volume.
+pub(super) fn stored_level_info(
+    volume: &Volume,
+    budget: Option<u64>,
+    format: wgpu::TextureFormat,
+) -> Option<LevelInfo> {
+    let p = volume.pyramid.as_ref().filter(|p| p.shown > 0)?;
+    let full = p.levels[0].dims;
+    Some(LevelInfo {
+        factor: p.factor(p.shown),
+        full_dims: full,
+        level_dims: volume.dims,
+        full_bytes: full.iter().map(|&d| u64::from(d)).product::<u64>() * texel_bytes(format),
+        budget: budget.unwrap_or(0),
+        stored: Some(p.shown),
+    })
+}
+
+/// The box a volume renders in: for a coarser stored level read alone, the full
+/// level's (so its slices are as many and as opaque as the full volume's, as for an
+/// averaged level); else its own.
+pub(super) fn full_box(volume: &Volume) -> VolumeBox {
+    match volume.pyramid.as_ref().filter(|p| p.shown > 0) {
+        Some(p) => VolumeBox::new(p.levels[0].dims, p.levels[0].spacing),
+        None => VolumeBox::new(volume.dims, volume.spacing),
+    }
 }

@@ -43,6 +43,7 @@ mod raw;
 #[cfg(test)]
 mod tests;
 pub mod tiff;
+pub mod zarr;
 
 use std::fmt;
 use std::path::{Path, PathBuf};
@@ -203,6 +204,9 @@ pub struct Volume {
     /// What the loader did beyond reading samples (orientation applied, scaling, the
     /// first volume of a series taken), for `vwb info --volume` and the window.
     pub notes: Vec<String>,
+    /// The source's stored levels of detail (OME-Zarr multiscales) and which one this
+    /// volume holds; the renderer reads a coarser one under a GPU memory budget.
+    pub pyramid: Option<zarr::Pyramid>,
 }
 
 impl Volume {
@@ -254,6 +258,7 @@ impl Volume {
             non_finite: stats.non_finite,
             source: None,
             notes: Vec::new(),
+            pyramid: None,
         })
     }
 
@@ -462,6 +467,9 @@ fn skip_note(skip: u64) -> String {
 /// [`load_raw`]. The path is opened once, so pipes (`--volume <(cat x.nrrd)`) and
 /// FIFOs are read as streams; a FIFO nobody writes to gives an error, not a hang.
 pub fn load(path: &Path) -> Result<Volume, VolumeError> {
+    if zarr::is_zarr(path) {
+        return zarr::load(path);
+    }
     if path.is_dir() && !tiff::folder_pages(path).is_empty() {
         return tiff::load(path);
     }
@@ -521,6 +529,18 @@ pub fn load(path: &Path) -> Result<Volume, VolumeError> {
     })
 }
 
+/// [`load`], for a renderer with the GPU memory budget `budget`: an OME-Zarr image
+/// whose full level would not fit reads only its finest stored level that takes at
+/// most half the budget in 16-bit texels (what the renderer stores under a budget;
+/// [`zarr::load_within`]), so a volume larger than memory shows at once. Other
+/// formats, and no budget, load as [`load`] does (the renderer averages them down).
+pub fn load_for_budget(path: &Path, budget: Option<u64>) -> Result<Volume, VolumeError> {
+    match budget {
+        Some(b) if zarr::is_zarr(path) => zarr::load_within(path, Some(b / 2), 2),
+        _ => load(path),
+    }
+}
+
 /// Progress of a volume load, shared with the thread that runs it: bytes of samples
 /// decoded so far and in all, and a cancel request (checked between chunks).
 #[derive(Debug, Default)]
@@ -555,8 +575,14 @@ pub fn load_with_progress(
     path: &Path,
     progress: std::sync::Arc<LoadProgress>,
 ) -> Result<Volume, VolumeError> {
+    with_progress(progress, || load(path))
+}
+
+/// Runs `load` (any loader of this module) reporting progress to `progress` and
+/// stopping with an error once `progress.cancel` is set.
+pub fn with_progress<T>(progress: std::sync::Arc<LoadProgress>, load: impl FnOnce() -> T) -> T {
     PROGRESS.with(|p| *p.borrow_mut() = Some(progress));
-    let result = load(path);
+    let result = load();
     PROGRESS.with(|p| *p.borrow_mut() = None);
     result
 }
@@ -577,9 +603,13 @@ pub(crate) fn report_progress(done: u64, total: u64) -> bool {
 /// The files a volume path reads (for checks that an output never overwrites an
 /// input, and for the size of a load): the path itself and, for a detached NRRD
 /// header, its data file; for a folder, its TIFF pages or DICOM files; for a DICOM
-/// file, the DICOM files beside it (its series is among them). Unreadable or
+/// file, the DICOM files beside it (its series is among them); for an OME-Zarr
+/// store, every file in it (all levels: a load reads one). Unreadable or
 /// non-regular files list only themselves.
 pub fn input_files(path: &Path) -> Vec<PathBuf> {
+    if zarr::is_zarr(path) {
+        return zarr::files(path);
+    }
     if path.is_dir() {
         let pages = tiff::folder_pages(path);
         return if pages.is_empty() {
