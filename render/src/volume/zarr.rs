@@ -439,74 +439,46 @@ impl Image {
             ArraySubset::new_with_ranges(&ranges)
         };
         let ty = array.data_type();
-        let (data, type_note) = if ty.is::<dt::UInt8DataType>() {
-            (
-                VoxelData::U8(slabs(&array, &path, d, chunk_z, &subset, |v| v)?),
-                None,
-            )
+        // one slab reader per element type, converting with `$conv`
+        macro_rules! read {
+            ($conv:expr) => {
+                slabs(&array, &path, d, chunk_z, &subset, $conv)?
+            };
+        }
+        let data = if ty.is::<dt::UInt8DataType>() {
+            VoxelData::U8(read!(|v: u8| v))
         } else if ty.is::<dt::Int8DataType>() {
-            (
-                VoxelData::I8(slabs(&array, &path, d, chunk_z, &subset, |v| v)?),
-                None,
-            )
+            VoxelData::I8(read!(|v: i8| v))
         } else if ty.is::<dt::UInt16DataType>() {
-            (
-                VoxelData::U16(slabs(&array, &path, d, chunk_z, &subset, |v| v)?),
-                None,
-            )
+            VoxelData::U16(read!(|v: u16| v))
         } else if ty.is::<dt::Int16DataType>() {
-            (
-                VoxelData::I16(slabs(&array, &path, d, chunk_z, &subset, |v| v)?),
-                None,
-            )
+            VoxelData::I16(read!(|v: i16| v))
         } else if ty.is::<dt::Float32DataType>() {
-            (
-                VoxelData::F32(slabs(&array, &path, d, chunk_z, &subset, |v| v)?),
-                None,
-            )
+            VoxelData::F32(read!(|v: f32| v))
+        } else if ty.is::<dt::UInt32DataType>() {
+            VoxelData::F32(read!(|v: u32| v as f32))
+        } else if ty.is::<dt::Int32DataType>() {
+            VoxelData::F32(read!(|v: i32| v as f32))
+        } else if ty.is::<dt::UInt64DataType>() {
+            VoxelData::F32(read!(|v: u64| v as f32))
+        } else if ty.is::<dt::Int64DataType>() {
+            VoxelData::F32(read!(|v: i64| v as f32))
+        } else if ty.is::<dt::Float64DataType>() {
+            VoxelData::F32(read!(|v: f64| v as f32))
+        } else if ty.is::<dt::Float16DataType>() {
+            VoxelData::F32(read!(|v: half::f16| v.to_f32()))
         } else {
-            let f = |v: Vec<f32>| (VoxelData::F32(v), Some(()));
-            if ty.is::<dt::UInt32DataType>() {
-                f(slabs(&array, &path, d, chunk_z, &subset, |v: u32| {
-                    v as f32
-                })?)
-            } else if ty.is::<dt::Int32DataType>() {
-                f(slabs(&array, &path, d, chunk_z, &subset, |v: i32| {
-                    v as f32
-                })?)
-            } else if ty.is::<dt::UInt64DataType>() {
-                f(slabs(&array, &path, d, chunk_z, &subset, |v: u64| {
-                    v as f32
-                })?)
-            } else if ty.is::<dt::Int64DataType>() {
-                f(slabs(&array, &path, d, chunk_z, &subset, |v: i64| {
-                    v as f32
-                })?)
-            } else if ty.is::<dt::Float64DataType>() {
-                f(slabs(&array, &path, d, chunk_z, &subset, |v: f64| {
-                    v as f32
-                })?)
-            } else if ty.is::<dt::Float16DataType>() {
-                f(slabs(
-                    &array,
-                    &path,
-                    d,
-                    chunk_z,
-                    &subset,
-                    |v: half::f16| v.to_f32(),
-                )?)
-            } else {
-                return Err(VolumeError::Unsupported {
-                    file: path.clone(),
-                    message: format!(
-                        "array {}: data type {:?}: vwb reads integers and floats",
-                        info.path,
-                        ty.name(zarrs::plugin::ZarrVersion::V3)
-                    ),
-                });
-            }
+            return Err(VolumeError::Unsupported {
+                file: path.clone(),
+                message: format!(
+                    "array {}: data type {:?}: vwb reads integers and floats",
+                    info.path,
+                    ty.name(zarrs::plugin::ZarrVersion::V3)
+                ),
+            });
         };
-        if type_note.is_some() {
+        // every type without a voxel type of its own became f32
+        if matches!(data, VoxelData::F32(_)) && !ty.is::<dt::Float32DataType>() {
             notes.push(format!(
                 "data type {} converted to float32",
                 ty.name(zarrs::plugin::ZarrVersion::V3).unwrap_or_default()
