@@ -44,16 +44,22 @@ impl FetchOffer {
         }
     }
 
-    /// Loads the volume `src` names, for the file `opening` (a preset or a volume); a
-    /// missing sample is remembered and offered for fetching.
-    pub fn load(&mut self, src: &VolumeSource, opening: &Path) -> Result<Arc<Volume>> {
+    /// Loads the volume `src` names, for the file `opening` (a preset or a volume), for
+    /// a renderer with the GPU memory `budget` (an OME-Zarr image reads only the stored
+    /// level that fits); a missing sample is remembered and offered for fetching.
+    pub fn load(
+        &mut self,
+        src: &VolumeSource,
+        opening: &Path,
+        budget: Option<u64>,
+    ) -> Result<Arc<Volume>> {
         let result = match src {
             VolumeSource::Sample(name) => (|| {
                 let sample = samples::manifest().get(name)?;
                 let path = samples::resolve_in(sample, &self.data_dir()?)?;
-                Ok(Arc::new(headless::load_volume_file(&path)?))
+                Ok(Arc::new(headless::load_volume_file_within(&path, budget)?))
             })(),
-            other => headless::load_volume(other),
+            other => headless::load_volume_within(other, budget),
         };
         match &result {
             Err(e) => self.offer(e, opening),

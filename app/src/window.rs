@@ -442,7 +442,10 @@ impl Workbench {
     /// stays and the error is shown (a missing sample with its fetch button).
     pub fn restore_session(&mut self, text: &str) -> Result<String> {
         let doc = Document::parse(text, "last session", &self.registry)?.document;
-        let volume = self.fetch.load(&doc.volume, std::path::Path::new(""))?;
+        let budget = self.renderer.gpu_memory_budget();
+        let volume = self
+            .fetch
+            .load(&doc.volume, std::path::Path::new(""), budget)?;
         self.renderer = self.fresh_renderer(volume, &doc)?;
         self.doc = doc;
         self.error = None;
@@ -603,7 +606,8 @@ impl Workbench {
     /// error (unreadable file, lying header, a stack that fails on the new volume).
     pub fn open_volume(&mut self, path: &std::path::Path) -> Result<String> {
         let source = headless::volume_arg(path);
-        let volume = self.fetch.load(&source, path)?;
+        let budget = self.renderer.gpu_memory_budget();
+        let volume = self.fetch.load(&source, path, budget)?;
         self.install_volume(path, volume)
     }
 
@@ -1343,7 +1347,8 @@ impl Workbench {
     /// Loads a preset (and its volume); the current one stays on any error.
     pub fn open(&mut self, path: &std::path::Path) -> Result<String> {
         let doc = Document::load(path, &self.registry)?.document;
-        let volume = self.fetch.load(&doc.volume, path)?;
+        let budget = self.renderer.gpu_memory_budget();
+        let volume = self.fetch.load(&doc.volume, path, budget)?;
         self.install_preset(path, doc, volume)
     }
 

@@ -13,12 +13,25 @@ use vwb_render::{GpuContext, Renderer, Volume};
 /// Loads the volume a document names (the embedded demo, a file or a sample in the
 /// data directory).
 pub fn load_volume(src: &VolumeSource) -> Result<Arc<Volume>> {
+    load_volume_within(src, env_budget())
+}
+
+/// [`load_volume`] for a renderer with the GPU memory `budget` (a window's own): an
+/// OME-Zarr image reads only the stored level that fits it.
+pub fn load_volume_within(src: &VolumeSource, budget: Option<u64>) -> Result<Arc<Volume>> {
     Ok(Arc::new(match src {
         VolumeSource::Demo => vwb_render::volume::demo(),
-        VolumeSource::File(p) => load_volume_file(p)?,
-        VolumeSource::Sample(name) => load_volume_file(&vwb_render::samples::resolve(name)?)?,
+        VolumeSource::File(p) => load_volume_file_within(p, budget)?,
+        VolumeSource::Sample(name) => {
+            load_volume_file_within(&vwb_render::samples::resolve(name)?, budget)?
+        }
         VolumeSource::Analytic(a) => a.volume().map_err(anyhow::Error::msg)?,
     }))
+}
+
+/// `VWB_GPU_MEMORY_LIMIT`, the budget of renderers made from the environment.
+fn env_budget() -> Option<u64> {
+    vwb_render::renderer::RendererOptions::from_env().gpu_memory_budget
 }
 
 /// A `--volume` argument: a sample name (`ct_head`, see `vwb data list`) unless a file
@@ -37,8 +50,12 @@ pub fn volume_arg(arg: &Path) -> VolumeSource {
 /// budget (`VWB_GPU_MEMORY_LIMIT`) an OME-Zarr image reads only the stored level that
 /// fits ([`vwb_render::volume::load_for_budget`]).
 pub fn load_volume_file(path: &Path) -> Result<Volume> {
+    load_volume_file_within(path, env_budget())
+}
+
+/// [`load_volume_file`] for a renderer with the GPU memory `budget`.
+pub fn load_volume_file_within(path: &Path, budget: Option<u64>) -> Result<Volume> {
     crate::outputs::protect_volume(path);
-    let budget = vwb_render::renderer::RendererOptions::from_env().gpu_memory_budget;
     Ok(vwb_render::volume::load_for_budget(path, budget)?)
 }
 

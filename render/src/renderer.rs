@@ -41,12 +41,14 @@ use crate::volume::Volume;
 mod atlas;
 mod bricks;
 mod level;
+mod lod;
 mod raster_et;
 pub use atlas::{Atlas, AtlasTile, EncodedAtlas};
 pub use bricks::{BRICK_GHOST, BrickInfo, MIN_BRICK_LIMIT, RendererOptions, over, split_axis};
 use bricks::{Region, Split, upload_or_split};
 use level::level_for;
 pub use level::{LevelInfo, halve};
+pub use lod::{BRICKS_PER_STEP, LOD_BRICK};
 pub use raster_et::{RASTER_ET_INTERVAL, RASTER_MASK_WGSL, interval as raster_et_interval};
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
@@ -616,6 +618,7 @@ pub struct RenderCounters {
     pub volume_pass_runs: u64,
 }
 
+#[derive(Clone)]
 struct Target {
     width: u32,
     height: u32,
@@ -644,7 +647,12 @@ fn target_bytes(w: u32, h: u32, format: TargetFormat) -> u64 {
 
 /// Bytes of `volume` stored as `format` ([`upload_volume`]).
 fn volume_texture_bytes(format: wgpu::TextureFormat, volume: &Volume) -> u64 {
-    volume.dims.iter().map(|&d| u64::from(d)).product::<u64>() * texel_bytes(format)
+    dims_texture_bytes(format, volume.dims)
+}
+
+/// Bytes of a volume of `dims` voxels stored as `format`.
+fn dims_texture_bytes(format: wgpu::TextureFormat, dims: [u32; 3]) -> u64 {
+    dims.iter().map(|&d| u64::from(d)).product::<u64>() * texel_bytes(format)
 }
 
 /// Bytes of one voxel of the volume texture.
@@ -721,7 +729,9 @@ impl VolumeFormat {
     ) -> Result<VolumeFormat, RenderError> {
         let concrete = self.concrete(gpu);
         let texture = concrete.texture_format(gpu)?;
-        let over = budget.is_some_and(|b| volume_texture_bytes(texture, volume) > b);
+        // a stored level read alone stands for its full volume
+        let full = level::full_dims(volume);
+        let over = budget.is_some_and(|b| dims_texture_bytes(texture, full) > b);
         if self.is_auto() && concrete == VolumeFormat::R32Float && over {
             let unorm = VolumeFormat::R16Unorm.texture_format(gpu).is_ok();
             return Ok(if unorm {
@@ -827,6 +837,8 @@ pub struct Renderer {
     /// Set when the volume is split into bricks: this renderer then only composites
     /// the bricks' partial images (and owns no volume texture of its own).
     split: Option<Split>,
+    /// Set when a volume beyond the budget refines its bricks in view ([`lod`]).
+    lod: Option<lod::Lod>,
     /// The raster backend's early-termination mask, made on first use.
     raster_et: Option<raster_et::RasterEt>,
     /// Raster backend: proxy polygons cut to the occupied cells ([`Renderer::set_occupied_proxy`]).
@@ -921,10 +933,36 @@ impl Renderer {
         // full volume's box and Δs0
         let vbox = level::full_box(&volume);
         let stored_format = options.volume_format.for_budget(gpu, &volume, budget)?;
+        let full = volume.clone();
         let (volume, level) = match level_for(&volume, budget, stored_format.texture_format(gpu)?)?
         {
             Some((level, info)) => (level, Some(info)),
             None => (volume, None),
+        };
+        // a coarser level: its bricks in view can be refined, from the full volume in
+        // memory (an averaged level) or from the finer stored levels (OME-Zarr)
+        let texel = texel_bytes(stored_format.texture_format(gpu)?);
+        let brick = options.lod_brick;
+        let lod = match (&level, &full.pyramid) {
+            (Some(l), _) if !options.refine_in_view || l.factor <= 1 || budget.is_none() => None,
+            (Some(l), _) if l.stored.is_none() => Some(lod::Lod::in_memory(
+                full,
+                l.factor.trailing_zeros(),
+                brick,
+                brick_limit,
+                texel,
+            )),
+            (Some(l), Some(p)) => l.stored.map(|i| {
+                lod::Lod::stored(
+                    p.clone(),
+                    volume.clone(),
+                    i as u32,
+                    brick,
+                    brick_limit,
+                    texel,
+                )
+            }),
+            _ => None,
         };
         let max_brick_bytes = options.max_brick_bytes;
         let volume_format = options.volume_format;
@@ -1035,6 +1073,7 @@ impl Renderer {
             level,
             region: None,
             split,
+            lod,
         };
         if gpu.has_timestamps()
             && gpu
@@ -1198,6 +1237,8 @@ impl Renderer {
         (self.volume_view, self.volume_bytes, self.bricks, self.split) =
             upload.into_parts(&self.gpu, &volume);
         self.counters.volume_uploads += self.split.is_none() as u64;
+        // another volume (or format) is shown whole: its bricks are not refined
+        self.lod = None;
         self.occupancy = upload_occupancy(&self.gpu, [1, 1, 1], &[255]);
         self.occupancy_bytes = None;
         self.volume = volume;
@@ -1349,9 +1390,19 @@ impl Renderer {
     /// accumulation and display copies, and every instance's resources (enabled or
     /// held while disabled).
     pub fn gpu_memory(&self) -> u64 {
+        // bricks sharing one eye buffer hold it once
+        let shared: Vec<u64> = self
+            .split
+            .iter()
+            .filter(|sp| sp.shared)
+            .flat_map(|sp| &sp.children)
+            .filter_map(|c| c.renderer.target.as_ref().map(Target::bytes))
+            .collect();
+        let counted_twice = shared.iter().skip(1).sum::<u64>();
         self.brick_renderers()
             .map(Renderer::gpu_memory)
             .sum::<u64>()
+            - counted_twice
             + self.volume_bytes
             + self.target.as_ref().map_or(0, Target::bytes)
             + self
@@ -1463,6 +1514,50 @@ impl Renderer {
     /// Brings the pipeline in line with the plugin stack. On a composition error the
     /// previous pipeline stays in use and the error is returned.
     pub fn update_stack(
+        &mut self,
+        stack: &[PluginInstance],
+        target: TargetFormat,
+    ) -> Result<StackChange, RenderError> {
+        let Some(lod) = &self.lod else {
+            return self.apply_stack(stack, target);
+        };
+        // a volume refined in view: bricks when the stack splits, else the whole level
+        let splits = stack
+            .iter()
+            .filter(|i| i.enabled)
+            .all(|i| i.configured().splits_into_bricks());
+        if lod.active == splits {
+            let change = self.apply_stack(stack, target)?;
+            self.remember_lod_stack(stack, target);
+            return Ok(change);
+        }
+        if splits {
+            self.enter_lod()?;
+        } else {
+            self.leave_lod()?;
+        }
+        match self.apply_stack(stack, target) {
+            Ok(change) => {
+                self.remember_lod_stack(stack, target);
+                Ok(change)
+            }
+            Err(e) => {
+                // back to the last good stack on the form it had
+                let lod = self.lod.as_ref().expect("refinable");
+                let (last, last_target) = (lod.stack.clone(), lod.target);
+                if splits {
+                    self.leave_lod()?;
+                } else {
+                    self.enter_lod()?;
+                }
+                self.apply_stack(&last, last_target)?;
+                Err(e)
+            }
+        }
+    }
+
+    /// [`Renderer::update_stack`] on the volume's present form (one texture or bricks).
+    fn apply_stack(
         &mut self,
         stack: &[PluginInstance],
         target: TargetFormat,
@@ -2362,11 +2457,12 @@ impl Renderer {
         }
     }
 
-    /// Whether a volume pass of the current stack has steps left (a window keeps
-    /// drawing until it has none).
+    /// Whether a volume pass of the current stack has steps left, or bricks refined in
+    /// view are still to be rebuilt or drawn (a window keeps drawing until neither).
     pub fn refining(&self) -> bool {
         self.refinement_progress()
             .is_some_and(|(done, total)| done < total)
+            || self.lod_refining()
     }
 
     /// Refinement steps of the current stack's volume passes done since their inputs
@@ -2592,7 +2688,7 @@ impl Renderer {
             return self.render_split(s);
         }
         if self.pipelines.is_none() {
-            self.update_stack(&[], TargetFormat::default())?;
+            self.apply_stack(&[], TargetFormat::default())?;
         }
         let mut enc = self
             .gpu

@@ -6,7 +6,7 @@ use std::sync::Arc;
 use vwb_render::metrics::{RgbImageF, compare, delta_e_map};
 use vwb_render::params::ParamValue;
 use vwb_render::preset::Document;
-use vwb_render::renderer::{Backend, FrameSettings, RenderError, RendererOptions};
+use vwb_render::renderer::{Backend, FrameSettings, LOD_BRICK, RenderError, RendererOptions};
 use vwb_render::tf::{TfCurve, TfPoint};
 use vwb_render::{Camera, Projection, Renderer, TargetFormat};
 
@@ -798,4 +798,435 @@ fn an_ome_zarr_pyramid_gives_its_stored_level_under_the_budget() {
     assert_eq!(r3.level().and_then(|l| l.stored), Some(1));
     assert_eq!(r3.volume_box(), one.volume_box());
     std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// The demo beyond a budget of a third of its r32float texture (stored in 16 bits at
+/// a 1/2 level), refinable in bricks of 64 voxels, and the demo preset's stack and
+/// settings at 64² zoomed on one corner (orthographic).
+fn refinable(refine_in_view: bool) -> (Renderer, Document, FrameSettings) {
+    refinable_volume(demo(), 128 * 128 * 84 * texel_bytes() / 3, refine_in_view)
+}
+
+/// [`refinable`] for another form of the demo.
+fn refinable_volume(
+    volume: Arc<vwb_render::Volume>,
+    budget: u64,
+    refine_in_view: bool,
+) -> (Renderer, Document, FrameSettings) {
+    let options = RendererOptions {
+        gpu_memory_budget: Some(budget),
+        refine_in_view,
+        lod_brick: Some(LOD_TEST_BRICK),
+        ..Default::default()
+    };
+    let r = Renderer::with_options(gpu(), volume, options).unwrap();
+    let doc = Document::load(&repo().join("presets/demo.ron"), &registry())
+        .unwrap()
+        .document;
+    let b = *r.volume_box();
+    let corner = b.min + (b.max - b.min) * CORNER;
+    let mut s = FrameSettings {
+        width: 64,
+        height: 64,
+        backend: Backend::Compute,
+        ..doc.frame_settings()
+    };
+    s.camera.target = corner.to_array();
+    s.camera.projection = Projection::Orthographic {
+        height: VIEW_HEIGHT,
+    };
+    // along an axis: the view's column crosses two of the eight bricks
+    (s.camera.yaw_deg, s.camera.pitch_deg) = (0.0, 0.0);
+    (r, doc, s)
+}
+
+const LOD_TEST_BRICK: u32 = 64;
+const CORNER: f32 = 0.25;
+const VIEW_HEIGHT: f32 = 0.3;
+const LOD_TEST_BRICKS: usize = 8;
+
+/// Beyond the budget, the bricks in view are refined from the full volume (to full
+/// resolution where the budget holds them) and the others stay at the coarser level;
+/// the renderer stays within the budget, and the image is far closer to the full
+/// volume's than the coarser level's is.
+#[test]
+fn the_bricks_in_view_are_refined_within_the_budget() {
+    let (mut coarse, doc, s) = refinable(false);
+    let (mut r, _, _) = refinable(true);
+    let t = doc.render.target;
+    let mut one = Renderer::new(gpu(), demo()).unwrap();
+    let a = image(&render(&mut one, &doc.stack, t, &s), 64, 64);
+    let c = image(&render(&mut coarse, &doc.stack, t, &s), 64, 64);
+    let px = render(&mut r, &doc.stack, t, &s);
+    let b = image(&px, 64, 64);
+    let bricks = r.bricks();
+    assert_eq!(bricks.len(), LOD_TEST_BRICKS, "{:?}", bricks.len());
+    let full_res = bricks.iter().filter(|b| b.level == 0).count();
+    assert!(full_res > 0 && full_res < bricks.len(), "{full_res}");
+    assert!(bricks.iter().all(|b| b.level <= 1), "{bricks:?}");
+    // a brick whose box projects off the image is not refined
+    let vp = s.camera.view(1.0).view_proj();
+    let vbox = *r.volume_box();
+    let in_view = |b: &vwb_render::renderer::BrickInfo| {
+        let (mut lo, mut hi) = (glam::Vec2::splat(f32::MAX), glam::Vec2::splat(f32::MIN));
+        for k in 0..8 {
+            let p = glam::Vec3::from_array(std::array::from_fn(|a| {
+                let e = b.own[a][(k >> a) & 1] as f32 / demo().dims[a] as f32;
+                vbox.min[a] + (vbox.max[a] - vbox.min[a]) * e
+            }));
+            let c = vp * p.extend(1.0);
+            if c.w <= 0.0 {
+                return true;
+            }
+            lo = lo.min(glam::Vec2::new(c.x, c.y) / c.w);
+            hi = hi.max(glam::Vec2::new(c.x, c.y) / c.w);
+        }
+        lo.x < 1.0 && lo.y < 1.0 && hi.x > -1.0 && hi.y > -1.0
+    };
+    let outside = bricks.iter().filter(|b| !in_view(b)).count();
+    eprintln!(
+        "{outside} bricks out of view, memory {} of {}",
+        r.gpu_memory(),
+        128 * 128 * 84 * texel_bytes() / 3
+    );
+    assert!(outside > 0, "the view leaves bricks out");
+    for b in &bricks {
+        assert!(in_view(b) || b.level == 1, "{b:?} is out of view");
+    }
+    assert!(
+        r.gpu_memory() <= 128 * 128 * 84 * texel_bytes() / 3,
+        "{}",
+        r.gpu_memory()
+    );
+    let notice = r.level().expect("a level").notice();
+    assert!(
+        notice.contains("refined") && notice.contains(&format!("of {LOD_TEST_BRICKS}")),
+        "{notice}"
+    );
+    assert!(
+        !r.refining(),
+        "one frame without a step budget refines everything"
+    );
+    let to_coarse = compare(&a, &c);
+    let to_refined = compare(&a, &b);
+    eprintln!(
+        "demo corner: coarse {to_coarse:?}, refined {to_refined:?}, {full_res} of {LOD_TEST_BRICKS} at full resolution"
+    );
+    assert!(to_coarse.rms_delta_e > 1.0, "{to_coarse:?}");
+    assert!(
+        to_refined.rms_delta_e < 0.25 * to_coarse.rms_delta_e,
+        "{to_refined:?} vs {to_coarse:?}"
+    );
+}
+
+/// With a step budget (the window's), the first frame shows the coarser level at once
+/// and later frames refine a few bricks each until the view's levels are reached (the
+/// window draws again while `refining()`); the result is the one-frame refinement. A
+/// new view coarsens the bricks that left it.
+#[test]
+fn refinement_is_progressive_and_follows_the_view() {
+    let (mut coarse, doc, s) = refinable(false);
+    let (mut all, _, _) = refinable(true);
+    let (mut r, _, _) = refinable(true);
+    r.set_refinement_budget(Some(1));
+    // rgba32float eye buffers: the bricks' partial images round as one texture does
+    let t = TargetFormat::Rgba32Float;
+    let c = render(&mut coarse, &doc.stack, t, &s);
+    let first = render(&mut r, &doc.stack, t, &s);
+    let first_rms = crate::reference::gpu_delta_e_rms(&first, &c, 64, 64);
+    assert!(
+        first_rms < 0.02,
+        "the first frame is the coarser level: {first_rms}"
+    );
+    // then at most BRICKS_PER_STEP bricks per frame
+    let refined = r.bricks().iter().filter(|b| b.level == 0).count();
+    assert!(
+        (1..=vwb_render::renderer::BRICKS_PER_STEP).contains(&refined),
+        "{refined}"
+    );
+    let mut frames = 1;
+    while r.refining() {
+        r.render(&s).unwrap();
+        frames += 1;
+        assert!(frames < 20, "refinement ends");
+    }
+    assert!(frames >= 2, "{frames} frames");
+    let done = r.read_pixels().unwrap().2;
+    let refined = render(&mut all, &doc.stack, t, &s);
+    let worst = worst_channel(&done, &refined);
+    assert!(worst < 1.0e-3, "{worst}");
+    let levels = |r: &Renderer| r.bricks().iter().map(|b| b.level).collect::<Vec<_>>();
+    let before = levels(&r);
+    // the opposite corner: what was refined goes back, what comes into view refines
+    let mut other = s;
+    let b = *r.volume_box();
+    other.camera.target = (b.min + (b.max - b.min) * 0.7).to_array();
+    for _ in 0..60 {
+        r.render(&other).unwrap();
+        if !r.refining() {
+            break;
+        }
+    }
+    assert!(!r.refining());
+    let after = levels(&r);
+    let (refined_before, refined_after) = (
+        before
+            .iter()
+            .zip(&after)
+            .filter(|(b, a)| **b == 0 && **a == 1)
+            .count(),
+        before
+            .iter()
+            .zip(&after)
+            .filter(|(b, a)| **b == 1 && **a == 0)
+            .count(),
+    );
+    assert!(
+        refined_before > 0 && refined_after > 0,
+        "{before:?} → {after:?}"
+    );
+    assert!(r.gpu_memory() <= 128 * 128 * 84 * texel_bytes() / 3);
+}
+
+/// A coarser stored level of an OME-Zarr pyramid, read alone by the loader under the
+/// budget, refines its bricks in view from the store's finer level, each brick reading
+/// only its region: the image comes close to the full volume's though the full volume
+/// was never loaded.
+#[test]
+fn a_stored_level_refines_from_the_finer_stored_level() {
+    use vwb_render::volume::zarr;
+    let full = demo();
+    let level = vwb_render::renderer::halve(&full).unwrap();
+    let dir = std::env::temp_dir().join(format!("vwb-lod-{}.ome.zarr", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    zarr::write(&dir, &[&full, &level]).unwrap();
+    // the stored level is float32 (block means): a budget whose half holds the coarser
+    // level in 16 bits and the rest two full-resolution bricks
+    let budget = 128 * 128 * 84 * texel_bytes() * 7 / 10;
+    let within = zarr::load_within(&dir, Some(budget / 2), 2).unwrap();
+    assert_eq!(
+        within.dims, level.dims,
+        "the loader read the coarser level alone"
+    );
+    let within = Arc::new(within);
+    let (mut coarse, doc, s) = refinable_volume(within.clone(), budget, false);
+    let (mut r, _, _) = refinable_volume(within, budget, true);
+    let t = TargetFormat::Rgba32Float;
+    // a level read alone normalises by its own value range (the full volume's is not
+    // known without reading it all): the reference is the full volume in that range
+    let mut in_range = (*full).clone();
+    in_range.range = r.volume().range;
+    let mut one = Renderer::new(gpu(), Arc::new(in_range)).unwrap();
+    let a = image(&render(&mut one, &doc.stack, t, &s), 64, 64);
+    let c = image(&render(&mut coarse, &doc.stack, t, &s), 64, 64);
+    let b = image(&render(&mut r, &doc.stack, t, &s), 64, 64);
+    let bricks = r.bricks();
+    assert_eq!(bricks.len(), LOD_TEST_BRICKS);
+    let refined = bricks.iter().filter(|b| b.level == 0).count();
+    assert!(refined > 0 && refined < bricks.len(), "{bricks:?}");
+    assert!(r.gpu_memory() <= budget, "{} > {budget}", r.gpu_memory());
+    let (to_coarse, to_refined) = (compare(&a, &c), compare(&a, &b));
+    eprintln!("stored level: coarse {to_coarse:?}, refined {to_refined:?}");
+    assert!(to_coarse.rms_delta_e > 1.0, "{to_coarse:?}");
+    assert!(
+        to_refined.rms_delta_e < 0.25 * to_coarse.rms_delta_e,
+        "{to_refined:?} vs {to_coarse:?}"
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// A stack with a plugin that cannot be split (its state crosses the volume) shows
+/// the whole coarser level, as without refinement; disabling it brings the refined
+/// bricks back.
+#[test]
+fn a_stack_that_cannot_split_shows_the_whole_coarser_level() {
+    let (mut coarse, _, s) = refinable(false);
+    let (mut r, _, _) = refinable(true);
+    let t = TargetFormat::Rgba32Float;
+    let mut dos = vec![instance("classify.tf1d"), instance("shade.dos")];
+    let a = render(&mut coarse, &dos, t, &s);
+    let b = render(&mut r, &dos, t, &s);
+    assert!(r.bricks().is_empty());
+    assert_eq!(worst_channel(&a, &b), 0.0);
+    assert!(!r.level().unwrap().notice().contains("bricks"));
+    dos[1].enabled = false;
+    render(&mut r, &dos, t, &s);
+    assert_eq!(r.bricks().len(), LOD_TEST_BRICKS);
+    assert!(r.bricks().iter().any(|b| b.level == 0));
+    dos[1].enabled = true;
+    let again = render(&mut r, &dos, t, &s);
+    assert!(r.bricks().is_empty());
+    assert_eq!(worst_channel(&a, &again), 0.0);
+}
+
+/// Refining the bricks in view, measured: the CT head under a GPU memory budget that
+/// needs a 1/2 level, for the preset's view and a view zoomed on the skull base; the
+/// coarser level alone, refined in one frame (headless) and refined a few bricks per
+/// frame (the window). Writes docs/scale.md between its `lod` markers. Run by
+/// `bash bench/ignored_test.sh lod_benchmark`.
+#[test]
+#[ignore = "benchmark: bash bench/ignored_test.sh lod_benchmark writes a section of docs/scale.md"]
+fn lod_benchmark() {
+    use vwb_lab::measure::machine;
+    let doc = Document::load(&repo().join("presets/ct_head.ron"), &registry())
+        .unwrap()
+        .document;
+    let volume = vwb_lab::headless::load_volume(&doc.volume).unwrap();
+    let (w, h) = (256, 256);
+    let base = FrameSettings {
+        width: w,
+        height: h,
+        ..doc.frame_settings()
+    };
+    let mut zoomed = base;
+    zoomed.camera.distance *= 0.3;
+    zoomed.camera.target = [0.0, 0.1, -0.15];
+    let budget: u64 = 12 << 20;
+    let t = doc.render.target;
+    // the CT head as an OME-Zarr pyramid of two levels (block means)
+    let store = std::env::temp_dir().join(format!("vwb-lod-ct-{}.ome.zarr", std::process::id()));
+    let _ = std::fs::remove_dir_all(&store);
+    let half = vwb_render::renderer::halve(&volume).unwrap();
+    vwb_render::volume::zarr::write(&store, &[&volume, &half]).unwrap();
+    let mut rows = String::new();
+    for (view, s) in [("preset", base), ("zoomed", zoomed)] {
+        let mut one = Renderer::new(gpu(), volume.clone()).unwrap();
+        let full = image(&render(&mut one, &doc.stack, t, &s), w, h);
+        let full_ms = time(&mut one, &s);
+        rows += &format!(
+            "| {view} | full volume, no budget | — | {full_ms:.0} | — | 0 | 1.000 | {} |\n",
+            one.gpu_memory() >> 20
+        );
+        for (mode, brick) in [
+            ("1/2 level", Some(0)),
+            ("refined in one frame", Some(LOD_BRICK)),
+            ("refined in one frame", None),
+            ("refined 2 bricks per frame", Some(LOD_BRICK)),
+            ("refined 2 bricks per frame", None),
+            ("OME-Zarr: stored 1/2 level", Some(0)),
+            ("OME-Zarr: stored 1/2 level, refined in one frame", None),
+        ] {
+            let options = RendererOptions {
+                gpu_memory_budget: Some(budget),
+                refine_in_view: brick != Some(0),
+                lod_brick: brick.filter(|&b| b > 0),
+                ..Default::default()
+            };
+            let t0 = std::time::Instant::now();
+            let source = if mode.starts_with("OME-Zarr") {
+                // only the stored level is read; the bricks read their regions
+                Arc::new(
+                    vwb_render::volume::zarr::load_within(&store, Some(budget / 2), 2).unwrap(),
+                )
+            } else {
+                volume.clone()
+            };
+            let mut r = Renderer::with_options(gpu(), source, options).unwrap();
+            let progressive = mode.contains("per frame");
+            if progressive {
+                r.set_refinement_budget(Some(1));
+            }
+            let first = image(&render(&mut r, &doc.stack, t, &s), w, h);
+            let first_ms = t0.elapsed().as_secs_f64() * 1e3;
+            let first_de = compare(&full, &first).rms_delta_e;
+            let mut frames = 1;
+            while r.refining() && frames < 200 {
+                r.render(&s).unwrap();
+                frames += 1;
+            }
+            let done_ms = t0.elapsed().as_secs_f64() * 1e3;
+            let img = image(&r.read_pixels().unwrap().2, w, h);
+            let m = compare(&full, &img);
+            let frame_ms = time(&mut r, &s);
+            let bricks = r.bricks();
+            let levels = if bricks.is_empty() {
+                "—".to_string()
+            } else {
+                format!(
+                    "{} of {} ({} voxels)",
+                    bricks.iter().filter(|b| b.level == 0).count(),
+                    bricks.len(),
+                    bricks[0].own.iter().map(|[a, b]| b - a).max().unwrap_or(0)
+                )
+            };
+            let timing = if progressive {
+                format!(
+                    "{first_ms:.0} (ΔE {first_de:.2}); refined after {frames} frames, {done_ms:.0} ms"
+                )
+            } else {
+                format!("{first_ms:.0}")
+            };
+            eprintln!("{view} {mode} {levels}: {timing}, frame {frame_ms:.0} ms, {m:?}");
+            if mode.starts_with("OME-Zarr") {
+                // a level read alone keeps its own value range: compare in that range
+                let mut in_range = (*volume).clone();
+                in_range.range = r.volume().range;
+                let mut one = Renderer::new(gpu(), Arc::new(in_range)).unwrap();
+                let reference = image(&render(&mut one, &doc.stack, t, &s), w, h);
+                let m = compare(&reference, &img);
+                rows += &format!(
+                    "| {view} | {mode} (against the full volume in the level's value range) | {levels} | {frame_ms:.0} | {first_ms:.0} | {:.2} | {:.3} | {:.1} |\n",
+                    m.rms_delta_e,
+                    m.ssim,
+                    r.gpu_memory() as f64 / (1 << 20) as f64
+                );
+                continue;
+            }
+            assert!(r.gpu_memory() <= budget, "{} > {budget}", r.gpu_memory());
+            rows += &format!(
+                "| {view} | {mode} | {levels} | {frame_ms:.0} | {timing} | {:.2} | {:.3} | {:.1} |\n",
+                m.rms_delta_e,
+                m.ssim,
+                r.gpu_memory() as f64 / (1 << 20) as f64
+            );
+        }
+    }
+    let section = format!(
+        "<!-- lod:begin (generated by `bash bench/ignored_test.sh lod_benchmark`, the ignored \
+         test `lod_benchmark` in tests/integration/bricks.rs; do not edit by hand) -->\n\
+         Machine: {}. Adapter: {}.\n\n\
+         The CT head (`presets/ct_head.ron`, 256×256×108 int16, 28 MiB as r32float) under a \
+         GPU memory budget of {} MiB: `auto` stores it in 16 bits, which still passes the \
+         budget, so the whole-volume rule shows a 1/2 level. {w}×{h}, the preset's stack, \
+         target and backend; the preset's view and one zoomed on the skull base (distance \
+         × 0.3). Bricks at full resolution: bricks at level 0 after refinement, of all \
+         (brick side in voxels of the full volume: {LOD_BRICK}, or the default for this \
+         volume). OME-Zarr: the CT head written as a two-level pyramid (level 1 the block \
+         means), read at level 1 alone (`zarr::load_within`), its bricks refined from \
+         regions of level 0 in the store. Frame ms: median of 3 frames once \
+         refined (wall clock). First image: from `Renderer::with_options` to the first \
+         frame read back; refined in one frame (no step budget, as headless renders) waits \
+         for every brick; 2 bricks per frame (the window's step budget) shows the 1/2 \
+         level first (its ΔE*uv in brackets) and then draws until `refining()` is false. \
+         ΔE*uv RMS and SSIM against the full volume's image without a budget; GPU memory \
+         as `Renderer::gpu_memory` counts it.\n\n\
+         | view | shown | bricks at full resolution | frame ms | first image ms | ΔE*uv RMS | SSIM | GPU MiB |\n\
+         |---|---|---|---|---|---|---|---|\n{rows}\
+         <!-- lod:end -->",
+        machine(),
+        gpu().describe(),
+        budget >> 20,
+    );
+    std::fs::remove_dir_all(&store).unwrap();
+    let path = repo().join("docs/scale.md");
+    let text = std::fs::read_to_string(&path).unwrap();
+    let (a, b) = (
+        text.find("<!-- lod:begin")
+            .expect("docs/scale.md has the lod markers"),
+        text.find("<!-- lod:end -->").unwrap(),
+    );
+    let out = format!(
+        "{}{section}{}",
+        &text[..a],
+        &text[b + "<!-- lod:end -->".len()..]
+    );
+    std::fs::write(&path, out).unwrap();
+}
+
+/// Median wall-clock ms of 3 frames after one.
+fn time(r: &mut Renderer, s: &FrameSettings) -> f64 {
+    vwb_lab::measure::time_frames(r, s, 1, 3)
+        .unwrap()
+        .wall_ms
+        .median
 }

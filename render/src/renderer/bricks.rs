@@ -58,11 +58,19 @@ pub struct RendererOptions {
     /// Workgroup shape (x, y) of the whole-frame compute passes (`cs_main`,
     /// `cs_main_skip`); `None`: [`crate::composer::main_workgroup_for`] the adapter.
     pub workgroup: Option<[u32; 2]>,
+    /// Beyond the GPU memory budget, refine the bricks in view from the full volume
+    /// ([`super::lod`]) instead of showing one coarser level everywhere. Off in
+    /// `Default`; [`RendererOptions::from_env`] turns it on unless `VWB_LOD_REFINE=0`.
+    pub refine_in_view: bool,
+    /// Voxels of the full volume a refinable brick owns along an axis at most
+    /// (`None`: [`super::lod::LOD_BRICK`]).
+    pub lod_brick: Option<u32>,
 }
 
 impl RendererOptions {
     /// `VWB_GPU_MEMORY_LIMIT` (bytes), `VWB_BRICK_LIMIT` (voxels),
-    /// `VWB_MAX_BRICK_BYTES` and `VWB_WORKGROUP` (`XxY`, e.g. `16x4`) when set.
+    /// `VWB_MAX_BRICK_BYTES`, `VWB_WORKGROUP` (`XxY`, e.g. `16x4`) and `VWB_LOD_BRICK`
+    /// (voxels) when set; refining the bricks in view on unless `VWB_LOD_REFINE=0`.
     pub fn from_env() -> Self {
         let var = |name: &str| std::env::var(name).ok();
         Self {
@@ -74,6 +82,8 @@ impl RendererOptions {
                 let (x, y) = v.trim().split_once('x')?;
                 Some([x.parse().ok()?, y.parse().ok()?])
             }),
+            refine_in_view: var("VWB_LOD_REFINE").is_none_or(|v| v.trim() != "0"),
+            lod_brick: var("VWB_LOD_BRICK").and_then(|v| v.trim().parse().ok()),
         }
     }
 
@@ -106,6 +116,9 @@ pub struct BrickInfo {
     pub own: [[u32; 2]; 3],
     /// Voxels its texture holds per axis, [start, end): `own` and the ghosts.
     pub texture: [[u32; 2]; 3],
+    /// Times its voxels were averaged over 2×2×2 blocks: 0 except for a brick refined
+    /// in view ([`super::lod`]) that is not yet (or need not be) at full resolution.
+    pub level: u32,
 }
 
 /// The pieces an axis of `dim` voxels is cut into for textures of at most `limit`
@@ -294,6 +307,111 @@ pub(super) struct Split {
     /// The last frame's bricks, front to back, with their pixel footprints.
     last: Vec<(usize, [u32; 4])>,
     composite: Option<(TargetFormat, wgpu::RenderPipeline, wgpu::BindGroupLayout)>,
+    /// The bricks share one eye buffer: each is drawn and composited before the next
+    /// (bricks refined in view, whose count would otherwise multiply eye buffers).
+    pub shared: bool,
+}
+
+/// Brick grid indices (x, y, z) of `pieces`, x fastest: the order of
+/// [`Split::children`].
+pub(super) fn grid(pieces: &[Vec<(u32, u32)>; 3]) -> impl Iterator<Item = [u32; 3]> + '_ {
+    (0..pieces[2].len()).flat_map(move |z| {
+        (0..pieces[1].len())
+            .flat_map(move |y| (0..pieces[0].len()).map(move |x| [x as u32, y as u32, z as u32]))
+    })
+}
+
+/// The voxels [start, end) per axis that the brick at grid `index` owns.
+pub(super) fn brick_own(pieces: &[Vec<(u32, u32)>; 3], index: [u32; 3]) -> [[u32; 2]; 3] {
+    std::array::from_fn(|a| {
+        let (s, e) = pieces[a][index[a] as usize];
+        [s, e]
+    })
+}
+
+/// The voxels [start, end) per axis a brick owning `own` holds: its own and `ghost`
+/// more beside every face with a neighbour.
+pub(super) fn ghosted(dims: [u32; 3], own: [[u32; 2]; 3], ghost: u32) -> [[u32; 2]; 3] {
+    std::array::from_fn(|a| {
+        [
+            own[a][0].saturating_sub(ghost),
+            (own[a][1] + ghost).min(dims[a]),
+        ]
+    })
+}
+
+/// The brick of `volume` (box `whole`) owning the voxels `own`, as a renderer of its
+/// own: its voxels with [`BRICK_GHOST`] voxels of its level beside them, averaged over
+/// 2×2×2 blocks `level` times.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn make_child(
+    gpu: &GpuContext,
+    volume: &Volume,
+    whole: &VolumeBox,
+    index: [u32; 3],
+    own: [[u32; 2]; 3],
+    level: u32,
+    limit: u32,
+    volume_format: VolumeFormat,
+) -> Result<Child, RenderError> {
+    let dims = volume.dims;
+    let texture = ghosted(dims, own, BRICK_GHOST << level);
+    let [ix, iy, iz] = index;
+    let mut brick = cut(
+        volume,
+        texture,
+        format!("{} brick {ix},{iy},{iz}", volume.name),
+    )?;
+    for _ in 0..level {
+        brick = super::level::halve(&brick)?;
+    }
+    let info = BrickInfo {
+        index,
+        own,
+        texture,
+        level,
+    };
+    let vbox = sub_box(whole, dims, texture);
+    child_of(gpu, brick, vbox, whole, dims, info, limit, volume_format)
+}
+
+/// A brick renderer for the voxels `brick` filling `vbox`, slicing the lattice of
+/// `whole` (a volume of `dims` voxels) and taking the samples of `info.own` only.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn child_of(
+    gpu: &GpuContext,
+    brick: Volume,
+    vbox: VolumeBox,
+    whole: &VolumeBox,
+    dims: [u32; 3],
+    info: BrickInfo,
+    limit: u32,
+    volume_format: VolumeFormat,
+) -> Result<Child, RenderError> {
+    let mut renderer = Renderer::with_options(
+        gpu,
+        Arc::new(brick),
+        RendererOptions {
+            gpu_memory_budget: None,
+            brick_limit: Some(limit),
+            max_brick_bytes: Some(u64::MAX),
+            volume_format,
+            workgroup: RendererOptions::from_env().workgroup,
+            refine_in_view: false,
+            lod_brick: None,
+        },
+    )?;
+    let own = info.own;
+    let open = (0..3)
+        .filter(|&a| own[a][1] < dims[a])
+        .fold(0, |m, a| m | (1 << a));
+    renderer.vbox = vbox;
+    renderer.region = Some(Region {
+        lattice: *whole,
+        own: sub_box(whole, dims, own),
+        open,
+    });
+    Ok(Child { info, renderer })
 }
 
 /// World coordinate of voxel edge `e` (0..=dim) along an axis of the box.
@@ -367,7 +485,7 @@ impl Split {
     ) -> Result<Self, RenderError> {
         let dims = volume.dims;
         let texel = texel_bytes(volume_format.texture_format(gpu)?);
-        let ghosted = |a: usize, (s, e): (u32, u32)| {
+        let span = |a: usize, (s, e): (u32, u32)| {
             [
                 s.saturating_sub(BRICK_GHOST),
                 (e + BRICK_GHOST).min(dims[a]),
@@ -380,7 +498,7 @@ impl Split {
                 .map(|(a, p)| {
                     p.iter()
                         .map(|&piece| {
-                            let [s, e] = ghosted(a, piece);
+                            let [s, e] = span(a, piece);
                             (e - s) as u64
                         })
                         .sum::<u64>()
@@ -393,41 +511,18 @@ impl Split {
             return Err(over_budget(what, bytes, b));
         }
         let mut children = Vec::new();
-        for (iz, &pz) in pieces[2].iter().enumerate() {
-            for (iy, &py) in pieces[1].iter().enumerate() {
-                for (ix, &px) in pieces[0].iter().enumerate() {
-                    let own = [[px.0, px.1], [py.0, py.1], [pz.0, pz.1]];
-                    let texture = [ghosted(0, px), ghosted(1, py), ghosted(2, pz)];
-                    let info = BrickInfo {
-                        index: [ix as u32, iy as u32, iz as u32],
-                        own,
-                        texture,
-                    };
-                    let name = format!("{} brick {ix},{iy},{iz}", volume.name);
-                    let brick = Arc::new(cut(volume, texture, name)?);
-                    let mut renderer = Renderer::with_options(
-                        gpu,
-                        brick,
-                        RendererOptions {
-                            gpu_memory_budget: None,
-                            brick_limit: Some(limit),
-                            max_brick_bytes: Some(u64::MAX),
-                            volume_format,
-                            workgroup: RendererOptions::from_env().workgroup,
-                        },
-                    )?;
-                    let open = (0..3)
-                        .filter(|&a| own[a][1] < dims[a])
-                        .fold(0, |m, a| m | (1 << a));
-                    renderer.vbox = sub_box(whole, dims, texture);
-                    renderer.region = Some(Region {
-                        lattice: *whole,
-                        own: sub_box(whole, dims, own),
-                        open,
-                    });
-                    children.push(Child { info, renderer });
-                }
-            }
+        for index in grid(&pieces) {
+            let own = brick_own(&pieces, index);
+            children.push(make_child(
+                gpu,
+                volume,
+                whole,
+                index,
+                own,
+                0,
+                limit,
+                volume_format,
+            )?);
         }
         Ok(Self {
             children,
@@ -435,7 +530,25 @@ impl Split {
             pieces,
             last: Vec::new(),
             composite: None,
+            shared: false,
         })
+    }
+
+    /// `children` (in [`grid`] order of `pieces`, a volume of `dims` voxels) sharing
+    /// one eye buffer: the bricks of a volume refined in view ([`super::lod`]).
+    pub(super) fn shared(
+        children: Vec<Child>,
+        dims: [u32; 3],
+        pieces: [Vec<(u32, u32)>; 3],
+    ) -> Self {
+        Self {
+            children,
+            dims,
+            pieces,
+            last: Vec::new(),
+            composite: None,
+            shared: true,
+        }
     }
 
     /// Brick indices front to back for a view of the box `whole`: by the sum over axes
@@ -493,9 +606,10 @@ impl Renderer {
     /// The last frame's partial images, front to back: (index into
     /// [`Renderer::bricks`], premultiplied RGBA row-major from the top, zero outside
     /// the brick's footprint). What a sort-last engine would send between machines;
-    /// bricks that covered no pixel are left out. Empty for a volume in one texture.
+    /// bricks that covered no pixel are left out. Empty for a volume in one texture
+    /// and for bricks refined in view (they share one eye buffer).
     pub fn brick_images(&self) -> Vec<(usize, Vec<[f32; 4]>)> {
-        let Some(split) = &self.split else {
+        let Some(split) = self.split.as_ref().filter(|sp| !sp.shared) else {
             return Vec::new();
         };
         split
@@ -571,6 +685,13 @@ impl Renderer {
         if needs_stack {
             self.update_split_stack(&[], TargetFormat::default())?;
         }
+        // bricks refined in view: all before the frame when nothing limits the steps
+        if self.refinement_budget.is_none() {
+            self.refine_bricks(s, true)?;
+        }
+        if let Some(lod) = self.lod.as_mut() {
+            lod.redraw = false;
+        }
         crate::validate::check_camera(&s.camera)?;
         let view = s.camera.view(s.width as f32 / s.height as f32);
         let plan = SlicePlan::new(&view, &self.vbox, s.slice_spacing)?;
@@ -609,17 +730,26 @@ impl Renderer {
             .map(|i| (i, split.children[i].renderer.pixel_rect(&view, size)))
             .filter(|(_, r)| r[2] > r[0] && r[3] > r[1])
             .collect();
-        let mut recorded = Vec::with_capacity(order.len());
-        for &(i, _) in &order {
-            recorded.push((i, split.children[i].renderer.record(s, &mut enc, false)?));
-        }
-        let start = recorded.first().map_or_else(Instant::now, |(_, r)| r.start);
-        if let Some((qs, _, _)) = timestamps {
-            enc.write_timestamp(qs, 1);
-        }
         split.ensure_composite(&gpu, format);
+        if split.shared {
+            // one eye buffer for every brick: the first in the order makes it
+            if let Some(&(first, _)) = order.first() {
+                split.children[first]
+                    .renderer
+                    .ensure_target(s.width, s.height, format)?;
+                let scratch = split.children[first].renderer.target.clone();
+                for c in &mut split.children {
+                    c.renderer.target = scratch.clone();
+                }
+            }
+        }
+        let mut recorded = Vec::with_capacity(order.len());
         let (_, pipeline, layout) = split.composite.as_ref().expect("made above");
-        {
+        // partial images (view, footprint), in order, under what is in the target (or
+        // into the cleared target), in one pass
+        let composite = |enc: &mut wgpu::CommandEncoder,
+                         parts: &[(&wgpu::TextureView, [u32; 4])],
+                         clear: bool| {
             let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
                 label: Some("vwb composite"),
                 color_attachments: &[Some(wgpu::RenderPassColorAttachment {
@@ -627,20 +757,18 @@ impl Renderer {
                     depth_slice: None,
                     resolve_target: None,
                     ops: wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
+                        load: if clear {
+                            wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT)
+                        } else {
+                            wgpu::LoadOp::Load
+                        },
                         store: wgpu::StoreOp::Store,
                     },
                 })],
                 ..Default::default()
             });
             pass.set_pipeline(pipeline);
-            for &(i, rect) in &order {
-                let part = &split.children[i]
-                    .renderer
-                    .target
-                    .as_ref()
-                    .expect("drawn")
-                    .view;
+            for &(part, rect) in parts {
                 let group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
                     label: Some("vwb composite"),
                     layout,
@@ -654,7 +782,39 @@ impl Renderer {
                 pass.set_scissor_rect(rect[0], rect[1], rect[2] - rect[0], rect[3] - rect[1]);
                 pass.draw(0..3, 0..1);
             }
+        };
+        if split.shared {
+            // draw a brick, composite it, then the next brick reuses the eye buffer
+            if order.is_empty() {
+                composite(&mut enc, &[], true);
+            }
+            for (k, &(i, rect)) in order.iter().enumerate() {
+                let r = &mut split.children[i].renderer;
+                recorded.push((i, r.record(s, &mut enc, false)?));
+                let part = &r.target.as_ref().expect("drawn").view;
+                composite(&mut enc, &[(part, rect)], k == 0);
+            }
+            if let Some((qs, _, _)) = timestamps {
+                enc.write_timestamp(qs, 1);
+            }
+        } else {
+            // every partial image stays in its own eye buffer (Renderer::brick_images)
+            for &(i, _) in &order {
+                recorded.push((i, split.children[i].renderer.record(s, &mut enc, false)?));
+            }
+            if let Some((qs, _, _)) = timestamps {
+                enc.write_timestamp(qs, 1);
+            }
+            let parts: Vec<(&wgpu::TextureView, [u32; 4])> = order
+                .iter()
+                .map(|&(i, rect)| {
+                    let t = split.children[i].renderer.target.as_ref();
+                    (&t.expect("drawn").view, rect)
+                })
+                .collect();
+            composite(&mut enc, &parts, true);
         }
+        let start = recorded.first().map_or_else(Instant::now, |(_, r)| r.start);
         if let Some((qs, resolve, read)) = timestamps {
             enc.write_timestamp(qs, 2);
             enc.resolve_query_set(qs, 0..3, resolve, 0);
@@ -686,6 +846,10 @@ impl Renderer {
             gpu.wait();
         }
         stats.wall_ms = start.elapsed().as_secs_f64() * 1e3;
+        // else a few bricks after it, while the window shows it
+        if self.refinement_budget.is_some() {
+            self.refine_bricks(s, false)?;
+        }
         Ok(stats)
     }
 }

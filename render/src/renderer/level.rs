@@ -6,8 +6,9 @@
 //! value range (so the transfer function maps values as before) and Δs0, the world
 //! length at which TF opacities are defined (so slices at "one voxel" are as many and
 //! as opaque as on the full volume). What a coarser level loses is detail: structures
-//! thinner than its voxels blur (docs/scale.md measures it). Refining the bricks in
-//! view from the full volume is not built.
+//! thinner than its voxels blur (docs/scale.md measures it). With
+//! `RendererOptions::refine_in_view` the bricks in view are then refined from the full
+//! volume ([`super::lod`]).
 //!
 //! A volume read from a multiscale OME-Zarr image ([`crate::volume::zarr`]) has its
 //! coarser levels stored: the finest stored level that fits is read instead of
@@ -31,6 +32,9 @@ pub struct LevelInfo {
     /// The stored level of the source's pyramid shown (OME-Zarr), or `None` when the
     /// level was averaged from the full volume.
     pub stored: Option<usize>,
+    /// When the bricks in view are refined ([`super::lod`]): bricks at full
+    /// resolution, all bricks, and bricks not yet at the level the view wants.
+    pub refined: Option<[usize; 3]>,
 }
 
 impl LevelInfo {
@@ -48,8 +52,17 @@ impl LevelInfo {
                 self.budget >> 20
             )
         };
+        let refined = match self.refined {
+            Some([full, n, 0]) => {
+                format!("; bricks in view refined: {full} of {n} at full resolution")
+            }
+            Some([full, n, pending]) => format!(
+                "; refining the bricks in view: {full} of {n} at full resolution, {pending} to go"
+            ),
+            None => String::new(),
+        };
         format!(
-            "showing a 1/{} level ({what}{:?} of {:?} voxels): the volume needs {} MiB{why}",
+            "showing a 1/{} level ({what}{:?} of {:?} voxels): the volume needs {} MiB{why}{refined}",
             self.factor,
             self.level_dims,
             self.full_dims,
@@ -155,6 +168,7 @@ pub(super) fn level_for(
             full_bytes,
             budget,
             stored: Some(i),
+            refined: None,
         };
         return Ok(Some((Arc::new(level), info)));
     }
@@ -181,6 +195,7 @@ pub(super) fn level_for(
         full_bytes,
         budget,
         stored: None,
+        refined: None,
     };
     Ok(Some((level, info)))
 }
@@ -198,10 +213,20 @@ pub(super) fn stored_level_info(
         factor: p.factor(p.shown),
         full_dims: full,
         level_dims: volume.dims,
-        full_bytes: full.iter().map(|&d| u64::from(d)).product::<u64>() * texel_bytes(format),
+        full_bytes: dims_texture_bytes(format, full),
         budget: budget.unwrap_or(0),
         stored: Some(p.shown),
+        refined: None,
     })
+}
+
+/// The voxels of the full volume a volume stands for: for a coarser stored level read
+/// alone, its pyramid's level 0; else its own.
+pub(super) fn full_dims(volume: &Volume) -> [u32; 3] {
+    match volume.pyramid.as_ref().filter(|p| p.shown > 0) {
+        Some(p) => p.levels[0].dims,
+        None => volume.dims,
+    }
 }
 
 /// The box a volume renders in: for a coarser stored level read alone, the full

@@ -109,7 +109,17 @@ pub fn load(path: &Path) -> Result<Volume, VolumeError> {
 
 /// Loads level `level` (0: the finest) of the image.
 pub fn load_level(path: &Path, level: usize) -> Result<Volume, VolumeError> {
-    open(path)?.read(level)
+    open(path)?.read(level, None)
+}
+
+/// Loads the voxels `region` ([start, end) per axis x, y, z, in that level's voxels)
+/// of level `level`: a brick refined in view. Its spacing is the level's.
+pub fn load_region(
+    path: &Path,
+    level: usize,
+    region: [[u32; 2]; 3],
+) -> Result<Volume, VolumeError> {
+    open(path)?.read(level, Some(region))
 }
 
 /// Loads the finest level whose samples, at `bytes_per_voxel`, take at most `bytes`
@@ -127,7 +137,7 @@ pub fn load_within(
             .finest_within(b, bytes_per_voxel)
             .unwrap_or(image.pyramid.levels.len() - 1),
     };
-    image.read(level)
+    image.read(level, None)
 }
 
 /// An opened image: its store, pyramid and axes.
@@ -364,7 +374,8 @@ fn zyx_dims(path: &Path, shape: &[u64], spatial: [usize; 3]) -> Result<[u32; 3],
 }
 
 impl Image {
-    fn read(mut self, level: usize) -> Result<Volume, VolumeError> {
+    /// Reads level `level`, or its voxels `region` (x, y, z ranges) only.
+    fn read(mut self, level: usize, region: Option<[[u32; 2]; 3]>) -> Result<Volume, VolumeError> {
         let path = self.pyramid.root.clone();
         let Some(info) = self.pyramid.levels.get(level).cloned() else {
             return Err(invalid(
@@ -395,7 +406,19 @@ impl Image {
                 ));
             }
         }
-        let [w, h, d] = info.dims.map(u64::from);
+        let region = region.unwrap_or(info.dims.map(|n| [0, n]));
+        if (0..3).any(|a| region[a][0] >= region[a][1] || region[a][1] > info.dims[a]) {
+            return Err(invalid(
+                &path,
+                format!(
+                    "level {level}: region {region:?} outside {:?} voxels",
+                    info.dims
+                ),
+            ));
+        }
+        let dims = region.map(|[a, b]| b - a);
+        let [w, h, d] = dims.map(u64::from);
+        let origin = region.map(|[a, _]| u64::from(a));
         let z = self.spatial[0];
         // read slabs of whole chunks along z, so progress shows and a cancel stops it
         let chunk: Vec<u64> = array
@@ -426,11 +449,11 @@ impl Image {
             let ranges: Vec<std::ops::Range<u64>> = (0..shape.len())
                 .map(|i| {
                     if i == z {
-                        z0..z1
+                        origin[2] + z0..origin[2] + z1
                     } else if i == self.spatial[1] {
-                        0..h
+                        origin[1]..origin[1] + h
                     } else if i == self.spatial[2] {
-                        0..w
+                        origin[0]..origin[0] + w
                     } else {
                         0..1
                     }
@@ -486,7 +509,7 @@ impl Image {
         }
         let name = store_name(&path);
         let mut volume =
-            Volume::new(name, info.dims, 1, info.spacing, data).map_err(|e| e.in_file(&path))?;
+            Volume::new(name, dims, 1, info.spacing, data).map_err(|e| e.in_file(&path))?;
         let sizes: Vec<String> = self
             .pyramid
             .levels
@@ -777,6 +800,79 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// Types without a voxel type of their own (float64, int32) are read as float32
+    /// with a note; a region of a level reads just those voxels.
+    #[test]
+    fn other_types_read_as_float32_with_a_note_and_regions_read_alone() {
+        use zarrs::array::ArrayBuilder;
+        let root = scratch("types");
+        for (name, ty) in [("f64", "float64"), ("i32", "int32")] {
+            let dir = root.join(format!("{name}.zarr"));
+            std::fs::create_dir_all(&dir).unwrap();
+            let store = Arc::new(FilesystemStore::new(&dir).unwrap());
+            let (shape, all) = (
+                vec![5u64, 7, 10],
+                ArraySubset::new_with_shape(vec![5, 7, 10]),
+            );
+            let values: Vec<f64> = (0..350).map(|i| f64::from(i) - 100.0).collect();
+            if name == "f64" {
+                let b = ArrayBuilder::new(
+                    shape,
+                    vec![5, 7, 10],
+                    dt::float64(),
+                    zarrs::array::FillValue::from(0f64),
+                );
+                store_level(&b, &store, "/", &all, &values).unwrap();
+            } else {
+                let ints: Vec<i32> = values.iter().map(|&v| v as i32).collect();
+                let b = ArrayBuilder::new(
+                    shape,
+                    vec![5, 7, 10],
+                    dt::int32(),
+                    zarrs::array::FillValue::from(0i32),
+                );
+                store_level(&b, &store, "/", &all, &ints).unwrap();
+            }
+            let v = load(&dir).unwrap();
+            assert_eq!(v.dims, [10, 7, 5]);
+            let VoxelData::F32(d) = &v.data else {
+                panic!("{name}: not read as float32")
+            };
+            assert_eq!(d[0], -100.0);
+            assert_eq!(d[349], 249.0);
+            assert!(
+                v.notes
+                    .iter()
+                    .any(|n| n.contains(&format!("{ty} converted to float32"))),
+                "{name}: {:?}",
+                v.notes
+            );
+            // x 2..6, y 1..3, z 4..5 alone
+            let r = load_region(&dir, 0, [[2, 6], [1, 3], [4, 5]]).unwrap();
+            assert_eq!(r.dims, [4, 2, 1]);
+            let VoxelData::F32(rd) = &r.data else {
+                panic!("{name}")
+            };
+            let at = |x: usize, y: usize, z: usize| d[(z * 7 + y) * 10 + x];
+            assert_eq!(
+                rd[..],
+                [
+                    at(2, 1, 4),
+                    at(3, 1, 4),
+                    at(4, 1, 4),
+                    at(5, 1, 4),
+                    at(2, 2, 4),
+                    at(3, 2, 4),
+                    at(4, 2, 4),
+                    at(5, 2, 4)
+                ]
+            );
+            assert!(load_region(&dir, 0, [[2, 11], [0, 1], [0, 1]]).is_err());
+            assert!(load_region(&dir, 1, [[0, 1], [0, 1], [0, 1]]).is_err());
+        }
+        std::fs::remove_dir_all(&root).unwrap();
     }
 
     #[test]
