@@ -556,17 +556,22 @@ fn bricks_benchmark() {
         tall_level.factor,
         tall_level.level_dims,
     );
-    let path = repo().join("docs/scale.md");
+    replace_section("docs/scale.md", "bricks", &section);
+}
+
+/// Replaces the generated section `name` of the document `doc` (from `<!-- name:begin`
+/// to `<!-- name:end -->`, markers included) with `section`.
+fn replace_section(doc: &str, name: &str, section: &str) {
+    let path = repo().join(doc);
     let text = std::fs::read_to_string(&path).unwrap();
-    let (a, b) = (
-        text.find("<!-- bricks:begin").unwrap(),
-        text.find("<!-- bricks:end -->").unwrap(),
-    );
-    let out = format!(
-        "{}{section}{}",
-        &text[..a],
-        &text[b + "<!-- bricks:end -->".len()..]
-    );
+    let (begin, end) = (format!("<!-- {name}:begin"), format!("<!-- {name}:end -->"));
+    let a = text
+        .find(&begin)
+        .unwrap_or_else(|| panic!("{doc} has no {begin}"));
+    let b = text
+        .find(&end)
+        .unwrap_or_else(|| panic!("{doc} has no {end}"));
+    let out = format!("{}{section}{}", &text[..a], &text[b + end.len()..]);
     std::fs::write(&path, out).unwrap();
 }
 
@@ -1208,19 +1213,7 @@ fn lod_benchmark() {
         budget >> 20,
     );
     std::fs::remove_dir_all(&store).unwrap();
-    let path = repo().join("docs/scale.md");
-    let text = std::fs::read_to_string(&path).unwrap();
-    let (a, b) = (
-        text.find("<!-- lod:begin")
-            .expect("docs/scale.md has the lod markers"),
-        text.find("<!-- lod:end -->").unwrap(),
-    );
-    let out = format!(
-        "{}{section}{}",
-        &text[..a],
-        &text[b + "<!-- lod:end -->".len()..]
-    );
-    std::fs::write(&path, out).unwrap();
+    replace_section("docs/scale.md", "lod", &section);
 }
 
 /// Median wall-clock ms of 3 frames after one.

@@ -299,6 +299,38 @@ pub(super) struct Child {
     pub renderer: Renderer,
 }
 
+/// What a brick renderer takes from its parent before a stack change.
+pub(super) struct ChildSettings {
+    shader_overrides: std::collections::BTreeMap<String, String>,
+    overrides_generation: u64,
+    skipping_enabled: bool,
+    occupied_proxy: bool,
+    fused_slices: bool,
+    refinement_budget: Option<u32>,
+}
+
+impl ChildSettings {
+    pub(super) fn of(parent: &Renderer) -> Self {
+        Self {
+            shader_overrides: parent.shader_overrides.clone(),
+            overrides_generation: parent.overrides_generation,
+            skipping_enabled: parent.skipping_enabled,
+            occupied_proxy: parent.occupied_proxy,
+            fused_slices: parent.fused_slices,
+            refinement_budget: parent.refinement_budget,
+        }
+    }
+
+    pub(super) fn apply(&self, r: &mut Renderer) {
+        r.shader_overrides = self.shader_overrides.clone();
+        r.overrides_generation = self.overrides_generation;
+        r.skipping_enabled = self.skipping_enabled;
+        r.occupied_proxy = self.occupied_proxy;
+        r.fused_slices = self.fused_slices;
+        r.refinement_budget = self.refinement_budget;
+    }
+}
+
 /// The bricks of a split volume and the compositing pipeline.
 pub(super) struct Split {
     pub children: Vec<Child>,
@@ -636,6 +668,7 @@ impl Renderer {
         stack: &[PluginInstance],
         target: TargetFormat,
     ) -> Result<StackChange, RenderError> {
+        let settings = ChildSettings::of(self);
         let split = self.split.as_mut().expect("split volume");
         if let Some(i) = stack
             .iter()
@@ -656,11 +689,7 @@ impl Renderer {
         let mut cache: Vec<(u64, Arc<CompiledStack>)> = Vec::new();
         for (i, c) in split.children.iter_mut().enumerate() {
             let r = &mut c.renderer;
-            r.shader_overrides = self.shader_overrides.clone();
-            r.overrides_generation = self.overrides_generation;
-            r.skipping_enabled = self.skipping_enabled;
-            r.occupied_proxy = self.occupied_proxy;
-            r.fused_slices = self.fused_slices;
+            settings.apply(r);
             for (h, compiled) in &cache {
                 if !r.compiled.iter().any(|(k, _)| k == h) {
                     r.compiled.push((*h, compiled.clone()));

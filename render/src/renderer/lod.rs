@@ -370,12 +370,7 @@ impl Renderer {
             let index = self.split.as_ref().expect("split").children[i].info.index;
             let mut child = self.lod_child(index, wanted[i])?;
             let r = &mut child.renderer;
-            r.shader_overrides = self.shader_overrides.clone();
-            r.overrides_generation = self.overrides_generation;
-            r.skipping_enabled = self.skipping_enabled;
-            r.occupied_proxy = self.occupied_proxy;
-            r.fused_slices = self.fused_slices;
-            r.refinement_budget = self.refinement_budget;
+            bricks::ChildSettings::of(self).apply(r);
             let split = self.split.as_mut().expect("split");
             // compiled stacks do not depend on the volume: take the other bricks'
             for (h, compiled) in split.children.iter().flat_map(|c| &c.renderer.compiled) {
