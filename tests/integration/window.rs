@@ -809,7 +809,7 @@ fn window_drop_files_edit_the_2d_tf_and_compare() {
 /// GPU memory (issue 20): with a budget that holds the demo and a small eye buffer, a
 /// full-resolution frame is retried at lower resolutions until one fits and the window
 /// says so; a dropped volume that does not fit opens as a coarser level, with a notice
-/// in the status line and the side panel.
+/// in the status line and the side panel, and its bricks in view are then refined.
 #[test]
 fn window_retries_at_a_lower_resolution_when_gpu_memory_runs_out() {
     let mut h = demo_window();
@@ -846,6 +846,25 @@ fn window_retries_at_a_lower_resolution_when_gpu_memory_runs_out() {
     h.run_steps(2);
     // the status line and the side panel
     assert!(h.query_all_by_label_contains("level (").count() >= 2);
+    // its bricks in view are refined within the budget, a few per frame, and the side
+    // panel counts them
+    for _ in 0..40 {
+        if !h.state().renderer().refining() {
+            break;
+        }
+        h.run_steps(1);
+    }
+    let r = h.state().renderer();
+    assert!(!r.refining());
+    let (done, n) = r.brick_refinement().expect("bricks refined in view");
+    assert_eq!(done, n);
+    assert!(r.gpu_memory() <= held + (1 << 18), "{}", r.gpu_memory());
+    h.run_steps(1);
+    assert!(
+        h.query_all_by_label_contains("bricks in view refined")
+            .count()
+            >= 1
+    );
 }
 
 /// A clip shape's handle over the viewport drags its centre in the image plane (the
