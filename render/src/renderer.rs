@@ -1234,18 +1234,25 @@ impl Renderer {
             let format = stored.texture_format(&self.gpu)?;
             self.level = level::stored_level_info(&volume, self.gpu_budget, format);
         }
-        (self.volume_view, self.volume_bytes, self.bricks, self.split) =
-            upload.into_parts(&self.gpu, &volume);
-        self.counters.volume_uploads += self.split.is_none() as u64;
+        self.install(upload, &volume);
         // another volume (or format) is shown whole: its bricks are not refined
         self.lod = None;
         self.occupancy = upload_occupancy(&self.gpu, [1, 1, 1], &[255]);
         self.occupancy_bytes = None;
         self.volume = volume;
-        self.instances.clear();
-        self.pipelines = None;
         self.rebuild_g0();
         Ok(())
+    }
+
+    /// Holds `upload` (of `volume`) as the volume's GPU form, in place of the old one;
+    /// plugin resources and pipelines are made again for it. The caller rebuilds
+    /// group 0 once the rest of the volume's state is in place.
+    fn install(&mut self, upload: bricks::Upload, volume: &Volume) {
+        (self.volume_view, self.volume_bytes, self.bricks, self.split) =
+            upload.into_parts(&self.gpu, volume);
+        self.counters.volume_uploads += self.split.is_none() as u64;
+        self.instances.clear();
+        self.pipelines = None;
     }
 
     /// Replaces the WGSL of a plugin file (as named by [`crate::plugin::ShaderSource::file`])

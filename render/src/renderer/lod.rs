@@ -189,10 +189,9 @@ impl Lod {
         }
     }
 
-    /// Texture bytes of brick `i` at `level`.
-    fn bytes(&self, i: usize, level: u32) -> u64 {
-        let index = grid(&self.pieces).nth(i).expect("a brick");
-        let (r, _) = self.region(brick_own(&self.pieces, index), level);
+    /// Texture bytes of the brick owning `own` at `level`.
+    fn bytes(&self, own: [[u32; 2]; 3], level: u32) -> u64 {
+        let (r, _) = self.region(own, level);
         r.iter().map(|[s, e]| u64::from(e - s)).product::<u64>() * self.texel
     }
 }
@@ -210,10 +209,8 @@ impl Renderer {
             .collect::<Result<Vec<_>, _>>()?;
         let n = children.len();
         let split = Split::shared(children, lod.dims, lod.pieces.clone());
-        (self.volume_view, self.volume_bytes, self.bricks, self.split) =
-            bricks::Upload::Split(split).into_parts(&self.gpu, &self.volume);
-        self.pipelines = None;
-        self.instances.clear();
+        let volume = self.volume.clone();
+        self.install(bricks::Upload::Split(split), &volume);
         self.rebuild_g0();
         let lod = self.lod.as_mut().expect("refinable");
         lod.active = true;
@@ -269,11 +266,8 @@ impl Renderer {
             None,
             self.stored_format,
         )?;
-        (self.volume_view, self.volume_bytes, self.bricks, self.split) =
-            upload.into_parts(&self.gpu, &self.volume);
-        self.counters.volume_uploads += self.split.is_none() as u64;
-        self.pipelines = None;
-        self.instances.clear();
+        let volume = self.volume.clone();
+        self.install(upload, &volume);
         self.rebuild_g0();
         if let Some(lod) = self.lod.as_mut() {
             lod.active = false;
@@ -310,7 +304,8 @@ impl Renderer {
         let rest = self.gpu_memory().saturating_sub(textures + held_eye) + 2 * eye;
         let room = budget.saturating_sub(rest);
         let mut levels = vec![lod.coarsest; n];
-        let mut used: u64 = (0..n).map(|i| lod.bytes(i, lod.coarsest)).sum();
+        let own = |i: usize| split.children[i].info.own;
+        let mut used: u64 = (0..n).map(|i| lod.bytes(own(i), lod.coarsest)).sum();
         // pixels per voxel of brick i at level l (0: not in view)
         let detail: Vec<f64> = split
             .children
@@ -337,7 +332,7 @@ impl Renderer {
                     pa.total_cmp(&pb).then(b.1.cmp(a.1))
                 })
                 .expect("not empty");
-            let more = lod.bytes(i, levels[i] - 1) - lod.bytes(i, levels[i]);
+            let more = lod.bytes(own(i), levels[i] - 1) - lod.bytes(own(i), levels[i]);
             if used + more > room {
                 open.swap_remove(k);
                 continue;
