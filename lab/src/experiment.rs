@@ -76,6 +76,11 @@ pub struct Experiment {
     /// Timed frames per image (after one untimed frame).
     #[serde(default = "default_frames")]
     pub frames: u32,
+    /// The time axis of the Pareto front and plot: `frame_ms` (default) or
+    /// `update_ms` (the price of a parameter change, for plugins whose cost is a
+    /// volume pass rather than the frame).
+    #[serde(default = "default_pareto_time")]
+    pub pareto_time: Metric,
     /// Convergence tolerance of converged references (RMS ΔE*uv of the last halving).
     #[serde(default = "default_tolerance")]
     pub tolerance: f64,
@@ -90,6 +95,9 @@ fn default_metrics() -> Vec<Metric> {
 }
 fn default_frames() -> u32 {
     3
+}
+fn default_pareto_time() -> Metric {
+    Metric::FrameMs
 }
 fn default_tolerance() -> f64 {
     0.1
@@ -213,6 +221,12 @@ pub enum Metric {
     Ssim,
     PsnrDb,
     FrameMs,
+    /// What the grid point's change re-ran: the wall time of the first frame after its
+    /// stack is applied less the median wall time of the timed frames (at least 0) —
+    /// volume passes (light volumes, LIC volumes), pre-passes and tables that depend on
+    /// the slice spacing. The price of a parameter change, where `frame_ms` is the
+    /// price of a frame.
+    UpdateMs,
     Slices,
     GpuMemoryMib,
     /// The share of empty-space-skipping bricks that no sample can make visible (the
@@ -221,7 +235,7 @@ pub enum Metric {
 }
 
 impl Metric {
-    pub const ALL: [Metric; 10] = [
+    pub const ALL: [Metric; 11] = [
         Metric::RmsDeltaE,
         Metric::MeanDeltaE,
         Metric::MaxDeltaE,
@@ -229,6 +243,7 @@ impl Metric {
         Metric::Ssim,
         Metric::PsnrDb,
         Metric::FrameMs,
+        Metric::UpdateMs,
         Metric::Slices,
         Metric::GpuMemoryMib,
         Metric::EmptyBrickShare,
@@ -243,6 +258,7 @@ impl Metric {
             Metric::Ssim => "ssim",
             Metric::PsnrDb => "psnr_db",
             Metric::FrameMs => "frame_ms",
+            Metric::UpdateMs => "update_ms",
             Metric::Slices => "slices",
             Metric::GpuMemoryMib => "gpu_memory_mib",
             Metric::EmptyBrickShare => "empty_brick_share",
@@ -258,6 +274,7 @@ impl Metric {
             Metric::Ssim => "SSIM",
             Metric::PsnrDb => "PSNR (dB)",
             Metric::FrameMs => "time (ms)",
+            Metric::UpdateMs => "update (ms)",
             Metric::Slices => "slices",
             Metric::GpuMemoryMib => "GPU memory (MiB)",
             Metric::EmptyBrickShare => "empty bricks",
@@ -281,6 +298,7 @@ impl Metric {
             Metric::Ssim => m.ssim,
             Metric::PsnrDb => m.psnr_db,
             Metric::FrameMs => row.frame_ms,
+            Metric::UpdateMs => row.update_ms,
             Metric::Slices => row.slices as f64,
             Metric::GpuMemoryMib => row.gpu_memory_bytes as f64 / (1u64 << 20) as f64,
             Metric::EmptyBrickShare => row.empty_brick_share,
@@ -341,6 +359,11 @@ pub struct Row {
     pub frame_ms: f64,
     /// `gpu` (timestamps) or `wall`.
     pub clock: &'static str,
+    /// [`Metric::UpdateMs`] (wall clock).
+    pub update_ms: f64,
+    /// The volume passes of the first frame after the grid point's stack was applied
+    /// (`<plugin id>/<target>`, one per dispatch): what `update_ms` paid for.
+    pub update_passes: Vec<String>,
     pub gpu_memory_bytes: u64,
     /// [`Metric::EmptyBrickShare`] (NaN with skipping off).
     pub empty_brick_share: f64,
@@ -405,6 +428,12 @@ pub fn parse(text: &str, path: &Path) -> Result<Experiment> {
     }
     if !(e.tolerance.is_finite() && e.tolerance > 0.0) {
         bail!("{file}: tolerance must be a finite number > 0");
+    }
+    if !matches!(e.pareto_time, Metric::FrameMs | Metric::UpdateMs) {
+        bail!(
+            "{file}: pareto_time must be frame_ms or update_ms, got {}",
+            e.pareto_time.name()
+        );
     }
     let mut names = std::collections::HashSet::new();
     for v in &e.variants {
@@ -991,7 +1020,10 @@ pub fn run(
                 let d = at(vdoc, axes, values);
                 let s = d.frame_settings();
                 r.update_stack(&d.stack, d.render.target)?;
-                let timing = measure::time_frames(&mut r, &s, 1, e.frames)?;
+                // the untimed first frame runs what the change invalidated
+                let first = r.render(&s)?;
+                let timing = measure::time_frames(&mut r, &s, 0, e.frames)?;
+                let update_ms = (first.wall_ms - timing.wall_ms.median).max(0.0);
                 let img = measure::gpu_image(&r, &d)?;
                 let memory: u64 = r.plugin_memory().iter().map(|(_, _, b)| b).sum();
                 let spec = v.reference.as_ref().unwrap_or(&e.reference);
@@ -1189,6 +1221,10 @@ pub fn run(
                 let (ms, clock) = timing.frame_ms();
                 let image = format!("images/row_{:03}.png", rows.len());
                 headless::save_png(&img.to_rgb8(), &out.join(&image))?;
+                // a later variant compared with this one reuses the image
+                gpu_images
+                    .entry(format!("{}|{}|{values:?}", sc.name, v.name))
+                    .or_insert(img);
                 rows.push(Row {
                     scene: sc.name.clone(),
                     variant: v.name.clone(),
@@ -1196,6 +1232,8 @@ pub fn run(
                     slices: timing.slices,
                     frame_ms: ms,
                     clock,
+                    update_ms,
+                    update_passes: first.volume_passes_run,
                     gpu_memory_bytes: memory,
                     empty_brick_share: r.empty_brick_share().unwrap_or(f64::NAN),
                     metrics: m,
@@ -1216,7 +1254,7 @@ pub fn run(
         let front = measure::pareto_front(
             &measured
                 .iter()
-                .map(|&i| (rows[i].frame_ms, rows[i].metrics.rms_delta_e))
+                .map(|&i| (e.pareto_time.of(&rows[i]), rows[i].metrics.rms_delta_e))
                 .collect::<Vec<_>>(),
         );
         for (&i, f) in measured.iter().zip(front) {
@@ -1277,6 +1315,17 @@ fn markdown(e: &Experiment, file: &Path, gpu: &GpuContext, o: &Outcome) -> Strin
         e.frames,
         o.rows.first().map_or("gpu", |r| r.clock),
     );
+    if e.metrics.contains(&Metric::UpdateMs) || e.pareto_time == Metric::UpdateMs {
+        let _ = writeln!(
+            s,
+            "Update: the wall time of the first frame after a grid point's stack is applied, less the median timed frame's wall time — what the change re-ran (volume passes, pre-passes, tables){}.",
+            if e.pareto_time == Metric::UpdateMs {
+                "; the Pareto front is update time against error"
+            } else {
+                ""
+            }
+        );
+    }
     let _ = writeln!(s);
     for r in &o.references {
         let what = r["what"]
@@ -1358,7 +1407,7 @@ fn markdown(e: &Experiment, file: &Path, gpu: &GpuContext, o: &Outcome) -> Strin
     header.extend(e.grid.iter().map(|a| a.param.clone()));
     header.extend(e.metrics.iter().map(|m| m.header().to_string()));
     // the front is time against error: without the time in the table it says nothing
-    let timed = e.metrics.contains(&Metric::FrameMs);
+    let timed = e.metrics.contains(&e.pareto_time);
     if timed {
         header.push("Pareto".into());
     }
@@ -1432,9 +1481,13 @@ fn write_outputs(
                 SweepPoint {
                     values,
                     slices: r.slices,
-                    ms: r.frame_ms,
-                    clock: r.clock,
-                    wall_ms: r.frame_ms,
+                    ms: e.pareto_time.of(r),
+                    clock: if e.pareto_time == Metric::UpdateMs {
+                        "update"
+                    } else {
+                        r.clock
+                    },
+                    wall_ms: e.pareto_time.of(r),
                     metrics: r.metrics,
                     image: r.image.clone(),
                     pareto: r.pareto,
@@ -1655,19 +1708,29 @@ pub fn run_file(file: &Path, out: Option<&Path>) -> Result<Outcome> {
     crate::outputs::check_output(&out.join("report.md"))?;
     let gpu = GpuContext::new_headless()?;
     eprintln!("adapter: {}", gpu.describe());
+    // the update's time where the row's change reran volume passes
+    let update = |row: &Row| {
+        if row.update_passes.is_empty() {
+            String::new()
+        } else {
+            format!("  update {:.2} ms", row.update_ms)
+        }
+    };
     let o = run(&gpu, &e, file, &out, &mut |ev| match ev {
         Event::Reference { scene, what } => eprintln!("{scene}: computing the {what}"),
         Event::Row { index, row } if row.reference.is_none() => eprintln!(
-            "[{index:>3}] {}: {:>4} slices {:>8.2} ms  (timed only)",
+            "[{index:>3}] {}: {:>4} slices {:>8.2} ms{}  (timed only)",
             row.label(),
             row.slices,
             row.frame_ms,
+            update(row),
         ),
         Event::Row { index, row } => eprintln!(
-            "[{index:>3}] {}: {:>4} slices {:>8.2} ms  RMS ΔE*uv {:.3}  >6 {:.2}%",
+            "[{index:>3}] {}: {:>4} slices {:>8.2} ms{}  RMS ΔE*uv {:.3}  >6 {:.2}%",
             row.label(),
             row.slices,
             row.frame_ms,
+            update(row),
             row.metrics.rms_delta_e,
             100.0 * row.metrics.share_above_6
         ),
@@ -1737,6 +1800,8 @@ mod tests {
             slices: 10,
             frame_ms: ms,
             clock: "gpu",
+            update_ms: 0.0,
+            update_passes: Vec::new(),
             gpu_memory_bytes: 0,
             empty_brick_share: f64::NAN,
             metrics: Metrics {

@@ -1044,9 +1044,15 @@ pub fn pareto_svg(title: &str, axes: &[Axis], points: &[SweepPoint]) -> String {
         h - b,
         w - r
     );
+    // `update`: an experiment's `pareto_time: update_ms`
+    let xlabel = if clock == "update" {
+        "update time (the first frame after a change less a frame), wall ms".to_string()
+    } else {
+        format!("frame time, {clock} ms (median)")
+    };
     let _ = writeln!(
         s,
-        r#"<text x="{}" y="{}" text-anchor="middle">frame time, {clock} ms (median)</text>"#,
+        r#"<text x="{}" y="{}" text-anchor="middle">{xlabel}</text>"#,
         (l + w - r) / 2.0,
         h - 15.0
     );

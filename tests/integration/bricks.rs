@@ -556,23 +556,7 @@ fn bricks_benchmark() {
         tall_level.factor,
         tall_level.level_dims,
     );
-    replace_section("docs/scale.md", "bricks", &section);
-}
-
-/// Replaces the generated section `name` of the document `doc` (from `<!-- name:begin`
-/// to `<!-- name:end -->`, markers included) with `section`.
-fn replace_section(doc: &str, name: &str, section: &str) {
-    let path = repo().join(doc);
-    let text = std::fs::read_to_string(&path).unwrap();
-    let (begin, end) = (format!("<!-- {name}:begin"), format!("<!-- {name}:end -->"));
-    let a = text
-        .find(&begin)
-        .unwrap_or_else(|| panic!("{doc} has no {begin}"));
-    let b = text
-        .find(&end)
-        .unwrap_or_else(|| panic!("{doc} has no {end}"));
-    let out = format!("{}{section}{}", &text[..a], &text[b + end.len()..]);
-    std::fs::write(&path, out).unwrap();
+    replace_section(&repo().join("docs/scale.md"), "bricks", &section);
 }
 
 /// A cap on the bytes of one texture splits a volume that fits the dimension limit
@@ -1213,7 +1197,7 @@ fn lod_benchmark() {
         budget >> 20,
     );
     std::fs::remove_dir_all(&store).unwrap();
-    replace_section("docs/scale.md", "lod", &section);
+    replace_section(&repo().join("docs/scale.md"), "lod", &section);
 }
 
 /// Median wall-clock ms of 3 frames after one.

@@ -132,6 +132,22 @@ pub fn fmt_ms(ms: f64) -> String {
     }
 }
 
+/// Replaces the generated section `name` of the document at `path` (from
+/// `<!-- name:begin` to `<!-- name:end -->`, markers included) with `section`.
+pub fn replace_section(path: &Path, name: &str, section: &str) {
+    let text = std::fs::read_to_string(path).unwrap();
+    let (begin, end) = (format!("<!-- {name}:begin"), format!("<!-- {name}:end -->"));
+    let doc = path.display();
+    let a = text
+        .find(&begin)
+        .unwrap_or_else(|| panic!("{doc} has no {begin}"));
+    let b = text
+        .find(&end)
+        .unwrap_or_else(|| panic!("{doc} has no {end}"));
+    let out = format!("{}{section}{}", &text[..a], &text[b + end.len()..]);
+    std::fs::write(path, out).unwrap();
+}
+
 /// Where a benchmark writes `name` (a path under docs/): docs/ on a CPU adapter
 /// (lavapipe, the figures the documents cite), docs/gpu/ on a GPU, so that a run on a
 /// GPU never overwrites them.

@@ -9,7 +9,7 @@ use vwb_render::plugin::Category;
 use vwb_render::{Backend, PluginInstance, TargetFormat};
 
 use crate::common::*;
-use crate::reference::{delta_e_rms, gpu_and_reference};
+use crate::reference::{delta_e_rms, gpu_and_references};
 
 /// The stack that shows `id` in the mode `values`: a classifier alone, anything else
 /// after the default 1D transfer function.
@@ -38,11 +38,11 @@ fn every_registered_plugin_in_every_mode_matches_its_cpu_twin() {
                 "{id} ({mode}) has no CPU twin"
             );
             let per_slice = configured.slice_state().is_some();
-            for backend in [Backend::Compute, Backend::Raster] {
-                let s = settings(48, 48, backend);
-                let stack = stack_for(id, &values);
-                let (px, reference) =
-                    gpu_and_reference(demo(), &stack, TargetFormat::Rgba32Float, &s);
+            let stack = stack_for(id, &values);
+            let both = [Backend::Compute, Backend::Raster].map(|b| settings(48, 48, b));
+            let images = gpu_and_references(demo(), &stack, TargetFormat::Rgba32Float, &both);
+            for (s, (px, reference)) in both.iter().zip(images) {
+                let backend = s.backend;
                 assert!(
                     reference.iter().filter(|p| p[3] > 0.05).count() > 48 * 48 / 20,
                     "{id} ({mode}): the volume is visible"

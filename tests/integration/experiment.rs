@@ -109,6 +109,109 @@ fn a_variant_against_itself_is_exact_and_a_failing_assertion_fails_the_run() {
     );
 }
 
+/// `update_ms`: the first frame after a grid point's stack is applied reruns the
+/// volume passes that the point changed and only those, and `pareto_time: update_ms`
+/// puts the front on that time; a later variant's reference reuses an earlier
+/// variant's image.
+#[test]
+fn update_time_counts_what_a_grid_point_reruns() {
+    let preset = tmp("demo_hernell.ron");
+    std::fs::write(
+        &preset,
+        r#"(version: 1, volume: Demo, render: (slice_spacing: 1.0, backend: Compute),
+            plugins: [(id: "classify.tf1d"), (id: "shade.hernell", params: {"scattering": false})])"#,
+    )
+    .unwrap();
+    let body = format!(
+        r#"Experiment(
+        name: "update",
+        scenes: [Preset("{}")],
+        variants: [
+            (name: "exact", set: {{"shade.hernell.mode": "exact"}}, reference: TimeOnly),
+            (name: "piecewise"),
+        ],
+        grid: [
+            (param: "shade.hernell.segment", values: [4, 16]),
+            (param: "render.slice_spacing", values: [1.0, 2.0]),
+        ],
+        reference: Variant("exact"),
+        metrics: [update_ms, frame_ms, rms_delta_e],
+        pareto_time: update_ms,
+        render: (size: (24, 24), target: "rgba32float"),
+        frames: 1,
+        assertions: ["rms_delta_e(piecewise) < 3"],
+    )"#,
+        preset.display()
+    );
+    let file = tmp("update.ron");
+    std::fs::write(&file, body).unwrap();
+    let e = experiment::load(&file).unwrap();
+    assert_eq!(e.pareto_time, experiment::Metric::UpdateMs);
+    let out = tmp("update-report");
+    let o = experiment::run(gpu(), &e, &file, &out, &mut |_| {}).unwrap();
+    assert!(o.failed().is_empty(), "{:#?}", o.assertions);
+    assert_eq!(o.rows.len(), 8);
+    let row = |v: &str, values: [f64; 2]| {
+        o.rows
+            .iter()
+            .find(|r| r.variant == v && r.values == values)
+            .unwrap()
+    };
+    for v in ["exact", "piecewise"] {
+        // the variant's first point computes its light volumes
+        let first = row(v, [4.0, 1.0]);
+        assert!(!first.update_passes.is_empty(), "{v}: {first:?}");
+        assert!(
+            first
+                .update_passes
+                .iter()
+                .all(|p| p.starts_with("shade.hernell/")),
+            "{v}: {:?}",
+            first.update_passes
+        );
+        assert!(first.update_ms > 0.0, "{v}: {first:?}");
+        // a new slice spacing reruns no light pass
+        let spacing = row(v, [4.0, 2.0]);
+        assert!(spacing.update_passes.is_empty(), "{v}: {spacing:?}");
+    }
+    // a new segment length reruns the piecewise light
+    let segment = row("piecewise", [16.0, 1.0]);
+    assert!(!segment.update_passes.is_empty(), "{segment:?}");
+    // piecewise rows against the exact variant's image at the same point: close, not equal
+    for r in o.rows.iter().filter(|r| r.variant == "piecewise") {
+        assert_eq!(o.references[r.reference.unwrap()]["kind"], "variant");
+        let m = r.metrics.rms_delta_e;
+        assert!(m.is_finite() && m < 3.0, "{r:?}");
+    }
+    assert!(o.rows.iter().any(|r| r.pareto));
+    assert!(o.markdown.contains("| update (ms) |"), "{}", o.markdown);
+    assert!(
+        o.markdown.contains("Update: the wall time"),
+        "{}",
+        o.markdown
+    );
+    let csv = std::fs::read_to_string(out.join("results.csv")).unwrap();
+    assert!(csv.lines().next().unwrap().contains(",update_ms,"), "{csv}");
+    let svg = std::fs::read_to_string(out.join("pareto_demo_hernell.svg")).unwrap();
+    assert!(svg.contains("update time"), "{svg}");
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("results.json")).unwrap()).unwrap();
+    assert!(json["rows"][0]["update_passes"].is_array());
+
+    // only a time can be the front's axis
+    let bad = tmp("bad-pareto.ron");
+    std::fs::write(
+        &bad,
+        "Experiment(name: \"b\", scenes: [Sample(\"ct_head\")], pareto_time: ssim)",
+    )
+    .unwrap();
+    let err = experiment::load(&bad).unwrap_err().to_string();
+    assert!(
+        err.contains("bad-pareto.ron") && err.contains("pareto_time must be frame_ms or update_ms"),
+        "{err}"
+    );
+}
+
 #[test]
 fn bad_experiments_are_refused_naming_the_file_and_cause() {
     let cases = [

@@ -29,15 +29,54 @@ pub fn gpu_and_reference(
     stack: &[vwb_render::PluginInstance],
     target: TargetFormat,
     s: &FrameSettings,
-) -> (Vec<[f32; 4]>, Vec<[f64; 4]>) {
-    let mut r = vwb_render::Renderer::new(gpu(), volume.clone()).expect("renderer");
-    let px = render(&mut r, stack, target, s);
+) -> GpuAndTwin {
+    gpu_and_references(volume, stack, target, std::slice::from_ref(s))
+        .pop()
+        .expect("one pair")
+}
+
+/// A GPU image and its CPU twins' image.
+pub type GpuAndTwin = (Vec<[f32; 4]>, Vec<[f64; 4]>);
+
+/// The GPU image of a stack under each of `settings` (one renderer) and the
+/// CPU twins' image for each. Settings that differ only in the backend share one twin
+/// image when early termination is off: the twins then take every slice for both
+/// backends (`render_reference` reads the backend only for early termination; the
+/// unit test `early_termination_follows_each_backend` holds the images equal), so
+/// plugins with costly twins (shade.hernell's light volumes) pay for them once.
+pub fn gpu_and_references(
+    volume: std::sync::Arc<vwb_render::Volume>,
+    stack: &[vwb_render::PluginInstance],
+    target: TargetFormat,
+    settings: &[FrameSettings],
+) -> Vec<GpuAndTwin> {
     let opts = ReferenceOptions {
         emulate_fp16: target == TargetFormat::Rgba16Float,
         ..Default::default()
     };
-    let reference = render_reference(&volume, stack, s, &opts).expect("reference renders");
-    (px, reference.pixels)
+    let mut out: Vec<GpuAndTwin> = Vec::new();
+    // one renderer: its volume passes run once for all the settings
+    let mut r = vwb_render::Renderer::new(gpu(), volume.clone()).expect("renderer");
+    for (i, s) in settings.iter().enumerate() {
+        let px = render(&mut r, stack, target, s);
+        let shares = |t: &FrameSettings| {
+            s.early_termination.is_none()
+                && FrameSettings {
+                    backend: s.backend,
+                    ..*t
+                } == *s
+        };
+        let reference = match settings[..i].iter().position(shares) {
+            Some(j) => out[j].1.clone(),
+            None => {
+                render_reference(&volume, stack, s, &opts)
+                    .expect("reference renders")
+                    .pixels
+            }
+        };
+        out.push((px, reference));
+    }
+    out
 }
 
 #[test]
@@ -50,15 +89,15 @@ fn every_shipped_preset_matches_its_cpu_twins() {
             .unwrap_or_else(|e| panic!("{e}"))
             .document;
         let volume = vwb_lab::headless::load_volume(&doc.volume).unwrap();
-        for backend in [Backend::Raster, Backend::Compute] {
-            let s = FrameSettings {
-                width: 64,
-                height: 64,
-                backend,
-                ..doc.frame_settings()
-            };
-            let (px, reference) =
-                gpu_and_reference(volume.clone(), &doc.stack, doc.render.target, &s);
+        let settings = [Backend::Raster, Backend::Compute].map(|backend| FrameSettings {
+            width: 64,
+            height: 64,
+            backend,
+            ..doc.frame_settings()
+        });
+        let images = gpu_and_references(volume.clone(), &doc.stack, doc.render.target, &settings);
+        for (s, (px, reference)) in settings.iter().zip(images) {
+            let backend = s.backend;
             assert!(
                 reference.iter().filter(|p| p[3] > 0.1).count() > 64 * 64 / 20,
                 "{name}: the volume is visible in the reference"

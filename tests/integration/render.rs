@@ -598,6 +598,13 @@ fn empty_space_skipping_leaves_images_unchanged() {
         let name = path.file_name().unwrap().to_string_lossy().to_string();
         let doc = Document::load(&path, &registry).unwrap().document;
         let volume = vwb_lab::headless::load_volume(&doc.volume).unwrap();
+        // one renderer with skipping and one without, each drawing the three settings
+        // (their volume passes run once per renderer)
+        let mut renderers = [true, false].map(|on| {
+            let mut r = Renderer::new(gpu(), volume.clone()).unwrap();
+            r.set_empty_space_skipping(on);
+            r
+        });
         for (backend, early_termination) in [
             (Backend::Raster, None),
             (Backend::Compute, None),
@@ -610,16 +617,10 @@ fn empty_space_skipping_leaves_images_unchanged() {
                 early_termination,
                 ..doc.frame_settings()
             };
-            let mut images = Vec::new();
-            let mut share = None;
-            for on in [true, false] {
-                let mut r = Renderer::new(gpu(), volume.clone()).unwrap();
-                r.set_empty_space_skipping(on);
-                images.push(render(&mut r, &doc.stack, doc.render.target, &s));
-                if on {
-                    share = r.empty_brick_share();
-                }
-            }
+            let images = renderers
+                .each_mut()
+                .map(|r| render(r, &doc.stack, doc.render.target, &s));
+            let share = renderers[0].empty_brick_share();
             assert_eq!(images[0], images[1], "{name} {}", backend.name());
             // skipping is off exactly where an enabled plugin promises nothing about
             // transparent samples (test.smooth and flow.lic3d replace the value, a

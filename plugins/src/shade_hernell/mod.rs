@@ -70,6 +70,9 @@ pub struct Hernell {
     pub svr: f32,
     /// Flat blocking of the light passes (16³ blocks).
     pub blocking: bool,
+    /// `mode: exact`: the whole path to the light, so no pass depends on the segment
+    /// length (editing it reruns nothing).
+    pub exact: bool,
 }
 
 impl Default for Hernell {
@@ -77,6 +80,7 @@ impl Default for Hernell {
         Self {
             svr: 0.5,
             blocking: false,
+            exact: false,
         }
     }
 }
@@ -245,6 +249,7 @@ impl Plugin for Hernell {
                 .structural()
                 .with_doc("resolution of the global opacity α_g relative to the data (§3.2)"),
             ParamSpec::enumeration("mode", "Integration", &["piecewise", "exact"], 0)
+                .structural()
                 .with_doc("exact: every voxel's whole path to the light (the reference, ≈ 10× slower in the paper)"),
             ParamSpec::boolean("scattering", "First-order scattering", true)
                 .with_doc("off: I = I_d (eq 8); on: in-scattering over the sphere (eq 11), refined progressively"),
@@ -291,15 +296,25 @@ impl Plugin for Hernell {
             steps: None,
             accumulate: false,
         };
-        let mut light_deps = LIGHT_DEPS.to_vec();
+        // exact integration ignores the segment length
+        let deps: Vec<&'static str> = LIGHT_DEPS
+            .into_iter()
+            .filter(|k| !(self.exact && *k == "segment"))
+            .collect();
+        let opacity_deps: Vec<&'static str> = deps
+            .iter()
+            .copied()
+            .filter(|k| LIGHT_DEPS[..4].contains(k))
+            .collect();
+        let mut light_deps = deps;
         light_deps.extend(["sphere", "subdivisions"]);
         let mut passes = Vec::new();
         if self.blocking {
             passes.push(pass("blocks", 1.0 / BLOCK as f32, "block_pass", &["tolerance"]));
         }
         passes.extend([
-            pass("alpha_lp", 1.0, "local_pass", &LIGHT_DEPS[..4]),
-            pass("alpha_g", self.svr, "global_pass", &LIGHT_DEPS[..4]),
+            pass("alpha_lp", 1.0, "local_pass", &opacity_deps),
+            pass("alpha_g", self.svr, "global_pass", &opacity_deps),
             VolumePassDecl {
                 steps: Some(light_steps),
                 accumulate: true,
@@ -336,6 +351,7 @@ impl Plugin for Hernell {
         let c = Hernell {
             svr: svr_scale(params),
             blocking: params.enumeration("blocking") == "16³",
+            exact: params.enumeration("mode") == "exact",
         };
         (c != *self).then(|| Arc::new(c) as Arc<dyn Plugin>)
     }

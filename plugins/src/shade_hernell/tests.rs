@@ -273,8 +273,8 @@ fn flat_blocking_advances_global_rays_over_empty_blocks() {
 #[test]
 fn blocking_off_blanks_the_block_pass_keeping_line_numbers() {
     let on = Hernell {
-        svr: 0.5,
         blocking: true,
+        ..Hernell::default()
     };
     let off = Hernell::default();
     let (a, b) = (on.shader().source, off.shader().source);
