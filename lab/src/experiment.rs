@@ -969,7 +969,11 @@ pub fn run(
     let mut references: Vec<serde_json::Value> = Vec::new();
     let mut images: Vec<RgbImageF> = Vec::new();
     let mut converged: HashMap<String, (usize, RgbImageF)> = HashMap::new();
+    // variants' GPU images by scene, variant and grid point: references of other
+    // variants, filled by the rows themselves or rendered on demand
     let mut gpu_images: HashMap<String, RgbImageF> = HashMap::new();
+    let image_key =
+        |scene: &str, variant: &str, values: &[f64]| format!("{scene}|{variant}|{values:?}");
     for scene in &e.scenes {
         let sc = load_scene(scene, dir, e).with_context(|| format!("{fname}"))?;
         // every variant's document and axes, checked before anything renders
@@ -1170,7 +1174,7 @@ pub fn run(
                         Some(i)
                     }
                     ReferenceSpec::Variant(n) => {
-                        let key = format!("{}|{n}|{values:?}", sc.name);
+                        let key = image_key(&sc.name, n, values);
                         if !gpu_images.contains_key(&key) {
                             let (_, od, oa) = find(n);
                             let o = at(od, oa, values);
@@ -1223,7 +1227,7 @@ pub fn run(
                 headless::save_png(&img.to_rgb8(), &out.join(&image))?;
                 // a later variant compared with this one reuses the image
                 gpu_images
-                    .entry(format!("{}|{}|{values:?}", sc.name, v.name))
+                    .entry(image_key(&sc.name, &v.name, values))
                     .or_insert(img);
                 rows.push(Row {
                     scene: sc.name.clone(),
