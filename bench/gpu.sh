@@ -9,9 +9,10 @@
 # integration --no-run` prints; DATA_DIR: the sample data (VWB_DATA_DIR). Writes to OUT:
 #   perf.md            docs/perf.md with its `foundation-gpu` block (bench/perf.py --gpu)
 #   gpu-docs.tar       docs/gpu/: flow.md and hernell.md (`flow_study`,
-#                      `hernell_benchmark`, `hernell_blocking_benchmark` on the GPU)
-#                      and perf.md (experiments/volume_format.ron; the hernell_extremes
-#                      block of hernell.md)
+#                      `hernell_512_benchmark` on the GPU, and the blocks of the
+#                      experiment files flow_modes, flow_animation, hernell_light,
+#                      hernell_scattering, hernell_extremes and hernell_blocking) and
+#                      perf.md (experiments/volume_format.ron)
 #   suite.log          the integration suite on the GPU (a check, not a figure)
 #   *.log              each step's output
 # The integration binary finds the repository through the path it was built in
@@ -31,8 +32,11 @@ step() { # name limit_s command...
 step perf 90 python3 bench/perf.py --vwb "$vwb" --gpu --block foundation-gpu --frames 20
 cp docs/perf.md "$out/perf.md"
 step benchmarks 240 "$integration" --ignored --test-threads=1 --nocapture \
-    flow::flow_study hernell::hernell_benchmark hernell::hernell_blocking_benchmark
-step experiments 180 "$vwb" run experiments/volume_format.ron experiments/hernell_extremes.ron
+    flow::flow_study hernell::hernell_512_benchmark
+step experiments 300 "$vwb" run experiments/volume_format.ron experiments/flow_modes.ron \
+    experiments/flow_animation.ron experiments/hernell_light.ron \
+    experiments/hernell_scattering.ron experiments/hernell_extremes.ron \
+    experiments/hernell_blocking.ron
 tar cf "$out/gpu-docs.tar" docs/gpu 2>/dev/null
 step suite 120 "$integration" --test-threads=8
 grep -E "^test result|FAILED|panicked" "$out/suite.log" | head -40 >>"$out/steps.txt"

@@ -65,6 +65,12 @@ pub struct Experiment {
     /// The columns of the report's tables (all metrics are in the CSV and JSON).
     #[serde(default = "default_metrics")]
     pub metrics: Vec<Metric>,
+    /// Figures plugins report about what their passes computed, `<plugin id>.<name>`
+    /// (e.g. `shade.hernell.data_reduction`; `Plugin::statistics`): columns of the
+    /// tables after the metrics, in the CSV and JSON, and usable in assertions. A row
+    /// whose stack has the plugin off shows —.
+    #[serde(default)]
+    pub statistics: Vec<String>,
     #[serde(default)]
     pub assertions: Vec<String>,
     /// Written into every plugin parameter named `seed` (noise volumes, Monte-Carlo
@@ -368,6 +374,8 @@ pub struct Row {
     /// [`Metric::EmptyBrickShare`] (NaN with skipping off).
     pub empty_brick_share: f64,
     pub metrics: Metrics,
+    /// [`Experiment::statistics`] by name (absent where the plugin is off).
+    pub statistics: BTreeMap<String, f64>,
     /// The image file, relative to the report's folder.
     pub image: String,
     /// Which reference it was compared with (an index into the report's references);
@@ -461,6 +469,14 @@ pub fn parse(text: &str, path: &Path) -> Result<Experiment> {
             _ => {}
         }
     }
+    for st in &e.statistics {
+        if !st
+            .rsplit_once('.')
+            .is_some_and(|(id, name)| id.contains('.') && !name.is_empty())
+        {
+            bail!("{file}: statistic '{st}' is not of the form <plugin id>.<name>");
+        }
+    }
     let spacing_axis = e.grid.iter().any(|a| a.param == "render.slice_spacing");
     for v in &e.variants {
         if v.set.contains_key("render.slices")
@@ -486,6 +502,13 @@ pub fn parse(text: &str, path: &Path) -> Result<Experiment> {
                 );
             }
         }
+        for st in parsed.statistics() {
+            if !e.statistics.iter().any(|x| x == st) {
+                bail!(
+                    "{file}: assertion '{a}' reads statistic '{st}', which `statistics` does not list"
+                );
+            }
+        }
     }
     if let Some((w, h)) = e.render.size
         && !((1..=16384).contains(&w) && (1..=16384).contains(&h))
@@ -493,6 +516,69 @@ pub fn parse(text: &str, path: &Path) -> Result<Experiment> {
         bail!("{file}: render size {w}x{h} is outside 1..=16384");
     }
     Ok(e)
+}
+
+/// The first enabled instance of plugin `id` in a document's stack, configured.
+fn enabled_instance<'a>(d: &'a Document, id: &str) -> Option<&'a PluginInstance> {
+    d.stack.iter().find(|i| i.enabled && i.plugin.id() == id)
+}
+
+/// Checks that a statistic `<plugin id>.<name>` is reported by the plugin in the
+/// variants' stacks that hold it, and that some variant holds it.
+fn check_statistic<'a>(st: &str, docs: impl Iterator<Item = &'a Document>) -> Result<()> {
+    let (id, name) = st.rsplit_once('.').expect("checked at load");
+    let mut held = false;
+    for d in docs {
+        let Some(inst) = enabled_instance(d, id) else {
+            continue;
+        };
+        held = true;
+        let names = inst.configured().statistic_names(&inst.params);
+        if !names.contains(&name) {
+            bail!(
+                "plugin '{id}' reports no '{name}' (it reports: {})",
+                if names.is_empty() {
+                    "nothing".to_string()
+                } else {
+                    names.join(", ")
+                }
+            );
+        }
+    }
+    if !held {
+        bail!("no variant's stack has plugin '{id}' switched on");
+    }
+    Ok(())
+}
+
+/// The statistics of a row: each plugin's figures from its passes' targets after the
+/// row's frames (absent where the plugin is off).
+fn statistics_of(
+    wanted: &[String],
+    r: &vwb_render::Renderer,
+    d: &Document,
+    volume_dims: [u32; 3],
+) -> BTreeMap<String, f64> {
+    let mut out = BTreeMap::new();
+    for st in wanted {
+        let (id, name) = st.rsplit_once('.').expect("checked at load");
+        let Some(inst) = enabled_instance(d, id) else {
+            continue;
+        };
+        let read = |target: &str| r.read_pass_target(inst.uid, target);
+        let passes = vwb_render::plugin::PassOutputs {
+            volume_dims,
+            read: &read,
+        };
+        let value = inst
+            .configured()
+            .statistics(&inst.params, &passes)
+            .into_iter()
+            .find(|x| x.name == name)
+            .map_or(f64::NAN, |x| x.value);
+        out.insert(st.clone(), value);
+    }
+    out
 }
 
 fn axis_values(a: &GridAxis) -> Result<Vec<f64>, String> {
@@ -529,10 +615,32 @@ impl Op {
     }
 }
 
+/// What a term measures: a metric, or a plugin statistic ([`Experiment::statistics`]).
+#[derive(Debug, Clone, PartialEq)]
+enum Measure {
+    Metric(Metric),
+    Statistic(String),
+}
+
+impl Measure {
+    fn name(&self) -> &str {
+        match self {
+            Measure::Metric(m) => m.name(),
+            Measure::Statistic(s) => s,
+        }
+    }
+    fn of(&self, row: &Row) -> f64 {
+        match self {
+            Measure::Metric(m) => m.of(row),
+            Measure::Statistic(s) => row.statistics.get(s).copied().unwrap_or(f64::NAN),
+        }
+    }
+}
+
 /// A metric over all rows or over one variant's rows.
 #[derive(Debug, Clone, PartialEq)]
 struct Term {
-    metric: Metric,
+    metric: Measure,
     variant: Option<String>,
 }
 
@@ -578,10 +686,18 @@ impl Assertion {
                 }
                 None => (t, None),
             };
-            let metric = Metric::parse(name).ok_or_else(|| {
-                let all: Vec<&str> = Metric::ALL.iter().map(|m| m.name()).collect();
-                format!("unknown metric '{name}' (one of time, {})", all.join(", "))
-            })?;
+            let metric = match Metric::parse(name) {
+                Some(m) => Measure::Metric(m),
+                None if name.contains('.') => Measure::Statistic(name.to_string()),
+                None => {
+                    let all: Vec<&str> = Metric::ALL.iter().map(|m| m.name()).collect();
+                    return Err(format!(
+                        "unknown metric '{name}' (one of time, {}, or a plugin statistic \
+                         `<plugin id>.<name>` listed in `statistics`)",
+                        all.join(", ")
+                    ));
+                }
+            };
             Ok(Term { metric, variant })
         };
         Ok(match lhs.split_once('/') {
@@ -600,12 +716,29 @@ impl Assertion {
         })
     }
 
-    fn variants(&self) -> Vec<&str> {
-        let terms: Vec<&Term> = match self {
+    fn terms(&self) -> Vec<&Term> {
+        match self {
             Assertion::Each { term, .. } => vec![term],
             Assertion::Ratio { a, b, .. } => vec![a, b],
-        };
-        terms.iter().filter_map(|t| t.variant.as_deref()).collect()
+        }
+    }
+
+    fn variants(&self) -> Vec<&str> {
+        self.terms()
+            .into_iter()
+            .filter_map(|t| t.variant.as_deref())
+            .collect()
+    }
+
+    /// The plugin statistics it reads.
+    fn statistics(&self) -> Vec<&str> {
+        self.terms()
+            .into_iter()
+            .filter_map(|t| match &t.metric {
+                Measure::Statistic(s) => Some(s.as_str()),
+                Measure::Metric(_) => None,
+            })
+            .collect()
     }
 
     fn check(&self, text: &str, rows: &[Row]) -> Checked {
@@ -1003,6 +1136,10 @@ pub fn run(
                 .map_err(|err| anyhow!("{fname}: scene '{}': {err}", sc.name))?;
             docs.push((v, d, axes));
         }
+        for st in &e.statistics {
+            check_statistic(st, docs.iter().map(|(_, d, _)| d))
+                .map_err(|err| anyhow!("{fname}: scene '{}': statistic '{st}': {err}", sc.name))?;
+        }
         let points = measure::grid(&docs[0].2);
         let at = |d: &Document, axes: &[Axis], values: &[f64]| {
             let mut d = d.clone();
@@ -1030,6 +1167,7 @@ pub fn run(
                 let update_ms = (first.wall_ms - timing.wall_ms.median).max(0.0);
                 let img = measure::gpu_image(&r, &d)?;
                 let memory: u64 = r.plugin_memory().iter().map(|(_, _, b)| b).sum();
+                let statistics = statistics_of(&e.statistics, &r, &d, sc.volume.dims);
                 let spec = v.reference.as_ref().unwrap_or(&e.reference);
                 let reference = match spec {
                     ReferenceSpec::Converged | ReferenceSpec::ConvergedOf(_) => {
@@ -1241,6 +1379,7 @@ pub fn run(
                     gpu_memory_bytes: memory,
                     empty_brick_share: r.empty_brick_share().unwrap_or(f64::NAN),
                     metrics: m,
+                    statistics,
                     image,
                     reference,
                     pareto: false,
@@ -1410,6 +1549,7 @@ fn markdown(e: &Experiment, file: &Path, gpu: &GpuContext, o: &Outcome) -> Strin
     let mut header = vec!["scene".to_string(), "variant".to_string()];
     header.extend(e.grid.iter().map(|a| a.param.clone()));
     header.extend(e.metrics.iter().map(|m| m.header().to_string()));
+    header.extend(statistic_headers(&e.statistics));
     // the front is time against error: without the time in the table it says nothing
     let timed = e.metrics.contains(&e.pareto_time);
     if timed {
@@ -1426,6 +1566,11 @@ fn markdown(e: &Experiment, file: &Path, gpu: &GpuContext, o: &Outcome) -> Strin
         let mut cells = vec![r.scene.clone(), r.variant.clone()];
         cells.extend(r.values.iter().map(|v| format!("{v}")));
         cells.extend(e.metrics.iter().map(|m| m.cell(r)));
+        cells.extend(
+            e.statistics
+                .iter()
+                .map(|st| statistic_cell(r.statistics.get(st).copied())),
+        );
         if timed {
             cells.push(if r.pareto {
                 "●".into()
@@ -1529,6 +1674,9 @@ fn write_outputs(
     for m in Metric::ALL {
         let _ = write!(csv, ",{}", m.name());
     }
+    for st in &e.statistics {
+        let _ = write!(csv, ",{}", csv_field(st));
+    }
     csv.push_str(",clock,pareto,image\n");
     for r in &o.rows {
         let _ = write!(csv, "{},{}", csv_field(&r.scene), csv_field(&r.variant));
@@ -1537,6 +1685,13 @@ fn write_outputs(
         }
         for m in Metric::ALL {
             let _ = write!(csv, ",{}", m.of(r));
+        }
+        for st in &e.statistics {
+            let _ = write!(
+                csv,
+                ",{}",
+                r.statistics.get(st).copied().unwrap_or(f64::NAN)
+            );
         }
         let _ = writeln!(csv, ",{},{},{}", r.clock, r.pareto, r.image);
     }
@@ -1588,6 +1743,32 @@ fn file_safe(s: &str) -> String {
             }
         })
         .collect()
+}
+
+/// The statistics' column headers: their names without the plugin id where no two
+/// share a name, else in full.
+fn statistic_headers(statistics: &[String]) -> Vec<String> {
+    let short = |st: &String| {
+        st.rsplit_once('.')
+            .map_or(st.clone(), |(_, n)| n.to_string())
+    };
+    let names: Vec<String> = statistics.iter().map(short).collect();
+    let unique = names.iter().collect::<std::collections::HashSet<_>>().len() == names.len();
+    let chosen = if unique { names } else { statistics.to_vec() };
+    chosen.into_iter().map(|n| format!("`{n}`")).collect()
+}
+
+/// A statistic's table cell: — where absent or NaN, whole numbers as such, else three
+/// significant digits.
+fn statistic_cell(v: Option<f64>) -> String {
+    match v {
+        Some(v) if v.is_finite() && v == v.round() && v.abs() < 1e15 => format!("{v}"),
+        Some(v) if v.is_finite() => {
+            let digits = (2 - v.abs().log10().floor() as i32).max(0) as usize;
+            format!("{v:.digits$}")
+        }
+        _ => "—".into(),
+    }
 }
 
 fn csv_field(s: &str) -> String {
@@ -1767,7 +1948,7 @@ mod tests {
             Assertion::parse("rms_delta_e < 0.5").unwrap(),
             Assertion::Each {
                 term: Term {
-                    metric: Metric::RmsDeltaE,
+                    metric: Measure::Metric(Metric::RmsDeltaE),
                     variant: None
                 },
                 op: Op::Lt,
@@ -1776,7 +1957,7 @@ mod tests {
         );
         match Assertion::parse("time(pre) / time(post) <= 0.8").unwrap() {
             Assertion::Ratio { a, b, op, bound } => {
-                assert_eq!(a.metric, Metric::FrameMs);
+                assert_eq!(a.metric, Measure::Metric(Metric::FrameMs));
                 assert_eq!(a.variant.as_deref(), Some("pre"));
                 assert_eq!(b.variant.as_deref(), Some("post"));
                 assert_eq!((op, bound), (Op::Le, 0.8));
@@ -1818,6 +1999,7 @@ mod tests {
                 psnr_db: 40.0,
                 ssim: 1.0,
             },
+            statistics: BTreeMap::from([("x.y.z".to_string(), ms / 10.0)]),
             image: String::new(),
             reference: Some(0),
             pareto: false,
@@ -1843,6 +2025,28 @@ mod tests {
         assert!(c.detail.contains("0.44"), "{}", c.detail);
         assert!(!check("time(a) / time(b) > 0.5").passed);
         assert!(!check("ssim(zzz) > 0.5").passed, "no rows never passes");
+        // plugin statistics: x.y.z is a tenth of the time (1, 1.2, 2, 3)
+        assert!(check("x.y.z(b) >= 2").passed);
+        assert!(!check("x.y.z(a) >= 1.1").passed);
+        assert!(check("x.y.z(a) / x.y.z(b) < 0.5").passed);
+        assert!(
+            !check("x.y.q < 1e9").passed,
+            "a statistic no row has never passes"
+        );
+        assert_eq!(statistic_cell(Some(7.0)), "7");
+        assert_eq!(statistic_cell(Some(7.2834)), "7.28");
+        assert_eq!(statistic_cell(Some(0.0421)), "0.0421");
+        assert_eq!(statistic_cell(Some(f64::NAN)), "—");
+        assert_eq!(statistic_cell(None), "—");
+        let st = |v: &[&str]| v.iter().map(|s| s.to_string()).collect::<Vec<_>>();
+        assert_eq!(
+            statistic_headers(&st(&["shade.hernell.data_reduction", "a.b.empty"])),
+            ["`data_reduction`", "`empty`"]
+        );
+        assert_eq!(
+            statistic_headers(&st(&["a.b.x", "c.d.x"])),
+            ["`a.b.x`", "`c.d.x`"]
+        );
     }
 
     #[test]
@@ -1886,6 +2090,27 @@ mod tests {
             "Experiment(name: \"x\", scenes: [Preset(\"a.ron\")], variants: [(name: \"a\", set: {\"render.slices\": 100})], grid: [(param: \"render.slice_spacing\", values: [1.0])])",
         );
         assert!(e.contains("variant 'a' sets render.slices"), "{e}");
+        // statistics are <plugin id>.<name>, and assertions read only listed ones
+        let e = err(
+            "Experiment(name: \"x\", scenes: [Preset(\"a.ron\")], statistics: [\"hernell.reduction\"])",
+        );
+        assert!(
+            e.contains("statistic 'hernell.reduction' is not of the form"),
+            "{e}"
+        );
+        let e = err(
+            "Experiment(name: \"x\", scenes: [Preset(\"a.ron\")], assertions: [\"shade.hernell.data_reduction > 2\"])",
+        );
+        assert!(
+            e.contains(
+                "reads statistic 'shade.hernell.data_reduction', which `statistics` does not list"
+            ),
+            "{e}"
+        );
+        let e = err(
+            "Experiment(name: \"x\", scenes: [Preset(\"a.ron\")], assertions: [\"reduction > 2\"])",
+        );
+        assert!(e.contains("unknown metric 'reduction'"), "{e}");
         let ok = parse(
             "Experiment(name: \"x\", scenes: [Preset(\"a.ron\")], variants: [(name: \"a\"), (name: \"b\", reference: ConvergedOf(\"a\")), (name: \"c\", reference: TimeOnly)], reference: TimeOnly, reference_options: {\"directions\": 8})",
             p,

@@ -272,6 +272,29 @@ pub struct VolumePassDecl {
     pub accumulate: bool,
 }
 
+/// What [`Plugin::statistics`] reads: the volume's dims and the instance's volume-pass
+/// targets as the GPU left them after the last frame (by target name: size and f32
+/// components, x fastest; None where the pass is absent).
+pub struct PassOutputs<'a> {
+    pub volume_dims: [u32; 3],
+    pub read: &'a ReadPassTarget<'a>,
+}
+
+/// A volume-pass target read back: its size and its texels' f32 components.
+pub type PassTarget = ([u32; 3], Vec<f32>);
+
+/// Reads an instance's volume-pass target by name ([`PassOutputs::read`]).
+pub type ReadPassTarget<'a> = dyn Fn(&str) -> Option<PassTarget> + 'a;
+
+/// A figure a plugin reports about what its passes computed (e.g. flat blocking's data
+/// reduction), for experiment reports (`statistics:` in an experiment file, named
+/// `<plugin id>.<name>`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Statistic {
+    pub name: &'static str,
+    pub value: f64,
+}
+
 /// What a plugin gets to create and update its resources.
 pub struct GpuInit<'a> {
     pub device: &'a wgpu::Device,
@@ -889,6 +912,17 @@ pub trait Plugin: Send + Sync + 'static {
     /// changes ([`GpuInit::slice_spacing`]), e.g. for a pre-integration table.
     fn uses_slice_spacing(&self) -> bool {
         false
+    }
+    /// The names of the figures [`Plugin::statistics`] reports under `params` (checked
+    /// when an experiment file asks for one).
+    fn statistic_names(&self, _params: &ParamValues) -> Vec<&'static str> {
+        Vec::new()
+    }
+    /// Figures about what the instance's volume passes computed, read from their
+    /// targets after a frame (the GPU's own result, not a twin's), each named in
+    /// [`Plugin::statistic_names`]; empty by default.
+    fn statistics(&self, _params: &ParamValues, _passes: &PassOutputs<'_>) -> Vec<Statistic> {
+        Vec::new()
     }
 }
 

@@ -52,7 +52,8 @@ use rayon::prelude::*;
 
 use crate::metrics::{RgbImageF, compare};
 use crate::plugin::{
-    CpuContext, CpuSample, CpuTwin, PluginInstance, SliceStateDecl, StateImage, StorageFormat,
+    CpuContext, CpuSample, CpuTwin, CpuView, PluginInstance, SliceStateDecl, StateImage,
+    StorageFormat,
 };
 use crate::renderer::{Backend, FrameSettings};
 use crate::slicing::{SliceError, SlicePlan, VolumeBox};
@@ -267,6 +268,13 @@ struct Prepared<'a> {
     scalars: Vec<f32>,
     twins: Vec<Box<dyn CpuTwin>>,
     states: Vec<Option<SliceStateDecl>>,
+    /// Whether a plugin of the stack reads the slice spacing
+    /// ([`crate::plugin::Plugin::uses_slice_spacing`], e.g. a pre-integration table).
+    reads_spacing: bool,
+    /// What the twins' volume passes last ran for: the camera, and the spacing and
+    /// slices where a plugin reads them; a render with the same key reuses them (a
+    /// converged reference's halvings).
+    passes_for: Option<(CpuView, Option<f64>)>,
 }
 
 impl<'a> Prepared<'a> {
@@ -277,6 +285,10 @@ impl<'a> Prepared<'a> {
             scalars: volume.normalized_scalars(),
             twins,
             states,
+            reads_spacing: stack
+                .iter()
+                .any(|i| i.enabled && i.configured().uses_slice_spacing()),
+            passes_for: None,
         })
     }
 
@@ -294,8 +306,22 @@ impl<'a> Prepared<'a> {
         for t in &mut self.twins {
             t.prepare(&ctx);
         }
-        // volume passes see the other twins' clip, sample and classify
-        for i in 0..self.twins.len() {
+        // volume passes see the other twins' clip, sample and classify; they depend on
+        // the camera (view-space clipping) and, where a twin's classification reads
+        // it, on the spacing and the slices, and not otherwise on the frame
+        let key = if self.reads_spacing {
+            (ctx.view, Some(ctx.spacing))
+        } else {
+            let camera = CpuView {
+                slice_depth0: 0.0,
+                slice_spacing: 0.0,
+                ..ctx.view
+            };
+            (camera, None)
+        };
+        let stale = self.passes_for != Some(key);
+        self.passes_for = Some(key);
+        for i in (0..self.twins.len()).filter(|_| stale) {
             let (before, rest) = self.twins.split_at_mut(i);
             let Some((me, after)) = rest.split_first_mut() else {
                 continue;
@@ -1061,6 +1087,50 @@ mod tests {
         }
     }
 
+    /// A plugin whose twin counts its volume passes; `reads_spacing` is its answer to
+    /// [`Plugin::uses_slice_spacing`].
+    struct PassCounter {
+        runs: Arc<AtomicUsize>,
+        reads_spacing: bool,
+    }
+
+    struct PassCounterTwin {
+        runs: Arc<AtomicUsize>,
+    }
+
+    impl CpuTwin for PassCounterTwin {
+        fn prepare_passes(
+            &mut self,
+            _ctx: &CpuContext,
+            _classify: &crate::plugin::StackClassify<'_>,
+        ) {
+            self.runs.fetch_add(1, Ordering::Relaxed);
+        }
+    }
+
+    impl Plugin for PassCounter {
+        fn id(&self) -> &'static str {
+            "shade.test_pass_counter"
+        }
+        fn display_name(&self) -> &'static str {
+            "Test pass counter"
+        }
+        fn params(&self) -> Vec<ParamSpec> {
+            Vec::new()
+        }
+        fn shader(&self) -> ShaderSource {
+            ShaderSource::new_static("test_pass_counter.wgsl", "")
+        }
+        fn cpu_twin(&self, _params: &ParamValues) -> Option<Box<dyn CpuTwin>> {
+            Some(Box::new(PassCounterTwin {
+                runs: self.runs.clone(),
+            }))
+        }
+        fn uses_slice_spacing(&self) -> bool {
+            self.reads_spacing
+        }
+    }
+
     fn instance(p: impl Plugin) -> PluginInstance {
         PluginInstance::new(Arc::new(p))
     }
@@ -1115,6 +1185,45 @@ mod tests {
 
     fn opts() -> ReferenceOptions {
         ReferenceOptions::default()
+    }
+
+    /// A converged reference renders one view at ever finer spacings: the twins'
+    /// volume passes run once, unless a plugin reads the spacing (then
+    /// once per spacing); a new camera reruns them, the same frame again does not.
+    #[test]
+    fn volume_passes_run_once_per_camera_unless_classification_reads_the_spacing() {
+        let volume = cube(8, |x, _, _| x as f32 / 7.0);
+        let settings = ortho_z(8, 1.0);
+        for reads_spacing in [false, true] {
+            let runs = Arc::new(AtomicUsize::new(0));
+            let mut stack = ramp([0.8, 0.5, 0.3, 0.5]);
+            stack.push(instance(PassCounter {
+                runs: runs.clone(),
+                reads_spacing,
+            }));
+            let c = render_converged(&volume, &stack, &settings, &opts(), 0.0, [0.0; 3]).unwrap();
+            let renders = 1 + c.steps.len();
+            assert!(renders >= 3, "{renders} renders");
+            let want = if reads_spacing { renders } else { 1 };
+            assert_eq!(
+                runs.load(Ordering::Relaxed),
+                want,
+                "reads_spacing {reads_spacing}"
+            );
+            // one Prepared, two cameras: the passes follow the camera
+            runs.store(0, Ordering::Relaxed);
+            let mut prepared = Prepared::new(&volume, &stack).unwrap();
+            let mut turned = settings;
+            turned.camera.yaw_deg += 30.0;
+            for s in [settings, settings, turned, turned] {
+                prepared.render(&s, s.slice_spacing, &opts()).unwrap();
+            }
+            assert_eq!(
+                runs.load(Ordering::Relaxed),
+                2,
+                "reads_spacing {reads_spacing}"
+            );
+        }
     }
 
     /// Single scattering in a homogeneous slab lit from the eye: a point at depth s

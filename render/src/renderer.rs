@@ -3232,27 +3232,52 @@ impl Renderer {
     pub fn read_prepass(&self, uid: u64) -> Option<([u32; 3], Vec<f32>)> {
         let g = self.instances.get(&uid)?;
         let (tex, _) = g.prepass_target.as_ref()?;
-        let bpp = tex.format().block_copy_size(None)?;
-        let s = tex.size();
-        let bytes = read_texture(&self.gpu, tex, bpp);
-        let row = (s.width * bpp).div_ceil(256) * 256;
-        let comps = (bpp / 4) as usize;
-        let mut out = Vec::new();
-        for z in 0..s.depth_or_array_layers {
-            for y in 0..s.height {
-                let o = ((z * s.height + y) * row) as usize;
-                let line = &bytes[o..o + (s.width * bpp) as usize];
-                for px in line.chunks_exact(bpp as usize) {
-                    for c in 0..comps {
-                        out.push(f32::from_le_bytes(
-                            px[4 * c..4 * c + 4].try_into().expect("4 bytes"),
-                        ));
-                    }
+        read_texels_3d(&self.gpu, tex)
+    }
+
+    /// Reads the target of the instance `uid`'s volume pass named `target`
+    /// ([`crate::plugin::VolumePassDecl::target`]) as it stands after the last frame:
+    /// its size and its texels' f32 components (x fastest). None when the instance has
+    /// no such pass, or for a split volume (each brick has its own).
+    pub fn read_pass_target(&self, uid: u64, target: &str) -> Option<([u32; 3], Vec<f32>)> {
+        let g = self.instances.get(&uid)?;
+        let (_, plugin) = self
+            .pipelines
+            .as_ref()?
+            .stack
+            .iter()
+            .find(|(u, _)| *u == uid)?;
+        let k = plugin
+            .volume_passes()
+            .iter()
+            .position(|p| p.target == target)?;
+        let (tex, _) = g.pass_targets.get(k)?;
+        read_texels_3d(&self.gpu, tex)
+    }
+}
+
+/// A 3D storage target's texels as f32 components (32-bit formats), x fastest.
+fn read_texels_3d(gpu: &GpuContext, tex: &wgpu::Texture) -> Option<([u32; 3], Vec<f32>)> {
+    let bpp = tex.format().block_copy_size(None)?;
+    let s = tex.size();
+    let bytes = read_texture(gpu, tex, bpp);
+    let row = (s.width * bpp).div_ceil(256) * 256;
+    let comps = (bpp / 4) as usize;
+    let mut out = Vec::new();
+    for z in 0..s.depth_or_array_layers {
+        for y in 0..s.height {
+            let o = ((z * s.height + y) * row) as usize;
+            let line = &bytes[o..o + (s.width * bpp) as usize];
+            for px in line.chunks_exact(bpp as usize) {
+                for c in 0..comps {
+                    out.push(f32::from_le_bytes(
+                        px[4 * c..4 * c + 4].try_into().expect("4 bytes"),
+                    ));
                 }
             }
         }
-        Some(([s.width, s.height, s.depth_or_array_layers], out))
     }
+    Some(([s.width, s.height, s.depth_or_array_layers], out))
 }
 
 /// The first `n` resolved timestamps in `read` (GPU ticks).

@@ -227,6 +227,14 @@ fn bad_experiments_are_refused_naming_the_file_and_cause() {
             "grid: [(param: \"classify.tf1d.mode\", values: [1.0])]",
             "only float and int",
         ),
+        (
+            "statistics: [\"shade.hernell.data_reduction\"]",
+            "statistic 'shade.hernell.data_reduction': no variant's stack has plugin 'shade.hernell' switched on",
+        ),
+        (
+            "statistics: [\"classify.tf1d.data_reduction\"]",
+            "plugin 'classify.tf1d' reports no 'data_reduction' (it reports: nothing)",
+        ),
     ];
     for (i, (fields, expect)) in cases.iter().enumerate() {
         let file = write(

@@ -347,142 +347,26 @@ fn flow_study() {
          inputs; against a twin that rounds them alike it is the f32 row's, `lic_prepass_matches_its_twin`).\n"
     );
 
-    // on the fly against precomputed, and output sensitivity: half the image clipped away
-    let _ = writeln!(o, "## On the fly against precomputed\n");
-    let (vol, with_mode, plane, tf) = lic_half_scene();
-    // on a GPU a larger image and the frame's GPU time (its wall time is mostly overhead)
-    let side = if on_gpu() { 512 } else { 128 };
-    let s = head_on(side);
-    let mut images = Vec::new();
-    let mut rows = Vec::new();
-    for (label, stack) in [
-        ("precomputed", vec![with_mode("precomputed"), tf.clone()]),
-        ("on the fly", vec![with_mode("on_the_fly"), tf.clone()]),
-        (
-            "precomputed, half the image clipped",
-            vec![with_mode("precomputed"), plane.clone(), tf.clone()],
-        ),
-        (
-            "on the fly, half the image clipped",
-            vec![with_mode("on_the_fly"), plane.clone(), tf.clone()],
-        ),
-    ] {
-        let mut r = Renderer::new(gpu(), vol.clone()).unwrap();
-        r.update_stack(&stack, TargetFormat::Rgba32Float).unwrap();
-        let first = r.render(&s).unwrap();
-        let t = study_timing(&mut r, &s);
-        let (_, _, px) = r.read_pixels().unwrap();
-        let prepass = if first.prepasses_run > 0 {
-            let ms = stamped_ms(&first, |l| l.starts_with("prepass"))
-                .unwrap_or(first.wall_ms - t.wall_ms.median);
-            format!("{:.3}", ms / 1e3)
-        } else {
-            "—".into()
-        };
-        let ms = quoted_ms(t.wall_ms.median, t.gpu_ms.map(|g| g.median));
-        eprintln!("LIC {label}: {ms:.2} ms");
-        rows.push((
-            label,
-            ms,
-            covered(&px),
-            plugin_bytes(&r, stack[0].uid),
-            prepass,
-        ));
-        images.push(px);
-    }
-    // animation: the periodic kernel's phase advanced every frame, so precomputed
-    // reruns its pre-pass in every frame and on the fly recomputes nothing
-    for (label, mode) in [
-        (
-            "precomputed, periodic kernel, phase advanced every frame",
-            "precomputed",
-        ),
-        (
-            "on the fly, periodic kernel, phase advanced every frame",
-            "on_the_fly",
-        ),
-    ] {
-        let mut i = with_mode(mode);
-        i.params.set("kernel", ParamValue::Enum("periodic".into()));
-        let mut r = Renderer::new(gpu(), vol.clone()).unwrap();
-        let mut times = Vec::new();
-        let mut reruns = Vec::new();
-        for frame in 0..4 {
-            i.params
-                .set("phase_deg", ParamValue::Float(30.0 * frame as f32));
-            r.update_stack(&[i.clone(), tf.clone()], TargetFormat::Rgba32Float)
-                .unwrap();
-            let stats = r.render(&s).unwrap();
-            // the first frame also compiles and uploads
-            if frame > 0 {
-                times.push(quoted_ms(stats.wall_ms, stats.gpu_ms));
-                reruns.push(stats.prepasses_run);
-            }
-        }
-        let prepass = if reruns.iter().all(|&n| n == 1) {
-            "every frame"
-        } else {
-            assert!(reruns.iter().all(|&n| n == 0), "{label}: {reruns:?}");
-            "—"
-        };
-        let ms = vwb_lab::measure::Summary::of(&times).unwrap().median;
-        let (_, _, px) = r.read_pixels().unwrap();
-        eprintln!("LIC {label}: {ms:.2} ms");
-        rows.push((
-            label,
-            ms,
-            covered(&px),
-            plugin_bytes(&r, i.uid),
-            prepass.into(),
-        ));
-    }
-    let fly_vs_pre = crate::reference::gpu_delta_e_rms(&images[0], &images[1], side, side);
-    let _ = writeln!(
-        o,
-        "ABC flow (period 64) on 64³, `flow.lic3d` defaults (frequency 1, RK4, h = 0.5, L = 8, tent), the default 1D TF, \
-         compute backend at {side}², camera head-on along z, one slice per voxel; frame: median {} (of 3 frames after the first, which \
-         runs the pre-pass; on a GPU of 9 after 10). \"Half the image clipped\": `clip.shapes` with a plane through the centre (axis x); the \
-         clip hook runs before the sample hook, so clipped samples never integrate.\n",
-        if on_gpu() {
-            "GPU time (timestamps)"
-        } else {
-            "wall time"
-        }
-    );
-    let _ = writeln!(
-        o,
-        "| mode | frame (ms) | image covered | pre-pass (s) | plugin memory (KiB): field, noise, LIC volume |\n|---|---:|---:|---:|---:|"
-    );
-    for (label, ms, covered, memory, prepass) in &rows {
-        let _ = writeln!(
-            o,
-            "| {label} | {} | {:.0} % | {prepass} | {} |",
-            fmt_ms(*ms),
-            covered * 100.0,
-            memory / 1024
-        );
-    }
-    let half = rows[3].1 / rows[1].1;
-    let _ = writeln!(
-        o,
-        "\nOutput sensitivity: on the fly, half the image clipped takes {half:.2}× the full view's time (the issue's \
-         target: ≤ 0.6×). On the fly costs {:.1}× the precomputed frame on this device but needs no pre-pass and no LIC volume. \
-         Where the LIC changes every frame (an integration parameter being edited), the precomputed mode costs its \
-         pre-pass plus a frame, {} ms, against {} ms on the fly here (the animation rows: the periodic \
-         kernel's phase, Cabral and Leedom's animation, advanced every frame): the pre-pass grows with the LIC grid \
-         (8× at frequency 2) and on the fly with the samples that reach the hook, so on the fly pays for small, \
-         clipped or early-terminated views of large grids, and where the LIC volume would not fit. \
-         The two images differ by RMS ΔE*uv {fly_vs_pre:.2}: between the LIC grid's voxels the precomputed mode blends \
-         its neighbours' integrals trilinearly, where on the fly integrates at the sample (each mode matches its own \
-         f64 twin: `lic_prepass_matches_its_twin`, `lic_on_the_fly_matches_its_twin_without_a_prepass`).\n",
-        rows[1].1 / rows[0].1,
-        fmt_ms(rows[4].1),
-        fmt_ms(rows[5].1)
-    );
+    // on the fly against precomputed, and output sensitivity: experiment files
     let old = std::fs::read_to_string(bench_doc("flow.md")).unwrap_or_default();
     let _ = write!(
         o,
-        "\n{SENSITIVITY_HEADING}\n\n{}\n\n",
+        "## On the fly against precomputed\n\n\
+         The two modes in one scene (experiments/scenes/abc_lic_half.ron: the ABC flow on 64³, `flow.lic3d` \
+         defaults, head-on, one slice per voxel, 128²), whole and with half the image clipped by a plane, then \
+         animated (the periodic kernel's phase advanced at every grid point). `time (ms)` is a frame; \
+         `update (ms)` is the first frame after a change less a frame: in `flow_modes` the first frame on each \
+         variant's fresh renderer (the pre-pass and first use), in `flow_animation` what a new phase reruns \
+         (the precomputed mode's pre-pass; its first row also pays for first use). The pre-pass grows with the LIC grid (8× at frequency 2) and on the fly with \
+         the samples that reach the hook, so on the fly pays for small, clipped or early-terminated views of \
+         large grids, for LICs that change every frame, and where the LIC volume would not fit. Each block is \
+         written by its experiment file (`vwb run experiments/NAME.ron`, the name in its marker) and kept by \
+         this study.\n\n{}",
+        kept_experiment_blocks(&old, &["flow_modes", "flow_animation"])
+    );
+    let _ = write!(
+        o,
+        "{SENSITIVITY_HEADING}\n\n{}\n\n",
         kept_block(
             &old,
             "lic_output_sensitivity",
@@ -564,46 +448,49 @@ fn flow_study() {
     std::fs::write(bench_doc("flow.md"), o).unwrap();
 }
 
-/// The scene of the on-the-fly study: the ABC flow (period 64) on 64³; `flow.lic3d` in
-/// a mode; `clip.shapes` with a plane through the centre (axis x), which, head-on along
-/// z ([`head_on`]), clips away half of the volume's footprint; the default 1D TF.
+/// The scene of the on-the-fly study, experiments/scenes/abc_lic_half.ron (the
+/// experiment files flow_modes and flow_animation read it too): the ABC flow on 64³;
+/// `flow.lic3d` in a mode; `clip.shapes` with a plane through the centre (axis x),
+/// switched on, which, head-on along z, clips away half of the volume's footprint;
+/// the default 1D TF; and the scene's frame settings at `side`².
 #[allow(clippy::type_complexity)]
 fn lic_half_scene() -> (
     std::sync::Arc<Volume>,
     impl Fn(&str) -> vwb_render::PluginInstance,
     vwb_render::PluginInstance,
     vwb_render::PluginInstance,
+    impl Fn(u32) -> vwb_render::FrameSettings,
 ) {
-    let vol = std::sync::Arc::new(vector_volume(
-        &Abc {
-            period: 64.0,
-            ..Default::default()
-        },
-        [64; 3],
-    ));
-    let with_mode = |mode: &str| {
-        let mut i = instance("flow.lic3d");
+    let doc = vwb_render::preset::Document::load(
+        &repo().join("experiments/scenes/abc_lic_half.ron"),
+        &registry(),
+    )
+    .unwrap_or_else(|e| panic!("{e}"))
+    .document;
+    let vol = vwb_lab::headless::load_volume(&doc.volume).unwrap();
+    let of = |id: &str| {
+        let mut i = doc
+            .stack
+            .iter()
+            .find(|i| i.plugin.id() == id)
+            .unwrap()
+            .clone();
+        i.enabled = true;
+        i
+    };
+    let (lic, plane, tf) = (of("flow.lic3d"), of("clip.shapes"), of("classify.tf1d"));
+    let with_mode = move |mode: &str| {
+        let mut i = lic.clone();
         i.params.set("mode", ParamValue::Enum(mode.into()));
         i
     };
-    let mut plane = instance("clip.shapes");
-    plane
-        .params
-        .set("shape0_kind", ParamValue::Enum("plane".into()));
-    plane
-        .params
-        .set("shape0_axis", ParamValue::Vec3([1.0, 0.0, 0.0]));
-    (vol, with_mode, plane, instance("classify.tf1d"))
-}
-
-/// Compute-backend settings at `side`², the camera head-on along z.
-fn head_on(side: u32) -> vwb_render::FrameSettings {
-    let mut s = settings(side, side, Backend::Compute);
-    s.camera.yaw_deg = 0.0;
-    s.camera.pitch_deg = 0.0;
-    s.camera.roll_deg = 0.0;
-    s.camera.distance = 2.0;
-    s
+    let frame = doc.frame_settings();
+    let at = move |side: u32| {
+        let mut s = frame;
+        (s.width, s.height) = (side, side);
+        s
+    };
+    (vol, with_mode, plane, tf, at)
 }
 
 const SENSITIVITY_HEADING: &str = "### Output sensitivity by image size";
@@ -617,7 +504,7 @@ const SENSITIVITY_HEADING: &str = "### Output sensitivity by image size";
 #[test]
 #[ignore = "benchmark: bash bench/ignored_test.sh lic_output_sensitivity"]
 fn lic_output_sensitivity() {
-    let (vol, with_mode, plane, tf) = lic_half_scene();
+    let (vol, with_mode, plane, tf, head_on) = lic_half_scene();
     let sides: &[u32] = if on_gpu() {
         &[256, 512, 1024, 2048]
     } else {

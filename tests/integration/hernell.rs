@@ -170,6 +170,33 @@ fn flat_blocking_matches_its_twin() {
     assert_eq!(blocks.histogram()[5], 7, "{:?}", blocks.levels);
     assert!([1, 4, 7, 10].iter().all(|&i| blocks.levels[i] == -1));
     assert!(blocks.reduction() > 1.5, "{}", blocks.reduction());
+    // the plugin's statistics (experiment reports) are the GPU's own levels: the
+    // (block) pass's target read back, the twin's levels block for block
+    let mut r = Renderer::new(gpu(), volume.clone()).unwrap();
+    r.update_stack(&stack, TargetFormat::Rgba32Float).unwrap();
+    r.render(&s).unwrap();
+    let (dims, gpu_levels) = r.read_pass_target(stack[1].uid, "blocks").unwrap();
+    assert_eq!(dims, [3, 2, 2]);
+    let gpu_levels: Vec<i32> = gpu_levels.iter().map(|l| l.round() as i32).collect();
+    assert_eq!(gpu_levels, blocks.levels);
+    assert!(r.read_pass_target(stack[1].uid, "no such target").is_none());
+    let read = |t: &str| r.read_pass_target(stack[1].uid, t);
+    let passes = vwb_render::plugin::PassOutputs {
+        volume_dims: volume.dims,
+        read: &read,
+    };
+    let plugin = stack[1].configured();
+    let stats = plugin.statistics(&stack[1].params, &passes);
+    let stat = |n: &str| stats.iter().find(|x| x.name == n).unwrap().value;
+    assert_eq!(stat("data_reduction"), blocks.reduction());
+    assert_eq!(stat("empty_blocks"), 7.0 / 12.0);
+    for (l, n) in blocks.histogram()[..5].iter().enumerate() {
+        assert_eq!(stat(&format!("blocks_level_{l}")), *n as f64, "level {l}");
+    }
+    assert_eq!(
+        stats.iter().map(|x| x.name).collect::<Vec<_>>(),
+        plugin.statistic_names(&stack[1].params)
+    );
 }
 
 /// With flat blocking the (block) pass runs first, when the classification or the
@@ -634,129 +661,4 @@ fn light_update_at_512(
                 fmt_ms(ms)
             )),
     )
-}
-
-const BLOCKING_BEGIN: &str = "<!-- blocking:begin -->";
-const BLOCKING_END: &str = "<!-- blocking:end -->";
-
-/// Flat blocking on the CT head: the data reduction each tolerance gives, the time of
-/// each update level and the error against the exact integration and against the
-/// unblocked light; writes the "Flat blocking" section of docs/hernell.md.
-#[test]
-#[ignore = "benchmark: bash bench/ignored_test.sh hernell_blocking_benchmark writes a section of docs/hernell.md"]
-fn hernell_blocking_benchmark() {
-    let (doc, volume, s) = ct_scene();
-    let (w, h) = (s.width, s.height);
-    let base = [
-        ("scattering", ParamValue::Bool(false)),
-        ("segment", ParamValue::Int(8)),
-        ("svr", ParamValue::Enum("1:2".into())),
-    ];
-    let mut exact_edit = base.to_vec();
-    exact_edit.push(("mode", ParamValue::Enum("exact".into())));
-    let exact = run_config(&volume, &doc.stack, &s, &exact_edit);
-    let plain = run_config(&volume, &doc.stack, &s, &base);
-    let hernell_params = doc
-        .stack
-        .iter()
-        .find(|i| i.plugin.id() == "shade.hernell")
-        .unwrap()
-        .params
-        .clone();
-    let m = against(&plain.px, &exact.px, w, h);
-    let mut rows = format!(
-        "| off | 1.00 | 0 % | — | {:.1} | {:.1} | {:.1} | {:.3} | {:.2} % | 0 |\n",
-        plain.ms[0],
-        plain.ms[1],
-        plain.ms[2],
-        m.rms_delta_e,
-        m.share_above_6 * 100.0
-    );
-    // (A) over the unblocked (A), per tolerance; ΔE against the unblocked light
-    let (mut a_ratio, mut vs_unblocked) = (Vec::new(), Vec::new());
-    for tolerance in [0.0f32, 0.005, 0.01, 0.02, 0.05, 0.1] {
-        let mut edit = base.to_vec();
-        edit.push(("blocking", ParamValue::Enum("16³".into())));
-        edit.push(("tolerance", ParamValue::Float(tolerance)));
-        let run = run_config(&volume, &doc.stack, &s, &edit);
-        let blocks = vwb_render::reference::with_stack_classify(&volume, &doc.stack, |c| {
-            vwb_plugins::shade_hernell::blocks_for(&volume, &hernell_params, tolerance as f64, c)
-        })
-        .unwrap();
-        let m = against(&run.px, &exact.px, w, h);
-        let vs_plain = against(&run.px, &plain.px, w, h).rms_delta_e;
-        let hist = blocks.histogram();
-        a_ratio.push(run.ms[0] / plain.ms[0]);
-        vs_unblocked.push(vs_plain);
-        eprintln!(
-            "tolerance {tolerance}: reduction {:.2}, {:?}, {:?} ΔE {:.3} vs unblocked {vs_plain:.3}",
-            blocks.reduction(),
-            hist,
-            run.ms,
-            m.rms_delta_e
-        );
-        rows += &format!(
-            "| {tolerance} | {:.2} | {:.0} % | {} | {:.1} | {:.1} | {:.1} | {:.3} | {:.2} % | {vs_plain:.3} |\n",
-            blocks.reduction(),
-            blocks.empty_share() * 100.0,
-            hist[..5]
-                .iter()
-                .map(|n| n.to_string())
-                .collect::<Vec<_>>()
-                .join(" / "),
-            run.ms[0],
-            run.ms[1],
-            run.ms[2],
-            m.rms_delta_e,
-            m.share_above_6 * 100.0
-        );
-    }
-    let section = format!(
-        "{BLOCKING_BEGIN}\n## Flat blocking\n\n\
-         Generated by `bash bench/ignored_test.sh hernell_blocking_benchmark` (the rest of \
-         this file keeps it). Machine: {machine}. Adapter: {adapter}.\n\n\
-         The paper's reduced storage (§4, after Ljung et al. 2004), `blocking: 16³`: a \
-         (block) pass gives every 16³ block a level of detail l (the light is computed \
-         once per cell of 2^l voxels, at the cell's centre) or marks it empty (no voxel \
-         of the block or of its one-voxel apron has α > 0 under the stack's \
-         classification). The level is the coarsest whose RMS error of the classified α \
-         (cells holding their mean: the TF domain, not the data values) is at most \
-         `tolerance`. Empty blocks are skipped by (A1) and (B); eq 7's rays that reach \
-         one advance to the next non-empty block (Fig. 4); lookups of α_lp and I stay \
-         inside their block (clamped, as the paper does after Ljung et al. 2006); α_g \
-         keeps its regular SVR grid, as the paper requires. Choices: the data reduction \
-         (voxels over stored cells, each non-empty block storing (16/2^l)³) is what the \
-         tolerance gives, measured here, not a target the selection meets; and the \
-         storage is emulated — the light volumes stay one texel per voxel, each cell's \
-         texels holding its value — so the passes save the empty blocks' work, and the \
-         error is that of the reduced data, but neither the memory nor the per-cell work \
-         of a packed structure is saved.\n\n\
-         CT head (`presets/ct_hernell.ron`), segment 8, SVR 1:2, direct light, compute, \
-         {w}×{h}, one frame per configuration on a fresh renderer; ms per update level, \
-         each the least of 3 wall-time differences: (A) α_lp + α_g, (B) the light volume, \
-         (C) a frame with the light in place. ΔE*uv against the same frame with `mode: \
-         exact` ((A) {e0:.1} ms + (B) {e1:.1} ms), and against the same configuration \
-         without blocking. Blocks per level 0 / 1 / 2 / 3 / 4 (of {total}).\n\n\
-         | tolerance (RMS α) | data reduction | empty blocks | blocks per level | (A) ms | (B) ms | (C) frame ms | ΔE*uv RMS | ΔE > 6 | ΔE*uv vs unblocked |\n\
-         |---|---|---|---|---|---|---|---|---|---|\n\
-         {rows}\n\
-         (A) with blocking takes {a_lo:.2}–{a_hi:.2}× the unblocked (A) here: the (block) \
-         pass classifies every block's 18³ voxels, the work that skipping the empty blocks \
-         saves in (A1) is of the same order, and the cells of coarser levels are still \
-         computed per voxel (emulated storage). At tolerance 0 (only empty blocks \
-         reduced) the image differs from the unblocked one by {seams:.2} ΔE*uv RMS: the \
-         lookups clamped into their blocks (seams at block borders that interpolation \
-         across them would hide) and eq 7's pieces re-tiled after each skip. The paper reports 8.9:1 on a 512³ CT head \"hardly noticeable\" with its \
-         TF.\n\
-         {BLOCKING_END}",
-        a_lo = a_ratio.iter().copied().fold(f64::INFINITY, f64::min),
-        a_hi = a_ratio.iter().copied().fold(0.0, f64::max),
-        seams = vs_unblocked[0],
-        machine = vwb_lab::measure::machine(),
-        adapter = gpu().describe(),
-        e0 = exact.ms[0],
-        e1 = exact.ms[1],
-        total = volume.dims.map(|d| d.div_ceil(16)).iter().product::<u32>(),
-    );
-    replace_section(&bench_doc("hernell.md"), "blocking", &section);
 }

@@ -50,9 +50,9 @@ use glam::{DVec3, DVec4};
 use rayon::prelude::*;
 use vwb_render::params::{ParamSpec, ParamValues};
 use vwb_render::plugin::{
-    CpuContext, CpuSample, CpuTwin, GpuInit, GpuResource, Plugin, PluginError, ResourceDecl,
-    ResourceKind, ShaderSource, StackClassify, StorageFormat, Transparency, VolumePassDecl,
-    trilinear_grid,
+    CpuContext, CpuSample, CpuTwin, GpuInit, GpuResource, PassOutputs, Plugin, PluginError,
+    ResourceDecl, ResourceKind, ShaderSource, StackClassify, Statistic, StorageFormat,
+    Transparency, VolumePassDecl, trilinear_grid,
 };
 
 #[cfg(test)]
@@ -364,7 +364,45 @@ impl Plugin for Hernell {
         twin.blocking = self.blocking.then(|| params.float("tolerance") as f64);
         Some(Box::new(twin))
     }
+    fn statistic_names(&self, _params: &ParamValues) -> Vec<&'static str> {
+        STATISTICS.to_vec()
+    }
+    /// Flat blocking's figures from the (block) pass's target, the levels the GPU
+    /// chose: the data reduction (voxels over stored cells), the share of empty
+    /// blocks and the blocks per level (1 and 0 without blocking, its levels absent).
+    fn statistics(&self, _params: &ParamValues, passes: &PassOutputs<'_>) -> Vec<Statistic> {
+        let stat = |name, value| Statistic { name, value };
+        if !self.blocking {
+            return vec![stat("data_reduction", 1.0), stat("empty_blocks", 0.0)];
+        }
+        let Some((dims, levels)) = (passes.read)("blocks") else {
+            return Vec::new();
+        };
+        let blocks = Blocks {
+            dims: dims.map(|d| d as usize),
+            volume: passes.volume_dims.map(|d| d.max(1) as usize),
+            levels: levels.iter().map(|l| l.round() as i32).collect(),
+        };
+        let h = blocks.histogram();
+        let mut out = vec![
+            stat("data_reduction", blocks.reduction()),
+            stat("empty_blocks", blocks.empty_share()),
+        ];
+        out.extend((0..5).map(|l| stat(STATISTICS[2 + l], h[l] as f64)));
+        out
+    }
 }
+
+/// What [`Hernell::statistics`] reports.
+const STATISTICS: [&str; 7] = [
+    "data_reduction",
+    "empty_blocks",
+    "blocks_level_0",
+    "blocks_level_1",
+    "blocks_level_2",
+    "blocks_level_3",
+    "blocks_level_4",
+];
 
 /// A scalar grid with texel centres at (i + 0.5)/n, read trilinearly with
 /// clamp-to-edge like `textureSampleLevel(.., linear_clamp, ..)`.
