@@ -194,11 +194,7 @@ fn samples_on_brick_faces_are_taken_once() {
 /// own opacity, so the bricked image is at least as complete.
 #[test]
 fn bricks_in_half_float_and_with_early_termination() {
-    let registry = registry();
-    let doc = Document::load(&repo().join("presets/ct_head.ron"), &registry)
-        .unwrap()
-        .document;
-    let volume = vwb_lab::headless::load_volume(&doc.volume).unwrap();
+    let (doc, volume) = preset_scene("presets/ct_head.ron");
     let mut one = Renderer::new(gpu(), volume.clone()).unwrap();
     let mut split = Renderer::with_options(gpu(), volume, bricked(64)).unwrap();
     let frame = |early_termination| FrameSettings {
@@ -253,10 +249,7 @@ fn split_volumes_refuse_global_plugins_and_keep_the_last_image() {
 /// backend: each brick writes its footprint only).
 #[test]
 fn partial_images_composite_pairwise_to_the_frame() {
-    let doc = Document::load(&repo().join("presets/first_image.ron"), &registry())
-        .unwrap()
-        .document;
-    let volume = vwb_lab::headless::load_volume(&doc.volume).unwrap();
+    let (doc, volume) = preset_scene("presets/first_image.ron");
     let mut r = Renderer::with_options(gpu(), volume, bricked(48)).unwrap();
     let s = FrameSettings {
         width: 40,
@@ -303,11 +296,7 @@ fn partial_images_composite_pairwise_to_the_frame() {
 #[ignore]
 fn bricks_benchmark() {
     use vwb_lab::measure::{machine, time_frames, twin_image};
-    let registry = registry();
-    let doc = Document::load(&repo().join("presets/ct_head.ron"), &registry)
-        .unwrap()
-        .document;
-    let volume = vwb_lab::headless::load_volume(&doc.volume).unwrap();
+    let (doc, volume) = preset_scene("presets/ct_head.ron");
     let frames = 5;
     let mut rows = String::new();
     let small = FrameSettings {
@@ -1057,10 +1046,7 @@ fn a_stack_that_cannot_split_shows_the_whole_coarser_level() {
 #[ignore = "benchmark: bash bench/ignored_test.sh lod_benchmark writes a section of docs/scale.md"]
 fn lod_benchmark() {
     use vwb_lab::measure::machine;
-    let doc = Document::load(&repo().join("presets/ct_head.ron"), &registry())
-        .unwrap()
-        .document;
-    let volume = vwb_lab::headless::load_volume(&doc.volume).unwrap();
+    let (doc, volume) = preset_scene("presets/ct_head.ron");
     let (w, h) = (256, 256);
     let base = FrameSettings {
         width: w,

@@ -186,6 +186,16 @@ pub fn registry() -> Registry {
     vwb_plugins::builtin_registry()
 }
 
+/// A shipped preset or scene file (relative to the repository) and its volume.
+pub fn preset_scene(path: &str) -> (vwb_render::preset::Document, Arc<Volume>) {
+    let doc = vwb_render::preset::Document::load(&repo().join(path), &registry())
+        .unwrap_or_else(|e| panic!("{e}"))
+        .document;
+    let volume =
+        vwb_lab::headless::load_volume(&doc.volume).unwrap_or_else(|e| panic!("{path}: {e}"));
+    (doc, volume)
+}
+
 pub fn instance(id: &str) -> PluginInstance {
     PluginInstance::new(registry().get(id).expect("registered"))
 }

@@ -143,12 +143,8 @@ fn zero_aperture_is_the_head_on_transmittance() {
 /// luminance falls for every aperture).
 #[test]
 fn occlusion_darkens_the_ct_head_and_the_nuclei() {
-    let registry = registry();
     for preset in ["presets/ct_dos.ron", "presets/nuclei_dos.ron"] {
-        let doc = Document::load(&repo().join(preset), &registry)
-            .unwrap()
-            .document;
-        let volume = vwb_lab::headless::load_volume(&doc.volume).unwrap();
+        let (doc, volume) = preset_scene(preset);
         let s = FrameSettings {
             width: 64,
             height: 64,

@@ -420,13 +420,7 @@ fn flow_study() {
     )
     .unwrap();
     // the storm behind its time surfaces, at three times
-    let doc = vwb_render::preset::Document::load(
-        &repo().join("presets/storm_time_surfaces.ron"),
-        &registry(),
-    )
-    .unwrap_or_else(|e| panic!("{e}"))
-    .document;
-    let storm = vwb_lab::headless::load_volume(&doc.volume).unwrap();
+    let (doc, storm) = preset_scene("presets/storm_time_surfaces.ron");
     let mut r = vwb_lab::headless::renderer_for(gpu(), &doc, storm).unwrap();
     let mut s = doc.frame_settings();
     (s.width, s.height) = (256, 256);
@@ -461,13 +455,7 @@ fn lic_half_scene() -> (
     vwb_render::PluginInstance,
     impl Fn(u32) -> vwb_render::FrameSettings,
 ) {
-    let doc = vwb_render::preset::Document::load(
-        &repo().join("experiments/scenes/abc_lic_half.ron"),
-        &registry(),
-    )
-    .unwrap_or_else(|e| panic!("{e}"))
-    .document;
-    let vol = vwb_lab::headless::load_volume(&doc.volume).unwrap();
+    let (doc, vol) = preset_scene("experiments/scenes/abc_lic_half.ron");
     let of = |id: &str| {
         let mut i = doc
             .stack

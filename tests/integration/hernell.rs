@@ -530,11 +530,7 @@ fn ct_scene() -> (
     Arc<Volume>,
     vwb_render::FrameSettings,
 ) {
-    let doc =
-        vwb_render::preset::Document::load(&repo().join("presets/ct_hernell.ron"), &registry())
-            .unwrap_or_else(|e| panic!("{e}"))
-            .document;
-    let volume = vwb_lab::headless::load_volume(&doc.volume).unwrap();
+    let (doc, volume) = preset_scene("presets/ct_hernell.ron");
     let s = vwb_render::FrameSettings {
         width: 256,
         height: 256,
