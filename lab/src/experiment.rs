@@ -367,8 +367,9 @@ pub struct Row {
     pub clock: &'static str,
     /// [`Metric::UpdateMs`] (wall clock).
     pub update_ms: f64,
-    /// The volume passes of the first frame after the grid point's stack was applied
-    /// (`<plugin id>/<target>`, one per dispatch): what `update_ms` paid for.
+    /// The pre-passes (`<plugin id>/prepass`) and volume passes (`<plugin id>/<target>`,
+    /// one per dispatch) of the first frame after the grid point's stack was applied:
+    /// what `update_ms` paid for.
     pub update_passes: Vec<String>,
     pub gpu_memory_bytes: u64,
     /// [`Metric::EmptyBrickShare`] (NaN with skipping off).
@@ -1375,7 +1376,11 @@ pub fn run(
                     frame_ms: ms,
                     clock,
                     update_ms,
-                    update_passes: first.volume_passes_run,
+                    update_passes: first
+                        .prepasses
+                        .into_iter()
+                        .chain(first.volume_passes_run)
+                        .collect(),
                     gpu_memory_bytes: memory,
                     empty_brick_share: r.empty_brick_share().unwrap_or(f64::NAN),
                     metrics: m,

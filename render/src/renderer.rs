@@ -166,6 +166,9 @@ pub struct FrameStats {
     pub wall_ms: f64,
     pub per_slice_mode: bool,
     pub prepasses_run: usize,
+    /// The pre-passes of this frame, labelled `<plugin id>/prepass` (as many as
+    /// `prepasses_run`).
+    pub prepasses: Vec<String>,
     /// Volume-pass dispatches of this frame, labelled `<plugin id>/<target>`, one per
     /// refinement step ([`crate::plugin::VolumePassDecl`]).
     pub volume_passes_run: Vec<String>,
@@ -2387,7 +2390,7 @@ impl Renderer {
     }
 
     /// Encodes the pre-passes of the instances at `dirty` (indices into `stack`), each
-    /// after a `stamp`; returns how many.
+    /// after a `stamp`; returns their labels (`<plugin id>/prepass`).
     fn encode_prepasses(
         &self,
         enc: &mut wgpu::CommandEncoder,
@@ -2395,9 +2398,9 @@ impl Renderer {
         stack: &[(u64, Arc<dyn Plugin>)],
         dirty: &[usize],
         stamp: &mut dyn FnMut(&mut wgpu::CommandEncoder, Option<String>),
-    ) -> usize {
+    ) -> Vec<String> {
         let device = &self.gpu.device;
-        let mut prepasses_run = 0;
+        let mut run = Vec::new();
         for (i, pipeline, layout) in &p.prepasses {
             if !dirty.contains(i) {
                 continue;
@@ -2449,9 +2452,9 @@ impl Renderer {
                 size.height.div_ceil(4),
                 size.depth_or_array_layers.div_ceil(4),
             );
-            prepasses_run += 1;
+            run.push(format!("{}/prepass", stack[*i].1.id()));
         }
-        prepasses_run
+        run
     }
 
     /// The most refinement steps of progressive volume passes to run per frame
@@ -2861,7 +2864,7 @@ impl Renderer {
 
         // pre-passes that are out of date, then volume passes
         let dirty = self.dirty_prepasses(p, &p.stack);
-        let prepasses_run = self.encode_prepasses(enc, p, &p.stack, &dirty, &mut stamp);
+        let prepasses = self.encode_prepasses(enc, p, &p.stack, &dirty, &mut stamp);
         let volume_passes_run = self.encode_volume_passes(enc, p, &p.stack, &pass_plan, &mut stamp);
 
         let g1 = self.group1(p);
@@ -3100,7 +3103,8 @@ impl Renderer {
             stats: FrameStats {
                 slices: plan.count,
                 per_slice_mode: per_slice,
-                prepasses_run,
+                prepasses_run: prepasses.len(),
+                prepasses,
                 volume_passes_run,
                 spacing_updates,
                 proxy_share,

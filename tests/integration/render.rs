@@ -262,8 +262,12 @@ fn prepass_fills_every_z_slice_and_reruns_only_when_needed() {
     let mut stack = vec![smooth, instance("classify.tf1d")];
     r.update_stack(&stack, TargetFormat::Rgba16Float).unwrap();
     let s = ortho_axis(16, 16, Backend::Compute);
-    assert_eq!(r.render(&s).unwrap().prepasses_run, 1);
-    assert_eq!(r.render(&s).unwrap().prepasses_run, 0, "nothing changed");
+    let first = r.render(&s).unwrap();
+    assert_eq!(first.prepasses_run, 1);
+    assert_eq!(first.prepasses, ["test.smooth/prepass"]);
+    let again = r.render(&s).unwrap();
+    assert_eq!(again.prepasses_run, 0, "nothing changed");
+    assert!(again.prepasses.is_empty());
     let scalars = vol.normalized_scalars();
     let (pdims, texels) = r.read_prepass(stack[0].uid).unwrap();
     assert_eq!(pdims, dims);

@@ -257,7 +257,9 @@ impl Renderer {
                 .into_iter()
                 .filter(|i| !done.contains(&stack[*i].0))
                 .collect();
-            prepasses_run += self.encode_prepasses(enc, &compiled, stack, &dirty, &mut |_, _| {});
+            prepasses_run += self
+                .encode_prepasses(enc, &compiled, stack, &dirty, &mut |_, _| {})
+                .len();
             done.extend(dirty.iter().map(|i| stack[*i].0));
         }
         let g3 = device.create_bind_group(&wgpu::BindGroupDescriptor {
