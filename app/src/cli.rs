@@ -719,7 +719,7 @@ fn render_sequence(
         let path = animation::frame_path(output, i as u32, count);
         headless::save_png(&img, &path)?;
         if i > 0 {
-            passes += stats.prepasses_run + stats.volume_passes_run.len();
+            passes += stats.prepasses_run() + stats.volume_passes_run.len();
             wall.push(stats.wall_ms);
         }
     }

@@ -31,7 +31,7 @@ use serde::{Deserialize, Serialize};
 use serde_json::json;
 use vwb_render::metrics::{self, Metrics, RgbImageF};
 use vwb_render::params::{ParamKind, ParamValue};
-use vwb_render::plugin::{ConvergedReference, PluginInstance};
+use vwb_render::plugin::{ConvergedReference, PluginInstance, Statistic};
 use vwb_render::preset::{Document, VolumeSource};
 use vwb_render::reference::ReferenceOptions;
 use vwb_render::renderer::Backend;
@@ -553,28 +553,31 @@ fn check_statistic<'a>(st: &str, docs: impl Iterator<Item = &'a Document>) -> Re
 }
 
 /// The statistics of a row: each plugin's figures from its passes' targets after the
-/// row's frames (absent where the plugin is off).
+/// row's frames (absent where the plugin is off). Each plugin reports once per row,
+/// however many of its figures are wanted (each report reads its targets back).
 fn statistics_of(
     wanted: &[String],
     r: &vwb_render::Renderer,
     d: &Document,
     volume_dims: [u32; 3],
 ) -> BTreeMap<String, f64> {
+    let mut reports: HashMap<&str, Vec<Statistic>> = HashMap::new();
     let mut out = BTreeMap::new();
     for st in wanted {
         let (id, name) = st.rsplit_once('.').expect("checked at load");
         let Some(inst) = enabled_instance(d, id) else {
             continue;
         };
-        let read = |target: &str| r.read_pass_target(inst.uid, target);
-        let passes = vwb_render::plugin::PassOutputs {
-            volume_dims,
-            read: &read,
-        };
-        let value = inst
-            .configured()
-            .statistics(&inst.params, &passes)
-            .into_iter()
+        let report = reports.entry(id).or_insert_with(|| {
+            let read = |target: &str| r.read_pass_target(inst.uid, target);
+            let passes = vwb_render::plugin::PassOutputs {
+                volume_dims,
+                read: &read,
+            };
+            inst.configured().statistics(&inst.params, &passes)
+        });
+        let value = report
+            .iter()
             .find(|x| x.name == name)
             .map_or(f64::NAN, |x| x.value);
         out.insert(st.clone(), value);

@@ -33,7 +33,9 @@ use crate::composer::{
 };
 use crate::gpu::GpuContext;
 use crate::params::ParamValues;
-use crate::plugin::{Category, GpuInit, GpuResource, Plugin, PluginError, PluginInstance};
+use crate::plugin::{
+    Category, GpuInit, GpuResource, PassTarget, Plugin, PluginError, PluginInstance,
+};
 use crate::skipping::{BrickRanges, clear_outside_regions, stack_regions, stack_visibility};
 use crate::slicing::{SliceError, SlicePlan, VolumeBox};
 use crate::volume::Volume;
@@ -165,9 +167,7 @@ pub struct FrameStats {
     /// Wall time from encoding to the GPU finishing, in ms.
     pub wall_ms: f64,
     pub per_slice_mode: bool,
-    pub prepasses_run: usize,
-    /// The pre-passes of this frame, labelled `<plugin id>/prepass` (as many as
-    /// `prepasses_run`).
+    /// The pre-passes of this frame, labelled `<plugin id>/prepass`.
     pub prepasses: Vec<String>,
     /// Volume-pass dispatches of this frame, labelled `<plugin id>/<target>`, one per
     /// refinement step ([`crate::plugin::VolumePassDecl`]).
@@ -181,6 +181,13 @@ pub struct FrameStats {
     /// Compute backend with per-slice state: the slice and the state updates ran in one
     /// dispatch per slice ([`Renderer::set_fused_slices`]).
     pub fused_slices: bool,
+}
+
+impl FrameStats {
+    /// How many pre-passes this frame ran.
+    pub fn prepasses_run(&self) -> usize {
+        self.prepasses.len()
+    }
 }
 
 #[repr(C)]
@@ -3103,7 +3110,6 @@ impl Renderer {
             stats: FrameStats {
                 slices: plan.count,
                 per_slice_mode: per_slice,
-                prepasses_run: prepasses.len(),
                 prepasses,
                 volume_passes_run,
                 spacing_updates,
@@ -3118,7 +3124,7 @@ impl Renderer {
     /// done. Returns its statistics without timings.
     fn submitted(&mut self, rec: Recorded) -> FrameStats {
         self.mark_prepasses_done(rec.done);
-        self.counters.prepass_runs += rec.stats.prepasses_run as u64;
+        self.counters.prepass_runs += rec.stats.prepasses_run() as u64;
         self.counters.volume_pass_runs += rec.stats.volume_passes_run.len() as u64;
         rec.stats
     }
@@ -3233,7 +3239,7 @@ impl Renderer {
 
     /// Reads a pre-pass target of the instance `uid` (for tests): texels as f32 RGBA.
     /// None for a split volume (each brick has its own).
-    pub fn read_prepass(&self, uid: u64) -> Option<([u32; 3], Vec<f32>)> {
+    pub fn read_prepass(&self, uid: u64) -> Option<PassTarget> {
         let g = self.instances.get(&uid)?;
         let (tex, _) = g.prepass_target.as_ref()?;
         read_texels_3d(&self.gpu, tex)
@@ -3243,7 +3249,7 @@ impl Renderer {
     /// ([`crate::plugin::VolumePassDecl::target`]) as it stands after the last frame:
     /// its size and its texels' f32 components (x fastest). None when the instance has
     /// no such pass, or for a split volume (each brick has its own).
-    pub fn read_pass_target(&self, uid: u64, target: &str) -> Option<([u32; 3], Vec<f32>)> {
+    pub fn read_pass_target(&self, uid: u64, target: &str) -> Option<PassTarget> {
         let g = self.instances.get(&uid)?;
         let (_, plugin) = self
             .pipelines
@@ -3261,7 +3267,7 @@ impl Renderer {
 }
 
 /// A 3D storage target's texels as f32 components (32-bit formats), x fastest.
-fn read_texels_3d(gpu: &GpuContext, tex: &wgpu::Texture) -> Option<([u32; 3], Vec<f32>)> {
+fn read_texels_3d(gpu: &GpuContext, tex: &wgpu::Texture) -> Option<PassTarget> {
     let bpp = tex.format().block_copy_size(None)?;
     let s = tex.size();
     let bytes = read_texture(gpu, tex, bpp);

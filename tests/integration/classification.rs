@@ -73,17 +73,17 @@ fn preclassification_prepass_reruns_only_for_a_new_tf() {
     let mut r = Renderer::new(gpu(), demo()).unwrap();
     let mut stack = vec![tf1d("pre", sharp())];
     r.update_stack(&stack, TargetFormat::Rgba32Float).unwrap();
-    assert_eq!(r.render(&at(1.0)).unwrap().prepasses_run, 1);
-    assert_eq!(r.render(&at(2.0)).unwrap().prepasses_run, 0);
+    assert_eq!(r.render(&at(1.0)).unwrap().prepasses_run(), 1);
+    assert_eq!(r.render(&at(2.0)).unwrap().prepasses_run(), 0);
     // the opacity scale is applied after interpolation: no pre-pass
     stack[0].params.set("opacity", ParamValue::Float(0.5));
     r.update_stack(&stack, TargetFormat::Rgba32Float).unwrap();
-    assert_eq!(r.render(&at(1.0)).unwrap().prepasses_run, 0);
+    assert_eq!(r.render(&at(1.0)).unwrap().prepasses_run(), 0);
     let mut curve = sharp();
     curve.primitives[0].height = 0.5;
     stack[0].params.set("tf", ParamValue::Tf(curve));
     r.update_stack(&stack, TargetFormat::Rgba32Float).unwrap();
-    assert_eq!(r.render(&at(1.0)).unwrap().prepasses_run, 1);
+    assert_eq!(r.render(&at(1.0)).unwrap().prepasses_run(), 1);
     // memory: the classified RGBA volume is counted for the plugin
     let mem: u64 = r.plugin_memory().iter().map(|m| m.2).sum();
     let voxels = demo().dims.iter().map(|&d| d as u64).product::<u64>();
@@ -250,11 +250,11 @@ fn tf2d_gradient_estimators_agree_and_the_prepass_runs_once() {
     let mut r = Renderer::new(gpu(), demo()).unwrap();
     r.update_stack(&[pre.clone()], TargetFormat::Rgba32Float)
         .unwrap();
-    assert_eq!(r.render(&at(1.0)).unwrap().prepasses_run, 1);
+    assert_eq!(r.render(&at(1.0)).unwrap().prepasses_run(), 1);
     let precomputed = r.read_pixels().unwrap().2;
     pre.params.set("gradient_scale", ParamValue::Float(2.0));
     r.update_stack(&[pre], TargetFormat::Rgba32Float).unwrap();
-    assert_eq!(r.render(&at(1.0)).unwrap().prepasses_run, 0);
+    assert_eq!(r.render(&at(1.0)).unwrap().prepasses_run(), 0);
     let mut r2 = Renderer::new(gpu(), demo()).unwrap();
     let central = render(
         &mut r2,

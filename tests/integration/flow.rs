@@ -585,9 +585,9 @@ fn prepass_once(
     r.update_stack(&stack, TargetFormat::Rgba32Float).unwrap();
     let s = settings(32, 32, Backend::Compute);
     let first = r.render(&s).unwrap();
-    assert_eq!(first.prepasses_run, 1);
+    assert_eq!(first.prepasses_run(), 1);
     let second = r.render(&s).unwrap();
-    assert_eq!(second.prepasses_run, 0);
+    assert_eq!(second.prepasses_run(), 0);
     let ms = first.wall_ms - second.wall_ms;
     (r, s, first, ms)
 }
@@ -641,7 +641,7 @@ fn rerun_median_ms(
             r.update_stack(&stack_at(k), TargetFormat::Rgba32Float)
                 .unwrap();
             let st = r.render(s).unwrap();
-            assert_eq!(st.prepasses_run, 1);
+            assert_eq!(st.prepasses_run(), 1);
             stamped_ms(&st, |l| l.starts_with("prepass"))
         })
         .collect();
@@ -844,7 +844,7 @@ fn arrival_study(o: &mut String) {
         for f in 0..8 {
             let t = 8.0 * (f + 1) as f32;
             let st = timed(&mut r, t);
-            reruns += st.prepasses_run;
+            reruns += st.prepasses_run();
             moving.push(quoted_ms(st.wall_ms, st.gpu_ms));
             let still = timed(&mut r, t);
             statics.push(quoted_ms(still.wall_ms, still.gpu_ms));
@@ -960,7 +960,7 @@ fn lic_prepass_matches_its_twin() {
     let mut stack = vec![lic.clone(), instance("classify.tf1d")];
     let runs = |r: &mut Renderer, stack: &[vwb_render::PluginInstance], s| {
         r.update_stack(stack, TargetFormat::Rgba32Float).unwrap();
-        r.render(s).unwrap().prepasses_run
+        r.render(s).unwrap().prepasses_run()
     };
     assert_eq!(runs(&mut r, &stack, &s), 1);
     let mut moved = s;
@@ -1028,7 +1028,7 @@ fn lic_on_the_fly_matches_its_twin_without_a_prepass() {
         let runs = r
             .render(&settings(32, 32, Backend::Compute))
             .unwrap()
-            .prepasses_run;
+            .prepasses_run();
         (runs, plugin_bytes(&r, stack[0].uid))
     };
     // the kernel's phase animates on the fly without recomputing anything; precomputed,
@@ -1048,7 +1048,7 @@ fn lic_on_the_fly_matches_its_twin_without_a_prepass() {
             r.update_stack(&st, TargetFormat::Rgba32Float).unwrap();
             let stats = r.render(&s).unwrap();
             if phase > 0.0 {
-                assert_eq!(stats.prepasses_run, reruns, "{mode}");
+                assert_eq!(stats.prepasses_run(), reruns, "{mode}");
                 assert!(stats.volume_passes_run.is_empty(), "{mode}");
             }
             frames.push(r.read_pixels().unwrap().2);
@@ -1224,7 +1224,7 @@ fn arrival_volume_matches_its_twin_and_the_time_plays_without_a_prepass() {
         r.update_stack(&[a, instance("classify.tf1d")], TargetFormat::Rgba32Float)
             .unwrap();
         let st = r.render(&s).unwrap();
-        assert_eq!(st.prepasses_run, 0, "time {t} reran the pre-pass");
+        assert_eq!(st.prepasses_run(), 0, "time {t} reran the pre-pass");
         let c = covered(&r.read_pixels().unwrap().2);
         eprintln!("flow.arrival time {t}: {:.1} % covered", c * 100.0);
         assert!(c > last, "frame {frame}: {c} after {last}");
@@ -1240,5 +1240,5 @@ fn arrival_volume_matches_its_twin_and_the_time_plays_without_a_prepass() {
         TargetFormat::Rgba32Float,
     )
     .unwrap();
-    assert_eq!(r.render(&s).unwrap().prepasses_run, 1);
+    assert_eq!(r.render(&s).unwrap().prepasses_run(), 1);
 }

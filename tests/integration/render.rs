@@ -263,10 +263,10 @@ fn prepass_fills_every_z_slice_and_reruns_only_when_needed() {
     r.update_stack(&stack, TargetFormat::Rgba16Float).unwrap();
     let s = ortho_axis(16, 16, Backend::Compute);
     let first = r.render(&s).unwrap();
-    assert_eq!(first.prepasses_run, 1);
+    assert_eq!(first.prepasses_run(), 1);
     assert_eq!(first.prepasses, ["test.smooth/prepass"]);
     let again = r.render(&s).unwrap();
-    assert_eq!(again.prepasses_run, 0, "nothing changed");
+    assert_eq!(again.prepasses_run(), 0, "nothing changed");
     assert!(again.prepasses.is_empty());
     let scalars = vol.normalized_scalars();
     let (pdims, texels) = r.read_prepass(stack[0].uid).unwrap();
@@ -281,11 +281,11 @@ fn prepass_fills_every_z_slice_and_reruns_only_when_needed() {
     // `amount` is not a pre-pass input
     stack[0].params.set("amount", ParamValue::Float(0.5));
     r.update_stack(&stack, TargetFormat::Rgba16Float).unwrap();
-    assert_eq!(r.render(&s).unwrap().prepasses_run, 0);
+    assert_eq!(r.render(&s).unwrap().prepasses_run(), 0);
     // `radius` is
     stack[0].params.set("radius", ParamValue::Int(1));
     r.update_stack(&stack, TargetFormat::Rgba16Float).unwrap();
-    assert_eq!(r.render(&s).unwrap().prepasses_run, 1);
+    assert_eq!(r.render(&s).unwrap().prepasses_run(), 1);
     let (_, texels) = r.read_prepass(stack[0].uid).unwrap();
     let twin = SmoothTwin {
         radius: 1,

@@ -131,11 +131,11 @@ fn gradient_prepass_runs_once_per_volume() {
     let s = settings(32, 32, Backend::Compute);
     let mut st = stack("shade.blinn_phong", GradientEstimator::PrecomputedSobel);
     r.update_stack(&st, TargetFormat::Rgba32Float).unwrap();
-    assert_eq!(r.render(&s).unwrap().prepasses_run, 1);
-    assert_eq!(r.render(&s).unwrap().prepasses_run, 0);
+    assert_eq!(r.render(&s).unwrap().prepasses_run(), 1);
+    assert_eq!(r.render(&s).unwrap().prepasses_run(), 0);
     st[1].params.set("ks", ParamValue::Float(0.9));
     r.update_stack(&st, TargetFormat::Rgba32Float).unwrap();
-    assert_eq!(r.render(&s).unwrap().prepasses_run, 0);
+    assert_eq!(r.render(&s).unwrap().prepasses_run(), 0);
     // its memory is reported: 8 bytes per voxel
     let mem = r.plugin_memory();
     let d = demo().dims;
@@ -260,7 +260,7 @@ fn lighting_table_rebakes_only_for_lights_and_material() {
     s.camera.yaw_deg += 40.0;
     st[1].params.set("gm_scale", ParamValue::Float(3.0));
     r.update_stack(&st, TargetFormat::Rgba32Float).unwrap();
-    assert_eq!(r.render(&s).unwrap().prepasses_run, 0);
+    assert_eq!(r.render(&s).unwrap().prepasses_run(), 0);
     assert_eq!(table::bakes() - before, 1, "not baked for a camera move");
     // the material and a light: baked again
     st[1].params.set("ks", ParamValue::Float(0.8));

@@ -859,7 +859,6 @@ impl Renderer {
             let st = split.children[i].renderer.submitted(rec);
             stats.per_slice_mode |= st.per_slice_mode;
             stats.fused_slices |= st.fused_slices;
-            stats.prepasses_run += st.prepasses_run;
             stats.prepasses.extend(st.prepasses);
             stats.spacing_updates += st.spacing_updates;
             stats.volume_passes_run.extend(st.volume_passes_run);
