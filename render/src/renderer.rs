@@ -518,6 +518,41 @@ struct CompiledPass {
     binding: u32,
 }
 
+/// The pixels [x0, y0, x1, y1) of a `size` frame that the box `b` can cover: its
+/// projected corners with one pixel of margin, the whole frame when a corner lies
+/// behind the eye.
+fn box_footprint(b: &VolumeBox, view: &crate::camera::View, size: [u32; 2]) -> [u32; 4] {
+    let full = [0, 0, size[0], size[1]];
+    let vp = view.view_proj();
+    let (mut lo, mut hi) = (
+        glam::Vec2::splat(f32::INFINITY),
+        glam::Vec2::splat(f32::NEG_INFINITY),
+    );
+    for c in b.corners() {
+        let clip = vp * c.extend(1.0);
+        if clip.w.is_nan() || clip.w <= 1.0e-6 {
+            return full;
+        }
+        let ndc = glam::Vec2::new(clip.x, clip.y) / clip.w;
+        let px = glam::Vec2::new(
+            (ndc.x * 0.5 + 0.5) * size[0] as f32,
+            (0.5 - ndc.y * 0.5) * size[1] as f32,
+        );
+        lo = lo.min(px);
+        hi = hi.max(px);
+    }
+    if !(lo.is_finite() && hi.is_finite()) {
+        return full;
+    }
+    let clamp = |v: f32, n: u32| v.clamp(0.0, n as f32) as u32;
+    [
+        clamp(lo.x.floor() - 1.0, size[0]),
+        clamp(lo.y.floor() - 1.0, size[1]),
+        clamp(hi.x.ceil() + 1.0, size[0]),
+        clamp(hi.y.ceil() + 1.0, size[1]),
+    ]
+}
+
 /// `frame.ray_basis` (shaders/common.wgsl), in f64 and then rounded: columns 0 and 1
 /// step one NDC unit right and up (at unit depth for perspective), column 2 is the view
 /// direction (perspective: the direction at the centre), column 3 the eye.
@@ -2333,42 +2368,44 @@ impl Renderer {
             .collect()
     }
 
-    /// The pixels [x0, y0, x1, y1) this renderer's samples can cover in a `size` frame:
-    /// the whole frame, or for a brick its own box's projected corners (one pixel of
-    /// margin; the whole frame when a corner lies behind the eye).
-    pub(super) fn pixel_rect(&self, view: &crate::camera::View, size: [u32; 2]) -> [u32; 4] {
-        let full = [0, 0, size[0], size[1]];
-        let Some(region) = &self.region else {
-            return full;
+    /// The part of a brick's own box where a sample can be visible: with empty-space
+    /// skipping, the own box cut to the bounding box of its occupied bricks
+    /// ([`crate::skipping::occupied_bounds`]), `None` when nothing in it can be visible;
+    /// without, the own box.
+    fn visible_box(&self) -> Option<VolumeBox> {
+        let own = self.own_box().0;
+        let Some(occupancy) = &self.occupancy_bytes else {
+            return Some(own);
         };
-        let vp = view.view_proj();
-        let (mut lo, mut hi) = (
-            glam::Vec2::splat(f32::INFINITY),
-            glam::Vec2::splat(f32::NEG_INFINITY),
-        );
-        for c in region.own.corners() {
-            let clip = vp * c.extend(1.0);
-            if clip.w.is_nan() || clip.w <= 1.0e-6 {
-                return full;
-            }
-            let ndc = glam::Vec2::new(clip.x, clip.y) / clip.w;
-            let px = glam::Vec2::new(
-                (ndc.x * 0.5 + 0.5) * size[0] as f32,
-                (0.5 - ndc.y * 0.5) * size[1] as f32,
-            );
-            lo = lo.min(px);
-            hi = hi.max(px);
+        let r = crate::skipping::occupied_bounds(occupancy, self.bricks.dims, self.volume.dims)?;
+        let b = bricks::sub_box(&self.vbox, self.volume.dims, r);
+        let (min, max) = (b.min.max(own.min), b.max.min(own.max));
+        min.cmplt(max)
+            .all()
+            .then_some(VolumeBox { min, max, ..own })
+    }
+
+    /// The pixels [x0, y0, x1, y1) this renderer's samples can cover in a `size` frame:
+    /// the whole frame, or for a brick the footprint of the part of its own box that can
+    /// be visible ([`Renderer::visible_box`]; no pixel when nothing can be visible).
+    pub(super) fn pixel_rect(&self, view: &crate::camera::View, size: [u32; 2]) -> [u32; 4] {
+        if self.region.is_none() {
+            return [0, 0, size[0], size[1]];
         }
-        if !(lo.is_finite() && hi.is_finite()) {
-            return full;
+        match self.visible_box() {
+            Some(visible) => box_footprint(&visible, view, size),
+            None => [0; 4],
         }
-        let clamp = |v: f32, n: u32| v.clamp(0.0, n as f32) as u32;
-        [
-            clamp(lo.x.floor() - 1.0, size[0]),
-            clamp(lo.y.floor() - 1.0, size[1]),
-            clamp(hi.x.ceil() + 1.0, size[0]),
-            clamp(hi.y.ceil() + 1.0, size[1]),
-        ]
+    }
+
+    /// The footprint of a brick's whole own box (the whole frame for a whole volume):
+    /// what the refinement of bricks in view weighs, since a coarser level can hide
+    /// what its finer level would show.
+    pub(super) fn own_pixel_rect(&self, view: &crate::camera::View, size: [u32; 2]) -> [u32; 4] {
+        match &self.region {
+            Some(r) => box_footprint(&r.own, view, size),
+            None => [0, 0, size[0], size[1]],
+        }
     }
 
     /// The box the slice lattice is planned on: the whole volume's, also for a brick,
@@ -2930,6 +2967,9 @@ impl Renderer {
             (rect[2] - rect[0]).div_ceil(mx),
             (rect[3] - rect[1]).div_ceil(my),
         );
+        // a brick's raster passes shade its footprint only (the composite reads no other)
+        let scissor = (self.region.is_some() && rect[2] > rect[0] && rect[3] > rect[1])
+            .then(|| [rect[0], rect[1], rect[2] - rect[0], rect[3] - rect[1]]);
         let run_updates = |enc: &mut wgpu::CommandEncoder, k: u32| {
             let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
                 label: Some("vwb state update"),
@@ -2988,6 +3028,9 @@ impl Renderer {
                     for k in 0..plan.count {
                         if let Some(&(_, a, b)) = slice_ranges.iter().find(|r| r.0 == k) {
                             let mut pass = begin(enc, false);
+                            if let Some([x, y, w, h]) = scissor {
+                                pass.set_scissor_rect(x, y, w, h);
+                            }
                             pass.set_pipeline(raster);
                             pass.set_bind_group(0, &self.g0, &[0]);
                             pass.set_bind_group(1, &g1, &[]);
@@ -3015,6 +3058,9 @@ impl Renderer {
                         let a = in_run.clone().map(|s| s.1).min();
                         let b = in_run.map(|s| s.2).max();
                         let mut pass = begin(enc, r == 0);
+                        if let Some([x, y, w, h]) = scissor {
+                            pass.set_scissor_rect(x, y, w, h);
+                        }
                         pass.set_pipeline(raster);
                         pass.set_bind_group(0, &self.g0, &[0]);
                         pass.set_bind_group(1, &g1, &[]);

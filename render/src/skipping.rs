@@ -147,6 +147,47 @@ pub fn proxy_cell() -> u32 {
     crate::renderer::env_count("VWB_RASTER_PROXY_CELL", PROXY_CELL)
 }
 
+/// Index of brick `b` in an occupancy of `bdims` bricks (x fastest).
+fn brick_index(b: [u32; 3], bdims: [u32; 3]) -> usize {
+    ((b[2] * bdims[1] + b[1]) * bdims[0] + b[0]) as usize
+}
+
+/// Every brick of a grid of `bdims` bricks, x fastest.
+fn bricks_of(bdims: [u32; 3]) -> impl Iterator<Item = [u32; 3]> {
+    (0..bdims[2])
+        .flat_map(move |z| (0..bdims[1]).flat_map(move |y| (0..bdims[0]).map(move |x| [x, y, z])))
+}
+
+/// The bounding box of the occupied bricks, [lo, hi) in bricks; `None` when none is.
+fn occupied_brick_bounds(occupancy: &[u8], bdims: [u32; 3]) -> Option<[[u32; 3]; 2]> {
+    let (mut lo, mut hi) = ([u32::MAX; 3], [0u32; 3]);
+    for b in bricks_of(bdims).filter(|&b| {
+        occupancy
+            .get(brick_index(b, bdims))
+            .is_some_and(|&v| v != 0)
+    }) {
+        for a in 0..3 {
+            lo[a] = lo[a].min(b[a]);
+            hi[a] = hi[a].max(b[a] + 1);
+        }
+    }
+    (lo[0] != u32::MAX).then_some([lo, hi])
+}
+
+/// The voxels ([start, end) per axis) of a volume of `dims` voxels where a sample can be
+/// visible: the bounding box of its occupied bricks (`bdims` bricks, x fastest), `None`
+/// when no brick is occupied. A brick renderer of a split volume draws and composites
+/// only this box's footprint, and nothing when it is `None`.
+pub fn occupied_bounds(occupancy: &[u8], bdims: [u32; 3], dims: [u32; 3]) -> Option<[[u32; 2]; 3]> {
+    let [lo, hi] = occupied_brick_bounds(occupancy, bdims)?;
+    Some(std::array::from_fn(|a| {
+        [
+            (lo[a] * brick()).min(dims[a]),
+            (hi[a] * brick()).min(dims[a]),
+        ]
+    }))
+}
+
 /// The occupied parts of a volume of `dims` voxels, as boxes of whole voxels
 /// ([start, end) per axis). The bounding box of the occupied bricks (`bdims` bricks,
 /// x fastest, a nonzero `occupancy` byte per brick that can be visible) is cut into
@@ -162,27 +203,17 @@ pub fn occupied_cells(
     cell: u32,
 ) -> Vec<[[u32; 2]; 3]> {
     let cell = cell.max(1);
-    let index = |b: [u32; 3]| ((b[2] * bdims[1] + b[1]) * bdims[0] + b[0]) as usize;
-    let occupied = |b: [u32; 3]| occupancy.get(index(b)).is_some_and(|&v| v != 0);
-    let bricks = || {
-        (0..bdims[2]).flat_map(move |z| {
-            (0..bdims[1]).flat_map(move |y| (0..bdims[0]).map(move |x| [x, y, z]))
-        })
+    let occupied = |b: [u32; 3]| {
+        occupancy
+            .get(brick_index(b, bdims))
+            .is_some_and(|&v| v != 0)
     };
-    // the bounding box of the occupied bricks, [lo, hi) in bricks
-    let (mut lo, mut hi) = ([u32::MAX; 3], [0u32; 3]);
-    for b in bricks().filter(|&b| occupied(b)) {
-        for a in 0..3 {
-            lo[a] = lo[a].min(b[a]);
-            hi[a] = hi[a].max(b[a] + 1);
-        }
-    }
-    if lo[0] == u32::MAX {
+    let Some([lo, hi]) = occupied_brick_bounds(occupancy, bdims) else {
         return Vec::new();
-    }
+    };
     let cells: [u32; 3] = std::array::from_fn(|a| (hi[a] - lo[a]).div_ceil(cell));
     let mut keep = vec![false; (cells[0] * cells[1] * cells[2]) as usize];
-    for b in bricks().filter(|&b| occupied(b)) {
+    for b in bricks_of(bdims).filter(|&b| occupied(b)) {
         let c: [u32; 3] = std::array::from_fn(|a| (b[a] - lo[a]) / cell);
         keep[((c[2] * cells[1] + c[1]) * cells[0] + c[0]) as usize] = true;
     }

@@ -311,7 +311,7 @@ impl Renderer {
             .children
             .iter()
             .map(|c| {
-                let r = c.renderer.pixel_rect(view, size);
+                let r = c.renderer.own_pixel_rect(view, size);
                 if r[2] <= r[0] || r[3] <= r[1] {
                     return 0.0;
                 }
