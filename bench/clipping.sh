@@ -1,13 +1,16 @@
 #!/usr/bin/env bash
-# Clipping figures (clip.shapes): the DOS consistency gate, shading at the cut and GPU
-# against twin per mode (the benchmark), then the overhead of 1, 4 and 16 planes and
-# the speed-up from skipping clipped bricks (the experiment files clip_planes.ron and
-# clip_skipping.ron, into their blocks); writes docs/clipping.md; and the clip.mesh
-# figures (docs/clip_mesh.md, its accuracy against the analytic sphere from
-# clip_mesh_accuracy.ron). On the CPU Vulkan device (lavapipe, 2 threads) unless
+# Clipping figures, from experiment files into their blocks: docs/clipping.md
+# (clip.shapes: the DOS consistency gate, also with a box mesh, clip_dos; a cut through
+# matter and shading at the cut against the cropped phantom, clip_cut; GPU against twin
+# per mode, clip_twin; the overhead of 1, 4 and 16 planes, clip_planes; skipping
+# clipped bricks, clip_skipping) and docs/clip_mesh.md (clip.mesh: GPU against twin,
+# clip_mesh_twin; frame cost and skipping, clip_mesh_cost; the voxelised sphere against
+# the analytic one, clip_mesh_accuracy); then the mesh pass's section of
+# docs/clip_mesh.md (voxelisation time, reruns while orbiting: the ignored test
+# clip_mesh_benchmark). On the CPU Vulkan device (lavapipe, 2 threads) unless
 # VWB_TEST_GPU=1.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-bash bench/ignored_test.sh clipping_benchmark
+bash bench/experiments.sh clip_dos clip_cut clip_twin clip_planes clip_skipping \
+    clip_mesh_twin clip_mesh_cost clip_mesh_accuracy
 bash bench/ignored_test.sh clip_mesh_benchmark
-bash bench/experiments.sh clip_planes clip_skipping clip_mesh_accuracy

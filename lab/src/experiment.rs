@@ -127,7 +127,8 @@ pub struct Variant {
     /// frame), `render.backend` (raster, compute), `render.target`,
     /// `render.early_termination`, `render.skipping` (true, false),
     /// `render.occupied_proxy` (true, false),
-    /// `render.volume_format` (auto, r32float, r16float, r16unorm).
+    /// `render.volume_format` (auto, r32float, r16float, r16unorm), `camera.yaw_deg`,
+    /// `camera.pitch_deg`, `camera.distance`.
     #[serde(default)]
     pub set: BTreeMap<String, SetValue>,
     /// (from, to): the first instance of plugin `from` is replaced by plugin `to` with
@@ -144,6 +145,25 @@ pub struct Variant {
     /// another variant's converged reference, or against a plugin-free variant).
     #[serde(default)]
     pub reference: Option<ReferenceSpec>,
+    /// The scene's volume physically cropped to these voxels, every other voxel
+    /// removed ([`Volume::cropped`]): what a clipped variant is compared with
+    /// (`reference: TwinOf("cropped")`), e.g. `crop: (from: (0, 0, 15), to: (32, 32, 32))`.
+    #[serde(default)]
+    pub crop: Option<Crop>,
+}
+
+/// The voxels `from ≤ (x, y, z) < to` a variant keeps of its scene's volume.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Crop {
+    pub from: [u32; 3],
+    pub to: [u32; 3],
+}
+
+impl Crop {
+    fn keep(&self) -> [[u32; 2]; 3] {
+        std::array::from_fn(|a| [self.from[a], self.to[a]])
+    }
 }
 
 /// A value in a variant's `set`: checked against the parameter's spec.
@@ -161,7 +181,8 @@ pub enum SetValue {
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct GridAxis {
-    /// `render.slice_spacing` or `<plugin id>.<key>` (a float or int parameter).
+    /// `render.slice_spacing`, `camera.yaw_deg`, `camera.pitch_deg`, `camera.distance`
+    /// or `<plugin id>.<key>` (a float or int parameter).
     pub param: String,
     #[serde(default)]
     pub values: Option<Vec<f64>>,
@@ -181,6 +202,9 @@ pub enum ReferenceSpec {
     ConvergedOf(String),
     /// The CPU twin renderer with the same slices.
     Twin,
+    /// The named variant's CPU twin image at the same grid point (its stack and volume,
+    /// e.g. the physically cropped data a clipped variant must reproduce).
+    TwinOf(String),
     /// The named variant's GPU image at the same grid point.
     Variant(String),
     /// The illumination ground truth of the scene: single scattering of a directional
@@ -459,7 +483,11 @@ pub fn parse(text: &str, path: &Path) -> Result<Experiment> {
     for (owner, spec) in specs {
         let whose = owner.map_or_else(String::new, |v| format!(" of variant '{v}'"));
         match spec {
-            ReferenceSpec::ConvergedOf(n) | ReferenceSpec::Variant(n) if !named(n) => {
+            ReferenceSpec::ConvergedOf(n)
+            | ReferenceSpec::Variant(n)
+            | ReferenceSpec::TwinOf(n)
+                if !named(n) =>
+            {
                 bail!(
                     "{file}: the reference{whose} names variant '{n}', which the experiment does not declare"
                 )
@@ -857,6 +885,11 @@ pub fn set_value(doc: &mut Document, key: &str, value: &SetValue) -> Result<()> 
         "render.slices" => {
             bail!("'{key}' depends on the scene's volume; it is set in an experiment's variants")
         }
+        "camera.yaw_deg" | "camera.pitch_deg" | "camera.distance" => {
+            let v = num("degrees, or world units for the distance")?;
+            let k = measure::CameraKey::parse(key).expect("matched");
+            k.set(doc, v).map_err(|e| anyhow!("'{key}': {e}"))?;
+        }
         "render.backend" => doc.render.backend = parse_backend(text()?).map_err(|e| anyhow!(e))?,
         "render.skipping" => match value {
             SetValue::Bool(on) => doc.render.empty_space_skipping = *on,
@@ -1136,12 +1169,22 @@ pub fn run(
                         sc.name
                     )
                 })?;
-            headless::preflight(None, &d, &sc.volume)
+            let volume = match &v.crop {
+                Some(c) => Arc::new(sc.volume.cropped(c.keep()).map_err(|err| {
+                    anyhow!(
+                        "{fname}: variant '{}' on scene '{}': crop: {err}",
+                        v.name,
+                        sc.name
+                    )
+                })?),
+                None => sc.volume.clone(),
+            };
+            headless::preflight(None, &d, &volume)
                 .map_err(|err| anyhow!("{fname}: scene '{}': {err}", sc.name))?;
-            docs.push((v, d, axes));
+            docs.push((v, d, axes, volume));
         }
         for st in &e.statistics {
-            check_statistic(st, docs.iter().map(|(_, d, _)| d))
+            check_statistic(st, docs.iter().map(|(_, d, _, _)| d))
                 .map_err(|err| anyhow!("{fname}: scene '{}': statistic '{st}': {err}", sc.name))?;
         }
         let points = measure::grid(&docs[0].2);
@@ -1154,12 +1197,17 @@ pub fn run(
         };
         let find = |name: &str| {
             docs.iter()
-                .find(|(v, _, _)| v.name == name)
+                .find(|(v, _, _, _)| v.name == name)
                 .expect("checked at load")
         };
+        // the key of a scene's volume as a variant crops it
+        let scene_key = |v: &Variant| match &v.crop {
+            Some(c) => format!("{} cropped to {:?}", sc.name, c.keep()),
+            None => sc.name.clone(),
+        };
         let first_row = rows.len();
-        for (v, vdoc, axes) in &docs {
-            let mut r = headless::renderer_for(gpu, vdoc, sc.volume.clone())
+        for (v, vdoc, axes, volume) in &docs {
+            let mut r = headless::renderer_for(gpu, vdoc, volume.clone())
                 .with_context(|| format!("{fname}: variant '{}' on scene '{}'", v.name, sc.name))?;
             for values in &points {
                 let d = at(vdoc, axes, values);
@@ -1171,20 +1219,20 @@ pub fn run(
                 let update_ms = (first.wall_ms - timing.wall_ms.median).max(0.0);
                 let img = measure::gpu_image(&r, &d)?;
                 let memory: u64 = r.plugin_memory().iter().map(|(_, _, b)| b).sum();
-                let statistics = statistics_of(&e.statistics, &r, &d, sc.volume.dims);
+                let statistics = statistics_of(&e.statistics, &r, &d, volume.dims);
                 let spec = v.reference.as_ref().unwrap_or(&e.reference);
                 let reference = match spec {
                     ReferenceSpec::Converged | ReferenceSpec::ConvergedOf(_) => {
-                        let rd = match spec {
+                        let (rd, rv, rvol) = match spec {
                             ReferenceSpec::ConvergedOf(n) => {
-                                let (_, od, oa) = find(n);
-                                at(od, oa, values)
+                                let (ov, od, oa, ovol) = find(n);
+                                (at(od, oa, values), *ov, ovol)
                             }
-                            _ => d.clone(),
+                            _ => (d.clone(), *v, volume),
                         };
                         let supplier = measure::configured_supplier(&rd, &e.reference_options)
                             .map_err(|err| anyhow!("{fname}: reference_options: {err}"))?;
-                        let key = reference_key(&sc.name, &rd, supplier.as_deref());
+                        let key = reference_key(&scene_key(rv), &rd, supplier.as_deref());
                         if let Some((i, _)) = converged.get(&key) {
                             Some(*i)
                         } else {
@@ -1210,7 +1258,7 @@ pub fn run(
                                 what: &what,
                             });
                             let (img, mut info) = measure::converged_image_by(
-                                &sc.volume,
+                                rvol,
                                 &rd,
                                 supplier,
                                 &rd.frame_settings(),
@@ -1231,7 +1279,7 @@ pub fn run(
                         }
                     }
                     ReferenceSpec::SingleScattering(spec) => {
-                        let key = format!("{}|single_scattering|{values:?}", sc.name);
+                        let key = format!("{}|single_scattering|{values:?}", scene_key(v));
                         if let Some((i, _)) = converged.get(&key) {
                             Some(*i)
                         } else {
@@ -1252,7 +1300,7 @@ pub fn run(
                                 ..Default::default()
                             };
                             let g = vwb_render::reference::render_single_scattering(
-                                &sc.volume, &d.stack, &s, &opts,
+                                volume, &d.stack, &s, &opts,
                             )?;
                             let over = |px: &[[f64; 4]]| {
                                 metrics::RgbImageF::from_rgba_premultiplied_over(
@@ -1265,7 +1313,7 @@ pub fn run(
                             let img = over(&g.image.pixels);
                             // the noise floor: an independent run with the next seed
                             let second = vwb_render::reference::render_single_scattering(
-                                &sc.volume,
+                                volume,
                                 &d.stack,
                                 &s,
                                 &vwb_render::reference::ScatteringOptions {
@@ -1301,11 +1349,18 @@ pub fn run(
                             Some(i)
                         }
                     }
-                    ReferenceSpec::Twin => {
+                    ReferenceSpec::Twin | ReferenceSpec::TwinOf(_) => {
                         let i = references.len();
-                        let img = measure::twin_image(&sc.volume, &d, &s)?;
+                        let (whose, img) = match spec {
+                            ReferenceSpec::TwinOf(n) => {
+                                let (_, od, oa, ovol) = find(n);
+                                let o = at(od, oa, values);
+                                (n, measure::twin_image(ovol, &o, &o.frame_settings())?)
+                            }
+                            _ => (&v.name, measure::twin_image(volume, &d, &s)?),
+                        };
                         references.push(json!({
-                            "scene": sc.name, "kind": "twin", "variant": v.name, "values": values,
+                            "scene": sc.name, "kind": "twin", "variant": whose, "values": values,
                             "image": format!("images/reference_{i:02}.png"),
                         }));
                         headless::save_png(
@@ -1318,9 +1373,9 @@ pub fn run(
                     ReferenceSpec::Variant(n) => {
                         let key = image_key(&sc.name, n, values);
                         if !gpu_images.contains_key(&key) {
-                            let (_, od, oa) = find(n);
+                            let (_, od, oa, ovol) = find(n);
                             let o = at(od, oa, values);
-                            let mut r2 = headless::renderer_for(gpu, &o, sc.volume.clone())?;
+                            let mut r2 = headless::renderer_for(gpu, &o, ovol.clone())?;
                             r2.render(&o.frame_settings())?;
                             gpu_images.insert(key.clone(), measure::gpu_image(&r2, &o)?);
                         }
@@ -1536,6 +1591,9 @@ fn markdown(e: &Experiment, file: &Path, gpu: &GpuContext, o: &Outcome) -> Strin
             Some(format!("variant `{n}`'s GPU image at the same grid point"))
         }
         ReferenceSpec::ConvergedOf(n) => Some(format!("the converged reference of variant `{n}`")),
+        ReferenceSpec::TwinOf(n) => Some(format!(
+            "variant `{n}`'s CPU twin (f64) image at the same grid point"
+        )),
         ReferenceSpec::TimeOnly => Some("none (timed only)".to_string()),
         _ => None,
     };
@@ -1543,6 +1601,14 @@ fn markdown(e: &Experiment, file: &Path, gpu: &GpuContext, o: &Outcome) -> Strin
         let _ = writeln!(s, "- Reference: {d}.");
     }
     for v in &e.variants {
+        if let Some(c) = &v.crop {
+            let _ = writeln!(
+                s,
+                "- Variant `{}` renders its scene's volume physically cropped to the voxels \
+                 {:?}..{:?} (the others removed, the value range kept).",
+                v.name, c.from, c.to
+            );
+        }
         if v.reference == Some(ReferenceSpec::TimeOnly) {
             let _ = writeln!(s, "- Variant `{}` is timed only (no reference).", v.name);
         } else if let Some(spec) = &v.reference {

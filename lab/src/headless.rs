@@ -26,6 +26,7 @@ pub fn load_volume_within(src: &VolumeSource, budget: Option<u64>) -> Result<Arc
             load_volume_file_within(&vwb_render::samples::resolve(name)?, budget)?
         }
         VolumeSource::Analytic(a) => a.volume().map_err(anyhow::Error::msg)?,
+        VolumeSource::Phantom(p) => p.volume().map_err(anyhow::Error::msg)?,
     }))
 }
 

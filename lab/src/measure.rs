@@ -784,6 +784,8 @@ pub struct Axis {
 #[derive(Debug, Clone, PartialEq)]
 pub enum AxisTarget {
     Spacing,
+    /// The camera: `camera.yaw_deg`, `camera.pitch_deg` or `camera.distance`.
+    Camera(CameraKey),
     /// A float or int parameter of the first instance of a plugin in the stack.
     Param {
         index: usize,
@@ -795,7 +797,50 @@ pub enum AxisTarget {
 impl AxisTarget {
     /// Whether the axis changes the converged reference.
     fn changes_reference(&self) -> bool {
-        matches!(self, AxisTarget::Param { .. })
+        matches!(self, AxisTarget::Param { .. } | AxisTarget::Camera(_))
+    }
+}
+
+/// A camera value a grid axis or an experiment variant sets.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum CameraKey {
+    YawDeg,
+    PitchDeg,
+    Distance,
+}
+
+impl CameraKey {
+    /// `camera.yaw_deg`, `camera.pitch_deg` or `camera.distance`.
+    pub fn parse(name: &str) -> Option<CameraKey> {
+        match name {
+            "camera.yaw_deg" => Some(CameraKey::YawDeg),
+            "camera.pitch_deg" => Some(CameraKey::PitchDeg),
+            "camera.distance" => Some(CameraKey::Distance),
+            _ => None,
+        }
+    }
+
+    /// Sets the value on a document's camera, after checking it (finite; a distance
+    /// > 0; a pitch within ±90°, the camera's own limit).
+    pub fn set(self, doc: &mut Document, v: f64) -> Result<()> {
+        let ok = v.is_finite()
+            && match self {
+                CameraKey::YawDeg => true,
+                CameraKey::PitchDeg => v.abs() <= 90.0,
+                CameraKey::Distance => v > 0.0,
+            };
+        if !ok {
+            bail!(
+                "{self:?}: {v} is outside the camera's range (finite; distance > 0; |pitch| ≤ 90°)"
+            );
+        }
+        let c = &mut doc.camera;
+        match self {
+            CameraKey::YawDeg => c.yaw_deg = v as f32,
+            CameraKey::PitchDeg => c.pitch_deg = v as f32,
+            CameraKey::Distance => c.distance = v as f32,
+        }
+        Ok(())
     }
 }
 
@@ -868,10 +913,18 @@ pub fn axis_for(name: &str, values: Vec<f64>, doc: &Document) -> Result<Axis> {
             bail!("{name}: slice spacing must be > 0, got {v}");
         }
         AxisTarget::Spacing
+    } else if let Some(key) = CameraKey::parse(name) {
+        for v in &values {
+            key.set(&mut doc.clone(), *v)
+                .map_err(|e| anyhow!("{name}: {e}"))?;
+        }
+        AxisTarget::Camera(key)
     } else {
         let (id, key) = name
             .rsplit_once('.')
-            .ok_or_else(|| anyhow!("{name}: expected render.slice_spacing or <plugin id>.<key>"))?;
+            .ok_or_else(|| {
+                anyhow!("{name}: expected render.slice_spacing, camera.yaw_deg, camera.pitch_deg, camera.distance or <plugin id>.<key>")
+            })?;
         let index = doc
             .stack
             .iter()
@@ -915,6 +968,8 @@ pub fn axis_for(name: &str, values: Vec<f64>, doc: &Document) -> Result<Axis> {
 pub fn apply_axis(doc: &mut Document, axis: &Axis, v: f64) {
     match &axis.target {
         AxisTarget::Spacing => doc.render.slice_spacing = v as f32,
+        // checked by axis_for
+        AxisTarget::Camera(key) => key.set(doc, v).expect("checked when the axis was made"),
         AxisTarget::Param { index, key, int } => {
             let value = if *int {
                 ParamValue::Int(v.round() as i32)
@@ -1413,7 +1468,7 @@ pub fn scene_json(doc: &Document, volume: &Volume, preset: &Path) -> serde_json:
                 .map(|p| std::fs::canonicalize(&p).unwrap_or(p)),
             None,
         ),
-        VolumeSource::Analytic(_) => (None, None),
+        VolumeSource::Analytic(_) | VolumeSource::Phantom(_) => (None, None),
     };
     // Blinn–Phong material of an enabled shade.blinn_phong (for peers' shading)
     let shading = doc

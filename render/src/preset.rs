@@ -34,6 +34,10 @@ pub enum VolumeSource {
     /// A generated analytic vector field ([`crate::flow::AnalyticField`]), e.g.
     /// `Analytic((field: Tornado, size: (64, 64, 64)))`.
     Analytic(crate::flow::AnalyticField),
+    /// A generated scalar phantom of voxel-aligned boxes
+    /// ([`crate::volume::phantom::Phantom`]), e.g.
+    /// `Phantom((size: (32, 32, 32), boxes: [(from: (0, 0, 20), to: (32, 32, 24), value: 1.0)]))`.
+    Phantom(crate::volume::phantom::Phantom),
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -249,6 +253,9 @@ impl Document {
         }
         if let VolumeSource::Analytic(a) = &raw.volume {
             a.check().map_err(|e| value_err("volume".into(), e))?;
+        }
+        if let VolumeSource::Phantom(p) = &raw.volume {
+            p.check().map_err(|e| value_err("volume".into(), e))?;
         }
         crate::validate::check_camera(&raw.camera).map_err(|e| value_err(e.field, e.message))?;
         let mut stack = Vec::new();

@@ -1,7 +1,9 @@
 //! `clip.mesh`: every mode against its CPU twin on both backends; the mesh pass reruns
 //! only when the mesh moves; files (OBJ, PLY, STL) clip as their generated shape does;
 //! DOS casts no shadow from matter the mesh removes; a broken mesh file is refused with
-//! its name and the last good stack keeps rendering. Figures: `bash bench/clipping.sh`.
+//! its name and the last good stack keeps rendering. The twin scenes are
+//! experiments/scenes/demo_mesh_*.ron; figures: `bash bench/clipping.sh` (experiment
+//! files, and the mesh pass's section from `clip_mesh_benchmark`).
 
 use std::sync::Arc;
 use std::time::Instant;
@@ -11,8 +13,7 @@ use vwb_render::params::ParamValue;
 use vwb_render::{Backend, FrameSettings, PluginInstance, Renderer, TargetFormat, Volume};
 
 use crate::clipping::{
-    BLOCK_CUT_Z, block_removed_consistency_with, clip_twin_errors, dos_stack, least_times,
-    skipped_bricks,
+    BLOCK_CUT_Z, block_removed_consistency_with, clip_twin_errors, dos_stack, skipped_bricks,
 };
 use crate::common::*;
 use crate::reference::delta_e_rms;
@@ -23,12 +24,21 @@ pub fn mesh_clip(source: &str) -> PluginInstance {
     c
 }
 
-/// The modes of the twin comparison: (label, clip instance).
+/// The `clip.mesh` instance of a scene of experiments/clip_mesh_twin.ron.
+fn scene_mesh(name: &str) -> PluginInstance {
+    let (doc, _) = preset_scene(&format!("experiments/scenes/demo_mesh_{name}.ron"));
+    doc.stack
+        .iter()
+        .find(|i| i.plugin.id() == "clip.mesh")
+        .expect("the scene clips by a mesh")
+        .clone()
+}
+
+/// The modes of the twin comparison: (label, clip instance), from the scenes of
+/// experiments/clip_mesh_twin.ron.
 pub fn modes() -> Vec<(String, PluginInstance)> {
     let mut out = Vec::new();
-    let mut ball = mesh_clip("sphere");
-    ball.params.set("size", ParamValue::Vec3([0.35, 0.3, 0.25]));
-    ball.params.set("soft_edge", ParamValue::Float(1.0));
+    let ball = scene_mesh("ellipsoid");
     out.push((
         "ellipsoid, keep inside, soft edge".to_string(),
         ball.clone(),
@@ -39,26 +49,16 @@ pub fn modes() -> Vec<(String, PluginInstance)> {
         .set("resolution", ParamValue::Enum("1:2".into()));
     out.push(("ellipsoid at 1:2".to_string(), coarse));
     for cut in ["off", "clip_normal", "substitute"] {
-        let mut torus = mesh_clip("torus");
-        torus.params.set("keep", ParamValue::Enum("outside".into()));
-        torus.params.set("size", ParamValue::Vec3([0.3, 0.3, 0.3]));
-        torus
-            .params
-            .set("rotate", ParamValue::Vec3([60.0, 20.0, 0.0]));
-        torus.params.set("torus_ratio", ParamValue::Float(0.5));
+        let mut torus = scene_mesh("torus");
         torus
             .params
             .set("cut_shading", ParamValue::Enum(cut.into()));
         out.push((format!("torus, keep outside, cut shading {cut}"), torus));
     }
-    let mut cube = mesh_clip("box");
-    cube.params.set("keep", ParamValue::Enum("outside".into()));
-    cube.params.set("center", ParamValue::Vec3([0.2, 0.2, 0.1]));
-    cube.params
-        .set("rotate", ParamValue::Vec3([0.0, 0.0, 30.0]));
-    cube.params
-        .set("cut_shading", ParamValue::Enum("clip_normal".into()));
-    out.push(("rotated box cut away, cut shading".to_string(), cube));
+    out.push((
+        "rotated box cut away, cut shading".to_string(),
+        scene_mesh("box"),
+    ));
     out
 }
 
@@ -262,16 +262,14 @@ fn matter_removed_by_a_mesh_casts_no_occlusion_in_dos() {
     assert!(unclipped > 2.0, "{unclipped}");
 }
 
-/// Writes docs/clip_mesh.md: the mesh pass's time by mesh and grid, how often it
-/// reruns while the camera orbits, the frame-time cost, GPU against twin, and the DOS
-/// consistency gate with a mesh cut; it keeps the block of
-/// `experiments/clip_mesh_accuracy.ron` (the voxelised sphere against the analytic one).
-/// Run: `bash bench/clipping.sh`.
+/// Writes the mesh pass's section of docs/clip_mesh.md: the voxelisation's time by
+/// mesh and grid (CPU, no render) and how often the pass reruns while the camera
+/// orbits. The document's other tables are experiment files' blocks
+/// (`bash bench/clipping.sh` runs them all).
 #[test]
 #[ignore = "benchmark: bash bench/clipping.sh"]
 fn clip_mesh_benchmark() {
     let v = demo();
-    // 1. the mesh pass
     let mut pass = String::new();
     for (label, source, segments) in [
         ("sphere, 48 segments", "sphere", 48),
@@ -309,116 +307,33 @@ fn clip_mesh_benchmark() {
             );
         }
     }
-    // 2. reruns while orbiting, and the frame cost
+    // reruns while orbiting
     let s = settings(128, 128, Backend::Compute);
-    let tf = instance("classify.tf1d");
     let mut ball = mesh_clip("sphere");
     ball.params.set("size", ParamValue::Vec3([0.35; 3]));
     let mut r = Renderer::new(gpu(), v.clone()).unwrap();
-    let stack = vec![tf.clone(), ball.clone()];
+    let stack = vec![instance("classify.tf1d"), ball.clone()];
     render(&mut r, &stack, TargetFormat::Rgba16Float, &s);
     let before = clip_mesh::mesh_pass_counts(&ball.params, &v);
     let orbit_ms = orbit(&mut r, &stack, &s, 36);
     let after = clip_mesh::mesh_pass_counts(&ball.params, &v);
-    let mut analytic = instance("clip.shapes");
-    let k = vwb_plugins::clip_shapes::slot_keys()[0];
-    analytic
-        .params
-        .set(k.kind, ParamValue::Enum("sphere".into()));
-    analytic
-        .params
-        .set(k.size, ParamValue::Vec3([0.35, 0.0, 0.0]));
-    let stacks = vec![
-        vec![tf.clone()],
-        vec![tf.clone(), analytic.clone()],
-        stack.clone(),
-    ];
-    let reps: Vec<Vec<f64>> = (0..3)
-        .map(|_| least_times(&stacks, &[true; 3], &s))
-        .collect();
-    // skipping the bricks outside a kept ball (radius 0.25)
-    let mut small = mesh_clip("sphere");
-    small.params.set("size", ParamValue::Vec3([0.25; 3]));
-    let kept = vec![tf.clone(), small];
-    let share = {
-        let mut r = Renderer::new(gpu(), v.clone()).unwrap();
-        render(&mut r, &kept, TargetFormat::Rgba16Float, &s);
-        r.empty_brick_share().unwrap_or(0.0)
-    };
-    let skip = least_times(&[kept.clone(), kept], &[false, true], &s);
-    let best = |i: usize| reps.iter().map(|r| r[i]).fold(f64::INFINITY, f64::min);
-    // 3. twins and 4. DOS (the accuracy against the analytic sphere is the experiment
-    // file's block, kept)
-    let old = std::fs::read_to_string(repo().join("docs/clip_mesh.md")).unwrap_or_default();
-    let accuracy = kept_experiment_blocks(&old, &["clip_mesh_accuracy"]);
-    let accuracy = accuracy.trim_end();
-    let mut twins = String::new();
-    for (label, backend, rms) in twin_errors() {
-        twins += &format!("| {label} | {} | {rms:.4} |\n", backend.name());
-    }
-    let (clipped, unclipped) = mesh_dos_consistency();
     let orbit_least = orbit_ms.iter().copied().fold(f64::INFINITY, f64::min);
-    let md = format!(
-        "# Clipping by meshes (`clip.mesh`)\n\n\
-         Generated by `bash bench/clipping.sh` (the ignored test `clip_mesh_benchmark` in \
-         tests/integration/clip_mesh.rs); do not edit by hand.\n\n\
-         Machine: {machine}. Adapter: {adapter}. Load average {load} on 2 cores when \
-         this ended (timings are least-of-many but still move with other jobs).\n\n\
-         ## What it does\n\n\
-         A closed triangle mesh — an OBJ, PLY or STL file (loaded by `tobj`, \
-         `ply-rs-bw` and `stl_io`) or a generated sphere, box or torus — keeps its inside \
-         or its outside. The thesis (§9.2) clips per slice with the stencil buffer, which \
-         gives up the depth buffer; here a mesh pass voxelises the placed mesh once into \
-         a narrow-band signed-distance grid over the volume box: inside or outside by \
-         crossing parity along z columns, the exact distance to the nearest triangle \
-         within 4 voxels of the surface, stored as r16float in units of the voxel. \
-         The `clip` hook is one filtered read per sample, so every pass that runs the \
-         clip hooks (slices, DOS, the global-light passes, thumbnails) sees the same \
-         cut, and the soft edge and the shading at the cut (Weiskopf, Engel & Ertl \
-         2003) read the distance as `clip.shapes` reads its analytic one. A mesh that \
-         is not closed or not a manifold is refused with the file and the first bad \
-         edge; an inconsistent orientation is a warning naming the edge. Per-frame \
-         depth-layer parity was not built, so it is not measured.\n\n\
-         ## The mesh pass\n\n\
+    let section = format!(
+        "<!-- mesh-pass:begin (generated by `bash bench/clipping.sh`, the ignored test \
+         `clip_mesh_benchmark` in tests/integration/clip_mesh.rs; do not edit by hand) -->\n\
+         Machine: {machine}. Adapter: {adapter}. Load average {load} on 2 cores when this \
+         ended.\n\n\
          Embedded demo volume (128×128×84); least of 3 runs of the voxelisation on 2 \
          cores (rayon). `odd columns` counts z columns crossing the mesh an odd number \
          of times (grazing rays; their inside may be wrong).\n\n\
          | mesh | triangles | grid | ms | odd columns |\n|---|---|---|---|---|\n{pass}\n\
          It reruns only when the mesh, its placement or the grid resolution changes: \
-         during a 36-step orbit of the camera (least frame {orbit_least:.1} ms) the \
-         grid was built {orbits} times and uploaded {uploads} times (before the orbit: \
-         built {b0}, uploaded {u0}; the test \
+         during a 36-step orbit of the camera (a ball of radius 0.35 kept, compute, 128², \
+         least frame {orbit_least:.1} ms) the grid was built {orbits} times and uploaded \
+         {uploads} times (before the orbit: built {b0}, uploaded {u0}; the test \
          `the_mesh_pass_reruns_only_when_the_mesh_moves` holds this, and that `keep`, \
-         the soft edge and the cut layer rerun nothing).\n\n\
-         ## Frame cost\n\n\
-         `classify.tf1d` on the demo, compute, 128², least of 60 frames (30 rounds of 2, \
-         the stacks in turn), 3 repetitions: no clipping {t0:.2} ms; `clip.shapes` sphere \
-         {t1:.2} ms ({o1:+.1} %); `clip.mesh` sphere {t2:.2} ms ({o2:+.1} %). The \
-         mesh's clip hook makes eight texel loads and a trilinear blend per sample \
-         (written out: a filtered sample in a clip hook crashes this lavapipe, see \
-         plugins/src/clip_mesh/mesh.wgsl) where the analytic sphere needs one distance; \
-         on a GPU one filtered sample would do. No GPU figure (no GPU on this machine).\n\n\
-         Skipping: with a ball of radius 0.25 kept, {share:.3} of the bricks are \
-         empty (the TF's and the mesh's), and a frame takes {k0:.2} ms with skipping \
-         off, {k1:.2} ms on ({ks:.2}×; test \
-         `bricks_the_mesh_removes_are_skipped_without_changing_the_image`: the same \
-         pixels).\n\n\
-         ## The voxelised surface against the analytic sphere\n\n\
-         {accuracy}\n\n\
-         The tessellation dominates: an inscribed UV sphere lies inside the true one \
-         by up to its sagitta, so the error falls with the segments; the grid \
-         resolution matters once the facets are fine (the trilinear distance rounds \
-         the surface between texel centres).\n\n\
-         ## GPU against the CPU twin\n\n\
-         Demo volume, `classify.tf1d` + `clip.mesh` + `shade.blinn_phong`, 48², \
-         rgba32float.\n\n\
-         | mode | backend | ΔE*uv RMS |\n|---|---|---|\n{twins}\n\
-         ## Consistency with DOS\n\n\
-         The block-and-wall phantom of docs/clipping.md with the block removed by a \
-         box mesh whose face lies on the voxel boundary: ΔE*uv RMS against the f64 \
-         reference of the phantom with the block's voxels removed **{clipped:.4}** \
-         (unclipped {unclipped:.4}; test \
-         `matter_removed_by_a_mesh_casts_no_occlusion_in_dos`).\n",
+         the soft edge and the cut layer rerun nothing).\n\
+         <!-- mesh-pass:end -->",
         machine = vwb_lab::measure::machine(),
         adapter = gpu().describe(),
         load = load_average(),
@@ -426,15 +341,7 @@ fn clip_mesh_benchmark() {
         uploads = after.1 - before.1,
         b0 = before.0,
         u0 = before.1,
-        t0 = best(0),
-        t1 = best(1),
-        t2 = best(2),
-        o1 = (best(1) / best(0) - 1.0) * 100.0,
-        o2 = (best(2) / best(0) - 1.0) * 100.0,
-        k0 = skip[0],
-        k1 = skip[1],
-        ks = skip[0] / skip[1],
     );
-    vwb_render::preset::write_atomic(&repo().join("docs/clip_mesh.md"), md.as_bytes()).unwrap();
-    eprintln!("{md}");
+    replace_section(&repo().join("docs/clip_mesh.md"), "mesh-pass", &section);
+    eprintln!("{section}");
 }

@@ -1,15 +1,15 @@
 //! Clipping (`clip.shapes`): every combination and shading at the cut against the CPU
 //! twin on both backends; the cut lit by its own normal; DOS casting no shadow from
 //! clipped matter; bricks wholly clipped skipped without changing the image. The
-//! benchmark (`bash bench/clipping.sh`) writes docs/clipping.md.
+//! scenes are experiments/scenes' (block_wall.ron, demo_clip_*.ron), whose experiment
+//! files (`bash bench/clipping.sh`) write docs/clipping.md's tables.
 
 use std::sync::Arc;
-use std::time::Instant;
 
 use vwb_plugins::clip_shapes::slot_keys;
 use vwb_render::params::ParamValue;
 use vwb_render::reference::{ReferenceOptions, render_reference};
-use vwb_render::{Backend, FrameSettings, PluginInstance, Renderer, TargetFormat, Volume};
+use vwb_render::{Backend, PluginInstance, Renderer, TargetFormat, Volume};
 
 use crate::common::*;
 use crate::reference::{delta_e_rms, gpu_and_reference};
@@ -34,102 +34,29 @@ fn clip() -> PluginInstance {
     instance("clip.shapes")
 }
 
-/// The modes of the twin comparison: (label, clip instance).
+/// The modes of the twin comparison: (label, clip instance): the clip instances of the
+/// scenes of experiments/clip_twin.ron, each with the three ways of shading the cut
+/// (the slab scene with none).
 fn modes() -> Vec<(String, PluginInstance)> {
     let mut out = Vec::new();
-    for combine in ["intersection", "union", "complement"] {
+    for combine in ["intersection", "union", "complement", "slab"] {
+        let (doc, _) = preset_scene(&format!("experiments/scenes/demo_clip_{combine}.ron"));
+        let c = doc
+            .stack
+            .iter()
+            .find(|i| i.plugin.id() == "clip.shapes")
+            .expect("the scene clips")
+            .clone();
+        if combine == "slab" {
+            out.push(("camera slab".into(), c));
+            continue;
+        }
         for cut in ["off", "clip_normal", "substitute"] {
-            let mut c = clip();
-            match combine {
-                // half a ball with a hole drilled through it (an inverted cylinder)
-                "intersection" => {
-                    shape(
-                        &mut c,
-                        0,
-                        "plane",
-                        [0.05, 0.0, 0.0],
-                        [1.0, 0.3, 0.2],
-                        [0.0; 3],
-                    );
-                    shape(
-                        &mut c,
-                        1,
-                        "sphere",
-                        [0.0; 3],
-                        [1.0, 0.0, 0.0],
-                        [0.4, 0.0, 0.0],
-                    );
-                    shape(
-                        &mut c,
-                        2,
-                        "cylinder",
-                        [0.0, -0.1, 0.1],
-                        [0.0, 0.2, 1.0],
-                        [0.12, 0.0, 0.5],
-                    );
-                    c.params.set(slot_keys()[2].invert, ParamValue::Bool(true));
-                }
-                // a ball, a rotated box and a cylinder
-                "union" => {
-                    shape(
-                        &mut c,
-                        0,
-                        "sphere",
-                        [0.15, 0.0, 0.0],
-                        [1.0, 0.0, 0.0],
-                        [0.2, 0.0, 0.0],
-                    );
-                    shape(
-                        &mut c,
-                        1,
-                        "box",
-                        [-0.2, 0.1, 0.0],
-                        [0.3, 1.0, 0.2],
-                        [0.15, 0.2, 0.25],
-                    );
-                    shape(
-                        &mut c,
-                        2,
-                        "cylinder",
-                        [0.0, 0.0, 0.1],
-                        [0.0, 1.0, 0.2],
-                        [0.12, 0.0, 0.4],
-                    );
-                }
-                // everything but a ball and a box
-                _ => {
-                    shape(
-                        &mut c,
-                        0,
-                        "sphere",
-                        [0.0; 3],
-                        [1.0, 0.0, 0.0],
-                        [0.3, 0.0, 0.0],
-                    );
-                    shape(
-                        &mut c,
-                        1,
-                        "box",
-                        [0.2, 0.2, 0.0],
-                        [1.0, 1.0, 0.0],
-                        [0.2, 0.1, 0.3],
-                    );
-                }
-            }
-            c.params.set("combine", ParamValue::Enum(combine.into()));
+            let mut c = c.clone();
             c.params.set("cut_shading", ParamValue::Enum(cut.into()));
-            c.params.set("soft_edge", ParamValue::Float(1.0));
             out.push((format!("{combine}, cut shading {cut}"), c));
         }
     }
-    let mut slab = clip();
-    slab.params
-        .set(slot_keys()[0].kind, ParamValue::Enum("off".into()));
-    slab.params.set("follow_camera", ParamValue::Bool(true));
-    slab.params.set("camera_near", ParamValue::Float(1.5));
-    slab.params.set("camera_thickness", ParamValue::Float(0.3));
-    slab.params.set("soft_edge", ParamValue::Float(1.0));
-    out.push(("camera slab".into(), slab));
     out
 }
 
@@ -217,19 +144,14 @@ fn the_cut_is_lit_by_its_own_normal() {
     assert!(luma[2] > 1.2 * luma[0], "{luma:?}");
 }
 
-/// A block floating in front of a wall along the view (+z), n = 32; `with_block`
-/// false: the block's voxels removed; voxels from x = `x_end` on removed (the
-/// physically cropped phantoms).
+/// A block floating in front of a wall along the view (+z), n = 32 (the phantom of
+/// experiments/scenes/block_wall.ron); `with_block` false: the block's voxels removed;
+/// voxels from x = `x_end` on removed (the physically cropped phantoms, as the
+/// experiments' `crop` makes them).
 fn block_and_wall(with_block: bool, x_end: u32) -> Arc<Volume> {
-    synthetic([32; 3], move |x, y, z| {
-        let block =
-            with_block && (10..22).contains(&x) && (10..22).contains(&y) && (5..10).contains(&z);
-        if x < x_end && (block || (20..24).contains(&z)) {
-            1.0
-        } else {
-            0.0
-        }
-    })
+    let (_, volume) = preset_scene("experiments/scenes/block_wall.ron");
+    let z0 = if with_block { 0 } else { 15 };
+    Arc::new(volume.cropped([[0, x_end], [0, 32], [z0, 32]]).unwrap())
 }
 
 /// The TF and DOS (θ = 60°, fp32 buffer) of the consistency scenes.
@@ -439,161 +361,4 @@ pub(crate) fn skipped_bricks(clip: PluginInstance) -> (f64, f64) {
     let all = render(&mut r, &stack, TargetFormat::Rgba32Float, &s);
     assert_eq!(skipped, all, "skipping changes no pixel");
     (base, share)
-}
-
-/// Least wall time (render and read back, ms) of each stack, one renderer each (with
-/// empty-space skipping as `skipping` says), over [`ROUNDS`] rounds of 2 frames taken in turn:
-/// the machine is shared, and the least disturbed frame is the most repeatable figure.
-const ROUNDS: usize = 30;
-
-pub(crate) fn least_times(
-    stacks: &[Vec<PluginInstance>],
-    skipping: &[bool],
-    s: &FrameSettings,
-) -> Vec<f64> {
-    let mut renderers: Vec<Renderer> = stacks
-        .iter()
-        .zip(skipping)
-        .map(|(stack, &on)| {
-            let mut r = Renderer::new(gpu(), demo()).unwrap();
-            r.set_empty_space_skipping(on);
-            render(&mut r, stack, TargetFormat::Rgba16Float, s);
-            r
-        })
-        .collect();
-    let mut best = vec![f64::INFINITY; stacks.len()];
-    for _ in 0..ROUNDS {
-        for ((r, stack), b) in renderers.iter_mut().zip(stacks).zip(&mut best) {
-            for _ in 0..2 {
-                let start = Instant::now();
-                render(r, stack, TargetFormat::Rgba16Float, s);
-                *b = b.min(start.elapsed().as_secs_f64() * 1e3);
-            }
-        }
-    }
-    best
-}
-
-/// Writes docs/clipping.md: plane overhead, skipping speed-up against the clipped
-/// share, the DOS consistency gate and GPU against twin per mode. Run:
-/// `bash bench/clipping.sh`.
-#[test]
-#[ignore = "benchmark: bash bench/clipping.sh"]
-fn clipping_benchmark() {
-    // the plane overhead and the skipping tables are experiment files' blocks
-    let old = std::fs::read_to_string(repo().join("docs/clipping.md")).unwrap_or_default();
-    let experiments = kept_experiment_blocks(&old, &["clip_planes", "clip_skipping"]);
-    let (clipped, unclipped) = dos_consistency();
-    let (m_dos, m_plain) = (
-        cut_through_matter(-35.0, true),
-        cut_through_matter(-35.0, false),
-    );
-    let (e_dos, e_plain) = (
-        cut_through_matter(35.0, true),
-        cut_through_matter(35.0, false),
-    );
-    let mut twins = String::new();
-    for (label, backend, rms) in twin_errors() {
-        twins += &format!("| {label} | {} | {rms:.4} |\n", backend.name());
-    }
-    let mut modes_table = String::new();
-    for mode in ["off", "clip_normal", "substitute"] {
-        modes_table += &format!(
-            "| {mode} | {:.3} | {:.3} |\n",
-            cut_shading_against_the_cropped_phantom(-35.0, mode),
-            cut_shading_against_the_cropped_phantom(35.0, mode)
-        );
-    }
-    let md = format!(
-        "# Clipping (`clip.shapes`)\n\n\
-         Generated by `bash bench/clipping.sh` (the ignored test `clipping_benchmark` in \
-         tests/integration/clipping.rs); do not edit by hand.\n\n\
-         Machine: {machine}. Adapter: {adapter}.\n\n\
-         ## What it does\n\n\
-         Up to 16 primitives (plane, box, sphere, cylinder; centre, axis, size, invert) \
-         combined by intersection, union or complement, a soft edge (α ramps over a \
-         width in voxels, applied in the `shade` hook), a slab that follows the camera, \
-         and shading at the cut: Weiskopf, Engel & Ertl 2003 (within a layer behind the \
-         cut the cut's normal replaces the data gradient of every shading plugin, through \
-         `clip_cut_gradient` in shaders/common.wgsl) or clipped-value substitution \
-         (VTK/Slicer style: clipped positions take a chosen value inside the gradient \
-         stencil). The hard cut is the `clip` hook, \
-         which runs before any other hook, so per-slice state (DOS) never sees clipped \
-         matter. Bricks wholly clipped are skipped (`Transparency::Region`).\n\n\
-         ## Overhead of clip planes, and skipping wholly clipped bricks\n\n\
-         Written by the experiment files `vwb run experiments/clip_planes.ron` and \
-         `experiments/clip_skipping.ron` into the blocks below (this benchmark keeps them). \
-         The issue's target for the overhead is ≤ 5 % at 16 planes on the compute backend. \
-         It is not met on lavapipe: the baseline costs only one trilinear read and one \
-         table lookup per sample on the CPU, every plane adds ALU work on the same two \
-         cores, and branches are masked (the clip hook's early return makes the whole \
-         sample divergent). A GPU figure is open. The test \
-         `wholly_clipped_bricks_are_skipped_without_changing_the_image` checks that the \
-         clipped bricks are added to the empty ones.\n\n\
-         {experiments}\
-         ## Consistency with DOS\n\n\
-         A block in front of a wall (32³), DOS θ = 60°, fp32 buffer, compute, 64², \
-         orthographic along +z; a plane on a voxel boundary removes the block. \
-         ΔE*uv RMS against the f64 reference of the phantom with the block's voxels \
-         removed: **{clipped:.4}** clipped; {unclipped:.4} unclipped (the block's \
-         shadow). The test `clipped_matter_casts_no_occlusion_in_dos` holds the first \
-         below 0.15 and the second above 2.\n\n\
-         A cut through matter: the plane x = 0 (a voxel boundary) halves the block and \
-         the wall; ΔE*uv RMS of the clipped GPU image against the f64 reference of the \
-         phantom cropped at that voxel boundary (no shading at the cut: DOS reads no \
-         gradient):\n\n\
-         | view | with DOS | without DOS |\n|---|---|---|\n\
-         | yaw −35° | {m_dos:.4} | {m_plain:.4} |\n\
-         | yaw +35° | {e_dos:.4} | {e_plain:.4} |\n\n\
-         The issue's target is ≤ 2. At +35° the difference lies in the one pixel \
-         column along the cut at the silhouette of the remaining half (the clipped data keeps full opacity up to the plane, \
-         the cropped data ramps over the half voxel before it) and is the same \
-         without DOS: it is sampling at the cut, not occlusion. The test \
-         `a_cut_through_matter_matches_the_cropped_phantom` holds the first row.\n\n\
-         ## Shading at the cut against the cropped phantom\n\n\
-         The same cut through matter lit by `shade.blinn_phong` (no specular), \
-         ΔE*uv RMS of the clipped GPU image against the f64 reference of the phantom \
-         cropped at the voxel boundary, whose removed voxels are 0 so that its \
-         gradient at the cut is that of a surface, for each shading-at-the-cut mode \
-         (`clip_normal`: layer of 2 voxels; `substitute`: value 0):\n\n\
-         | mode | yaw −35° | yaw +35° |\n|---|---|---|\n{modes_table}\n\
-         Clipped-value substitution reproduces the cropped data's gradient where the \
-         cut meets matter, so it lands within the issue's target of 2 at −35° (the \
-         test `substitution_shades_the_cut_as_the_cropped_phantom` holds it); the \
-         cut's normal is a unit gradient everywhere in the layer, which lights the \
-         cut as a surface but not as the cropped data does. At +35° the sampling \
-         difference at the silhouette described above adds to every mode.\n\n\
-         ## GPU against the CPU twin\n\n\
-         Demo volume, `classify.tf1d` + `clip.shapes` (intersection: plane, sphere, \
-         inverted cylinder; union: sphere, rotated box, cylinder; complement: sphere, \
-         box; soft edge 1 voxel; the camera slab) + `shade.blinn_phong`, 48², rgba32float.\n\n\
-         | mode | backend | ΔE*uv RMS |\n|---|---|---|\n{twins}\n\
-         ## Open\n\n\
-         - Substitution uses central differences whatever estimator the shading \
-         plugin has, and only the plugin's own cut is substituted.\n\
-         - Window handles move the shapes' centres (in the image plane), turn planes', \
-         boxes' and cylinders' axes, size spheres and cylinders and each half extent of \
-         a box, with the outline drawn while hovered or dragged; a cylinder's length \
-         and a mesh's rotation and scale are numeric fields.\n\
-         - `clip.mesh` (closed OBJ/PLY/STL or generated meshes, voxelised into a \
-         signed-distance grid) has its own figures in docs/clip_mesh.md.\n\
-         \n\
-         ## Also\n\n\
-         - `clip.labels`: hides or shows label ranges of a u8 or u16 label volume \
-         (nearest voxel; a per-voxel mask baked on the CPU), preset \
-         `presets/demo_clip_labels.ron`.\n\
-         - `vwb crop --preset P [--box x0,y0,z0,x1,y1,z1] -o sub.nhdr`: the bounding box of \
-         the voxels the preset's `clip.shapes` and `clip.mesh` keep (or the box; upper bounds exclusive) \
-         as a detached NRRD with the source's type, spacing and `space origin` shifted \
-         by the box's offset.\n\
-         - Presets: `ct_clip_quadrant.ron` (cut-away octant, shading at the cut), \
-         `mri_clip_sphere.ron` (sphere, soft edge), `ct_dos_clip.ron` (DOS with a clip \
-         plane), `ct_clip_mesh.ron` (a ball cut away by a mesh file, shading at the cut), \
-         `nuclei_clip_labels.ron` (the five largest nuclei hidden by their labels, \
-         `presets/data/nuclei_labels.nrrd` from `bench/make_nuclei_labels.py`).\n",
-        machine = vwb_lab::measure::machine(),
-        adapter = gpu().describe(),
-    );
-    vwb_render::preset::write_atomic(&repo().join("docs/clipping.md"), md.as_bytes()).unwrap();
-    eprintln!("{md}");
 }

@@ -235,6 +235,18 @@ fn bad_experiments_are_refused_naming_the_file_and_cause() {
             "statistics: [\"classify.tf1d.data_reduction\"]",
             "plugin 'classify.tf1d' reports no 'data_reduction' (it reports: nothing)",
         ),
+        (
+            "variants: [(name: \"a\", crop: (from: (0, 0, 0), to: (16, 16, 999)))]",
+            "variant 'a' on scene 'demo_preintegrated': crop: volume 'demo': crop [[0, 16], [0, 16], [0, 999]] must be non-empty and inside [128, 128, 84]",
+        ),
+        (
+            "grid: [(param: \"camera.pitch_deg\", values: [120.0])]",
+            "camera.pitch_deg: PitchDeg: 120 is outside the camera's range",
+        ),
+        (
+            "variants: [(name: \"a\", set: {\"camera.distance\": -1.0})]",
+            "'camera.distance': Distance: -1 is outside the camera's range",
+        ),
     ];
     for (i, (fields, expect)) in cases.iter().enumerate() {
         let file = write(
@@ -252,6 +264,16 @@ fn bad_experiments_are_refused_naming_the_file_and_cause() {
             "{err}"
         );
     }
+    // a reference to a variant the file does not declare is refused when it loads
+    let file = write(
+        "bad_twin_of",
+        "Experiment(name: \"bad\", scenes: [Preset(\"PRESET\")], variants: [(name: \"a\")], reference: TwinOf(\"cropped\"))",
+    );
+    let err = experiment::load(&file).unwrap_err().to_string();
+    assert!(
+        err.contains("bad_twin_of.ron") && err.contains("names variant 'cropped'"),
+        "{err}"
+    );
     let missing = experiment::load(Path::new("/nonexistent/e.ron"))
         .unwrap_err()
         .to_string();
@@ -451,4 +473,65 @@ fn the_dos_experiments_run_with_variant_references_and_shared_monte_carlo() {
         err.contains("dos_variants.ron") && err.contains("refined slices"),
         "{err}"
     );
+}
+
+/// Clipping studies as files: a generated phantom scene (`volume: Phantom(..)`),
+/// variants that crop the scene's volume physically, and references that are another
+/// variant's CPU twin (`TwinOf`), over a camera grid axis. The shipped clip_dos and
+/// clip_cut files run as they are (64², one frame): clipping the block reproduces the
+/// data with the block removed, and a cut through matter the cropped data, within their
+/// assertions; the report says which voxels each cropped variant keeps.
+#[test]
+fn clipping_studies_compare_clipped_with_cropped_data() {
+    for name in ["clip_dos.ron", "clip_cut.ron"] {
+        let file = repo().join("experiments").join(name);
+        let mut e = experiment::load(&file).unwrap();
+        e.frames = 1;
+        e.doc_block = None;
+        let out = tmp(&format!("{name}-report"));
+        let o = experiment::run(gpu(), &e, &file, &out, &mut |_| {}).unwrap();
+        assert!(o.failed().is_empty(), "{name}: {:?}", o.assertions);
+        let cropped: Vec<&str> = e
+            .variants
+            .iter()
+            .filter(|v| v.crop.is_some())
+            .map(|v| v.name.as_str())
+            .collect();
+        assert!(!cropped.is_empty());
+        for r in &o.rows {
+            let i = r.reference.expect("every row has a reference");
+            let whose = o.references[i]["variant"].as_str().unwrap();
+            assert_eq!(o.references[i]["kind"], "twin");
+            // a cropped variant is its own twin's; a clipped one the cropped one's
+            assert!(
+                cropped.contains(&whose),
+                "{name}: {} against {whose}",
+                r.variant
+            );
+            if cropped.contains(&r.variant.as_str()) {
+                assert!(r.metrics.rms_delta_e < 0.15, "{name}: {r:?}");
+            }
+        }
+        assert!(
+            o.markdown.contains("physically cropped to the voxels"),
+            "{}",
+            o.markdown
+        );
+        if name == "clip_cut.ron" {
+            // the camera axis: two views per variant, and they differ
+            assert_eq!(o.rows.len(), 2 * e.variants.len());
+            assert_eq!(o.rows[0].values, vec![145.0]);
+            assert_eq!(o.rows[1].values, vec![215.0]);
+            let clipped = |yaw: f64| {
+                o.rows
+                    .iter()
+                    .find(|r| r.variant == "clipped, unshaded" && r.values == vec![yaw])
+                    .unwrap()
+                    .metrics
+                    .rms_delta_e
+            };
+            // at 145° the cut is the cropped data; at 215° one pixel column differs
+            assert!(clipped(145.0) < 0.15 && clipped(215.0) > 1.0);
+        }
+    }
 }

@@ -55,6 +55,10 @@ fn every_shipped_preset_loads_and_composes() {
                     .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
                 assert_eq!(v.components, 3, "{}", path.display());
             }
+            VolumeSource::Phantom(p) => {
+                p.volume()
+                    .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+            }
             VolumeSource::Demo => {}
         }
         let configured: Vec<_> = doc
@@ -152,6 +156,18 @@ fn bad_values_fail_with_their_path() {
         (
             r#"(version: 1, volume: Analytic((field: Hurricane, size: (8, 8, 8))))"#,
             "Hurricane",
+        ),
+        (
+            r#"(version: 1, volume: Phantom((size: (8, 8, 8), boxes: [(from: (0, 0, 0), to: (4, 4, 9), value: 1.0)])))"#,
+            "volume: phantom box 0: from [0, 0, 0] to [4, 4, 9] must be non-empty and inside the size [8, 8, 8]",
+        ),
+        (
+            r#"(version: 1, volume: Phantom((size: (8, 8, 100000))))"#,
+            "volume: a phantom's size must be 2–512 voxels per side",
+        ),
+        (
+            r#"(version: 1, volume: Phantom((size: (8, 8, 8), colour: 1.0)))"#,
+            "colour",
         ),
     ];
     for (text, want) in cases {

@@ -39,6 +39,7 @@ mod metaimage;
 pub mod nifti;
 mod nrrd;
 pub mod orient;
+pub mod phantom;
 mod raw;
 #[cfg(test)]
 mod tests;
@@ -323,6 +324,55 @@ impl Volume {
     /// Size of the sample data in bytes.
     pub fn size_bytes(&self) -> usize {
         self.data.len() * self.scalar_type().size_bytes()
+    }
+
+    /// This volume physically cropped to the voxels `keep` ([start, end) per axis):
+    /// every other voxel is removed, set to the lowest scalar of the volume (a vector
+    /// to zero). The value range stays the volume's, so a transfer function maps both
+    /// alike; the histogram counts the cropped voxels over it. What a clipped render is
+    /// compared with (experiment variants' `crop`).
+    pub fn cropped(&self, keep: [[u32; 2]; 3]) -> Result<Volume, VolumeError> {
+        if (0..3).any(|a| keep[a][0] >= keep[a][1] || keep[a][1] > self.dims[a]) {
+            return Err(VolumeError::Invalid {
+                file: self.source.clone(),
+                message: format!(
+                    "volume '{}': crop {keep:?} must be non-empty and inside {:?}",
+                    self.name, self.dims
+                ),
+            });
+        }
+        fn fill<T: Copy>(v: &mut [T], dims: [u32; 3], c: usize, keep: [[u32; 2]; 3], to: T) {
+            let [w, h, _] = dims.map(|d| d as usize);
+            for (i, voxel) in v.chunks_exact_mut(c).enumerate() {
+                let at = [i % w, (i / w) % h, i / (w * h)];
+                if (0..3).any(|a| at[a] < keep[a][0] as usize || at[a] >= keep[a][1] as usize) {
+                    voxel.fill(to);
+                }
+            }
+        }
+        let c = self.components.max(1) as usize;
+        let lo = if c == 1 { self.range[0] } else { 0.0 };
+        let mut data = self.data.clone();
+        match &mut data {
+            VoxelData::U8(v) => fill(v, self.dims, c, keep, lo as u8),
+            VoxelData::I8(v) => fill(v, self.dims, c, keep, lo as i8),
+            VoxelData::U16(v) => fill(v, self.dims, c, keep, lo as u16),
+            VoxelData::I16(v) => fill(v, self.dims, c, keep, lo as i16),
+            VoxelData::F32(v) => fill(v, self.dims, c, keep, lo as f32),
+        }
+        let mut out = Volume::new(
+            format!("{} cropped", self.name),
+            self.dims,
+            self.components,
+            self.spacing,
+            data,
+        )?;
+        out.histogram = with_samples!(&out.data, v => histogram_of(v, c, self.range));
+        out.range = self.range;
+        out.source = self.source.clone();
+        out.notes = self.notes.clone();
+        out.notes.push(format!("cropped to the voxels {keep:?}"));
+        Ok(out)
     }
 }
 
@@ -855,7 +905,20 @@ fn stats_of<T: Copy + Into<f64> + Sync>(samples: &[T], components: usize) -> Sta
             |a, b| (a.0.min(b.0), a.1.max(b.1), a.2 + b.2),
         );
     let range = if lo <= hi { [lo, hi] } else { [0.0, 0.0] };
-    let histogram = samples
+    Stats {
+        range,
+        histogram: histogram_of(samples, components, range),
+        non_finite,
+    }
+}
+
+/// [`HISTOGRAM_BINS`] bins over `range` of the finite scalars of `samples`.
+fn histogram_of<T: Copy + Into<f64> + Sync>(
+    samples: &[T],
+    components: usize,
+    range: [f64; 2],
+) -> Vec<u64> {
+    samples
         .par_chunks_exact(components)
         .fold(
             || vec![0u64; HISTOGRAM_BINS],
@@ -872,10 +935,5 @@ fn stats_of<T: Copy + Into<f64> + Sync>(samples: &[T], components: usize) -> Sta
                 a.iter_mut().zip(b).for_each(|(x, y)| *x += y);
                 a
             },
-        );
-    Stats {
-        range,
-        histogram,
-        non_finite,
-    }
+        )
 }

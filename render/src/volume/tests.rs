@@ -1938,3 +1938,50 @@ fn ascii_bzip2_and_hex_encodings() {
         assert!(e.contains("h.nrrd") && e.contains(expect), "{e}");
     }
 }
+
+/// Cropping removes every voxel outside the box (the lowest scalar; a vector's zero),
+/// keeps the value range so that a TF maps both alike, counts the histogram over it,
+/// and refuses a box outside the volume naming the volume.
+#[test]
+fn cropping_removes_the_voxels_outside_and_keeps_the_range() {
+    let data: Vec<i16> = (0..4 * 3 * 2).map(|i| 100 + i as i16).collect();
+    let v = Volume::new("ramp", [4, 3, 2], 1, [1.0; 3], VoxelData::I16(data)).unwrap();
+    let c = v.cropped([[1, 3], [0, 3], [1, 2]]).unwrap();
+    assert_eq!(c.range, v.range);
+    assert_eq!(c.dims, v.dims);
+    for z in 0..2 {
+        for y in 0..3 {
+            for x in 0..4 {
+                let inside = (1..3).contains(&x) && z == 1;
+                let want = if inside { v.scalar(x, y, z) } else { 100.0 };
+                assert_eq!(c.scalar(x, y, z), want, "({x}, {y}, {z})");
+            }
+        }
+    }
+    assert_eq!(c.histogram.iter().sum::<u64>(), 24);
+    assert_eq!(
+        c.histogram[0],
+        24 - 6,
+        "removed voxels count as the lowest value"
+    );
+    assert!(c.notes.iter().any(|n| n.contains("cropped")));
+    // a vector field's removed voxels are zero vectors
+    let w = Volume::new(
+        "wind",
+        [2, 1, 1],
+        2,
+        [1.0; 3],
+        VoxelData::F32(vec![3.0, 4.0, 1.0, 1.0]),
+    )
+    .unwrap();
+    let wc = w.cropped([[1, 2], [0, 1], [0, 1]]).unwrap();
+    assert_eq!(wc.data, VoxelData::F32(vec![0.0, 0.0, 1.0, 1.0]));
+    assert_eq!(wc.range, w.range);
+    let e = v.cropped([[0, 5], [0, 3], [0, 2]]).unwrap_err().to_string();
+    assert!(
+        e.contains("'ramp'") && e.contains("inside [4, 3, 2]"),
+        "{e}"
+    );
+    let e = v.cropped([[2, 2], [0, 3], [0, 2]]).unwrap_err().to_string();
+    assert!(e.contains("non-empty"), "{e}");
+}
