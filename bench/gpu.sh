@@ -11,8 +11,10 @@
 #   gpu-docs.tar       docs/gpu/: flow.md and hernell.md (`flow_study`,
 #                      `hernell_512_benchmark` on the GPU, and the blocks of the
 #                      experiment files flow_modes, flow_animation, hernell_light,
-#                      hernell_scattering, hernell_extremes and hernell_blocking) and
-#                      perf.md (experiments/volume_format.ron)
+#                      hernell_scattering, hernell_extremes and hernell_blocking),
+#                      perf.md (experiments/volume_format.ron), clipping.md and
+#                      clip_mesh.md (clip_planes, clip_skipping, clip_mesh_cost: the
+#                      frame cost of planes and meshes, which the docs leave open)
 #   suite.log          the integration suite on the GPU (a check, not a figure)
 #   *.log              each step's output
 # The integration binary finds the repository through the path it was built in
@@ -33,10 +35,11 @@ step perf 90 python3 bench/perf.py --vwb "$vwb" --gpu --block foundation-gpu --f
 cp docs/perf.md "$out/perf.md"
 step benchmarks 240 "$integration" --ignored --test-threads=1 --nocapture \
     flow::flow_study hernell::hernell_512_benchmark
-step experiments 300 "$vwb" run experiments/volume_format.ron experiments/flow_modes.ron \
+step experiments 360 "$vwb" run experiments/volume_format.ron experiments/flow_modes.ron \
     experiments/flow_animation.ron experiments/hernell_light.ron \
     experiments/hernell_scattering.ron experiments/hernell_extremes.ron \
-    experiments/hernell_blocking.ron
+    experiments/hernell_blocking.ron experiments/clip_planes.ron \
+    experiments/clip_skipping.ron experiments/clip_mesh_cost.ron
 tar cf "$out/gpu-docs.tar" docs/gpu 2>/dev/null
 step suite 120 "$integration" --test-threads=8
 grep -E "^test result|FAILED|panicked" "$out/suite.log" | head -40 >>"$out/steps.txt"

@@ -2274,7 +2274,12 @@ impl Renderer {
         format: TargetFormat,
     ) -> FrameUniform {
         let vp: Mat4 = view.view_proj();
-        let (own, open) = self.own_box();
+        // the compute backend's rays take samples only in the part of the box that can
+        // be visible (a brick's own box is cut the same way by its footprint)
+        let (own, open) = match (&self.region, s.backend) {
+            (None, Backend::Compute) => (self.visible_box().unwrap_or(self.vbox), 0),
+            _ => self.own_box(),
+        };
         let rect = self.pixel_rect(view, size);
         let range = self.volume.range;
         let span = (range[1] - range[0]) as f32;
@@ -2368,13 +2373,19 @@ impl Renderer {
             .collect()
     }
 
-    /// The part of a brick's own box where a sample can be visible: with empty-space
-    /// skipping, the own box cut to the bounding box of its occupied bricks
-    /// ([`crate::skipping::occupied_bounds`]), `None` when nothing in it can be visible;
-    /// without, the own box.
+    /// The part of the own box (a brick's, or the whole volume's) where a sample can be
+    /// visible: with empty-space skipping, the own box cut to the bounding box of its
+    /// occupied bricks ([`crate::skipping::occupied_bounds`]), `None` when nothing in it
+    /// can be visible; without, the own box. A brick draws only its footprint, and the
+    /// compute backend's rays take samples only inside it.
     fn visible_box(&self) -> Option<VolumeBox> {
+        self.visible_box_in(self.occupancy_bytes.as_deref())
+    }
+
+    /// [`Renderer::visible_box`] for the occupancy of another stack (an atlas tile's).
+    pub(super) fn visible_box_in(&self, occupancy: Option<&[u8]>) -> Option<VolumeBox> {
         let own = self.own_box().0;
-        let Some(occupancy) = &self.occupancy_bytes else {
+        let Some(occupancy) = occupancy else {
             return Some(own);
         };
         let r = crate::skipping::occupied_bounds(occupancy, self.bricks.dims, self.volume.dims)?;

@@ -36,8 +36,9 @@ struct Frame {
     // x: early-termination opacity threshold; y: brick size of empty-space skipping
     // (0: off); zw: first pixel of a compute dispatch (a brick's footprint)
     settings: vec4<f32>,
-    // the part of the box whose samples this renderer takes (the whole box, or a
-    // brick's own region when the volume is split into bricks); own_max.w: bit a set
+    // the part of the box whose samples this renderer takes (the whole box; on the
+    // compute backend with empty-space skipping, the part the classification can show;
+    // or a brick's own region when the volume is split into bricks); own_max.w: bit a set
     // when the max face along axis a is shared with the next brick (half-open there)
     own_min: vec4<f32>,
     own_max: vec4<f32>,

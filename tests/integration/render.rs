@@ -924,6 +924,38 @@ fn an_atlas_of_64_variants_matches_their_single_renders() {
         }
     }
 
+    // each tile's rays cross the part its own stack can show: a ball of radius 0.1
+    // kept in tile 0 (whose stack the renderer takes), one of 0.45 in tile 1
+    let balls: Vec<Vec<vwb_render::PluginInstance>> = [0.1, 0.45]
+        .map(|radius| {
+            let mut ball = instance("clip.shapes");
+            let k = vwb_plugins::clip_shapes::slot_keys()[0];
+            ball.params.set(k.kind, ParamValue::Enum("sphere".into()));
+            ball.params
+                .set(k.size, ParamValue::Vec3([radius, 0.0, 0.0]));
+            vec![instance("classify.tf1d"), ball]
+        })
+        .into();
+    let ball_tiles: Vec<AtlasTile> = balls
+        .iter()
+        .map(|stack| AtlasTile {
+            camera: s.camera,
+            stack,
+        })
+        .collect();
+    let small = FrameSettings {
+        width: 48,
+        height: 48,
+        ..s
+    };
+    let ball_atlas = r.render_atlas(&ball_tiles, &small, t, 2).unwrap();
+    for (i, stack) in balls.iter().enumerate() {
+        let single = render(&mut single_r, stack, t, &small);
+        let reference: Vec<[f64; 4]> = single.iter().map(|p| p.map(f64::from)).collect();
+        let rms = delta_e_rms(&ball_atlas.tile_pixels(i), &reference, 48, 48);
+        assert!(rms <= 0.01, "ball tile {i}: ΔE*uv RMS {rms}");
+    }
+
     // a tile of another structure is refused, naming it
     let mut odd = variants[3].1.clone();
     odd.push(instance("shade.blinn_phong"));

@@ -298,14 +298,21 @@ impl Renderer {
                 ..*s
             };
             let uids: Vec<u64> = stack.iter().map(|(u, _)| *u).collect();
-            let occupancy_texture = occupancies
-                .entry(uids.clone())
-                .or_insert_with(|| {
-                    self.occupancy_of(tiles[i].stack)
-                        .map(|b| upload_occupancy(&self.gpu, self.bricks.dims, &b))
+            let occupancy = occupancies.entry(uids.clone()).or_insert_with(|| {
+                self.occupancy_of(tiles[i].stack).map(|b| {
+                    let texture = upload_occupancy(&self.gpu, self.bricks.dims, &b);
+                    (b, texture)
                 })
-                .as_ref();
+            });
+            let occupancy_texture = occupancy.as_ref().map(|(_, t)| t);
             let mut u = self.frame_uniform(&settings, plan, view, [tw, th], target);
+            // rays through the part this tile's classification can show (frame_uniform
+            // took the renderer's own stack's)
+            let visible = self
+                .visible_box_in(occupancy.as_ref().map(|(b, _)| b.as_slice()))
+                .unwrap_or(self.vbox);
+            u.own_min = [visible.min.x, visible.min.y, visible.min.z, 0.0];
+            u.own_max = [visible.max.x, visible.max.y, visible.max.z, 0.0];
             u.settings[1] = if occupancy_texture.is_some() {
                 crate::skipping::brick() as f32
             } else {
