@@ -1142,6 +1142,8 @@ pub fn run(
     // variants' GPU images by scene, variant and grid point: references of other
     // variants, filled by the rows themselves or rendered on demand
     let mut gpu_images: HashMap<String, RgbImageF> = HashMap::new();
+    // variants' CPU twin images by scene, variant and grid point (Twin, TwinOf)
+    let mut twin_images: HashMap<String, RgbImageF> = HashMap::new();
     let image_key =
         |scene: &str, variant: &str, values: &[f64]| format!("{scene}|{variant}|{values:?}");
     for scene in &e.scenes {
@@ -1351,14 +1353,20 @@ pub fn run(
                     }
                     ReferenceSpec::Twin | ReferenceSpec::TwinOf(_) => {
                         let i = references.len();
-                        let (whose, img) = match spec {
-                            ReferenceSpec::TwinOf(n) => {
-                                let (_, od, oa, ovol) = find(n);
-                                let o = at(od, oa, values);
-                                (n, measure::twin_image(ovol, &o, &o.frame_settings())?)
-                            }
-                            _ => (&v.name, measure::twin_image(volume, &d, &s)?),
+                        let whose = match spec {
+                            ReferenceSpec::TwinOf(n) => n,
+                            _ => &v.name,
                         };
+                        // a variant's twin image at a grid point is made once (several
+                        // clipped variants compare with one cropped variant's)
+                        let key = image_key(&sc.name, whose, values);
+                        if !twin_images.contains_key(&key) {
+                            let (_, od, oa, ovol) = find(whose);
+                            let o = at(od, oa, values);
+                            let img = measure::twin_image(ovol, &o, &o.frame_settings())?;
+                            twin_images.insert(key.clone(), img);
+                        }
+                        let img = twin_images[&key].clone();
                         references.push(json!({
                             "scene": sc.name, "kind": "twin", "variant": whose, "values": values,
                             "image": format!("images/reference_{i:02}.png"),
