@@ -2258,13 +2258,16 @@ impl Renderer {
 
     fn write_frame(&self, s: &FrameSettings, plan: &SlicePlan, view: &crate::camera::View) {
         let t = self.target.as_ref().expect("target exists");
-        let u = self.frame_uniform(s, plan, view, [t.width, t.height], t.format);
+        let occupancy = self.occupancy_bytes.as_deref();
+        let u = self.frame_uniform(s, plan, view, [t.width, t.height], t.format, occupancy);
         self.gpu
             .queue
             .write_buffer(&self.frame_buf, 0, bytemuck::bytes_of(&u));
     }
 
-    /// The core uniform of a frame drawn into a `size` eye buffer of `format`.
+    /// The core uniform of a frame drawn into a `size` eye buffer of `format`, skipping
+    /// empty space by `occupancy` (the renderer's own stack's, or an atlas tile's; `None`
+    /// when skipping is off).
     fn frame_uniform(
         &self,
         s: &FrameSettings,
@@ -2272,12 +2275,13 @@ impl Renderer {
         view: &crate::camera::View,
         size: [u32; 2],
         format: TargetFormat,
+        occupancy: Option<&[u8]>,
     ) -> FrameUniform {
         let vp: Mat4 = view.view_proj();
         // the compute backend's rays take samples only in the part of the box that can
         // be visible (a brick's own box is cut the same way by its footprint)
         let (own, open) = match (&self.region, s.backend) {
-            (None, Backend::Compute) => (self.visible_box().unwrap_or(self.vbox), 0),
+            (None, Backend::Compute) => (self.visible_box_in(occupancy).unwrap_or(self.vbox), 0),
             _ => self.own_box(),
         };
         let rect = self.pixel_rect(view, size);
@@ -2326,7 +2330,7 @@ impl Renderer {
             ],
             settings: [
                 s.early_termination.unwrap_or(1.0),
-                if self.occupancy_bytes.is_some() {
+                if occupancy.is_some() {
                     crate::skipping::brick() as f32
                 } else {
                     0.0
@@ -2382,8 +2386,9 @@ impl Renderer {
         self.visible_box_in(self.occupancy_bytes.as_deref())
     }
 
-    /// [`Renderer::visible_box`] for the occupancy of another stack (an atlas tile's).
-    pub(super) fn visible_box_in(&self, occupancy: Option<&[u8]>) -> Option<VolumeBox> {
+    /// [`Renderer::visible_box`] for an occupancy (the renderer's own stack's, or an
+    /// atlas tile's).
+    fn visible_box_in(&self, occupancy: Option<&[u8]>) -> Option<VolumeBox> {
         let own = self.own_box().0;
         let Some(occupancy) = occupancy else {
             return Some(own);

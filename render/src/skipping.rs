@@ -158,14 +158,19 @@ fn bricks_of(bdims: [u32; 3]) -> impl Iterator<Item = [u32; 3]> {
         .flat_map(move |z| (0..bdims[1]).flat_map(move |y| (0..bdims[0]).map(move |x| [x, y, z])))
 }
 
-/// The bounding box of the occupied bricks, [lo, hi) in bricks; `None` when none is.
-fn occupied_brick_bounds(occupancy: &[u8], bdims: [u32; 3]) -> Option<[[u32; 3]; 2]> {
-    let (mut lo, mut hi) = ([u32::MAX; 3], [0u32; 3]);
-    for b in bricks_of(bdims).filter(|&b| {
+/// The bricks of a grid of `bdims` whose `occupancy` byte is nonzero, x fastest.
+fn occupied_bricks(occupancy: &[u8], bdims: [u32; 3]) -> impl Iterator<Item = [u32; 3]> + '_ {
+    bricks_of(bdims).filter(move |&b| {
         occupancy
             .get(brick_index(b, bdims))
             .is_some_and(|&v| v != 0)
-    }) {
+    })
+}
+
+/// The bounding box of the occupied bricks, [lo, hi) in bricks; `None` when none is.
+fn occupied_brick_bounds(occupancy: &[u8], bdims: [u32; 3]) -> Option<[[u32; 3]; 2]> {
+    let (mut lo, mut hi) = ([u32::MAX; 3], [0u32; 3]);
+    for b in occupied_bricks(occupancy, bdims) {
         for a in 0..3 {
             lo[a] = lo[a].min(b[a]);
             hi[a] = hi[a].max(b[a] + 1);
@@ -203,17 +208,12 @@ pub fn occupied_cells(
     cell: u32,
 ) -> Vec<[[u32; 2]; 3]> {
     let cell = cell.max(1);
-    let occupied = |b: [u32; 3]| {
-        occupancy
-            .get(brick_index(b, bdims))
-            .is_some_and(|&v| v != 0)
-    };
     let Some([lo, hi]) = occupied_brick_bounds(occupancy, bdims) else {
         return Vec::new();
     };
     let cells: [u32; 3] = std::array::from_fn(|a| (hi[a] - lo[a]).div_ceil(cell));
     let mut keep = vec![false; (cells[0] * cells[1] * cells[2]) as usize];
-    for b in bricks_of(bdims).filter(|&b| occupied(b)) {
+    for b in occupied_bricks(occupancy, bdims) {
         let c: [u32; 3] = std::array::from_fn(|a| (b[a] - lo[a]) / cell);
         keep[((c[2] * cells[1] + c[1]) * cells[0] + c[0]) as usize] = true;
     }

@@ -305,19 +305,15 @@ impl Renderer {
                 })
             });
             let occupancy_texture = occupancy.as_ref().map(|(_, t)| t);
-            let mut u = self.frame_uniform(&settings, plan, view, [tw, th], target);
-            // rays through the part this tile's classification can show (frame_uniform
-            // took the renderer's own stack's)
-            let visible = self
-                .visible_box_in(occupancy.as_ref().map(|(b, _)| b.as_slice()))
-                .unwrap_or(self.vbox);
-            u.own_min = [visible.min.x, visible.min.y, visible.min.z, 0.0];
-            u.own_max = [visible.max.x, visible.max.y, visible.max.z, 0.0];
-            u.settings[1] = if occupancy_texture.is_some() {
-                crate::skipping::brick() as f32
-            } else {
-                0.0
-            };
+            // skipping (and the rays' visible box) by this tile's own classification
+            let u = self.frame_uniform(
+                &settings,
+                plan,
+                view,
+                [tw, th],
+                target,
+                occupancy.as_ref().map(|(b, _)| b.as_slice()),
+            );
             let frame = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
                 label: Some("vwb atlas frame"),
                 contents: bytemuck::bytes_of(&u),
