@@ -17,6 +17,7 @@ mod data;
 mod dos;
 mod experiment;
 mod extremes;
+mod fetch;
 mod flow;
 mod formats;
 mod hernell;
