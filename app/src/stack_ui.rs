@@ -51,7 +51,11 @@ pub fn apply(stack: &mut Vec<PluginInstance>, op: StackOp) -> bool {
 
 /// Widgets for `values` generated from `specs`; true when a value changed. 1D transfer
 /// functions get the curve editor over the histogram ([`crate::tf_editor`]), 2D ones
-/// the 2D editor over the 2D histogram ([`crate::tf2d_editor`]).
+/// the 2D editor over the 2D histogram ([`crate::tf2d_editor`]). The elements of a
+/// parameter group ([`vwb_render::params::Group`]: lights, clip shapes, label TFs,
+/// isosurfaces) each get a header ("Light 1 · off"): the elements in use are listed,
+/// those switched off after the first are left out (the first stays, to switch on), and
+/// those past the group's limit are hidden.
 pub fn param_widgets(
     ui: &mut egui::Ui,
     salt: u64,
@@ -63,106 +67,156 @@ pub fn param_widgets(
     // `gradient_scale`; plugins without them have no 2D TF)
     let y_axis = crate::tf2d_editor::YAxis::of(values);
     let mut changed = false;
-    for spec in specs {
-        if !spec.is_shown(values) {
-            continue;
-        }
-        let Some(current) = values.get(spec.key).cloned() else {
+    let mut k = 0;
+    while k < specs.len() {
+        let Some(element) = specs[k].element else {
+            if specs[k].is_shown(values) {
+                changed |= param_widget(ui, salt, &specs[k], values, cx, y_axis);
+            }
+            k += 1;
             continue;
         };
-        let mut new = current.clone();
-        let response = match (&spec.kind, &mut new) {
-            (ParamKind::Float { min, max, log, .. }, ParamValue::Float(v)) => Some(
-                ui.horizontal(|ui| {
-                    let r = ui.add(
-                        egui::Slider::new(v, *min..=*max)
-                            .logarithmic(*log)
-                            .text(spec.label),
-                    );
-                    if let Some(animation) = spec.animation {
-                        playback(
-                            ui,
-                            egui::Id::unique((salt, spec.key)),
-                            animation,
-                            v,
-                            [*min, *max],
-                        );
-                    }
-                    r
-                })
-                .inner,
-            ),
-            (ParamKind::Int { min, max, .. }, ParamValue::Int(v)) => {
-                Some(ui.add(egui::Slider::new(v, *min..=*max).text(spec.label)))
-            }
-            (ParamKind::Bool { .. }, ParamValue::Bool(b)) => Some(ui.checkbox(b, spec.label)),
-            (ParamKind::Enum { options, .. }, ParamValue::Enum(s)) => Some(
-                egui::ComboBox::new((salt, spec.key), spec.label)
-                    .selected_text(s.as_str())
-                    .show_ui(ui, |ui| {
-                        for o in options.iter() {
-                            ui.selectable_value(s, o.to_string(), *o);
-                        }
-                    })
-                    .response,
-            ),
-            (ParamKind::Color { .. }, ParamValue::Color(c)) => Some(
-                ui.horizontal(|ui| {
-                    let r = ui.color_edit_button_rgba_unmultiplied(c);
-                    ui.label(spec.label);
-                    r
-                })
-                .inner,
-            ),
-            (ParamKind::Vec3 { min, max, .. }, ParamValue::Vec3(v)) => Some(
-                ui.horizontal(|ui| {
-                    for (x, axis) in v.iter_mut().zip(["x ", "y ", "z "]) {
-                        ui.add(
-                            egui::DragValue::new(x)
-                                .speed(0.01)
-                                .range(*min..=*max)
-                                .prefix(axis),
-                        );
-                    }
-                    ui.label(spec.label)
-                })
-                .response,
-            ),
-            (ParamKind::Path { .. }, ParamValue::Path(p)) => Some(path_field(ui, salt, spec, p)),
-            (ParamKind::Tf { .. }, ParamValue::Tf(t)) => {
-                ui.horizontal(|ui| {
-                    ui.label(spec.label);
-                    if let Some(volume) = cx.volume {
-                        suggest_button(ui, (salt, spec.key), volume, t);
-                    }
-                });
-                // one editor state per plugin instance and parameter (classify.labels
-                // has eight curves)
-                crate::tf_editor::tf_editor(ui, (salt, spec.key), t, cx.histogram);
-                ui.small(crate::tf_editor::axes_caption(cx.volume.map(|v| v.range)));
-                None
-            }
-            (ParamKind::Tf2d { .. }, ParamValue::Tf2d(t)) => {
-                ui.label(spec.label);
-                let texture = cx
-                    .volume
-                    .map(|v| crate::tf2d_editor::histogram_texture(ui.ctx(), v, y_axis));
-                crate::tf2d_editor::tf2d_editor(ui, (salt, spec.key), t, texture.as_ref(), y_axis);
-                None
-            }
-            _ => None,
+        let run = specs[k..]
+            .iter()
+            .take_while(|s| s.element == Some(element))
+            .count();
+        let members = &specs[k..k + run];
+        k += run;
+        let (group, index) = (element.group, element.index);
+        if !group.in_use(index, values) {
+            continue;
+        }
+        let on = group.is_on(index, values);
+        // an element switched off is listed only when it is the first such one
+        let first_off = (0..index).all(|j| group.is_on(j, values));
+        if !on && !first_off {
+            continue;
+        }
+        let title = if on {
+            format!("{} {index}", group.name)
+        } else {
+            format!("{} {index} · off", group.name)
         };
-        if let Some(r) = response
-            && !spec.doc.is_empty()
-        {
-            r.on_hover_text(spec.doc);
-        }
-        if new != current {
-            values.set(spec.key, new);
-            changed = true;
-        }
+        egui::CollapsingHeader::new(title)
+            .id_salt((salt, group.name, index))
+            .default_open(on && index == 0)
+            .show(ui, |ui| {
+                for spec in members {
+                    // an element that is off shows its switch only
+                    let switch = group.switch.map(|t| group.key(t, index));
+                    if (on || switch == Some(spec.key)) && spec.is_shown(values) {
+                        changed |= param_widget(ui, salt, spec, values, cx, y_axis);
+                    }
+                }
+            });
     }
     changed
+}
+
+/// The widget of one parameter; true when it changed the value.
+fn param_widget(
+    ui: &mut egui::Ui,
+    salt: u64,
+    spec: &ParamSpec,
+    values: &mut ParamValues,
+    cx: &StackUi<'_>,
+    y_axis: crate::tf2d_editor::YAxis,
+) -> bool {
+    let Some(current) = values.get(spec.key).cloned() else {
+        return false;
+    };
+    let mut new = current.clone();
+    let response = match (&spec.kind, &mut new) {
+        (ParamKind::Float { min, max, log, .. }, ParamValue::Float(v)) => Some(
+            ui.horizontal(|ui| {
+                let r = ui.add(
+                    egui::Slider::new(v, *min..=*max)
+                        .logarithmic(*log)
+                        .text(spec.label),
+                );
+                if let Some(animation) = spec.animation {
+                    playback(
+                        ui,
+                        egui::Id::unique((salt, spec.key)),
+                        animation,
+                        v,
+                        [*min, *max],
+                    );
+                }
+                r
+            })
+            .inner,
+        ),
+        (ParamKind::Int { min, max, .. }, ParamValue::Int(v)) => {
+            Some(ui.add(egui::Slider::new(v, *min..=*max).text(spec.label)))
+        }
+        (ParamKind::Bool { .. }, ParamValue::Bool(b)) => Some(ui.checkbox(b, spec.label)),
+        (ParamKind::Enum { options, .. }, ParamValue::Enum(s)) => Some(
+            egui::ComboBox::new((salt, spec.key), spec.label)
+                .selected_text(s.as_str())
+                .show_ui(ui, |ui| {
+                    for o in options.iter() {
+                        ui.selectable_value(s, o.to_string(), *o);
+                    }
+                })
+                .response,
+        ),
+        (ParamKind::Color { .. }, ParamValue::Color(c)) => Some(
+            ui.horizontal(|ui| {
+                let r = ui.color_edit_button_rgba_unmultiplied(c);
+                ui.label(spec.label);
+                r
+            })
+            .inner,
+        ),
+        (ParamKind::Vec3 { min, max, .. }, ParamValue::Vec3(v)) => Some(
+            ui.horizontal(|ui| {
+                for (x, axis) in v.iter_mut().zip(["x ", "y ", "z "]) {
+                    ui.add(
+                        egui::DragValue::new(x)
+                            .speed(0.01)
+                            .range(*min..=*max)
+                            .prefix(axis),
+                    );
+                }
+                ui.label(spec.label)
+            })
+            .response,
+        ),
+        (ParamKind::Path { .. }, ParamValue::Path(p)) => Some(path_field(ui, salt, spec, p)),
+        (ParamKind::Tf { .. }, ParamValue::Tf(t)) => {
+            ui.horizontal(|ui| {
+                ui.label(spec.label);
+                if let Some(volume) = cx.volume {
+                    suggest_button(ui, (salt, spec.key), volume, t);
+                }
+            });
+            // one editor state per plugin instance and parameter (classify.labels
+            // has eight curves)
+            crate::tf_editor::tf_editor(ui, (salt, spec.key), t, cx.histogram);
+            ui.small(crate::tf_editor::axes_caption(cx.volume.map(|v| v.range)));
+            None
+        }
+        (ParamKind::Tf2d { .. }, ParamValue::Tf2d(t)) => {
+            ui.label(spec.label);
+            let texture = cx
+                .volume
+                .map(|v| crate::tf2d_editor::histogram_texture(ui.ctx(), v, y_axis));
+            crate::tf2d_editor::tf2d_editor(ui, (salt, spec.key), t, texture.as_ref(), y_axis);
+            None
+        }
+        _ => None,
+    };
+    if let Some(r) = response
+        && !spec.doc.is_empty()
+    {
+        r.on_hover_text(spec.doc);
+    }
+    if new == current {
+        return false;
+    }
+    values.set(spec.key, new);
+    true
 }
 
 /// How an animated parameter plays ([`playback`]): kept in egui's memory per plugin
@@ -631,6 +685,49 @@ mod kittest_tests {
         );
         assert!(h.query_by_label("Add gaussian").is_some());
         assert_eq!(h.query_all_by_label("Add plugin").count(), 1);
+    }
+
+    /// Parameter groups: each element under its header, the elements switched off
+    /// after the first left out, those past the limit hidden; switching one on lists
+    /// the next spare.
+    #[test]
+    fn group_elements_in_use_are_listed_with_one_spare() {
+        let r = vwb_plugins::builtin_registry();
+        let stack: Vec<PluginInstance> = ["shade.blinn_phong", "clip.shapes", "shade.isosurface"]
+            .iter()
+            .map(|id| PluginInstance::new(r.get(id).unwrap()))
+            .collect();
+        let mut h = demo_harness(stack, 4000.0);
+        for i in 1..3 {
+            h.get_all_by_label("parameters").nth(i).unwrap().click();
+            h.run();
+        }
+        let has =
+            |h: &Harness<'_, Vec<PluginInstance>>, label: &str| h.query_by_label(label).is_some();
+        for (shown, hidden) in [
+            ("Light 0", "Light 2 · off"),
+            ("Light 1 · off", "Light 1"),
+            ("Shape 0", "Shape 2 · off"),
+            ("Shape 1 · off", "Shape 1"),
+            ("Isosurface 0", "Isosurface 1"),
+        ] {
+            assert!(has(&h, shown), "{shown} is listed");
+            assert!(!has(&h, hidden), "{hidden} is not listed");
+        }
+        // light 0's members are open, its colour among them; an element switched off
+        // shows only its switch
+        assert!(has(&h, "Light colour"));
+        assert_eq!(h.query_all_by_label("Light colour").count(), 1);
+        h.get_by_label("Light 1 · off").click();
+        h.run();
+        assert_eq!(h.query_all_by_label("Light colour").count(), 1);
+        h.get_all_by_label("Light on").nth(1).unwrap().click();
+        h.run();
+        assert!(h.state()[0].params.boolean("light1_on"));
+        for label in ["Light 1", "Light 2 · off"] {
+            assert!(has(&h, label), "{label} is listed once light 1 is on");
+        }
+        assert_eq!(h.query_all_by_label("Light colour").count(), 2);
     }
 
     /// "Suggest" beside the 1D TF editor puts the volume's suggestion into the curve,

@@ -13,12 +13,6 @@ pub mod lighting;
 pub mod ui;
 pub mod user;
 
-/// A generated parameter key or label as `&'static str` (parameter specs need them);
-/// callers make each once, in a `OnceLock`.
-pub(crate) fn static_str(s: String) -> &'static str {
-    Box::leak(s.into_boxed_str())
-}
-
 use std::sync::Arc;
 
 use params::{ParamKind, ParamValue, ParamValues};

@@ -6,7 +6,7 @@ use std::marker::PhantomData;
 use std::sync::Arc;
 
 use glam::{DVec3, DVec4};
-use vwb_render::params::{ParamSpec, ParamValues};
+use vwb_render::params::{Group, ParamSpec, ParamValues};
 use vwb_render::plugin::{
     CpuContext, CpuSample, CpuTwin, Plugin, PrepassDecl, ShaderSource, Transparency,
 };
@@ -14,37 +14,9 @@ use vwb_render::shading::{
     GradientEstimator, Gradients, Light, LightKind, LightSpace, Material, shading_normal,
 };
 
-/// Keys of light i's parameters: on, type, space, vector, colour.
-pub const LIGHT_KEYS: [[&str; 5]; 4] = [
-    [
-        "light0_on",
-        "light0_type",
-        "light0_space",
-        "light0_vector",
-        "light0_color",
-    ],
-    [
-        "light1_on",
-        "light1_type",
-        "light1_space",
-        "light1_vector",
-        "light1_color",
-    ],
-    [
-        "light2_on",
-        "light2_type",
-        "light2_space",
-        "light2_vector",
-        "light2_color",
-    ],
-    [
-        "light3_on",
-        "light3_type",
-        "light3_space",
-        "light3_vector",
-        "light3_color",
-    ],
-];
+/// The four lights, a parameter group: light i's keys are `light{i}_on`, `_type`,
+/// `_space`, `_vector` and `_color`, and `light{i}_on` switches it.
+pub const LIGHTS: Group = Group::new("Light", 4).switch("light{}_on");
 
 /// Default light vectors: a head light slightly up and right, then three fill lights.
 const LIGHT_DEFAULTS: [[f32; 3]; 4] = [
@@ -80,25 +52,31 @@ pub fn fade_param() -> ParamSpec {
         .with_doc("below this |∇f| (normalised value per voxel) shading fades linearly to unlit")
 }
 
-/// Parameters of `n` lights (light 0 on by default, in view space).
-pub fn light_params(n: usize) -> Vec<ParamSpec> {
-    LIGHT_KEYS[..n]
-        .iter()
-        .zip(LIGHT_DEFAULTS)
-        .enumerate()
-        .flat_map(|(i, (k, v))| {
-            vec![
-                ParamSpec::boolean(k[0], "Light on", i == 0),
-                ParamSpec::enumeration(k[1], "Light type", &["directional", "point"], 0),
-                ParamSpec::enumeration(k[2], "Light space", &["view", "world"], 0).with_doc(
-                    "view: x right, y up, z towards the viewer (points relative to the eye)",
-                ),
-                ParamSpec::vec3(k[3], "Light direction / position", -10.0, 10.0, v)
-                    .with_doc("directional: towards the light; point: its position"),
-                ParamSpec::color(k[4], "Light colour", [1.0, 1.0, 1.0, 1.0]),
-            ]
-        })
-        .collect()
+/// Parameters of the four lights (light 0 on by default, in view space).
+pub fn light_params() -> Vec<ParamSpec> {
+    LIGHTS.specs(|i| {
+        let k = |member| LIGHTS.key(member, i);
+        vec![
+            ParamSpec::boolean(k("light{}_on"), "Light on", i == 0),
+            ParamSpec::enumeration(
+                k("light{}_type"),
+                "Light type",
+                &["directional", "point"],
+                0,
+            ),
+            ParamSpec::enumeration(k("light{}_space"), "Light space", &["view", "world"], 0)
+                .with_doc("view: x right, y up, z towards the viewer (points relative to the eye)"),
+            ParamSpec::vec3(
+                k("light{}_vector"),
+                "Light direction / position",
+                -10.0,
+                10.0,
+                LIGHT_DEFAULTS[i],
+            )
+            .with_doc("directional: towards the light; point: its position"),
+            ParamSpec::color(k("light{}_color"), "Light colour", [1.0, 1.0, 1.0, 1.0]),
+        ]
+    })
 }
 
 /// The regions of a hook file around each light's `add_light` call
@@ -122,36 +100,39 @@ pub fn with_lights(file: &'static str, source: &'static str, compiled: [bool; 4]
 
 /// Which of the four lights are on.
 pub fn lights_on(p: &ParamValues) -> [bool; 4] {
-    std::array::from_fn(|i| p.boolean(LIGHT_KEYS[i][0]))
+    std::array::from_fn(|i| p.boolean(LIGHTS.key("light{}_on", i)))
 }
 
 /// The lights that are on, for the CPU twin.
-pub fn lights(p: &ParamValues, n: usize) -> Vec<Light> {
-    light_slots(p, n).into_iter().flatten().collect()
+pub fn lights(p: &ParamValues) -> Vec<Light> {
+    light_slots(p).into_iter().flatten().collect()
 }
 
-/// Each of the `n` light slots: its light, or None where it is off.
-pub fn light_slots(p: &ParamValues, n: usize) -> Vec<Option<Light>> {
-    LIGHT_KEYS[..n]
-        .iter()
-        .map(|k| p.boolean(k[0]).then(|| light_of(p, k)))
+/// Each of the four light slots: its light, or None where it is off.
+pub fn light_slots(p: &ParamValues) -> Vec<Option<Light>> {
+    (0..LIGHTS.count)
+        .map(|i| {
+            p.boolean(LIGHTS.key("light{}_on", i))
+                .then(|| light_of(p, i))
+        })
         .collect()
 }
 
-fn light_of(p: &ParamValues, k: &[&str; 5]) -> Light {
+fn light_of(p: &ParamValues, i: usize) -> Light {
+    let k = |member| LIGHTS.key(member, i);
     Light {
-        kind: if p.enumeration(k[1]) == "point" {
+        kind: if p.enumeration(k("light{}_type")) == "point" {
             LightKind::Point
         } else {
             LightKind::Directional
         },
-        space: if p.enumeration(k[2]) == "world" {
+        space: if p.enumeration(k("light{}_space")) == "world" {
             LightSpace::World
         } else {
             LightSpace::View
         },
-        vector: DVec3::from(p.vec3(k[3]).map(f64::from)),
-        color: DVec3::from([0, 1, 2].map(|c| p.color(k[4])[c] as f64)),
+        vector: DVec3::from(p.vec3(k("light{}_vector")).map(f64::from)),
+        color: DVec3::from([0, 1, 2].map(|c| p.color(k("light{}_color"))[c] as f64)),
     }
 }
 
@@ -258,7 +239,7 @@ impl<M: LightingModel> Plugin for Lit<M> {
                 .with_doc("flip normals towards the viewer (else n = −∇f/|∇f|)"),
             fade_param(),
         ]);
-        p.extend(light_params(4));
+        p.extend(light_params());
         p
     }
     fn shader(&self) -> ShaderSource {
@@ -282,7 +263,7 @@ impl<M: LightingModel> Plugin for Lit<M> {
         Some(Box::new(LitTwin {
             gradients: Gradients::new(self.gradient),
             model: M::twin(params),
-            lights: lights(params, 4),
+            lights: lights(params),
             two_sided: params.boolean("two_sided"),
             floor: params.float("gradient_floor") as f64,
         }))

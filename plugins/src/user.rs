@@ -36,7 +36,7 @@ use vwb_render::composer::{TargetFormat, compose};
 use vwb_render::params::{ParamKind, ParamSpec, validate_specs};
 use vwb_render::plugin::{Plugin, ShaderSource, valid_id};
 
-use crate::static_str;
+use vwb_render::params::interned;
 
 /// `plugin.ron`.
 #[derive(Debug, Clone, Deserialize)]
@@ -111,7 +111,7 @@ enum ParamDef {
 
 impl ParamDef {
     fn spec(&self) -> Result<ParamSpec, String> {
-        let s = |x: &String| static_str(x.clone());
+        let s = |x: &String| interned(x.clone());
         let (spec, doc) = match self {
             ParamDef::Float {
                 key,
@@ -201,7 +201,7 @@ impl ParamDef {
         Ok(if doc.is_empty() {
             spec
         } else {
-            spec.with_doc(static_str(doc.clone()))
+            spec.with_doc(interned(doc.clone()))
         })
     }
 }
@@ -270,9 +270,9 @@ pub fn load(dir: &Path) -> Result<UserPlugin, String> {
     let source = std::fs::read_to_string(&wgsl)
         .map_err(|e| format!("{}: cannot read: {e}", wgsl.display()))?;
     let plugin = UserPlugin {
-        id: static_str(m.id),
-        name: static_str(m.name),
-        description: static_str(m.description),
+        id: interned(m.id),
+        name: interned(m.name),
+        description: interned(m.description),
         specs,
         file: wgsl.display().to_string(),
         source,

@@ -72,6 +72,122 @@ pub struct ParamSpec {
     /// A float the window can play (advance at a speed each frame) and `vwb render`
     /// can sweep into an image sequence ([`Animation`]).
     pub animation: Option<Animation>,
+    /// The element of a repeated group (a light, a clip shape, a label's TF, an
+    /// isosurface) this parameter belongs to ([`Group`]); None for a plain parameter.
+    pub element: Option<Element>,
+}
+
+/// A repeated group of parameters: `count` elements with the same members (lights,
+/// clip shapes, per-label transfer functions, isovalues). Presets, uniforms, WGSL and
+/// experiment grids see flat keys made from templates (`light{}_on` → `light0_on`,
+/// `light1_on`, …), so a group changes no file format; the window draws each element
+/// under its own header, hides the elements that are not in use, and a plugin reads
+/// element i's value with `values.float(group.key("iso{}", i))` instead of a
+/// hand-kept table of keys.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Group {
+    /// The element's name in the window ("Light" → "Light 0", "Light 1", …).
+    pub name: &'static str,
+    pub count: usize,
+    /// The template of a member that switches an element on: a bool, an enumeration
+    /// whose first option means off (`shape{}_kind`: "off"), or an int that is −1
+    /// while the element is unused (`range{}_from`).
+    pub switch: Option<&'static str>,
+    /// An int parameter (outside the group) holding how many elements are in use:
+    /// those at or past it are hidden (`shade.isosurface`'s `count`).
+    pub limit: Option<&'static str>,
+}
+
+/// Where a parameter sits in a [`Group`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Element {
+    pub group: Group,
+    pub index: usize,
+}
+
+impl Group {
+    pub const fn new(name: &'static str, count: usize) -> Self {
+        Self {
+            name,
+            count,
+            switch: None,
+            limit: None,
+        }
+    }
+    /// The member (a key template) that switches an element on or off.
+    pub const fn switch(mut self, template: &'static str) -> Self {
+        self.switch = Some(template);
+        self
+    }
+    /// The int parameter holding how many elements are in use.
+    pub const fn limit(mut self, key: &'static str) -> Self {
+        self.limit = Some(key);
+        self
+    }
+    /// The key of element `i` from a template with one `{}` (`"light{}_on"`, 1 →
+    /// `"light1_on"`); made once per distinct key and kept for the process (specs hold
+    /// `&'static str`).
+    pub fn key(&self, template: &str, i: usize) -> &'static str {
+        indexed(template, i)
+    }
+    /// The specs of every element, element by element: `element(i)` gives element i's
+    /// members, with keys from [`Group::key`].
+    pub fn specs(&self, element: impl Fn(usize) -> Vec<ParamSpec>) -> Vec<ParamSpec> {
+        (0..self.count)
+            .flat_map(|index| {
+                element(index).into_iter().map(move |mut s| {
+                    s.element = Some(Element {
+                        group: *self,
+                        index,
+                    });
+                    s
+                })
+            })
+            .collect()
+    }
+    /// Whether element `index` is switched on (always, without a switch).
+    pub fn is_on(&self, index: usize, values: &ParamValues) -> bool {
+        let Some(template) = self.switch else {
+            return true;
+        };
+        match values.get(indexed(template, index)) {
+            Some(ParamValue::Bool(b)) => *b,
+            Some(ParamValue::Enum(e)) => e != "off",
+            Some(ParamValue::Int(i)) => *i >= 0,
+            _ => true,
+        }
+    }
+    /// Whether element `index` is in use under the group's limit.
+    pub fn in_use(&self, index: usize, values: &ParamValues) -> bool {
+        match self.limit.and_then(|k| values.get(k)) {
+            Some(ParamValue::Int(n)) => (index as i64) < i64::from(*n),
+            _ => true,
+        }
+    }
+}
+
+/// `template` (one `{}`) with `i` in place of the braces, as a `&'static str` made
+/// once per distinct result.
+pub fn indexed(template: &str, i: usize) -> &'static str {
+    interned(template.replacen("{}", &i.to_string(), 1))
+}
+
+/// A generated key, label or id as `&'static str` (parameter specs and plugin
+/// metadata need them), leaked once per distinct string: reloading a user plugin or
+/// asking a plugin for its specs again reuses the same allocation.
+pub fn interned(s: String) -> &'static str {
+    use std::sync::{Mutex, OnceLock};
+    static ALL: OnceLock<Mutex<std::collections::HashSet<&'static str>>> = OnceLock::new();
+    let mut all = ALL
+        .get_or_init(Default::default)
+        .lock()
+        .unwrap_or_else(|e| e.into_inner());
+    if let Some(&known) = all.get(s.as_str()) {
+        return known;
+    }
+    let leaked: &'static str = Box::leak(s.into_boxed_str());
+    all.insert(leaked);
+    leaked
 }
 
 /// How a float parameter animates. Where the parameter stays out of the plugin's
@@ -171,6 +287,7 @@ impl ParamSpec {
             structural: false,
             shown_when: None,
             animation: None,
+            element: None,
         }
     }
     /// The animation clock ([`Animation::Clock`]).
@@ -681,6 +798,9 @@ pub fn validate_specs(specs: &[ParamSpec]) -> Result<(), String> {
         }
         s.check(&s.default_value())
             .map_err(|e| format!("parameter '{}' default: {e}", s.key))?;
+        if let Some(e) = s.element {
+            check_element(specs, s, e)?;
+        }
         if let Some((key, value)) = s.shown_when {
             let names_a_value = specs.iter().any(|o| {
                 o.key == key
@@ -697,9 +817,146 @@ pub fn validate_specs(specs: &[ParamSpec]) -> Result<(), String> {
     Ok(())
 }
 
+/// A group's element is one run of specs, its switch is among its members (a bool, an
+/// enumeration with "off" first or an int from −1), and its limit an int parameter
+/// outside it.
+fn check_element(specs: &[ParamSpec], s: &ParamSpec, e: Element) -> Result<(), String> {
+    let Element { group: g, index } = e;
+    if index >= g.count {
+        return Err(format!(
+            "parameter '{}' is element {index} of group '{}', which has {}",
+            s.key, g.name, g.count
+        ));
+    }
+    let run: Vec<usize> = specs
+        .iter()
+        .enumerate()
+        .filter(|(_, o)| o.element == Some(e))
+        .map(|(i, _)| i)
+        .collect();
+    if run.windows(2).any(|w| w[1] != w[0] + 1) {
+        return Err(format!(
+            "group '{}' element {index}: its parameters are not declared together",
+            g.name
+        ));
+    }
+    if let Some(template) = g.switch {
+        let key = indexed(template, index);
+        let ok = specs.iter().any(|o| {
+            o.key == key
+                && o.element == Some(e)
+                && match &o.kind {
+                    ParamKind::Bool { .. } => true,
+                    ParamKind::Enum { options, .. } => options.first() == Some(&"off"),
+                    ParamKind::Int { min, .. } => *min == -1,
+                    _ => false,
+                }
+        });
+        if !ok {
+            return Err(format!(
+                "group '{}' element {index}: its switch '{key}' is not among its parameters as a bool, an enumeration starting with \"off\" or an int from −1",
+                g.name
+            ));
+        }
+    }
+    if let Some(limit) = g.limit
+        && !specs.iter().any(|o| {
+            o.key == limit && o.element.is_none() && matches!(o.kind, ParamKind::Int { .. })
+        })
+    {
+        return Err(format!(
+            "group '{}': its limit '{limit}' is not an int parameter outside the group",
+            g.name
+        ));
+    }
+    Ok(())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_group_makes_flat_keys_and_knows_its_elements_in_use() {
+        let lights = Group::new("Light", 3).switch("l{}_on");
+        let mut specs = vec![ParamSpec::int("count", "Count", 0, 3, 2)];
+        specs.extend(lights.specs(|i| {
+            vec![
+                ParamSpec::boolean(lights.key("l{}_on", i), "on", i == 0),
+                ParamSpec::float(lights.key("l{}_power", i), "power", 0.0, 1.0, 0.5),
+            ]
+        }));
+        validate_specs(&specs).unwrap();
+        let keys: Vec<&str> = specs.iter().map(|s| s.key).collect();
+        assert_eq!(
+            keys,
+            [
+                "count", "l0_on", "l0_power", "l1_on", "l1_power", "l2_on", "l2_power"
+            ]
+        );
+        // the same key is the same allocation, however often it is made
+        assert!(std::ptr::eq(lights.key("l{}_on", 1), specs[3].key));
+        let mut values = ParamValues::defaults(&specs);
+        assert!(lights.is_on(0, &values) && !lights.is_on(1, &values));
+        values.set("l1_on", ParamValue::Bool(true));
+        assert!(lights.is_on(1, &values));
+        // the uniform layout is that of the flat parameters
+        assert!(
+            UniformLayout::new(&specs)
+                .wgsl("P")
+                .contains("l2_power: f32")
+        );
+        let limited = Group::new("Iso", 3).limit("count");
+        let mut iso = vec![ParamSpec::int("count", "Count", 0, 3, 2)];
+        iso.extend(limited.specs(|i| {
+            vec![ParamSpec::float(
+                limited.key("iso{}", i),
+                "v",
+                0.0,
+                1.0,
+                0.5,
+            )]
+        }));
+        validate_specs(&iso).unwrap();
+        let values = ParamValues::defaults(&iso);
+        assert!(limited.in_use(1, &values) && !limited.in_use(2, &values));
+    }
+
+    #[test]
+    fn a_malformed_group_is_refused_naming_it() {
+        let g = Group::new("Light", 2).switch("l{}_on");
+        // the switch is a float
+        let specs = g.specs(|i| vec![ParamSpec::float(g.key("l{}_on", i), "on", 0.0, 1.0, 1.0)]);
+        let e = validate_specs(&specs).unwrap_err();
+        assert!(
+            e.contains("group 'Light' element 0: its switch 'l0_on'"),
+            "{e}"
+        );
+        // an element split by another parameter
+        let plain = Group::new("Light", 2);
+        let mut specs = plain.specs(|i| {
+            vec![
+                ParamSpec::float(plain.key("a{}", i), "a", 0.0, 1.0, 1.0),
+                ParamSpec::float(plain.key("b{}", i), "b", 0.0, 1.0, 1.0),
+            ]
+        });
+        specs.insert(1, ParamSpec::float("x", "x", 0.0, 1.0, 1.0));
+        let e = validate_specs(&specs).unwrap_err();
+        assert!(e.contains("not declared together"), "{e}");
+        // a limit that names nothing
+        let limited = Group::new("Iso", 2).limit("count");
+        let specs = limited.specs(|i| {
+            vec![ParamSpec::float(
+                limited.key("iso{}", i),
+                "v",
+                0.0,
+                1.0,
+                0.5,
+            )]
+        });
+        let e = validate_specs(&specs).unwrap_err();
+        assert!(e.contains("its limit 'count'"), "{e}");
+    }
 
     #[test]
     fn a_mode_parameter_is_shown_only_in_its_mode() {

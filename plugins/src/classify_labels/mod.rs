@@ -13,7 +13,7 @@ use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex};
 
 use glam::{DVec3, DVec4};
-use vwb_render::params::{ParamSpec, ParamValue, ParamValues};
+use vwb_render::params::{Group, ParamSpec, ParamValue, ParamValues};
 use vwb_render::plugin::{
     CpuContext, CpuSample, CpuTwin, GpuInit, GpuResource, Plugin, PluginError, ResourceDecl,
     ResourceKind, ShaderSource, Transparency,
@@ -27,32 +27,9 @@ mod tests;
 /// Labels with their own transfer function (0 … MAX_LABELS − 1).
 pub const MAX_LABELS: usize = 8;
 
-const TF_KEYS: [&str; MAX_LABELS] = [
-    "tf_0", "tf_1", "tf_2", "tf_3", "tf_4", "tf_5", "tf_6", "tf_7",
-];
-const SHOW_KEYS: [&str; MAX_LABELS] = [
-    "show_0", "show_1", "show_2", "show_3", "show_4", "show_5", "show_6", "show_7",
-];
-const TF_LABELS: [&str; MAX_LABELS] = [
-    "TF label 0",
-    "TF label 1",
-    "TF label 2",
-    "TF label 3",
-    "TF label 4",
-    "TF label 5",
-    "TF label 6",
-    "TF label 7",
-];
-const SHOW_LABELS: [&str; MAX_LABELS] = [
-    "Show label 0",
-    "Show label 1",
-    "Show label 2",
-    "Show label 3",
-    "Show label 4",
-    "Show label 5",
-    "Show label 6",
-    "Show label 7",
-];
+/// The labels' transfer functions, a parameter group: label i's curve `tf_{i}` and
+/// its switch `show_{i}`.
+pub const LABELS: Group = Group::new("Label", MAX_LABELS).switch("show_{}");
 
 pub struct Labels;
 
@@ -202,9 +179,9 @@ pub fn default_curve(label: usize) -> TfCurve {
 pub fn bake(params: &ParamValues) -> Vec<[f32; 4]> {
     (0..MAX_LABELS)
         .flat_map(|l| {
-            if params.boolean(SHOW_KEYS[l]) {
+            if params.boolean(LABELS.key("show_{}", l)) {
                 params
-                    .tf(TF_KEYS[l])
+                    .tf(LABELS.key("tf_{}", l))
                     .cloned()
                     .unwrap_or_else(|| default_curve(l))
                     .bake(LUT_SIZE)
@@ -236,10 +213,12 @@ impl Plugin for Labels {
                 .with_doc("u8 NRRD with the data's dims; relative to the preset"),
             ParamSpec::float_log("opacity", "Opacity scale", 0.01, 100.0, 1.0),
         ];
-        for l in 0..MAX_LABELS {
-            v.push(ParamSpec::tf(TF_KEYS[l], TF_LABELS[l], default_curve(l)));
-            v.push(ParamSpec::boolean(SHOW_KEYS[l], SHOW_LABELS[l], true));
-        }
+        v.extend(LABELS.specs(|l| {
+            vec![
+                ParamSpec::boolean(LABELS.key("show_{}", l), "Show", true),
+                ParamSpec::tf(LABELS.key("tf_{}", l), "Transfer function", default_curve(l)),
+            ]
+        }));
         v
     }
     fn shader(&self) -> ShaderSource {

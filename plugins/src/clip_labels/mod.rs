@@ -11,7 +11,7 @@
 use std::path::Path;
 use std::sync::{Arc, OnceLock};
 
-use vwb_render::params::{ParamSpec, ParamValue, ParamValues};
+use vwb_render::params::{Group, ParamSpec, ParamValue, ParamValues};
 use vwb_render::plugin::{
     CpuSample, CpuTwin, GpuInit, GpuResource, Plugin, PluginError, ResourceDecl, ResourceKind,
     ShaderSource, Transparency,
@@ -19,7 +19,6 @@ use vwb_render::plugin::{
 use vwb_render::volume::VoxelData;
 
 use crate::classify_labels::{cached_load, label_file, nearest_voxel};
-use crate::static_str;
 
 #[cfg(test)]
 mod tests;
@@ -27,11 +26,20 @@ mod tests;
 /// Label ranges in the parameters.
 pub const RANGES: usize = 8;
 
-/// The keys (from, to) of every range.
+/// The label ranges, a parameter group: range i is `range{i}_from` … `range{i}_to`,
+/// unused while its `from` is −1.
+pub const RANGE_GROUP: Group = Group::new("Range", RANGES).switch("range{}_from");
+
+/// The keys (from, to) of every range (made once).
 pub fn range_keys() -> &'static [(&'static str, &'static str); RANGES] {
     static KEYS: OnceLock<[(&'static str, &'static str); RANGES]> = OnceLock::new();
     KEYS.get_or_init(|| {
-        std::array::from_fn(|i| (static_str(format!("range{i}_from")), static_str(format!("range{i}_to"))))
+        std::array::from_fn(|i| {
+            (
+                RANGE_GROUP.key("range{}_from", i),
+                RANGE_GROUP.key("range{}_to", i),
+            )
+        })
     })
 }
 
@@ -132,14 +140,15 @@ impl Plugin for ClipLabels {
             ParamSpec::enumeration("mode", "Mode", &["hide", "show"], 0)
                 .with_doc("hide: the labels in the ranges are removed; show: only they stay"),
         ];
-        for (i, (f, t)) in range_keys().iter().enumerate() {
+        v.extend(RANGE_GROUP.specs(|i| {
+            let (f, t) = range_keys()[i];
             let from = if i == 0 { 0 } else { -1 };
-            v.push(
-                ParamSpec::int(f, "Range from", -1, 65535, from)
+            vec![
+                ParamSpec::int(f, "From", -1, 65535, from)
                     .with_doc("first label of the range; −1: range unused"),
-            );
-            v.push(ParamSpec::int(t, "Range to", 0, 65535, from.max(0)).with_doc("last label (inclusive)"));
-        }
+                ParamSpec::int(t, "To", 0, 65535, from.max(0)).with_doc("last label (inclusive)"),
+            ]
+        }));
         v
     }
     fn shader(&self) -> ShaderSource {

@@ -33,13 +33,12 @@
 use std::sync::{Arc, OnceLock};
 
 use glam::DVec3;
-use vwb_render::params::{ParamSpec, ParamValue, ParamValues};
+use vwb_render::params::{Group, ParamSpec, ParamValue, ParamValues};
 use vwb_render::plugin::{
     CpuContext, CpuSample, CpuTwin, CpuView, Plugin, ShaderSource, Transparency,
 };
 use vwb_render::shading::{safe_normalize, set_cut_gradient};
 
-use crate::static_str;
 
 pub mod cut;
 #[cfg(test)]
@@ -63,27 +62,23 @@ pub struct SlotKeys {
     pub invert: &'static str,
 }
 
-/// The keys of every slot (made once; the parameter spec needs `&'static str`).
+/// The shape slots, a parameter group: slot i's keys are `shape{i}_kind` (its switch:
+/// "off" first), `_center`, `_axis`, `_size` and `_invert`.
+pub const SHAPES: Group = Group::new("Shape", SLOTS).switch("shape{}_kind");
+
+/// The keys of every slot (made once).
 pub fn slot_keys() -> &'static [SlotKeys; SLOTS] {
     static KEYS: OnceLock<[SlotKeys; SLOTS]> = OnceLock::new();
     KEYS.get_or_init(|| {
-        std::array::from_fn(|i| SlotKeys {
-            kind: static_str(format!("shape{i}_kind")),
-            center: static_str(format!("shape{i}_center")),
-            axis: static_str(format!("shape{i}_axis")),
-            size: static_str(format!("shape{i}_size")),
-            invert: static_str(format!("shape{i}_invert")),
-        })
-    })
-}
-
-/// Labels of every slot's widgets, in the order of [`SlotKeys`].
-fn slot_labels() -> &'static [[&'static str; 5]; SLOTS] {
-    static LABELS: OnceLock<[[&'static str; 5]; SLOTS]> = OnceLock::new();
-    LABELS.get_or_init(|| {
         std::array::from_fn(|i| {
-            ["kind", "centre", "axis / normal", "size", "invert"]
-                .map(|what| static_str(format!("Shape {i} {what}")))
+            let k = |member| SHAPES.key(member, i);
+            SlotKeys {
+                kind: k("shape{}_kind"),
+                center: k("shape{}_center"),
+                axis: k("shape{}_axis"),
+                size: k("shape{}_size"),
+                invert: k("shape{}_invert"),
+            }
         })
     })
 }
@@ -209,22 +204,22 @@ impl Plugin for Shapes {
                 .with_doc("0: no far side"),
         ];
         p.splice(1..1, cut_params(16.0));
-        for (i, (k, l)) in slot_keys().iter().zip(slot_labels()).enumerate() {
-            p.extend([
-                ParamSpec::enumeration(k.kind, l[0], &KINDS, usize::from(i == 0))
-                    .structural(),
-                ParamSpec::vec3(k.center, l[1], -2.0, 2.0, [0.0; 3])
+        p.extend(SHAPES.specs(|i| {
+            let k = slot_keys()[i];
+            vec![
+                ParamSpec::enumeration(k.kind, "Kind", &KINDS, usize::from(i == 0)).structural(),
+                ParamSpec::vec3(k.center, "Centre", -2.0, 2.0, [0.0; 3])
                     .with_doc("world units: the volume box is centred on the origin, longest side 1"),
-                ParamSpec::vec3(k.axis, l[2], -1.0, 1.0, [1.0, 0.0, 0.0]).with_doc(
+                ParamSpec::vec3(k.axis, "Axis / normal", -1.0, 1.0, [1.0, 0.0, 0.0]).with_doc(
                     "plane: normal towards the removed side; box, cylinder: local z axis",
                 ),
-                ParamSpec::vec3(k.size, l[3], 0.0, 2.0, [0.25; 3]).with_doc(
+                ParamSpec::vec3(k.size, "Size", 0.0, 2.0, [0.25; 3]).with_doc(
                     "box: half extents; sphere: radius (x); cylinder: radius (x), half length (z)",
                 ),
-                ParamSpec::boolean(k.invert, l[4], false)
+                ParamSpec::boolean(k.invert, "Invert", false)
                     .with_doc("use the outside of the shape instead of its inside"),
-            ]);
-        }
+            ]
+        }));
         p
     }
     fn shader(&self) -> ShaderSource {

@@ -81,7 +81,7 @@ impl Plugin for BlinnPhong {
                 .with_doc("0: off; 1: α scaled by clamp(|∇f|·gm_scale, 0, 1) (eq 5.12)"),
             ParamSpec::float_log("gm_scale", "Gradient opacity scale", 0.1, 100.0, 10.0),
         ]);
-        p.extend(lighting::light_params(4));
+        p.extend(lighting::light_params());
         p
     }
     fn shader(&self) -> ShaderSource {
@@ -111,7 +111,7 @@ impl Plugin for BlinnPhong {
         params: &ParamValues,
     ) -> Result<Vec<GpuResource>, PluginError> {
         Ok(if self.table {
-            let lights = lighting::lights(params, 4);
+            let lights = lighting::lights(params);
             vec![table::create(gpu, &lights, &lighting::material(params))]
         } else {
             Vec::new()
@@ -124,7 +124,7 @@ impl Plugin for BlinnPhong {
         resources: &[GpuResource],
     ) -> Result<(), PluginError> {
         if let (true, Some(t)) = (self.table, resources.first()) {
-            let lights = lighting::lights(params, 4);
+            let lights = lighting::lights(params);
             table::upload(gpu, t, &lights, &lighting::material(params));
         }
         Ok(())
@@ -134,7 +134,7 @@ impl Plugin for BlinnPhong {
     }
     fn configure(&self, params: &ParamValues) -> Option<Arc<dyn Plugin>> {
         let table = is_table(params);
-        let lights = lighting::light_slots(params, 4);
+        let lights = lighting::light_slots(params);
         let c = BlinnPhong {
             gradient: GradientEstimator::from_params(params),
             table,
@@ -150,7 +150,7 @@ impl Plugin for BlinnPhong {
     }
     fn cpu_twin(&self, params: &ParamValues) -> Option<Box<dyn CpuTwin>> {
         let material = lighting::material(params);
-        let lights = lighting::lights(params, 4);
+        let lights = lighting::lights(params);
         Some(Box::new(BlinnPhongTwin {
             gradients: Gradients::new(self.gradient),
             table: is_table(params).then(|| table::bake(&lights, &material)),

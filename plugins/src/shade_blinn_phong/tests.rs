@@ -147,7 +147,7 @@ fn the_lighting_table_matches_direct_evaluation() {
     let mut p = defaults();
     p.set("light1_on", ParamValue::Bool(true));
     p.set("light1_color", ParamValue::Color([1.0, 0.2, 0.1, 1.0]));
-    let lights = lighting::lights(&p, 4);
+    let lights = lighting::lights(&p);
     let m = lighting::material(&p);
     let texels = table::bake(&lights, &m);
     assert_eq!(texels.len(), (2 * table::SIZE * table::SIZE) as usize);

@@ -25,7 +25,7 @@
 use std::sync::Arc;
 
 use glam::{DVec3, DVec4};
-use vwb_render::params::{ParamSpec, ParamValues};
+use vwb_render::params::{Group, ParamSpec, ParamValues};
 use vwb_render::plugin::{CpuContext, CpuSample, CpuTwin, Plugin, PrepassDecl, ShaderSource};
 use vwb_render::shading::{
     GradientEstimator, Gradients, Light, Material, blinn_phong_factors, shading_normal,
@@ -38,12 +38,9 @@ use crate::lighting;
 #[cfg(test)]
 mod tests;
 
-pub const ISO_KEYS: [(&str, &str); 4] = [
-    ("iso0", "color0"),
-    ("iso1", "color1"),
-    ("iso2", "color2"),
-    ("iso3", "color3"),
-];
+/// The four isosurfaces, a parameter group: surface i's isovalue `iso{i}` and colour
+/// `color{i}`; `count` of them are in use.
+pub const SURFACES: Group = Group::new("Isosurface", 4).limit("count");
 
 const ISO_DEFAULTS: [(f32, [f32; 4]); 4] = [
     (0.3, [0.95, 0.8, 0.65, 1.0]),
@@ -74,13 +71,14 @@ impl Plugin for Isosurface {
                 .with_doc("crossing: the value crosses the isovalue before the next slice; alpha_test: value ≥ isovalue (thesis)"),
             ParamSpec::int("count", "Isovalues", 1, 4, 1),
         ];
-        for ((iso, color), (v, c)) in ISO_KEYS.into_iter().zip(ISO_DEFAULTS) {
-            p.push(
-                ParamSpec::float(iso, "Isovalue", 0.0, 1.0, v)
+        p.extend(SURFACES.specs(|i| {
+            let (v, c) = ISO_DEFAULTS[i];
+            vec![
+                ParamSpec::float(SURFACES.key("iso{}", i), "Isovalue", 0.0, 1.0, v)
                     .with_doc("normalised value of the surface"),
-            );
-            p.push(ParamSpec::color(color, "Surface colour and opacity", c));
-        }
+                ParamSpec::color(SURFACES.key("color{}", i), "Surface colour and opacity", c),
+            ]
+        }));
         p.extend(lighting::material_params(0.2, 0.8, 0.4, 32.0));
         p.push(lighting::head_light_param());
         p.push(lighting::fade_param());
@@ -106,20 +104,24 @@ impl Plugin for Isosurface {
         Some(Box::new(IsosurfaceTwin {
             gradients: Gradients::new(self.gradient),
             alpha_test: params.enumeration("method") == "alpha_test",
-            surfaces: ISO_KEYS[..count]
-                .iter()
-                .map(|(iso, color)| {
-                    (
-                        params.float(iso) as f64,
-                        DVec4::from(params.color(color).map(f64::from)),
-                    )
-                })
-                .collect(),
+            surfaces: surfaces(params, count),
             material: lighting::material(params),
             light: lighting::head_light(params),
             floor: params.float("gradient_floor") as f64,
         }))
     }
+}
+
+/// The first `count` surfaces: (isovalue, colour with opacity).
+pub fn surfaces(params: &ParamValues, count: usize) -> Vec<(f64, DVec4)> {
+    (0..count)
+        .map(|i| {
+            (
+                params.float(SURFACES.key("iso{}", i)) as f64,
+                DVec4::from(params.color(SURFACES.key("color{}", i)).map(f64::from)),
+            )
+        })
+        .collect()
 }
 
 /// CPU twin of `isosurface.wgsl`.

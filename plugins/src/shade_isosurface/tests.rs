@@ -12,10 +12,7 @@ fn twin(p: &ParamValues) -> IsosurfaceTwin {
     IsosurfaceTwin {
         gradients: Gradients::new(GradientEstimator::Central),
         alpha_test: p.enumeration("method") == "alpha_test",
-        surfaces: ISO_KEYS[..p.int("count") as usize]
-            .iter()
-            .map(|(i, c)| (p.float(i) as f64, DVec4::from(p.color(c).map(f64::from))))
-            .collect(),
+        surfaces: surfaces(p, p.int("count") as usize),
         material: lighting::material(p),
         light: lighting::head_light(p),
         floor: p.float("gradient_floor") as f64,
