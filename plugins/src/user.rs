@@ -107,9 +107,98 @@ enum ParamDef {
         #[serde(default)]
         doc: String,
     },
+    /// A repeated group (`params::Group`): `count` elements of `params`, whose keys are
+    /// templates with one `{}` (`light{}_on`); `switch` names the member template that
+    /// turns an element on, `limit` an int parameter holding how many are in use.
+    Group {
+        name: String,
+        count: usize,
+        #[serde(default)]
+        switch: Option<String>,
+        #[serde(default)]
+        limit: Option<String>,
+        params: Vec<ParamDef>,
+    },
 }
 
+/// Elements a user plugin's group may have.
+const MAX_GROUP: usize = 16;
+
 impl ParamDef {
+    /// The specs of a definition: one, or a group's members for every element.
+    fn specs(&self) -> Result<Vec<ParamSpec>, String> {
+        let ParamDef::Group {
+            name,
+            count,
+            switch,
+            limit,
+            params,
+        } = self
+        else {
+            return Ok(vec![self.spec()?]);
+        };
+        if !(1..=MAX_GROUP).contains(count) {
+            return Err(format!(
+                "group '{name}': count {count} is not in 1..={MAX_GROUP}"
+            ));
+        }
+        let mut group = vwb_render::params::Group::new(interned(name.clone()), *count);
+        if let Some(t) = switch {
+            group = group.switch(interned(t.clone()));
+        }
+        if let Some(k) = limit {
+            group = group.limit(interned(k.clone()));
+        }
+        for p in params {
+            match p.key() {
+                None => return Err(format!("group '{name}': a group inside a group")),
+                Some(k) if k.matches("{}").count() != 1 => {
+                    return Err(format!(
+                        "group '{name}': key '{k}' needs one {{}} where the element's index goes"
+                    ));
+                }
+                Some(_) => {}
+            }
+        }
+        let err = std::cell::RefCell::new(None);
+        let specs = group.specs(|i| {
+            params
+                .iter()
+                .filter_map(|p| {
+                    let mut member = p.clone();
+                    member.set_key(group.key(p.key().unwrap_or_default(), i));
+                    member.spec().map_err(|e| *err.borrow_mut() = Some(e)).ok()
+                })
+                .collect()
+        });
+        err.into_inner().map_or(Ok(specs), Err)
+    }
+
+    /// The key of a single parameter (None for a group).
+    fn key(&self) -> Option<&str> {
+        match self {
+            ParamDef::Float { key, .. }
+            | ParamDef::Int { key, .. }
+            | ParamDef::Bool { key, .. }
+            | ParamDef::Enum { key, .. }
+            | ParamDef::Color { key, .. }
+            | ParamDef::Vec3 { key, .. } => Some(key),
+            ParamDef::Group { .. } => None,
+        }
+    }
+
+    fn set_key(&mut self, new: &str) {
+        match self {
+            ParamDef::Float { key, .. }
+            | ParamDef::Int { key, .. }
+            | ParamDef::Bool { key, .. }
+            | ParamDef::Enum { key, .. }
+            | ParamDef::Color { key, .. }
+            | ParamDef::Vec3 { key, .. } => *key = new.to_string(),
+            ParamDef::Group { .. } => {}
+        }
+    }
+
     fn spec(&self) -> Result<ParamSpec, String> {
         let s = |x: &String| interned(x.clone());
         let (spec, doc) = match self {
@@ -179,6 +268,9 @@ impl ParamDef {
                 default,
                 doc,
             } => (ParamSpec::vec3(s(key), s(label), *min, *max, *default), doc),
+            ParamDef::Group { name, .. } => {
+                return Err(format!("group '{name}': a group inside a group"));
+            }
         };
         if let ParamKind::Float {
             min, max, default, ..
@@ -259,12 +351,13 @@ pub fn load(dir: &Path) -> Result<UserPlugin, String> {
     if crate::builtin_registry().get(&m.id).is_ok() {
         return Err(at(format!("'{}' is the id of a built-in plugin", m.id)));
     }
-    let specs = m
+    let specs: Vec<ParamSpec> = m
         .params
         .iter()
-        .map(ParamDef::spec)
+        .map(ParamDef::specs)
         .collect::<Result<Vec<_>, _>>()
-        .map_err(at)?;
+        .map_err(at)?
+        .concat();
     validate_specs(&specs).map_err(at)?;
     let wgsl = dir.join(&m.shader);
     let source = std::fs::read_to_string(&wgsl)
@@ -468,6 +561,65 @@ mod tests {
             p.cpu_twin(&vwb_render::params::ParamValues::defaults(&specs))
                 .is_none()
         );
+        std::fs::remove_dir_all(&d).ok();
+    }
+
+    /// A group in plugin.ron: flat keys per element for the WGSL, the element's
+    /// switch; a key without `{}`, a group in a group and an absurd count are refused
+    /// naming plugin.ron and the group.
+    #[test]
+    fn a_group_of_parameters_becomes_flat_keys_per_element() {
+        let wgsl = "fn shade(s: Sample) -> Sample {\n    var o = s;\n    var g = 1.0;\n    if (params.tone0_on != 0u) { g = g * params.tone0_gain; }\n    if (params.tone2_on != 0u) { g = g * params.tone2_gain; }\n    o.color = vec4<f32>(s.color.rgb * g, s.color.a);\n    return o;\n}\n";
+        let group = |members: &str, count: usize| {
+            format!(
+                r#"UserPlugin(id: "shade.tones_test", name: "Tones", shader: "p.wgsl",
+                params: [Group(name: "Tone", count: {count}, switch: Some("tone{{}}_on"), params: [{members}])])"#
+            )
+        };
+        let good = r#"Bool(key: "tone{}_on", label: "On", default: true),
+                      Float(key: "tone{}_gain", label: "Gain", min: 0.0, max: 2.0, default: 0.9)"#;
+        let d = folder("group", &group(good, 3), wgsl);
+        let p = load(&d).unwrap();
+        let specs = p.params();
+        let keys: Vec<&str> = specs.iter().map(|s| s.key).collect();
+        assert_eq!(
+            keys,
+            [
+                "tone0_on",
+                "tone0_gain",
+                "tone1_on",
+                "tone1_gain",
+                "tone2_on",
+                "tone2_gain"
+            ]
+        );
+        let e = specs[3].element.unwrap();
+        assert_eq!(
+            (e.group.name, e.index, e.group.switch),
+            ("Tone", 1, Some("tone{}_on"))
+        );
+        for (members, count, why) in [
+            (
+                r#"Float(key: "gain", label: "G", min: 0.0, max: 2.0, default: 1.0)"#,
+                3,
+                "needs one {}",
+            ),
+            (
+                r#"Group(name: "In", count: 2, params: [])"#,
+                3,
+                "a group inside a group",
+            ),
+            (good, 0, "count 0 is not in 1..=16"),
+            (
+                r#"Float(key: "tone{}_on", label: "G", min: 0.0, max: 2.0, default: 1.0)"#,
+                3,
+                "its switch 'tone0_on'",
+            ),
+        ] {
+            std::fs::write(d.join("plugin.ron"), group(members, count)).unwrap();
+            let e = load(&d).unwrap_err();
+            assert!(e.contains("plugin.ron") && e.contains(why), "{why}: {e}");
+        }
         std::fs::remove_dir_all(&d).ok();
     }
 
