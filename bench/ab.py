@@ -15,6 +15,13 @@ rounds); the figure per build is the median over rounds of the frame's GPU media
 times design galleries instead (`vwb gallery --preset P --pool N --k 4 --tile T`, the
 time it reports for its thumbnails: set-up, renders and read-back), and checks that
 both builds choose the same genomes with the same dispersion.
+
+    python3 bench/ab.py ... --images 256x256
+
+also renders every preset and backend once with each build (`vwb render`, that size)
+and adds how far B's 8-bit image is from A's: RMS and largest difference in levels, and
+the pixels that differ (needs numpy and pillow). The JSON names the machine and the
+adapter.
 """
 import argparse
 import csv
@@ -24,6 +31,8 @@ import re
 import statistics
 import subprocess
 import tempfile
+
+from doclib import machine_line
 
 
 def frame_ms(binary, preset, frames, size, backend):
@@ -39,6 +48,30 @@ def frame_ms(binary, preset, frames, size, backend):
                 if row["kind"] == "frame":
                     return float(row["median_ms"]), row["clock"]
     raise RuntimeError(f"{binary}: no frame row for {preset}")
+
+
+def adapter_of(binary, preset):
+    """The adapter line `vwb render` prints."""
+    with tempfile.TemporaryDirectory() as d:
+        p = subprocess.run([binary, "render", "--preset", preset, "--size", "16x16",
+                            "-o", os.path.join(d, "a.png")], capture_output=True, text=True)
+    m = re.search(r"adapter: (.*)", p.stdout + p.stderr)
+    return m.group(1).strip() if m else "?"
+
+
+def image_diff(a, b, preset, backend, size):
+    """(RMS, max, differing pixels) of B's 8-bit RGB render against A's."""
+    import numpy as np
+    from PIL import Image
+    with tempfile.TemporaryDirectory() as d:
+        imgs = []
+        for name, binary in (("a", a), ("b", b)):
+            out = os.path.join(d, f"{name}.png")
+            subprocess.run([binary, "render", "--preset", preset, "--size", size, "--backend", backend,
+                            "-o", out], check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+            imgs.append(np.asarray(Image.open(out).convert("RGB")).astype(float))
+    diff = np.abs(imgs[0] - imgs[1])
+    return float(np.sqrt((diff ** 2).mean())), float(diff.max()), int((diff.max(axis=2) > 0).sum())
 
 
 def gallery_ms(binary, preset, pool, tile):
@@ -83,6 +116,7 @@ def main():
     ap.add_argument("--gallery", action="append", help="time design galleries of this preset instead")
     ap.add_argument("--pool", type=int, default=512)
     ap.add_argument("--tile", type=int, default=16)
+    ap.add_argument("--images", metavar="WxH", help="also compare the builds' images at this size")
     a = ap.parse_args()
     if a.gallery:
         galleries(a)
@@ -98,19 +132,29 @@ def main():
                     ms, clock = frame_ms(binary, p, a.frames, a.size, be)
                     times.setdefault((p, be, name), []).append(ms)
     rows = []
-    print("| preset | backend | A ms | B ms | B / A |")
-    print("|---|---|---:|---:|---:|")
+    images = f" | image B vs A at {a.images}: RMS, max (levels), pixels differing" if a.images else ""
+    print(f"| preset | backend | A ms | B ms | B / A{images} |")
+    print("|---|---|---:|---:|---:" + ("|---:" if a.images else "") + "|")
     for p in presets:
         for be in backends:
             ta = statistics.median(times[(p, be, "a")])
             tb = statistics.median(times[(p, be, "b")])
-            rows.append({"preset": p, "backend": be, "a_ms": ta, "b_ms": tb, "ratio": tb / ta,
-                         "a_rounds": times[(p, be, "a")], "b_rounds": times[(p, be, "b")]})
-            print(f"| {p} | {be} | {ta:.1f} | {tb:.1f} | {tb / ta:.3f} |")
+            row = {"preset": p, "backend": be, "a_ms": ta, "b_ms": tb, "ratio": tb / ta,
+                   "a_rounds": times[(p, be, "a")], "b_rounds": times[(p, be, "b")]}
+            cell = ""
+            if a.images:
+                rms, mx, n = image_diff(a.a, a.b, p, be, a.images)
+                row.update({"image_size": a.images, "image_rms_levels": rms, "image_max_levels": mx,
+                            "image_pixels_differing": n})
+                cell = f" | {rms:.3f}, {mx:.0f}, {n}"
+            rows.append(row)
+            print(f"| {p} | {be} | {ta:.1f} | {tb:.1f} | {tb / ta:.3f}{cell} |")
     if a.o:
         with open(a.o, "w") as f:
             json.dump({"a": a.a, "b": a.b, "size": a.size, "frames": a.frames,
-                       "rounds": a.rounds, "rows": rows}, f, indent=2)
+                       "rounds": a.rounds, "machine": machine_line(),
+                       "adapter": adapter_of(a.b, presets[0]),
+                       "lp_num_threads": os.environ.get("LP_NUM_THREADS"), "rows": rows}, f, indent=2)
 
 
 if __name__ == "__main__":

@@ -6,7 +6,8 @@ other round) and writes the median frame times, their ratio to the plain raster
 backend and each image's difference from the plain raster image (8-bit RGB RMS and
 largest channel difference) to the `raster-options` block of docs/perf.md. Variants:
 
-- raster: full-box proxy polygons, no early termination (the shipped default);
+- raster: the shipped default, no early termination; its proxy polygons cover the
+  visible box (the occupied bricks' bounding box) since session 46, the full box before;
 - early termination 0.99 with a depth mask every N slices (`VWB_RASTER_ET_INTERVAL`);
 - the occupied proxy: polygons cut to cells of C bricks per axis around the bricks
   that can be visible (`--occupied-proxy on`, `VWB_RASTER_PROXY_CELL`), fragments at

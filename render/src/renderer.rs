@@ -176,7 +176,9 @@ pub struct FrameStats {
     /// pre-integration tables; [`Plugin::uses_slice_spacing`]).
     pub spacing_updates: usize,
     /// Raster backend: the share of the renderer's box that its proxy polygons cover
-    /// (1 for the full box, less with [`Renderer::set_occupied_proxy`]); `None` for compute.
+    /// (its visible box's: 1 without empty-space skipping, less where the occupied
+    /// bricks' bounds are smaller than the box, and less again with
+    /// [`Renderer::set_occupied_proxy`]); `None` for compute.
     pub proxy_share: Option<f64>,
     /// Compute backend with per-slice state: the slice and the state updates ran in one
     /// dispatch per slice ([`Renderer::set_fused_slices`]).
@@ -2866,10 +2868,13 @@ impl Renderer {
         let mut fused_run = false;
         if s.backend == Backend::Raster {
             let own = self.own_box().0;
+            // the proxies cover only what can be visible: the occupied cells, or the
+            // visible box (the own box cut to the occupied bricks' bounds; nothing when
+            // nothing can be visible), as the compute backend's rays do
             let boxes = if cut_proxy {
                 self.proxy_boxes()
             } else {
-                vec![own]
+                self.visible_box().into_iter().collect()
             };
             let volume = |b: &VolumeBox| (b.max - b.min).as_dvec3().element_product();
             proxy_share =

@@ -5,10 +5,12 @@
 //! point `cs_main_skip`) jumps over the slices a ray spends inside an empty brick; the
 //! image is the same, since every skipped sample would have contributed exactly
 //! nothing. (A per-fragment early-out in the raster backend measured 15 % slower on
-//! lavapipe, whose fragment cost is dominated by rasterisation and blending.) The
-//! raster backend can instead cut its proxy polygons to [`occupied_cells`] (the
-//! occupied bricks' bounding box in cells of a few bricks per axis, the empty cells
-//! left out), so that fragments are made only where a sample can be visible.
+//! lavapipe, whose fragment cost is dominated by rasterisation and blending.) Both
+//! backends sample only inside the occupied bricks' bounding box ([`occupied_bounds`]:
+//! the compute backend's rays, the raster backend's proxy polygons), and the raster
+//! backend can cut its polygons further to [`occupied_cells`] (that box in cells of a
+//! few bricks per axis, the empty cells left out), so that fragments are made only where
+//! a sample can be visible.
 //!
 //! Exactness rests on the plugins' [`Transparency`] promises (see there): skipping is
 //! on only when every enabled plugin makes one. A brick of [`brick()`]³ voxels covers the

@@ -461,7 +461,11 @@ fn occupied_proxy_covers_less_and_keeps_the_image() {
             rms / ONE_LEVEL,
             max / ONE_LEVEL
         );
-        assert_eq!(shares[0], 1.0, "{preset}");
+        // the polygons cover the visible box (the occupied bricks' bounds) or less
+        assert!(
+            shares[0] <= 1.0 && shares[1] < shares[0],
+            "{preset}: {shares:?}"
+        );
         assert!(shares[1] < 0.7, "{preset}: {shares:?}");
         assert!(mean_luma(&images[1]) > 0.02, "{preset}: something is drawn");
         assert!(rms < 0.5 * ONE_LEVEL, "{preset}: RMS {rms}");
@@ -592,9 +596,10 @@ fn gpu_memory_limits_and_a_lost_device_are_clear_errors() {
 }
 
 /// Empty-space skipping changes nothing in the image: every shipped preset (and the
-/// per-slice-state one) renders the same with it on and off, on both backends and with
-/// early termination, while a good share of the bricks is skipped where the stack
-/// allows it. (The extremes suite runs with skipping on against the CPU reference.)
+/// per-slice-state one) renders the same with it on and off, bit for bit in the compute
+/// backend (also with early termination) and up to the rounding of interpolated sample
+/// positions in the raster backend (whose polygons then stop at the visible box), while
+/// a good share of the bricks is skipped where the stack allows it. (The extremes suite runs with skipping on against the CPU reference.)
 #[test]
 fn empty_space_skipping_leaves_images_unchanged() {
     let registry = registry();
@@ -625,7 +630,19 @@ fn empty_space_skipping_leaves_images_unchanged() {
                 .each_mut()
                 .map(|r| render(r, &doc.stack, doc.render.target, &s));
             let share = renderers[0].empty_brick_share();
-            assert_eq!(images[0], images[1], "{name} {}", backend.name());
+            if backend == Backend::Raster {
+                // with skipping the raster polygons stop at the visible box: the same
+                // samples, their positions interpolated over other triangles
+                let (rms, max) = diff(&rgb(&images[0]), &rgb(&images[1]));
+                assert!(
+                    rms < 0.25 * ONE_LEVEL && max < adapter_bound(12.0, 32.0) * ONE_LEVEL,
+                    "{name} raster: RMS {:.3}, max {:.1} levels",
+                    rms / ONE_LEVEL,
+                    max / ONE_LEVEL
+                );
+            } else {
+                assert_eq!(images[0], images[1], "{name} {}", backend.name());
+            }
             // skipping is off exactly where an enabled plugin promises nothing about
             // transparent samples (test.smooth and flow.lic3d replace the value, a
             // pre-integrated slab reaches into the next brick, isosurfaces make opacity
