@@ -150,7 +150,7 @@ impl ParamDef {
             group = group.limit(interned(k.clone()));
         }
         for p in params {
-            match p.key() {
+            match p.clone().key_mut().map(|k| k.clone()) {
                 None => return Err(format!("group '{name}': a group inside a group")),
                 Some(k) if k.matches("{}").count() != 1 => {
                     return Err(format!(
@@ -166,7 +166,9 @@ impl ParamDef {
                 .iter()
                 .filter_map(|p| {
                     let mut member = p.clone();
-                    member.set_key(group.key(p.key().unwrap_or_default(), i));
+                    if let Some(key) = member.key_mut() {
+                        *key = group.key(key, i).to_string();
+                    }
                     member.spec().map_err(|e| *err.borrow_mut() = Some(e)).ok()
                 })
                 .collect()
@@ -175,7 +177,7 @@ impl ParamDef {
     }
 
     /// The key of a single parameter (None for a group).
-    fn key(&self) -> Option<&str> {
+    fn key_mut(&mut self) -> Option<&mut String> {
         match self {
             ParamDef::Float { key, .. }
             | ParamDef::Int { key, .. }
@@ -184,18 +186,6 @@ impl ParamDef {
             | ParamDef::Color { key, .. }
             | ParamDef::Vec3 { key, .. } => Some(key),
             ParamDef::Group { .. } => None,
-        }
-    }
-
-    fn set_key(&mut self, new: &str) {
-        match self {
-            ParamDef::Float { key, .. }
-            | ParamDef::Int { key, .. }
-            | ParamDef::Bool { key, .. }
-            | ParamDef::Enum { key, .. }
-            | ParamDef::Color { key, .. }
-            | ParamDef::Vec3 { key, .. } => *key = new.to_string(),
-            ParamDef::Group { .. } => {}
         }
     }
 

@@ -908,18 +908,15 @@ mod tests {
         );
         let limited = Group::new("Iso", 3).limit("count");
         let mut iso = vec![ParamSpec::int("count", "Count", 0, 3, 2)];
-        iso.extend(limited.specs(|i| {
-            vec![ParamSpec::float(
-                limited.key("iso{}", i),
-                "v",
-                0.0,
-                1.0,
-                0.5,
-            )]
-        }));
+        iso.extend(isovalues(limited));
         validate_specs(&iso).unwrap();
         let values = ParamValues::defaults(&iso);
         assert!(limited.in_use(1, &values) && !limited.in_use(2, &values));
+    }
+
+    /// A group of one float member per element, `iso{}`.
+    fn isovalues(g: Group) -> Vec<ParamSpec> {
+        g.specs(|i| vec![ParamSpec::float(g.key("iso{}", i), "v", 0.0, 1.0, 0.5)])
     }
 
     #[test]
@@ -944,16 +941,7 @@ mod tests {
         let e = validate_specs(&specs).unwrap_err();
         assert!(e.contains("not declared together"), "{e}");
         // a limit that names nothing
-        let limited = Group::new("Iso", 2).limit("count");
-        let specs = limited.specs(|i| {
-            vec![ParamSpec::float(
-                limited.key("iso{}", i),
-                "v",
-                0.0,
-                1.0,
-                0.5,
-            )]
-        });
+        let specs = isovalues(Group::new("Iso", 2).limit("count"));
         let e = validate_specs(&specs).unwrap_err();
         assert!(e.contains("its limit 'count'"), "{e}");
     }
