@@ -60,7 +60,7 @@ builtin_plugins! {
     shade_oren_nayar => shade_oren_nayar::OrenNayar::default(),
     shade_toon => shade_toon::Toon::default(),
     shade_hernell => shade_hernell::Hernell::default(),
-    flow_arrival => flow_arrival::Arrival,
+    flow_arrival => flow_arrival::Arrival::default(),
     flow_lic3d => flow_lic3d::Lic3d::default(),
     test_slice_shadow => test_slice_shadow::SliceShadow,
     test_smooth => test_smooth::Smooth,

@@ -325,6 +325,17 @@ impl Integrator {
             .position(|k| *k == key)
             .map_or(Integrator::Rk4, |i| Self::ALL[i])
     }
+    /// The region a hook file written for every integrator leaves out for this one:
+    /// such a file puts the second stage in an `rk2` region and the last two, inside it,
+    /// in an `rk4` region, so that only the chosen integrator's stages are compiled in
+    /// (a CPU device runs both sides of a branch on a uniform).
+    pub fn region_left_out(self) -> Option<&'static str> {
+        match self {
+            Integrator::Euler => Some("rk2"),
+            Integrator::Rk2 => Some("rk4"),
+            Integrator::Rk4 => None,
+        }
+    }
     pub fn name(self) -> &'static str {
         match self {
             Integrator::Euler => "Euler",

@@ -16,24 +16,24 @@ fn arrival_velocity(p: vec3<f32>, d: vec3<f32>) -> vec4<f32> {
     return vec4<f32>(textureSampleLevel(field, linear_clamp, (p + vec3<f32>(0.5)) / d, 0.0).xyz, 1.0);
 }
 
-// One step of dt backwards in time from p (w = 0 when a stage left the field).
-// integrator: 0 Euler, 1 RK2 (midpoint), 2 RK4.
+// One step of dt backwards in time from p (w = 0 when a stage left the field). The
+// integrator is structural: Euler compiles in neither region below, RK2 the first,
+// RK4 both (Integrator::region_left_out).
 fn arrival_step(p: vec3<f32>, dt: f32, d: vec3<f32>) -> vec4<f32> {
     let h = -dt;
     let k1 = arrival_velocity(p, d);
     if (k1.w == 0.0) {
         return vec4<f32>(0.0);
     }
-    if (params.integrator == 0u) {
-        return vec4<f32>(p + k1.xyz * h, 1.0);
-    }
+    var v = k1.xyz;
+    var s = h;
+    // rk2: begin
     let k2 = arrival_velocity(p + k1.xyz * (h * 0.5), d);
     if (k2.w == 0.0) {
         return vec4<f32>(0.0);
     }
-    if (params.integrator == 1u) {
-        return vec4<f32>(p + k2.xyz * h, 1.0);
-    }
+    v = k2.xyz;
+    // rk4: begin
     let k3 = arrival_velocity(p + k2.xyz * (h * 0.5), d);
     if (k3.w == 0.0) {
         return vec4<f32>(0.0);
@@ -42,7 +42,11 @@ fn arrival_step(p: vec3<f32>, dt: f32, d: vec3<f32>) -> vec4<f32> {
     if (k4.w == 0.0) {
         return vec4<f32>(0.0);
     }
-    return vec4<f32>(p + (k1.xyz + 2.0 * k2.xyz + 2.0 * k3.xyz + k4.xyz) * (h / 6.0), 1.0);
+    v = k1.xyz + 2.0 * k2.xyz + 2.0 * k3.xyz + k4.xyz;
+    s = h / 6.0;
+    // rk4: end
+    // rk2: end
+    return vec4<f32>(p + v * s, 1.0);
 }
 
 fn arrival_in_seed(t: vec3<f32>) -> bool {

@@ -42,9 +42,20 @@ mod tests;
 const SHADER_FILE: &str = "plugins/src/flow_arrival/arrival.wgsl";
 const SHADER: &str = include_str!("arrival.wgsl");
 
-/// The plugin (no structural parameters).
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
-pub struct Arrival;
+/// The plugin, configured by its integrator (structural: only its stages are compiled
+/// into the pre-pass).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Arrival {
+    pub integrator: Integrator,
+}
+
+impl Default for Arrival {
+    fn default() -> Self {
+        Self {
+            integrator: Integrator::Rk4,
+        }
+    }
+}
 
 fn error(message: String) -> PluginError {
     PluginError::Invalid {
@@ -136,7 +147,9 @@ impl Plugin for Arrival {
                 .with_doc("path length per integration step"),
             ParamSpec::float("max_length", "Longest path (voxels)", 8.0, 2048.0, 256.0)
                 .with_doc("paths longer than this never arrive"),
-            ParamSpec::enumeration("integrator", "Integrator", &Integrator::KEYS, 2),
+            ParamSpec::enumeration("integrator", "Integrator", &Integrator::KEYS, 2)
+                .structural()
+                .with_doc("only the chosen one is compiled into the pre-pass"),
         ]
     }
     fn shader(&self) -> ShaderSource {
@@ -153,9 +166,23 @@ impl Plugin for Arrival {
             target: "arrival",
             format: StorageFormat::R32Float,
             scale: 1.0,
-            shader: ShaderSource::without_regions(SHADER_FILE, SHADER, &[("hook", "")]),
+            shader: ShaderSource::without_regions(
+                SHADER_FILE,
+                SHADER,
+                &[Some("hook"), self.integrator.region_left_out()]
+                    .into_iter()
+                    .flatten()
+                    .map(|r| (r, ""))
+                    .collect::<Vec<_>>(),
+            ),
             depends_on: vec!["seed_min", "seed_max", "step", "max_length", "integrator"],
         })
+    }
+    fn configure(&self, params: &ParamValues) -> Option<Arc<dyn Plugin>> {
+        let c = Arrival {
+            integrator: Integrator::from_key(params.enumeration("integrator")),
+        };
+        (c != *self).then(|| Arc::new(c) as Arc<dyn Plugin>)
     }
     fn create_resources(
         &self,

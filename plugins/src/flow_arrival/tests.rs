@@ -4,7 +4,7 @@ use vwb_render::params::{Animation, ParamValue};
 use vwb_render::volume::VoxelData;
 
 fn defaults() -> ParamValues {
-    ParamValues::defaults(&Arrival.params())
+    ParamValues::defaults(&Arrival::default().params())
 }
 
 fn idx(dims: [u32; 3], x: u32, y: u32, z: u32) -> usize {
@@ -66,10 +66,10 @@ fn time_and_band_select_what_is_kept() {
 /// recomputes nothing; the seed and the integration are.
 #[test]
 fn playing_the_time_reruns_no_pass() {
-    let specs = Arrival.params();
+    let specs = Arrival::default().params();
     let time = specs.iter().find(|s| s.key == "time").unwrap();
     assert_eq!(time.animation, Some(Animation::Clock));
-    let deps = Arrival.prepass().unwrap().depends_on;
+    let deps = Arrival::default().prepass().unwrap().depends_on;
     assert!(!deps.contains(&"time") && !deps.contains(&"band"));
     for k in ["seed_min", "seed_max", "step", "max_length", "integrator"] {
         assert!(deps.contains(&k), "{k}");
@@ -77,4 +77,29 @@ fn playing_the_time_reruns_no_pass() {
     }
     let p = defaults();
     assert_eq!(arrival_params(&p).integrator, Integrator::Rk4);
+}
+
+/// The integrator is compiled in: its pre-pass holds its stages only, and choosing
+/// another configures another plugin.
+#[test]
+fn only_the_chosen_integrator_is_compiled_in() {
+    let stages = |a: Arrival| {
+        a.prepass()
+            .unwrap()
+            .shader
+            .source
+            .matches("= arrival_velocity(p")
+            .count()
+    };
+    for (integrator, n) in Integrator::ALL.into_iter().zip([1, 2, 4]) {
+        assert_eq!(stages(Arrival { integrator }), n, "{integrator:?}");
+    }
+    let mut p = defaults();
+    assert!(Arrival::default().configure(&p).is_none());
+    p.set("integrator", ParamValue::Enum("euler".into()));
+    let euler = Arrival::default().configure(&p).expect("another integrator");
+    assert_eq!(
+        euler.prepass().unwrap().shader.source.matches("= arrival_velocity(p").count(),
+        1
+    );
 }

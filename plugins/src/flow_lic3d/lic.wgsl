@@ -26,23 +26,24 @@ fn lic_dir(p: vec3<f32>, d: vec3<f32>) -> vec4<f32> {
     return vec4<f32>(v / l, 1.0);
 }
 
-// One step of h from p (w = 0 when a stage left the field). integrator: 0 Euler, 1 RK2
-// (midpoint), 2 RK4.
+// One step of h from p (w = 0 when a stage left the field). The integrator is
+// structural: its stages are compiled in (Euler: neither region below, RK2: the first,
+// RK4: both), since a CPU device runs the code of a branch on a uniform whatever its
+// value (docs/flow.md measures the difference).
 fn lic_step(p: vec3<f32>, h: f32, d: vec3<f32>) -> vec4<f32> {
     let k1 = lic_dir(p, d);
     if (k1.w == 0.0) {
         return vec4<f32>(0.0);
     }
-    if (params.integrator == 0u) {
-        return vec4<f32>(p + k1.xyz * h, 1.0);
-    }
+    var v = k1.xyz;
+    var s = h;
+    // rk2: begin
     let k2 = lic_dir(p + k1.xyz * (h * 0.5), d);
     if (k2.w == 0.0) {
         return vec4<f32>(0.0);
     }
-    if (params.integrator == 1u) {
-        return vec4<f32>(p + k2.xyz * h, 1.0);
-    }
+    v = k2.xyz;
+    // rk4: begin
     let k3 = lic_dir(p + k2.xyz * (h * 0.5), d);
     if (k3.w == 0.0) {
         return vec4<f32>(0.0);
@@ -51,7 +52,11 @@ fn lic_step(p: vec3<f32>, h: f32, d: vec3<f32>) -> vec4<f32> {
     if (k4.w == 0.0) {
         return vec4<f32>(0.0);
     }
-    return vec4<f32>(p + (k1.xyz + 2.0 * k2.xyz + 2.0 * k3.xyz + k4.xyz) * (h / 6.0), 1.0);
+    v = k1.xyz + 2.0 * k2.xyz + 2.0 * k3.xyz + k4.xyz;
+    s = h / 6.0;
+    // rk4: end
+    // rk2: end
+    return vec4<f32>(p + v * s, 1.0);
 }
 
 // The kernel weight at signed arc length s, downstream positive (0 box, 1 tent,

@@ -56,6 +56,8 @@ pub struct Lic3d {
     pub on_the_fly: bool,
     /// `storage: f16`: the field and the noise in half floats.
     pub half: bool,
+    /// The streamline integrator, compiled in (`integrator` is structural).
+    pub integrator: Integrator,
 }
 
 impl Default for Lic3d {
@@ -64,6 +66,7 @@ impl Default for Lic3d {
             frequency: 1,
             on_the_fly: false,
             half: false,
+            integrator: Integrator::Rk4,
         }
     }
 }
@@ -212,6 +215,16 @@ pub fn lic_of(volume: &Volume, frequency: u32, params: &ParamValues) -> GridFiel
     LicInputs::new(volume, frequency, params).volume()
 }
 
+impl Lic3d {
+    /// lic.wgsl without `regions` and without the stages its integrator does not use
+    /// (the `rk2` region holds RK2's and RK4's second stage, `rk4` RK4's last two).
+    fn source(&self, regions: &[(&str, &str)]) -> ShaderSource {
+        let mut regions = regions.to_vec();
+        regions.extend(self.integrator.region_left_out().map(|r| (r, "")));
+        ShaderSource::without_regions(SHADER_FILE, SHADER, &regions)
+    }
+}
+
 impl Plugin for Lic3d {
     /// Its pre-pass follows streamlines through the whole vector volume.
     fn splits_into_bricks(&self) -> bool {
@@ -255,7 +268,8 @@ impl Plugin for Lic3d {
                 .with_doc("streamline length each way, in voxels of the LIC grid"),
             ParamSpec::float_log("step", "Step h (voxels)", 0.1, 2.0, 0.5),
             ParamSpec::enumeration("integrator", "Integrator", &Integrator::KEYS, 2)
-                .with_doc("RK4 at half a voxel drifts < 10⁻⁶ voxels per turn (docs/flow.md)"),
+                .structural()
+                .with_doc("RK4 at half a voxel drifts < 10⁻⁶ voxels per turn (docs/flow.md); only the chosen one is compiled in"),
             ParamSpec::float("modulate", "Modulate by |v|", 0.0, 1.0, 0.0)
                 .with_doc("0: LIC intensity; 1: LIC × normalised field magnitude"),
             ParamSpec::enumeration("storage", "Field and noise storage", &STORAGES, 0)
@@ -265,17 +279,9 @@ impl Plugin for Lic3d {
     }
     fn shader(&self) -> ShaderSource {
         if self.on_the_fly {
-            ShaderSource::without_regions(
-                SHADER_FILE,
-                SHADER,
-                &[("prepass", ""), ("precomputed", "")],
-            )
+            self.source(&[("prepass", ""), ("precomputed", "")])
         } else {
-            ShaderSource::without_regions(
-                SHADER_FILE,
-                SHADER,
-                &[("integral", ""), ("prepass", ""), ("on_the_fly", "")],
-            )
+            self.source(&[("integral", ""), ("prepass", ""), ("on_the_fly", "")])
         }
     }
     fn resources(&self) -> Vec<ResourceDecl> {
@@ -298,11 +304,7 @@ impl Plugin for Lic3d {
             target: "lic",
             format: StorageFormat::R32Float,
             scale: self.frequency as f32,
-            shader: ShaderSource::without_regions(
-                SHADER_FILE,
-                SHADER,
-                &[("precomputed", ""), ("on_the_fly", ""), ("hooks", "")],
-            ),
+            shader: self.source(&[("precomputed", ""), ("on_the_fly", ""), ("hooks", "")]),
             depends_on: vec![
                 "noise",
                 "density",
@@ -321,6 +323,7 @@ impl Plugin for Lic3d {
             frequency: params.enumeration("frequency").parse().unwrap_or(1),
             on_the_fly: params.enumeration("mode") == "on_the_fly",
             half: half_storage(params),
+            integrator: Integrator::from_key(params.enumeration("integrator")),
         };
         (c != *self).then(|| Arc::new(c) as Arc<dyn Plugin>)
     }

@@ -35,9 +35,16 @@ fn parameters_select_the_integral_and_the_grid() {
     assert_eq!(c.prepass().unwrap().scale, 2.0);
     let twice = Lic3d {
         frequency: 2,
+        integrator: Integrator::Euler,
         ..Lic3d::default()
     };
     assert!(twice.configure(&p).is_none());
+    // only Euler's stage is compiled in; RK2 adds the midpoint, RK4 all four
+    let stages = |c: &Lic3d| c.prepass().unwrap().shader.source.matches("= lic_dir(p").count();
+    assert_eq!(stages(&twice), 1);
+    for (integrator, n) in [(Integrator::Rk2, 2), (Integrator::Rk4, 4)] {
+        assert_eq!(stages(&Lic3d { integrator, ..twice }), n, "{integrator:?}");
+    }
     // on the fly: no pre-pass, and the hook integrates (no `lic` texture in the shader)
     p.set("mode", ParamValue::Enum("on_the_fly".into()));
     let fly = twice.configure(&p).expect("another mode");
