@@ -59,25 +59,27 @@ fn lic_step(p: vec3<f32>, h: f32, d: vec3<f32>) -> vec4<f32> {
     return vec4<f32>(p + v * s, 1.0);
 }
 
-// The kernel weight at signed arc length s, downstream positive (0 box, 1 tent,
-// 2 Gaussian with σ = L/3, 3 periodic: Hann window × ripple shifted by the phase).
+// The kernel weight at signed arc length s, downstream positive: box, tent 1 − |x|,
+// Gaussian with σ = L/3, or periodic (Hann window × ripple shifted by the phase). The
+// kernel is structural: only its line below is compiled in (box: none of them).
 fn lic_weight(s: f32) -> f32 {
     let signed = s / max(params.length, 1.0e-12);
     let x = abs(signed);
     if (x > 1.0) {
         return 0.0;
     }
-    if (params.kernel == 1u) {
-        return 1.0 - x;
-    }
-    if (params.kernel == 2u) {
-        return exp(-4.5 * x * x);
-    }
-    if (params.kernel == 3u) {
-        let ripple = 6.283185307 * params.ripples * signed - radians(params.phase_deg);
-        return 0.25 * (1.0 + cos(3.141592654 * x)) * (1.0 + cos(ripple));
-    }
-    return 1.0;
+    var w = 1.0;
+    // kernel_tent: begin
+    w = 1.0 - x;
+    // kernel_tent: end
+    // kernel_gaussian: begin
+    w = exp(-4.5 * x * x);
+    // kernel_gaussian: end
+    // kernel_periodic: begin
+    let ripple = 6.283185307 * params.ripples * signed - radians(params.phase_deg);
+    w = 0.25 * (1.0 + cos(3.141592654 * x)) * (1.0 + cos(ripple));
+    // kernel_periodic: end
+    return w;
 }
 
 fn lic_noise(p: vec3<f32>, d: vec3<f32>) -> f32 {

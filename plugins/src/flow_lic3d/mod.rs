@@ -39,6 +39,8 @@ use vwb_render::volume::Volume;
 mod tests;
 
 const KERNELS: [&str; 4] = ["box", "tent", "gaussian", "periodic"];
+/// The region of lic.wgsl holding each kernel's weight (box: the default 1, none).
+const KERNEL_REGIONS: [&str; 4] = ["", "kernel_tent", "kernel_gaussian", "kernel_periodic"];
 const NOISES: [&str; 3] = ["white", "gaussian", "sparse"];
 const FREQUENCIES: [&str; 2] = ["1", "2"];
 const MODES: [&str; 2] = ["precomputed", "on_the_fly"];
@@ -58,6 +60,8 @@ pub struct Lic3d {
     pub half: bool,
     /// The streamline integrator, compiled in (`integrator` is structural).
     pub integrator: Integrator,
+    /// The kernel, an index into `KERNELS`, compiled in (`kernel` is structural).
+    pub kernel: usize,
 }
 
 impl Default for Lic3d {
@@ -67,6 +71,7 @@ impl Default for Lic3d {
             on_the_fly: false,
             half: false,
             integrator: Integrator::Rk4,
+            kernel: 1,
         }
     }
 }
@@ -216,11 +221,19 @@ pub fn lic_of(volume: &Volume, frequency: u32, params: &ParamValues) -> GridFiel
 }
 
 impl Lic3d {
-    /// lic.wgsl without `regions` and without the stages its integrator does not use
-    /// (the `rk2` region holds RK2's and RK4's second stage, `rk4` RK4's last two).
+    /// lic.wgsl without `regions`, without the stages its integrator does not use (the
+    /// `rk2` region holds RK2's and RK4's second stage, `rk4` RK4's last two) and
+    /// without the other kernels' weights (`kernel_tent`, …; box is none of them).
     fn source(&self, regions: &[(&str, &str)]) -> ShaderSource {
         let mut regions = regions.to_vec();
         regions.extend(self.integrator.region_left_out().map(|r| (r, "")));
+        regions.extend(
+            KERNEL_REGIONS
+                .iter()
+                .enumerate()
+                .filter(|(k, r)| *k != self.kernel && !r.is_empty())
+                .map(|(_, r)| (*r, "")),
+        );
         ShaderSource::without_regions(SHADER_FILE, SHADER, &regions)
     }
 }
@@ -255,6 +268,7 @@ impl Plugin for Lic3d {
                 .with_doc("share of lit voxels of sparse noise"),
             ParamSpec::int("seed", "Seed", 0, 1_000_000, 1),
             ParamSpec::enumeration("kernel", "Kernel", &KERNELS, 1)
+                .structural()
                 .with_doc(
                     "box, tent 1 − |s|/L, Gaussian with σ = L/3, or periodic (Hann window × a ripple moved by the phase: animation)",
                 ),
@@ -324,6 +338,10 @@ impl Plugin for Lic3d {
             on_the_fly: params.enumeration("mode") == "on_the_fly",
             half: half_storage(params),
             integrator: Integrator::from_key(params.enumeration("integrator")),
+            kernel: KERNELS
+                .iter()
+                .position(|k| *k == params.enumeration("kernel"))
+                .unwrap_or(1),
         };
         (c != *self).then(|| Arc::new(c) as Arc<dyn Plugin>)
     }

@@ -36,6 +36,7 @@ fn parameters_select_the_integral_and_the_grid() {
     let twice = Lic3d {
         frequency: 2,
         integrator: Integrator::Euler,
+        kernel: 2,
         ..Lic3d::default()
     };
     assert!(twice.configure(&p).is_none());
@@ -45,6 +46,15 @@ fn parameters_select_the_integral_and_the_grid() {
     for (integrator, n) in [(Integrator::Rk2, 2), (Integrator::Rk4, 4)] {
         assert_eq!(stages(&Lic3d { integrator, ..twice }), n, "{integrator:?}");
     }
+    // only the chosen kernel's weight: the Gaussian's exp, the periodic kernel's cos
+    let weights = |kernel| {
+        let src = Lic3d { kernel, ..twice }.prepass().unwrap().shader.source;
+        (src.contains("w = exp("), src.contains("cos(ripple)"), src.contains("w = 1.0 - x"))
+    };
+    assert_eq!(weights(0), (false, false, false));
+    assert_eq!(weights(1), (false, false, true));
+    assert_eq!(weights(2), (true, false, false));
+    assert_eq!(weights(3), (false, true, false));
     // on the fly: no pre-pass, and the hook integrates (no `lic` texture in the shader)
     p.set("mode", ParamValue::Enum("on_the_fly".into()));
     let fly = twice.configure(&p).expect("another mode");
