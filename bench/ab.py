@@ -32,7 +32,7 @@ import statistics
 import subprocess
 import tempfile
 
-from doclib import machine_line
+from doclib import machine_line, round_order
 
 
 def frame_ms(binary, preset, frames, size, backend):
@@ -88,7 +88,7 @@ def gallery_ms(binary, preset, pool, tile):
 def galleries(a):
     times, summaries = {}, {}
     for r in range(a.rounds):
-        order = [("a", a.a), ("b", a.b)] if r % 2 == 0 else [("b", a.b), ("a", a.a)]
+        order = round_order([("a", a.a), ("b", a.b)], r)
         for p in a.gallery:
             for name, binary in order:
                 ms, summary = gallery_ms(binary, p, a.pool, a.tile)
@@ -125,7 +125,7 @@ def main():
     backends = a.backend or ["compute", "raster"]
     times = {}
     for r in range(a.rounds):
-        order = [("a", a.a), ("b", a.b)] if r % 2 == 0 else [("b", a.b), ("a", a.a)]
+        order = round_order([("a", a.a), ("b", a.b)], r)
         for p in presets:
             for be in backends:
                 for name, binary in order:

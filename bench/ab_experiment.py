@@ -17,7 +17,7 @@ import statistics
 import subprocess
 import tempfile
 
-from doclib import machine_line
+from doclib import machine_line, round_order
 
 
 def run(binary, experiment):
@@ -39,7 +39,7 @@ def main():
     a = ap.parse_args()
     runs = {"a": [], "b": []}
     for r in range(a.rounds):
-        order = [("a", a.a), ("b", a.b)] if r % 2 == 0 else [("b", a.b), ("a", a.a)]
+        order = round_order([("a", a.a), ("b", a.b)], r)
         for name, binary in order:
             runs[name].append(run(binary, a.experiment))
     key = lambda row: (row["scene"], row["variant"])

@@ -24,6 +24,12 @@ def machine_line() -> str:
     return f"{cpu_model()}, {os.cpu_count()} cores, {platform.system()} {platform.release()}"
 
 
+def round_order(items: list, r: int) -> list:
+    """The order of round `r` of an interleaved benchmark: `items` as given in even
+    rounds, reversed in odd ones, so that no item always runs first."""
+    return items if r % 2 == 0 else items[::-1]
+
+
 def bench_parser(doc: str, block: str, frames: int, rounds: int, presets: str):
     """The options every interleaved-rounds benchmark takes (the binary, image size,
     frames per render, rounds, presets, --gpu, the docs block and --print-only)."""

@@ -29,7 +29,7 @@ import numpy as np
 from PIL import Image
 
 import perf
-from doclib import bench_parser, publish, vwb_env
+from doclib import bench_parser, publish, round_order, vwb_env
 
 ET = ["--early-termination", "0.99"]
 PROXY = ["--occupied-proxy", "on"]
@@ -64,7 +64,7 @@ def main():
     times = {(p, v[0]): [] for p in presets for v in VARIANTS}
     adapter = "?"
     for r in range(a.rounds):
-        order = VARIANTS if r % 2 == 0 else VARIANTS[::-1]
+        order = round_order(VARIANTS, r)
         for p in presets:
             for label, backend, extra, env_extra in order:
                 env = dict(vwb_env(a.gpu), **env_extra)

@@ -18,7 +18,7 @@ import tempfile
 from pathlib import Path
 
 import perf
-from doclib import REPO, default_vwb, machine_line, vwb_env, write_block
+from doclib import REPO, default_vwb, machine_line, round_order, vwb_env, write_block
 
 SHAPES = ["8x8", "16x16", "16x4", "4x16", "32x2", "64x1", "4x4"]
 PRESETS = ["presets/ct_shade_none.ron", "presets/ct_shade_phong.ron"]
@@ -36,7 +36,7 @@ def main():
     times = {(p, s): [] for p in PRESETS for s in SHAPES}
     adapter = "?"
     for r in range(a.rounds):
-        order = SHAPES if r % 2 == 0 else SHAPES[::-1]
+        order = round_order(SHAPES, r)
         for p in PRESETS:
             for s in order:
                 env = dict(vwb_env(a.gpu), VWB_WORKGROUP=s)

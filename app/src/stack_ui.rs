@@ -67,6 +67,8 @@ pub fn param_widgets(
     // `gradient_scale`; plugins without them have no 2D TF)
     let y_axis = crate::tf2d_editor::YAxis::of(values);
     let mut changed = false;
+    // the groups with an element switched off so far: only the first such is listed
+    let mut off_seen: Vec<vwb_render::params::Group> = Vec::new();
     let mut k = 0;
     while k < specs.len() {
         let Some(element) = specs[k].element else {
@@ -83,15 +85,16 @@ pub fn param_widgets(
         let members = &specs[k..k + run];
         k += run;
         let (group, index) = (element.group, element.index);
-        if !group.in_use(index, values) {
-            continue;
-        }
         let on = group.is_on(index, values);
-        // an element switched off is listed only when it is the first such one
-        let first_off = (0..index).all(|j| group.is_on(j, values));
-        if !on && !first_off {
+        let first_off = !on && !off_seen.contains(&group);
+        if !on {
+            off_seen.push(group);
+        }
+        if !group.in_use(index, values) || !(on || first_off) {
             continue;
         }
+        // an element that is off shows its switch only
+        let switch = group.switch.map(|t| group.key(t, index));
         let title = if on {
             format!("{} {index}", group.name)
         } else {
@@ -102,8 +105,6 @@ pub fn param_widgets(
             .default_open(on && index == 0)
             .show(ui, |ui| {
                 for spec in members {
-                    // an element that is off shows its switch only
-                    let switch = group.switch.map(|t| group.key(t, index));
                     if (on || switch == Some(spec.key)) && spec.is_shown(values) {
                         changed |= param_widget(ui, salt, spec, values, cx, y_axis);
                     }

@@ -149,28 +149,25 @@ impl ParamDef {
         if let Some(k) = limit {
             group = group.limit(interned(k.clone()));
         }
-        for p in params {
-            match p.clone().key_mut().map(|k| k.clone()) {
-                None => return Err(format!("group '{name}': a group inside a group")),
-                Some(k) if k.matches("{}").count() != 1 => {
+        // element i's member: its key template filled in (a nested group has no key, and
+        // its `spec` refuses it)
+        let member = |p: &ParamDef, i: usize| -> Result<ParamSpec, String> {
+            let mut m = p.clone();
+            if let Some(key) = m.key_mut() {
+                if key.matches("{}").count() != 1 {
                     return Err(format!(
-                        "group '{name}': key '{k}' needs one {{}} where the element's index goes"
+                        "group '{name}': key '{key}' needs one {{}} where the element's index goes"
                     ));
                 }
-                Some(_) => {}
+                *key = group.key(key, i).to_string();
             }
-        }
+            m.spec()
+        };
         let err = std::cell::RefCell::new(None);
         let specs = group.specs(|i| {
             params
                 .iter()
-                .filter_map(|p| {
-                    let mut member = p.clone();
-                    if let Some(key) = member.key_mut() {
-                        *key = group.key(key, i).to_string();
-                    }
-                    member.spec().map_err(|e| *err.borrow_mut() = Some(e)).ok()
-                })
+                .filter_map(|p| member(p, i).map_err(|e| *err.borrow_mut() = Some(e)).ok())
                 .collect()
         });
         err.into_inner().map_or(Ok(specs), Err)

@@ -166,15 +166,11 @@ impl Plugin for Arrival {
             target: "arrival",
             format: StorageFormat::R32Float,
             scale: 1.0,
-            shader: ShaderSource::without_regions(
-                SHADER_FILE,
-                SHADER,
-                &[Some("hook"), self.integrator.region_left_out()]
-                    .into_iter()
-                    .flatten()
-                    .map(|r| (r, ""))
-                    .collect::<Vec<_>>(),
-            ),
+            shader: ShaderSource::without_regions(SHADER_FILE, SHADER, &{
+                let mut regions = vec![("hook", "")];
+                regions.extend(self.integrator.region_left_out().map(|r| (r, "")));
+                regions
+            }),
             depends_on: vec!["seed_min", "seed_max", "step", "max_length", "integrator"],
         })
     }

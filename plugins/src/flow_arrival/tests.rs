@@ -83,7 +83,7 @@ fn playing_the_time_reruns_no_pass() {
 /// another configures another plugin.
 #[test]
 fn only_the_chosen_integrator_is_compiled_in() {
-    let stages = |a: Arrival| {
+    let stages = |a: &dyn Plugin| {
         a.prepass()
             .unwrap()
             .shader
@@ -92,14 +92,11 @@ fn only_the_chosen_integrator_is_compiled_in() {
             .count()
     };
     for (integrator, n) in Integrator::ALL.into_iter().zip([1, 2, 4]) {
-        assert_eq!(stages(Arrival { integrator }), n, "{integrator:?}");
+        assert_eq!(stages(&Arrival { integrator }), n, "{integrator:?}");
     }
     let mut p = defaults();
     assert!(Arrival::default().configure(&p).is_none());
     p.set("integrator", ParamValue::Enum("euler".into()));
     let euler = Arrival::default().configure(&p).expect("another integrator");
-    assert_eq!(
-        euler.prepass().unwrap().shader.source.matches("= arrival_velocity(p").count(),
-        1
-    );
+    assert_eq!(stages(euler.as_ref()), 1);
 }
