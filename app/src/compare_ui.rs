@@ -58,6 +58,7 @@ impl CompareJob {
     /// image of the same frame composited over `background`.
     pub fn start(
         volume: Arc<Volume>,
+        inputs: vwb_render::inputs::VolumeInputs,
         stack: Vec<PluginInstance>,
         settings: FrameSettings,
         target: TargetFormat,
@@ -70,6 +71,7 @@ impl CompareJob {
             emulate_fp16: target == TargetFormat::Rgba16Float,
             progress: Some(progress.clone()),
             cancel: Some(cancel.clone()),
+            inputs,
         };
         let job = Job::spawn("reference", move || {
             render_reference(&volume, &stack, &settings, &opts)
@@ -179,6 +181,7 @@ mod tests {
         let image = RgbImageF::from_rgba_f32_premultiplied_over(&px, w, h, bg);
         let job = CompareJob::start(
             volume.clone(),
+            Default::default(),
             stack.clone(),
             settings,
             TargetFormat::Rgba32Float,
@@ -200,6 +203,7 @@ mod tests {
         let gpu_big = RgbImageF::new(1024, 1024, vec![[0.0; 3]; 1024 * 1024]);
         let job = CompareJob::start(
             volume.clone(),
+            Default::default(),
             stack.clone(),
             big,
             TargetFormat::Rgba32Float,

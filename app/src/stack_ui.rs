@@ -185,6 +185,25 @@ fn param_widget(
             .response,
         ),
         (ParamKind::Path { .. }, ParamValue::Path(p)) => Some(path_field(ui, salt, spec, p)),
+        (ParamKind::Volume { components }, ParamValue::Volume(name)) => Some(
+            egui::ComboBox::new((salt, spec.key), spec.label)
+                .selected_text(if name.is_empty() {
+                    "(the volume)"
+                } else {
+                    name.as_str()
+                })
+                .show_ui(ui, |ui| {
+                    ui.selectable_value(name, String::new(), "(the volume)");
+                    for n in cx.inputs {
+                        ui.selectable_value(name, n.clone(), n.as_str());
+                    }
+                })
+                .response
+                .on_hover_text(format!(
+                    "{}: the document's own volume or one of its named volumes (`volumes:` in the preset)",
+                    components.describe()
+                )),
+        ),
         (ParamKind::Tf { .. }, ParamValue::Tf(t)) => {
             ui.horizontal(|ui| {
                 ui.label(spec.label);
@@ -320,6 +339,9 @@ pub struct StackUi<'a> {
     pub histogram: &'a [u64],
     /// The volume (the 2D TF editor's histogram).
     pub volume: Option<&'a std::sync::Arc<vwb_render::Volume>>,
+    /// The names of the document's named volumes (`volumes:`), which volume inputs
+    /// choose from.
+    pub inputs: &'a [String],
 }
 
 /// "Suggest" beside a 1D TF editor: replaces `tf` by the data-driven suggestion for the
@@ -579,6 +601,7 @@ mod tests {
                     error: None,
                     histogram: &[],
                     volume: None,
+                    inputs: &[],
                 };
                 param_widgets(ui, 7, &specs, &mut i.params, &cx);
             });
@@ -615,6 +638,7 @@ mod tests {
                             error: Some("shade.dos: broken"),
                             histogram: &[1, 10, 100],
                             volume: None,
+                            inputs: &[],
                         };
                         changed |= stack_editor(ui, &cx, &mut all).changed;
                     });
@@ -656,6 +680,7 @@ mod kittest_tests {
                         error: None,
                         histogram: &volume.histogram,
                         volume: Some(&volume),
+                        inputs: &[],
                     };
                     egui::ScrollArea::vertical().show(ui, |ui| {
                         stack_editor(ui, &cx, stack);

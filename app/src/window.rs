@@ -319,6 +319,7 @@ impl Workbench {
         let mut renderer = Renderer::with_options(&gpu, volume, options)?;
         // progressive light passes refine one step per frame, the window redraws meanwhile
         renderer.set_refinement_budget(Some(1));
+        renderer.set_inputs(headless::inputs_for(&doc)?);
         let error = renderer
             .update_stack(&doc.stack, doc.render.target)
             .err()
@@ -598,6 +599,7 @@ impl Workbench {
         for (file, source) in self.renderer.shader_overrides() {
             renderer.set_shader_override(file, Some(source.to_string()));
         }
+        renderer.set_inputs(headless::inputs_for(doc)?);
         renderer.update_stack(&doc.stack, doc.render.target)?;
         Ok(renderer)
     }
@@ -824,11 +826,13 @@ impl Workbench {
         ui.label("Plugins");
         let mut changed = false;
         let volume = self.renderer.volume().clone();
+        let inputs: Vec<String> = self.doc.volumes.keys().cloned().collect();
         let cx = crate::stack_ui::StackUi {
             registry: &self.registry,
             error: self.error.as_deref(),
             histogram: &volume.histogram,
             volume: Some(&volume),
+            inputs: &inputs,
         };
         let response = crate::stack_ui::stack_editor(ui, &cx, &mut self.doc.stack);
         changed |= response.changed;
@@ -1181,6 +1185,7 @@ impl Workbench {
         }
         Ok(crate::compare_ui::CompareJob::start(
             self.renderer.volume().clone(),
+            self.renderer.inputs().clone(),
             self.doc.stack.clone(),
             settings,
             self.doc.render.target,
@@ -1389,8 +1394,14 @@ impl Workbench {
             // that their resources and pre-pass results stay; on an error the last good
             // pipeline keeps drawing
             vwb_render::plugin::carry_identities(&self.doc.stack, &mut doc.stack);
+            let inputs = headless::inputs_for(&doc)?;
             self.renderer.set_volume_format(doc.render.volume_format)?;
-            self.renderer.update_stack(&doc.stack, doc.render.target)?;
+            let last = self.renderer.inputs().clone();
+            self.renderer.set_inputs(inputs);
+            if let Err(e) = self.renderer.update_stack(&doc.stack, doc.render.target) {
+                self.renderer.set_inputs(last);
+                return Err(e.into());
+            }
         } else {
             self.renderer = self.fresh_renderer(volume, &doc)?;
         }

@@ -43,6 +43,7 @@ pub fn default_document(registry: &Registry) -> Document {
     Document {
         description: "demo: MRI head with the default 1D transfer function".into(),
         volume: VolumeSource::Demo,
+        volumes: Default::default(),
         camera: Camera::default(),
         render: RenderSection::default(),
         stack,

@@ -926,6 +926,7 @@ pub fn set_value(doc: &mut Document, key: &str, value: &SetValue) -> Result<()> 
                 (ParamKind::Bool { .. }, SetValue::Bool(b)) => ParamValue::Bool(*b),
                 (ParamKind::Enum { .. }, SetValue::Text(t)) => ParamValue::Enum(t.clone()),
                 (ParamKind::Path { .. }, SetValue::Text(t)) => ParamValue::Path(t.into()),
+                (ParamKind::Volume { .. }, SetValue::Text(t)) => ParamValue::Volume(t.clone()),
                 (ParamKind::Vec3 { .. }, SetValue::Numbers(x)) if x.len() == 3 => {
                     ParamValue::Vec3([x[0] as f32, x[1] as f32, x[2] as f32])
                 }

@@ -30,6 +30,39 @@ pub fn load_volume_within(src: &VolumeSource, budget: Option<u64>) -> Result<Arc
     }))
 }
 
+/// The named volumes a document's `volumes:` lists ([`vwb_render::inputs`]), loaded.
+///
+/// Each source is loaded once while any renderer or reference still holds it: a
+/// second document naming the same source (a reopened preset, an experiment's
+/// variants, a reference beside a renderer) gets the same `Arc`, so the renderer sees
+/// no change ([`Renderer::set_inputs`]) and nothing is uploaded or rerun again.
+pub fn inputs_for(doc: &Document) -> Result<vwb_render::inputs::VolumeInputs> {
+    use std::sync::{Mutex, Weak};
+    static LOADED: Mutex<Vec<(VolumeSource, Weak<Volume>)>> = Mutex::new(Vec::new());
+    let mut inputs = vwb_render::inputs::VolumeInputs::default();
+    for (name, source) in &doc.volumes {
+        let held = LOADED.lock().ok().and_then(|mut loaded| {
+            loaded.retain(|(_, w)| w.strong_count() > 0);
+            loaded
+                .iter()
+                .find(|(s, _)| s == source)
+                .and_then(|(_, w)| w.upgrade())
+        });
+        let volume = match held {
+            Some(v) => v,
+            None => {
+                let v = load_volume(source).with_context(|| format!("volumes.{name}"))?;
+                if let Ok(mut loaded) = LOADED.lock() {
+                    loaded.push((source.clone(), Arc::downgrade(&v)));
+                }
+                v
+            }
+        };
+        inputs.insert(name, volume);
+    }
+    Ok(inputs)
+}
+
 /// `VWB_GPU_MEMORY_LIMIT`, the budget of renderers made from the environment.
 fn env_budget() -> Option<u64> {
     vwb_render::renderer::RendererOptions::from_env().gpu_memory_budget
@@ -75,6 +108,7 @@ pub fn renderer_for(gpu: &GpuContext, doc: &Document, volume: Arc<Volume>) -> Re
     }
     r.set_empty_space_skipping(doc.render.empty_space_skipping);
     r.set_occupied_proxy(doc.render.occupied_proxy);
+    r.set_inputs(inputs_for(doc)?);
     r.update_stack(&doc.stack, doc.render.target)?;
     Ok(r)
 }

@@ -211,15 +211,19 @@ fn converged_of(
     s: &FrameSettings,
     tolerance: f64,
     o: &ReferenceOptions,
-) -> Result<Converged, reference::ReferenceError> {
-    reference::render_converged(
+) -> Result<Converged> {
+    let o = ReferenceOptions {
+        inputs: headless::inputs_for(doc)?,
+        ..o.clone()
+    };
+    Ok(reference::render_converged(
         volume,
         &doc.stack,
         &converged_settings(s),
-        o,
+        &o,
         tolerance,
         background(doc),
-    )
+    )?)
 }
 
 /// The converged CPU reference of a document's scene, composited over its background.
@@ -530,9 +534,11 @@ pub fn compare_document(
 /// slice count; a progress bar on a terminal.
 pub fn twin_render(volume: &Volume, doc: &Document, s: &FrameSettings) -> Result<(RgbImageF, u32)> {
     let emulate_fp16 = doc.render.target == TargetFormat::Rgba16Float;
+    let inputs = headless::inputs_for(doc)?;
     let img = with_progress("reference", Some(s.height as u64), |o| {
         let o = ReferenceOptions {
             emulate_fp16,
+            inputs,
             ..o.clone()
         };
         reference::render_reference(volume, &doc.stack, s, &o)

@@ -64,6 +64,7 @@ builtin_plugins! {
     flow_lic3d => flow_lic3d::Lic3d::default(),
     test_slice_shadow => test_slice_shadow::SliceShadow,
     test_smooth => test_smooth::Smooth,
+    test_vector_passes => test_vector_passes::VectorPasses,
 }
 
 /// Every built-in plugin.
@@ -126,7 +127,7 @@ mod tests {
     #[test]
     fn builtins_register_without_clash() {
         let r = builtin_registry();
-        assert_eq!(r.plugins().len(), 18);
+        assert_eq!(r.plugins().len(), 19);
         let mut fresh = Registry::new();
         for p in r.plugins() {
             fresh.register(p.clone()).unwrap();

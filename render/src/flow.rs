@@ -262,6 +262,61 @@ impl GridField {
     pub fn contains(&self, p: DVec3) -> bool {
         (0..3).all(|a| p[a] >= -0.5 && p[a] <= self.dims[a] as f64 - 0.5)
     }
+
+    /// Scales the vectors to a top speed of 1 (the largest finite speed); false, with
+    /// the field unchanged, where it vanishes everywhere.
+    pub fn to_unit_speed(&mut self) -> bool {
+        let c = self.components as usize;
+        let top = self
+            .data
+            .chunks_exact(c)
+            .map(|v| v.iter().map(|x| (*x as f64).powi(2)).sum::<f64>().sqrt())
+            .filter(|s| s.is_finite())
+            .fold(0.0f64, f64::max);
+        if top <= 0.0 {
+            return false;
+        }
+        for x in &mut self.data {
+            *x = (*x as f64 / top) as f32;
+        }
+        true
+    }
+
+    /// The same field with its vectors in voxels of the grid `to` over the same box
+    /// (each component times `to / dims` along its axis), still on its own grid: the
+    /// values a shader that samples it at texture coordinates of `to` integrates in
+    /// `to`'s voxels. [`OnGrid`] gives its positions in `to`'s voxels. A field already
+    /// on `to` is returned as it is.
+    pub fn in_voxels_of(mut self, to: [u32; 3]) -> Self {
+        if to != self.dims {
+            let c = self.components as usize;
+            for (i, x) in self.data.iter_mut().enumerate() {
+                let a = i % c;
+                *x = (*x as f64 * to[a] as f64 / self.dims[a] as f64) as f32;
+            }
+        }
+        self
+    }
+}
+
+/// A field on its own grid read at voxel coordinates of the grid `to` over the same
+/// box (a named volume input on another grid than the document's volume): `at(p)` is
+/// the inner field at the same point of the box. The vectors are the inner field's
+/// (see [`GridField::in_voxels_of`]).
+#[derive(Debug, Clone, Copy)]
+pub struct OnGrid<'a> {
+    pub inner: &'a GridField,
+    pub to: [u32; 3],
+}
+
+impl Field for OnGrid<'_> {
+    fn at(&self, p: DVec3) -> Option<DVec3> {
+        let scale = DVec3::from(std::array::from_fn::<f64, 3, _>(|a| {
+            self.inner.dims[a] as f64 / self.to[a] as f64
+        }));
+        self.inner
+            .at((p + DVec3::splat(0.5)) * scale - DVec3::splat(0.5))
+    }
 }
 
 impl Field for GridField {

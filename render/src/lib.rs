@@ -6,6 +6,7 @@ pub mod composer;
 pub mod files;
 pub mod flow;
 pub mod gpu;
+pub mod inputs;
 pub mod metrics;
 pub mod params;
 pub mod plugin;

@@ -55,6 +55,42 @@ pub enum ParamKind {
     Path {
         default: &'static str,
     },
+    /// A named volume input: the name of one of the document's `volumes:` (a preset's
+    /// named volumes, each with its own grid and spacing), or empty for the document's
+    /// own volume. Not a uniform: the plugin reads the volume through
+    /// `GpuInit::input` and `CpuContext::input`.
+    Volume {
+        components: Components,
+    },
+}
+
+/// What a named volume input ([`ParamKind::Volume`]) must hold.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Components {
+    /// One component (a scalar volume).
+    Scalar,
+    /// Two or three components (a vector field), kept as they are.
+    Vector,
+    /// Any volume.
+    Any,
+}
+
+impl Components {
+    /// Whether a volume of `n` components is one.
+    pub fn admits(self, n: u32) -> bool {
+        match self {
+            Components::Scalar => n == 1,
+            Components::Vector => n >= 2,
+            Components::Any => true,
+        }
+    }
+    pub fn describe(self) -> &'static str {
+        match self {
+            Components::Scalar => "a scalar volume",
+            Components::Vector => "a vector volume (2 or 3 components)",
+            Components::Any => "a volume",
+        }
+    }
 }
 
 #[derive(Debug, Clone, PartialEq)]
@@ -272,6 +308,11 @@ impl ParamSpec {
     pub fn path(key: &'static str, label: &'static str, default: &'static str) -> Self {
         Self::new(key, label, ParamKind::Path { default })
     }
+    /// A named volume input ([`ParamKind::Volume`]); its default is the document's
+    /// own volume.
+    pub fn volume(key: &'static str, label: &'static str, components: Components) -> Self {
+        Self::new(key, label, ParamKind::Volume { components })
+    }
     pub fn tf2d(key: &'static str, label: &'static str, default: crate::tf2d::Tf2d) -> Self {
         Self::new(key, label, ParamKind::Tf2d { default })
     }
@@ -336,6 +377,7 @@ impl ParamSpec {
             ParamKind::Tf { default } => ParamValue::Tf(default.clone()),
             ParamKind::Tf2d { default } => ParamValue::Tf2d(default.clone()),
             ParamKind::Path { default } => ParamValue::Path(default.into()),
+            ParamKind::Volume { .. } => ParamValue::Volume(String::new()),
         }
     }
 
@@ -347,7 +389,10 @@ impl ParamSpec {
             ParamKind::Bool { .. } | ParamKind::Enum { .. } => Some("u32"),
             ParamKind::Color { .. } => Some("vec4<f32>"),
             ParamKind::Vec3 { .. } => Some("vec3<f32>"),
-            ParamKind::Tf { .. } | ParamKind::Tf2d { .. } | ParamKind::Path { .. } => None,
+            ParamKind::Tf { .. }
+            | ParamKind::Tf2d { .. }
+            | ParamKind::Path { .. }
+            | ParamKind::Volume { .. } => None,
         }
     }
 
@@ -388,6 +433,15 @@ impl ParamSpec {
             (ParamKind::Tf { .. }, ParamValue::Tf(t)) => t.validate(),
             (ParamKind::Tf2d { .. }, ParamValue::Tf2d(t)) => t.validate(),
             (ParamKind::Path { .. }, ParamValue::Path(_)) => Ok(()),
+            (ParamKind::Volume { .. }, ParamValue::Volume(name)) => {
+                if name.is_empty() || valid_volume_name(name) {
+                    Ok(())
+                } else {
+                    Err(format!(
+                        "'{name}' is not a volume name (letters, digits and _, not starting with a digit)"
+                    ))
+                }
+            }
             (_, v) => Err(format!(
                 "expected {}, got {}",
                 self.kind_name(),
@@ -407,6 +461,7 @@ impl ParamSpec {
             ParamKind::Tf { .. } => "a transfer function",
             ParamKind::Tf2d { .. } => "a 2D transfer function",
             ParamKind::Path { .. } => "a file path string",
+            ParamKind::Volume { .. } => "a volume name string",
         }
     }
 
@@ -465,10 +520,28 @@ impl ParamSpec {
                     ));
                 }
             },
+            ParamKind::Volume { .. } => match value {
+                ron::Value::String(s) => ParamValue::Volume(s.clone()),
+                other => {
+                    return Err(format!(
+                        "expected the name of one of the preset's volumes, got {}",
+                        describe_ron(other)
+                    ));
+                }
+            },
         };
         self.check(&v)?;
         Ok(v)
     }
+}
+
+/// Whether `name` can name a volume in a preset's `volumes:` (an identifier).
+pub fn valid_volume_name(name: &str) -> bool {
+    let mut chars = name.chars();
+    chars
+        .next()
+        .is_some_and(|c| c.is_ascii_alphabetic() || c == '_')
+        && chars.all(|c| c.is_ascii_alphanumeric() || c == '_')
 }
 
 fn describe_ron(v: &ron::Value) -> String {
@@ -505,6 +578,8 @@ pub enum ParamValue {
     Tf(TfCurve),
     Tf2d(crate::tf2d::Tf2d),
     Path(std::path::PathBuf),
+    /// The name of a volume input (empty: the document's own volume).
+    Volume(String),
 }
 
 impl ParamValue {
@@ -519,6 +594,7 @@ impl ParamValue {
             ParamValue::Tf(_) => "a transfer function",
             ParamValue::Tf2d(_) => "a 2D transfer function",
             ParamValue::Path(_) => "a file path",
+            ParamValue::Volume(_) => "a volume name",
         }
     }
 
@@ -534,6 +610,7 @@ impl ParamValue {
             ParamValue::Color(c) => c.map(f32::to_bits).hash(h),
             ParamValue::Vec3(c) => c.map(f32::to_bits).hash(h),
             ParamValue::Path(p) => p.hash(h),
+            ParamValue::Volume(name) => name.hash(h),
             // tables are never structural today; hash their RON text
             ParamValue::Tf(_) | ParamValue::Tf2d(_) => {
                 ron::to_string(&self.to_ron()).unwrap_or_default().hash(h)
@@ -560,6 +637,7 @@ impl ParamValue {
                 .and_then(|s| ron::from_str(&s).ok())
                 .unwrap_or(ron::Value::Unit),
             ParamValue::Path(p) => ron::Value::String(p.display().to_string()),
+            ParamValue::Volume(name) => ron::Value::String(name.clone()),
         }
     }
 }
@@ -649,6 +727,14 @@ impl ParamValues {
         match self.get(key) {
             Some(ParamValue::Path(p)) => (!p.as_os_str().is_empty()).then_some(p.as_path()),
             got => self.misread(key, "a file path", got, None),
+        }
+    }
+    /// A volume input's name; empty for the document's own volume.
+    #[track_caller]
+    pub fn volume(&self, key: &str) -> &str {
+        match self.get(key) {
+            Some(ParamValue::Volume(name)) => name,
+            got => self.misread(key, "a volume name", got, ""),
         }
     }
     #[track_caller]

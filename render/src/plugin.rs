@@ -32,6 +32,7 @@ use std::sync::Arc;
 
 use glam::{DVec2, DVec3, DVec4};
 
+use crate::inputs::VolumeInputs;
 use crate::params::{ParamSpec, ParamValue, ParamValues, validate_specs};
 use crate::volume::Volume;
 
@@ -301,6 +302,8 @@ pub struct GpuInit<'a> {
     pub queue: &'a wgpu::Queue,
     pub features: wgpu::Features,
     pub volume: &'a Volume,
+    /// The document's named volumes ([`crate::inputs`]).
+    pub inputs: &'a VolumeInputs,
     /// The slice spacing of the frame being drawn, in voxels (Δs/Δs0; 1 before the
     /// first frame). Plugins whose resources depend on it say so with
     /// [`Plugin::uses_slice_spacing`].
@@ -308,6 +311,18 @@ pub struct GpuInit<'a> {
 }
 
 impl GpuInit<'_> {
+    /// The volume the input `key` of `params` names ([`crate::params::ParamKind::Volume`]):
+    /// a named volume or, for an empty name, the document's own. The renderer has
+    /// checked the name and the components before it asks for resources.
+    pub fn input(&self, params: &ParamValues, key: &str) -> Result<&Volume, PluginError> {
+        self.inputs
+            .resolve(self.volume, params, key)
+            .map_err(|message| PluginError::Invalid {
+                plugin: "volume input".into(),
+                message,
+            })
+    }
+
     /// A `width` × `height` lookup-table texture in [`GpuInit::lut_format`], sampled by
     /// hooks with `linear_clamp`; fill it with [`GpuInit::write_table`].
     pub fn create_table(&self, label: &str, width: u32, height: u32) -> GpuResource {
@@ -536,6 +551,8 @@ pub struct CpuContext<'a> {
     /// ([`CpuTwin::scalar`]); the gradient estimators differentiate it
     /// ([`CpuContext::shading_value`]).
     pub scalar: Option<&'a dyn ScalarField>,
+    /// The document's named volumes ([`crate::inputs`]), as the GPU has them.
+    pub inputs: &'a VolumeInputs,
 }
 
 /// The twin of a plugin's `scalar(tex)` and `scalar_grid()` (render/src/composer.rs):
@@ -591,7 +608,22 @@ impl<'a> CpuContext<'a> {
             spacing: 1.0,
             view: CpuView::default(),
             scalar: None,
+            inputs: VolumeInputs::empty(),
         }
+    }
+
+    /// The same context with the document's named volumes.
+    pub fn with_inputs(self, inputs: &'a VolumeInputs) -> Self {
+        Self { inputs, ..self }
+    }
+
+    /// The volume the input `key` of `params` names, as [`GpuInit::input`] resolves it
+    /// (the document's own volume where the name is unknown; the reference renderer
+    /// refuses such a stack before any twin runs).
+    pub fn input(&self, params: &ParamValues, key: &str) -> &'a Volume {
+        self.inputs
+            .resolve(self.volume, params, key)
+            .unwrap_or(self.volume)
     }
 
     /// The same context with the shading scalar of the last twin that supplies one
@@ -902,11 +934,17 @@ pub trait Plugin: Send + Sync + 'static {
     /// texture limit, `vwb_render::renderer::RendererOptions`) as it renders the whole
     /// volume: every input it reads at a sample is the scalar volume within a few
     /// voxels of it, or a pre-pass of it. By default a plugin with per-slice state or
-    /// volume passes carries light or flow across the whole volume and does not; a
+    /// volume passes carries light or flow across the whole volume and does not, nor
+    /// does one with a named volume input (it spans the whole volume's box); a
     /// plugin that reads a grid of its own over the volume (labels, a voxelised mesh)
     /// answers `false` here. A split volume refuses a stack with such a plugin.
     fn splits_into_bricks(&self) -> bool {
-        self.slice_state().is_none() && self.volume_passes().is_empty()
+        self.slice_state().is_none()
+            && self.volume_passes().is_empty()
+            && !self
+                .params()
+                .iter()
+                .any(|s| matches!(s.kind, crate::params::ParamKind::Volume { .. }))
     }
     /// Whether [`Plugin::update_resources`] must run again when the slice spacing
     /// changes ([`GpuInit::slice_spacing`]), e.g. for a pre-integration table.

@@ -108,6 +108,11 @@ pub struct PresetFile {
     pub description: String,
     #[serde(default)]
     pub volume: VolumeSource,
+    /// Named volumes beside `volume`, each with its own grid, spacing and components,
+    /// that plugins' volume inputs name ([`crate::inputs`]); e.g.
+    /// `volumes: {"wind": Sample("storm_wind")}`.
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub volumes: BTreeMap<String, VolumeSource>,
     #[serde(default)]
     pub camera: Camera,
     #[serde(default)]
@@ -121,6 +126,8 @@ pub struct PresetFile {
 pub struct Document {
     pub description: String,
     pub volume: VolumeSource,
+    /// Named volumes that plugins' volume inputs name ([`PresetFile::volumes`]).
+    pub volumes: BTreeMap<String, VolumeSource>,
     pub camera: Camera,
     pub render: RenderSection,
     pub stack: Vec<PluginInstance>,
@@ -170,11 +177,14 @@ impl Document {
         })?;
         let mut loaded = Self::parse(&text, &file, registry)?;
         // relative volume paths are relative to the preset
-        if let VolumeSource::File(p) = &mut loaded.document.volume
-            && p.is_relative()
-            && let Some(dir) = path.parent()
-        {
-            *p = dir.join(&*p);
+        let doc = &mut loaded.document;
+        for source in std::iter::once(&mut doc.volume).chain(doc.volumes.values_mut()) {
+            if let VolumeSource::File(p) = source
+                && p.is_relative()
+                && let Some(dir) = path.parent()
+            {
+                *p = dir.join(&*p);
+            }
         }
         // and so are path parameters (e.g. label volumes)
         if let Some(dir) = path.parent() {
@@ -246,16 +256,16 @@ impl Document {
                 "components must be finite".into(),
             ));
         }
-        if let VolumeSource::Sample(name) = &raw.volume {
-            crate::samples::manifest()
-                .get(name)
-                .map_err(|e| value_err("volume".into(), e.to_string()))?;
-        }
-        if let VolumeSource::Analytic(a) = &raw.volume {
-            a.check().map_err(|e| value_err("volume".into(), e))?;
-        }
-        if let VolumeSource::Phantom(p) = &raw.volume {
-            p.check().map_err(|e| value_err("volume".into(), e))?;
+        check_source(&raw.volume).map_err(|e| value_err("volume".into(), e))?;
+        for (name, source) in &raw.volumes {
+            let path = format!("volumes.{name}");
+            if !crate::params::valid_volume_name(name) {
+                return Err(value_err(
+                    path,
+                    "a volume's name is letters, digits and _, not starting with a digit".into(),
+                ));
+            }
+            check_source(source).map_err(|e| value_err(path, e))?;
         }
         crate::validate::check_camera(&raw.camera).map_err(|e| value_err(e.field, e.message))?;
         let mut stack = Vec::new();
@@ -273,7 +283,26 @@ impl Document {
                         specs.iter().map(|s| s.key).collect::<Vec<_>>().join(", ")
                     )),
                     Some(spec) => {
-                        let v = spec.from_ron(value).map_err(|m| value_err(path, m))?;
+                        let v = spec
+                            .from_ron(value)
+                            .map_err(|m| value_err(path.clone(), m))?;
+                        if let crate::params::ParamValue::Volume(name) = &v
+                            && !name.is_empty()
+                            && !raw.volumes.contains_key(name)
+                        {
+                            let known: Vec<&str> = raw.volumes.keys().map(String::as_str).collect();
+                            return Err(value_err(
+                                path,
+                                format!(
+                                    "there is no volume named '{name}' in `volumes:` ({})",
+                                    if known.is_empty() {
+                                        "it has none".to_string()
+                                    } else {
+                                        format!("it has {}", known.join(", "))
+                                    }
+                                ),
+                            ));
+                        }
                         params.set(key, v);
                     }
                 }
@@ -287,6 +316,7 @@ impl Document {
             document: Document {
                 description: raw.description,
                 volume: raw.volume,
+                volumes: raw.volumes,
                 camera: raw.camera,
                 render: raw.render,
                 stack,
@@ -301,6 +331,7 @@ impl Document {
             version: PRESET_VERSION,
             description: self.description.clone(),
             volume: self.volume.clone(),
+            volumes: self.volumes.clone(),
             camera: self.camera,
             render: self.render,
             plugins: self
@@ -333,8 +364,10 @@ impl Document {
             crate::files::relative_to(p, dir).unwrap_or_else(|| crate::files::absolute(p))
         };
         let mut doc = self.clone();
-        if let VolumeSource::File(p) = &mut doc.volume {
-            *p = rel(p);
+        for source in std::iter::once(&mut doc.volume).chain(doc.volumes.values_mut()) {
+            if let VolumeSource::File(p) = source {
+                *p = rel(p);
+            }
         }
         for inst in &mut doc.stack {
             for v in inst.params.values.values_mut() {
@@ -372,3 +405,17 @@ impl Document {
 }
 
 pub use crate::files::write_atomic;
+
+/// Checks what can be checked of a volume source before loading it: a sample's name,
+/// an analytic field's or a phantom's size.
+fn check_source(source: &VolumeSource) -> Result<(), String> {
+    match source {
+        VolumeSource::Sample(name) => crate::samples::manifest()
+            .get(name)
+            .map(|_| ())
+            .map_err(|e| e.to_string()),
+        VolumeSource::Analytic(a) => a.check(),
+        VolumeSource::Phantom(p) => p.check(),
+        VolumeSource::Demo | VolumeSource::File(_) => Ok(()),
+    }
+}

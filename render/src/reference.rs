@@ -50,6 +50,7 @@ use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use glam::{DMat4, DVec2, DVec3, DVec4};
 use rayon::prelude::*;
 
+use crate::inputs::VolumeInputs;
 use crate::metrics::{RgbImageF, compare};
 use crate::plugin::{
     CpuContext, CpuSample, CpuTwin, CpuView, PluginInstance, SliceStateDecl, StateImage,
@@ -87,6 +88,8 @@ pub enum ReferenceError {
     BadSize(u32, u32),
     #[error("convergence tolerance must be a number >= 0, got {0}")]
     BadTolerance(f64),
+    #[error("plugin '{plugin}': {message}")]
+    Input { plugin: String, message: String },
 }
 
 /// Options of a reference render.
@@ -101,6 +104,8 @@ pub struct ReferenceOptions {
     /// Checked before every row; when set, rendering stops with
     /// [`ReferenceError::Cancelled`].
     pub cancel: Option<Arc<AtomicBool>>,
+    /// The document's named volumes ([`crate::inputs`]), as the GPU renderer has them.
+    pub inputs: VolumeInputs,
 }
 
 impl ReferenceOptions {
@@ -160,7 +165,7 @@ pub fn render_reference(
     if opts.cancelled() {
         return Err(ReferenceError::Cancelled);
     }
-    let mut prepared = Prepared::new(volume, stack)?;
+    let mut prepared = Prepared::new(volume, stack, &opts.inputs)?;
     prepared.render(settings, settings.slice_spacing, opts)
 }
 
@@ -193,7 +198,7 @@ pub fn render_converged(
     if opts.cancelled() {
         return Err(ReferenceError::Cancelled);
     }
-    let mut prepared = Prepared::new(volume, stack)?;
+    let mut prepared = Prepared::new(volume, stack, &opts.inputs)?;
     let start = requested.min(CONVERGED_START_SPACING);
     let finest = CONVERGED_MIN_SPACING.min(start as f64 / 2.0);
     let (w, h) = (settings.width, settings.height);
@@ -265,6 +270,7 @@ fn twins_for(stack: &[PluginInstance]) -> Result<Twins, ReferenceError> {
 /// scalars and the twins.
 struct Prepared<'a> {
     volume: &'a Volume,
+    inputs: VolumeInputs,
     scalars: Vec<f32>,
     twins: Vec<Box<dyn CpuTwin>>,
     states: Vec<Option<SliceStateDecl>>,
@@ -278,10 +284,23 @@ struct Prepared<'a> {
 }
 
 impl<'a> Prepared<'a> {
-    fn new(volume: &'a Volume, stack: &[PluginInstance]) -> Result<Self, ReferenceError> {
+    fn new(
+        volume: &'a Volume,
+        stack: &[PluginInstance],
+        inputs: &VolumeInputs,
+    ) -> Result<Self, ReferenceError> {
+        for inst in stack.iter().filter(|i| i.enabled) {
+            inputs
+                .check(volume, &inst.plugin.params(), &inst.params)
+                .map_err(|message| ReferenceError::Input {
+                    plugin: inst.plugin.id().to_string(),
+                    message,
+                })?;
+        }
         let (twins, states) = twins_for(stack)?;
         Ok(Self {
             volume,
+            inputs: inputs.clone(),
             scalars: volume.normalized_scalars(),
             twins,
             states,
@@ -301,6 +320,7 @@ impl<'a> Prepared<'a> {
         check_size(settings)?;
         let frame = Frame::new(self.volume, settings, spacing_voxels, opts.emulate_fp16)?;
         let ctx = CpuContext::new(self.volume, &self.scalars)
+            .with_inputs(&self.inputs)
             .with_spacing(frame.spacing / frame.voxel)
             .with_view(frame.view);
         for t in &mut self.twins {
@@ -793,7 +813,7 @@ pub fn render_single_scattering(
     opts: &ScatteringOptions,
 ) -> Result<ScatteringImage, ReferenceError> {
     check_size(settings)?;
-    let mut prepared = Prepared::new(volume, &classifying(stack))?;
+    let mut prepared = Prepared::new(volume, &classifying(stack), VolumeInputs::empty())?;
     let frame = Frame::new(volume, settings, settings.slice_spacing, false)?;
     let ctx = CpuContext::new(volume, &prepared.scalars)
         .with_spacing(frame.spacing / frame.voxel)
@@ -939,7 +959,7 @@ pub fn with_stack_classify<R>(
     stack: &[PluginInstance],
     f: impl FnOnce(&crate::plugin::StackClassify<'_>) -> R,
 ) -> Result<R, ReferenceError> {
-    let mut prepared = Prepared::new(volume, &classifying(stack))?;
+    let mut prepared = Prepared::new(volume, &classifying(stack), VolumeInputs::empty())?;
     let ctx = CpuContext::new(volume, &prepared.scalars);
     for t in &mut prepared.twins {
         t.prepare(&ctx);
@@ -1212,7 +1232,7 @@ mod tests {
             );
             // one Prepared, two cameras: the passes follow the camera
             runs.store(0, Ordering::Relaxed);
-            let mut prepared = Prepared::new(&volume, &stack).unwrap();
+            let mut prepared = Prepared::new(&volume, &stack, VolumeInputs::empty()).unwrap();
             let mut turned = settings;
             turned.camera.yaw_deg += 30.0;
             for s in [settings, settings, turned, turned] {

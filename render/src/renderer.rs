@@ -411,6 +411,8 @@ struct InstanceGpu {
     pass_state: Vec<PassState>,
     /// Hash of the structural parameters the resources were made for.
     structure: u64,
+    /// The volumes its inputs resolved to when the resources were made.
+    inputs: crate::inputs::InputStamp,
     /// Slice spacing (voxels) the resources were last updated for, for plugins that
     /// use it.
     spacing: f32,
@@ -823,6 +825,8 @@ pub enum StackChange {
 pub struct Renderer {
     gpu: GpuContext,
     volume: Arc<Volume>,
+    /// The document's named volumes ([`crate::inputs`]).
+    inputs: crate::inputs::VolumeInputs,
     vbox: VolumeBox,
     volume_view: wgpu::TextureView,
     linear: wgpu::Sampler,
@@ -1076,6 +1080,7 @@ impl Renderer {
         let mut r = Self {
             gpu: gpu.clone(),
             volume,
+            inputs: Default::default(),
             vbox,
             volume_view,
             linear,
@@ -1189,6 +1194,21 @@ impl Renderer {
     /// (`None`: the volume itself is shown). [`Renderer::volume`] is then the level.
     pub fn level(&self) -> Option<&LevelInfo> {
         self.level.as_ref()
+    }
+
+    /// Sets the document's named volumes ([`crate::inputs`]). The next stack update
+    /// recreates the resources and reruns the passes of exactly the instances whose
+    /// inputs now resolve to another volume; the same volumes (the same `Arc`s under the
+    /// same names) change nothing.
+    pub fn set_inputs(&mut self, inputs: crate::inputs::VolumeInputs) {
+        if !inputs.same_as(&self.inputs) {
+            self.inputs = inputs;
+        }
+    }
+
+    /// The document's named volumes as last set.
+    pub fn inputs(&self) -> &crate::inputs::VolumeInputs {
+        &self.inputs
     }
 
     /// Replaces the volume; pre-passes rerun, plugin resources are recreated (compiled
@@ -1672,6 +1692,20 @@ impl Renderer {
             self.instances.retain(|uid, _| live.contains(uid));
         }
         let mut params_changed = false;
+        if !recompose {
+            // an input that resolves to another volume (a renamed input, a volume set
+            // again under its name) recreates that instance's resources; the same
+            // structure means the same plugins, so only those with inputs can
+            for inst in &enabled {
+                if self
+                    .instances
+                    .get(&inst.uid)
+                    .is_some_and(|g| !g.inputs.is_empty())
+                {
+                    params_changed |= self.ensure_instance(inst)?;
+                }
+            }
+        }
         for inst in &enabled {
             params_changed |= self.sync_params(inst)?;
         }
@@ -1747,6 +1781,7 @@ impl Renderer {
             queue: &self.gpu.queue,
             features: self.gpu.features,
             volume: &self.volume,
+            inputs: &self.inputs,
             slice_spacing: self.slice_spacing,
         }
     }
@@ -1783,17 +1818,26 @@ impl Renderer {
         (texture, view)
     }
 
-    fn ensure_instance(&mut self, inst: &PluginInstance) -> Result<(), RenderError> {
+    /// Creates the instance's GPU data unless it has them for its plugin, structure and
+    /// inputs; whether it created them.
+    fn ensure_instance(&mut self, inst: &PluginInstance) -> Result<bool, RenderError> {
         let structure = structure_of(inst);
-        if self
-            .instances
-            .get(&inst.uid)
-            .is_some_and(|g| g.plugin_id == inst.plugin.id() && g.structure == structure)
-        {
-            return Ok(());
-        }
         let plugin = inst.plugin.as_ref();
         let specs = plugin.params();
+        let inputs = self.inputs.stamp(&specs, &inst.params);
+        if self.instances.get(&inst.uid).is_some_and(|g| {
+            g.plugin_id == inst.plugin.id() && g.structure == structure && g.inputs == inputs
+        }) {
+            return Ok(false);
+        }
+        self.inputs
+            .check(&self.volume, &specs, &inst.params)
+            .map_err(|message| {
+                RenderError::Plugin(PluginError::Invalid {
+                    plugin: plugin.id().to_string(),
+                    message,
+                })
+            })?;
         let layout = crate::params::UniformLayout::new(&specs);
         let uniform = self
             .gpu
@@ -1837,11 +1881,12 @@ impl Renderer {
                 pass_targets,
                 pass_state,
                 structure,
+                inputs,
                 spacing: self.slice_spacing,
                 state: None,
             },
         );
-        Ok(())
+        Ok(true)
     }
 
     /// Writes changed parameters; returns whether anything changed.

@@ -1242,3 +1242,215 @@ fn arrival_volume_matches_its_twin_and_the_time_plays_without_a_prepass() {
     .unwrap();
     assert_eq!(r.render(&s).unwrap().prepasses_run(), 1);
 }
+
+/// A named volume input (`volumes:` in a preset) on a grid of its own: `flow.lic3d`
+/// integrates a 12×10×12 ABC field over a scalar 24×20×12 volume's LIC grid. The GPU's
+/// LIC volume matches the f64 twin reading the same input (RMS ≤ 0.5/255), and so does
+/// the rendered image against the reference renderer. The pre-pass reruns exactly when
+/// the input resolves to another volume: not for the same volume set again, once for
+/// another volume under the name and once for another name. An unknown name is refused
+/// naming the plugin and the names the document has, and the last good pipeline keeps
+/// drawing; the reference renderer refuses it too.
+#[test]
+fn a_named_vector_input_on_its_own_grid_drives_the_lic() {
+    use crate::reference::delta_e_rms;
+    use vwb_render::inputs::VolumeInputs;
+    use vwb_render::reference::{ReferenceError, ReferenceOptions, render_reference};
+    let scalar = synthetic([24, 20, 12], |x, y, z| ((x + 2 * y + 3 * z) % 17) as f32);
+    let wind = std::sync::Arc::new(vector_volume(
+        &Abc {
+            period: 8.0,
+            ..Default::default()
+        },
+        [12, 10, 12],
+    ));
+    let inputs = |v: &std::sync::Arc<Volume>| {
+        let mut i = VolumeInputs::default();
+        i.insert("wind", v.clone());
+        i
+    };
+    let mut lic = instance("flow.lic3d");
+    lic.params.set("field", ParamValue::Volume("wind".into()));
+    lic.params.set("length", ParamValue::Float(4.0));
+    let stack = vec![lic.clone(), instance("classify.tf1d")];
+    let mut r = Renderer::new(gpu(), scalar.clone()).unwrap();
+    r.set_inputs(inputs(&wind));
+    let s = settings(48, 48, Backend::Compute);
+    r.update_stack(&stack, TargetFormat::Rgba32Float).unwrap();
+    assert_eq!(r.render(&s).unwrap().prepasses_run(), 1);
+    let px = r.read_pixels().unwrap().2;
+    let (dims, gpu_lic) = r.read_prepass(lic.uid).expect("the LIC volume");
+    // the LIC grid is the document's; the field is read on its own grid
+    assert_eq!(dims, [24, 20, 12]);
+    let twin = vwb_plugins::flow_lic3d::lic_on(&scalar, &wind, 1, &lic.params);
+    let rms = rms_255(&gpu_lic, &twin.data);
+    let noise = noise_volume(twin.dims, Noise::White, 1);
+    let smoothing = rms_255(&noise.data, &twin.data);
+    eprintln!("named input: GPU vs twin LIC RMS {rms:.2e}/255 (LIC vs noise {smoothing:.1}/255)");
+    assert!(rms <= 0.5, "{rms}/255");
+    assert!(
+        smoothing > 20.0,
+        "the field convolves the noise: {smoothing}/255"
+    );
+    // the same field resampled onto the document's grid would give another LIC: the
+    // input is read on its own grid, not stretched as if it were the document's
+    let stretched = vector_volume(
+        &Abc {
+            period: 8.0,
+            ..Default::default()
+        },
+        [24, 20, 12],
+    );
+    let other = vwb_plugins::flow_lic3d::lic_on(&scalar, &stretched, 1, &lic.params);
+    assert!(rms_255(&other.data, &twin.data) > 5.0 * rms.max(0.01));
+    // the reference renderer reads the same input
+    let opts = ReferenceOptions {
+        inputs: inputs(&wind),
+        ..Default::default()
+    };
+    let reference = render_reference(&scalar, &stack, &s, &opts).unwrap();
+    let visible = reference.pixels.iter().filter(|p| p[3] > 0.05).count();
+    assert!(
+        visible > 48 * 48 / 20,
+        "the volume is visible ({visible} pixels)"
+    );
+    let image = delta_e_rms(&px, &reference.pixels, 48, 48);
+    eprintln!("named input: image ΔE*uv RMS {image:.4} against the twin");
+    assert!(image < twin_bound(Backend::Compute, false), "{image}");
+    let e = render_reference(&scalar, &stack, &s, &ReferenceOptions::default()).unwrap_err();
+    assert!(matches!(e, ReferenceError::Input { .. }), "{e}");
+
+    // reruns: the same volume again, none; another volume under the name, one;
+    // the document's own (scalar: no flow), one
+    let runs = |r: &mut Renderer, stack: &[vwb_render::PluginInstance]| {
+        r.update_stack(stack, TargetFormat::Rgba32Float).unwrap();
+        r.render(&s).unwrap().prepasses_run()
+    };
+    r.set_inputs(inputs(&wind));
+    assert_eq!(runs(&mut r, &stack), 0);
+    let turned = std::sync::Arc::new(vector_volume(
+        &Rotation {
+            center: DVec3::new(5.5, 4.5, 5.5),
+        },
+        [12, 10, 12],
+    ));
+    r.set_inputs(inputs(&turned));
+    assert_eq!(runs(&mut r, &stack), 1);
+    let (_, rotated) = r.read_prepass(lic.uid).unwrap();
+    assert!(
+        rms_255(&rotated, &gpu_lic) > 5.0,
+        "another field, another LIC"
+    );
+    let mut own = lic.clone();
+    own.params.set("field", ParamValue::Volume(String::new()));
+    assert_eq!(runs(&mut r, &[own.clone(), instance("classify.tf1d")]), 1);
+    let (_, plain) = r.read_prepass(lic.uid).unwrap();
+    let twin_plain = vwb_plugins::flow_lic3d::lic_of(&scalar, 1, &own.params);
+    assert!(rms_255(&plain, &twin_plain.data) <= 0.5);
+
+    // an unknown name: refused, naming the plugin and the known names; the last good
+    // pipeline keeps drawing
+    let mut lost = lic.clone();
+    lost.params.set("field", ParamValue::Volume("gust".into()));
+    let e = r
+        .update_stack(
+            &[lost, instance("classify.tf1d")],
+            TargetFormat::Rgba32Float,
+        )
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("flow.lic3d") && e.contains("no volume named 'gust'") && e.contains("wind"),
+        "{e}"
+    );
+    r.render(&s).expect("the last good pipeline draws");
+}
+
+/// The plugin contract's chain of volume passes over a named 3-component input: the
+/// storm's wind (25×14×8, u, v, w) beside a scalar 20×16×12 volume. `test.vector_passes`
+/// runs three passes on the volume's grid, each reading the one before (speed sampled
+/// from the input, a blur, a gradient magnitude); each target matches the f64 twin,
+/// and so does the image. Its gain reruns nothing, the camera nothing; the same input
+/// set again reruns nothing, another volume under the name reruns all three.
+#[test]
+fn three_chained_volume_passes_over_a_named_vector_input() {
+    use crate::reference::delta_e_rms;
+    use vwb_render::inputs::VolumeInputs;
+    use vwb_render::reference::{ReferenceOptions, render_reference};
+    let storm = vwb_lab::headless::load_volume(&vwb_render::preset::VolumeSource::Sample(
+        "storm_wind".into(),
+    ))
+    .expect("the storm sample");
+    assert_eq!((storm.dims, storm.components), ([25, 14, 8], 3));
+    let scalar = synthetic([20, 16, 12], |x, y, z| (x + y + z) as f32);
+    let mut inputs = VolumeInputs::default();
+    inputs.insert("storm", storm.clone());
+    let mut passes = instance("test.vector_passes");
+    passes
+        .params
+        .set("field", ParamValue::Volume("storm".into()));
+    let stack = vec![passes.clone(), instance("classify.tf1d")];
+    let mut r = Renderer::new(gpu(), scalar.clone()).unwrap();
+    r.set_inputs(inputs.clone());
+    r.update_stack(&stack, TargetFormat::Rgba32Float).unwrap();
+    let s = settings(48, 48, Backend::Compute);
+    let stats = r.render(&s).unwrap();
+    assert_eq!(
+        stats.volume_passes_run.len(),
+        3,
+        "{:?}",
+        stats.volume_passes_run
+    );
+    let px = r.read_pixels().unwrap().2;
+    let field = vwb_plugins::test_vector_passes::input_field(&storm);
+    let (speed, blurred, edges) =
+        vwb_plugins::test_vector_passes::pass_volumes(scalar.dims, Some(&field));
+    for (name, twin) in [("speed", &speed), ("blurred", &blurred), ("edges", &edges)] {
+        let (dims, gpu_t) = r.read_pass_target(passes.uid, name).expect("the target");
+        assert_eq!(dims, scalar.dims, "{name}");
+        let top = twin.data.iter().cloned().fold(0.0f64, f64::max);
+        let worst = gpu_t
+            .iter()
+            .zip(&twin.data)
+            .map(|(g, t)| (*g as f64 - t).abs())
+            .fold(0.0f64, f64::max);
+        eprintln!("test.vector_passes {name}: max |GPU − twin| {worst:.2e} (max {top:.3})");
+        assert!(
+            top > 0.0 && worst <= 1e-4 * top.max(1.0),
+            "{name}: {worst} of {top}"
+        );
+    }
+    let opts = ReferenceOptions {
+        inputs,
+        ..Default::default()
+    };
+    let reference = render_reference(&scalar, &stack, &s, &opts).unwrap();
+    let visible = reference.pixels.iter().filter(|p| p[3] > 0.05).count();
+    assert!(visible > 48 * 48 / 20, "visible: {visible}");
+    let image = delta_e_rms(&px, &reference.pixels, 48, 48);
+    eprintln!("test.vector_passes: image ΔE*uv RMS {image:.4} against the twin");
+    assert!(image < twin_bound(Backend::Compute, false), "{image}");
+
+    let runs = |r: &mut Renderer, stack: &[vwb_render::PluginInstance], s| {
+        r.update_stack(stack, TargetFormat::Rgba32Float).unwrap();
+        r.render(s).unwrap().volume_passes_run.len()
+    };
+    let mut brighter = passes.clone();
+    brighter.params.set("gain", ParamValue::Float(16.0));
+    let stack = vec![brighter, instance("classify.tf1d")];
+    assert_eq!(runs(&mut r, &stack, &s), 0);
+    let mut turned = s;
+    turned.camera.yaw_deg += 50.0;
+    assert_eq!(runs(&mut r, &stack, &turned), 0);
+    let mut again = VolumeInputs::default();
+    again.insert("storm", storm.clone());
+    r.set_inputs(again);
+    assert_eq!(runs(&mut r, &stack, &s), 0);
+    let mut calm = VolumeInputs::default();
+    calm.insert(
+        "storm",
+        std::sync::Arc::new(vector_volume(&Abc::default(), [10, 10, 10])),
+    );
+    r.set_inputs(calm);
+    assert_eq!(runs(&mut r, &stack, &s), 3);
+}

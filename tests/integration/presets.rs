@@ -99,6 +99,38 @@ fn round_trip_saves_only_non_default_parameters() {
     }
 }
 
+/// Named volumes (`volumes:`) round-trip through a save, and relative file paths in
+/// them are relative to the preset's folder, as the main volume's are.
+#[test]
+fn named_volumes_round_trip_and_resolve_beside_the_preset() {
+    let reg = registry();
+    let text = r#"(version: 1, volume: Demo,
+        volumes: {"wind": Analytic((field: Abc, size: (8, 6, 4))), "labels": File("data/demo_labels.nrrd")},
+        plugins: [(id: "flow.lic3d", params: {"field": "wind"})])"#;
+    let doc = Document::parse(text, "named.ron", &reg).unwrap().document;
+    assert_eq!(doc.volumes.len(), 2);
+    assert_eq!(doc.stack[0].params.volume("field"), "wind");
+    let again = Document::parse(&doc.to_ron(), "again.ron", &reg)
+        .unwrap()
+        .document;
+    assert_eq!(again.volumes, doc.volumes);
+    assert_eq!(again.stack[0].params, doc.stack[0].params);
+    // loaded from a file: relative to its folder; saved: relative again
+    let dir = std::env::temp_dir().join(format!("vwb-named-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("named.ron");
+    std::fs::write(&path, text).unwrap();
+    let loaded = Document::load(&path, &reg).unwrap().document;
+    assert_eq!(
+        loaded.volumes["labels"],
+        VolumeSource::File(dir.join("data/demo_labels.nrrd"))
+    );
+    loaded.save(&path).unwrap();
+    let saved = std::fs::read_to_string(&path).unwrap();
+    assert!(saved.contains("File(\"data/demo_labels.nrrd\")"), "{saved}");
+    std::fs::remove_dir_all(&dir).ok();
+}
+
 #[test]
 fn unknown_keys_warn() {
     let reg = registry();
@@ -168,6 +200,30 @@ fn bad_values_fail_with_their_path() {
         (
             r#"(version: 1, volume: Phantom((size: (8, 8, 8), colour: 1.0)))"#,
             "colour",
+        ),
+        (
+            r#"(version: 1, volumes: {"wind": Sample("storm_wnd")})"#,
+            "volumes.wind: unknown sample 'storm_wnd'",
+        ),
+        (
+            r#"(version: 1, volumes: {"2wind": Sample("storm_wind")})"#,
+            "volumes.2wind: a volume's name is letters, digits and _",
+        ),
+        (
+            r#"(version: 1, volumes: {"wind": Analytic((field: Abc, size: (8, 8, 1)))})"#,
+            "volumes.wind: an analytic field's size",
+        ),
+        (
+            r#"(version: 1, volumes: {"wind": Sample("storm_wind")}, plugins: [(id: "flow.lic3d", params: {"field": "gust"})])"#,
+            "plugins[0] flow.lic3d.field: there is no volume named 'gust' in `volumes:` (it has wind)",
+        ),
+        (
+            r#"(version: 1, plugins: [(id: "flow.lic3d", params: {"field": "wind"})])"#,
+            "flow.lic3d.field: there is no volume named 'wind' in `volumes:` (it has none)",
+        ),
+        (
+            r#"(version: 1, plugins: [(id: "flow.lic3d", params: {"field": 3})])"#,
+            "expected the name of one of the preset's volumes",
         ),
     ];
     for (text, want) in cases {

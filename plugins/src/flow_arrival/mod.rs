@@ -27,9 +27,9 @@ use std::sync::Arc;
 
 use glam::{DVec3, DVec4};
 use vwb_render::flow::{
-    ArrivalParams, Field, GridField, Integrator, NoFlow, SeedBox, arrival_volume,
+    ArrivalParams, Field, GridField, Integrator, NoFlow, OnGrid, SeedBox, arrival_volume,
 };
-use vwb_render::params::{ParamSpec, ParamValue, ParamValues};
+use vwb_render::params::{Components, ParamSpec, ParamValue, ParamValues};
 use vwb_render::plugin::{
     CpuContext, CpuSample, CpuTwin, GpuInit, GpuResource, Plugin, PluginError, PrepassDecl,
     ResourceDecl, ResourceKind, ShaderSource, StorageFormat, Transparency, trilinear_grid,
@@ -85,32 +85,37 @@ pub fn arrival_params(p: &ParamValues) -> ArrivalParams {
 /// The field the pre-pass integrates: the volume's vectors scaled to a top speed of 1
 /// (none for a scalar volume or a field that vanishes everywhere).
 pub fn unit_field(volume: &Volume) -> Option<GridField> {
-    let mut f = GridField::from_volume(volume).ok()?;
-    let c = f.components as usize;
-    let top = f
-        .data
-        .chunks_exact(c)
-        .map(|v| v.iter().map(|x| (*x as f64).powi(2)).sum::<f64>().sqrt())
-        .filter(|s| s.is_finite())
-        .fold(0.0f64, f64::max);
-    if top <= 0.0 {
-        return None;
-    }
-    for x in &mut f.data {
-        *x = (*x as f64 / top) as f32;
-    }
-    Some(f)
+    unit_field_on(volume, volume)
+}
+
+/// [`unit_field`] of the vector volume `field` (a named input on a grid of its own),
+/// its vectors in voxels of the document's volume `grid`, on which the arrival times
+/// are computed.
+pub fn unit_field_on(grid: &Volume, field: &Volume) -> Option<GridField> {
+    let mut f = GridField::from_volume(field).ok()?.in_voxels_of(grid.dims);
+    f.to_unit_speed().then_some(f)
 }
 
 /// The arrival volume of the pre-pass (its f64 twin, stored as f32 with [`NEVER`](vwb_render::flow::NEVER)).
 pub fn arrival_of(volume: &Volume, p: &ParamValues) -> Vec<f32> {
+    arrival_on(volume, volume, p)
+}
+
+/// [`arrival_of`] for the vector volume `field` (a named input) over the document's
+/// volume `grid`.
+pub fn arrival_on(grid: &Volume, field: &Volume, p: &ParamValues) -> Vec<f32> {
     // no flow (the GPU's 1-voxel zero field): only the seed is reached
-    let unit = unit_field(volume);
-    let field: &dyn Field = match &unit {
-        Some(f) => f,
-        None => &NoFlow,
+    let unit = unit_field_on(grid, field);
+    let regridded = unit.as_ref().map(|inner| OnGrid {
+        inner,
+        to: grid.dims,
+    });
+    let field: &dyn Field = match (&unit, &regridded) {
+        (Some(f), _) if f.dims == grid.dims => f,
+        (_, Some(g)) => g,
+        _ => &NoFlow,
     };
-    arrival_volume(field, volume.dims, &seed_box(p), &arrival_params(p))
+    arrival_volume(field, grid.dims, &seed_box(p), &arrival_params(p))
 }
 
 /// Whether a sample with arrival time `t` is kept at `time` with `band`.
@@ -134,6 +139,9 @@ impl Plugin for Arrival {
     }
     fn params(&self) -> Vec<ParamSpec> {
         vec![
+            ParamSpec::volume("field", "Vector field", Components::Any).with_doc(
+                "the document's own volume, or one of its named volumes (on a grid of its own, over the same box); a scalar volume has no flow",
+            ),
             ParamSpec::float("time", "Time", 0.0, 1024.0, 32.0)
                 .clock()
                 .with_doc("voxels travelled at the field's top speed; playing it recomputes nothing"),
@@ -183,7 +191,7 @@ impl Plugin for Arrival {
     fn create_resources(
         &self,
         gpu: &GpuInit,
-        _params: &ParamValues,
+        params: &ParamValues,
     ) -> Result<Vec<GpuResource>, PluginError> {
         if gpu.volume.dims.iter().any(|&d| d > gpu.device.limits().max_texture_dimension_3d) {
             return Err(error("the volume exceeds the device's 3D texture limit".into()));
@@ -191,7 +199,7 @@ impl Plugin for Arrival {
         let field = crate::flow_lic3d::field_texture(
             gpu,
             "flow.arrival field",
-            unit_field(gpu.volume).as_ref(),
+            unit_field_on(gpu.volume, gpu.input(params, "field")?).as_ref(),
             false,
         );
         Ok(vec![field])
@@ -229,7 +237,9 @@ pub struct ArrivalTwin {
 impl CpuTwin for ArrivalTwin {
     fn prepare(&mut self, ctx: &CpuContext) {
         if self.arrival.is_none() {
-            self.arrival = Some(Arc::new((ctx.volume.dims, arrival_of(ctx.volume, &self.params))));
+            let field = ctx.input(&self.params, "field");
+            let arrival = arrival_on(ctx.volume, field, &self.params);
+            self.arrival = Some(Arc::new((ctx.volume.dims, arrival)));
         }
     }
     fn clip(&self, s: &CpuSample) -> bool {

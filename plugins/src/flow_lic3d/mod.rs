@@ -25,10 +25,10 @@ use std::sync::Arc;
 
 use glam::DVec3;
 use vwb_render::flow::{
-    Field, GridField, Integrator, Kernel, LicParams, NoFlow, Noise, Scaled, Speed, lic_at,
+    Field, GridField, Integrator, Kernel, LicParams, NoFlow, Noise, OnGrid, Scaled, Speed, lic_at,
     lic_volume, noise_volume,
 };
-use vwb_render::params::{ParamSpec, ParamValues};
+use vwb_render::params::{Components, ParamSpec, ParamValues};
 use vwb_render::plugin::{
     CpuContext, CpuSample, CpuTwin, GpuInit, GpuResource, Plugin, PluginError, PrepassDecl,
     ResourceDecl, ResourceKind, ScalarField, ShaderSource, StorageFormat,
@@ -118,10 +118,13 @@ pub fn lic_dims(volume: &Volume, frequency: u32) -> [u32; 3] {
     volume.dims.map(|d| d * frequency)
 }
 
-/// The field as the pre-pass samples it: the volume's vectors, or none for a scalar
-/// volume.
-fn field_of(volume: &Volume) -> Option<GridField> {
-    GridField::from_volume(volume).ok()
+/// The field as the pre-pass samples it: the vectors of the volume `field` (the
+/// document's own or a named input on a grid of its own) in voxels of the document's
+/// grid `grid`, or none for a scalar volume.
+fn field_on(grid: &Volume, field: &Volume) -> Option<GridField> {
+    GridField::from_volume(field)
+        .ok()
+        .map(|f| f.in_voxels_of(grid.dims))
 }
 
 /// A field as the flow plugins' shaders sample it: an rgba texture of its vectors (w =
@@ -150,23 +153,27 @@ fn noise_of(dims: [u32; 3], params: &ParamValues) -> GridField {
     noise_volume(dims, noise_kind(params), params.int("seed") as u64)
 }
 
-/// What the LIC integrates, on the LIC grid: the field (none for a scalar volume),
-/// the noise and the integration parameters. Both twins use it: the precomputed one
+/// What the LIC integrates, on the LIC grid: the field (none for a scalar volume; on
+/// its own grid, its vectors in voxels of the document's grid), the noise and the
+/// integration parameters. Both twins use it: the precomputed one
 /// integrates at every voxel ([`LicInputs::volume`]), the on-the-fly one at each
 /// sample ([`LicInputs::at`]).
 pub struct LicInputs {
     pub field: Option<GridField>,
+    /// The document volume's grid, which the LIC grid refines by `frequency`.
+    pub grid: [u32; 3],
     pub noise: GridField,
     pub frequency: f64,
     pub params: LicParams,
 }
 
 impl LicInputs {
-    /// The inputs as the GPU holds them: with `storage: f16`, the field and the noise
-    /// rounded to half floats, as their textures store them.
-    pub fn new(volume: &Volume, frequency: u32, params: &ParamValues) -> Self {
-        let mut field = field_of(volume);
-        let mut noise = noise_of(lic_dims(volume, frequency), params);
+    /// The inputs as the GPU holds them, for the document's volume `grid` and the
+    /// vector volume `field` (the same or a named input): with `storage: f16`, the field
+    /// and the noise rounded to half floats, as their textures store them.
+    pub fn new(grid: &Volume, field: &Volume, frequency: u32, params: &ParamValues) -> Self {
+        let mut field = field_on(grid, field);
+        let mut noise = noise_of(lic_dims(grid, frequency), params);
         if half_storage(params) {
             let round = |g: &mut GridField| {
                 for v in &mut g.data {
@@ -178,6 +185,7 @@ impl LicInputs {
         }
         Self {
             field,
+            grid: grid.dims,
             noise,
             frequency: frequency as f64,
             params: lic_params(params),
@@ -187,8 +195,15 @@ impl LicInputs {
     /// Runs `f` with the field in LIC-grid voxel coordinates.
     fn with_field<R>(&self, f: impl FnOnce(&dyn Field) -> R) -> R {
         match &self.field {
-            Some(inner) => f(&Scaled {
+            Some(inner) if inner.dims == self.grid => f(&Scaled {
                 inner,
+                factor: self.frequency,
+            }),
+            Some(inner) => f(&Scaled {
+                inner: &OnGrid {
+                    inner,
+                    to: self.grid,
+                },
                 factor: self.frequency,
             }),
             None => f(&NoFlow),
@@ -217,7 +232,13 @@ pub fn half_storage(p: &ParamValues) -> bool {
 
 /// The LIC volume on the LIC grid (the twin of the pre-pass), x fastest.
 pub fn lic_of(volume: &Volume, frequency: u32, params: &ParamValues) -> GridField {
-    LicInputs::new(volume, frequency, params).volume()
+    lic_on(volume, volume, frequency, params)
+}
+
+/// The LIC volume of the vector volume `field` on the grid of the document's volume
+/// `grid` (a named input on a grid of its own).
+pub fn lic_on(grid: &Volume, field: &Volume, frequency: u32, params: &ParamValues) -> GridField {
+    LicInputs::new(grid, field, frequency, params).volume()
 }
 
 impl Lic3d {
@@ -254,6 +275,9 @@ impl Plugin for Lic3d {
     }
     fn params(&self) -> Vec<ParamSpec> {
         vec![
+            ParamSpec::volume("field", "Vector field", Components::Any).with_doc(
+                "the document's own volume, or one of its named volumes (on a grid of its own, over the same box); a scalar volume has no flow",
+            ),
             ParamSpec::enumeration("mode", "Mode", &MODES, 0)
                 .structural()
                 .with_doc(
@@ -359,7 +383,8 @@ impl Plugin for Lic3d {
                 "the LIC grid {dims:?} exceeds the device's 3D texture limit; lower the frequency"
             )));
         }
-        let field = field_texture(gpu, "flow.lic3d field", field_of(gpu.volume).as_ref(), self.half);
+        let field = field_on(gpu.volume, gpu.input(params, "field")?);
+        let field = field_texture(gpu, "flow.lic3d field", field.as_ref(), self.half);
         let res = vec![
             field,
             gpu.create_volume_texture_as("flow.lic3d noise", dims, 1, self.half),
@@ -410,12 +435,14 @@ impl CpuTwin for Lic3dTwin {
             if self.fly.is_none() {
                 self.fly = Some(Arc::new(LicInputs::new(
                     ctx.volume,
+                    ctx.input(&self.params, "field"),
                     self.frequency,
                     &self.params,
                 )));
             }
         } else if self.lic.is_none() {
-            self.lic = Some(Arc::new(lic_of(ctx.volume, self.frequency, &self.params)));
+            let field = ctx.input(&self.params, "field");
+            self.lic = Some(Arc::new(lic_on(ctx.volume, field, self.frequency, &self.params)));
         }
     }
     fn sample(&self, _ctx: &CpuContext, s: &mut CpuSample) {

@@ -1,0 +1,202 @@
+//! `test.vector_passes`: the plugin contract's test of named vector inputs and chained
+//! volume passes. Its `field` input (a named volume of the document, on a grid of its
+//! own, its components kept) is uploaded as an rgba texture; three volume passes on the
+//! document volume's grid follow (`passes.wgsl`): the speed |v| sampled from the field,
+//! a 7-point blur of the speed, and the blurred speed's gradient magnitude. The `sample`
+//! hook shows gain × that (a scalar input's normalised value stands for the speed, so
+//! the plugin also renders the demo volume: its edges). A change of the input reruns the chain; `gain` reruns
+//! nothing. The twin computes the same three volumes in f64 (`prepare_passes`).
+
+use std::sync::Arc;
+
+use glam::{DVec3, DVec4};
+use vwb_render::flow::GridField;
+use vwb_render::params::{Components, ParamSpec, ParamValues};
+use vwb_render::volume::Volume;
+use vwb_render::plugin::{
+    CpuContext, CpuSample, CpuTwin, GpuInit, GpuResource, Plugin, PluginError, ResourceDecl,
+    ResourceKind, ShaderSource, StackClassify, StorageFormat, VolumePassDecl, trilinear_grid,
+};
+
+#[cfg(test)]
+mod tests;
+
+pub struct VectorPasses;
+
+impl Plugin for VectorPasses {
+    fn id(&self) -> &'static str {
+        "test.vector_passes"
+    }
+    fn display_name(&self) -> &'static str {
+        "Vector input, three passes (contract test)"
+    }
+    fn description(&self) -> &'static str {
+        "Speed of a named vector input, blurred, then its gradient magnitude: three chained volume passes"
+    }
+    fn params(&self) -> Vec<ParamSpec> {
+        vec![
+            ParamSpec::volume("field", "Vector field", Components::Any).with_doc(
+                "a named vector volume, or the document's own (a scalar one: its normalised value is the speed)",
+            ),
+            ParamSpec::float("gain", "Gain", 0.0, 64.0, 8.0),
+        ]
+    }
+    fn shader(&self) -> ShaderSource {
+        ShaderSource::new_static(
+            "plugins/src/test_vector_passes/passes.wgsl",
+            include_str!("passes.wgsl"),
+        )
+    }
+    fn resources(&self) -> Vec<ResourceDecl> {
+        vec![ResourceDecl {
+            name: "field",
+            kind: ResourceKind::Texture3d,
+        }]
+    }
+    fn volume_passes(&self) -> Vec<VolumePassDecl> {
+        let pass = |target, entry| VolumePassDecl {
+            target,
+            format: StorageFormat::R32Float,
+            scale: 1.0,
+            entry,
+            depends_on: Vec::new(),
+            steps: None,
+            accumulate: false,
+        };
+        vec![
+            pass("speed", "speed_pass"),
+            pass("blurred", "blur_pass"),
+            pass("edges", "edge_pass"),
+        ]
+    }
+    fn create_resources(
+        &self,
+        gpu: &GpuInit,
+        params: &ParamValues,
+    ) -> Result<Vec<GpuResource>, PluginError> {
+        let field = input_field(gpu.input(params, "field")?);
+        Ok(vec![crate::flow_lic3d::field_texture(
+            gpu,
+            "test.vector_passes field",
+            Some(&field),
+            false,
+        )])
+    }
+    fn cpu_twin(&self, params: &ParamValues) -> Option<Box<dyn CpuTwin>> {
+        Some(Box::new(VectorPassesTwin {
+            params: params.clone(),
+            gain: params.float("gain") as f64,
+            edges: None,
+        }))
+    }
+}
+
+/// The field the passes read, scaled to a top speed of 1: a vector volume's
+/// components (per unit of its voxel size, [`GridField::from_volume`]), or a scalar
+/// volume's normalised value as the x component.
+pub fn input_field(volume: &Volume) -> GridField {
+    let mut f = GridField::from_volume(volume).unwrap_or_else(|_| GridField {
+        dims: volume.dims,
+        components: 3,
+        data: volume
+            .normalized_scalars()
+            .into_iter()
+            .flat_map(|v| [v, 0.0, 0.0])
+            .collect(),
+    });
+    f.to_unit_speed();
+    f
+}
+
+/// A scalar volume on a grid, x fastest.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Grid {
+    pub dims: [u32; 3],
+    pub data: Vec<f64>,
+}
+
+impl Grid {
+    fn index(&self, v: [i64; 3]) -> usize {
+        let d = self.dims.map(|x| x as i64);
+        let c = |a: usize| v[a].clamp(0, d[a] - 1) as usize;
+        (c(2) * d[1] as usize + c(1)) * d[0] as usize + c(0)
+    }
+    /// The value at a voxel, its index clamped into the grid (`textureLoad` of a
+    /// clamped index).
+    pub fn at(&self, v: [i64; 3]) -> f64 {
+        self.data[self.index(v)]
+    }
+    fn from_fn(dims: [u32; 3], f: impl Fn([i64; 3]) -> f64) -> Self {
+        let mut data = Vec::with_capacity(dims.iter().map(|&d| d as usize).product());
+        for z in 0..dims[2] as i64 {
+            for y in 0..dims[1] as i64 {
+                for x in 0..dims[0] as i64 {
+                    data.push(f([x, y, z]));
+                }
+            }
+        }
+        Self { dims, data }
+    }
+}
+
+/// The three pass volumes on the grid `dims` for a field (none: no flow), as the GPU
+/// computes them: (speed, blurred, edges).
+pub fn pass_volumes(dims: [u32; 3], field: Option<&GridField>) -> (Grid, Grid, Grid) {
+    let speed = Grid::from_fn(dims, |v| {
+        let Some(f) = field else { return 0.0 };
+        let tex = DVec3::from(std::array::from_fn::<f64, 3, _>(|a| {
+            (v[a] as f64 + 0.5) / dims[a] as f64
+        }));
+        let c = f.components as usize;
+        trilinear_grid(f.dims, tex, |i| {
+            let x = |k: usize| if k < c { f.data[i * c + k] as f64 } else { 0.0 };
+            DVec4::new(x(0), x(1), x(2), 0.0)
+        })
+        .truncate()
+        .length()
+    });
+    let blurred = Grid::from_fn(dims, |v| {
+        let mut sum = speed.at(v);
+        for a in 0..3 {
+            let (mut hi, mut lo) = (v, v);
+            hi[a] += 1;
+            lo[a] -= 1;
+            sum += speed.at(hi) + speed.at(lo);
+        }
+        sum / 7.0
+    });
+    let edges = Grid::from_fn(dims, |v| {
+        let mut g = DVec3::ZERO;
+        for a in 0..3 {
+            let lo = (v[a] - 1).max(0);
+            let hi = (v[a] + 1).min(dims[a] as i64 - 1);
+            let (mut vh, mut vl) = (v, v);
+            vh[a] = hi;
+            vl[a] = lo;
+            g[a] = (blurred.at(vh) - blurred.at(vl)) / (hi - lo).max(1) as f64;
+        }
+        g.length()
+    });
+    (speed, blurred, edges)
+}
+
+/// CPU twin: the passes in `prepare_passes`, the hook as the GPU's.
+pub struct VectorPassesTwin {
+    pub params: ParamValues,
+    pub gain: f64,
+    pub edges: Option<Arc<Grid>>,
+}
+
+impl CpuTwin for VectorPassesTwin {
+    fn prepare_passes(&mut self, ctx: &CpuContext, _classify: &StackClassify<'_>) {
+        if self.edges.is_none() {
+            let field = input_field(ctx.input(&self.params, "field"));
+            self.edges = Some(Arc::new(pass_volumes(ctx.volume.dims, Some(&field)).2));
+        }
+    }
+    fn sample(&self, _ctx: &CpuContext, s: &mut CpuSample) {
+        let Some(e) = &self.edges else { return };
+        let v = trilinear_grid(e.dims, s.tex, |i| DVec4::splat(e.data[i])).x;
+        s.value = (self.gain * v).clamp(0.0, 1.0);
+    }
+}
