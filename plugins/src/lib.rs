@@ -64,7 +64,7 @@ builtin_plugins! {
     flow_lic3d => flow_lic3d::Lic3d::default(),
     test_slice_shadow => test_slice_shadow::SliceShadow,
     test_smooth => test_smooth::Smooth,
-    test_vector_passes => test_vector_passes::VectorPasses,
+    test_vector_passes => test_vector_passes::VectorPasses::default(),
 }
 
 /// Every built-in plugin.
@@ -93,8 +93,9 @@ pub fn registry() -> Registry {
 }
 
 /// Every structural mode of a plugin: its defaults (its demo parameters where it has
-/// them, [`Plugin::demo_params`]), then each option of each structural enum parameter in
-/// turn (the others as in the first), as (label, values). The tests use it to cover every registered plugin in every
+/// them, [`Plugin::demo_params`]), then each option of each structural enum parameter
+/// and the other value of each structural bool in turn (the others as in the first), as
+/// (label, values). The tests use it to cover every registered plugin in every
 /// mode without a hand-kept list.
 pub fn structural_modes(p: &dyn Plugin) -> Vec<(String, ParamValues)> {
     let specs = p.params();
@@ -114,6 +115,11 @@ pub fn structural_modes(p: &dyn Plugin) -> Vec<(String, ParamValues)> {
                 values.set(spec.key, ParamValue::Enum(o.to_string()));
                 modes.push((format!("{}={o}", spec.key), values));
             }
+        }
+        if let ParamKind::Bool { default } = spec.kind {
+            let mut values = defaults.clone();
+            values.set(spec.key, ParamValue::Bool(!default));
+            modes.push((format!("{}={}", spec.key, !default), values));
         }
     }
     modes

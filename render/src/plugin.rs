@@ -252,7 +252,7 @@ pub struct PrepassDecl {
 /// when one reruns, every later one does too. A pass reruns when it never ran, when one
 /// of its `depends_on` parameters changed, or when a clip, sample or classify
 /// instance of the stack changed its parameters (the volume change recreates
-/// everything). Camera moves rerun nothing.
+/// everything). Camera moves rerun only view passes ([`VolumePassDecl::camera`]).
 #[derive(Debug, Clone)]
 pub struct VolumePassDecl {
     pub target: &'static str,
@@ -271,6 +271,12 @@ pub struct VolumePassDecl {
     /// The pass reads its own previous texel as `prev` (read-write storage; R32Float
     /// only), e.g. to blend a refinement step into the stored result.
     pub accumulate: bool,
+    /// A view pass: it depends on the camera (it may read `frame.eye`,
+    /// `frame.forward`, `frame.view_proj`), so it also reruns, with every later pass of
+    /// the chain, whenever the view or the projection changes; other passes never rerun
+    /// for the camera. An atlas (many views in one submission) refuses a stack with
+    /// one. The twin's `prepare_passes` already runs again for a new camera.
+    pub camera: bool,
 }
 
 /// What [`Plugin::statistics`] reads: the volume's dims and the instance's volume-pass

@@ -589,6 +589,18 @@ fn pass_stale(
     }
 }
 
+/// What a view pass depends on: the view and projection matrices and the eye, by
+/// their bits.
+fn camera_key(view: &crate::camera::View) -> u64 {
+    use std::hash::{Hash, Hasher};
+    let mut h = std::collections::hash_map::DefaultHasher::new();
+    for x in view.view_proj().to_cols_array() {
+        x.to_bits().hash(&mut h);
+    }
+    view.eye.to_array().map(f32::to_bits).hash(&mut h);
+    h.finish()
+}
+
 /// Refinement steps of a volume pass under `params` (at least 1).
 fn pass_steps(decl: &crate::plugin::VolumePassDecl, params: &ParamValues) -> u32 {
     decl.steps
@@ -2641,6 +2653,7 @@ impl Renderer {
         &mut self,
         p: &CompiledStack,
         stack: &[(u64, Arc<dyn Plugin>)],
+        camera: u64,
     ) -> Vec<PassDispatch> {
         let mut out = Vec::new();
         let mut budget = self.refinement_budget.unwrap_or(u32::MAX).max(1);
@@ -2653,6 +2666,14 @@ impl Renderer {
                 .count();
             let (uid, plugin) = &stack[instance];
             let upstream = self.upstream_hash(stack, *uid);
+            // a view pass's inputs include the camera
+            let viewed = {
+                use std::hash::{Hash, Hasher};
+                let mut h = std::collections::hash_map::DefaultHasher::new();
+                upstream.hash(&mut h);
+                camera.hash(&mut h);
+                h.finish()
+            };
             let decls = plugin.volume_passes();
             let Some(g) = self.instances.get_mut(uid) else {
                 index += count;
@@ -2661,6 +2682,7 @@ impl Renderer {
             let mut restart = false;
             for (k, decl) in decls.iter().enumerate().take(count) {
                 let st = &mut g.pass_state[k];
+                let upstream = if decl.camera { viewed } else { upstream };
                 let stale = restart || pass_stale(st, decl, &g.params, upstream);
                 if stale {
                     restart = true;
@@ -2882,7 +2904,7 @@ impl Renderer {
         let pass_plan = match &self.pipelines {
             Some(p) if !p.volume_passes.is_empty() => {
                 let (compiled, stack) = (p.compiled.clone(), p.stack.clone());
-                let pass_plan = self.plan_volume_passes(&compiled, &stack);
+                let pass_plan = self.plan_volume_passes(&compiled, &stack, camera_key(&view));
                 if let Some(last) = pass_plan.iter().map(|d| d.step + 1).max() {
                     self.ensure_slice_info(last);
                 }

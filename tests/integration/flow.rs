@@ -1371,7 +1371,9 @@ fn a_named_vector_input_on_its_own_grid_drives_the_lic() {
 /// runs three passes on the volume's grid, each reading the one before (speed sampled
 /// from the input, a blur, a gradient magnitude); each target matches the f64 twin,
 /// and so does the image. Its gain reruns nothing, the camera nothing; the same input
-/// set again reruns nothing, another volume under the name reruns all three.
+/// set again reruns nothing, another volume under the name reruns all three. With its
+/// view pass on, a camera move reruns that pass alone, whose target follows the
+/// camera as the twin's does; an atlas refuses the stack.
 #[test]
 fn three_chained_volume_passes_over_a_named_vector_input() {
     use crate::reference::delta_e_rms;
@@ -1453,4 +1455,63 @@ fn three_chained_volume_passes_over_a_named_vector_input() {
     );
     r.set_inputs(calm);
     assert_eq!(runs(&mut r, &stack, &s), 3);
+
+    // a view pass: the fourth pass reads the camera; a camera move reruns it alone,
+    // a parameter no pass reads reruns nothing; each frame's target is the twin's for
+    // that camera, and so is the image
+    r.set_inputs(opts.inputs.clone());
+    let mut viewed = passes.clone();
+    viewed.params.set("view", ParamValue::Bool(true));
+    let stack = vec![viewed.clone(), instance("classify.tf1d")];
+    assert_eq!(runs(&mut r, &stack, &s), 4);
+    let vbox = r.volume_box();
+    let (lo, hi) = (vbox.min.as_dvec3(), vbox.max.as_dvec3());
+    let mut seen = Vec::new();
+    let cameras = [s, turned, turned, s];
+    for (k, cam) in cameras.iter().enumerate() {
+        let ran = runs(&mut r, &stack, cam);
+        // frame 0 has the camera of the frame above, frame 2 that of frame 1
+        assert_eq!(ran, if k % 2 == 0 { 0 } else { 1 }, "frame {k}");
+        let view = vwb_render::plugin::CpuView::from_view(
+            &cam.camera.view(cam.width as f32 / cam.height as f32),
+            0.0,
+            1.0,
+        );
+        let twin = vwb_plugins::test_vector_passes::facing_volume(&blurred, &view, (lo, hi));
+        let (_, gpu_t) = r.read_pass_target(viewed.uid, "facing").unwrap();
+        let worst = gpu_t
+            .iter()
+            .zip(&twin.data)
+            .map(|(g, t)| (*g as f64 - t).abs())
+            .fold(0.0f64, f64::max);
+        let top = twin.data.iter().cloned().fold(0.0f64, f64::max);
+        assert!(
+            top > 0.0 && worst <= 1e-4 * top.max(1.0),
+            "frame {k}: {worst} of {top}"
+        );
+        seen.push(gpu_t);
+    }
+    assert!(
+        rms_255(&seen[0], &seen[1]) > 1.0,
+        "the view pass follows the camera"
+    );
+    runs(&mut r, &stack, &turned);
+    let px = r.read_pixels().unwrap().2;
+    let reference = render_reference(&scalar, &stack, &turned, &opts).unwrap();
+    let image = delta_e_rms(&px, &reference.pixels, 48, 48);
+    eprintln!("test.vector_passes with a view pass: image ΔE*uv RMS {image:.4} against the twin");
+    assert!(image < twin_bound(Backend::Compute, false), "{image}");
+    // an atlas draws many cameras in one submission: refused, naming the plugin
+    let tiles = [vwb_render::renderer::AtlasTile {
+        camera: s.camera,
+        stack: &stack,
+    }];
+    let e = r
+        .render_atlas(&tiles, &s, TargetFormat::Rgba32Float, 1)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("test.vector_passes") && e.contains("view pass"),
+        "{e}"
+    );
 }

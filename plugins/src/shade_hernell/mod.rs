@@ -295,6 +295,7 @@ impl Plugin for Hernell {
             depends_on: depends_on.to_vec(),
             steps: None,
             accumulate: false,
+            camera: false,
         };
         // exact integration ignores the segment length
         let deps: Vec<&'static str> = LIGHT_DEPS

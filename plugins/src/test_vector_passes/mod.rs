@@ -3,7 +3,9 @@
 //! own, its components kept) is uploaded as an rgba texture; three volume passes on the
 //! document volume's grid follow (`passes.wgsl`): the speed |v| sampled from the field,
 //! a 7-point blur of the speed, and the blurred speed's gradient magnitude. The `sample`
-//! hook shows gain × that (a scalar input's normalised value stands for the speed, so
+//! hook shows gain × that; with `view` on (structural), a fourth pass is a view pass
+//! (`VolumePassDecl::camera`): the edges weighted by how much the gradient faces the
+//! view ray, rerun whenever the camera moves. The hook (a scalar input's normalised value stands for the speed, so
 //! the plugin also renders the demo volume: its edges). A change of the input reruns the chain; `gain` reruns
 //! nothing. The twin computes the same three volumes in f64 (`prepare_passes`).
 
@@ -14,14 +16,21 @@ use vwb_render::flow::GridField;
 use vwb_render::params::{Components, ParamSpec, ParamValues};
 use vwb_render::volume::Volume;
 use vwb_render::plugin::{
-    CpuContext, CpuSample, CpuTwin, GpuInit, GpuResource, Plugin, PluginError, ResourceDecl,
+    CpuContext, CpuSample, CpuTwin, CpuView, GpuInit, GpuResource, Plugin, PluginError, ResourceDecl,
     ResourceKind, ShaderSource, StackClassify, StorageFormat, VolumePassDecl, trilinear_grid,
 };
 
 #[cfg(test)]
 mod tests;
 
-pub struct VectorPasses;
+/// `facing`: the view pass is built in (the `view` parameter).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct VectorPasses {
+    pub facing: bool,
+}
+
+const FILE: &str = "plugins/src/test_vector_passes/passes.wgsl";
+const SOURCE: &str = include_str!("passes.wgsl");
 
 impl Plugin for VectorPasses {
     fn id(&self) -> &'static str {
@@ -39,13 +48,23 @@ impl Plugin for VectorPasses {
                 "a named vector volume, or the document's own (a scalar one: its normalised value is the speed)",
             ),
             ParamSpec::float("gain", "Gain", 0.0, 64.0, 8.0),
+            ParamSpec::boolean("view", "View pass", false)
+                .structural()
+                .with_doc("a fourth pass, rerun when the camera moves: the edges that face the viewer"),
         ]
     }
     fn shader(&self) -> ShaderSource {
-        ShaderSource::new_static(
-            "plugins/src/test_vector_passes/passes.wgsl",
-            include_str!("passes.wgsl"),
-        )
+        if self.facing {
+            ShaderSource::new_static(FILE, SOURCE)
+        } else {
+            ShaderSource::without_region(FILE, SOURCE, "facing", "")
+        }
+    }
+    fn configure(&self, params: &ParamValues) -> Option<Arc<dyn Plugin>> {
+        let c = VectorPasses {
+            facing: params.boolean("view"),
+        };
+        (c != *self).then(|| Arc::new(c) as Arc<dyn Plugin>)
     }
     fn resources(&self) -> Vec<ResourceDecl> {
         vec![ResourceDecl {
@@ -62,12 +81,20 @@ impl Plugin for VectorPasses {
             depends_on: Vec::new(),
             steps: None,
             accumulate: false,
+            camera: false,
         };
-        vec![
+        let mut passes = vec![
             pass("speed", "speed_pass"),
             pass("blurred", "blur_pass"),
             pass("edges", "edge_pass"),
-        ]
+        ];
+        if self.facing {
+            passes.push(VolumePassDecl {
+                camera: true,
+                ..pass("facing", "facing_pass")
+            });
+        }
+        passes
     }
     fn create_resources(
         &self,
@@ -86,7 +113,9 @@ impl Plugin for VectorPasses {
         Some(Box::new(VectorPassesTwin {
             params: params.clone(),
             gain: params.float("gain") as f64,
-            edges: None,
+            facing: self.facing,
+            blurred: None,
+            shown: None,
         }))
     }
 }
@@ -165,37 +194,75 @@ pub fn pass_volumes(dims: [u32; 3], field: Option<&GridField>) -> (Grid, Grid, G
         }
         sum / 7.0
     });
-    let edges = Grid::from_fn(dims, |v| {
-        let mut g = DVec3::ZERO;
-        for a in 0..3 {
-            let lo = (v[a] - 1).max(0);
-            let hi = (v[a] + 1).min(dims[a] as i64 - 1);
-            let (mut vh, mut vl) = (v, v);
-            vh[a] = hi;
-            vl[a] = lo;
-            g[a] = (blurred.at(vh) - blurred.at(vl)) / (hi - lo).max(1) as f64;
-        }
-        g.length()
-    });
+    let edges = Grid::from_fn(dims, |v| gradient(&blurred, v).length());
     (speed, blurred, edges)
 }
 
-/// CPU twin: the passes in `prepare_passes`, the hook as the GPU's.
+/// The central (one-sided at the border) differences of a grid at a voxel.
+fn gradient(grid: &Grid, v: [i64; 3]) -> DVec3 {
+    let mut g = DVec3::ZERO;
+    for a in 0..3 {
+        let lo = (v[a] - 1).max(0);
+        let hi = (v[a] + 1).min(grid.dims[a] as i64 - 1);
+        let (mut vh, mut vl) = (v, v);
+        vh[a] = hi;
+        vl[a] = lo;
+        g[a] = (grid.at(vh) - grid.at(vl)) / (hi - lo).max(1) as f64;
+    }
+    g
+}
+
+/// The view pass over `blurred` for a camera, the volume spanning `lo`..`hi`: the
+/// gradient's length times |n · d| (d the unit ray from the eye through the voxel's
+/// centre, or the view direction when orthographic).
+pub fn facing_volume(blurred: &Grid, view: &CpuView, (lo, hi): (DVec3, DVec3)) -> Grid {
+    let dims = blurred.dims;
+    Grid::from_fn(dims, |v| {
+        let g = gradient(blurred, v);
+        let l = g.length();
+        if l <= 0.0 {
+            return 0.0;
+        }
+        let t = DVec3::from(std::array::from_fn::<f64, 3, _>(|a| {
+            (v[a] as f64 + 0.5) / dims[a] as f64
+        }));
+        let p = lo + (hi - lo) * t;
+        let d = if view.perspective {
+            (p - view.eye).normalize()
+        } else {
+            view.forward
+        };
+        l * (g / l).dot(d).abs()
+    })
+}
+
+/// CPU twin: the passes in `prepare_passes` (the camera's view pass again for every
+/// camera), the hook as the GPU's.
 pub struct VectorPassesTwin {
     pub params: ParamValues,
     pub gain: f64,
-    pub edges: Option<Arc<Grid>>,
+    pub facing: bool,
+    /// The blurred speed and the edges (they do not depend on the camera).
+    pub blurred: Option<Arc<(Grid, Grid)>>,
+    /// The volume the hook reads: the edges, or the facing edges of the last camera.
+    pub shown: Option<Arc<Grid>>,
 }
 
 impl CpuTwin for VectorPassesTwin {
     fn prepare_passes(&mut self, ctx: &CpuContext, _classify: &StackClassify<'_>) {
-        if self.edges.is_none() {
+        let chain = self.blurred.get_or_insert_with(|| {
             let field = input_field(ctx.input(&self.params, "field"));
-            self.edges = Some(Arc::new(pass_volumes(ctx.volume.dims, Some(&field)).2));
-        }
+            let (_, blurred, edges) = pass_volumes(ctx.volume.dims, Some(&field));
+            Arc::new((blurred, edges))
+        });
+        self.shown = Some(if self.facing {
+            Arc::new(facing_volume(&chain.0, &ctx.view, ctx.volume_box()))
+        } else {
+            Arc::new(chain.1.clone())
+        });
     }
     fn sample(&self, _ctx: &CpuContext, s: &mut CpuSample) {
-        let Some(e) = &self.edges else { return };
+        let Some(e) = &self.shown else { return };
         let v = trilinear_grid(e.dims, s.tex, |i| DVec4::splat(e.data[i])).x;
         s.value = (self.gain * v).clamp(0.0, 1.0);
     }

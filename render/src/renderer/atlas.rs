@@ -153,6 +153,16 @@ impl Renderer {
                 "stacks with per-slice state render one view per submission".into(),
             ));
         }
+        if let Some((_, plugin)) = p
+            .stack
+            .iter()
+            .find(|(_, pl)| pl.volume_passes().iter().any(|d| d.camera))
+        {
+            return Err(RenderError::Atlas(format!(
+                "{} has a view pass (it depends on the camera): such stacks render one view per submission",
+                plugin.id()
+            )));
+        }
         let structure: Vec<(&'static str, u64)> =
             p.key.entries.iter().map(|(_, id, h)| (*id, *h)).collect();
         let compiled = p.compiled.clone();
