@@ -865,6 +865,63 @@ pub fn tf_variants(n: usize) -> Vec<(vwb_render::Camera, Vec<vwb_render::PluginI
         .collect()
 }
 
+/// An atlas of variants whose stacks have volume passes (TF variants under Hernell's
+/// global light: each variant's light volume is its own): the atlas runs each
+/// variant's passes once, and each tile equals its single render on a fresh renderer.
+/// A second atlas of the same variants reruns no pass.
+#[test]
+fn an_atlas_runs_each_variants_volume_passes() {
+    use vwb_render::renderer::AtlasTile;
+    let variants: Vec<_> = tf_variants(4)
+        .into_iter()
+        .map(|(camera, mut stack)| {
+            let mut light = instance("shade.hernell");
+            light.params.set("segment", ParamValue::Int(4));
+            stack.push(light);
+            (camera, stack)
+        })
+        .collect();
+    let s = settings(32, 32, Backend::Compute);
+    let t = TargetFormat::Rgba32Float;
+    let tiles: Vec<AtlasTile> = variants
+        .iter()
+        .map(|(camera, stack)| AtlasTile {
+            camera: *camera,
+            stack,
+        })
+        .collect();
+    // a ball, small enough for a quick light volume
+    let ball = synthetic([32, 32, 24], |x, y, z| {
+        let d = ((x as f32 - 15.5).powi(2) + (y as f32 - 15.5).powi(2) + (z as f32 - 11.5).powi(2))
+            .sqrt();
+        (1.0 - d / 16.0).max(0.0)
+    });
+    let mut r = Renderer::new(gpu(), ball.clone()).unwrap();
+    let atlas = r.render_atlas(&tiles, &s, t, 2).unwrap();
+    let mut dispatches = 0;
+    for (i, (camera, stack)) in variants.iter().enumerate() {
+        let mut single_r = Renderer::new(gpu(), ball.clone()).unwrap();
+        single_r.update_stack(stack, t).unwrap();
+        let stats = single_r
+            .render(&FrameSettings {
+                camera: *camera,
+                ..s
+            })
+            .unwrap();
+        // every step of the light volume's refinement and the opacity passes
+        assert!(stats.volume_passes_run.len() >= 3);
+        dispatches += stats.volume_passes_run.len();
+        let single = single_r.read_pixels().unwrap().2;
+        let reference: Vec<[f64; 4]> = single.iter().map(|p| p.map(f64::from)).collect();
+        let rms = delta_e_rms(&atlas.tile_pixels(i), &reference, 32, 32);
+        assert!(rms <= 0.01, "tile {i}: ΔE*uv RMS {rms}");
+    }
+    assert_eq!(atlas.volume_passes_run, dispatches);
+    let again = r.render_atlas(&tiles, &s, t, 2).unwrap();
+    assert_eq!(again.volume_passes_run, 0);
+    assert_eq!(again.pixels, atlas.pixels);
+}
+
 /// Many views in one submission: 64 TF variants from four viewpoints at 128², one
 /// atlas, one command encoder. Each tile is its single render (ΔE*uv RMS ≤ 0.01); the
 /// speed against 64 single renders is `bash bench/atlas.sh`'s (docs/perf.md).
@@ -931,6 +988,7 @@ fn an_atlas_of_64_variants_matches_their_single_renders() {
             pixels: r.read_atlas(encoded),
             wall_ms: 0.0,
             prepasses_run: 0,
+            volume_passes_run: 0,
         };
         for j in 0..8 {
             let (d, _) = diff(

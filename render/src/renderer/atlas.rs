@@ -31,6 +31,8 @@ pub struct Atlas {
     pub wall_ms: f64,
     /// Pre-passes the atlas ran.
     pub prepasses_run: usize,
+    /// Volume-pass dispatches the atlas ran (each tile stack's out-of-date passes).
+    pub volume_passes_run: usize,
 }
 
 /// An atlas encoded into a caller's command encoder ([`Renderer::encode_atlas`]).
@@ -42,6 +44,7 @@ pub struct EncodedAtlas {
     pub rows: u32,
     pub tile: [u32; 2],
     pub prepasses_run: usize,
+    pub volume_passes_run: usize,
 }
 
 impl EncodedAtlas {
@@ -97,6 +100,7 @@ impl Renderer {
             pixels: self.read_atlas(&encoded),
             wall_ms: start.elapsed().as_secs_f64() * 1e3,
             prepasses_run: encoded.prepasses_run,
+            volume_passes_run: encoded.volume_passes_run,
         })
     }
 
@@ -243,6 +247,23 @@ impl Renderer {
             &views[0],
         );
 
+        // each distinct stack's out-of-date volume passes (a variant's own light
+        // volume), planned before anything is encoded: the plans may grow the
+        // slice-info buffer the passes index by step
+        let mut planned = std::collections::HashSet::new();
+        let mut pass_plans = Vec::new();
+        for stack in &stacks {
+            let uids: Vec<u64> = stack.iter().map(|(u, _)| *u).collect();
+            if compiled.volume_passes.is_empty() || !planned.insert(uids) {
+                continue;
+            }
+            // no view pass here (refused above): the camera does not matter
+            let plan = self.plan_volume_passes(&compiled, stack, 0);
+            if let Some(last) = plan.iter().map(|d| d.step + 1).max() {
+                self.ensure_slice_info(last);
+            }
+            pass_plans.push((stack.clone(), plan));
+        }
         let device = &self.gpu.device;
         let t = self.target.as_ref().expect("target exists");
         let atlas = device.create_texture(&wgpu::TextureDescriptor {
@@ -271,6 +292,12 @@ impl Renderer {
                 .encode_prepasses(enc, &compiled, stack, &dirty, &mut |_, _| {})
                 .len();
             done.extend(dirty.iter().map(|i| stack[*i].0));
+        }
+        let mut volume_passes_run = 0;
+        for (stack, plan) in &pass_plans {
+            volume_passes_run += self
+                .encode_volume_passes(enc, &compiled, stack, plan, &mut |_, _| {})
+                .len();
         }
         let g3 = device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("vwb group 3"),
@@ -375,12 +402,14 @@ impl Renderer {
         }
         self.mark_prepasses_done(done);
         self.counters.prepass_runs += prepasses_run as u64;
+        self.counters.volume_pass_runs += volume_passes_run as u64;
         Ok(EncodedAtlas {
             texture: atlas,
             cols,
             rows,
             tile: [tw, th],
             prepasses_run,
+            volume_passes_run,
         })
     }
 }
