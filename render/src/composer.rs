@@ -53,13 +53,15 @@ impl TargetFormat {
     }
 }
 
-/// The hooks, in the order they run per sample (plus the per-slice state update).
-pub const HOOKS: [&str; 6] = [
+/// The hooks, in the order they run per sample, then `post` (once per pixel, on the
+/// accumulated colour after the loop), then the per-slice state update.
+pub const HOOKS: [&str; 7] = [
     "clip",
     "sample",
     "classify",
     "shade",
     "composite",
+    "post",
     "slice_update",
 ];
 
@@ -69,6 +71,7 @@ fn hook_signature(name: &str) -> Option<(&'static [&'static str], &'static str)>
         "clip" => (&["Sample"], "bool"),
         "sample" | "classify" | "shade" => (&["Sample"], "Sample"),
         "composite" => (&["Sample", "vec4<f32>"], "vec4<f32>"),
+        "post" => (&["vec4<f32>", "vec2<f32>"], "vec4<f32>"),
         "slice_update" => (&["Sample", "vec4<f32>", "vec2<f32>"], "vec4<f32>"),
         "prepass" => (&["vec3<u32>", "vec3<u32>"], "vec4<f32>"),
         "scalar" => (&["vec3<f32>"], "f32"),
@@ -330,6 +333,9 @@ const STACK_CLASSIFY_STUB: &str = "fn stack_classify(tex: vec3<f32>, dir: vec3<f
 #[derive(Debug, Clone)]
 pub struct Composition {
     pub main: ComposedModule,
+    /// Whether an instance defines the `post` hook (the raster backend then runs a
+    /// full-screen pass after the slices).
+    pub post: bool,
     /// Bindings of groups 1 (plugin resources) and 2 (per-slice state).
     pub bindings: Vec<Binding>,
     pub instances: Vec<InstanceLayout>,
@@ -917,7 +923,7 @@ pub fn compose_with(
         let mut iso_g2 = 0;
         let iso_bindings =
             instance_bindings(plugin, index, &uniform, false, &mut iso_g1, &mut iso_g2);
-        let mut allowed: Vec<&str> = HOOKS[..5].to_vec();
+        let mut allowed: Vec<&str> = HOOKS[..6].to_vec();
         allowed.extend(SCALAR_FUNCTIONS);
         if plugin.slice_state().is_some() {
             allowed.push("slice_update");
@@ -1093,6 +1099,7 @@ pub fn compose_with(
                 let call = match hook {
                     "clip" => format!("    if (!{p}clip(s)) {{ return false; }}"),
                     "composite" => format!("    c = {p}composite(s, c);"),
+                    "post" => format!("    c = {p}post(c, uv);"),
                     h => format!("    s = {p}{h}(s);"),
                 };
                 m.push_line(
@@ -1153,6 +1160,7 @@ pub fn compose_with(
     validate_composed(&m, plugins)?;
     Ok(Composition {
         main: m,
+        post: instances.iter().any(|i| i.hooks.contains(&"post")),
         bindings,
         instances,
     })

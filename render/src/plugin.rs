@@ -748,6 +748,9 @@ pub trait CpuTwin: Send + Sync {
     fn classify(&self, _ctx: &CpuContext, _s: &mut CpuSample) {}
     fn shade(&self, _ctx: &CpuContext, _s: &mut CpuSample) {}
     fn composite(&self, _s: &CpuSample, _c: &mut DVec4) {}
+    /// Once per pixel after the loop: the accumulated premultiplied colour at the
+    /// pixel's uv, before the background.
+    fn post(&self, _c: &mut DVec4, _uv: DVec2) {}
     /// The next state texel (plugins with per-slice state): `s` is the shaded sample of
     /// the current slice under the texel, `c` its premultiplied contribution, `uv` the
     /// texel centre; `ctx.state_prev` reads the previous state.
@@ -941,12 +944,14 @@ pub trait Plugin: Send + Sync + 'static {
     /// volume: every input it reads at a sample is the scalar volume within a few
     /// voxels of it, or a pre-pass of it. By default a plugin with per-slice state or
     /// volume passes carries light or flow across the whole volume and does not, nor
-    /// does one with a named volume input (it spans the whole volume's box); a
+    /// does one with a named volume input (it spans the whole volume's box) or a `post`
+    /// hook (it sees the whole image, not a brick's); a
     /// plugin that reads a grid of its own over the volume (labels, a voxelised mesh)
     /// answers `false` here. A split volume refuses a stack with such a plugin.
     fn splits_into_bricks(&self) -> bool {
         self.slice_state().is_none()
             && self.volume_passes().is_empty()
+            && !self.shader().source.contains("fn post(")
             && !self
                 .params()
                 .iter()

@@ -469,10 +469,18 @@ impl Prepared<'_> {
         if let Some(p) = &opts.progress {
             p.fetch_add((h as u64 - rows_done) as usize, Ordering::Relaxed);
         }
+        let pixels = acc
+            .into_iter()
+            .enumerate()
+            .map(|(i, a)| {
+                let uv = frame.uv(i as u32 % w, i as u32 / w);
+                frame.post(&self.twins, a, uv).to_array()
+            })
+            .collect();
         Ok(ReferenceImage {
             width: w,
             height: h,
-            pixels: acc.into_iter().map(|a| a.to_array()).collect(),
+            pixels,
             slices: frame.count,
         })
     }
@@ -687,7 +695,20 @@ impl Frame {
                 acc = round_f16(acc);
             }
         }
-        acc.to_array()
+        self.post(twins, acc, uv).to_array()
+    }
+
+    /// `run_post`: every twin's `post` in stack order on a pixel's accumulated colour,
+    /// stored as the eye buffer stores it.
+    fn post(&self, twins: &[Box<dyn CpuTwin>], acc: DVec4, uv: DVec2) -> DVec4 {
+        let mut c = acc;
+        for t in twins {
+            t.post(&mut c, uv);
+        }
+        if self.fp16 && c != acc {
+            c = round_f16(c);
+        }
+        c
     }
 }
 

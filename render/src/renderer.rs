@@ -473,6 +473,9 @@ struct CompiledStack {
     g1_layout: wgpu::BindGroupLayout,
     g2_layout: wgpu::BindGroupLayout,
     g3_layout: wgpu::BindGroupLayout,
+    /// Where an instance defines `post`: the raster backend's full-screen pass after
+    /// the slices (`fs_post`) and its group 3 (`post_src`, a copy of the eye buffer).
+    post: Option<(wgpu::RenderPipeline, wgpu::BindGroupLayout)>,
     /// The raster pipelines by (early-termination depth test, fragment at the exact
     /// ray–plane point), index `et + 2·exact`: the plain one built with the stack (so
     /// that the device validates it), the others on first use.
@@ -836,6 +839,8 @@ pub enum StackChange {
 
 pub struct Renderer {
     gpu: GpuContext,
+    /// The raster backend's copy of the eye buffer that `post` hooks read.
+    post_src: Option<(wgpu::Texture, wgpu::TextureView)>,
     volume: Arc<Volume>,
     /// The document's named volumes ([`crate::inputs`]).
     inputs: crate::inputs::VolumeInputs,
@@ -1091,6 +1096,7 @@ impl Renderer {
         );
         let mut r = Self {
             gpu: gpu.clone(),
+            post_src: None,
             volume,
             inputs: Default::default(),
             vbox,
@@ -1991,6 +1997,57 @@ impl Renderer {
             immediate_size: 0,
         });
         let raster = raster_pipeline(device, &module, &raster_layout, target, "fs_main", None);
+        let post = composition.post.then(|| {
+            let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+                label: Some("vwb group 3 (post source)"),
+                entries: &[wgpu::BindGroupLayoutEntry {
+                    binding: 2,
+                    visibility: wgpu::ShaderStages::FRAGMENT,
+                    ty: wgpu::BindingType::Texture {
+                        sample_type: wgpu::TextureSampleType::Float { filterable: false },
+                        view_dimension: wgpu::TextureViewDimension::D2,
+                        multisampled: false,
+                    },
+                    count: None,
+                }],
+            });
+            let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                label: Some("vwb post"),
+                bind_group_layouts: &[
+                    Some(&self.g0_layout),
+                    Some(&g1_layout),
+                    Some(&g2_layout),
+                    Some(&layout),
+                ],
+                immediate_size: 0,
+            });
+            let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                label: Some("vwb post"),
+                layout: Some(&pipeline_layout),
+                vertex: wgpu::VertexState {
+                    module: &module,
+                    entry_point: Some("vs_post"),
+                    compilation_options: Default::default(),
+                    buffers: &[],
+                },
+                fragment: Some(wgpu::FragmentState {
+                    module: &module,
+                    entry_point: Some("fs_post"),
+                    compilation_options: Default::default(),
+                    targets: &[Some(wgpu::ColorTargetState {
+                        format: target.wgpu(),
+                        blend: None,
+                        write_mask: wgpu::ColorWrites::ALL,
+                    })],
+                }),
+                primitive: Default::default(),
+                depth_stencil: None,
+                multisample: Default::default(),
+                multiview_mask: None,
+                cache: None,
+            });
+            (pipeline, layout)
+        });
         let compute = |entry: &str, layout: &wgpu::PipelineLayout, m: &wgpu::ShaderModule| {
             device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
                 label: Some(entry),
@@ -2085,6 +2142,7 @@ impl Renderer {
             ],
             module,
             raster_layout,
+            post,
             target,
             cs_main,
             cs_main_skip,
@@ -2095,6 +2153,33 @@ impl Renderer {
             prepasses,
             volume_passes,
         })
+    }
+
+    /// A texture like the eye buffer for the raster backend's `post` pass to read.
+    fn ensure_post_src(&mut self) {
+        let Some(t) = self.target.as_ref() else {
+            return;
+        };
+        let size = t.texture.size();
+        if self
+            .post_src
+            .as_ref()
+            .is_some_and(|(p, _)| p.size() == size && p.format() == t.texture.format())
+        {
+            return;
+        }
+        let texture = self.gpu.device.create_texture(&wgpu::TextureDescriptor {
+            label: Some("vwb post source"),
+            size,
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: t.texture.format(),
+            usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+            view_formats: &[],
+        });
+        let view = texture.create_view(&Default::default());
+        self.post_src = Some((texture, view));
     }
 
     fn ensure_target(&mut self, w: u32, h: u32, format: TargetFormat) -> Result<(), RenderError> {
@@ -2887,6 +2972,14 @@ impl Renderer {
         let plan = SlicePlan::new(&view, self.lattice_box(), s.slice_spacing)?;
         let spacing_updates = self.sync_spacing(plan.spacing / self.vbox.voxel)?;
         self.ensure_target(s.width, s.height, target_format)?;
+        if s.backend == Backend::Raster
+            && self
+                .pipelines
+                .as_ref()
+                .is_some_and(|p| p.compiled.post.is_some())
+        {
+            self.ensure_post_src();
+        }
         self.ensure_state();
         let per_slice = self
             .pipelines
@@ -3162,6 +3255,43 @@ impl Renderer {
                             mask(enc);
                         }
                     }
+                }
+                // the post hooks: once per pixel on the accumulated colour
+                if let (Some((pipeline, layout)), Some((src, src_view))) =
+                    (&p.compiled.post, &self.post_src)
+                {
+                    enc.copy_texture_to_texture(
+                        t.texture.as_image_copy(),
+                        src.as_image_copy(),
+                        t.texture.size(),
+                    );
+                    let g3_post = device.create_bind_group(&wgpu::BindGroupDescriptor {
+                        label: Some("vwb post source"),
+                        layout,
+                        entries: &[wgpu::BindGroupEntry {
+                            binding: 2,
+                            resource: wgpu::BindingResource::TextureView(src_view),
+                        }],
+                    });
+                    let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+                        label: Some("vwb post"),
+                        color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                            view: &t.view,
+                            depth_slice: None,
+                            resolve_target: None,
+                            ops: wgpu::Operations {
+                                load: wgpu::LoadOp::Load,
+                                store: wgpu::StoreOp::Store,
+                            },
+                        })],
+                        ..Default::default()
+                    });
+                    pass.set_pipeline(pipeline);
+                    pass.set_bind_group(0, &self.g0, &[0]);
+                    pass.set_bind_group(1, &g1, &[]);
+                    pass.set_bind_group(2, &g2[0], &[]);
+                    pass.set_bind_group(3, &g3_post, &[]);
+                    pass.draw(0..3, 0..1);
                 }
             }
             Backend::Compute => {

@@ -412,6 +412,13 @@ fn run_composite(s: Sample, c_in: vec4<f32>) -> vec4<f32> {
     return c;
 }
 
+// Once per pixel after the loop: the accumulated premultiplied colour, before it is
+// composited over the background (an image-space plugin: exposure, tone curves).
+fn run_post(c_in: vec4<f32>, uv: vec2<f32>) -> vec4<f32> {
+    var c = c_in;
+    return c;
+}
+
 struct Evaluated {
     s: Sample,
     // premultiplied, opacity-corrected contribution of this sample
@@ -545,6 +552,22 @@ fn fs_exact(in: VsOut) -> @location(0) vec4<f32> {
         return vec4<f32>(0.0);
     }
     return evaluate(pixel_sample(r, t, uv, in.slice)).c;
+}
+
+// The post hooks on the raster backend: a full-screen triangle over the eye buffer,
+// reading a copy of it (`post_src`), after the last slice.
+@group(3) @binding(2) var post_src: texture_2d<f32>;
+
+@vertex
+fn vs_post(@builtin(vertex_index) i: u32) -> @builtin(position) vec4<f32> {
+    let xy = vec2<f32>(f32((i << 1u) & 2u), f32(i & 2u));
+    return vec4<f32>(xy * 2.0 - 1.0, 0.0, 1.0);
+}
+
+@fragment
+fn fs_post(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<f32> {
+    let c = textureLoad(post_src, vec2<i32>(pos.xy), 0);
+    return run_post(c, pos.xy * frame.viewport.zw);
 }
 
 // ---------------------------------------------------------------- compute backend
@@ -700,7 +723,7 @@ fn cs_main(@builtin(global_invocation_id) gid: vec3<u32>) {
         return;
     }
     let uv = (vec2<f32>(px) + 0.5) * frame.viewport.zw;
-    textureStore(out_tex, vec2<i32>(px), march(pixel_ray(uv), uv, false));
+    textureStore(out_tex, vec2<i32>(px), run_post(march(pixel_ray(uv), uv, false), uv));
 }
 
 // `cs_main` with empty-space skipping (used while the occupancy grid is active).
@@ -712,7 +735,7 @@ fn cs_main_skip(@builtin(global_invocation_id) gid: vec3<u32>) {
         return;
     }
     let uv = (vec2<f32>(px) + 0.5) * frame.viewport.zw;
-    textureStore(out_tex, vec2<i32>(px), march(pixel_ray(uv), uv, true));
+    textureStore(out_tex, vec2<i32>(px), run_post(march(pixel_ray(uv), uv, true), uv));
 }
 
 // Slice `slice_info.index` at pixel `px`: composites its sample into `accum` (unless
@@ -760,7 +783,8 @@ fn cs_resolve(@builtin(global_invocation_id) gid: vec3<u32>) {
     if (gid.x >= size.x || gid.y >= size.y) {
         return;
     }
-    textureStore(out_tex, vec2<i32>(gid.xy), accum[gid.y * size.x + gid.x]);
+    let uv = (vec2<f32>(gid.xy) + 0.5) * frame.viewport.zw;
+    textureStore(out_tex, vec2<i32>(gid.xy), run_post(accum[gid.y * size.x + gid.x], uv));
 }
 
 // Sample of the current slice under a state texel (for per-slice state updates).

@@ -1173,3 +1173,44 @@ fn workgroup_shapes_render_the_same_pixels() {
     assert_ne!(fallback.0, [64, 64]);
     assert!(fallback.1 == base.1);
 }
+
+/// The `post` hook runs once per pixel on the accumulated colour on every path: the
+/// compute backend's single dispatch and its per-slice resolve, the raster backend's
+/// full-screen pass after the slices (also after per-slice state), in rgba16float and
+/// rgba32float. `composite.tonemap` (one stop, gamma 1.5) matches its twin everywhere
+/// and changes the image.
+#[test]
+fn post_hooks_run_once_per_pixel_on_every_path() {
+    use crate::reference::{delta_e_rms, gpu_and_reference, gpu_delta_e_rms};
+    let tonemap = {
+        let p = vwb_plugins::registry().get("composite.tonemap").unwrap();
+        let mut i = vwb_render::PluginInstance::new(p.clone());
+        i.params = p.demo_params().unwrap();
+        i
+    };
+    for per_slice in [false, true] {
+        let mut plain = vec![instance("classify.tf1d")];
+        if per_slice {
+            plain.push(instance("shade.dos"));
+        }
+        let mut mapped = plain.clone();
+        mapped.push(tonemap.clone());
+        for backend in [Backend::Compute, Backend::Raster] {
+            for target in [TargetFormat::Rgba16Float, TargetFormat::Rgba32Float] {
+                let s = settings(48, 48, backend);
+                let (px, reference) = gpu_and_reference(demo(), &mapped, target, &s);
+                let rms = delta_e_rms(&px, &reference, 48, 48);
+                let what = format!("{} {target:?} per-slice {per_slice}", backend.name());
+                eprintln!("post hook, {what}: ΔE*uv RMS {rms:.4} against the twin");
+                assert!(rms < twin_bound(backend, per_slice), "{what}: {rms}");
+                let mut r = Renderer::new(gpu(), demo()).unwrap();
+                let before = render(&mut r, &plain, target, &s);
+                let moved = gpu_delta_e_rms(&px, &before, 48, 48);
+                assert!(
+                    moved > 2.0,
+                    "{what}: the tone map changes the image ({moved})"
+                );
+            }
+        }
+    }
+}
