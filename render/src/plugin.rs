@@ -279,6 +279,46 @@ pub struct VolumePassDecl {
     pub camera: bool,
 }
 
+impl VolumePassDecl {
+    /// A pass writing the r32float target `target` at the volume's resolution from the
+    /// hook-file function `entry`, depending on no parameter, one step, not a view
+    /// pass; the builder methods below change that.
+    pub fn new(target: &'static str, entry: &'static str) -> Self {
+        Self {
+            target,
+            format: StorageFormat::R32Float,
+            scale: 1.0,
+            entry,
+            depends_on: Vec::new(),
+            steps: None,
+            accumulate: false,
+            camera: false,
+        }
+    }
+    /// The target's size relative to the volume.
+    pub fn scale(mut self, scale: f32) -> Self {
+        self.scale = scale;
+        self
+    }
+    /// The parameters whose change reruns it.
+    pub fn depends_on(mut self, keys: &[&'static str]) -> Self {
+        self.depends_on = keys.to_vec();
+        self
+    }
+    /// Progressive: `steps(params)` refinement steps, each reading its own previous
+    /// texel ([`VolumePassDecl::accumulate`]).
+    pub fn progressive(mut self, steps: fn(&ParamValues) -> u32) -> Self {
+        self.steps = Some(steps);
+        self.accumulate = true;
+        self
+    }
+    /// A view pass ([`VolumePassDecl::camera`]).
+    pub fn view(mut self) -> Self {
+        self.camera = true;
+        self
+    }
+}
+
 /// What [`Plugin::statistics`] reads: the volume's dims and the instance's volume-pass
 /// targets as the GPU left them after the last frame (by target name: size and f32
 /// components, x fastest; None where the pass is absent).

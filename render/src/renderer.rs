@@ -1981,21 +1981,25 @@ impl Renderer {
                 self.main_workgroup,
             )),
         });
+        // groups 0–2 and a group 3 of the entry point's own
+        let layout_with = |label: &str, g3: &wgpu::BindGroupLayout| {
+            device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                label: Some(label),
+                bind_group_layouts: &[
+                    Some(&self.g0_layout),
+                    Some(&g1_layout),
+                    Some(&g2_layout),
+                    Some(g3),
+                ],
+                immediate_size: 0,
+            })
+        };
         let raster_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
             label: Some("vwb raster"),
             bind_group_layouts: &[Some(&self.g0_layout), Some(&g1_layout), Some(&g2_layout)],
             immediate_size: 0,
         });
-        let compute_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some("vwb compute"),
-            bind_group_layouts: &[
-                Some(&self.g0_layout),
-                Some(&g1_layout),
-                Some(&g2_layout),
-                Some(&g3_layout),
-            ],
-            immediate_size: 0,
-        });
+        let compute_layout = layout_with("vwb compute", &g3_layout);
         let raster = raster_pipeline(device, &module, &raster_layout, target, "fs_main", None);
         let post = composition.post.then(|| {
             let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
@@ -2011,16 +2015,7 @@ impl Renderer {
                     count: None,
                 }],
             });
-            let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-                label: Some("vwb post"),
-                bind_group_layouts: &[
-                    Some(&self.g0_layout),
-                    Some(&g1_layout),
-                    Some(&g2_layout),
-                    Some(&layout),
-                ],
-                immediate_size: 0,
-            });
+            let pipeline_layout = layout_with("vwb post", &layout);
             let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
                 label: Some("vwb post"),
                 layout: Some(&pipeline_layout),
@@ -2089,16 +2084,7 @@ impl Renderer {
                         count: None,
                     }],
                 });
-                let pl = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-                    label: Some("vwb volume pass"),
-                    bind_group_layouts: &[
-                        Some(&self.g0_layout),
-                        Some(&g1_layout),
-                        Some(&g2_layout),
-                        Some(&layout),
-                    ],
-                    immediate_size: 0,
-                });
+                let pl = layout_with("vwb volume pass", &layout);
                 volume_passes.push(CompiledPass {
                     instance: i,
                     k,

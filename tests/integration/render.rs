@@ -865,13 +865,25 @@ pub fn tf_variants(n: usize) -> Vec<(vwb_render::Camera, Vec<vwb_render::PluginI
         .collect()
 }
 
+/// The atlas tiles of (camera, stack) variants.
+fn atlas_tiles(
+    variants: &[(vwb_render::Camera, Vec<vwb_render::PluginInstance>)],
+) -> Vec<vwb_render::renderer::AtlasTile<'_>> {
+    variants
+        .iter()
+        .map(|(camera, stack)| vwb_render::renderer::AtlasTile {
+            camera: *camera,
+            stack,
+        })
+        .collect()
+}
+
 /// An atlas of variants whose stacks have volume passes (TF variants under Hernell's
 /// global light: each variant's light volume is its own): the atlas runs each
 /// variant's passes once, and each tile equals its single render on a fresh renderer.
 /// A second atlas of the same variants reruns no pass.
 #[test]
 fn an_atlas_runs_each_variants_volume_passes() {
-    use vwb_render::renderer::AtlasTile;
     let variants: Vec<_> = tf_variants(4)
         .into_iter()
         .map(|(camera, mut stack)| {
@@ -883,13 +895,7 @@ fn an_atlas_runs_each_variants_volume_passes() {
         .collect();
     let s = settings(32, 32, Backend::Compute);
     let t = TargetFormat::Rgba32Float;
-    let tiles: Vec<AtlasTile> = variants
-        .iter()
-        .map(|(camera, stack)| AtlasTile {
-            camera: *camera,
-            stack,
-        })
-        .collect();
+    let tiles = atlas_tiles(&variants);
     // a ball, small enough for a quick light volume
     let ball = synthetic([32, 32, 24], |x, y, z| {
         let d = ((x as f32 - 15.5).powi(2) + (y as f32 - 15.5).powi(2) + (z as f32 - 11.5).powi(2))
@@ -932,13 +938,7 @@ fn an_atlas_of_64_variants_matches_their_single_renders() {
     let s = settings(128, 128, Backend::Compute);
     let t = TargetFormat::Rgba32Float;
     let mut r = Renderer::new(gpu(), demo()).unwrap();
-    let tiles: Vec<AtlasTile> = variants
-        .iter()
-        .map(|(camera, stack)| AtlasTile {
-            camera: *camera,
-            stack,
-        })
-        .collect();
+    let tiles = atlas_tiles(&variants);
     let atlas = r.render_atlas(&tiles, &s, t, 8).unwrap();
     assert_eq!((atlas.cols, atlas.rows, atlas.tiles), (8, 8, 64));
     assert_eq!(

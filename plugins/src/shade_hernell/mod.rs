@@ -51,7 +51,7 @@ use rayon::prelude::*;
 use vwb_render::params::{ParamSpec, ParamValues};
 use vwb_render::plugin::{
     CpuContext, CpuSample, CpuTwin, GpuInit, GpuResource, PassOutputs, Plugin, PluginError,
-    ResourceDecl, ResourceKind, ShaderSource, StackClassify, Statistic, StorageFormat,
+    ResourceDecl, ResourceKind, ShaderSource, StackClassify, Statistic,
     Transparency, VolumePassDecl, trilinear_grid,
 };
 
@@ -287,15 +287,10 @@ impl Plugin for Hernell {
         }]
     }
     fn volume_passes(&self) -> Vec<VolumePassDecl> {
-        let pass = |target, scale, entry, depends_on: &[&'static str]| VolumePassDecl {
-            target,
-            format: StorageFormat::R32Float,
-            scale,
-            entry,
-            depends_on: depends_on.to_vec(),
-            steps: None,
-            accumulate: false,
-            camera: false,
+        let pass = |target, scale, entry, depends_on: &[&'static str]| {
+            VolumePassDecl::new(target, entry)
+                .scale(scale)
+                .depends_on(depends_on)
         };
         // exact integration ignores the segment length
         let deps: Vec<&'static str> = LIGHT_DEPS
@@ -316,11 +311,7 @@ impl Plugin for Hernell {
         passes.extend([
             pass("alpha_lp", 1.0, "local_pass", &opacity_deps),
             pass("alpha_g", self.svr, "global_pass", &opacity_deps),
-            VolumePassDecl {
-                steps: Some(light_steps),
-                accumulate: true,
-                ..pass("light_volume", 1.0, "light_pass", &light_deps)
-            },
+            pass("light_volume", 1.0, "light_pass", &light_deps).progressive(light_steps),
         ]);
         passes
     }

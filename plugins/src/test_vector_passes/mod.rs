@@ -17,7 +17,7 @@ use vwb_render::params::{Components, ParamSpec, ParamValues};
 use vwb_render::volume::Volume;
 use vwb_render::plugin::{
     CpuContext, CpuSample, CpuTwin, CpuView, GpuInit, GpuResource, Plugin, PluginError, ResourceDecl,
-    ResourceKind, ShaderSource, StackClassify, StorageFormat, VolumePassDecl, trilinear_grid,
+    ResourceKind, ShaderSource, StackClassify, VolumePassDecl, trilinear_grid,
 };
 
 #[cfg(test)]
@@ -73,26 +73,13 @@ impl Plugin for VectorPasses {
         }]
     }
     fn volume_passes(&self) -> Vec<VolumePassDecl> {
-        let pass = |target, entry| VolumePassDecl {
-            target,
-            format: StorageFormat::R32Float,
-            scale: 1.0,
-            entry,
-            depends_on: Vec::new(),
-            steps: None,
-            accumulate: false,
-            camera: false,
-        };
         let mut passes = vec![
-            pass("speed", "speed_pass"),
-            pass("blurred", "blur_pass"),
-            pass("edges", "edge_pass"),
+            VolumePassDecl::new("speed", "speed_pass"),
+            VolumePassDecl::new("blurred", "blur_pass"),
+            VolumePassDecl::new("edges", "edge_pass"),
         ];
         if self.facing {
-            passes.push(VolumePassDecl {
-                camera: true,
-                ..pass("facing", "facing_pass")
-            });
+            passes.push(VolumePassDecl::new("facing", "facing_pass").view());
         }
         passes
     }
