@@ -669,6 +669,15 @@ mod kittest_tests {
         stack: Vec<PluginInstance>,
         height: f32,
     ) -> Harness<'static, Vec<PluginInstance>> {
+        harness_with_inputs(stack, height, Vec::new())
+    }
+
+    /// [`demo_harness`] for a document with the named volumes `inputs`.
+    fn harness_with_inputs(
+        stack: Vec<PluginInstance>,
+        height: f32,
+        inputs: Vec<String>,
+    ) -> Harness<'static, Vec<PluginInstance>> {
         let r = vwb_plugins::builtin_registry();
         let volume = std::sync::Arc::new(vwb_render::volume::demo());
         Harness::builder()
@@ -680,7 +689,7 @@ mod kittest_tests {
                         error: None,
                         histogram: &volume.histogram,
                         volume: Some(&volume),
-                        inputs: &[],
+                        inputs: &inputs,
                     };
                     egui::ScrollArea::vertical().show(ui, |ui| {
                         stack_editor(ui, &cx, stack);
@@ -754,6 +763,30 @@ mod kittest_tests {
             assert!(has(&h, label), "{label} is listed once light 1 is on");
         }
         assert_eq!(h.query_all_by_label("Light colour").count(), 2);
+    }
+
+    /// A volume input is a list of the document's named volumes after its own: picking
+    /// one names it in the parameter, and the document's own is the empty name.
+    #[test]
+    fn a_volume_input_picks_among_the_documents_volumes() {
+        let r = vwb_plugins::builtin_registry();
+        let stack = vec![PluginInstance::new(r.get("flow.lic3d").unwrap())];
+        let mut h = harness_with_inputs(stack, 1200.0, vec!["storm".into(), "wind".into()]);
+        if h.query_by_label("Vector field").is_none() {
+            h.get_by_label("parameters").click();
+            h.run();
+        }
+        h.get_by_label("Vector field").click();
+        h.run();
+        assert!(h.query_by_label("storm").is_some(), "the names are listed");
+        h.get_by_label("wind").click();
+        h.run();
+        assert_eq!(h.state()[0].params.volume("field"), "wind");
+        h.get_by_label("Vector field").click();
+        h.run();
+        h.get_by_label("(the volume)").click();
+        h.run();
+        assert_eq!(h.state()[0].params.volume("field"), "");
     }
 
     /// "Suggest" beside the 1D TF editor puts the volume's suggestion into the curve,
