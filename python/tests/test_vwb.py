@@ -102,3 +102,23 @@ def test_run_experiment_returns_rows(tmp_path):
     bad.write_text(exp.read_text().replace("slices > 5", "slices > 100000"))
     with pytest.raises(RuntimeError, match="assertions failed"):
         vwb.run_experiment(str(bad), out=str(tmp_path / "out2"))
+
+
+def test_a_named_volume_feeds_a_plugin_input(tmp_path):
+    preset = tmp_path / "named.ron"
+    preset.write_text(
+        """(version: 1, volume: Analytic((field: Abc, size: (24, 20, 12))),
+           volumes: {"turn": Analytic((field: Rotation, size: (12, 10, 12)))},
+           render: (size: (32, 32), backend: Compute),
+           plugins: [(id: "flow.lic3d", params: {"length": 4.0}), (id: "classify.tf1d")])"""
+    )
+    s = vwb.Scene(str(preset))
+    own = s.render(size=(32, 32))
+    s.set("flow.lic3d.field", "turn")
+    turned = s.render(size=(32, 32))
+    assert vwb.compare(own, turned)["rms_delta_e"] > 0.5, "another field, another LIC"
+    s.set("flow.lic3d.field", "")
+    assert vwb.compare(own, s.render(size=(32, 32)))["rms_delta_e"] == 0.0
+    s.set("flow.lic3d.field", "gust")
+    with pytest.raises(Exception, match="no volume named 'gust'"):
+        s.render(size=(32, 32))
