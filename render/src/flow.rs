@@ -301,8 +301,8 @@ impl GridField {
 
 /// A field on its own grid read at voxel coordinates of the grid `to` over the same
 /// box (a named volume input on another grid than the document's volume): `at(p)` is
-/// the inner field at the same point of the box. The vectors are the inner field's
-/// (see [`GridField::in_voxels_of`]).
+/// the inner field at the same point of the box; on `to` itself, the inner field at
+/// `p` exactly. The vectors are the inner field's (see [`GridField::in_voxels_of`]).
 #[derive(Debug, Clone, Copy)]
 pub struct OnGrid<'a> {
     pub inner: &'a GridField,
@@ -311,6 +311,9 @@ pub struct OnGrid<'a> {
 
 impl Field for OnGrid<'_> {
     fn at(&self, p: DVec3) -> Option<DVec3> {
+        if self.inner.dims == self.to {
+            return self.inner.at(p);
+        }
         let scale = DVec3::from(std::array::from_fn::<f64, 3, _>(|a| {
             self.inner.dims[a] as f64 / self.to[a] as f64
         }));

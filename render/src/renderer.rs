@@ -1219,9 +1219,7 @@ impl Renderer {
     /// inputs now resolve to another volume; the same volumes (the same `Arc`s under the
     /// same names) change nothing.
     pub fn set_inputs(&mut self, inputs: crate::inputs::VolumeInputs) {
-        if !inputs.same_as(&self.inputs) {
-            self.inputs = inputs;
-        }
+        self.inputs = inputs;
     }
 
     /// The document's named volumes as last set.
@@ -2780,6 +2778,10 @@ impl Renderer {
             }
             index += count;
         }
+        // the dispatches index the slice-info buffer by step
+        if let Some(last) = out.iter().map(|d| d.step + 1).max() {
+            self.ensure_slice_info(last);
+        }
         out
     }
 
@@ -2958,6 +2960,8 @@ impl Renderer {
         let plan = SlicePlan::new(&view, self.lattice_box(), s.slice_spacing)?;
         let spacing_updates = self.sync_spacing(plan.spacing / self.vbox.voxel)?;
         self.ensure_target(s.width, s.height, target_format)?;
+        // the copy of the eye buffer that a raster post pass reads; freed for stacks
+        // without one
         if s.backend == Backend::Raster
             && self
                 .pipelines
@@ -2965,6 +2969,8 @@ impl Renderer {
                 .is_some_and(|p| p.compiled.post.is_some())
         {
             self.ensure_post_src();
+        } else {
+            self.post_src = None;
         }
         self.ensure_state();
         let per_slice = self
@@ -2983,11 +2989,7 @@ impl Renderer {
         let pass_plan = match &self.pipelines {
             Some(p) if !p.volume_passes.is_empty() => {
                 let (compiled, stack) = (p.compiled.clone(), p.stack.clone());
-                let pass_plan = self.plan_volume_passes(&compiled, &stack, camera_key(&view));
-                if let Some(last) = pass_plan.iter().map(|d| d.step + 1).max() {
-                    self.ensure_slice_info(last);
-                }
-                pass_plan
+                self.plan_volume_passes(&compiled, &stack, camera_key(&view))
             }
             _ => Vec::new(),
         };

@@ -110,10 +110,9 @@ pub fn arrival_on(grid: &Volume, field: &Volume, p: &ParamValues) -> Vec<f32> {
         inner,
         to: grid.dims,
     });
-    let field: &dyn Field = match (&unit, &regridded) {
-        (Some(f), _) if f.dims == grid.dims => f,
-        (_, Some(g)) => g,
-        _ => &NoFlow,
+    let field: &dyn Field = match &regridded {
+        Some(g) => g,
+        None => &NoFlow,
     };
     arrival_volume(field, grid.dims, &seed_box(p), &arrival_params(p))
 }

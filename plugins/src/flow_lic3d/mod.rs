@@ -195,10 +195,6 @@ impl LicInputs {
     /// Runs `f` with the field in LIC-grid voxel coordinates.
     fn with_field<R>(&self, f: impl FnOnce(&dyn Field) -> R) -> R {
         match &self.field {
-            Some(inner) if inner.dims == self.grid => f(&Scaled {
-                inner,
-                factor: self.frequency,
-            }),
             Some(inner) => f(&Scaled {
                 inner: &OnGrid {
                     inner,

@@ -230,7 +230,7 @@ pub struct VectorPassesTwin {
     pub gain: f64,
     pub facing: bool,
     /// The blurred speed and the edges (they do not depend on the camera).
-    pub blurred: Option<Arc<(Grid, Grid)>>,
+    pub blurred: Option<(Arc<Grid>, Arc<Grid>)>,
     /// The volume the hook reads: the edges, or the facing edges of the last camera.
     pub shown: Option<Arc<Grid>>,
 }
@@ -240,12 +240,12 @@ impl CpuTwin for VectorPassesTwin {
         let chain = self.blurred.get_or_insert_with(|| {
             let field = input_field(ctx.input(&self.params, "field"));
             let (_, blurred, edges) = pass_volumes(ctx.volume.dims, Some(&field));
-            Arc::new((blurred, edges))
+            (Arc::new(blurred), Arc::new(edges))
         });
         self.shown = Some(if self.facing {
             Arc::new(facing_volume(&chain.0, &ctx.view, ctx.volume_box()))
         } else {
-            Arc::new(chain.1.clone())
+            chain.1.clone()
         });
     }
     fn sample(&self, _ctx: &CpuContext, s: &mut CpuSample) {

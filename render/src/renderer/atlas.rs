@@ -259,9 +259,6 @@ impl Renderer {
             }
             // no view pass here (refused above): the camera does not matter
             let plan = self.plan_volume_passes(&compiled, stack, 0);
-            if let Some(last) = plan.iter().map(|d| d.step + 1).max() {
-                self.ensure_slice_info(last);
-            }
             pass_plans.push((stack.clone(), plan));
         }
         let device = &self.gpu.device;
