@@ -60,6 +60,13 @@ struct SliceInfo {
 // be visible (render/src/skipping.rs).
 @group(0) @binding(5) var occupancy: texture_3d<f32>;
 
+// A pixel's ray (`pixel_ray`): `origin` is the eye for a perspective camera, the
+// pixel's point on the plane through the eye for an orthographic one; `dir` is unit.
+struct Ray {
+    origin: vec3<f32>,
+    dir: vec3<f32>,
+}
+
 struct Sample {
     // world position of the sample
     pos: vec3<f32>,

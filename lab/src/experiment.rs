@@ -250,6 +250,9 @@ pub enum Metric {
     ShareAbove6,
     Ssim,
     PsnrDb,
+    /// RMS ΔE*uv after a σ = 1 pixel blur of both images
+    /// ([`vwb_render::metrics::Metrics::rms_delta_e_blur`]): structured error only.
+    RmsDeltaEBlur,
     FrameMs,
     /// What the grid point's change re-ran: the wall time of the first frame after its
     /// stack is applied less the median wall time of the timed frames (at least 0) —
@@ -265,13 +268,14 @@ pub enum Metric {
 }
 
 impl Metric {
-    pub const ALL: [Metric; 11] = [
+    pub const ALL: [Metric; 12] = [
         Metric::RmsDeltaE,
         Metric::MeanDeltaE,
         Metric::MaxDeltaE,
         Metric::ShareAbove6,
         Metric::Ssim,
         Metric::PsnrDb,
+        Metric::RmsDeltaEBlur,
         Metric::FrameMs,
         Metric::UpdateMs,
         Metric::Slices,
@@ -287,6 +291,7 @@ impl Metric {
             Metric::ShareAbove6 => "share_above_6",
             Metric::Ssim => "ssim",
             Metric::PsnrDb => "psnr_db",
+            Metric::RmsDeltaEBlur => "rms_delta_e_blur",
             Metric::FrameMs => "frame_ms",
             Metric::UpdateMs => "update_ms",
             Metric::Slices => "slices",
@@ -303,6 +308,7 @@ impl Metric {
             Metric::ShareAbove6 => "ΔE > 6",
             Metric::Ssim => "SSIM",
             Metric::PsnrDb => "PSNR (dB)",
+            Metric::RmsDeltaEBlur => "RMS ΔE*uv, blurred",
             Metric::FrameMs => "time (ms)",
             Metric::UpdateMs => "update (ms)",
             Metric::Slices => "slices",
@@ -327,6 +333,7 @@ impl Metric {
             Metric::ShareAbove6 => m.share_above_6,
             Metric::Ssim => m.ssim,
             Metric::PsnrDb => m.psnr_db,
+            Metric::RmsDeltaEBlur => m.rms_delta_e_blur,
             Metric::FrameMs => row.frame_ms,
             Metric::UpdateMs => row.update_ms,
             Metric::Slices => row.slices as f64,
@@ -349,7 +356,9 @@ impl Metric {
             Metric::GpuMemoryMib => format!("{v:.1}"),
             Metric::EmptyBrickShare => format!("{v:.3}"),
             // errors below 1 keep a third digit (a fine variant against a finer one)
-            Metric::RmsDeltaE | Metric::MeanDeltaE if v != 0.0 && v.abs() < 1.0 => {
+            Metric::RmsDeltaE | Metric::MeanDeltaE | Metric::RmsDeltaEBlur
+                if v != 0.0 && v.abs() < 1.0 =>
+            {
                 format!("{v:.3}")
             }
             _ => format!("{v:.2}"),
@@ -1426,6 +1435,7 @@ pub fn run(
                         share_above_6: f64::NAN,
                         psnr_db: f64::NAN,
                         ssim: f64::NAN,
+                        rms_delta_e_blur: f64::NAN,
                     },
                 };
                 let (ms, clock) = timing.frame_ms();
@@ -2081,6 +2091,7 @@ mod tests {
                 share_above_6: 0.0,
                 psnr_db: 40.0,
                 ssim: 1.0,
+                rms_delta_e_blur: rms,
             },
             statistics: BTreeMap::from([("x.y.z".to_string(), ms / 10.0)]),
             image: String::new(),

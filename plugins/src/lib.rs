@@ -49,6 +49,7 @@ builtin_plugins! {
     clip_shapes => clip_shapes::Shapes::default(),
     clip_labels => clip_labels::ClipLabels,
     clip_mesh => clip_mesh::ClipMesh::default(),
+    sample_jitter => sample_jitter::Jitter,
     classify_tf1d => classify_tf1d::Tf1d::default(),
     classify_labels => classify_labels::Labels,
     classify_tf2d => classify_tf2d::Tf2dPlugin::default(),
@@ -134,7 +135,7 @@ mod tests {
     #[test]
     fn builtins_register_without_clash() {
         let r = builtin_registry();
-        assert_eq!(r.plugins().len(), 20);
+        assert_eq!(r.plugins().len(), 21);
         let mut fresh = Registry::new();
         for p in r.plugins() {
             fresh.register(p.clone()).unwrap();

@@ -233,7 +233,8 @@ impl Scene {
 }
 
 /// Compares two (height, width, 3) images in [0, 1]: a dict of rms_delta_e,
-/// mean_delta_e, max_delta_e, share_above_6 (CIE 1976 ΔE*uv), psnr_db and ssim.
+/// mean_delta_e, max_delta_e, share_above_6 (CIE 1976 ΔE*uv), psnr_db, ssim and
+/// rms_delta_e_blur (ΔE*uv RMS after a σ = 1 pixel blur of both).
 #[pyfunction]
 fn compare<'py>(
     py: Python<'py>,
@@ -249,6 +250,7 @@ fn compare<'py>(
     out.set_item("share_above_6", m.share_above_6)?;
     out.set_item("psnr_db", m.psnr_db)?;
     out.set_item("ssim", m.ssim)?;
+    out.set_item("rms_delta_e_blur", m.rms_delta_e_blur)?;
     Ok(out)
 }
 

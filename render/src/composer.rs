@@ -53,9 +53,11 @@ impl TargetFormat {
     }
 }
 
-/// The hooks, in the order they run per sample, then `post` (once per pixel, on the
-/// accumulated colour after the loop), then the per-slice state update.
-pub const HOOKS: [&str; 7] = [
+/// The hooks: `setup` (once per ray, before its samples), those that run per sample in
+/// this order, `post` (once per pixel, on the accumulated colour after the loop), then
+/// the per-slice state update.
+pub const HOOKS: [&str; 8] = [
+    "setup",
     "clip",
     "sample",
     "classify",
@@ -68,6 +70,7 @@ pub const HOOKS: [&str; 7] = [
 /// Expected signature of each hook: argument types and result type.
 fn hook_signature(name: &str) -> Option<(&'static [&'static str], &'static str)> {
     Some(match name {
+        "setup" => (&["Ray", "vec2<f32>"], "vec4<f32>"),
         "clip" => (&["Sample"], "bool"),
         "sample" | "classify" | "shade" => (&["Sample"], "Sample"),
         "composite" => (&["Sample", "vec4<f32>"], "vec4<f32>"),
@@ -326,6 +329,12 @@ fn differentiates_the_shading_scalar(source: &str) -> bool {
         })
 }
 
+/// The per-ray record of an instance with a `setup` hook: what the hook returned for
+/// the current ray, read by the instance's other hooks (zero outside a ray, e.g. in
+/// volume passes). One private variable per such instance, renamed with its prefix.
+pub const RAY_RECORD: &str = "ray_record";
+const RAY_RECORD_DECL: &str = "var<private> ray_record: vec4<f32>;";
+
 /// What `stack_classify` is, for checking a plugin file in isolation.
 const STACK_CLASSIFY_STUB: &str = "fn stack_classify(tex: vec3<f32>, dir: vec3<f32>) -> vec4<f32> { return vec4<f32>(tex + dir, 0.0); }";
 
@@ -487,6 +496,12 @@ fn module_decls(src: &str) -> Vec<Decl> {
         i += 1;
     }
     out
+}
+
+/// Whether `src` defines a function `name` at module scope (a token scan, without
+/// parsing: for questions asked before anything is composed).
+pub fn defines_fn(src: &str, name: &str) -> bool {
+    module_decls(src).iter().any(|d| d.is_fn && d.name == name)
 }
 
 /// Prefixes every identifier in `names` (except member accesses after `.`).
@@ -923,13 +938,18 @@ pub fn compose_with(
         let mut iso_g2 = 0;
         let iso_bindings =
             instance_bindings(plugin, index, &uniform, false, &mut iso_g1, &mut iso_g2);
-        let mut allowed: Vec<&str> = HOOKS[..6].to_vec();
+        let mut allowed: Vec<&str> = HOOKS[..7].to_vec();
         allowed.extend(SCALAR_FUNCTIONS);
         if plugin.slice_state().is_some() {
             allowed.push("slice_update");
         }
         let passes = plugin.volume_passes();
         let mut iso_decls = decls_text(&iso_bindings, "", &uniform);
+        let has_setup = defines_fn(&shader.source, "setup");
+        if has_setup {
+            iso_decls.push_str(RAY_RECORD_DECL);
+            iso_decls.push('\n');
+        }
         if !passes.is_empty() {
             iso_decls.push_str(STACK_CLASSIFY_STUB);
             iso_decls.push('\n');
@@ -982,6 +1002,12 @@ pub fn compose_with(
         let mut names: HashSet<String> = decls.iter().map(|d| d.name.clone()).collect();
         names.extend(local_names.iter().cloned());
         names.insert("Params".to_string());
+        let mut instance_decls = decls_text(&inst_bindings, &prefix, &uniform);
+        if has_setup {
+            names.insert(RAY_RECORD.to_string());
+            instance_decls.push_str(&rename(RAY_RECORD_DECL, &names, &prefix));
+            instance_decls.push('\n');
+        }
         let renamed = rename(&shader.source, &names, &prefix);
 
         // the pre-pass module
@@ -996,12 +1022,7 @@ pub fn compose_with(
         };
 
         let update_entry = plugin.slice_state().map(|_| format!("cs_update_{index}"));
-        segments.push((
-            index,
-            shader.file.to_string(),
-            decls_text(&inst_bindings, &prefix, &uniform),
-            renamed,
-        ));
+        segments.push((index, shader.file.to_string(), instance_decls, renamed));
         bindings.extend(inst_bindings);
         instances.push(InstanceLayout {
             input_index: index,
@@ -1100,6 +1121,7 @@ pub fn compose_with(
                     "clip" => format!("    if (!{p}clip(s)) {{ return false; }}"),
                     "composite" => format!("    c = {p}composite(s, c);"),
                     "post" => format!("    c = {p}post(c, uv);"),
+                    "setup" => format!("    {p}{RAY_RECORD} = {p}setup(r, uv);"),
                     h => format!("    s = {p}{h}(s);"),
                 };
                 m.push_line(

@@ -7,6 +7,9 @@
 //!
 //! Hook signatures (names inside the plugin's file; the composer prefixes them per
 //! instance):
+//! - `fn setup(r: Ray, uv: vec2<f32>) -> vec4<f32>` — once per ray before its samples;
+//!   the result is the instance's `ray_record` (a private `vec4<f32>`) for its other
+//!   hooks at every sample of that ray
 //! - `fn clip(s: Sample) -> bool` — false drops the sample (runs before sampling)
 //! - `fn sample(s: Sample) -> Sample` — may replace `s.value` / set `s.normal`
 //! - `fn classify(s: Sample) -> Sample` — sets `s.color` (straight RGBA per Δs0)
@@ -500,6 +503,24 @@ pub struct CpuSample {
     /// Where shading reads the gradient, as a fraction of `step` ahead along the ray
     /// (0: at the sample; set by pre-integrated classification's `shade_at: centroid`).
     pub shade_at: f64,
+    /// The twin of the instance's `ray_record`: what its [`CpuTwin::setup`] returned for
+    /// this ray (zero for plugins without one, and outside a ray as in volume passes).
+    /// Not part of the WGSL `Sample`: each instance's record is a private variable.
+    pub ray_record: DVec4,
+}
+
+/// A pixel's ray as `setup` sees it (the WGSL `Ray` and the `uv` beside it).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct CpuRay {
+    /// The eye for a perspective camera; the pixel's point on the plane through the
+    /// eye (normal to the view direction) for an orthographic one.
+    pub origin: DVec3,
+    /// Unit direction.
+    pub dir: DVec3,
+    /// Screen coordinate in [0,1]² (y down) of the pixel centre.
+    pub uv: DVec2,
+    /// The image (or atlas tile) size in pixels (`frame.viewport.xy`).
+    pub size: DVec2,
 }
 
 impl CpuSample {
@@ -788,6 +809,12 @@ pub trait CpuTwin: Send + Sync {
     fn classify(&self, _ctx: &CpuContext, _s: &mut CpuSample) {}
     fn shade(&self, _ctx: &CpuContext, _s: &mut CpuSample) {}
     fn composite(&self, _s: &CpuSample, _c: &mut DVec4) {}
+    /// Once per ray before its samples (`setup`): this instance's per-ray record, which
+    /// the reference puts in [`CpuSample::ray_record`] before each of the instance's
+    /// other hooks.
+    fn setup(&self, _ctx: &CpuContext, _ray: &CpuRay) -> DVec4 {
+        DVec4::ZERO
+    }
     /// Once per pixel after the loop: the accumulated premultiplied colour at the
     /// pixel's uv, before the background.
     fn post(&self, _c: &mut DVec4, _uv: DVec2) {}
@@ -991,7 +1018,7 @@ pub trait Plugin: Send + Sync + 'static {
     fn splits_into_bricks(&self) -> bool {
         self.slice_state().is_none()
             && self.volume_passes().is_empty()
-            && !self.shader().source.contains("fn post(")
+            && !crate::composer::defines_fn(&self.shader().source, "post")
             && !self
                 .params()
                 .iter()

@@ -53,7 +53,7 @@ use rayon::prelude::*;
 use crate::inputs::VolumeInputs;
 use crate::metrics::{RgbImageF, compare};
 use crate::plugin::{
-    CpuContext, CpuSample, CpuTwin, CpuView, PluginInstance, SliceStateDecl, StateImage,
+    CpuContext, CpuRay, CpuSample, CpuTwin, CpuView, PluginInstance, SliceStateDecl, StateImage,
     StorageFormat,
 };
 use crate::renderer::{Backend, FrameSettings};
@@ -446,9 +446,10 @@ impl Prepared<'_> {
                         .map(|n| {
                             let (tx, ty) = ((n % sw as usize) as f64, (n / sw as usize) as f64);
                             let uv = DVec2::new((tx + 0.5) / sw as f64, (ty + 0.5) / sh as f64);
-                            let (s, c) = frame
+                            let (mut s, c) = frame
                                 .slice_sample(ctx, &self.twins, &states, uv, k)
                                 .unwrap_or_else(|| (frame.missed_sample(uv, k), DVec4::ZERO));
+                            s.ray_record = self.twins[i].setup(ctx, &frame.setup_ray(uv));
                             round_state(self.twins[i].slice_update(&ctx_i, &s, c, uv), decl.format)
                         })
                         .collect();
@@ -636,6 +637,7 @@ impl Frame {
             normal: DVec3::ZERO,
             slice: k,
             shade_at: 0.0,
+            ray_record: DVec4::ZERO,
         })
     }
 
@@ -654,7 +656,34 @@ impl Frame {
     ) -> Option<(CpuSample, DVec4)> {
         let (origin, dir) = self.ray(uv);
         let sample = self.make_sample(origin, dir, uv, k)?;
-        Some(evaluate(ctx, twins, states, sample, self.ratio(dir)))
+        let records = self.records(ctx, twins, uv);
+        Some(evaluate(
+            ctx,
+            twins,
+            states,
+            &records,
+            sample,
+            self.ratio(dir),
+        ))
+    }
+
+    /// The ray through `uv` as `setup` sees it (`pixel_ray`: from the eye, or from the
+    /// plane through the eye for an orthographic camera).
+    fn setup_ray(&self, uv: DVec2) -> CpuRay {
+        let (origin, dir) = self.ray(uv);
+        let back = (origin - self.eye).dot(self.forward) / dir.dot(self.forward);
+        CpuRay {
+            origin: origin - dir * back,
+            dir,
+            uv,
+            size: DVec2::new(self.width as f64, self.height as f64),
+        }
+    }
+
+    /// `run_setup`: each twin's per-ray record for the ray through `uv`, in stack order.
+    fn records(&self, ctx: &CpuContext, twins: &[Box<dyn CpuTwin>], uv: DVec2) -> Vec<DVec4> {
+        let ray = self.setup_ray(uv);
+        twins.iter().map(|t| t.setup(ctx, &ray)).collect()
     }
 
     /// What `state_texel_sample` passes on where the ray misses slice `k`.
@@ -678,6 +707,7 @@ impl Frame {
         let dd = dir.dot(self.forward);
         let depth0 = (origin - self.eye).dot(self.forward);
         let ratio = self.ratio(dir);
+        let records = self.records(ctx, twins, uv);
         let mut acc = DVec4::ZERO;
         for k in self.slice_range(origin, dir, depth0, dd) {
             if let Some((threshold, run)) = self.early
@@ -689,7 +719,7 @@ impl Frame {
             let Some(sample) = self.make_sample(origin, dir, uv, k) else {
                 continue;
             };
-            let (_, c) = evaluate(ctx, twins, &[], sample, ratio);
+            let (_, c) = evaluate(ctx, twins, &[], &records, sample, ratio);
             acc += (1.0 - acc.w) * c;
             if self.fp16 {
                 acc = round_f16(acc);
@@ -734,11 +764,20 @@ fn evaluate(
     ctx: &CpuContext,
     twins: &[Box<dyn CpuTwin>],
     states: &[Option<StateImage>],
+    records: &[DVec4],
     sample: CpuSample,
     ratio: f64,
 ) -> (CpuSample, DVec4) {
     crate::shading::set_cut_gradient(None);
-    if !twins.iter().all(|t| t.clip(&sample)) {
+    // each twin's hooks see its own ray record, as each instance reads its own
+    let record = |i: usize| records.get(i).copied().unwrap_or(DVec4::ZERO);
+    let kept = twins.iter().enumerate().all(|(i, t)| {
+        t.clip(&CpuSample {
+            ray_record: record(i),
+            ..sample
+        })
+    });
+    if !kept {
         let mut s = sample;
         s.color = DVec4::ZERO;
         return (s, DVec4::ZERO);
@@ -750,13 +789,16 @@ fn evaluate(
     let mut s = sample;
     s.value = ctx.value(s.tex);
     for (i, t) in twins.iter().enumerate() {
+        s.ray_record = record(i);
         t.sample(&with_state(i), &mut s);
     }
     s.color = DVec4::splat(s.value);
     for (i, t) in twins.iter().enumerate() {
+        s.ray_record = record(i);
         t.classify(&with_state(i), &mut s);
     }
     for (i, t) in twins.iter().enumerate() {
+        s.ray_record = record(i);
         t.shade(&with_state(i), &mut s);
     }
     let a = correct_opacity(s.color.w, ratio);
@@ -766,7 +808,8 @@ fn evaluate(
         clamp_nan_low(s.color.z, 0.0, RGB_MAX),
     );
     let mut c = (rgb * a).extend(a);
-    for t in twins {
+    for (i, t) in twins.iter().enumerate() {
+        s.ray_record = record(i);
         t.composite(&s, &mut c);
     }
     (s, c)

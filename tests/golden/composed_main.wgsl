@@ -60,6 +60,13 @@ struct SliceInfo {
 // be visible (render/src/skipping.rs).
 @group(0) @binding(5) var occupancy: texture_3d<f32>;
 
+// A pixel's ray (`pixel_ray`): `origin` is the eye for a perspective camera, the
+// pixel's point on the plane through the eye for an orthographic one; `dir` is unit.
+struct Ray {
+    origin: vec3<f32>,
+    dir: vec3<f32>,
+}
+
 struct Sample {
     // world position of the sample
     pos: vec3<f32>,
@@ -302,7 +309,8 @@ fn shading_grid() -> vec3<f32> {
 // vwb slice template: the hook runners and the entry points of both backends.
 // The composer inserts generated declarations at `//!DECLS`, plugin code at `//!PLUGINS`
 // and generated hook calls at each `//!HOOK name` marker, in the order of the user's
-// plugin stack. Hook order per sample: clip -> sample -> classify -> shade -> composite.
+// plugin stack. Once per ray: setup; then per sample: clip -> sample -> classify ->
+// shade -> composite; once per pixel after the loop: post.
 
 struct p0_smooth_Params {
     radius: i32,
@@ -379,6 +387,13 @@ fn p3_tf1d_classify(s: Sample) -> Sample {
     let c = textureSampleLevel(p3_tf1d_lut, linear_clamp, vec2<f32>(x, 0.5), 0.0);
     o.color = vec4<f32>(c.rgb, clamp(c.a * p3_tf1d_params.opacity, 0.0, 1.0));
     return o;
+}
+
+// Once per ray (per pixel), before its samples: each `setup` hook fills its own
+// instance's `ray_record`, which that instance's hooks then read for every sample of the
+// ray (e.g. a per-pixel jitter). The raster backend runs it per fragment on the pixel's
+// exact ray, which gives the same record since it depends on the ray alone.
+fn run_setup(r: Ray, uv: vec2<f32>) {
 }
 
 fn run_clip(s: Sample) -> bool {
@@ -536,6 +551,7 @@ fn ray_dir_to(pos: vec3<f32>) -> vec3<f32> {
 @fragment
 fn fs_main(in: VsOut) -> @location(0) vec4<f32> {
     let uv = in.clip_pos.xy * frame.viewport.zw;
+    run_setup(pixel_ray(uv), uv);
     let s = make_sample(in.world, ray_dir_to(in.world), uv, in.slice);
     return evaluate(s).c;
 }
@@ -551,6 +567,7 @@ fn fs_exact(in: VsOut) -> @location(0) vec4<f32> {
     if (t < 0.0) {
         return vec4<f32>(0.0);
     }
+    run_setup(r, uv);
     return evaluate(pixel_sample(r, t, uv, in.slice)).c;
 }
 
@@ -573,11 +590,6 @@ fn fs_post(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<f32> {
 // ---------------------------------------------------------------- compute backend
 // One invocation per pixel steps through the same slice planes: the sample of slice k
 // is where the pixel's ray meets the plane at distance d_k = d_0 + k·Δs from the eye.
-
-struct Ray {
-    origin: vec3<f32>,
-    dir: vec3<f32>,
-}
 
 // The ray through a pixel. Built from the camera basis rather than by unprojecting
 // with the inverse view-projection: with the near plane at 1e-3 that inverse is ill
@@ -686,6 +698,7 @@ fn march(r: Ray, uv: vec2<f32>, skipping: bool) -> vec4<f32> {
     var acc = vec4<f32>(0.0);
     let early = frame.counts.z != 0u;
     let range = slice_range(r);
+    run_setup(r, uv);
     for (var k = range.x; k < range.y; k = k + 1u) {
         let t = slice_hit(r, k);
         if (t < 0.0) {
@@ -752,6 +765,7 @@ fn slice_step(px: vec2<u32>, size: vec2<u32>, always: bool) -> Evaluated {
     let uv = (vec2<f32>(px) + 0.5) * frame.viewport.zw;
     let r = pixel_ray(uv);
     let t = slice_hit(r, slice_info.index);
+    run_setup(r, uv);
     var e: Evaluated;
     e.s = make_sample(r.origin, r.dir, uv, slice_info.index);
     e.c = vec4<f32>(0.0);
@@ -793,6 +807,7 @@ fn state_texel_sample(texel: vec2<u32>, state_size: vec2<u32>) -> Evaluated {
     let r = pixel_ray(uv);
     let k = slice_info.index;
     let t = slice_hit(r, k);
+    run_setup(r, uv);
     var e: Evaluated;
     if (t < 0.0) {
         e.s = make_sample(r.origin, r.dir, uv, k);

@@ -174,6 +174,92 @@ fn wrong_hook_signature_names_the_function_line() {
     );
 }
 
+/// Each instance with a `setup` hook gets a record of its own: two instances of
+/// `sample.jitter` compose (naga-validated) with two prefixed `ray_record`s, each set in
+/// `run_setup` and read by its own instance's `sample` hook; a `setup` with the wrong
+/// signature is refused at its line, and a file that reads `ray_record` without
+/// defining `setup` is refused naming the identifier.
+#[test]
+fn each_setup_instance_has_its_own_ray_record() {
+    let jitter = vwb_plugins::registry().get("sample.jitter").unwrap();
+    let c = compose(
+        &[jitter.as_ref(), jitter.as_ref()],
+        TargetFormat::Rgba16Float,
+        &wgpu::Limits::default(),
+    )
+    .unwrap();
+    let src = &c.main.source;
+    let records: Vec<&str> = src
+        .lines()
+        .filter(|l| l.starts_with("var<private>") && l.contains("ray_record"))
+        .collect();
+    assert_eq!(records.len(), 2, "{records:?}");
+    let names: Vec<String> = records
+        .iter()
+        .map(|l| {
+            l.split_whitespace()
+                .nth(1)
+                .unwrap()
+                .trim_end_matches(':')
+                .to_string()
+        })
+        .collect();
+    assert_ne!(names[0], names[1]);
+    for n in &names {
+        assert!(
+            src.contains(&format!("    {n} = ")),
+            "{n} is set in run_setup"
+        );
+        assert!(
+            src.contains(&format!("let d = {n}.x * s.step;")),
+            "{n} is read"
+        );
+    }
+
+    let bad = Fixture {
+        id: "sample.bad_setup",
+        shader: ShaderSource::new_static(
+            "fixtures/bad_setup.wgsl",
+            "// setup must take the ray
+
+fn setup(uv: vec2<f32>) -> vec4<f32> {
+    return vec4<f32>(uv, 0.0, 0.0);
+}
+",
+        ),
+    };
+    let msg = compose(&[&bad], TargetFormat::Rgba16Float, &wgpu::Limits::default())
+        .unwrap_err()
+        .to_string();
+    assert!(msg.starts_with("fixtures/bad_setup.wgsl:3:"), "{msg}");
+    assert!(
+        msg.contains("must be fn setup(Ray, vec2<f32>) -> vec4<f32>"),
+        "{msg}"
+    );
+
+    let no_setup = Fixture {
+        id: "sample.no_setup",
+        shader: ShaderSource::new_static(
+            "fixtures/no_setup.wgsl",
+            "fn sample(s_in: Sample) -> Sample {
+    var s = s_in;
+    s.value = ray_record.x;
+    return s;
+}
+",
+        ),
+    };
+    let msg = compose(
+        &[&no_setup],
+        TargetFormat::Rgba16Float,
+        &wgpu::Limits::default(),
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(msg.starts_with("fixtures/no_setup.wgsl:3:"), "{msg}");
+    assert!(msg.contains("ray_record"), "{msg}");
+}
+
 /// A plugin may supply the scalar its sample hook gives (`scalar`, `scalar_grid`):
 /// the stack's gradient estimators then differentiate it (`shading_value`). Its
 /// signature is checked like a hook's, `scalar_grid` alone is refused, and

@@ -1214,3 +1214,46 @@ fn post_hooks_run_once_per_pixel_on_every_path() {
         }
     }
 }
+
+/// `setup` hooks run once per ray before its samples, and each instance's hooks read
+/// its own record, on every path: the compute backend's single dispatch and its
+/// per-slice dispatches (under per-slice state), the raster backend's fragments.
+/// `sample.jitter` (interleaved, a whole step) at a coarse spacing of 3 voxels matches
+/// its twin everywhere and changes the image (without the record the samples would
+/// stay on the slices).
+#[test]
+fn setup_hooks_run_once_per_ray_on_every_path() {
+    use crate::reference::{delta_e_rms, gpu_and_reference, gpu_delta_e_rms};
+    let jitter = {
+        let mut i = instance("sample.jitter");
+        i.params
+            .set("pattern", ParamValue::Enum("interleaved".into()));
+        i
+    };
+    for per_slice in [false, true] {
+        let mut plain = vec![instance("classify.tf1d")];
+        if per_slice {
+            plain.push(instance("shade.dos"));
+        }
+        let mut jittered = vec![jitter.clone()];
+        jittered.extend(plain.iter().cloned());
+        for backend in [Backend::Compute, Backend::Raster] {
+            let mut s = settings(48, 48, backend);
+            s.slice_spacing = 3.0;
+            let target = TargetFormat::Rgba16Float;
+            let (px, reference) = gpu_and_reference(demo(), &jittered, target, &s);
+            let rms = delta_e_rms(&px, &reference, 48, 48);
+            let what = format!("{} per-slice {per_slice}", backend.name());
+            eprintln!("setup hook, {what}: ΔE*uv RMS {rms:.4} against the twin");
+            assert!(rms < twin_bound(backend, per_slice), "{what}: {rms}");
+            let mut r = Renderer::new(gpu(), demo()).unwrap();
+            let on_slices = render(&mut r, &plain, target, &s);
+            let moved = gpu_delta_e_rms(&px, &on_slices, 48, 48);
+            eprintln!("setup hook, {what}: ΔE*uv RMS {moved:.3} from the unjittered image");
+            assert!(
+                moved > 1.0,
+                "{what}: the jitter moves the samples ({moved})"
+            );
+        }
+    }
+}
