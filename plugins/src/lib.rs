@@ -61,6 +61,7 @@ builtin_plugins! {
     shade_oren_nayar => shade_oren_nayar::OrenNayar::default(),
     shade_toon => shade_toon::Toon::default(),
     shade_hernell => shade_hernell::Hernell::default(),
+    shade_sweep => shade_sweep::SweepShadows,
     composite_tonemap => composite_tonemap::Tonemap,
     flow_arrival => flow_arrival::Arrival::default(),
     flow_lic3d => flow_lic3d::Lic3d::default(),
@@ -135,7 +136,7 @@ mod tests {
     #[test]
     fn builtins_register_without_clash() {
         let r = builtin_registry();
-        assert_eq!(r.plugins().len(), 21);
+        assert_eq!(r.plugins().len(), 22);
         let mut fresh = Registry::new();
         for p in r.plugins() {
             fresh.register(p.clone()).unwrap();

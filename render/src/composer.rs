@@ -277,6 +277,8 @@ pub struct PassLayout {
     pub binding: u32,
     pub format: crate::plugin::StorageFormat,
     pub accumulate: bool,
+    /// A sweep pass: the group-3 binding of its `SweepInfo` uniform (the next one).
+    pub sweep_binding: Option<u32>,
 }
 
 /// First group-3 binding of volume-pass targets (0 and 1 are the compute output).
@@ -965,11 +967,21 @@ pub fn compose_with(
                     ),
                 });
             }
-            if vp.accumulate && vp.format != crate::plugin::StorageFormat::R32Float {
+            if vp.sweep.is_some() && (vp.accumulate || vp.steps.is_some()) {
                 return Err(ComposeError::Plugin {
                     plugin: plugin.id().to_string(),
                     message: format!(
-                        "the volume pass '{}' accumulates, which needs r32float (read-write storage), not {}",
+                        "the volume pass '{}' sweeps, which runs once per plane: it cannot also accumulate or refine",
+                        vp.target
+                    ),
+                });
+            }
+            let read_write = vp.accumulate || vp.sweep.is_some();
+            if read_write && vp.format != crate::plugin::StorageFormat::R32Float {
+                return Err(ComposeError::Plugin {
+                    plugin: plugin.id().to_string(),
+                    message: format!(
+                        "the volume pass '{}' reads its own target (it accumulates or sweeps), which needs r32float (read-write storage), not {}",
                         vp.target,
                         vp.format.wgsl()
                     ),
@@ -1050,6 +1062,27 @@ pub fn compose_with(
                 "vec4<f32>(0.0)".to_string()
             };
             let entry_point = format!("vp_{p}{}", vp.target);
+            if vp.sweep.is_some() {
+                let sweep_binding = next_binding + 1;
+                pass_code.push((
+                    inst.input_index,
+                    sweep_entry(
+                        &out,
+                        next_binding,
+                        &entry_point,
+                        &format!("{p}{}", vp.entry),
+                    ),
+                ));
+                inst.passes.push(PassLayout {
+                    entry_point,
+                    binding: next_binding,
+                    format: vp.format,
+                    accumulate: false,
+                    sweep_binding: Some(sweep_binding),
+                });
+                next_binding += 2;
+                continue;
+            }
             let code = format!(
                 "@group(3) @binding({next_binding}) var {out}: texture_storage_3d<{fmt}, {access}>;\n\
                  @compute @workgroup_size(4, 4, 4)\n\
@@ -1067,6 +1100,7 @@ pub fn compose_with(
                 binding: next_binding,
                 format: vp.format,
                 accumulate: vp.accumulate,
+                sweep_binding: None,
             });
             next_binding += 1;
         }
@@ -1186,6 +1220,46 @@ pub fn compose_with(
         bindings,
         instances,
     })
+}
+
+/// The entry point of a sweep pass writing `out` (group 3, `binding`; its `SweepInfo`
+/// at the next binding): one dispatch per plane, `slice_info.index` the plane, each
+/// invocation one texel of the plane, `prev` the previous plane's value at the texel's
+/// upstream point, interpolated bilinearly with taps outside the plane (and everything
+/// before the first plane) at the boundary (`crate::sweep`).
+fn sweep_entry(out: &str, binding: u32, entry_point: &str, entry: &str) -> String {
+    let info = format!("{out}_sweep");
+    format!(
+        "@group(3) @binding({binding}) var {out}: texture_storage_3d<r32float, read_write>;\n\
+         @group(3) @binding({b1}) var<uniform> {info}: SweepInfo;\n\
+         fn {out}_tap(sw: SweepInfo, a: i32, bc: vec2<i32>, size: vec2<i32>) -> f32 {{\n    \
+         if (any(bc < vec2<i32>(0)) || any(bc >= size)) {{\n        return sw.boundary;\n    }}\n    \
+         return textureLoad({out}, sweep_place(sw, a, bc)).x;\n\
+         }}\n\
+         @compute @workgroup_size(8, 8, 1)\n\
+         fn {entry_point}(@builtin(global_invocation_id) gid: vec3<u32>) {{\n    \
+         let sw = {info};\n    \
+         let dims = textureDimensions({out});\n    \
+         let sizes = sweep_sizes(sw, dims);\n    \
+         let plane = slice_info.index;\n    \
+         if (gid.x >= sizes.y || gid.y >= sizes.z || plane >= sizes.x) {{\n        return;\n    }}\n    \
+         let bc = vec2<i32>(gid.xy);\n    \
+         let voxel = vec3<u32>(sweep_place(sw, sweep_plane(sw, plane, sizes.x), bc));\n    \
+         var prev = vec4<f32>(sw.boundary, 0.0, 0.0, 0.0);\n    \
+         if (plane > 0u) {{\n        \
+         let a = sweep_plane(sw, plane - 1u, sizes.x);\n        \
+         let size = vec2<i32>(sizes.yz);\n        \
+         let p = vec2<f32>(bc) + sw.shift;\n        \
+         let lo = vec2<i32>(floor(p));\n        \
+         let f = p - floor(p);\n        \
+         let x0 = mix({out}_tap(sw, a, lo, size), {out}_tap(sw, a, lo + vec2<i32>(1, 0), size), f.x);\n        \
+         let x1 = mix({out}_tap(sw, a, lo + vec2<i32>(0, 1), size), {out}_tap(sw, a, lo + vec2<i32>(1, 1), size), f.x);\n        \
+         prev.x = mix(x0, x1, f.y);\n    \
+         }}\n    \
+         textureStore({out}, voxel, {entry}(voxel, dims, plane, prev, sw.length));\n\
+         }}",
+        b1 = binding + 1,
+    )
 }
 
 fn compose_prepass(

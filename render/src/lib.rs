@@ -20,6 +20,7 @@ pub mod shading;
 pub mod skipping;
 pub mod slicing;
 pub mod suggest;
+pub mod sweep;
 pub mod tf;
 pub mod tf2d;
 pub mod validate;

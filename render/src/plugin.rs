@@ -280,6 +280,34 @@ pub struct VolumePassDecl {
     /// for the camera. An atlas (many views in one submission) refuses a stack with
     /// one. The twin's `prepare_passes` already runs again for a new camera.
     pub camera: bool,
+    /// A sweep: the pass runs plane by plane along a direction instead of over the
+    /// whole target at once ([`SweepDecl`], `crate::sweep`).
+    pub sweep: Option<SweepDecl>,
+}
+
+/// A volume pass that sweeps its target plane by plane along a direction (a light's):
+/// the slicing direction other than the view. The planes are normal to the target axis
+/// the direction advances most along; each texel gets `prev`, the previous plane's
+/// value at its upstream point (bilinear; [`SweepDecl::boundary`] upstream of the first
+/// plane and outside the planes), and its entry is
+/// `fn <entry>(voxel: vec3<u32>, dims: vec3<u32>, plane: u32, prev: vec4<f32>, length: f32) -> vec4<f32>`
+/// with `length` the world path length between two planes along the direction. The
+/// target is r32float. Its twin is [`crate::sweep::Sweep::run`].
+#[derive(Clone, Copy)]
+pub struct SweepDecl {
+    /// The direction of travel (world space, any length) under the instance's
+    /// parameters; list the parameters it reads in `depends_on`.
+    pub direction: fn(&ParamValues) -> [f32; 3],
+    /// The value the light enters with.
+    pub boundary: f32,
+}
+
+impl std::fmt::Debug for SweepDecl {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("SweepDecl")
+            .field("boundary", &self.boundary)
+            .finish_non_exhaustive()
+    }
 }
 
 impl VolumePassDecl {
@@ -296,7 +324,16 @@ impl VolumePassDecl {
             steps: None,
             accumulate: false,
             camera: false,
+            sweep: None,
         }
+    }
+    /// A sweep along `direction(params)` ([`SweepDecl`]), entering with `boundary`.
+    pub fn sweep(mut self, direction: fn(&ParamValues) -> [f32; 3], boundary: f32) -> Self {
+        self.sweep = Some(SweepDecl {
+            direction,
+            boundary,
+        });
+        self
     }
     /// The target's size relative to the volume.
     pub fn scale(mut self, scale: f32) -> Self {

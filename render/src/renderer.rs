@@ -390,6 +390,13 @@ struct PassState {
 }
 
 /// One dispatch of a volume pass in a frame's plan.
+/// A volume pass's bind groups 1 and 3, and a sweep pass's geometry and uniform.
+type PassGroups = (
+    wgpu::BindGroup,
+    wgpu::BindGroup,
+    Option<(crate::sweep::Sweep, wgpu::Buffer)>,
+);
+
 struct PassDispatch {
     /// Index into `CompiledStack::volume_passes`.
     pass: usize,
@@ -520,9 +527,11 @@ struct CompiledPass {
     instance: usize,
     k: usize,
     pipeline: wgpu::ComputePipeline,
-    /// Group 3: the storage view of its target.
+    /// Group 3: the storage view of its target (and a sweep's `SweepInfo`).
     layout: wgpu::BindGroupLayout,
     binding: u32,
+    /// A sweep pass: the binding of its `SweepInfo` uniform.
+    sweep_binding: Option<u32>,
 }
 
 /// The pixels [x0, y0, x1, y1) of a `size` frame that the box `b` can cover: its
@@ -602,6 +611,29 @@ fn camera_key(view: &crate::camera::View) -> u64 {
     }
     view.eye.to_array().map(f32::to_bits).hash(&mut h);
     h.finish()
+}
+
+/// The sweep of a sweep pass ([`crate::plugin::SweepDecl`]) over its `target` under
+/// `params`: the texel's world size is the volume's box over the target's size.
+fn sweep_of(
+    volume: &Volume,
+    decl: &crate::plugin::VolumePassDecl,
+    params: &ParamValues,
+    target: &wgpu::Texture,
+) -> crate::sweep::Sweep {
+    let size = target.size();
+    let dims = [size.width, size.height, size.depth_or_array_layers];
+    let vbox = crate::slicing::VolumeBox::new(volume.dims, volume.spacing);
+    let texel = (vbox.max - vbox.min).as_dvec3() / glam::DVec3::from(dims.map(f64::from));
+    let (direction, boundary) = decl.sweep.map_or(([0.0, 0.0, 1.0], 1.0), |s| {
+        ((s.direction)(params), s.boundary)
+    });
+    crate::sweep::Sweep::new(
+        glam::Vec3::from(direction).as_dvec3(),
+        dims,
+        texel,
+        boundary as f64,
+    )
 }
 
 /// Refinement steps of a volume pass under `params` (at least 1).
@@ -2065,22 +2097,35 @@ impl Renderer {
         let mut volume_passes = Vec::new();
         for (i, inst) in composition.instances.iter().enumerate() {
             for (k, vp) in inst.passes.iter().enumerate() {
-                let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-                    label: Some("vwb volume pass group 3"),
-                    entries: &[wgpu::BindGroupLayoutEntry {
-                        binding: vp.binding,
+                let mut entries = vec![wgpu::BindGroupLayoutEntry {
+                    binding: vp.binding,
+                    visibility: wgpu::ShaderStages::COMPUTE,
+                    ty: wgpu::BindingType::StorageTexture {
+                        access: if vp.accumulate || vp.sweep_binding.is_some() {
+                            wgpu::StorageTextureAccess::ReadWrite
+                        } else {
+                            wgpu::StorageTextureAccess::WriteOnly
+                        },
+                        format: vp.format.wgpu(),
+                        view_dimension: wgpu::TextureViewDimension::D3,
+                    },
+                    count: None,
+                }];
+                if let Some(b) = vp.sweep_binding {
+                    entries.push(wgpu::BindGroupLayoutEntry {
+                        binding: b,
                         visibility: wgpu::ShaderStages::COMPUTE,
-                        ty: wgpu::BindingType::StorageTexture {
-                            access: if vp.accumulate {
-                                wgpu::StorageTextureAccess::ReadWrite
-                            } else {
-                                wgpu::StorageTextureAccess::WriteOnly
-                            },
-                            format: vp.format.wgpu(),
-                            view_dimension: wgpu::TextureViewDimension::D3,
+                        ty: wgpu::BindingType::Buffer {
+                            ty: wgpu::BufferBindingType::Uniform,
+                            has_dynamic_offset: false,
+                            min_binding_size: None,
                         },
                         count: None,
-                    }],
+                    });
+                }
+                let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+                    label: Some("vwb volume pass group 3"),
+                    entries: &entries,
                 });
                 let pl = layout_with("vwb volume pass", &layout);
                 volume_passes.push(CompiledPass {
@@ -2089,6 +2134,7 @@ impl Renderer {
                     pipeline: compute(&vp.entry_point, &pl, &module),
                     layout,
                     binding: vp.binding,
+                    sweep_binding: vp.sweep_binding,
                 });
             }
             if let Some(entry) = &inst.update_entry {
@@ -2761,6 +2807,20 @@ impl Renderer {
             }
             for (k, decl) in decls.iter().enumerate().take(count) {
                 let total = pass_steps(decl, &g.params);
+                if decl.sweep.is_some() {
+                    // every plane in this frame, in order, outside the refinement budget
+                    let planes =
+                        sweep_of(&self.volume, decl, &g.params, &g.pass_targets[k].0).planes();
+                    let st = &mut g.pass_state[k];
+                    if st.steps_done == 0 {
+                        out.extend((0..planes).map(|step| PassDispatch {
+                            pass: index + k,
+                            step,
+                        }));
+                        st.steps_done = 1;
+                    }
+                    continue;
+                }
                 let st = &mut g.pass_state[k];
                 while st.steps_done < total && budget > 0 {
                     out.push(PassDispatch {
@@ -2811,6 +2871,7 @@ impl Renderer {
                 entries: &entries,
             })
         };
+        let mut bound: Option<(usize, PassGroups)> = None;
         for d in plan {
             let cp = &p.volume_passes[d.pass];
             let (uid, plugin) = &stack[cp.instance];
@@ -2821,37 +2882,17 @@ impl Renderer {
                 continue;
             };
             let label = format!("{}/{}", plugin.id(), plugin.volume_passes()[cp.k].target);
-            stamp(enc, Some(format!("pass {label}")));
-            // group 1 with the pass's own target replaced (it is written, not read)
-            let entries: Vec<wgpu::BindGroupEntry> = p
-                .composition
-                .bindings
-                .iter()
-                .filter(|b| b.group == 1)
-                .filter_map(|b| {
-                    if b.instance == cp.instance && b.role == BindingRole::PassTarget(cp.k) {
-                        return Some(wgpu::BindGroupEntry {
-                            binding: b.binding,
-                            resource: wgpu::BindingResource::TextureView(&self.dummy_3d.1),
-                        });
-                    }
-                    self.bind_entry(&uids, b, None)
-                })
-                .collect();
-            let g1 = device.create_bind_group(&wgpu::BindGroupDescriptor {
-                label: Some("vwb volume pass group 1"),
-                layout: &p.g1_layout,
-                entries: &entries,
-            });
-            let storage = tex.create_view(&Default::default());
-            let g3 = device.create_bind_group(&wgpu::BindGroupDescriptor {
-                label: Some("vwb volume pass group 3"),
-                layout: &cp.layout,
-                entries: &[wgpu::BindGroupEntry {
-                    binding: cp.binding,
-                    resource: wgpu::BindingResource::TextureView(&storage),
-                }],
-            });
+            // a sweep's planes share one stamp and one set of bind groups
+            if bound.as_ref().is_none_or(|b| b.0 != d.pass) {
+                stamp(enc, Some(format!("pass {label}")));
+                bound = Some((
+                    d.pass,
+                    self.volume_pass_groups(p, &uids, cp, g, plugin.as_ref(), tex),
+                ));
+            }
+            let Some((_, (g1, g3, sweep_info))) = &bound else {
+                continue;
+            };
             let size = tex.size();
             let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
                 label: Some("vwb volume pass"),
@@ -2859,9 +2900,20 @@ impl Renderer {
             });
             pass.set_pipeline(&cp.pipeline);
             pass.set_bind_group(0, &self.g0, &[(d.step as u64 * SLICE_INFO_STRIDE) as u32]);
-            pass.set_bind_group(1, &g1, &[]);
+            pass.set_bind_group(1, g1, &[]);
             pass.set_bind_group(2, &g2, &[]);
-            pass.set_bind_group(3, &g3, &[]);
+            pass.set_bind_group(3, g3, &[]);
+            if let Some((sw, _)) = sweep_info {
+                // one plane
+                let [w, h] = sw.plane_size();
+                pass.dispatch_workgroups(w.div_ceil(8), h.div_ceil(8), 1);
+                drop(pass);
+                // a sweep's planes count as one run of the pass
+                if d.step + 1 == sw.planes() {
+                    labels.push(label);
+                }
+                continue;
+            }
             pass.dispatch_workgroups(
                 size.width.div_ceil(4),
                 size.height.div_ceil(4),
@@ -2870,6 +2922,82 @@ impl Renderer {
             labels.push(label);
         }
         labels
+    }
+
+    /// The bind groups 1 and 3 of a volume pass (its own target replaced in group 1,
+    /// its storage view in group 3) and a sweep pass's geometry with its uniform.
+    fn volume_pass_groups(
+        &self,
+        p: &CompiledStack,
+        uids: &[u64],
+        cp: &CompiledPass,
+        g: &InstanceGpu,
+        plugin: &dyn Plugin,
+        tex: &wgpu::Texture,
+    ) -> PassGroups {
+        let device = &self.gpu.device;
+        // group 1 with the pass's own target replaced (it is written, not read)
+        let entries: Vec<wgpu::BindGroupEntry> = p
+            .composition
+            .bindings
+            .iter()
+            .filter(|b| b.group == 1)
+            .filter_map(|b| {
+                if b.instance == cp.instance && b.role == BindingRole::PassTarget(cp.k) {
+                    return Some(wgpu::BindGroupEntry {
+                        binding: b.binding,
+                        resource: wgpu::BindingResource::TextureView(&self.dummy_3d.1),
+                    });
+                }
+                self.bind_entry(uids, b, None)
+            })
+            .collect();
+        let g1 = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("vwb volume pass group 1"),
+            layout: &p.g1_layout,
+            entries: &entries,
+        });
+        let storage = tex.create_view(&Default::default());
+        let decl = &plugin.volume_passes()[cp.k];
+        let sweep = cp
+            .sweep_binding
+            .map(|b| (b, sweep_of(&self.volume, decl, &g.params, tex)));
+        let sweep_info = sweep.map(|(b, sw)| {
+            let mut info = [0u8; 32];
+            let words: [u32; 6] = [
+                sw.axis as u32,
+                sw.ascending as u32,
+                (sw.length as f32).to_bits(),
+                (sw.boundary as f32).to_bits(),
+                (sw.shift[0] as f32).to_bits(),
+                (sw.shift[1] as f32).to_bits(),
+            ];
+            for (i, w) in words.iter().enumerate() {
+                info[i * 4..i * 4 + 4].copy_from_slice(&w.to_le_bytes());
+            }
+            let buffer = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("vwb sweep info"),
+                contents: &info,
+                usage: wgpu::BufferUsages::UNIFORM,
+            });
+            (b, sw, buffer)
+        });
+        let mut entries = vec![wgpu::BindGroupEntry {
+            binding: cp.binding,
+            resource: wgpu::BindingResource::TextureView(&storage),
+        }];
+        if let Some((b, _, buffer)) = &sweep_info {
+            entries.push(wgpu::BindGroupEntry {
+                binding: *b,
+                resource: buffer.as_entire_binding(),
+            });
+        }
+        let g3 = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("vwb volume pass group 3"),
+            layout: &cp.layout,
+            entries: &entries,
+        });
+        (g1, g3, sweep_info.map(|(_, sw, buffer)| (sw, buffer)))
     }
 
     /// Records that the pre-passes of `uids` ran with their instances' parameters.

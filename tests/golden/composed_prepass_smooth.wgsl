@@ -44,6 +44,49 @@ struct Frame {
     own_max: vec4<f32>,
 }
 
+// A sweep pass's geometry (render/src/sweep.rs): the axis its planes are normal to,
+// whether they ascend, the world path length between two planes, the offset in texels
+// of a texel's upstream point on the previous plane, and the value upstream of the
+// first plane and outside the planes.
+struct SweepInfo {
+    axis: u32,
+    ascending: u32,
+    length: f32,
+    boundary: f32,
+    shift: vec2<f32>,
+    pad: vec2<f32>,
+}
+
+// The texel with coordinate `a` along the sweep's axis and `bc` along the other two.
+fn sweep_place(sw: SweepInfo, a: i32, bc: vec2<i32>) -> vec3<i32> {
+    if (sw.axis == 0u) {
+        return vec3<i32>(a, bc.x, bc.y);
+    }
+    if (sw.axis == 1u) {
+        return vec3<i32>(bc.x, a, bc.y);
+    }
+    return vec3<i32>(bc.x, bc.y, a);
+}
+
+// Plane `plane`'s coordinate along the sweep's axis of a target of `n` planes.
+fn sweep_plane(sw: SweepInfo, plane: u32, n: u32) -> i32 {
+    if (sw.ascending != 0u) {
+        return i32(plane);
+    }
+    return i32(n) - 1 - i32(plane);
+}
+
+// The target's size along the sweep's axis and along the other two.
+fn sweep_sizes(sw: SweepInfo, dims: vec3<u32>) -> vec3<u32> {
+    if (sw.axis == 0u) {
+        return dims;
+    }
+    if (sw.axis == 1u) {
+        return vec3<u32>(dims.y, dims.x, dims.z);
+    }
+    return vec3<u32>(dims.z, dims.x, dims.y);
+}
+
 struct SliceInfo {
     index: u32,
     pad0: u32,

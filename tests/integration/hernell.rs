@@ -658,3 +658,98 @@ fn light_update_at_512(
             )),
     )
 }
+
+fn sweep_shadows(light: [f32; 3]) -> PluginInstance {
+    let mut i = instance("shade.sweep_shadows");
+    i.params.set("light", ParamValue::Vec3(light));
+    i.params.set("ambient", ParamValue::Float(0.0));
+    i
+}
+
+/// `shade.sweep_shadows`, the first sweep pass (a slicing direction other than the
+/// view): on both backends it matches its twin and darkens the image; its
+/// transmittance agrees with shade.hernell's exact per-voxel integration to the same
+/// light (two independent computations of one quantity); the sweep reruns for the
+/// light, whatever axis it sweeps along, and for nothing else.
+#[test]
+fn a_light_sweep_matches_its_twin_and_the_exact_light() {
+    use crate::reference::gpu_delta_e_rms;
+    let volume = ball_and_slab();
+    // what the raster backend's interpolated positions cost on this phantom without
+    // any light (gpu_light_passes_match_the_cpu_twin)
+    let target = TargetFormat::Rgba32Float;
+    let (px, reference) = gpu_and_reference(
+        volume.clone(),
+        &[tf()],
+        target,
+        &settings(48, 48, Backend::Raster),
+    );
+    let raster_alone = delta_e_rms(&px, &reference, 48, 48);
+    for light in [[0.3, 0.4, -1.0], [-1.0, 0.2, 0.1]] {
+        let stack = vec![tf(), sweep_shadows(light)];
+        for backend in [Backend::Compute, Backend::Raster] {
+            let s = settings(48, 48, backend);
+            let (px, reference) = gpu_and_reference(volume.clone(), &stack, target, &s);
+            let rms = delta_e_rms(&px, &reference, 48, 48);
+            let what = format!("light {light:?} {}", backend.name());
+            eprintln!(
+                "sweep shadows, {what}: ΔE*uv RMS {rms:.4} against the twin (raster alone {raster_alone:.4})"
+            );
+            let bound = match backend {
+                Backend::Compute => 0.05,
+                Backend::Raster => raster_alone + 0.2,
+            };
+            assert!(rms < bound, "{what}: {rms}");
+            let mut r = Renderer::new(gpu(), volume.clone()).unwrap();
+            let unlit = render(&mut r, &stack[..1], target, &s);
+            let dark = gpu_delta_e_rms(&px, &unlit, 48, 48);
+            assert!(dark > 2.0, "{what}: the shadows darken the image ({dark})");
+            let exact = render(
+                &mut r,
+                &[
+                    tf(),
+                    hernell(&[
+                        ("light", ParamValue::Vec3(light)),
+                        ("mode", ParamValue::Enum("exact".into())),
+                        ("scattering", ParamValue::Bool(false)),
+                        ("bias", ParamValue::Float(0.0)),
+                        ("svr", ParamValue::Enum("1:1".into())),
+                    ]),
+                ],
+                target,
+                &s,
+            );
+            let off = gpu_delta_e_rms(&px, &exact, 48, 48);
+            eprintln!(
+                "sweep shadows, {what}: ΔE*uv RMS {off:.3} from Hernell's exact light ({dark:.2} from none)"
+            );
+            assert!(off < 0.25 * dark, "{what}: {off} against {dark}");
+        }
+    }
+
+    let mut r = Renderer::new(gpu(), volume).unwrap();
+    let mut s = settings(32, 32, Backend::Compute);
+    let mut stack = vec![tf(), sweep_shadows([0.3, 0.4, -1.0])];
+    let frame = |r: &mut Renderer, stack: &[PluginInstance], s: &vwb_render::FrameSettings| {
+        r.update_stack(stack, TargetFormat::Rgba16Float).unwrap();
+        r.render(s).unwrap().volume_passes_run
+    };
+    assert_eq!(
+        frame(&mut r, &stack, &s),
+        ["shade.sweep_shadows/transmittance"]
+    );
+    s.camera.yaw_deg += 40.0;
+    assert!(frame(&mut r, &stack, &s).is_empty(), "a camera move");
+    stack[1].params.set("ambient", ParamValue::Float(0.3));
+    assert!(
+        frame(&mut r, &stack, &s).is_empty(),
+        "the shade hook's own parameter"
+    );
+    stack[1]
+        .params
+        .set("light", ParamValue::Vec3([-1.0, 0.2, 0.1]));
+    assert_eq!(frame(&mut r, &stack, &s).len(), 1, "the light, along x now");
+    stack[0].params.set("opacity", ParamValue::Float(2.0));
+    assert_eq!(frame(&mut r, &stack, &s).len(), 1, "the classification");
+    assert!(frame(&mut r, &stack, &s).is_empty());
+}
