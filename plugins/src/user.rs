@@ -14,6 +14,22 @@
 //! )
 //! ```
 //!
+//! Volume passes (`passes: [..]`, as [`VolumePassDecl`] declares them) write 3D targets
+//! that the hooks and later passes read by name; a pass function may call
+//! `stack_classify(tex, dir)`:
+//!
+//! ```ron
+//!     passes: [
+//!         (target: "transmittance", entry: "transmit", depends_on: ["light"],
+//!          sweep: Some((direction: "-light", boundary: 1.0))),
+//!     ],
+//! ```
+//!
+//! Each pass has `target`, `entry`, and optionally `format` (default `r32float`),
+//! `scale` (0–1 of the volume's size), `depends_on` (parameter keys), `view: true` (a
+//! view pass) and `sweep` (plane by plane along a `Vec3` parameter, `-` reversing it;
+//! the entry then also gets the path length, see [`vwb_render::plugin::SweepDecl`]).
+//!
 //! Parameter kinds: `Float` (with `log: true` for a logarithmic slider), `Int`, `Bool`,
 //! `Enum` (options; structural: each option recomposes the pipeline), `Color`, `Vec3`.
 //! The WGSL file holds hook functions with the signatures of
@@ -34,7 +50,7 @@ use std::time::SystemTime;
 use serde::Deserialize;
 use vwb_render::composer::{TargetFormat, compose};
 use vwb_render::params::{ParamKind, ParamSpec, validate_specs};
-use vwb_render::plugin::{Plugin, ShaderSource, valid_id};
+use vwb_render::plugin::{Plugin, ShaderSource, StorageFormat, VolumePassDecl, valid_id};
 
 use vwb_render::params::interned;
 
@@ -51,6 +67,118 @@ struct Manifest {
     shader: PathBuf,
     #[serde(default)]
     params: Vec<ParamDef>,
+    /// Volume passes, in order (`VolumePassDecl`).
+    #[serde(default)]
+    passes: Vec<PassDef>,
+}
+
+/// One volume pass of a user plugin: the function `entry` of its WGSL file writes the
+/// 3D target `target`, which its hooks and later passes read by name.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct PassDef {
+    target: String,
+    entry: String,
+    /// `r32float` (the default), `rgba16float`, `rgba32float` or `rgba8unorm`.
+    #[serde(default)]
+    format: Option<String>,
+    /// The target's size relative to the volume, in (0, 1].
+    #[serde(default)]
+    scale: Option<f32>,
+    /// The parameters whose change reruns it.
+    #[serde(default)]
+    depends_on: Vec<String>,
+    /// A view pass: it reruns when the camera moves.
+    #[serde(default)]
+    view: bool,
+    /// A sweep along a direction: `direction` names a `Vec3` parameter (a leading
+    /// `-` reverses it), `boundary` is the value the sweep enters with (default 1).
+    #[serde(default)]
+    sweep: Option<SweepDef>,
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SweepDef {
+    direction: String,
+    #[serde(default)]
+    boundary: Option<f32>,
+}
+
+impl PassDef {
+    /// The declaration, checked against the plugin's parameters.
+    fn decl(&self, specs: &[ParamSpec]) -> Result<VolumePassDecl, String> {
+        let pass = format!("pass '{}'", self.target);
+        for (what, name) in [("target", &self.target), ("entry", &self.entry)] {
+            if !is_identifier(name) {
+                return Err(format!(
+                    "{pass}: the {what} '{name}' is not a WGSL identifier"
+                ));
+            }
+        }
+        let format = match &self.format {
+            None => StorageFormat::R32Float,
+            Some(f) => StorageFormat::parse(f).ok_or_else(|| {
+                let known: Vec<&str> = StorageFormat::ALL.iter().map(|f| f.wgsl()).collect();
+                format!("{pass}: format '{f}' is not one of {}", known.join(", "))
+            })?,
+        };
+        let scale = self.scale.unwrap_or(1.0);
+        if !(scale > 0.0 && scale <= 1.0) {
+            return Err(format!("{pass}: scale {scale} is not in (0, 1]"));
+        }
+        let key_of = |k: &str| specs.iter().find(|p| p.key == k);
+        let mut depends_on = Vec::new();
+        for k in &self.depends_on {
+            let spec = key_of(k)
+                .ok_or_else(|| format!("{pass}: depends on '{k}', which is not a parameter"))?;
+            depends_on.push(spec.key);
+        }
+        let mut decl =
+            VolumePassDecl::new(interned(self.target.clone()), interned(self.entry.clone()))
+                .scale(scale)
+                .depends_on(&depends_on);
+        decl.format = format;
+        if self.view {
+            decl = decl.view();
+        }
+        if let Some(sw) = &self.sweep {
+            let (negate, key) = match sw.direction.strip_prefix('-') {
+                Some(k) => (true, k),
+                None => (false, sw.direction.as_str()),
+            };
+            let spec = key_of(key)
+                .filter(|p| matches!(p.kind, ParamKind::Vec3 { .. }))
+                .ok_or_else(|| {
+                    format!("{pass}: the sweep direction '{key}' is not a Vec3 parameter")
+                })?;
+            if format != StorageFormat::R32Float {
+                return Err(format!(
+                    "{pass}: a sweep writes r32float, not {}",
+                    format.wgsl()
+                ));
+            }
+            let key: &'static str = spec.key;
+            let sign = if negate { -1.0 } else { 1.0 };
+            decl = decl.sweep(
+                move |p| p.vec3(key).map(|c| sign * c),
+                sw.boundary.unwrap_or(1.0),
+            );
+            if !decl.depends_on.contains(&key) {
+                decl.depends_on.push(key);
+            }
+        }
+        Ok(decl)
+    }
+}
+
+/// Whether `s` is a plain identifier (letters, digits, `_`; not starting with a digit).
+fn is_identifier(s: &str) -> bool {
+    let mut chars = s.chars();
+    chars
+        .next()
+        .is_some_and(|c| c.is_ascii_alphabetic() || c == '_')
+        && chars.all(|c| c.is_ascii_alphanumeric() || c == '_')
 }
 
 /// One parameter of a user plugin's spec.
@@ -292,6 +420,7 @@ pub struct UserPlugin {
     name: &'static str,
     description: &'static str,
     specs: Vec<ParamSpec>,
+    passes: Vec<VolumePassDecl>,
     file: String,
     source: String,
     /// The folder it came from.
@@ -316,6 +445,9 @@ impl Plugin for UserPlugin {
             file: self.file.clone().into(),
             source: self.source.clone().into(),
         }
+    }
+    fn volume_passes(&self) -> Vec<VolumePassDecl> {
+        self.passes.clone()
     }
 }
 
@@ -346,6 +478,12 @@ pub fn load(dir: &Path) -> Result<UserPlugin, String> {
         .map_err(at)?
         .concat();
     validate_specs(&specs).map_err(at)?;
+    let passes = m
+        .passes
+        .iter()
+        .map(|p| p.decl(&specs))
+        .collect::<Result<Vec<_>, _>>()
+        .map_err(at)?;
     let wgsl = dir.join(&m.shader);
     let source = std::fs::read_to_string(&wgsl)
         .map_err(|e| format!("{}: cannot read: {e}", wgsl.display()))?;
@@ -354,6 +492,7 @@ pub fn load(dir: &Path) -> Result<UserPlugin, String> {
         name: interned(m.name),
         description: interned(m.description),
         specs,
+        passes,
         file: wgsl.display().to_string(),
         source,
         dir: dir.to_path_buf(),

@@ -134,6 +134,115 @@ pub struct Group {
     pub limit: Option<&'static str>,
 }
 
+/// A group member's key split around its element index: `shape0_kind` of element 0 →
+/// (`shape`, `kind`); `iso2` of element 2 → (`iso`, ``). The index is the first run of
+/// digits equal to it that is neither preceded nor followed by another digit.
+pub fn split_member(key: &str, index: usize) -> Option<(&str, &str)> {
+    let digits = index.to_string();
+    let bytes = key.as_bytes();
+    let mut from = 0;
+    while let Some(at) = key[from..].find(&digits).map(|p| p + from) {
+        let end = at + digits.len();
+        let before = at > 0 && bytes[at - 1].is_ascii_digit();
+        let after = end < bytes.len() && bytes[end].is_ascii_digit();
+        if !before && !after && at > 0 {
+            let field = key[end..].strip_prefix('_').unwrap_or(&key[end..]);
+            return Some((&key[..at], field));
+        }
+        from = at + 1;
+    }
+    None
+}
+
+/// A plugin's parameters as a preset writes them, with each repeated group given as a
+/// list expanded to the flat keys: `"shape": [(kind: "box", center: (..)), ..]` is
+/// `shape0_kind`, `shape0_center`, …; a group whose members have no field after the
+/// index is a list of values (`"iso": [0.3, 0.5]` is `iso0`, `iso1`). Elements the list
+/// leaves out keep their defaults. Other entries pass through. Errors give the key and
+/// the cause (a list longer than the group, an unknown field, an element that is not a
+/// map, a key given both ways).
+pub fn flatten_groups(
+    specs: &[ParamSpec],
+    given: &std::collections::BTreeMap<String, ron::Value>,
+) -> Result<Vec<(String, ron::Value)>, (String, String)> {
+    use std::collections::BTreeMap;
+    // field → the member's key of each element
+    type Fields<'a> = BTreeMap<&'a str, Vec<Option<&'static str>>>;
+    // list name → its fields and the group's size
+    let mut lists: BTreeMap<&str, (Fields, usize)> = BTreeMap::new();
+    for spec in specs {
+        let Some(e) = spec.element else { continue };
+        let Some((list, field)) = split_member(spec.key, e.index) else {
+            continue;
+        };
+        let (fields, count) = lists.entry(list).or_default();
+        *count = e.group.count;
+        let keys = fields
+            .entry(field)
+            .or_insert_with(|| vec![None; e.group.count]);
+        if let Some(slot) = keys.get_mut(e.index) {
+            *slot = Some(spec.key);
+        }
+    }
+    // a plain parameter of the same name (a Vec3 is a list in RON too) keeps its name
+    lists.retain(|list, _| !specs.iter().any(|p| p.key == *list));
+    let mut out: Vec<(String, ron::Value)> = Vec::new();
+    for (key, value) in given {
+        let (Some((fields, count)), ron::Value::Seq(items)) = (lists.get(key.as_str()), value)
+        else {
+            out.push((key.clone(), value.clone()));
+            continue;
+        };
+        if items.len() > *count {
+            return Err((
+                key.clone(),
+                format!("{} elements, but the group has {count}", items.len()),
+            ));
+        }
+        let names = || fields.keys().copied().collect::<Vec<_>>().join(", ");
+        for (i, item) in items.iter().enumerate() {
+            let pairs: Vec<(String, &ron::Value)> = match (fields.get(""), item) {
+                (Some(_), v) if fields.len() == 1 => vec![(String::new(), v)],
+                (_, ron::Value::Map(m)) => m
+                    .iter()
+                    .map(|(k, v)| match k {
+                        ron::Value::String(s) => Ok((s.clone(), v)),
+                        other => Err((
+                            format!("{key}[{i}]"),
+                            format!("a field name is a plain name, not {other:?}"),
+                        )),
+                    })
+                    .collect::<Result<_, _>>()?,
+                _ => {
+                    return Err((
+                        format!("{key}[{i}]"),
+                        format!("an element is a map of its fields ({})", names()),
+                    ));
+                }
+            };
+            for (field, v) in pairs {
+                let flat = fields
+                    .get(field.as_str())
+                    .and_then(|keys| keys.get(i).copied().flatten())
+                    .ok_or_else(|| {
+                        (
+                            format!("{key}[{i}]"),
+                            format!("unknown field '{field}' (known: {})", names()),
+                        )
+                    })?;
+                if given.contains_key(flat) {
+                    return Err((
+                        format!("{key}[{i}]"),
+                        format!("'{flat}' is also given as a key of its own"),
+                    ));
+                }
+                out.push((flat.to_string(), v.clone()));
+            }
+        }
+    }
+    Ok(out)
+}
+
 /// Where a parameter sits in a [`Group`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Element {
@@ -961,6 +1070,71 @@ fn check_element(specs: &[ParamSpec], s: &ParamSpec, e: Element) -> Result<(), S
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn group_members_split_around_their_index() {
+        assert_eq!(split_member("shape0_kind", 0), Some(("shape", "kind")));
+        assert_eq!(split_member("light12_dir", 12), Some(("light", "dir")));
+        assert_eq!(split_member("iso2", 2), Some(("iso", "")));
+        // the index, not another digit run: "l1" + "1" in "l11_x"? no: 11 is one run
+        assert_eq!(split_member("l11_x", 1), None);
+        assert_eq!(split_member("rgb2_1_tf", 1), Some(("rgb2_", "tf")));
+    }
+
+    /// A group written as a list becomes its flat keys; a scalar group is a list of
+    /// values; a plain Vec3 parameter named like a list keeps its value; errors name
+    /// the element and the cause.
+    #[test]
+    fn groups_written_as_lists_become_flat_keys() {
+        const G: Group = Group::new("Shape", 3).switch("shape{}_kind");
+        const ISO: Group = Group::new("Iso", 2);
+        let mut specs = G.specs(|i| {
+            vec![
+                ParamSpec::enumeration(G.key("shape{}_kind", i), "Kind", &["off", "box"], 0),
+                ParamSpec::vec3(G.key("shape{}_center", i), "Centre", -1.0, 1.0, [0.0; 3]),
+            ]
+        });
+        specs.extend(
+            ISO.specs(|i| vec![ParamSpec::float(ISO.key("iso{}", i), "Iso", 0.0, 1.0, 0.5)]),
+        );
+        let parse_with = |specs: &[ParamSpec], text: &str| {
+            let map: std::collections::BTreeMap<String, ron::Value> = ron::from_str(text).unwrap();
+            flatten_groups(specs, &map)
+        };
+        let parse = |text: &str| parse_with(&specs, text);
+        let flat = parse(
+            r#"{"shape": [(kind: "box"), (kind: "box", center: (0.1, 0.2, 0.3))], "iso": [0.25]}"#,
+        )
+        .unwrap();
+        let keys: Vec<&str> = flat.iter().map(|(k, _)| k.as_str()).collect();
+        assert_eq!(
+            keys,
+            ["iso0", "shape0_kind", "shape1_center", "shape1_kind"]
+        );
+        for (k, v) in &flat {
+            let spec = specs.iter().find(|s| s.key == k).unwrap();
+            spec.from_ron(v).unwrap();
+        }
+        let err = |text: &str| parse(text).unwrap_err();
+        assert_eq!(err(r#"{"iso": [0.1, 0.2, 0.3]}"#).0, "iso");
+        let (at, why) = err(r#"{"shape": [(kind: "box"), (knd: "box")]}"#);
+        assert_eq!(at, "shape[1]");
+        assert!(
+            why.contains("unknown field 'knd'") && why.contains("center, kind"),
+            "{why}"
+        );
+        assert!(
+            err(r#"{"shape": [(kind: "box")], "shape0_kind": "off"}"#)
+                .1
+                .contains("also given")
+        );
+        assert!(err(r#"{"shape": [0.5]}"#).1.contains("map of its fields"));
+        // a plain parameter of that name is not a list
+        let mut plain = specs.clone();
+        plain.push(ParamSpec::vec3("shape", "Plain", -1.0, 1.0, [0.0; 3]));
+        let flat = parse_with(&plain, r#"{"shape": (0.1, 0.2, 0.3)}"#).unwrap();
+        assert_eq!(flat[0].0, "shape");
+    }
 
     #[test]
     fn a_group_makes_flat_keys_and_knows_its_elements_in_use() {

@@ -200,6 +200,16 @@ pub enum StorageFormat {
 }
 
 impl StorageFormat {
+    pub const ALL: [StorageFormat; 4] = [
+        StorageFormat::R32Float,
+        StorageFormat::Rgba16Float,
+        StorageFormat::Rgba32Float,
+        StorageFormat::Rgba8Unorm,
+    ];
+    /// The format named as in WGSL (`r32float`).
+    pub fn parse(name: &str) -> Option<StorageFormat> {
+        Self::ALL.into_iter().find(|f| f.wgsl() == name)
+    }
     pub fn wgsl(self) -> &'static str {
         match self {
             StorageFormat::R32Float => "r32float",
@@ -293,14 +303,17 @@ pub struct VolumePassDecl {
 /// `fn <entry>(voxel: vec3<u32>, dims: vec3<u32>, plane: u32, prev: vec4<f32>, length: f32) -> vec4<f32>`
 /// with `length` the world path length between two planes along the direction. The
 /// target is r32float. Its twin is [`crate::sweep::Sweep::run`].
-#[derive(Clone, Copy)]
+#[derive(Clone)]
 pub struct SweepDecl {
     /// The direction of travel (world space, any length) under the instance's
     /// parameters; list the parameters it reads in `depends_on`.
-    pub direction: fn(&ParamValues) -> [f32; 3],
+    pub direction: Arc<SweepDirection>,
     /// The value the light enters with.
     pub boundary: f32,
 }
+
+/// A sweep's direction of travel under an instance's parameters.
+pub type SweepDirection = dyn Fn(&ParamValues) -> [f32; 3] + Send + Sync;
 
 impl std::fmt::Debug for SweepDecl {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
@@ -328,9 +341,13 @@ impl VolumePassDecl {
         }
     }
     /// A sweep along `direction(params)` ([`SweepDecl`]), entering with `boundary`.
-    pub fn sweep(mut self, direction: fn(&ParamValues) -> [f32; 3], boundary: f32) -> Self {
+    pub fn sweep(
+        mut self,
+        direction: impl Fn(&ParamValues) -> [f32; 3] + Send + Sync + 'static,
+        boundary: f32,
+    ) -> Self {
         self.sweep = Some(SweepDecl {
-            direction,
+            direction: Arc::new(direction),
             boundary,
         });
         self

@@ -275,7 +275,9 @@ impl Document {
                 .map_err(|e| value_err(format!("plugins[{i}]"), e.to_string()))?;
             let specs = plugin.params();
             let mut params = ParamValues::defaults(&specs);
-            for (key, value) in &entry.params {
+            let flat = crate::params::flatten_groups(&specs, &entry.params)
+                .map_err(|(key, m)| value_err(format!("plugins[{i}] {}.{key}", entry.id), m))?;
+            for (key, value) in &flat {
                 let path = format!("plugins[{i}] {}.{key}", entry.id);
                 match specs.iter().find(|s| s.key == key) {
                     None => warnings.push(format!(

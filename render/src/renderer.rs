@@ -625,7 +625,7 @@ fn sweep_of(
     let dims = [size.width, size.height, size.depth_or_array_layers];
     let vbox = crate::slicing::VolumeBox::new(volume.dims, volume.spacing);
     let texel = (vbox.max - vbox.min).as_dvec3() / glam::DVec3::from(dims.map(f64::from));
-    let (direction, boundary) = decl.sweep.map_or(([0.0, 0.0, 1.0], 1.0), |s| {
+    let (direction, boundary) = decl.sweep.as_ref().map_or(([0.0, 0.0, 1.0], 1.0), |s| {
         ((s.direction)(params), s.boundary)
     });
     crate::sweep::Sweep::new(

@@ -34,6 +34,14 @@ fn copy(dir: &Path, name: &str) -> PathBuf {
     to
 }
 
+/// The shipped example in `examples/plugins/<name>`.
+fn example(name: &str) -> PathBuf {
+    examples()
+        .into_iter()
+        .find(|d| d.file_name().is_some_and(|f| f == name))
+        .unwrap()
+}
+
 fn wgsl_of(dir: &Path) -> PathBuf {
     std::fs::read_dir(dir)
         .unwrap()
@@ -54,7 +62,7 @@ fn shipped_examples_load_and_render_with_an_effect() {
                 .to_string()
         })
         .collect();
-    assert_eq!(ids, ["shade.gooch", "shade.toon_lite"]);
+    assert_eq!(ids, ["shade.gooch", "shade.light_sweep", "shade.toon_lite"]);
     let s = settings(48, 48, Backend::Raster);
     let mut r = Renderer::new(gpu(), demo()).unwrap();
     let tf = instance("classify.tf1d");
@@ -87,13 +95,15 @@ fn shipped_examples_load_and_render_with_an_effect() {
             }
         }
     }
-    let (rms, _) = diff(&images[0], &images[1]);
-    assert!(rms > 0.01, "the two examples render alike (RMS {rms})");
+    for (i, j) in [(0, 1), (0, 2), (1, 2)] {
+        let (rms, _) = diff(&images[i], &images[j]);
+        assert!(rms > 0.01, "examples {i} and {j} render alike (RMS {rms})");
+    }
 }
 
 #[test]
 fn a_broken_copy_is_refused_with_file_and_line() {
-    let d = copy(&examples()[0], "broken_gooch");
+    let d = copy(&example("gooch"), "broken_gooch");
     let w = wgsl_of(&d);
     let text = std::fs::read_to_string(&w).unwrap();
     let broken = text.replace("params.beta", "params.btea");
@@ -104,7 +114,7 @@ fn a_broken_copy_is_refused_with_file_and_line() {
     // a folder of plugins with one broken: the good one loads, the error names the file
     let root = tmp("plugin_root");
     std::fs::create_dir_all(&root).unwrap();
-    let good = copy(&examples()[1], "plugin_root/toon");
+    let good = copy(&example("toon_lite"), "plugin_root/toon");
     let bad = copy(&d, "plugin_root/gooch");
     let (ok, errors) = user::load_all(&root);
     assert_eq!(ok.len(), 1);
@@ -115,7 +125,7 @@ fn a_broken_copy_is_refused_with_file_and_line() {
 
 #[test]
 fn edits_reload_and_a_broken_edit_keeps_the_last_good_plugin() {
-    let d = copy(&examples()[1], "reload_toon");
+    let d = copy(&example("toon_lite"), "reload_toon");
     let manifest = d.join("plugin.ron");
     let text = std::fs::read_to_string(&manifest).unwrap();
     std::fs::write(
@@ -199,4 +209,86 @@ fn an_experiment_measures_a_user_plugin_against_the_gpu_converged_reference() {
         o.rows
     );
     assert!(o.failed().is_empty(), "{:?}", o.assertions);
+}
+
+/// A user plugin declares volume passes in `plugin.ron`: `examples/plugins/light_sweep`
+/// sweeps a light's transmittance plane by plane, as the built-in
+/// shade.sweep_shadows does in Rust, and with a white light renders the same image on
+/// both backends. A pass whose sweep direction is not a Vec3 parameter, or whose entry
+/// the WGSL file does not define, is refused naming the file and the pass.
+#[test]
+fn a_user_plugin_declares_a_sweep_pass() {
+    use vwb_render::params::ParamValue;
+    let p: Arc<dyn Plugin> = Arc::new(user::load(&example("light_sweep")).unwrap());
+    let passes = p.volume_passes();
+    assert_eq!(passes.len(), 1);
+    assert!(passes[0].sweep.is_some() && passes[0].depends_on == ["light"]);
+    let light = ParamValue::Vec3([0.3, -0.8, 0.5]);
+    let mut user_inst = PluginInstance::new(p);
+    user_inst.params.set("light", light.clone());
+    user_inst.params.set("tint", ParamValue::Color([1.0; 4]));
+    user_inst.params.set("ambient", ParamValue::Float(0.2));
+    let mut builtin = instance("shade.sweep_shadows");
+    builtin.params.set("light", light);
+    builtin.params.set("ambient", ParamValue::Float(0.2));
+    let tf = instance("classify.tf1d");
+    let mut r = Renderer::new(gpu(), demo()).unwrap();
+    for backend in [Backend::Compute, Backend::Raster] {
+        let s = settings(48, 48, backend);
+        let plain = rgb(&render(
+            &mut r,
+            std::slice::from_ref(&tf),
+            TargetFormat::Rgba32Float,
+            &s,
+        ));
+        let a = rgb(&render(
+            &mut r,
+            &[tf.clone(), user_inst.clone()],
+            TargetFormat::Rgba32Float,
+            &s,
+        ));
+        let b = rgb(&render(
+            &mut r,
+            &[tf.clone(), builtin.clone()],
+            TargetFormat::Rgba32Float,
+            &s,
+        ));
+        let (same, _) = diff(&a, &b);
+        let (shadowed, _) = diff(&a, &plain);
+        // f32 rounding only (the same equations, written a little differently)
+        assert!(
+            same < 1e-3,
+            "{backend:?}: the user sweep differs from the built-in (RMS {same})"
+        );
+        assert!(
+            shadowed > 0.02,
+            "{backend:?}: the light changes the image (RMS {shadowed})"
+        );
+    }
+
+    let d = copy(&example("light_sweep"), "broken_sweep");
+    let manifest = d.join("plugin.ron");
+    let text = std::fs::read_to_string(&manifest).unwrap();
+    std::fs::write(
+        &manifest,
+        text.replace("direction: \"-light\"", "direction: \"ambient\""),
+    )
+    .unwrap();
+    let e = user::load(&d).unwrap_err();
+    assert!(
+        e.contains("plugin.ron")
+            && e.contains("pass 'transmittance'")
+            && e.contains("'ambient' is not a Vec3"),
+        "{e}"
+    );
+    std::fs::write(
+        &manifest,
+        text.replace("entry: \"transmit\"", "entry: \"transmitt\""),
+    )
+    .unwrap();
+    let e = user::load(&d).unwrap_err();
+    assert!(
+        e.contains("light_sweep.wgsl") && e.contains("transmitt"),
+        "{e}"
+    );
 }
