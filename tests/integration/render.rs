@@ -879,16 +879,25 @@ fn atlas_tiles(
 }
 
 /// An atlas of variants whose stacks have volume passes (TF variants under Hernell's
-/// global light: each variant's light volume is its own): the atlas runs each
-/// variant's passes once, and each tile equals its single render on a fresh renderer.
-/// A second atlas of the same variants reruns no pass.
+/// global light, then under a swept light: each variant's light volume is its own):
+/// the atlas runs each variant's passes once, and each tile equals its single render
+/// on a fresh renderer. A second atlas of the same variants reruns no pass.
 #[test]
 fn an_atlas_runs_each_variants_volume_passes() {
+    // shade.hernell: progressive light passes; shade.sweep_shadows: a sweep, plane by plane
+    for (id, least) in [("shade.hernell", 3), ("shade.sweep_shadows", 1)] {
+        atlas_runs_volume_passes_of(id, least);
+    }
+}
+
+fn atlas_runs_volume_passes_of(id: &str, least_passes: usize) {
     let variants: Vec<_> = tf_variants(4)
         .into_iter()
         .map(|(camera, mut stack)| {
-            let mut light = instance("shade.hernell");
-            light.params.set("segment", ParamValue::Int(4));
+            let mut light = instance(id);
+            if id == "shade.hernell" {
+                light.params.set("segment", ParamValue::Int(4));
+            }
             stack.push(light);
             (camera, stack)
         })
@@ -915,12 +924,12 @@ fn an_atlas_runs_each_variants_volume_passes() {
             })
             .unwrap();
         // every step of the light volume's refinement and the opacity passes
-        assert!(stats.volume_passes_run.len() >= 3);
+        assert!(stats.volume_passes_run.len() >= least_passes, "{id}");
         dispatches += stats.volume_passes_run.len();
         let single = single_r.read_pixels().unwrap().2;
         let reference: Vec<[f64; 4]> = single.iter().map(|p| p.map(f64::from)).collect();
         let rms = delta_e_rms(&atlas.tile_pixels(i), &reference, 32, 32);
-        assert!(rms <= 0.01, "tile {i}: ΔE*uv RMS {rms}");
+        assert!(rms <= 0.01, "{id} tile {i}: ΔE*uv RMS {rms}");
     }
     assert_eq!(atlas.volume_passes_run, dispatches);
     let again = r.render_atlas(&tiles, &s, t, 2).unwrap();
