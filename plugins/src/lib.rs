@@ -61,7 +61,7 @@ builtin_plugins! {
     shade_oren_nayar => shade_oren_nayar::OrenNayar::default(),
     shade_toon => shade_toon::Toon::default(),
     shade_hernell => shade_hernell::Hernell::default(),
-    shade_sweep => shade_sweep::SweepShadows,
+    shade_sweep => shade_sweep::SweepShadows::default(),
     composite_tonemap => composite_tonemap::Tonemap,
     flow_arrival => flow_arrival::Arrival::default(),
     flow_lic3d => flow_lic3d::Lic3d::default(),

@@ -389,7 +389,6 @@ struct PassState {
     steps_done: u32,
 }
 
-/// One dispatch of a volume pass in a frame's plan.
 /// A volume pass's bind groups 1 and 3, and a sweep pass's geometry and uniform.
 type PassGroups = (
     wgpu::BindGroup,
@@ -397,6 +396,7 @@ type PassGroups = (
     Option<(crate::sweep::Sweep, wgpu::Buffer)>,
 );
 
+/// One dispatch of a volume pass in a frame's plan.
 struct PassDispatch {
     /// Index into `CompiledStack::volume_passes`.
     pass: usize,

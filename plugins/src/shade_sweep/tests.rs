@@ -9,12 +9,13 @@ fn a_plate_halves_the_light_below_it() {
     let volume = Volume::new("cube", [8, 8, 8], 1, [1.0; 3], VoxelData::U8(vec![0; 512])).unwrap();
     let scalars = volume.normalized_scalars();
     let ctx = CpuContext::new(&volume, &scalars);
-    let mut params = ParamValues::defaults(&SweepShadows.params());
+    let mut params = ParamValues::defaults(&SweepShadows::default().params());
     params.set("light", vwb_render::params::ParamValue::Vec3([0.0, 0.0, 2.0]));
     params.set("ambient", vwb_render::params::ParamValue::Float(0.2));
     let mut twin = SweepTwin {
         travel: DVec3::from(travel(&params).map(f64::from)),
         ambient: 0.2,
+        scale: 1.0,
         dims: [0; 3],
         transmittance: Vec::new(),
     };
