@@ -277,6 +277,8 @@ struct Prepared<'a> {
     /// Whether a plugin of the stack reads the slice spacing
     /// ([`crate::plugin::Plugin::uses_slice_spacing`], e.g. a pre-integration table).
     reads_spacing: bool,
+    /// Whether a plugin of the stack has a `setup` hook (else no ray records are made).
+    setup: bool,
     /// What the twins' volume passes last ran for: the camera, and the spacing and
     /// slices where a plugin reads them; a render with the same key reuses them (a
     /// converged reference's halvings).
@@ -307,6 +309,9 @@ impl<'a> Prepared<'a> {
             reads_spacing: stack
                 .iter()
                 .any(|i| i.enabled && i.configured().uses_slice_spacing()),
+            setup: stack.iter().any(|i| {
+                i.enabled && crate::composer::defines_fn(&i.configured().shader().source, "setup")
+            }),
             passes_for: None,
         })
     }
@@ -318,7 +323,10 @@ impl<'a> Prepared<'a> {
         opts: &ReferenceOptions,
     ) -> Result<ReferenceImage, ReferenceError> {
         check_size(settings)?;
-        let frame = Frame::new(self.volume, settings, spacing_voxels, opts.emulate_fp16)?;
+        let frame = Frame {
+            setup: self.setup,
+            ..Frame::new(self.volume, settings, spacing_voxels, opts.emulate_fp16)?
+        };
         let ctx = CpuContext::new(self.volume, &self.scalars)
             .with_inputs(&self.inputs)
             .with_spacing(frame.spacing / frame.voxel)
@@ -421,8 +429,8 @@ impl Prepared<'_> {
                         if stopped[x] {
                             continue;
                         }
-                        let uv = frame.uv(x as u32, y as u32);
-                        if let Some((_, c)) = frame.slice_sample(ctx, &self.twins, &states, uv, k) {
+                        let r = frame.pixel_ray(ctx, &self.twins, frame.uv(x as u32, y as u32));
+                        if let Some((_, c)) = frame.slice_sample(ctx, &self.twins, &states, &r, k) {
                             *a += (1.0 - a.w) * c;
                             if frame.fp16 {
                                 *a = round_f16(*a);
@@ -446,10 +454,11 @@ impl Prepared<'_> {
                         .map(|n| {
                             let (tx, ty) = ((n % sw as usize) as f64, (n / sw as usize) as f64);
                             let uv = DVec2::new((tx + 0.5) / sw as f64, (ty + 0.5) / sh as f64);
+                            let r = frame.pixel_ray(ctx, &self.twins, uv);
                             let (mut s, c) = frame
-                                .slice_sample(ctx, &self.twins, &states, uv, k)
-                                .unwrap_or_else(|| (frame.missed_sample(uv, k), DVec4::ZERO));
-                            s.ray_record = self.twins[i].setup(ctx, &frame.setup_ray(uv));
+                                .slice_sample(ctx, &self.twins, &states, &r, k)
+                                .unwrap_or_else(|| (frame.missed_sample(&r, k), DVec4::ZERO));
+                            s.ray_record = r.records.get(i).copied().unwrap_or(DVec4::ZERO);
                             round_state(self.twins[i].slice_update(&ctx_i, &s, c, uv), decl.format)
                         })
                         .collect();
@@ -526,6 +535,17 @@ struct Frame {
     early: Option<(f64, u32)>,
     fp16: bool,
     view: crate::plugin::CpuView,
+    /// Whether to make ray records (`run_setup`): the stack has a `setup` hook.
+    setup: bool,
+}
+
+/// A pixel's ray (`pixel_ray`) and its twins' `setup` records, in stack order (empty
+/// when the stack has no `setup` hook: every record is then zero).
+struct PixelRay {
+    origin: DVec3,
+    dir: DVec3,
+    uv: DVec2,
+    records: Vec<DVec4>,
 }
 
 impl Frame {
@@ -560,6 +580,7 @@ impl Frame {
             early,
             fp16,
             view: crate::plugin::CpuView::from_view(&view, plan.d0, plan.spacing),
+            setup: false,
         })
     }
 
@@ -645,56 +666,61 @@ impl Frame {
         self.spacing / dir.dot(self.forward).max(1.0e-6) / self.voxel
     }
 
-    /// Slice `k` under `uv` through all hooks: the shaded sample and its contribution.
+    /// Slice `k` on the ray `r` through all hooks: the shaded sample and its
+    /// contribution.
     fn slice_sample(
         &self,
         ctx: &CpuContext,
         twins: &[Box<dyn CpuTwin>],
         states: &[Option<StateImage>],
-        uv: DVec2,
+        r: &PixelRay,
         k: u32,
     ) -> Option<(CpuSample, DVec4)> {
-        let (origin, dir) = self.ray(uv);
-        let sample = self.make_sample(origin, dir, uv, k)?;
-        let records = self.records(ctx, twins, uv);
+        let sample = self.make_sample(r.origin, r.dir, r.uv, k)?;
         Some(evaluate(
             ctx,
             twins,
             states,
-            &records,
+            &r.records,
             sample,
-            self.ratio(dir),
+            self.ratio(r.dir),
         ))
     }
 
-    /// The ray through `uv` as `setup` sees it (`pixel_ray`: from the eye, or from the
-    /// plane through the eye for an orthographic camera).
-    fn setup_ray(&self, uv: DVec2) -> CpuRay {
+    /// The ray through `uv` (`pixel_ray`) and, where the stack has a `setup` hook, each
+    /// twin's record for it in stack order (`run_setup`). The ray `setup` sees starts at
+    /// the eye, or on the plane through the eye for an orthographic camera, as on the
+    /// GPU.
+    fn pixel_ray(&self, ctx: &CpuContext, twins: &[Box<dyn CpuTwin>], uv: DVec2) -> PixelRay {
         let (origin, dir) = self.ray(uv);
-        let back = (origin - self.eye).dot(self.forward) / dir.dot(self.forward);
-        CpuRay {
-            origin: origin - dir * back,
+        let records = if self.setup {
+            let back = (origin - self.eye).dot(self.forward) / dir.dot(self.forward);
+            let ray = CpuRay {
+                origin: origin - dir * back,
+                dir,
+                uv,
+                size: DVec2::new(self.width as f64, self.height as f64),
+            };
+            twins.iter().map(|t| t.setup(ctx, &ray)).collect()
+        } else {
+            Vec::new()
+        };
+        PixelRay {
+            origin,
             dir,
             uv,
-            size: DVec2::new(self.width as f64, self.height as f64),
+            records,
         }
     }
 
-    /// `run_setup`: each twin's per-ray record for the ray through `uv`, in stack order.
-    fn records(&self, ctx: &CpuContext, twins: &[Box<dyn CpuTwin>], uv: DVec2) -> Vec<DVec4> {
-        let ray = self.setup_ray(uv);
-        twins.iter().map(|t| t.setup(ctx, &ray)).collect()
-    }
-
-    /// What `state_texel_sample` passes on where the ray misses slice `k`.
-    fn missed_sample(&self, uv: DVec2, k: u32) -> CpuSample {
-        let (origin, dir) = self.ray(uv);
+    /// What `state_texel_sample` passes on where the ray `r` misses slice `k`.
+    fn missed_sample(&self, r: &PixelRay, k: u32) -> CpuSample {
         CpuSample {
-            pos: origin,
-            tex: (origin - self.box_min) / (self.box_max - self.box_min),
-            ray_dir: dir,
-            uv,
-            step: self.spacing / dir.dot(self.forward).max(1.0e-6),
+            pos: r.origin,
+            tex: (r.origin - self.box_min) / (self.box_max - self.box_min),
+            ray_dir: r.dir,
+            uv: r.uv,
+            step: self.spacing / r.dir.dot(self.forward).max(1.0e-6),
             slice: k,
             ..Default::default()
         }
@@ -703,11 +729,11 @@ impl Frame {
     /// `cs_main` for one pixel: premultiplied RGBA.
     fn pixel(&self, ctx: &CpuContext, twins: &[Box<dyn CpuTwin>], x: u32, y: u32) -> [f64; 4] {
         let uv = self.uv(x, y);
-        let (origin, dir) = self.ray(uv);
+        let r = self.pixel_ray(ctx, twins, uv);
+        let (origin, dir) = (r.origin, r.dir);
         let dd = dir.dot(self.forward);
         let depth0 = (origin - self.eye).dot(self.forward);
         let ratio = self.ratio(dir);
-        let records = self.records(ctx, twins, uv);
         let mut acc = DVec4::ZERO;
         for k in self.slice_range(origin, dir, depth0, dd) {
             if let Some((threshold, run)) = self.early
@@ -719,7 +745,7 @@ impl Frame {
             let Some(sample) = self.make_sample(origin, dir, uv, k) else {
                 continue;
             };
-            let (_, c) = evaluate(ctx, twins, &[], &records, sample, ratio);
+            let (_, c) = evaluate(ctx, twins, &[], &r.records, sample, ratio);
             acc += (1.0 - acc.w) * c;
             if self.fp16 {
                 acc = round_f16(acc);

@@ -112,10 +112,8 @@ impl Sweep {
     /// plane; values are kept as r32float keeps them. Texels x fastest.
     pub fn run(&self, f: impl Fn([u32; 3], u32, f64, f64) -> f64 + Sync) -> Vec<f32> {
         use rayon::prelude::*;
-        let [nx, ny, nz] = self.dims.map(|n| n as usize);
-        let mut out = vec![0.0f32; nx * ny * nz];
+        let mut out = vec![0.0f32; self.dims.iter().map(|&n| n as usize).product()];
         let [pw, ph] = self.plane_size();
-        let index = |v: [u32; 3]| (v[2] as usize * ny + v[1] as usize) * nx + v[0] as usize;
         for plane in 0..self.planes() {
             let values: Vec<(usize, f32)> = (0..pw * ph)
                 .into_par_iter()
@@ -127,7 +125,7 @@ impl Sweep {
                     } else {
                         self.upstream(&out, xy, plane)
                     };
-                    (index(v), f(v, plane, prev, self.length) as f32)
+                    (self.index(v), f(v, plane, prev, self.length) as f32)
                 })
                 .collect();
             for (i, x) in values {
@@ -137,10 +135,15 @@ impl Sweep {
         out
     }
 
+    /// The linear index of texel `v` (x fastest).
+    fn index(&self, v: [u32; 3]) -> usize {
+        let [nx, ny, _] = self.dims.map(|n| n as usize);
+        (v[2] as usize * ny + v[1] as usize) * nx + v[0] as usize
+    }
+
     /// Bilinear value of plane `plane − 1` at the upstream point of `xy`, taps outside
     /// the plane reading the boundary (the generated WGSL does the same).
     fn upstream(&self, values: &[f32], xy: [u32; 2], plane: u32) -> f64 {
-        let [nx, ny, _] = self.dims.map(|n| n as usize);
         let [pw, ph] = self.plane_size();
         let p = [xy[0] as f64 + self.shift[0], xy[1] as f64 + self.shift[1]];
         let lo = p.map(f64::floor);
@@ -150,8 +153,7 @@ impl Sweep {
             if x < 0 || y < 0 || x >= pw as i64 || y >= ph as i64 {
                 return self.boundary;
             }
-            let v = self.texel([x as u32, y as u32], plane - 1);
-            values[(v[2] as usize * ny + v[1] as usize) * nx + v[0] as usize] as f64
+            values[self.index(self.texel([x as u32, y as u32], plane - 1))] as f64
         };
         let mix = |a: f64, b: f64, t: f64| a + (b - a) * t;
         mix(
