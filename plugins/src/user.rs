@@ -27,11 +27,27 @@
 //!
 //! Each pass has `target`, `entry`, and optionally `format` (default `r32float`),
 //! `scale` (0–1 of the volume's size), `depends_on` (parameter keys), `view: true` (a
-//! view pass) and `sweep` (plane by plane along a `Vec3` parameter, `-` reversing it;
-//! the entry then also gets the path length, see [`vwb_render::plugin::SweepDecl`]).
+//! view pass), `sweep` (plane by plane along a `Vec3` parameter, `-` reversing it;
+//! the entry then also gets the path length, see [`vwb_render::plugin::SweepDecl`])
+//! and `steps` (a progressive pass: a count or an `Int` parameter's key; step i runs
+//! with `step` = i and blends into its own previous texel `prev`, over as many frames
+//! as the refinement budget needs, and the window shows its progress). Optional
+//! fields are written plainly or as `Some(..)`.
 //!
 //! Parameter kinds: `Float` (with `log: true` for a logarithmic slider), `Int`, `Bool`,
-//! `Enum` (options; structural: each option recomposes the pipeline), `Color`, `Vec3`.
+//! `Enum` (options; structural: each option recomposes the pipeline), `Color`, `Vec3`,
+//! `Group` (a repeated group) and `Volume` (a named volume input, bound as a texture):
+//!
+//! ```ron
+//!         Volume(key: "field", label: "Second volume", components: "any"),
+//! ```
+//!
+//! A `Volume` parameter names one of the preset's `volumes:` (empty: the document's own
+//! volume). Its hooks and passes read it as `field`, a `texture_3d<f32>` on the input's
+//! own grid over the document volume's box (sample it at `s.tex` with `linear_clamp`):
+//! `.rgb` the components as stored (a scalar's value in `.r`), `.a` the value normalised
+//! to [0, 1] by the input's range, which is a vector's magnitude ([`input_texture`]).
+//! Another volume under the name recreates the texture and reruns the passes.
 //! The WGSL file holds hook functions with the signatures of
 //! [`vwb_render::plugin`] (`shade`, `classify`, `clip`, `sample`, `composite`) and may
 //! use everything in `shaders/common.wgsl` (e.g. `gradient_central`, `shading_normal`,
@@ -49,8 +65,12 @@ use std::time::SystemTime;
 
 use serde::Deserialize;
 use vwb_render::composer::{TargetFormat, compose};
-use vwb_render::params::{ParamKind, ParamSpec, validate_specs};
-use vwb_render::plugin::{Plugin, ShaderSource, StorageFormat, VolumePassDecl, valid_id};
+use vwb_render::params::{ParamKind, ParamSpec, ParamValues, validate_specs};
+use vwb_render::plugin::{
+    GpuInit, GpuResource, Plugin, PluginError, ResourceDecl, ResourceKind, ShaderSource,
+    StorageFormat, VolumePassDecl, valid_id,
+};
+use vwb_render::volume::Volume;
 
 use vwb_render::params::interned;
 
@@ -95,6 +115,19 @@ struct PassDef {
     /// `-` reverses it), `boundary` is the value the sweep enters with (default 1).
     #[serde(default)]
     sweep: Option<SweepDef>,
+    /// A progressive pass: its number of refinement steps, a count or the key of an
+    /// `Int` parameter. Step i (from 0) runs with `step` = i and reads its own
+    /// previous texel as `prev` (r32float), as many steps per frame as the renderer's
+    /// refinement budget allows.
+    #[serde(default)]
+    steps: Option<StepsDef>,
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(untagged)]
+enum StepsDef {
+    Count(u32),
+    Param(String),
 }
 
 #[derive(Debug, Clone, Deserialize)]
@@ -141,6 +174,27 @@ impl PassDef {
         decl.format = format;
         if self.view {
             decl = decl.view();
+        }
+        match &self.steps {
+            None => {}
+            Some(StepsDef::Count(n)) => {
+                if *n == 0 {
+                    return Err(format!("{pass}: steps 0 (at least 1)"));
+                }
+                let n = *n;
+                decl = decl.progressive(move |_| n);
+            }
+            Some(StepsDef::Param(k)) => {
+                let spec = key_of(k)
+                    .filter(|p| matches!(p.kind, ParamKind::Int { .. }))
+                    .ok_or_else(|| format!("{pass}: steps '{k}' is not an Int parameter"))?;
+                let key: &'static str = spec.key;
+                decl = decl.progressive(move |p| p.int(key).max(1) as u32);
+                // a new step count restarts the refinement
+                if !decl.depends_on.contains(&key) {
+                    decl.depends_on.push(key);
+                }
+            }
         }
         if let Some(sw) = &self.sweep {
             let (negate, key) = match sw.direction.strip_prefix('-') {
@@ -235,6 +289,19 @@ enum ParamDef {
         #[serde(default)]
         doc: String,
     },
+    /// A named volume input (the preset's `volumes:`, or the document's own volume
+    /// when none is named), bound as the `texture_3d<f32>` of the same name: `.rgb` its
+    /// components as stored (a scalar's value in `.r`), `.a` its value normalised to
+    /// [0, 1] by its range (a vector's magnitude), over the document volume's box.
+    /// `components`: `scalar`, `vector` or `any` (the default).
+    Volume {
+        key: String,
+        label: String,
+        #[serde(default)]
+        components: String,
+        #[serde(default)]
+        doc: String,
+    },
     /// A repeated group (`params::Group`): `count` elements of `params`, whose keys are
     /// templates with one `{}` (`light{}_on`); `switch` names the member template that
     /// turns an element on, `limit` an int parameter holding how many are in use.
@@ -309,7 +376,8 @@ impl ParamDef {
             | ParamDef::Bool { key, .. }
             | ParamDef::Enum { key, .. }
             | ParamDef::Color { key, .. }
-            | ParamDef::Vec3 { key, .. } => Some(key),
+            | ParamDef::Vec3 { key, .. }
+            | ParamDef::Volume { key, .. } => Some(key),
             ParamDef::Group { .. } => None,
         }
     }
@@ -383,6 +451,25 @@ impl ParamDef {
                 default,
                 doc,
             } => (ParamSpec::vec3(s(key), s(label), *min, *max, *default), doc),
+            ParamDef::Volume {
+                key,
+                label,
+                components,
+                doc,
+            } => {
+                use vwb_render::params::Components;
+                let c = match components.as_str() {
+                    "" | "any" => Components::Any,
+                    "scalar" => Components::Scalar,
+                    "vector" => Components::Vector,
+                    other => {
+                        return Err(format!(
+                            "'{key}': components '{other}' is not scalar, vector or any"
+                        ));
+                    }
+                };
+                (ParamSpec::volume(s(key), s(label), c), doc)
+            }
             ParamDef::Group { name, .. } => {
                 return Err(format!("group '{name}': a group inside a group"));
             }
@@ -449,6 +536,58 @@ impl Plugin for UserPlugin {
     fn volume_passes(&self) -> Vec<VolumePassDecl> {
         self.passes.clone()
     }
+    fn resources(&self) -> Vec<ResourceDecl> {
+        self.inputs()
+            .map(|name| ResourceDecl {
+                name,
+                kind: ResourceKind::Texture3d,
+            })
+            .collect()
+    }
+    fn create_resources(
+        &self,
+        gpu: &GpuInit,
+        params: &ParamValues,
+    ) -> Result<Vec<GpuResource>, PluginError> {
+        self.inputs()
+            .map(|key| {
+                let volume = gpu.input(params, key)?;
+                Ok(input_texture(gpu, &format!("{} {key}", self.id), volume))
+            })
+            .collect()
+    }
+}
+
+impl UserPlugin {
+    /// The keys of its volume inputs, in the order of its spec (each binds a texture
+    /// of that name).
+    fn inputs(&self) -> impl Iterator<Item = &'static str> + '_ {
+        self.specs
+            .iter()
+            .filter(|p| matches!(p.kind, ParamKind::Volume { .. }))
+            .map(|p| p.key)
+    }
+}
+
+/// A volume input as a user plugin's WGSL reads it: rgba32float on the input's own
+/// grid, `.rgb` its first three components as stored (zero where it has fewer), `.a`
+/// its scalar normalised by its range (the magnitude of a vector), non-finite samples
+/// as 0.
+pub fn input_texture(gpu: &GpuInit, label: &str, volume: &Volume) -> GpuResource {
+    let c = volume.components.max(1) as usize;
+    let raw = volume.components_f32();
+    let normalised = volume.normalized_scalars();
+    let texels: Vec<f32> = raw
+        .chunks_exact(c)
+        .zip(&normalised)
+        .flat_map(|(v, n)| {
+            let at = |i: usize| v.get(i).copied().unwrap_or(0.0);
+            [at(0), at(1), at(2), *n]
+        })
+        .collect();
+    let r = gpu.create_volume_texture(label, volume.dims, 4);
+    gpu.write_floats(&r, &texels);
+    r
 }
 
 /// Loads the plugin in `dir` (its `plugin.ron` and WGSL), composes it behind a 1D
@@ -458,8 +597,11 @@ pub fn load(dir: &Path) -> Result<UserPlugin, String> {
     let manifest_path = dir.join("plugin.ron");
     let text = std::fs::read_to_string(&manifest_path)
         .map_err(|e| format!("{}: cannot read: {e}", manifest_path.display()))?;
-    let m: Manifest =
-        ron::from_str(&text).map_err(|e| format!("{}: {e}", manifest_path.display()))?;
+    // optional fields are written plainly (`format: "rgba16float"`) or as `Some(..)`
+    let m: Manifest = ron::Options::default()
+        .with_default_extension(ron::extensions::Extensions::IMPLICIT_SOME)
+        .from_str(&text)
+        .map_err(|e| format!("{}: {e}", manifest_path.display()))?;
     let at = |msg: String| format!("{}: {msg}", manifest_path.display());
     if !valid_id(&m.id) {
         return Err(at(format!(

@@ -165,27 +165,7 @@ pub fn flatten_groups(
     specs: &[ParamSpec],
     given: &std::collections::BTreeMap<String, ron::Value>,
 ) -> Result<Vec<(String, ron::Value)>, (String, String)> {
-    use std::collections::BTreeMap;
-    // field → the member's key of each element
-    type Fields<'a> = BTreeMap<&'a str, Vec<Option<&'static str>>>;
-    // list name → its fields and the group's size
-    let mut lists: BTreeMap<&str, (Fields, usize)> = BTreeMap::new();
-    for spec in specs {
-        let Some(e) = spec.element else { continue };
-        let Some((list, field)) = split_member(spec.key, e.index) else {
-            continue;
-        };
-        let (fields, count) = lists.entry(list).or_default();
-        *count = e.group.count;
-        let keys = fields
-            .entry(field)
-            .or_insert_with(|| vec![None; e.group.count]);
-        if let Some(slot) = keys.get_mut(e.index) {
-            *slot = Some(spec.key);
-        }
-    }
-    // a plain parameter of the same name (a Vec3 is a list in RON too) keeps its name
-    lists.retain(|list, _| !specs.iter().any(|p| p.key == *list));
+    let lists = group_lists(specs);
     let mut out: Vec<(String, ron::Value)> = Vec::new();
     for (key, value) in given {
         let (Some((fields, count)), ron::Value::Seq(items)) = (lists.get(key.as_str()), value)
@@ -241,6 +221,92 @@ pub fn flatten_groups(
         }
     }
     Ok(out)
+}
+
+/// A group's members by field: field → the member's key of each element.
+type ListFields<'a> = std::collections::BTreeMap<&'a str, Vec<Option<&'static str>>>;
+
+/// The lists a preset may write: list name → its fields and the group's size. A plain
+/// parameter of the same name (a Vec3 is a list in RON too) keeps its name.
+fn group_lists(
+    specs: &[ParamSpec],
+) -> std::collections::BTreeMap<&'static str, (ListFields<'static>, usize)> {
+    let mut lists: std::collections::BTreeMap<&'static str, (ListFields<'static>, usize)> =
+        Default::default();
+    for spec in specs {
+        let Some(e) = spec.element else { continue };
+        let Some((list, field)) = split_member(spec.key, e.index) else {
+            continue;
+        };
+        let (fields, count) = lists.entry(list).or_default();
+        *count = e.group.count;
+        let keys = fields
+            .entry(field)
+            .or_insert_with(|| vec![None; e.group.count]);
+        if let Some(slot) = keys.get_mut(e.index) {
+            *slot = Some(spec.key);
+        }
+    }
+    lists.retain(|list, _| !specs.iter().any(|p| p.key == *list));
+    lists
+}
+
+/// The inverse of [`flatten_groups`], as a preset is saved: the flat keys of each
+/// repeated group become one list, element i a map of its given fields (`shape0_kind`,
+/// `shape1_center` → `"shape": [{"kind": ..}, {"center": ..}]`), or, for a group whose
+/// members have no field after the index, the element's value (`iso0` → `"iso": [..]`,
+/// elements before the last given one written with their defaults). The list ends at
+/// its last given element; other entries pass through.
+pub fn group_flat_keys(
+    specs: &[ParamSpec],
+    flat: std::collections::BTreeMap<String, ron::Value>,
+) -> std::collections::BTreeMap<String, ron::Value> {
+    use std::collections::BTreeMap;
+    let lists = group_lists(specs);
+    let mut out = BTreeMap::new();
+    let mut elements: BTreeMap<&str, Vec<BTreeMap<&str, ron::Value>>> = BTreeMap::new();
+    for (key, value) in flat {
+        let member = lists.iter().find_map(|(list, (fields, _))| {
+            fields.iter().find_map(|(field, keys)| {
+                let i = keys.iter().position(|k| *k == Some(key.as_str()))?;
+                Some((*list, *field, i))
+            })
+        });
+        let Some((list, field, i)) = member else {
+            out.insert(key, value);
+            continue;
+        };
+        let items = elements.entry(list).or_default();
+        if items.len() <= i {
+            items.resize_with(i + 1, BTreeMap::new);
+        }
+        items[i].insert(field, value);
+    }
+    for (list, items) in elements {
+        let fields = &lists[list].0;
+        let values_only = fields.len() == 1 && fields.contains_key("");
+        let seq = items
+            .into_iter()
+            .enumerate()
+            .map(|(i, mut item)| {
+                if values_only {
+                    // an element left out of the middle is written with its default
+                    return item.remove("").unwrap_or_else(|| {
+                        fields[""][i]
+                            .and_then(|k| specs.iter().find(|s| s.key == k))
+                            .map_or(ron::Value::Unit, |s| s.default_value().to_ron())
+                    });
+                }
+                let mut map = ron::Map::new();
+                for (field, v) in item {
+                    map.insert(ron::Value::String(field.to_string()), v);
+                }
+                ron::Value::Map(map)
+            })
+            .collect();
+        out.insert(list.to_string(), ron::Value::Seq(seq));
+    }
+    out
 }
 
 /// Where a parameter sits in a [`Group`].
@@ -1129,6 +1195,35 @@ mod tests {
                 .contains("also given")
         );
         assert!(err(r#"{"shape": [0.5]}"#).1.contains("map of its fields"));
+        // saved back: one list per group, ending at its last given element; a value
+        // list writes an element left out of the middle with its default
+        let given: std::collections::BTreeMap<String, ron::Value> = flat.into_iter().collect();
+        let lists = group_flat_keys(&specs, given.clone());
+        assert_eq!(
+            lists.keys().map(String::as_str).collect::<Vec<_>>(),
+            ["iso", "shape"]
+        );
+        let back: std::collections::BTreeMap<String, ron::Value> = flatten_groups(&specs, &lists)
+            .unwrap()
+            .into_iter()
+            .collect();
+        assert_eq!(back, given);
+        let mut second: std::collections::BTreeMap<String, ron::Value> = Default::default();
+        second.insert(
+            "iso1".into(),
+            ron::Value::Number(ron::Number::F32(0.75.into())),
+        );
+        second.insert("other".into(), ron::Value::Bool(true));
+        let lists = group_flat_keys(&specs, second);
+        assert_eq!(
+            ron::to_string(&lists["iso"]).unwrap(),
+            ron::to_string(&ron::Value::Seq(vec![
+                ron::Value::Number(ron::Number::F32(0.5.into())),
+                ron::Value::Number(ron::Number::F32(0.75.into())),
+            ]))
+            .unwrap()
+        );
+        assert_eq!(lists["other"], ron::Value::Bool(true));
         // a plain parameter of that name is not a list
         let mut plain = specs.clone();
         plain.push(ParamSpec::vec3("shape", "Plain", -1.0, 1.0, [0.0; 3]));

@@ -280,15 +280,16 @@ pub struct VolumePassDecl {
     /// renderer runs as many steps per frame as its refinement budget allows
     /// ([`crate::renderer::Renderer::set_refinement_budget`]; all by default), so a
     /// window refines over several frames.
-    pub steps: Option<fn(&ParamValues) -> u32>,
+    pub steps: Option<PassSteps>,
     /// The pass reads its own previous texel as `prev` (read-write storage; R32Float
     /// only), e.g. to blend a refinement step into the stored result.
     pub accumulate: bool,
     /// A view pass: it depends on the camera (it may read `frame.eye`,
     /// `frame.forward`, `frame.view_proj`), so it also reruns, with every later pass of
     /// the chain, whenever the view or the projection changes; other passes never rerun
-    /// for the camera. An atlas (many views in one submission) refuses a stack with
-    /// one. The twin's `prepare_passes` already runs again for a new camera.
+    /// for the camera. An atlas (many views in one submission) reruns it before each
+    /// tile whose camera differs from the last. The twin's `prepare_passes` already
+    /// runs again for a new camera.
     pub camera: bool,
     /// A sweep: the pass runs plane by plane along a direction instead of over the
     /// whole target at once ([`SweepDecl`], `crate::sweep`).
@@ -310,6 +311,23 @@ pub struct SweepDecl {
     pub direction: Arc<SweepDirection>,
     /// The value the light enters with.
     pub boundary: f32,
+}
+
+/// A progressive pass's number of refinement steps under an instance's parameters
+/// ([`VolumePassDecl::steps`]).
+#[derive(Clone)]
+pub struct PassSteps(pub Arc<dyn Fn(&ParamValues) -> u32 + Send + Sync>);
+
+impl PassSteps {
+    pub fn count(&self, params: &ParamValues) -> u32 {
+        (self.0)(params)
+    }
+}
+
+impl std::fmt::Debug for PassSteps {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("PassSteps(..)")
+    }
 }
 
 /// A sweep's direction of travel under an instance's parameters.
@@ -364,8 +382,11 @@ impl VolumePassDecl {
     }
     /// Progressive: `steps(params)` refinement steps, each reading its own previous
     /// texel ([`VolumePassDecl::accumulate`]).
-    pub fn progressive(mut self, steps: fn(&ParamValues) -> u32) -> Self {
-        self.steps = Some(steps);
+    pub fn progressive(
+        mut self,
+        steps: impl Fn(&ParamValues) -> u32 + Send + Sync + 'static,
+    ) -> Self {
+        self.steps = Some(PassSteps(Arc::new(steps)));
         self.accumulate = true;
         self
     }

@@ -341,13 +341,15 @@ impl Document {
                 .iter()
                 .map(|inst| {
                     let specs = inst.plugin.params();
-                    let params = specs
+                    // non-default values only, each repeated group as one list
+                    let flat = specs
                         .iter()
                         .filter_map(|s| {
                             let v = inst.params.get(s.key)?;
                             (*v != s.default_value()).then(|| (s.key.to_string(), v.to_ron()))
                         })
                         .collect();
+                    let params = crate::params::group_flat_keys(&specs, flat);
                     PluginEntry {
                         id: inst.plugin.id().to_string(),
                         enabled: inst.enabled,

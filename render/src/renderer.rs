@@ -638,8 +638,9 @@ fn sweep_of(
 
 /// Refinement steps of a volume pass under `params` (at least 1).
 fn pass_steps(decl: &crate::plugin::VolumePassDecl, params: &ParamValues) -> u32 {
-    decl.steps
-        .map_or(1, |steps| steps(params).clamp(1, MAX_PER_SLICE_SLICES))
+    decl.steps.as_ref().map_or(1, |steps| {
+        steps.count(params).clamp(1, MAX_PER_SLICE_SLICES)
+    })
 }
 
 fn structure_of(inst: &PluginInstance) -> u64 {
@@ -2845,13 +2846,16 @@ impl Renderer {
         out
     }
 
-    /// Encodes planned volume-pass dispatches, each after a `stamp`.
+    /// Encodes planned volume-pass dispatches, each after a `stamp`, with `g0` (the
+    /// frame whose camera a view pass reads) as group 0.
+    #[allow(clippy::too_many_arguments)]
     fn encode_volume_passes(
         &self,
         enc: &mut wgpu::CommandEncoder,
         p: &CompiledStack,
         stack: &[(u64, Arc<dyn Plugin>)],
         plan: &[PassDispatch],
+        g0: &wgpu::BindGroup,
         stamp: &mut dyn FnMut(&mut wgpu::CommandEncoder, Option<String>),
     ) -> Vec<String> {
         let device = &self.gpu.device;
@@ -2899,7 +2903,7 @@ impl Renderer {
                 timestamp_writes: None,
             });
             pass.set_pipeline(&cp.pipeline);
-            pass.set_bind_group(0, &self.g0, &[(d.step as u64 * SLICE_INFO_STRIDE) as u32]);
+            pass.set_bind_group(0, g0, &[(d.step as u64 * SLICE_INFO_STRIDE) as u32]);
             pass.set_bind_group(1, g1, &[]);
             pass.set_bind_group(2, &g2, &[]);
             pass.set_bind_group(3, g3, &[]);
@@ -3206,7 +3210,8 @@ impl Renderer {
         // pre-passes that are out of date, then volume passes
         let dirty = self.dirty_prepasses(p, &p.stack);
         let prepasses = self.encode_prepasses(enc, p, &p.stack, &dirty, &mut stamp);
-        let volume_passes_run = self.encode_volume_passes(enc, p, &p.stack, &pass_plan, &mut stamp);
+        let volume_passes_run =
+            self.encode_volume_passes(enc, p, &p.stack, &pass_plan, &self.g0, &mut stamp);
 
         let g1 = self.group1(p);
         let g2 = self.group2(p);

@@ -1373,7 +1373,8 @@ fn a_named_vector_input_on_its_own_grid_drives_the_lic() {
 /// and so does the image. Its gain reruns nothing, the camera nothing; the same input
 /// set again reruns nothing, another volume under the name reruns all three. With its
 /// view pass on, a camera move reruns that pass alone, whose target follows the
-/// camera as the twin's does; an atlas refuses the stack.
+/// camera as the twin's does; in an atlas it reruns per camera and each tile is its
+/// single render.
 #[test]
 fn three_chained_volume_passes_over_a_named_vector_input() {
     use crate::reference::delta_e_rms;
@@ -1501,17 +1502,36 @@ fn three_chained_volume_passes_over_a_named_vector_input() {
     let image = delta_e_rms(&px, &reference.pixels, 48, 48);
     eprintln!("test.vector_passes with a view pass: image ΔE*uv RMS {image:.4} against the twin");
     assert!(image < twin_bound(Backend::Compute, false), "{image}");
-    // an atlas draws many cameras in one submission: refused, naming the plugin
-    let tiles = [vwb_render::renderer::AtlasTile {
-        camera: s.camera,
-        stack: &stack,
-    }];
-    let e = r
-        .render_atlas(&tiles, &s, TargetFormat::Rgba32Float, 1)
-        .unwrap_err()
-        .to_string();
-    assert!(
-        e.contains("test.vector_passes") && e.contains("view pass"),
-        "{e}"
-    );
+    // an atlas draws many cameras in one submission: the view pass reruns before
+    // each tile whose camera differs from the last (here turned → s → turned → turned
+    // → s: three runs), and each tile is its single render
+    let cameras = [s, turned, turned, s];
+    let tiles: Vec<_> = cameras
+        .iter()
+        .map(|c| vwb_render::renderer::AtlasTile {
+            camera: c.camera,
+            stack: &stack,
+        })
+        .collect();
+    let atlas = r
+        .render_atlas(&tiles, &s, TargetFormat::Rgba32Float, 2)
+        .unwrap();
+    assert_eq!(atlas.volume_passes_run, 3);
+    for (i, cam) in cameras.iter().enumerate() {
+        runs(&mut r, &stack, cam);
+        let single: Vec<[f64; 4]> = r
+            .read_pixels()
+            .unwrap()
+            .2
+            .iter()
+            .map(|p| p.map(f64::from))
+            .collect();
+        let e = delta_e_rms(&atlas.tile_pixels(i), &single, 48, 48);
+        assert!(
+            e <= 0.01,
+            "tile {i}: ΔE*uv RMS {e} against its single render"
+        );
+    }
+    let (d, _) = diff(&rgb(&atlas.tile_pixels(0)), &rgb(&atlas.tile_pixels(1)));
+    assert!(d > 1e-3, "the tiles see different cameras: {d}");
 }

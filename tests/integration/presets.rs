@@ -97,6 +97,32 @@ fn round_trip_saves_only_non_default_parameters() {
         assert_eq!(a.enabled, b.enabled);
         assert_eq!(a.params, b.params);
     }
+    // every shipped preset saves and reloads to the same stack; a repeated group is
+    // saved as one list, as the shipped presets write it, never as its flat keys
+    for path in shipped_presets() {
+        let doc = Document::load(&path, &reg).unwrap().document;
+        let text = doc.to_ron();
+        let again = Document::parse(&text, "again.ron", &reg)
+            .unwrap_or_else(|e| panic!("{}: {e}\n{text}", path.display()))
+            .document;
+        assert_eq!(again.stack.len(), doc.stack.len());
+        for (a, b) in again.stack.iter().zip(&doc.stack) {
+            assert_eq!(a.params, b.params, "{}", path.display());
+            assert_eq!(a.enabled, b.enabled);
+        }
+    }
+    let path = repo().join("presets/ct_clip_quadrant.ron");
+    let text = Document::load(&path, &reg).unwrap().document.to_ron();
+    assert!(
+        text.contains("\"shape\": [") && !text.contains("shape0_"),
+        "{text}"
+    );
+    let path = repo().join("presets/ct_shade_iso.ron");
+    let text = Document::load(&path, &reg).unwrap().document.to_ron();
+    assert!(
+        text.contains("\"iso\": [") && !text.contains("iso0"),
+        "{text}"
+    );
 }
 
 /// Named volumes (`volumes:`) round-trip through a save, and relative file paths in

@@ -62,7 +62,15 @@ fn shipped_examples_load_and_render_with_an_effect() {
                 .to_string()
         })
         .collect();
-    assert_eq!(ids, ["shade.gooch", "shade.light_sweep", "shade.toon_lite"]);
+    assert_eq!(
+        ids,
+        [
+            "shade.gooch",
+            "shade.input_tint",
+            "shade.light_sweep",
+            "shade.toon_lite"
+        ]
+    );
     let s = settings(48, 48, Backend::Raster);
     let mut r = Renderer::new(gpu(), demo()).unwrap();
     let tf = instance("classify.tf1d");
@@ -95,9 +103,11 @@ fn shipped_examples_load_and_render_with_an_effect() {
             }
         }
     }
-    for (i, j) in [(0, 1), (0, 2), (1, 2)] {
-        let (rms, _) = diff(&images[i], &images[j]);
-        assert!(rms > 0.01, "examples {i} and {j} render alike (RMS {rms})");
+    for i in 0..images.len() {
+        for j in i + 1..images.len() {
+            let (rms, _) = diff(&images[i], &images[j]);
+            assert!(rms > 0.01, "examples {i} and {j} render alike (RMS {rms})");
+        }
     }
 }
 
@@ -291,4 +301,207 @@ fn a_user_plugin_declares_a_sweep_pass() {
         e.contains("light_sweep.wgsl") && e.contains("transmitt"),
         "{e}"
     );
+}
+
+/// A user plugin's `Volume` parameter binds a named volume input as a texture of its
+/// name, with no Rust. The shipped `input_tint` tints by a second volume: by the
+/// document's own when none is named; a named input that is zero everywhere tints
+/// nothing (the image is the plain one), and the demo under a name tints as the
+/// document's own. A pass copying the texture shows its layout for a 3-component
+/// input on a grid of its own: `.rgb` the components as stored, `.a` the magnitude
+/// normalised by the input's range. A wrong `components` is refused naming the file.
+#[test]
+fn a_user_plugin_reads_a_named_volume_input() {
+    use vwb_render::inputs::VolumeInputs;
+    use vwb_render::params::{ParamKind, ParamValue};
+    let p: Arc<dyn Plugin> = Arc::new(user::load(&example("input_tint")).unwrap());
+    let spec = p.params().into_iter().find(|s| s.key == "field").unwrap();
+    assert!(matches!(spec.kind, ParamKind::Volume { .. }));
+    assert_eq!(p.resources().len(), 1);
+    let tf = instance("classify.tf1d");
+    let mut r = Renderer::new(gpu(), demo()).unwrap();
+    let mut inputs = VolumeInputs::default();
+    let d = demo();
+    let zero = crate::common::synthetic(d.dims, |_, _, _| 0.0);
+    inputs.insert("zero", zero);
+    inputs.insert("same", d.clone());
+    r.set_inputs(inputs);
+    let tint = |field: &str| {
+        let mut i = PluginInstance::new(p.clone());
+        i.params.set("field", ParamValue::Volume(field.into()));
+        i
+    };
+    for backend in [Backend::Compute, Backend::Raster] {
+        let s = settings(48, 48, backend);
+        let mut frame =
+            |stack: &[PluginInstance]| rgb(&render(&mut r, stack, TargetFormat::Rgba32Float, &s));
+        let plain = frame(std::slice::from_ref(&tf));
+        let own = frame(&[tf.clone(), tint("")]);
+        let zero = frame(&[tf.clone(), tint("zero")]);
+        let same = frame(&[tf.clone(), tint("same")]);
+        let (tinted, _) = diff(&own, &plain);
+        assert!(tinted > 0.01, "{backend:?}: the tint shows (RMS {tinted})");
+        // (the raster pipeline with a shade hook rounds a little differently: 1.6e-4)
+        let (none, _) = diff(&zero, &plain);
+        assert!(
+            none < 1e-3,
+            "{backend:?}: a zero input tints nothing ({none})"
+        );
+        let (alike, _) = diff(&same, &own);
+        assert!(
+            alike < 1e-6,
+            "{backend:?}: the demo by name is the demo ({alike})"
+        );
+    }
+
+    // the texture's layout, for a vector input on a grid of its own
+    let dir = tmp("input_copy");
+    std::fs::create_dir_all(&dir).unwrap();
+    let manifest = r#"UserPlugin(id: "test.input_copy", name: "Input copy", shader: "copy.wgsl",
+        params: [Volume(key: "field", label: "Input", components: "vector")],
+        passes: [(target: "copied", entry: "copy_pass", format: "rgba32float")])"#;
+    std::fs::write(dir.join("plugin.ron"), manifest).unwrap();
+    std::fs::write(
+        dir.join("copy.wgsl"),
+        "fn copy_pass(voxel: vec3<u32>, dims: vec3<u32>, step: u32, prev: vec4<f32>) -> vec4<f32> {\n    return textureLoad(field, voxel, 0);\n}\n",
+    )
+    .unwrap();
+    let copy: Arc<dyn Plugin> = Arc::new(user::load(&dir).unwrap_or_else(|e| panic!("{e}")));
+    let dims = [9, 7, 5];
+    let field = vwb_render::volume::Volume::new(
+        "field",
+        dims,
+        3,
+        [2.0, 1.0, 0.5],
+        vwb_render::volume::VoxelData::F32(
+            (0..9 * 7 * 5 * 3)
+                .map(|i| ((i * 37 % 101) as f32 - 50.0) * 0.25)
+                .collect(),
+        ),
+    )
+    .unwrap();
+    let mut r = Renderer::new(gpu(), crate::common::synthetic(dims, |x, _, _| x as f32)).unwrap();
+    let mut inputs = VolumeInputs::default();
+    inputs.insert("wind", Arc::new(field.clone()));
+    r.set_inputs(inputs);
+    let mut inst = PluginInstance::new(copy);
+    inst.params.set("field", ParamValue::Volume("wind".into()));
+    render(
+        &mut r,
+        &[tf.clone(), inst.clone()],
+        TargetFormat::Rgba32Float,
+        &settings(16, 16, Backend::Compute),
+    );
+    let (got_dims, texels) = r.read_pass_target(inst.uid, "copied").unwrap();
+    assert_eq!(got_dims, dims);
+    let raw = field.components_f32();
+    let norm = field.normalized_scalars();
+    let mut worst = 0.0f32;
+    for (i, t) in texels.chunks_exact(4).enumerate() {
+        for c in 0..3 {
+            worst = worst.max((t[c] - raw[i * 3 + c]).abs());
+        }
+        worst = worst.max((t[3] - norm[i]).abs());
+    }
+    assert!(worst < 1e-5, "the texture's layout: worst {worst}");
+    assert!(norm.iter().any(|n| *n > 0.9) && norm.iter().any(|n| *n < 0.2));
+
+    let broken = std::fs::read_to_string(dir.join("plugin.ron"))
+        .unwrap()
+        .replace("\"vector\"", "\"vectors\"");
+    std::fs::write(dir.join("plugin.ron"), broken).unwrap();
+    let e = user::load(&dir).unwrap_err();
+    assert!(
+        e.contains("plugin.ron") && e.contains("'vectors' is not scalar, vector or any"),
+        "{e}"
+    );
+}
+
+/// A user plugin's pass may be progressive (`steps`: a count or an `Int` parameter):
+/// step i runs with `step` = i and reads its own previous texel, one step per frame
+/// under a refinement budget of 1, and the renderer reports the progress; a new step
+/// count restarts the refinement. Steps naming a parameter that is not an Int are
+/// refused naming the pass.
+#[test]
+fn a_user_plugin_declares_a_progressive_pass() {
+    use vwb_render::params::ParamValue;
+    let dir = tmp("progressive");
+    std::fs::create_dir_all(&dir).unwrap();
+    let manifest = r#"UserPlugin(id: "test.rounds", name: "Rounds", shader: "rounds.wgsl",
+        params: [Int(key: "rounds", label: "Rounds", min: 1, max: 16, default: 4),
+                 Float(key: "gain", label: "Gain", min: 0.0, max: 1.0, default: 0.5)],
+        passes: [(target: "sum", entry: "sum_pass", steps: "rounds", scale: 0.25)])"#;
+    std::fs::write(dir.join("plugin.ron"), manifest).unwrap();
+    // after step i the texel holds 1 + 2 + … + (i + 1)
+    std::fs::write(
+        dir.join("rounds.wgsl"),
+        "fn sum_pass(voxel: vec3<u32>, dims: vec3<u32>, step: u32, prev: vec4<f32>) -> vec4<f32> {\n    if (step == 0u) {\n        return vec4<f32>(1.0, 0.0, 0.0, 1.0);\n    }\n    return vec4<f32>(prev.x + f32(step + 1u), 0.0, 0.0, 1.0);\n}\n",
+    )
+    .unwrap();
+    let p: Arc<dyn Plugin> = Arc::new(user::load(&dir).unwrap_or_else(|e| panic!("{e}")));
+    assert!(p.volume_passes()[0].steps.is_some());
+    let tf = instance("classify.tf1d");
+    let mut inst = PluginInstance::new(p);
+    let mut r = Renderer::new(gpu(), demo()).unwrap();
+    r.set_refinement_budget(Some(1));
+    let s = settings(16, 16, Backend::Compute);
+    let mut sums = Vec::new();
+    for frame in 1..=5u32 {
+        render(
+            &mut r,
+            &[tf.clone(), inst.clone()],
+            TargetFormat::Rgba32Float,
+            &s,
+        );
+        let (_, texels) = r.read_pass_target(inst.uid, "sum").unwrap();
+        assert!(texels.iter().all(|t| *t == texels[0]));
+        sums.push(texels[0]);
+        assert_eq!(
+            r.refinement_progress(),
+            Some((frame.min(4), 4)),
+            "frame {frame}"
+        );
+    }
+    assert_eq!(sums, [1.0, 3.0, 6.0, 10.0, 10.0]);
+    assert!(!r.refining());
+    inst.params.set("rounds", ParamValue::Int(2));
+    r.set_refinement_budget(None);
+    render(
+        &mut r,
+        &[tf.clone(), inst.clone()],
+        TargetFormat::Rgba32Float,
+        &s,
+    );
+    assert_eq!(r.read_pass_target(inst.uid, "sum").unwrap().1[0], 3.0);
+    assert_eq!(r.refinement_progress(), Some((2, 2)));
+    // a parameter the pass does not depend on reruns nothing
+    inst.params.set("gain", ParamValue::Float(0.9));
+    r.update_stack(&[tf.clone(), inst.clone()], TargetFormat::Rgba32Float)
+        .unwrap();
+    let stats = r.render(&s).unwrap();
+    assert!(
+        stats.volume_passes_run.is_empty(),
+        "{:?}",
+        stats.volume_passes_run
+    );
+
+    let text = std::fs::read_to_string(dir.join("plugin.ron")).unwrap();
+    std::fs::write(
+        dir.join("plugin.ron"),
+        text.replace("steps: \"rounds\"", "steps: \"gain\""),
+    )
+    .unwrap();
+    let e = user::load(&dir).unwrap_err();
+    assert!(
+        e.contains("plugin.ron") && e.contains("pass 'sum': steps 'gain' is not an Int"),
+        "{e}"
+    );
+    std::fs::write(
+        dir.join("plugin.ron"),
+        text.replace("steps: \"rounds\"", "steps: 3"),
+    )
+    .unwrap();
+    let p = user::load(&dir).unwrap_or_else(|e| panic!("{e}"));
+    let steps = p.volume_passes()[0].steps.clone().unwrap();
+    assert_eq!(steps.count(&inst.params), 3);
 }

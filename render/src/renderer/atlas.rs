@@ -6,8 +6,10 @@
 //! tile's instances keep their own uniforms and resources (a variant's lookup table),
 //! each tile gets its own frame uniform and group-0 bind group, and the tiles are drawn
 //! one after another into the eye buffer and copied into the atlas texture inside one
-//! command encoder, submitted once. The images are those of [`Renderer::render`] with
-//! the same settings, tile by tile (tested).
+//! command encoder, submitted once. A stack's volume passes run once per variant; its
+//! view passes (those that read the camera) run again before each tile whose camera
+//! differs from the last one they ran with. The images are those of
+//! [`Renderer::render`] with the same settings, tile by tile (tested).
 
 use super::*;
 
@@ -157,16 +159,6 @@ impl Renderer {
                 "stacks with per-slice state render one view per submission".into(),
             ));
         }
-        if let Some((_, plugin)) = p
-            .stack
-            .iter()
-            .find(|(_, pl)| pl.volume_passes().iter().any(|d| d.camera))
-        {
-            return Err(RenderError::Atlas(format!(
-                "{} has a view pass (it depends on the camera): such stacks render one view per submission",
-                plugin.id()
-            )));
-        }
         let structure: Vec<(&'static str, u64)> =
             p.key.entries.iter().map(|(_, id, h)| (*id, *h)).collect();
         let compiled = p.compiled.clone();
@@ -247,19 +239,25 @@ impl Renderer {
             &views[0],
         );
 
-        // each distinct stack's out-of-date volume passes (a variant's own light
-        // volume), planned before anything is encoded: the plans may grow the
-        // slice-info buffer the passes index by step
+        // each tile's out-of-date volume passes (a variant's own light volume once per
+        // variant; a view pass again for each tile whose camera differs from the one
+        // its stack last ran with), planned in tile order before anything is encoded:
+        // the plans may grow the slice-info buffer the passes index by step
+        // (a stack without a view pass is planned once, at its first tile, so that a
+        // progressive pass takes one frame's budget per variant, as a single render)
         let mut planned = std::collections::HashSet::new();
-        let mut pass_plans = Vec::new();
-        for stack in &stacks {
+        let mut tile_plans: Vec<Vec<PassDispatch>> = Vec::with_capacity(stacks.len());
+        for (stack, view) in stacks.iter().zip(&views) {
             let uids: Vec<u64> = stack.iter().map(|(u, _)| *u).collect();
-            if compiled.volume_passes.is_empty() || !planned.insert(uids) {
-                continue;
-            }
-            // no view pass here (refused above): the camera does not matter
-            let plan = self.plan_volume_passes(&compiled, stack, 0);
-            pass_plans.push((stack.clone(), plan));
+            let viewed = stack
+                .iter()
+                .any(|(_, pl)| pl.volume_passes().iter().any(|d| d.camera));
+            let first = planned.insert(uids);
+            tile_plans.push(if compiled.volume_passes.is_empty() || !(first || viewed) {
+                Vec::new()
+            } else {
+                self.plan_volume_passes(&compiled, stack, camera_key(view))
+            });
         }
         let device = &self.gpu.device;
         let t = self.target.as_ref().expect("target exists");
@@ -291,11 +289,6 @@ impl Renderer {
             done.extend(dirty.iter().map(|i| stack[*i].0));
         }
         let mut volume_passes_run = 0;
-        for (stack, plan) in &pass_plans {
-            volume_passes_run += self
-                .encode_volume_passes(enc, &compiled, stack, plan, &mut |_, _| {})
-                .len();
-        }
         let g3 = device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("vwb group 3"),
             layout: &compiled.g3_layout,
@@ -363,6 +356,11 @@ impl Renderer {
                 &self.slice_info,
                 occupancy_texture.map_or(&self.occupancy.1, |o| &o.1),
             );
+            // this tile's passes, after the tiles before it were drawn: a view pass's
+            // target then holds this tile's camera while the tile is drawn
+            volume_passes_run += self
+                .encode_volume_passes(enc, &compiled, stack, &tile_plans[i], &g0, &mut |_, _| {})
+                .len();
             let g1 = self.group1_for(&compiled, &uids);
             {
                 let mut pass = enc.begin_compute_pass(&Default::default());
