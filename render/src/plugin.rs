@@ -938,6 +938,12 @@ pub enum Transparency {
     /// (min, max) can be kept. It must be conservative (answer true when unsure).
     /// Bricks wholly outside are skipped.
     Region(Arc<RegionFn>),
+    /// Keeps (as [`Transparency::Keeps`]), but moves each sample along its ray by at
+    /// most this many slice steps before the later hooks read it (`sample.jitter`): a
+    /// sample in an empty brick may move into an occupied one, so the occupancy grid
+    /// is dilated by that distance (in bricks, at the frame's slice spacing) and
+    /// skipping stays exact.
+    Moves(f64),
 }
 
 /// Whether some point of a world box (min, max) can lie in a plugin's region.

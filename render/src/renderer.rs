@@ -36,7 +36,9 @@ use crate::params::ParamValues;
 use crate::plugin::{
     Category, GpuInit, GpuResource, PassTarget, Plugin, PluginError, PluginInstance,
 };
-use crate::skipping::{BrickRanges, clear_outside_regions, stack_regions, stack_visibility};
+use crate::skipping::{
+    BrickRanges, clear_outside_regions, move_apron, stack_moves, stack_regions, stack_visibility,
+};
 use crate::slicing::{SliceError, SlicePlan, VolumeBox};
 use crate::volume::Volume;
 
@@ -892,6 +894,16 @@ pub struct Renderer {
     occupancy: (wgpu::Texture, wgpu::TextureView),
     /// The occupancy bytes uploaded, when skipping is active.
     occupancy_bytes: Option<Vec<u8>>,
+    /// The stack the occupancy was made for, and the apron of the brick ranges it was
+    /// made from (wider than 1 for samples its plugins move,
+    /// [`crate::plugin::Transparency::Moves`]): a frame at another slice spacing makes
+    /// it again when the apron changes.
+    occupancy_stack: Vec<PluginInstance>,
+    /// How far its plugins move samples (slice steps; [`stack_moves`]).
+    occupancy_moves: f64,
+    occupancy_apron: u32,
+    /// Brick ranges with a wider apron, for stacks that move samples (by apron).
+    moved_ranges: std::sync::Mutex<Option<(u32, Arc<BrickRanges>)>>,
     /// The user's switch (on by default).
     skipping_enabled: bool,
     /// WGSL replacing a plugin file's built-in source (the window's shader editor).
@@ -1144,6 +1156,10 @@ impl Renderer {
             bricks,
             occupancy,
             occupancy_bytes: None,
+            occupancy_stack: Vec::new(),
+            occupancy_moves: 0.0,
+            occupancy_apron: 1,
+            moved_ranges: Default::default(),
             skipping_enabled: true,
             shader_overrides: Default::default(),
             main_workgroup,
@@ -1366,6 +1382,9 @@ impl Renderer {
     fn install(&mut self, upload: bricks::Upload, volume: &Volume) {
         (self.volume_view, self.volume_bytes, self.bricks, self.split) =
             upload.into_parts(&self.gpu, volume);
+        if let Ok(mut cache) = self.moved_ranges.lock() {
+            *cache = None;
+        }
         self.counters.volume_uploads += self.split.is_none() as u64;
         self.instances.clear();
         self.pipelines = None;
@@ -1450,19 +1469,52 @@ impl Renderer {
             return None;
         }
         let visible = stack_visibility(stack)?;
-        let mut bytes = self.bricks.occupancy(&*visible);
+        // a moved sample may read beyond its brick: ranges over a wider apron, and
+        // regions widened by the move
+        let moves = stack_moves(stack);
+        let apron = move_apron(moves, self.slice_spacing);
+        let mut bytes = match self.ranges_with_apron(apron) {
+            Some(ranges) => ranges.occupancy(&*visible),
+            None => self.bricks.occupancy(&*visible),
+        };
         clear_outside_regions(
             &mut bytes,
             self.bricks.dims,
             self.volume.dims,
             (self.vbox.min.as_dvec3(), self.vbox.max.as_dvec3()),
             &stack_regions(stack, &self.volume),
+            moves * self.slice_spacing as f64 * self.vbox.voxel as f64,
         );
         Some(bytes)
     }
 
+    /// The brick ranges over an apron of `apron` voxels (None for 1: `self.bricks`),
+    /// made once per apron and volume.
+    fn ranges_with_apron(&self, apron: u32) -> Option<Arc<BrickRanges>> {
+        if apron <= 1 || self.split.is_some() {
+            return None;
+        }
+        let mut cache = self.moved_ranges.lock().ok()?;
+        if let Some((a, r)) = cache.as_ref()
+            && *a == apron
+        {
+            return Some(r.clone());
+        }
+        let ranges = Arc::new(BrickRanges::with_apron(
+            self.volume.dims,
+            &self.volume.normalized_scalars(),
+            crate::skipping::brick(),
+            apron,
+        ));
+        *cache = Some((apron, ranges.clone()));
+        Some(ranges)
+    }
+
     /// Recomputes the occupancy for the stack and uploads it when it changed.
     fn update_occupancy(&mut self, stack: &[PluginInstance]) {
+        self.occupancy_stack = stack.to_vec();
+        self.occupancy_moves = stack_moves(stack);
+        self.occupancy_apron = move_apron(self.occupancy_moves, self.slice_spacing);
         let bytes = self.occupancy_of(stack);
         if bytes == self.occupancy_bytes {
             return;
@@ -3091,6 +3143,12 @@ impl Renderer {
         let view = s.camera.view(s.width as f32 / s.height as f32);
         let plan = SlicePlan::new(&view, self.lattice_box(), s.slice_spacing)?;
         let spacing_updates = self.sync_spacing(plan.spacing / self.vbox.voxel)?;
+        // the occupancy's apron for moved samples follows the slice spacing
+        let moves = self.occupancy_moves;
+        if moves > 0.0 && move_apron(moves, self.slice_spacing) != self.occupancy_apron {
+            let stack = std::mem::take(&mut self.occupancy_stack);
+            self.update_occupancy(&stack);
+        }
         self.ensure_target(s.width, s.height, target_format)?;
         // the copy of the eye buffer that a raster post pass reads; freed for stacks
         // without one

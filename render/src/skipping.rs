@@ -58,14 +58,21 @@ impl BrickRanges {
 
     /// [`BrickRanges::new`] in bricks of `side` voxels.
     pub fn with_side(dims: [u32; 3], scalars: &[f32], side: u32) -> Self {
+        Self::with_apron(dims, scalars, side, 1)
+    }
+
+    /// [`BrickRanges::with_side`] with each brick's range taken over `apron` voxels
+    /// beyond it on every side (1: what a trilinear sample inside it reads; more for
+    /// samples that plugins move, [`move_apron`]).
+    pub fn with_apron(dims: [u32; 3], scalars: &[f32], side: u32, apron: u32) -> Self {
         let side = side.max(1);
         let bdims = dims.map(|d| d.div_ceil(side).max(1));
         let at = |x: u32, y: u32, z: u32| {
             scalars[((z as usize * dims[1] as usize) + y as usize) * dims[0] as usize + x as usize]
         };
         let span = |b: u32, axis: usize| {
-            let lo = (b * side).saturating_sub(1);
-            let hi = ((b + 1) * side).min(dims[axis] - 1);
+            let lo = (b * side).saturating_sub(apron);
+            let hi = ((b + 1) * side + apron - 1).min(dims[axis] - 1);
             lo..=hi
         };
         let count = (bdims[0] * bdims[1] * bdims[2]) as usize;
@@ -238,19 +245,21 @@ pub fn occupied_cells(
 
 /// Marks empty (0) every brick of `occupancy` that lies wholly outside one of the
 /// `regions`: a brick of a volume of `dims` voxels in the world box `(lo, hi)` covers
-/// the samples whose `tex · dims` lies in it, widened by [`REGION_MARGIN`] of the box.
+/// the samples whose `tex · dims` lies in it, widened by [`REGION_MARGIN`] of the box
+/// and by `widen` (world units: how far a plugin moves samples).
 pub fn clear_outside_regions(
     occupancy: &mut [u8],
     bricks: [u32; 3],
     dims: [u32; 3],
     (lo, hi): (DVec3, DVec3),
     regions: &[Arc<RegionFn>],
+    widen: f64,
 ) {
     if regions.is_empty() {
         return;
     }
     let extent = hi - lo;
-    let margin = extent * REGION_MARGIN;
+    let margin = extent * REGION_MARGIN + DVec3::splat(widen.max(0.0));
     let d = DVec3::from(dims.map(|n| n.max(1) as f64));
     occupancy.par_iter_mut().enumerate().for_each(|(i, o)| {
         let b = DVec3::new(
@@ -277,15 +286,85 @@ pub fn stack_visibility(stack: &[PluginInstance]) -> Option<Arc<VisibleFn>> {
     for inst in stack.iter().filter(|i| i.enabled) {
         match inst.configured().transparency(&inst.params) {
             Transparency::Unknown => return None,
-            Transparency::Keeps | Transparency::Region(_) => {}
+            Transparency::Keeps | Transparency::Region(_) | Transparency::Moves(_) => {}
             Transparency::ByValue(f) => visible = f,
         }
     }
     Some(visible)
 }
 
+/// How far the enabled instances move samples along their rays, in slice steps: the
+/// largest [`Transparency::Moves`] (0 when none does).
+pub fn stack_moves(stack: &[PluginInstance]) -> f64 {
+    stack
+        .iter()
+        .filter(|i| i.enabled)
+        .filter_map(|i| match i.configured().transparency(&i.params) {
+            Transparency::Moves(steps) => Some(steps.max(0.0)),
+            _ => None,
+        })
+        .fold(0.0, f64::max)
+}
+
+/// The apron (voxels) of the brick ranges that keeps skipping exact when samples move
+/// by up to `steps` slice steps of `spacing` voxels: a move of d voxels along the ray
+/// changes each voxel coordinate by at most d, so a sample tested in brick B reads
+/// voxels up to ⌈d⌉ beyond B's usual one-voxel apron.
+pub fn move_apron(steps: f64, spacing: f32) -> u32 {
+    let d = steps * spacing.max(0.0) as f64;
+    1 + if d > 0.0 { d.ceil() as u32 } else { 0 }
+}
+
 #[cfg(test)]
 mod tests {
+    /// A wider apron holds the values a moved sample reads: at apron 1 + ⌈d⌉, every
+    /// trilinear sample at a voxel coordinate up to d outside a brick lies within that
+    /// brick's range; at apron 1 some do not.
+    #[test]
+    fn a_wider_apron_covers_moved_samples() {
+        assert_eq!(super::move_apron(0.0, 4.0), 1);
+        assert_eq!(super::move_apron(0.5, 1.0), 2);
+        assert_eq!(super::move_apron(0.5, 3.0), 3);
+        let dims = [20u32, 18, 17];
+        let mut rng = crate::rng::Rng::at(7, 0);
+        let scalars: Vec<f32> = (0..dims.iter().product::<u32>())
+            .map(|_| rng.uniform() as f32)
+            .collect();
+        let side = 8;
+        let at = |v: [i64; 3]| {
+            let c = |a: usize| v[a].clamp(0, dims[a] as i64 - 1) as usize;
+            scalars[(c(2) * dims[1] as usize + c(1)) * dims[0] as usize + c(0)]
+        };
+        // the voxels a trilinear sample at voxel coordinate x reads
+        let read = |x: [f64; 3]| {
+            let f = x.map(|c| (c - 0.5).floor() as i64);
+            let mut out = Vec::new();
+            for k in 0..8 {
+                out.push(at([
+                    f[0] + (k & 1),
+                    f[1] + ((k >> 1) & 1),
+                    f[2] + ((k >> 2) & 1),
+                ]));
+            }
+            out
+        };
+        for (d, apron, covered) in [(0.0, 1, true), (1.5, 1, false), (1.5, 3, true)] {
+            let ranges = super::BrickRanges::with_apron(dims, &scalars, side, apron);
+            let mut all = true;
+            for _ in 0..4000 {
+                let x: [f64; 3] = std::array::from_fn(|a| rng.uniform() * dims[a] as f64);
+                let b: [u32; 3] = std::array::from_fn(|a| (x[a] as u32) / side);
+                let bi = ((b[2] * ranges.dims[1] + b[1]) * ranges.dims[0] + b[0]) as usize;
+                let [lo, hi] = ranges.ranges[bi];
+                let moved: [f64; 3] = std::array::from_fn(|a| {
+                    (x[a] + (rng.uniform() * 2.0 - 1.0) * d).clamp(0.0, dims[a] as f64)
+                });
+                all &= read(moved).iter().all(|v| *v >= lo && *v <= hi);
+            }
+            assert_eq!(all, covered, "move {d}, apron {apron}");
+        }
+    }
+
     /// Every occupied brick lies in exactly one box, the boxes are disjoint, cells
     /// without an occupied brick give none, and one cell over the grid is the bounding box.
     #[test]

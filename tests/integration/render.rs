@@ -672,6 +672,76 @@ fn empty_space_skipping_leaves_images_unchanged() {
     }
 }
 
+/// A plugin that moves samples along their rays (`sample.jitter`, a promise of
+/// `Transparency::Moves`) keeps empty-space skipping on and exact: the brick ranges
+/// are taken over an apron widened by the move at the frame's slice spacing (2 voxels
+/// at spacing 1, 21 at 40) and clip regions are widened alike, so the compute images
+/// with skipping on and off are equal bit for bit, also after the spacing changes on
+/// the same renderer, while bricks are skipped (at spacing 1 nearly as many as
+/// without jitter). Without the wider apron, spacing 40 differs.
+#[test]
+fn jitter_keeps_skipping_exact() {
+    let mut jitter = instance("sample.jitter");
+    jitter.params.set("amount", ParamValue::Float(1.0));
+    let mut clip = instance("clip.shapes");
+    clip.params
+        .set("shape0_kind", ParamValue::Enum("sphere".into()));
+    clip.params
+        .set("shape0_size", ParamValue::Vec3([0.3, 0.3, 0.3]));
+    for stack in [
+        vec![jitter.clone(), instance("classify.tf1d")],
+        vec![jitter.clone(), instance("classify.tf1d"), clip],
+    ] {
+        jitter_skipping_case(&stack);
+    }
+}
+
+fn jitter_skipping_case(stack: &[vwb_render::PluginInstance]) {
+    let mut renderers = [true, false].map(|on| {
+        let mut r = Renderer::new(gpu(), demo()).unwrap();
+        r.set_empty_space_skipping(on);
+        r
+    });
+    for spacing in [1.0f32, 3.0, 40.0, 1.0] {
+        for backend in [Backend::Compute, Backend::Raster] {
+            let s = FrameSettings {
+                slice_spacing: spacing,
+                ..settings(64, 64, backend)
+            };
+            let images = renderers
+                .each_mut()
+                .map(|r| render(r, stack, TargetFormat::Rgba32Float, &s));
+            assert!(images[0].iter().any(|p| p[3] > 0.1), "something shows");
+            if backend == Backend::Raster {
+                // the raster polygons stop at the visible box: the same samples, their
+                // positions interpolated over other triangles (as for the presets)
+                let (rms, max) = diff(&rgb(&images[0]), &rgb(&images[1]));
+                assert!(
+                    rms < 0.25 * ONE_LEVEL && max < adapter_bound(12.0, 32.0) * ONE_LEVEL,
+                    "raster, spacing {spacing}: RMS {:.3}, max {:.1} levels",
+                    rms / ONE_LEVEL,
+                    max / ONE_LEVEL
+                );
+                continue;
+            }
+            assert_eq!(images[0], images[1], "spacing {spacing}");
+            let share = renderers[0].empty_brick_share().expect("skipping is on");
+            eprintln!(
+                "jitter at spacing {spacing}: {:.0} % of bricks skipped",
+                share * 100.0
+            );
+            // 40 voxels: a move of up to 20 widens the apron to 21 voxels (and the
+            // clip regions by as much), which leaves little to skip
+            if spacing < 40.0 {
+                assert!(share > 0.3, "spacing {spacing}: {share}");
+            } else {
+                assert!(share < 0.3, "spacing {spacing}: {share}");
+            }
+            assert!(renderers[1].empty_brick_share().is_none());
+        }
+    }
+}
+
 /// How the volume is stored (issue 23, item 4): r16unorm and r16float render the demo
 /// within small bounds of r32float (`auto` is r32float where the adapter filters it);
 /// a format change uploads the volume again only when it changes what is stored; a

@@ -10,12 +10,16 @@
 //!
 //! The offset is centred (amount·(u − ½) of the step), so that on average the samples
 //! stay where the slices are. It does not split into bricks (a moved sample may read
-//! beyond its brick) and makes no transparency promise (a moved sample may leave an
-//! empty brick), so empty-space skipping is off while it is enabled.
+//! beyond its brick). Its transparency promise is [`Transparency::Moves`] by amount/2
+//! steps: a moved sample may leave an empty brick, so the renderer dilates the
+//! occupancy grid by that distance and empty-space skipping stays on and exact (before
+//! session 49 skipping was off while it was enabled, up to 1.6× the frame).
 
 use glam::{DVec2, DVec4};
 use vwb_render::params::{ParamSpec, ParamValues};
-use vwb_render::plugin::{CpuContext, CpuRay, CpuSample, CpuTwin, Plugin, ShaderSource};
+use vwb_render::plugin::{
+    CpuContext, CpuRay, CpuSample, CpuTwin, Plugin, ShaderSource, Transparency,
+};
 
 #[cfg(test)]
 mod tests;
@@ -50,6 +54,10 @@ impl Plugin for Jitter {
             "plugins/src/sample_jitter/jitter.wgsl",
             include_str!("jitter.wgsl"),
         )
+    }
+    fn transparency(&self, params: &ParamValues) -> Transparency {
+        // |amount·(u − ½)| < amount/2 of a step
+        Transparency::Moves(0.5 * params.float("amount").abs() as f64)
     }
     fn splits_into_bricks(&self) -> bool {
         false
