@@ -657,6 +657,11 @@ pub fn run_render(preset: Option<&std::path::Path>, a: &RenderArgs) -> Result<()
             gpu.info.name
         );
         measure::print_timing(&t);
+        // how much of the volume empty-space skipping can pass over (bench/scaling.py)
+        match r.empty_brick_share() {
+            Some(share) => println!("empty_bricks {:.4}", share),
+            None => println!("empty_bricks off"),
+        }
     }
     Ok(())
 }

@@ -108,7 +108,7 @@ pub fn summary(g: &Gallery) -> String {
     let mut s = String::new();
     let _ = write!(
         s,
-        "{} thumbnails in {:.0} ms ({:.1}/s); {} chosen: min pairwise ΔE*uv {:.2} against {:.2} for {} drawn at random ({:.2}×)",
+        "{} thumbnails in {:.0} ms ({:.1}/s); {} chosen: min pairwise ΔE*uv {:.2} against {:.2} for {} drawn at random ({})",
         g.rendered,
         g.render_ms,
         g.rendered as f64 / (g.render_ms / 1e3),
@@ -116,7 +116,12 @@ pub fn summary(g: &Gallery) -> String {
         g.dispersion,
         g.random_dispersion,
         g.chosen.len(),
-        g.dispersion / g.random_dispersion.max(1e-12)
+        // two random draws that look alike (e.g. both empty) leave no ratio to give
+        if g.random_dispersion > 1e-6 {
+            format!("{:.2}×", g.dispersion / g.random_dispersion)
+        } else {
+            "no ratio: two of the random draws look alike".to_string()
+        }
     );
     s
 }

@@ -1007,6 +1007,71 @@ fn atlas_runs_volume_passes_of(id: &str, least_passes: usize) {
     assert_eq!(again.pixels, atlas.pixels);
 }
 
+/// An atlas of variants with per-slice state (TF variants under directional occlusion
+/// shading) is drawn tile by tile, and each tile equals its single render on a fresh
+/// renderer; `encode_atlas` (one submission) still refuses such a stack, and a design
+/// gallery on the DOS demo preset runs (it failed before session 49).
+#[test]
+fn an_atlas_of_per_slice_variants_matches_their_single_renders() {
+    let variants: Vec<_> = tf_variants(4)
+        .into_iter()
+        .map(|(camera, mut stack)| {
+            stack.push(instance("shade.dos"));
+            (camera, stack)
+        })
+        .collect();
+    let s = settings(32, 32, Backend::Compute);
+    let t = TargetFormat::Rgba32Float;
+    let tiles = atlas_tiles(&variants);
+    let mut r = Renderer::new(gpu(), demo()).unwrap();
+    let atlas = r.render_atlas(&tiles, &s, t, 3).unwrap();
+    assert_eq!((atlas.cols, atlas.rows, atlas.tiles), (3, 2, 4));
+    for (i, (camera, stack)) in variants.iter().enumerate() {
+        let mut single_r = Renderer::new(gpu(), demo()).unwrap();
+        single_r.update_stack(stack, t).unwrap();
+        let stats = single_r
+            .render(&FrameSettings {
+                camera: *camera,
+                ..s
+            })
+            .unwrap();
+        assert!(stats.per_slice_mode);
+        let single = single_r.read_pixels().unwrap().2;
+        let reference: Vec<[f64; 4]> = single.iter().map(|p| p.map(f64::from)).collect();
+        let rms = delta_e_rms(&atlas.tile_pixels(i), &reference, 32, 32);
+        assert!(rms <= 0.01, "tile {i}: ΔE*uv RMS {rms}");
+        if i > 0 {
+            let (d, _) = diff(&rgb(&atlas.tile_pixels(i)), &rgb(&atlas.tile_pixels(i - 1)));
+            assert!(d > 1e-3, "tiles {} and {i} differ", i - 1);
+        }
+    }
+    let mut enc = gpu().device.create_command_encoder(&Default::default());
+    let e = r.encode_atlas(&mut enc, &tiles, &s, t, 3).unwrap_err();
+    assert!(e.to_string().contains("per-slice state"), "{e}");
+
+    // a gallery on a DOS preset
+    let doc = Document::load(&repo().join("presets/demo_dos.ron"), &registry())
+        .unwrap()
+        .document;
+    let mut r = vwb_lab::headless::renderer_for(gpu(), &doc, demo()).unwrap();
+    let thumbs = vwb_render::search::gallery::thumbnails(
+        &mut r,
+        &doc.stack,
+        &[vwb_render::search::genome::Genome::random(
+            vwb_render::search::genome::Space::Tf1d,
+            &mut vwb_render::rng::Rng::at(3, 0),
+            2,
+        )],
+        &[doc.camera],
+        16,
+        2.0,
+        [0.0; 3],
+        8,
+    )
+    .unwrap();
+    assert_eq!((thumbs.len(), thumbs[0].len()), (1, 1));
+}
+
 /// Many views in one submission: 64 TF variants from four viewpoints at 128², one
 /// atlas, one command encoder. Each tile is its single render (ΔE*uv RMS ≤ 0.01); the
 /// speed against 64 single renders is `bash bench/atlas.sh`'s (docs/perf.md).

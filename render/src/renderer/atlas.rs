@@ -74,10 +74,12 @@ impl Atlas {
 impl Renderer {
     /// Renders every tile into one atlas with one command encoder and one submission.
     /// `s` gives the tile size, slice spacing and early termination (its camera is each
-    /// tile's); the backend must be compute and the stack without per-slice state. The
-    /// tiles' stacks must share one structure: the same enabled plugins with the same
-    /// structural values in the same order; their parameter values and instances
-    /// differ. Afterwards the renderer draws the first tile's stack.
+    /// tile's); the backend must be compute. The tiles' stacks must share one
+    /// structure: the same enabled plugins with the same structural values in the same
+    /// order; their parameter values and instances differ. A stack with per-slice
+    /// state (`shade.dos`) is drawn tile by tile instead, one frame and one submission
+    /// per tile, into the same atlas ([`Renderer::encode_atlas`] refuses it).
+    /// Afterwards the renderer draws the first tile's stack.
     pub fn render_atlas(
         &mut self,
         tiles: &[AtlasTile],
@@ -86,6 +88,19 @@ impl Renderer {
         cols: u32,
     ) -> Result<Atlas, RenderError> {
         let start = Instant::now();
+        if s.backend == Backend::Compute
+            && self.split.is_none()
+            && let Some(first) = tiles.first()
+        {
+            self.update_stack(first.stack, target)?;
+            if self
+                .pipelines
+                .as_ref()
+                .is_some_and(|p| !p.updates.is_empty())
+            {
+                return self.render_tiles_one_by_one(tiles, s, target, cols, start);
+            }
+        }
         let mut enc = self
             .gpu
             .device
@@ -103,6 +118,57 @@ impl Renderer {
             wall_ms: start.elapsed().as_secs_f64() * 1e3,
             prepasses_run: encoded.prepasses_run,
             volume_passes_run: encoded.volume_passes_run,
+        })
+    }
+
+    /// The atlas of a stack with per-slice state: each tile's frame rendered and read
+    /// back in turn (its slices are a chain of dispatches over the tile's own slice
+    /// plan and state buffers, which one encoder cannot interleave across tiles yet).
+    fn render_tiles_one_by_one(
+        &mut self,
+        tiles: &[AtlasTile],
+        s: &FrameSettings,
+        target: TargetFormat,
+        cols: u32,
+        start: Instant,
+    ) -> Result<Atlas, RenderError> {
+        if cols == 0 {
+            return Err(RenderError::Atlas(
+                "an atlas needs at least one tile and one column".into(),
+            ));
+        }
+        let rows = tiles.len().div_ceil(cols as usize) as u32;
+        let (tw, th) = (s.width as usize, s.height as usize);
+        let width = tw * cols as usize;
+        let mut pixels = vec![[0.0f32; 4]; width * th * rows as usize];
+        let (mut prepasses_run, mut volume_passes_run) = (0, 0);
+        for (i, tile) in tiles.iter().enumerate() {
+            self.update_stack(tile.stack, target)?;
+            let stats = self.render(&FrameSettings {
+                camera: tile.camera,
+                ..*s
+            })?;
+            prepasses_run += stats.prepasses.len();
+            volume_passes_run += stats.volume_passes_run.len();
+            let (_, _, px) = self
+                .read_pixels()
+                .ok_or_else(|| RenderError::Atlas("the eye buffer is missing".into()))?;
+            let (x0, y0) = ((i % cols as usize) * tw, (i / cols as usize) * th);
+            for y in 0..th {
+                let at = (y0 + y) * width + x0;
+                pixels[at..at + tw].copy_from_slice(&px[y * tw..(y + 1) * tw]);
+            }
+        }
+        self.update_stack(tiles[0].stack, target)?;
+        Ok(Atlas {
+            cols,
+            rows,
+            tile: [s.width, s.height],
+            tiles: tiles.len(),
+            pixels,
+            wall_ms: start.elapsed().as_secs_f64() * 1e3,
+            prepasses_run,
+            volume_passes_run,
         })
     }
 
