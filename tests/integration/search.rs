@@ -1116,6 +1116,10 @@ fn inverse_run(
         },
     )
     .unwrap();
+    eprintln!(
+        "{preset}: best {:?}\nhidden {hidden:?}",
+        h.last().map(|g| &g.best)
+    );
     (h, t0.elapsed().as_secs_f64())
 }
 
@@ -1124,7 +1128,7 @@ fn inverse_run(
 /// search around the best") comes from it. `inverse_benchmark` gives the issue's
 /// figures.
 #[test]
-#[ignore = "measurement: SEED=n bash bench/ignored_test.sh inverse_demo"]
+#[ignore = "measurement: SEED=n [CASE=i] bash bench/ignored_test.sh inverse_demo"]
 fn inverse_demo() {
     let seed: u64 = std::env::var("SEED").map_or(1, |s| s.parse().unwrap());
     let o = vwb_render::search::genetic::GaOptions {
@@ -1134,7 +1138,10 @@ fn inverse_demo() {
         seed,
         ..Default::default()
     };
-    let (name, hidden) = inverse_cases().pop().unwrap();
+    // CASE=i picks inverse_cases()[i] (default: the demo, the last)
+    let mut cases = inverse_cases();
+    let case = std::env::var("CASE").map_or(cases.len() - 1, |s| s.parse().unwrap());
+    let (name, hidden) = cases.swap_remove(case);
     let (h, secs) = inverse_run(name, &hidden, &o);
     eprintln!(
         "{name}: {:.2} → {:.2} in {secs:.1} s\nbest {:?}\nhidden {hidden:?}",

@@ -412,6 +412,16 @@ impl Ga {
                     next.push(g);
                 }
             }
+            // and the structure: each primitive left out, a few random ones added
+            let mut rng = Rng::at(seed ^ 0x5EED_57A7, generation as u64);
+            for g in poll
+                .centre
+                .structure_variants(self.options.max_primitives, 4, &mut rng)
+            {
+                if next.len() < pop {
+                    next.push(g);
+                }
+            }
         }
         let mut k = 0u64;
         while next.len() < pop {

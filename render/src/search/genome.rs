@@ -444,6 +444,32 @@ fn shape_variants<P: Primitive>(ps: &[P]) -> Vec<Vec<P>> {
     out
 }
 
+/// The list without each of its primitives in turn (none for a single primitive), then
+/// with `adds` random primitives added one at a time (below `max`).
+fn structure_variants<P: Primitive>(
+    ps: &[P],
+    max: usize,
+    adds: usize,
+    rng: &mut Rng,
+) -> Vec<Vec<P>> {
+    let mut out = Vec::new();
+    if ps.len() > 1 {
+        for i in 0..ps.len() {
+            let mut g = ps.to_vec();
+            g.remove(i);
+            out.push(g);
+        }
+    }
+    if ps.len() < max.min(MAX_PRIMITIVES) {
+        for _ in 0..adds {
+            let mut g = ps.to_vec();
+            g.push(P::random(rng));
+            out.push(g);
+        }
+    }
+    out
+}
+
 impl Genome {
     pub fn space(&self) -> Space {
         match self {
@@ -590,6 +616,21 @@ impl Genome {
         }
     }
 
+    /// The genome's structural neighbours: without each primitive in turn, and with
+    /// `adds` random primitives added (while it has fewer than `max`).
+    pub(crate) fn structure_variants(&self, max: usize, adds: usize, rng: &mut Rng) -> Vec<Genome> {
+        match self {
+            Genome::Tf1d(p) => structure_variants(p, max, adds, rng)
+                .into_iter()
+                .map(Genome::Tf1d)
+                .collect(),
+            Genome::Tf2d(p) => structure_variants(p, max, adds, rng)
+                .into_iter()
+                .map(Genome::Tf2d)
+                .collect(),
+        }
+    }
+
     /// Checks the genome as its plugin checks its `tf` (the message names the
     /// offending part).
     pub fn validate(&self) -> Result<(), String> {
@@ -608,6 +649,36 @@ impl Genome {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Structure variants leave out each primitive in turn and add random ones while
+    /// there is room; the same draws give the same variants.
+    #[test]
+    fn structure_variants_drop_and_add_primitives() {
+        for space in [Space::Tf1d, Space::Tf2d] {
+            let mut rng = Rng::at(9, 0);
+            let g = loop {
+                let g = Genome::random(space, &mut rng, 3);
+                if g.len() == 3 {
+                    break g;
+                }
+            };
+            let v = g.structure_variants(4, 2, &mut Rng::at(1, 1));
+            assert_eq!(v.len(), 3 + 2);
+            for (i, d) in v[..3].iter().enumerate() {
+                assert_eq!(d.len(), 2);
+                let mut want = g.clone();
+                each!(&mut want, p => { p.remove(i); });
+                assert_eq!(d, &want);
+            }
+            for a in &v[3..] {
+                assert_eq!(a.len(), 4);
+                a.validate().unwrap();
+            }
+            assert_eq!(v, g.structure_variants(4, 2, &mut Rng::at(1, 1)));
+            // at the most primitives: drops only
+            assert_eq!(g.structure_variants(3, 2, &mut Rng::at(1, 1)).len(), 3);
+        }
+    }
 
     #[test]
     fn curve_round_trip_is_exact_and_refuses_what_it_cannot_hold() {
