@@ -11,6 +11,8 @@
 //! ref = s.converged(size=(128, 128))
 //! vwb.compare(img, ref)["rms_delta_e"]
 //! rows = vwb.run_experiment("experiments/classification.ron", out="out/cls")
+//! vwb.load_plugins("examples/plugins")              # WGSL plugins, no rebuild
+//! s.add("shade.gooch")                              # or s.add(id, replace="shade.blinn_phong")
 //! ```
 
 use std::path::PathBuf;
@@ -87,7 +89,9 @@ impl Scene {
         let mut d = self.doc.clone();
         if let Some((w, h)) = size {
             if !((1..=16384).contains(&w) && (1..=16384).contains(&h)) {
-                return Err(PyValueError::new_err(format!("size {w}x{h} is outside 1..=16384")));
+                return Err(PyValueError::new_err(format!(
+                    "size {w}x{h} is outside 1..=16384"
+                )));
             }
             d.render.size = [w, h];
         }
@@ -104,7 +108,8 @@ impl Scene {
 
     fn renderer(&mut self, d: &Document) -> PyResult<&mut Renderer> {
         if self.renderer.is_none() {
-            self.renderer = Some(headless::renderer_for(gpu()?, d, self.volume.clone()).map_err(err)?);
+            self.renderer =
+                Some(headless::renderer_for(gpu()?, d, self.volume.clone()).map_err(err)?);
         }
         let r = self.renderer.as_mut().expect("just made");
         r.set_volume_format(d.render.volume_format)
@@ -157,7 +162,46 @@ impl Scene {
                 "'{key}': use a bool, a number, a string or a sequence of numbers"
             )));
         };
-        experiment::set_value(&mut self.doc, key, &v).map_err(|e| PyValueError::new_err(e.to_string()))
+        experiment::set_value(&mut self.doc, key, &v)
+            .map_err(|e| PyValueError::new_err(e.to_string()))
+    }
+
+    /// Adds the plugin `id` (built in, or a user plugin from [`load_plugins`]) with
+    /// its defaults: in place of the plugin `replace` where given (a swap, as
+    /// experiment files' `swap:`), else at the end of the stack.
+    #[pyo3(signature = (id, replace=None))]
+    fn add(&mut self, id: &str, replace: Option<&str>) -> PyResult<()> {
+        let plugin = vwb_plugins::registry()
+            .get(id)
+            .map_err(|e| PyValueError::new_err(e.to_string()))?;
+        let inst = vwb_render::PluginInstance::new(plugin);
+        match replace {
+            Some(old) => {
+                let at = self
+                    .doc
+                    .stack
+                    .iter()
+                    .position(|i| i.plugin.id() == old)
+                    .ok_or_else(|| {
+                        PyValueError::new_err(format!("the stack has no plugin '{old}' to replace"))
+                    })?;
+                self.doc.stack[at] = inst;
+            }
+            None => self.doc.stack.push(inst),
+        }
+        Ok(())
+    }
+
+    /// Removes the plugin `id` from the stack.
+    fn remove(&mut self, id: &str) -> PyResult<()> {
+        let before = self.doc.stack.len();
+        self.doc.stack.retain(|i| i.plugin.id() != id);
+        if self.doc.stack.len() == before {
+            return Err(PyValueError::new_err(format!(
+                "the stack has no plugin '{id}'"
+            )));
+        }
+        Ok(())
     }
 
     /// The enabled plugins' ids, in stack order.
@@ -259,14 +303,35 @@ fn compare<'py>(
 /// reports/<name>). Raises when an assertion fails (after writing the report).
 #[pyfunction]
 #[pyo3(signature = (path, out=None))]
-fn run_experiment<'py>(py: Python<'py>, path: PathBuf, out: Option<PathBuf>) -> PyResult<Bound<'py, PyAny>> {
+fn run_experiment<'py>(
+    py: Python<'py>,
+    path: PathBuf,
+    out: Option<PathBuf>,
+) -> PyResult<Bound<'py, PyAny>> {
     let o = experiment::run_file(&path, out.as_deref()).map_err(err)?;
     let text = serde_json::to_string(&o.rows).map_err(|e| err(e.into()))?;
     py.import("json")?.call_method1("loads", (text,))
 }
 
+/// Loads user plugins (a folder with `plugin.ron` and its WGSL, or a folder of them)
+/// and the user plugin folder ($VWB_PLUGINS, else ~/.config/vwb/plugins), so that
+/// scenes, presets and experiment files can use them; returns the ids loaded. A plugin
+/// that fails to load raises ValueError naming its file (and the WGSL line); the
+/// others still load.
+#[pyfunction]
+#[pyo3(signature = (path=None))]
+fn load_plugins(path: Option<PathBuf>) -> PyResult<Vec<String>> {
+    let extra: Vec<PathBuf> = path.into_iter().collect();
+    let (ids, errors) = vwb_plugins::user::install_from(&extra);
+    if !errors.is_empty() {
+        return Err(PyValueError::new_err(errors.join("\n")));
+    }
+    Ok(ids.into_iter().map(str::to_string).collect())
+}
+
 #[pymodule]
 fn vwb(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_function(wrap_pyfunction!(load_plugins, m)?)?;
     m.add_class::<Scene>()?;
     m.add_function(wrap_pyfunction!(adapter, m)?)?;
     m.add_function(wrap_pyfunction!(compare, m)?)?;

@@ -122,3 +122,28 @@ def test_a_named_volume_feeds_a_plugin_input(tmp_path):
     s.set("flow.lic3d.field", "gust")
     with pytest.raises(Exception, match="no volume named 'gust'"):
         s.render(size=(32, 32))
+
+
+def test_a_user_plugin_loads_swaps_in_and_renders(tmp_path):
+    ids = vwb.load_plugins(str(REPO / "examples" / "plugins" / "gooch"))
+    assert "shade.gooch" in ids
+    s = vwb.Scene(str(REPO / "presets" / "demo_shaded.ron"))
+    phong = s.render(size=(32, 32))
+    s.add("shade.gooch", replace="shade.blinn_phong")
+    assert "shade.gooch" in s.plugins() and "shade.blinn_phong" not in s.plugins()
+    gooch = s.render(size=(32, 32))
+    assert vwb.compare(phong, gooch)["rms_delta_e"] > 0.5, "another shading model"
+    s.set("shade.gooch.beta", 0.0)
+    assert vwb.compare(gooch, s.render(size=(32, 32)))["rms_delta_e"] > 0.05
+    s.remove("shade.gooch")
+    assert "shade.gooch" not in s.plugins()
+    with pytest.raises(ValueError, match="shade.nothing"):
+        s.add("shade.nothing")
+    # a broken copy is refused with its file and line
+    broken = tmp_path / "broken"
+    broken.mkdir()
+    src = REPO / "examples" / "plugins" / "gooch"
+    (broken / "plugin.ron").write_text((src / "plugin.ron").read_text().replace("shade.gooch", "shade.gooch_broken"))
+    (broken / "gooch.wgsl").write_text((src / "gooch.wgsl").read_text().replace("let k =", "let k = ="))
+    with pytest.raises(ValueError, match=r"gooch\.wgsl:\d+"):
+        vwb.load_plugins(str(broken))
