@@ -631,15 +631,7 @@ fn empty_space_skipping_leaves_images_unchanged() {
                 .map(|r| render(r, &doc.stack, doc.render.target, &s));
             let share = renderers[0].empty_brick_share();
             if backend == Backend::Raster {
-                // with skipping the raster polygons stop at the visible box: the same
-                // samples, their positions interpolated over other triangles
-                let (rms, max) = diff(&rgb(&images[0]), &rgb(&images[1]));
-                assert!(
-                    rms < 0.25 * ONE_LEVEL && max < adapter_bound(12.0, 32.0) * ONE_LEVEL,
-                    "{name} raster: RMS {:.3}, max {:.1} levels",
-                    rms / ONE_LEVEL,
-                    max / ONE_LEVEL
-                );
+                assert_raster_skipping_keeps_the_image(&images, &name);
             } else {
                 assert_eq!(images[0], images[1], "{name} {}", backend.name());
             }
@@ -670,6 +662,19 @@ fn empty_space_skipping_leaves_images_unchanged() {
             }
         }
     }
+}
+
+/// The raster images with skipping on and off: with skipping the polygons stop at the
+/// visible box, so the samples are the same and only their positions, interpolated
+/// over other triangles, round differently.
+fn assert_raster_skipping_keeps_the_image(images: &[Vec<[f32; 4]>; 2], what: &str) {
+    let (rms, max) = diff(&rgb(&images[0]), &rgb(&images[1]));
+    assert!(
+        rms < 0.25 * ONE_LEVEL && max < adapter_bound(12.0, 32.0) * ONE_LEVEL,
+        "{what} raster: RMS {:.3}, max {:.1} levels",
+        rms / ONE_LEVEL,
+        max / ONE_LEVEL
+    );
 }
 
 /// A plugin that moves samples along their rays (`sample.jitter`, a promise of
@@ -713,15 +718,7 @@ fn jitter_skipping_case(stack: &[vwb_render::PluginInstance]) {
                 .map(|r| render(r, stack, TargetFormat::Rgba32Float, &s));
             assert!(images[0].iter().any(|p| p[3] > 0.1), "something shows");
             if backend == Backend::Raster {
-                // the raster polygons stop at the visible box: the same samples, their
-                // positions interpolated over other triangles (as for the presets)
-                let (rms, max) = diff(&rgb(&images[0]), &rgb(&images[1]));
-                assert!(
-                    rms < 0.25 * ONE_LEVEL && max < adapter_bound(12.0, 32.0) * ONE_LEVEL,
-                    "raster, spacing {spacing}: RMS {:.3}, max {:.1} levels",
-                    rms / ONE_LEVEL,
-                    max / ONE_LEVEL
-                );
+                assert_raster_skipping_keeps_the_image(&images, &format!("spacing {spacing}"));
                 continue;
             }
             assert_eq!(images[0], images[1], "spacing {spacing}");
@@ -948,6 +945,28 @@ fn atlas_tiles(
         .collect()
 }
 
+/// Tile `i` of an atlas against the same stack and camera rendered alone on a fresh
+/// renderer of `volume` (ΔE*uv RMS ≤ 0.01); the single render's statistics.
+fn assert_tile_is_its_single_render(
+    atlas: &vwb_render::renderer::Atlas,
+    i: usize,
+    volume: &std::sync::Arc<vwb_render::Volume>,
+    stack: &[vwb_render::PluginInstance],
+    camera: vwb_render::Camera,
+    s: &FrameSettings,
+    t: TargetFormat,
+) -> vwb_render::renderer::FrameStats {
+    let mut single_r = Renderer::new(gpu(), volume.clone()).unwrap();
+    single_r.update_stack(stack, t).unwrap();
+    let stats = single_r.render(&FrameSettings { camera, ..*s }).unwrap();
+    let single = single_r.read_pixels().unwrap().2;
+    let reference: Vec<[f64; 4]> = single.iter().map(|p| p.map(f64::from)).collect();
+    let [w, h] = atlas.tile;
+    let rms = delta_e_rms(&atlas.tile_pixels(i), &reference, w, h);
+    assert!(rms <= 0.01, "tile {i}: ΔE*uv RMS {rms}");
+    stats
+}
+
 /// An atlas of variants whose stacks have volume passes (TF variants under Hernell's
 /// global light, then under a swept light: each variant's light volume is its own):
 /// the atlas runs each variant's passes once, and each tile equals its single render
@@ -985,21 +1004,10 @@ fn atlas_runs_volume_passes_of(id: &str, least_passes: usize) {
     let atlas = r.render_atlas(&tiles, &s, t, 2).unwrap();
     let mut dispatches = 0;
     for (i, (camera, stack)) in variants.iter().enumerate() {
-        let mut single_r = Renderer::new(gpu(), ball.clone()).unwrap();
-        single_r.update_stack(stack, t).unwrap();
-        let stats = single_r
-            .render(&FrameSettings {
-                camera: *camera,
-                ..s
-            })
-            .unwrap();
+        let stats = assert_tile_is_its_single_render(&atlas, i, &ball, stack, *camera, &s, t);
         // every step of the light volume's refinement and the opacity passes
         assert!(stats.volume_passes_run.len() >= least_passes, "{id}");
         dispatches += stats.volume_passes_run.len();
-        let single = single_r.read_pixels().unwrap().2;
-        let reference: Vec<[f64; 4]> = single.iter().map(|p| p.map(f64::from)).collect();
-        let rms = delta_e_rms(&atlas.tile_pixels(i), &reference, 32, 32);
-        assert!(rms <= 0.01, "{id} tile {i}: ΔE*uv RMS {rms}");
     }
     assert_eq!(atlas.volume_passes_run, dispatches);
     let again = r.render_atlas(&tiles, &s, t, 2).unwrap();
@@ -1027,19 +1035,8 @@ fn an_atlas_of_per_slice_variants_matches_their_single_renders() {
     let atlas = r.render_atlas(&tiles, &s, t, 3).unwrap();
     assert_eq!((atlas.cols, atlas.rows, atlas.tiles), (3, 2, 4));
     for (i, (camera, stack)) in variants.iter().enumerate() {
-        let mut single_r = Renderer::new(gpu(), demo()).unwrap();
-        single_r.update_stack(stack, t).unwrap();
-        let stats = single_r
-            .render(&FrameSettings {
-                camera: *camera,
-                ..s
-            })
-            .unwrap();
+        let stats = assert_tile_is_its_single_render(&atlas, i, &demo(), stack, *camera, &s, t);
         assert!(stats.per_slice_mode);
-        let single = single_r.read_pixels().unwrap().2;
-        let reference: Vec<[f64; 4]> = single.iter().map(|p| p.map(f64::from)).collect();
-        let rms = delta_e_rms(&atlas.tile_pixels(i), &reference, 32, 32);
-        assert!(rms <= 0.01, "tile {i}: ΔE*uv RMS {rms}");
         if i > 0 {
             let (d, _) = diff(&rgb(&atlas.tile_pixels(i)), &rgb(&atlas.tile_pixels(i - 1)));
             assert!(d > 1e-3, "tiles {} and {i} differ", i - 1);

@@ -42,6 +42,15 @@ fn example(name: &str) -> PathBuf {
         .unwrap()
 }
 
+/// A user plugin folder in the scratch directory: its `plugin.ron` and one WGSL file.
+fn plugin_folder(name: &str, manifest: &str, (wgsl, source): (&str, &str)) -> PathBuf {
+    let dir = tmp(name);
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::write(dir.join("plugin.ron"), manifest).unwrap();
+    std::fs::write(dir.join(wgsl), source).unwrap();
+    dir
+}
+
 fn wgsl_of(dir: &Path) -> PathBuf {
     std::fs::read_dir(dir)
         .unwrap()
@@ -355,17 +364,16 @@ fn a_user_plugin_reads_a_named_volume_input() {
     }
 
     // the texture's layout, for a vector input on a grid of its own
-    let dir = tmp("input_copy");
-    std::fs::create_dir_all(&dir).unwrap();
-    let manifest = r#"UserPlugin(id: "test.input_copy", name: "Input copy", shader: "copy.wgsl",
+    let dir = plugin_folder(
+        "input_copy",
+        r#"UserPlugin(id: "test.input_copy", name: "Input copy", shader: "copy.wgsl",
         params: [Volume(key: "field", label: "Input", components: "vector")],
-        passes: [(target: "copied", entry: "copy_pass", format: "rgba32float")])"#;
-    std::fs::write(dir.join("plugin.ron"), manifest).unwrap();
-    std::fs::write(
-        dir.join("copy.wgsl"),
-        "fn copy_pass(voxel: vec3<u32>, dims: vec3<u32>, step: u32, prev: vec4<f32>) -> vec4<f32> {\n    return textureLoad(field, voxel, 0);\n}\n",
-    )
-    .unwrap();
+        passes: [(target: "copied", entry: "copy_pass", format: "rgba32float")])"#,
+        (
+            "copy.wgsl",
+            "fn copy_pass(voxel: vec3<u32>, dims: vec3<u32>, step: u32, prev: vec4<f32>) -> vec4<f32> {\n    return textureLoad(field, voxel, 0);\n}\n",
+        ),
+    );
     let copy: Arc<dyn Plugin> = Arc::new(user::load(&dir).unwrap_or_else(|e| panic!("{e}")));
     let dims = [9, 7, 5];
     let field = vwb_render::volume::Volume::new(
@@ -425,19 +433,18 @@ fn a_user_plugin_reads_a_named_volume_input() {
 #[test]
 fn a_user_plugin_declares_a_progressive_pass() {
     use vwb_render::params::ParamValue;
-    let dir = tmp("progressive");
-    std::fs::create_dir_all(&dir).unwrap();
-    let manifest = r#"UserPlugin(id: "test.rounds", name: "Rounds", shader: "rounds.wgsl",
+    // after step i the texel holds 1 + 2 + … + (i + 1)
+    let dir = plugin_folder(
+        "progressive",
+        r#"UserPlugin(id: "test.rounds", name: "Rounds", shader: "rounds.wgsl",
         params: [Int(key: "rounds", label: "Rounds", min: 1, max: 16, default: 4),
                  Float(key: "gain", label: "Gain", min: 0.0, max: 1.0, default: 0.5)],
-        passes: [(target: "sum", entry: "sum_pass", steps: "rounds", scale: 0.25)])"#;
-    std::fs::write(dir.join("plugin.ron"), manifest).unwrap();
-    // after step i the texel holds 1 + 2 + … + (i + 1)
-    std::fs::write(
-        dir.join("rounds.wgsl"),
-        "fn sum_pass(voxel: vec3<u32>, dims: vec3<u32>, step: u32, prev: vec4<f32>) -> vec4<f32> {\n    if (step == 0u) {\n        return vec4<f32>(1.0, 0.0, 0.0, 1.0);\n    }\n    return vec4<f32>(prev.x + f32(step + 1u), 0.0, 0.0, 1.0);\n}\n",
-    )
-    .unwrap();
+        passes: [(target: "sum", entry: "sum_pass", steps: "rounds", scale: 0.25)])"#,
+        (
+            "rounds.wgsl",
+            "fn sum_pass(voxel: vec3<u32>, dims: vec3<u32>, step: u32, prev: vec4<f32>) -> vec4<f32> {\n    if (step == 0u) {\n        return vec4<f32>(1.0, 0.0, 0.0, 1.0);\n    }\n    return vec4<f32>(prev.x + f32(step + 1u), 0.0, 0.0, 1.0);\n}\n",
+        ),
+    );
     let p: Arc<dyn Plugin> = Arc::new(user::load(&dir).unwrap_or_else(|e| panic!("{e}")));
     assert!(p.volume_passes()[0].steps.is_some());
     let tf = instance("classify.tf1d");
