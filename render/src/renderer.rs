@@ -2816,12 +2816,15 @@ impl Renderer {
 
     /// Decides which volume-pass steps this frame runs and records them as run: a
     /// chain restarts at its first out-of-date pass; passes run in order, a later pass
-    /// only once the earlier ones have all their steps.
+    /// only once the earlier ones have all their steps. With `refine` false, a
+    /// progressive pass that has run steps takes no more (an atlas's later tile of a
+    /// stack it already planned: one frame's refinement budget per variant).
     fn plan_volume_passes(
         &mut self,
         p: &CompiledStack,
         stack: &[(u64, Arc<dyn Plugin>)],
         camera: u64,
+        refine: bool,
     ) -> Vec<PassDispatch> {
         let mut out = Vec::new();
         let mut budget = self.refinement_budget.unwrap_or(u32::MAX).max(1);
@@ -2875,7 +2878,8 @@ impl Renderer {
                     continue;
                 }
                 let st = &mut g.pass_state[k];
-                while st.steps_done < total && budget > 0 {
+                let held = !refine && decl.steps.is_some() && st.steps_done > 0;
+                while st.steps_done < total && budget > 0 && !held {
                     out.push(PassDispatch {
                         pass: index + k,
                         step: st.steps_done,
@@ -3179,7 +3183,7 @@ impl Renderer {
         let pass_plan = match &self.pipelines {
             Some(p) if !p.volume_passes.is_empty() => {
                 let (compiled, stack) = (p.compiled.clone(), p.stack.clone());
-                self.plan_volume_passes(&compiled, &stack, camera_key(&view))
+                self.plan_volume_passes(&compiled, &stack, camera_key(&view), true)
             }
             _ => Vec::new(),
         };

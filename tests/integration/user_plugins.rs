@@ -512,3 +512,55 @@ fn a_user_plugin_declares_a_progressive_pass() {
     let steps = p.volume_passes()[0].steps.clone().unwrap();
     assert_eq!(steps.count(&inst.params), 3);
 }
+
+/// An atlas of one stack with a progressive pass and a view pass reading it, under a
+/// refinement budget of one step per frame: the progressive pass refines one step per
+/// atlas (at its first tile, as one frame would), not one per tile; once it is done, the
+/// view pass runs before every tile whose camera differs from the last (it waits, as
+/// in a single frame, while the budget is spent).
+#[test]
+fn an_atlas_refines_a_progressive_pass_once_per_variant() {
+    use vwb_render::renderer::AtlasTile;
+    let dir = plugin_folder(
+        "progressive_view",
+        r#"UserPlugin(id: "test.rounds_view", name: "Rounds, viewed", shader: "rv.wgsl",
+        params: [Int(key: "rounds", label: "Rounds", min: 1, max: 16, default: 4)],
+        passes: [(target: "sum", entry: "sum_pass", steps: "rounds", scale: 0.25),
+                 (target: "seen", entry: "seen_pass", view: true, scale: 0.25)])"#,
+        (
+            "rv.wgsl",
+            "fn sum_pass(voxel: vec3<u32>, dims: vec3<u32>, step: u32, prev: vec4<f32>) -> vec4<f32> {\n    return vec4<f32>(prev.x + 1.0, 0.0, 0.0, 1.0);\n}\nfn seen_pass(voxel: vec3<u32>, dims: vec3<u32>, step: u32, prev: vec4<f32>) -> vec4<f32> {\n    return vec4<f32>(textureLoad(sum, voxel, 0).r + frame.eye.x, 0.0, 0.0, 1.0);\n}\n",
+        ),
+    );
+    let p: Arc<dyn Plugin> = Arc::new(user::load(&dir).unwrap_or_else(|e| panic!("{e}")));
+    let stack = vec![instance("classify.tf1d"), PluginInstance::new(p)];
+    let s = settings(16, 16, Backend::Compute);
+    let mut turned = s.camera;
+    turned.yaw_deg += 40.0;
+    let tiles = [
+        AtlasTile {
+            camera: s.camera,
+            stack: &stack,
+        },
+        AtlasTile {
+            camera: turned,
+            stack: &stack,
+        },
+    ];
+    let mut r = Renderer::new(gpu(), demo()).unwrap();
+    r.set_refinement_budget(Some(1));
+    let mut runs = Vec::new();
+    for round in 1..=5u32 {
+        let atlas = r
+            .render_atlas(&tiles, &s, TargetFormat::Rgba32Float, 2)
+            .unwrap();
+        runs.push(atlas.volume_passes_run);
+        let (done, total) = r.refinement_progress().unwrap();
+        assert_eq!(total, 5, "four steps and the view pass");
+        assert!(done >= round.min(4), "round {round}: {done} of {total}");
+    }
+    // one step per atlas (two if every tile refined); the fourth step spends the first
+    // tile's budget, so the view pass runs at the second tile only (as a single frame
+    // would defer it); then only the view pass, at both tiles
+    assert_eq!(runs, [1, 1, 1, 2, 2]);
+}

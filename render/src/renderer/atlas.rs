@@ -309,8 +309,9 @@ impl Renderer {
         // variant; a view pass again for each tile whose camera differs from the one
         // its stack last ran with), planned in tile order before anything is encoded:
         // the plans may grow the slice-info buffer the passes index by step
-        // (a stack without a view pass is planned once, at its first tile, so that a
-        // progressive pass takes one frame's budget per variant, as a single render)
+        // (a stack without a view pass is planned once, at its first tile; one with a
+        // view pass again at each tile, but its progressive passes refine at the first
+        // only: one frame's refinement budget per variant, as a single render)
         let mut planned = std::collections::HashSet::new();
         let mut tile_plans: Vec<Vec<PassDispatch>> = Vec::with_capacity(stacks.len());
         for (stack, view) in stacks.iter().zip(&views) {
@@ -322,7 +323,7 @@ impl Renderer {
             tile_plans.push(if compiled.volume_passes.is_empty() || !(first || viewed) {
                 Vec::new()
             } else {
-                self.plan_volume_passes(&compiled, stack, camera_key(view))
+                self.plan_volume_passes(&compiled, stack, camera_key(view), first)
             });
         }
         let device = &self.gpu.device;
