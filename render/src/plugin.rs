@@ -940,8 +940,9 @@ pub enum Transparency {
     Region(Arc<RegionFn>),
     /// Keeps (as [`Transparency::Keeps`]), but moves each sample along its ray by at
     /// most this many slice steps before the later hooks read it (`sample.jitter`): a
-    /// sample in an empty brick may move into an occupied one, so the occupancy grid
-    /// is dilated by that distance (in bricks, at the frame's slice spacing) and
+    /// sample tested in one brick may read voxels beyond it, so the renderer takes the
+    /// bricks' value ranges over an apron widened by that distance at the frame's slice
+    /// spacing ([`crate::skipping::move_apron`]), widens clip regions alike, and
     /// skipping stays exact.
     Moves(f64),
 }

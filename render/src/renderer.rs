@@ -1465,13 +1465,18 @@ impl Renderer {
     /// classification shows, or wholly outside its clip regions, are 0. `None` when
     /// skipping is off or a plugin promises nothing.
     fn occupancy_of(&self, stack: &[PluginInstance]) -> Option<Vec<u8>> {
+        self.occupancy_moving(stack, stack_moves(stack))
+    }
+
+    /// [`Renderer::occupancy_of`] for a stack whose plugins move samples by `moves`
+    /// slice steps ([`stack_moves`]).
+    fn occupancy_moving(&self, stack: &[PluginInstance], moves: f64) -> Option<Vec<u8>> {
         if !self.skipping_enabled {
             return None;
         }
         let visible = stack_visibility(stack)?;
         // a moved sample may read beyond its brick: ranges over a wider apron, and
         // regions widened by the move
-        let moves = stack_moves(stack);
         let apron = move_apron(moves, self.slice_spacing);
         let mut bytes = match self.ranges_with_apron(apron) {
             Some(ranges) => ranges.occupancy(&*visible),
@@ -1515,7 +1520,7 @@ impl Renderer {
         self.occupancy_stack = stack.to_vec();
         self.occupancy_moves = stack_moves(stack);
         self.occupancy_apron = move_apron(self.occupancy_moves, self.slice_spacing);
-        let bytes = self.occupancy_of(stack);
+        let bytes = self.occupancy_moving(stack, self.occupancy_moves);
         if bytes == self.occupancy_bytes {
             return;
         }

@@ -11,9 +11,10 @@
 //! The offset is centred (amount·(u − ½) of the step), so that on average the samples
 //! stay where the slices are. It does not split into bricks (a moved sample may read
 //! beyond its brick). Its transparency promise is [`Transparency::Moves`] by amount/2
-//! steps: a moved sample may leave an empty brick, so the renderer dilates the
-//! occupancy grid by that distance and empty-space skipping stays on and exact (before
-//! session 49 skipping was off while it was enabled, up to 1.6× the frame).
+//! steps: a moved sample may read voxels beyond the brick it is tested in, so the
+//! renderer takes the bricks' value ranges over an apron widened by that distance and
+//! empty-space skipping stays on and exact (before session 49 skipping was off while
+//! it was enabled, up to 1.6× the frame).
 
 use glam::{DVec2, DVec4};
 use vwb_render::params::{ParamSpec, ParamValues};

@@ -88,18 +88,19 @@ impl Renderer {
         cols: u32,
     ) -> Result<Atlas, RenderError> {
         let start = Instant::now();
+        // per-slice state: a stack with a plugin that declares it (the compiled
+        // stack's updates are exactly those)
         if s.backend == Backend::Compute
             && self.split.is_none()
-            && let Some(first) = tiles.first()
+            && tiles.first().is_some_and(|first| {
+                first
+                    .stack
+                    .iter()
+                    .filter(|i| i.enabled)
+                    .any(|i| i.configured().slice_state().is_some())
+            })
         {
-            self.update_stack(first.stack, target)?;
-            if self
-                .pipelines
-                .as_ref()
-                .is_some_and(|p| !p.updates.is_empty())
-            {
-                return self.render_tiles_one_by_one(tiles, s, target, cols, start);
-            }
+            return self.render_tiles_one_by_one(tiles, s, target, cols, start);
         }
         let mut enc = self
             .gpu
