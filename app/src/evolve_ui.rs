@@ -263,12 +263,16 @@ impl GaPanel {
                     });
                 }
                 let mut last = None;
+                let target = fitness.as_ref().and_then(Fitness::target_pixels);
+                let mut shown = current;
                 for _ in 0..n {
-                    match &scores {
-                        Some(s) => ga.breed(s),
-                        None => ga.breed_from_picks(&picks),
+                    match (&scores, &target) {
+                        (Some(s), Some(t)) => ga.breed_toward(s, &shown, t),
+                        (Some(s), None) => ga.breed(s),
+                        (None, _) => ga.breed_from_picks(&picks),
                     }
                     let (views, s) = render(&ga)?;
+                    shown = views.clone();
                     generations.extend(s.as_ref().map(|s| ga.summary(s)));
                     scores = s.clone();
                     last = Some((views, s));

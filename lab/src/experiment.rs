@@ -150,6 +150,149 @@ pub struct Variant {
     /// (`reference: TwinOf("cropped")`), e.g. `crop: (from: (0, 0, 15), to: (32, 32, 32))`.
     #[serde(default)]
     pub crop: Option<Crop>,
+    /// Its transfer function is searched for at each grid point (a genetic search,
+    /// `vwb_render::search::genetic`, toward another variant's views or an objective)
+    /// and the row renders the best genome found; the search's figures are the
+    /// statistics `search.*` ([`SEARCH_STATISTICS`]).
+    #[serde(default)]
+    pub search: Option<SearchSpec>,
+}
+
+/// A variant's TF search: toward the views another variant gives from the search's
+/// viewpoints (`target`), or toward an objective, from a seeded random population.
+/// The other fields are [`vwb_render::search::genetic::GaOptions`]' (defaults there).
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SearchSpec {
+    /// The variant whose views (same scene, same grid point) are the target.
+    #[serde(default)]
+    pub target: Option<String>,
+    /// Or an objective to maximise: `entropy`, `edge_energy`, `histogram_variance` or
+    /// `boundary_coverage`.
+    #[serde(default)]
+    pub objective: Option<String>,
+    #[serde(default)]
+    pub population: Option<usize>,
+    #[serde(default)]
+    pub generations: Option<usize>,
+    #[serde(default)]
+    pub seed: Option<u64>,
+    /// Thumbnail side (pixels).
+    #[serde(default)]
+    pub tile: Option<u32>,
+    /// Viewpoints the fitness is taken over.
+    #[serde(default)]
+    pub views: Option<usize>,
+    #[serde(default)]
+    pub max_primitives: Option<usize>,
+    /// The score at which `search.reached` counts the target as reached (default 3:
+    /// RMS ΔE*uv 3 to a target's thumbnails).
+    #[serde(default)]
+    pub reach: Option<f64>,
+}
+
+/// The figures of a variant's search, as statistics (columns and assertion terms):
+/// the best score of the first generation (`search.first`) and of the last
+/// (`search.best`; RMS ΔE*uv to the target's thumbnails, or minus the objective), the
+/// first generation whose best scores at most `reach` (`search.reached`, counted from
+/// 0; — where none did) and the genomes rendered by then (`search.renders`), the
+/// search's wall time (`search.seconds`) and its thumbnails per second
+/// (`search.thumbnails_per_s`).
+pub const SEARCH_STATISTICS: [&str; 6] = [
+    "search.first",
+    "search.best",
+    "search.reached",
+    "search.renders",
+    "search.seconds",
+    "search.thumbnails_per_s",
+];
+
+impl SearchSpec {
+    /// The run's options for a stack whose TF model is `space`.
+    fn options(
+        &self,
+        space: vwb_render::search::genome::Space,
+    ) -> vwb_render::search::genetic::GaOptions {
+        let d = vwb_render::search::genetic::GaOptions::default();
+        vwb_render::search::genetic::GaOptions {
+            population: self.population.unwrap_or(d.population),
+            generations: self.generations.unwrap_or(d.generations),
+            seed: self.seed.unwrap_or(d.seed),
+            tile: self.tile.unwrap_or(d.tile),
+            views: self.views.unwrap_or(d.views),
+            max_primitives: self.max_primitives.unwrap_or(d.max_primitives),
+            space,
+            ..d
+        }
+    }
+
+    /// The fitness's target or objective, checked (`named`: whether a variant exists).
+    fn check(&self, own: &str, named: impl Fn(&str) -> bool) -> Result<(), String> {
+        match (&self.target, &self.objective) {
+            (Some(t), None) => {
+                if t == own {
+                    return Err(format!("variant '{own}' searches toward itself"));
+                }
+                if !named(t) {
+                    return Err(format!(
+                        "the search of variant '{own}' targets variant '{t}', which the experiment does not declare"
+                    ));
+                }
+            }
+            (None, Some(o)) => {
+                if o != crate::search::BOUNDARY_COVERAGE
+                    && vwb_render::search::genetic::Objective::from_name(o).is_none()
+                {
+                    return Err(format!(
+                        "the search of variant '{own}': unknown objective '{o}' (entropy, edge_energy, \
+                         histogram_variance or {})",
+                        crate::search::BOUNDARY_COVERAGE
+                    ));
+                }
+            }
+            _ => {
+                return Err(format!(
+                    "the search of variant '{own}' needs either a target variant or an objective"
+                ));
+            }
+        }
+        let checks: [(&str, Option<usize>, std::ops::RangeInclusive<usize>); 4] = [
+            ("population", self.population, 2..=1024),
+            ("generations", self.generations, 1..=1000),
+            ("views", self.views, 1..=16),
+            (
+                "max_primitives",
+                self.max_primitives,
+                1..=vwb_render::search::genome::MAX_PRIMITIVES,
+            ),
+        ];
+        for (name, v, range) in checks {
+            if let Some(v) = v
+                && !range.contains(&v)
+            {
+                return Err(format!(
+                    "the search of variant '{own}': {name} {v} is outside {}..={}",
+                    range.start(),
+                    range.end()
+                ));
+            }
+        }
+        if let Some(t) = self.tile
+            && !(8..=512).contains(&t)
+        {
+            return Err(format!(
+                "the search of variant '{own}': tile {t} is outside 8..=512"
+            ));
+        }
+        if let Some(r) = self.reach
+            && !r.is_finite()
+        {
+            return Err(format!(
+                "the search of variant '{own}': reach must be a finite number"
+            ));
+        }
+        Ok(())
+    }
 }
 
 /// The voxels `from ≤ (x, y, z) < to` a variant keeps of its scene's volume.
@@ -416,6 +559,102 @@ pub struct Row {
     /// `None` with `reference: TimeOnly`.
     pub reference: Option<usize>,
     pub pareto: bool,
+    /// What a searched variant's search found (None for other variants).
+    pub search: Option<SearchRecord>,
+}
+
+/// A variant's search at one grid point: the genome the row renders, and how the
+/// search got there.
+#[derive(Debug, Clone, Serialize)]
+pub struct SearchRecord {
+    pub genome: vwb_render::search::genome::Genome,
+    /// The best score of every generation (lower is better: RMS ΔE*uv to the target's
+    /// thumbnails, or minus the objective).
+    pub best_by_generation: Vec<f64>,
+    pub population: usize,
+    pub views: usize,
+    pub seconds: f64,
+    /// The score at which the target counts as reached.
+    pub reach: f64,
+    /// The row's document with the genome, saved in the report's folder.
+    pub preset: String,
+}
+
+impl SearchRecord {
+    /// A statistic of [`SEARCH_STATISTICS`] (NaN where it does not exist, as a
+    /// `search.reached` never reached).
+    fn statistic(&self, name: &str) -> f64 {
+        let reached = self
+            .best_by_generation
+            .iter()
+            .position(|&b| b <= self.reach);
+        let generations = self.best_by_generation.len();
+        match name {
+            "search.first" => self.best_by_generation.first().copied().unwrap_or(f64::NAN),
+            "search.best" => self.best_by_generation.last().copied().unwrap_or(f64::NAN),
+            "search.reached" => reached.map_or(f64::NAN, |g| g as f64),
+            "search.renders" => reached.map_or(f64::NAN, |g| ((g + 1) * self.population) as f64),
+            "search.seconds" => self.seconds,
+            "search.thumbnails_per_s" => {
+                (generations * self.population * self.views) as f64 / self.seconds.max(1e-9)
+            }
+            _ => f64::NAN,
+        }
+    }
+}
+
+/// Runs a variant's search on its renderer from `d`'s stack and camera, and puts the
+/// best genome into `d`'s TF plugin. `target`: the target variant's document and volume
+/// at the same grid point; `observer` sees each generation's best score.
+fn search_tf(
+    gpu: &GpuContext,
+    spec: &SearchSpec,
+    r: &mut vwb_render::Renderer,
+    d: &mut Document,
+    volume: &Arc<Volume>,
+    target: Option<(Document, Arc<Volume>)>,
+    observer: &mut dyn FnMut(usize, f64),
+) -> Result<SearchRecord> {
+    use vwb_render::search::{gallery, genetic, genome::Space};
+    let space = Space::of_stack(&d.stack).map_err(|e| anyhow!(e))?;
+    let o = spec.options(space);
+    let bg = measure::background(d);
+    let cams = gallery::viewpoints(&d.camera, o.views);
+    let fitness = match (target, spec.objective.as_deref()) {
+        (Some((td, tvol)), _) => genetic::Fitness::Target(gallery::descriptor(
+            &crate::search::views_of(gpu, &td, tvol, &cams, &o, bg)?,
+        )),
+        (None, Some(crate::search::BOUNDARY_COVERAGE)) => {
+            let cover =
+                vwb_render::search::coverage::Coverage::for_stack(volume, &cams, o.tile, &d.stack)
+                    .map_err(|e| anyhow!(e))?;
+            genetic::Fitness::Coverage(Arc::new(cover))
+        }
+        (None, Some(name)) => genetic::Fitness::Objective(
+            genetic::Objective::from_name(name).expect("checked at load"),
+        ),
+        (None, None) => unreachable!("checked at load"),
+    };
+    let start = std::time::Instant::now();
+    let history = genetic::evolve(r, &d.stack, &d.camera, bg, &fitness, &o, &mut |g, step| {
+        observer(g, step.best_score)
+    })?;
+    let seconds = start.elapsed().as_secs_f64();
+    let best = history
+        .last()
+        .expect("at least one generation")
+        .best
+        .clone();
+    best.apply(&mut d.stack).map_err(|e| anyhow!(e))?;
+    Ok(SearchRecord {
+        genome: best,
+        best_by_generation: history.iter().map(|g| g.best_score).collect(),
+        population: o.population,
+        views: o.views,
+        seconds,
+        reach: spec.reach.unwrap_or(3.0),
+        preset: String::new(),
+    })
 }
 
 /// An assertion's outcome.
@@ -507,8 +746,37 @@ pub fn parse(text: &str, path: &Path) -> Result<Experiment> {
             _ => {}
         }
     }
+    for v in &e.variants {
+        if let Some(search) = &v.search {
+            search
+                .check(&v.name, named)
+                .map_err(|err| anyhow!("{file}: {err}"))?;
+            if let Some(t) = &search.target
+                && e.variants
+                    .iter()
+                    .any(|o| &o.name == t && o.search.is_some())
+            {
+                bail!(
+                    "{file}: the search of variant '{}' targets variant '{t}', whose own TF is searched \
+                     (a target is a fixed stack)",
+                    v.name
+                );
+            }
+        }
+    }
+    let searched = e.variants.iter().any(|v| v.search.is_some());
     for st in &e.statistics {
-        if !st
+        if st.starts_with("search.") {
+            if !SEARCH_STATISTICS.contains(&st.as_str()) {
+                bail!(
+                    "{file}: statistic '{st}': a search reports {}",
+                    SEARCH_STATISTICS.join(", ")
+                );
+            }
+            if !searched {
+                bail!("{file}: statistic '{st}': no variant has a search");
+            }
+        } else if !st
             .rsplit_once('.')
             .is_some_and(|(id, name)| id.contains('.') && !name.is_empty())
         {
@@ -600,7 +868,7 @@ fn statistics_of(
 ) -> BTreeMap<String, f64> {
     let mut reports: HashMap<&str, Vec<Statistic>> = HashMap::new();
     let mut out = BTreeMap::new();
-    for st in wanted {
+    for st in wanted.iter().filter(|st| !st.starts_with("search.")) {
         let (id, name) = st.rsplit_once('.').expect("checked at load");
         let Some(inst) = enabled_instance(d, id) else {
             continue;
@@ -1113,8 +1381,21 @@ fn reference_key(scene: &str, doc: &Document, supplier: Option<&dyn ConvergedRef
 
 /// What [`run`] reports while it runs.
 pub enum Event<'a> {
-    Reference { scene: &'a str, what: &'a str },
-    Row { index: usize, row: &'a Row },
+    Reference {
+        scene: &'a str,
+        what: &'a str,
+    },
+    /// A searched variant's generation and its best score.
+    Generation {
+        scene: &'a str,
+        variant: &'a str,
+        generation: usize,
+        best: f64,
+    },
+    Row {
+        index: usize,
+        row: &'a Row,
+    },
 }
 
 /// Runs an experiment; `dir` resolves its relative paths, `out` receives the report.
@@ -1195,7 +1476,7 @@ pub fn run(
                 .map_err(|err| anyhow!("{fname}: scene '{}': {err}", sc.name))?;
             docs.push((v, d, axes, volume));
         }
-        for st in &e.statistics {
+        for st in e.statistics.iter().filter(|st| !st.starts_with("search.")) {
             check_statistic(st, docs.iter().map(|(_, d, _, _)| d))
                 .map_err(|err| anyhow!("{fname}: scene '{}': statistic '{st}': {err}", sc.name))?;
         }
@@ -1222,7 +1503,41 @@ pub fn run(
             let mut r = headless::renderer_for(gpu, vdoc, volume.clone())
                 .with_context(|| format!("{fname}: variant '{}' on scene '{}'", v.name, sc.name))?;
             for values in &points {
-                let d = at(vdoc, axes, values);
+                let mut d = at(vdoc, axes, values);
+                // a searched variant renders the best TF its search finds here
+                let mut search = match &v.search {
+                    Some(spec) => {
+                        let target = spec.target.as_deref().map(|t| {
+                            let (_, od, oa, ovol) = find(t);
+                            (at(od, oa, values), ovol.clone())
+                        });
+                        let found = search_tf(
+                            gpu,
+                            spec,
+                            &mut r,
+                            &mut d,
+                            volume,
+                            target,
+                            &mut |generation, best| {
+                                observer(Event::Generation {
+                                    scene: &sc.name,
+                                    variant: &v.name,
+                                    generation,
+                                    best,
+                                })
+                            },
+                        )
+                        .map_err(|err| {
+                            anyhow!(
+                                "{fname}: variant '{}' on scene '{}': search: {err}",
+                                v.name,
+                                sc.name
+                            )
+                        })?;
+                        Some(found)
+                    }
+                    None => None,
+                };
                 let s = d.frame_settings();
                 r.update_stack(&d.stack, d.render.target)?;
                 // the untimed first frame runs what the change invalidated
@@ -1231,7 +1546,12 @@ pub fn run(
                 let update_ms = (first.wall_ms - timing.wall_ms.median).max(0.0);
                 let img = measure::gpu_image(&r, &d)?;
                 let memory: u64 = r.plugin_memory().iter().map(|(_, _, b)| b).sum();
-                let statistics = statistics_of(&e.statistics, &r, &d, volume.dims);
+                let mut statistics = statistics_of(&e.statistics, &r, &d, volume.dims);
+                if let Some(found) = &search {
+                    for st in e.statistics.iter().filter(|st| st.starts_with("search.")) {
+                        statistics.insert(st.clone(), found.statistic(st));
+                    }
+                }
                 let spec = v.reference.as_ref().unwrap_or(&e.reference);
                 let reference = match spec {
                     ReferenceSpec::Converged | ReferenceSpec::ConvergedOf(_) => {
@@ -1441,6 +1761,15 @@ pub fn run(
                 let (ms, clock) = timing.frame_ms();
                 let image = format!("images/row_{:03}.png", rows.len());
                 headless::save_png(&img.to_rgb8(), &out.join(&image))?;
+                // a search's find, as a preset that opens the row's scene with it
+                if let Some(found) = &mut search {
+                    let preset = format!("presets/row_{:03}.ron", rows.len());
+                    std::fs::create_dir_all(out.join("presets"))
+                        .with_context(|| format!("{}: cannot create", out.display()))?;
+                    d.save(&out.join(&preset))
+                        .map_err(|err| anyhow!("{fname}: {err}"))?;
+                    found.preset = preset;
+                }
                 // a later variant compared with this one reuses the image
                 gpu_images
                     .entry(image_key(&sc.name, &v.name, values))
@@ -1465,6 +1794,7 @@ pub fn run(
                     image,
                     reference,
                     pareto: false,
+                    search,
                 });
                 observer(Event::Row {
                     index: rows.len() - 1,
@@ -1996,6 +2326,12 @@ pub fn run_file(file: &Path, out: Option<&Path>) -> Result<Outcome> {
     };
     let o = run(&gpu, &e, file, &out, &mut |ev| match ev {
         Event::Reference { scene, what } => eprintln!("{scene}: computing the {what}"),
+        Event::Generation {
+            scene,
+            variant,
+            generation,
+            best,
+        } => eprintln!("{scene} · {variant}: search generation {generation}, best {best:.3}"),
         Event::Row { index, row } if row.reference.is_none() => eprintln!(
             "[{index:>3}] {}: {:>4} slices {:>8.2} ms{}  (timed only)",
             row.label(),
@@ -2097,6 +2433,7 @@ mod tests {
             image: String::new(),
             reference: Some(0),
             pareto: false,
+            search: None,
         }
     }
 
@@ -2141,6 +2478,97 @@ mod tests {
             statistic_headers(&st(&["a.b.x", "c.d.x"])),
             ["`a.b.x`", "`c.d.x`"]
         );
+    }
+
+    #[test]
+    fn searches_are_checked_and_report_their_figures() {
+        let p = Path::new("exp.ron");
+        let with = |variants: &str, statistics: &str| {
+            parse(
+                &format!(
+                    "Experiment(name: \"x\", scenes: [Preset(\"a.ron\")], variants: [{variants}], statistics: [{statistics}])"
+                ),
+                p,
+            )
+        };
+        let err = |v: &str, st: &str| with(v, st).unwrap_err().to_string();
+        let ok = "(name: \"hidden\"), (name: \"found\", search: (target: \"hidden\", population: 8, generations: 3))";
+        let e = with(ok, "\"search.best\", \"search.reached\"").unwrap();
+        let spec = e.variants[1].search.as_ref().unwrap();
+        let o = spec.options(vwb_render::search::genome::Space::Tf1d);
+        assert_eq!((o.population, o.generations, o.seed), (8, 3, 1));
+        for (variants, statistics, says) in [
+            (
+                "(name: \"a\", search: (target: \"b\"))",
+                "",
+                "targets variant 'b'",
+            ),
+            (
+                "(name: \"a\", search: (target: \"a\"))",
+                "",
+                "searches toward itself",
+            ),
+            (
+                "(name: \"a\", search: ())",
+                "",
+                "needs either a target variant or an objective",
+            ),
+            (
+                "(name: \"h\"), (name: \"a\", search: (target: \"h\", objective: \"entropy\"))",
+                "",
+                "needs either",
+            ),
+            (
+                "(name: \"a\", search: (objective: \"beauty\"))",
+                "",
+                "unknown objective 'beauty'",
+            ),
+            (
+                "(name: \"a\", search: (objective: \"entropy\", population: 1))",
+                "",
+                "population 1",
+            ),
+            (
+                "(name: \"a\", search: (objective: \"entropy\", tile: 4))",
+                "",
+                "tile 4",
+            ),
+            (
+                "(name: \"h\", search: (objective: \"entropy\")), (name: \"a\", search: (target: \"h\"))",
+                "",
+                "whose own TF is searched",
+            ),
+            (ok, "\"search.beauty\"", "a search reports search.first"),
+            (
+                "(name: \"a\")",
+                "\"search.best\"",
+                "no variant has a search",
+            ),
+        ] {
+            let e = err(variants, statistics);
+            assert!(e.starts_with("exp.ron: ") && e.contains(says), "{e}");
+        }
+        // the figures of a search that reached 3 at its third generation
+        let record = SearchRecord {
+            genome: vwb_render::search::genome::Genome::Tf1d(Vec::new()),
+            best_by_generation: vec![9.0, 4.0, 2.5, 2.0],
+            population: 10,
+            views: 3,
+            seconds: 2.0,
+            reach: 3.0,
+            preset: String::new(),
+        };
+        let figures: Vec<f64> = SEARCH_STATISTICS
+            .iter()
+            .map(|n| record.statistic(n))
+            .collect();
+        assert_eq!(figures, [9.0, 2.0, 2.0, 30.0, 2.0, 60.0]);
+        let never = SearchRecord {
+            reach: 1.0,
+            ..record
+        };
+        assert!(never.statistic("search.reached").is_nan());
+        assert!(never.statistic("search.renders").is_nan());
     }
 
     #[test]

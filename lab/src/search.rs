@@ -213,40 +213,8 @@ pub fn run_evolve(
         EvolveTarget::Preset(target_preset) => {
             let target_doc = crate::document::load_document(Some(target_preset))?;
             // the target: the target preset's own stack from the run's viewpoints
-            let s = vwb_render::FrameSettings {
-                camera: doc.camera,
-                width: o.tile,
-                height: o.tile,
-                slice_spacing: o.slice_spacing,
-                backend: vwb_render::renderer::Backend::Compute,
-                early_termination: None,
-            };
-            let tiles: Vec<vwb_render::renderer::AtlasTile> = cams
-                .iter()
-                .map(|c| vwb_render::renderer::AtlasTile {
-                    camera: *c,
-                    stack: &target_doc.stack,
-                })
-                .collect();
-            let mut rt = headless::renderer_for(&gpu, &target_doc, volume)?;
-            let atlas = rt
-                .render_atlas(
-                    &tiles,
-                    &s,
-                    vwb_render::TargetFormat::Rgba32Float,
-                    cams.len() as u32,
-                )
-                .map_err(|e| anyhow!("{}: {e}", target_preset.display()))?;
-            let views: Vec<vwb_render::metrics::RgbImageF> = (0..cams.len())
-                .map(|i| {
-                    vwb_render::metrics::RgbImageF::from_rgba_f32_premultiplied_over(
-                        &atlas.tile_pixels(i),
-                        o.tile,
-                        o.tile,
-                        bg,
-                    )
-                })
-                .collect();
+            let views = views_of(&gpu, &target_doc, volume, &cams, o, bg)
+                .with_context(|| target_preset.display().to_string())?;
             headless::save_png(
                 &genetic::side_by_side(&views).to_rgb8(),
                 &out.join("target.png"),
@@ -293,6 +261,53 @@ pub fn run_evolve(
         &out.join("best.png"),
     )?;
     Ok(history)
+}
+
+/// The views a document's own stack gives from `cams` at the search's tile size and
+/// slice spacing, over `background`: a search's target (`vwb evolve
+/// --target-preset`, an experiment's `search: (target: ..)`).
+pub fn views_of(
+    gpu: &GpuContext,
+    doc: &Document,
+    volume: std::sync::Arc<vwb_render::Volume>,
+    cams: &[vwb_render::camera::Camera],
+    o: &vwb_render::search::genetic::GaOptions,
+    background: [f64; 3],
+) -> Result<Vec<vwb_render::metrics::RgbImageF>> {
+    let s = vwb_render::FrameSettings {
+        camera: doc.camera,
+        width: o.tile,
+        height: o.tile,
+        slice_spacing: o.slice_spacing,
+        backend: vwb_render::renderer::Backend::Compute,
+        early_termination: None,
+    };
+    let tiles: Vec<vwb_render::renderer::AtlasTile> = cams
+        .iter()
+        .map(|c| vwb_render::renderer::AtlasTile {
+            camera: *c,
+            stack: &doc.stack,
+        })
+        .collect();
+    let mut rt = headless::renderer_for(gpu, doc, volume)?;
+    let atlas = rt
+        .render_atlas(
+            &tiles,
+            &s,
+            vwb_render::TargetFormat::Rgba32Float,
+            cams.len() as u32,
+        )
+        .map_err(|e| anyhow!("{e}"))?;
+    Ok((0..cams.len())
+        .map(|i| {
+            vwb_render::metrics::RgbImageF::from_rgba_f32_premultiplied_over(
+                &atlas.tile_pixels(i),
+                o.tile,
+                o.tile,
+                background,
+            )
+        })
+        .collect())
 }
 
 /// A target image's views: `o.views` square tiles of side `o.tile` side by side.

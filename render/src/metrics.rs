@@ -169,6 +169,49 @@ pub fn srgb_to_luv(rgb: [f64; 3]) -> [f64; 3] {
     [l, 13.0 * l * (u - un), 13.0 * l * (v - vn)]
 }
 
+/// sRGB opto-electronic transfer: linear light → encoded value ([`srgb_decode`]'s inverse).
+pub fn srgb_encode(c: f64) -> f64 {
+    if c <= 0.0031308 {
+        12.92 * c
+    } else {
+        1.055 * c.powf(1.0 / 2.4) - 0.055
+    }
+}
+
+/// CIELUV (D65) → sRGB-encoded colour, [`srgb_to_luv`]'s inverse (unclamped: a colour
+/// outside the sRGB gamut comes back outside [0, 1]).
+pub fn luv_to_srgb(luv: [f64; 3]) -> [f64; 3] {
+    let [l, u, v] = luv;
+    if l <= 0.0 {
+        return [0.0; 3];
+    }
+    let y = WHITE_Y
+        * if l > 8.0 {
+            ((l + 16.0) / 116.0).powi(3)
+        } else {
+            l / (29.0f64 / 3.0).powi(3)
+        };
+    let (un, vn) = uv_prime([WHITE_X, WHITE_Y, WHITE_Z]);
+    let (up, vp) = (u / (13.0 * l) + un, v / (13.0 * l) + vn);
+    if vp <= 0.0 {
+        return [0.0; 3];
+    }
+    let x = y * 9.0 * up / (4.0 * vp);
+    let z = y * (12.0 - 3.0 * up - 20.0 * vp) / (4.0 * vp);
+    let lin = [
+        3.2404542 * x - 1.5371385 * y - 0.4985314 * z,
+        -0.9692660 * x + 1.8760108 * y + 0.0415560 * z,
+        0.0556434 * x - 0.2040259 * y + 1.0572252 * z,
+    ];
+    lin.map(|c| {
+        if c < 0.0 {
+            -srgb_encode(-c)
+        } else {
+            srgb_encode(c)
+        }
+    })
+}
+
 /// CIE 1976 ΔE*uv between two sRGB-encoded colours.
 pub fn delta_e_uv(a: [f64; 3], b: [f64; 3]) -> f64 {
     let (p, q) = (srgb_to_luv(a), srgb_to_luv(b));
@@ -542,6 +585,23 @@ mod tests {
         assert_eq!(m.share_above_6, 0.0);
         assert_eq!(m.psnr_db, f64::INFINITY);
         assert!((m.ssim - 1.0).abs() < 1e-12, "{}", m.ssim);
+    }
+
+    #[test]
+    fn luv_goes_back_to_srgb() {
+        for rgb in [
+            [0.0, 0.0, 0.0],
+            [1.0, 1.0, 1.0],
+            [0.85, 0.55, 0.45],
+            [0.02, 0.9, 0.3],
+            [0.001, 0.002, 0.0015],
+            [0.3, 0.1, 0.95],
+        ] {
+            let back = luv_to_srgb(srgb_to_luv(rgb));
+            for c in 0..3 {
+                assert!((back[c] - rgb[c]).abs() < 1e-6, "{rgb:?} → {back:?}");
+            }
+        }
     }
 
     #[test]

@@ -41,6 +41,7 @@ fn a_small_experiment_runs_and_checks_what_it_measured() {
     let o = experiment::run(gpu(), &e, &file, &out, &mut |ev| match ev {
         Event::Reference { .. } => events.0 += 1,
         Event::Row { .. } => events.1 += 1,
+        Event::Generation { .. } => unreachable!("no variant searches"),
     })
     .unwrap();
     // 2 variants × 2 spacings, one converged reference (of post; spacing does not change it)
@@ -76,6 +77,86 @@ fn a_small_experiment_runs_and_checks_what_it_measured() {
         "{report}"
     );
     assert!(report.contains("pass `slices > 10`"), "{report}");
+}
+
+/// A searched variant: a seeded genetic search toward another variant's views at each
+/// grid point, the row rendering the best genome found, its figures as `search.*`
+/// statistics and the find saved as a preset; the same seed finds the same TF.
+#[test]
+fn a_searched_variant_renders_the_tf_its_search_finds() {
+    let file = write(
+        "search",
+        r#"Experiment(
+    name: "search",
+    scenes: [Preset("PRESET")],
+    variants: [
+        (name: "hidden", reference: TimeOnly),
+        (name: "found", search: (target: "hidden", population: 12, generations: 4, tile: 16, seed: 5)),
+        (name: "again", search: (target: "hidden", population: 12, generations: 4, tile: 16, seed: 5)),
+    ],
+    reference: Variant("hidden"),
+    statistics: ["search.first", "search.best", "search.reached", "search.seconds"],
+    render: (size: (32, 32), target: "rgba32float"),
+    frames: 1,
+    assertions: ["search.best(found) / search.first(found) < 1"],
+)"#,
+    );
+    let e = experiment::load(&file).unwrap();
+    let out = tmp("search-report");
+    let mut generations = Vec::new();
+    let o = experiment::run(gpu(), &e, &file, &out, &mut |ev| {
+        if let Event::Generation {
+            variant,
+            generation,
+            best,
+            ..
+        } = ev
+        {
+            generations.push((variant.to_string(), generation, best));
+        }
+    })
+    .unwrap();
+    assert!(o.failed().is_empty(), "{:?}", o.assertions);
+    // 4 generations per searched variant, each reported, the best never rising
+    assert_eq!(generations.len(), 8);
+    let found: Vec<f64> = generations
+        .iter()
+        .filter(|g| g.0 == "found")
+        .map(|g| g.2)
+        .collect();
+    assert!(found.windows(2).all(|w| w[1] <= w[0]), "{found:?}");
+    let (hidden, a, b) = (&o.rows[0], &o.rows[1], &o.rows[2]);
+    assert!(hidden.search.is_none() && hidden.statistics.is_empty());
+    let (sa, sb) = (a.search.as_ref().unwrap(), b.search.as_ref().unwrap());
+    assert_eq!(sa.best_by_generation, found);
+    assert_eq!(a.statistics["search.best"], *found.last().unwrap());
+    assert_eq!(a.statistics["search.first"], found[0]);
+    assert!(a.statistics["search.seconds"] > 0.0);
+    // bit-reproducible: the same seed finds the same genome and the same image
+    assert_eq!(sa.genome, sb.genome);
+    assert_eq!(sa.best_by_generation, sb.best_by_generation);
+    assert_eq!(a.metrics.rms_delta_e, b.metrics.rms_delta_e);
+    // each row is compared with the hidden TF's image at the render size
+    assert!(a.metrics.rms_delta_e.is_finite() && a.metrics.rms_delta_e > 0.0);
+    // the find is a preset holding exactly the genome's TF
+    let doc = vwb_render::preset::Document::load(&out.join(&sa.preset), &vwb_plugins::registry())
+        .unwrap()
+        .document;
+    let tf = doc
+        .stack
+        .iter()
+        .find(|i| i.plugin.id() == "classify.tf1d")
+        .unwrap()
+        .params
+        .tf("tf")
+        .unwrap()
+        .clone();
+    assert_eq!(
+        vwb_render::search::genome::Genome::from_curve(&tf).unwrap(),
+        sa.genome
+    );
+    let report = std::fs::read_to_string(out.join("report.md")).unwrap();
+    assert!(report.contains("`best`"), "{report}");
 }
 
 #[test]

@@ -33,6 +33,9 @@ pub struct GaOptions {
     pub batch: usize,
     /// The TF model searched ([`Space::of_stack`] gives the stack's).
     pub space: Space,
+    /// Toward a target, fit the best genome's colours to it by least squares each
+    /// generation of the pattern search ([`Ga::fit_colours`]).
+    pub colour_fit: bool,
 }
 
 impl Default for GaOptions {
@@ -50,6 +53,7 @@ impl Default for GaOptions {
             max_primitives: 3,
             batch: 96,
             space: Space::Tf1d,
+            colour_fit: true,
         }
     }
 }
@@ -136,6 +140,15 @@ impl Objective {
 }
 
 impl Fitness {
+    /// A target's pixels as the thumbnails hold them (sRGB-encoded, view after view),
+    /// from its L*u*v* descriptor; None for an objective.
+    pub fn target_pixels(&self) -> Option<Vec<[f64; 3]>> {
+        match self {
+            Fitness::Target(t) => Some(t.iter().map(|&p| crate::metrics::luv_to_srgb(p)).collect()),
+            _ => None,
+        }
+    }
+
     /// The score of a genome and its views (lower is better).
     pub fn score(&self, genome: &Genome, views: &[crate::metrics::RgbImageF]) -> f64 {
         match self {
@@ -246,6 +259,11 @@ pub struct Ga {
     pub radius: f64,
     /// The pattern search around the best genome (from a quarter of a run on).
     poll: Option<Poll>,
+    /// Where the current population holds the colour basis of the genome polled
+    /// around: its population index and that genome ([`Ga::fit_colours`]).
+    basis: Option<(usize, Genome)>,
+    /// The genome with fitted colours, for the next generation.
+    fitted: Option<Genome>,
 }
 
 /// A compass (pattern) search around the best genome, run inside the GA's
@@ -260,9 +278,59 @@ struct Poll {
     centre: Genome,
     score: f64,
     steps: Vec<f64>,
-    /// For each poll child, in population order after the elite: (parameter, sign).
+    /// The population index of the first poll child.
+    offset: usize,
+    /// For each poll child, in population order from `offset`: (parameter, sign).
     moves: Vec<(usize, f64)>,
 }
+
+impl Poll {
+    /// The diagonal Newton step the finished poll's scores give: per parameter polled
+    /// on both sides, the central-difference slope g = (f₊ − f₋)/2s and curvature
+    /// h = (f₊ + f₋ − 2f₀)/s², and the step −g/h to the parabola's minimum where h > 0
+    /// (else one step s toward the better side), limited to ±2s. The poll's own renders
+    /// give it for free; the compass search alone takes only the single best of its
+    /// moves per generation. `None` where no parameter would move.
+    fn newton_step(&self, scores: &[f64]) -> Option<Vec<f64>> {
+        let n = self.steps.len();
+        let (mut plus, mut minus) = (vec![None; n], vec![None; n]);
+        for (k, &(p, sign)) in self.moves.iter().enumerate() {
+            let f = *scores.get(self.offset + k)?;
+            if sign > 0.0 {
+                plus[p] = Some(f);
+            } else {
+                minus[p] = Some(f);
+            }
+        }
+        let f0 = self.score;
+        let mut delta = vec![0.0; n];
+        for p in 0..n {
+            let (Some(fp), Some(fm)) = (plus[p], minus[p]) else {
+                continue;
+            };
+            let s = self.steps[p];
+            let g = (fp - fm) / (2.0 * s);
+            let h = (fp + fm - 2.0 * f0) / (s * s);
+            let d = if h > 0.0 {
+                -g / h
+            } else if fp < fm.min(f0) {
+                s
+            } else if fm < fp.min(f0) {
+                -s
+            } else {
+                0.0
+            };
+            if d.is_finite() {
+                delta[p] = d.clamp(-2.0 * s, 2.0 * s);
+            }
+        }
+        delta.iter().any(|&d| d != 0.0).then_some(delta)
+    }
+}
+
+/// The fractions of the diagonal Newton step tried from the last poll's centre
+/// ([`Poll::newton_step`]): the parameters are coupled, so the full step can overshoot.
+const NEWTON_FRACTIONS: [f64; 3] = [0.5, 1.0, 1.5];
 
 impl Ga {
     /// The seeded random first generation.
@@ -276,6 +344,8 @@ impl Ga {
                 .collect(),
             radius: o.radius,
             poll: None,
+            basis: None,
+            fitted: None,
         }
     }
 
@@ -323,7 +393,17 @@ impl Ga {
     /// blended primitive by primitive and mutated with the current radius.
     pub fn breed(&mut self, scores: &[f64]) {
         let elite = self.options.elite;
-        self.breed_with(scores, elite, None);
+        self.breed_with(scores, elite, None, false);
+    }
+
+    /// [`Ga::breed`] toward a target ([`Fitness::target_pixels`]) with this
+    /// generation's views: with `options.colour_fit`, the colours of the genome the
+    /// pattern search polls around are fitted to the target ([`Ga::fit_colours`]) and
+    /// the next generation holds the colour basis of the next one.
+    pub fn breed_toward(&mut self, scores: &[f64], views: &[Vec<RgbImageF>], target: &[[f64; 3]]) {
+        self.fit_colours(views, target);
+        let elite = self.options.elite;
+        self.breed_with(scores, elite, None, true);
     }
 
     /// Breeds the next generation from the user's picks (indices into the
@@ -338,22 +418,81 @@ impl Ga {
             .collect();
         let elite = picks.len().min(pop / 2);
         let parents = (!picks.is_empty()).then_some(picks.as_slice());
-        self.breed_with(&scores, elite, parents);
+        self.breed_with(&scores, elite, parents, false);
+    }
+
+    /// Fits the colours of the genome whose colour basis this population holds to a
+    /// target (its views' pixels, sRGB-encoded, in the order of the population's
+    /// views): the views are linear in the primitives' colours (opacity-weighted
+    /// colour, emission–absorption), so the least-squares colours for the target
+    /// follow from the basis's renders, B₀ (every primitive black) and B_j (primitive
+    /// j white alone), by the normal equations per channel, with a small ridge toward
+    /// the genome's own colours (a primitive nothing shows keeps its colour), clamped
+    /// to [0, 1]. The fitted genome joins the next generation; it is kept only if it
+    /// scores better. The fit is on the encoded values, the score on ΔE*uv: close, not
+    /// the same.
+    fn fit_colours(&mut self, views: &[Vec<RgbImageF>], target: &[[f64; 3]]) {
+        let Some((at, genome)) = self.basis.take() else {
+            return;
+        };
+        let k = genome.len();
+        let pixels = |i: usize| -> Option<Vec<[f64; 3]>> {
+            let v = views.get(at + i)?;
+            Some(
+                v.iter()
+                    .flat_map(|img| img.pixels.iter().copied())
+                    .collect(),
+            )
+        };
+        let Some(b0) = pixels(0) else { return };
+        let Some(basis) = (1..=k).map(pixels).collect::<Option<Vec<_>>>() else {
+            return;
+        };
+        if b0.len() != target.len() || basis.iter().any(|b| b.len() != target.len()) {
+            return;
+        }
+        let mut fitted = genome.clone();
+        for c in 0..3 {
+            let mut a = vec![vec![0.0f64; k]; k];
+            let mut rhs = vec![0.0f64; k];
+            for p in 0..target.len() {
+                let t = target[p][c] - b0[p][c];
+                for j in 0..k {
+                    let bj = basis[j][p][c] - b0[p][c];
+                    rhs[j] += bj * t;
+                    for l in 0..k {
+                        a[j][l] += bj * (basis[l][p][c] - b0[p][c]);
+                    }
+                }
+            }
+            let trace: f64 = (0..k).map(|j| a[j][j]).sum();
+            let ridge = 1e-6 * trace / k as f64 + 1e-12;
+            for j in 0..k {
+                a[j][j] += ridge;
+                rhs[j] += ridge * genome.param(genome.colour_params(j).start + c);
+            }
+            if let Some(x) = solve(a, rhs) {
+                for (j, v) in x.into_iter().enumerate() {
+                    fitted.set_param(genome.colour_params(j).start + c, v.clamp(0.0, 1.0));
+                }
+            }
+        }
+        if fitted != genome {
+            self.fitted = Some(fitted);
+        }
     }
 
     /// The next poll: around the best genome, with the steps the last poll's outcome
     /// gives (fresh steps when the best has another number of primitives), and as
     /// many moves as fit in three quarters of the children (the rest stay the GA's).
-    fn next_poll(&self, scores: &[f64], order: &[usize]) -> Poll {
+    fn next_poll(&self, scores: &[f64], order: &[usize], offset: usize) -> Poll {
         let best = &self.population[order[0]];
         let n = best.param_count();
         let steps = match &self.poll {
             Some(last) if last.steps.len() == n => {
-                // the last poll's children follow the elite in the population
-                let first = self.options.elite.min(self.population.len());
                 let mut improved = vec![false; n];
                 for (k, &(p, _)) in last.moves.iter().enumerate() {
-                    if scores.get(first + k).is_some_and(|&s| s < last.score) {
+                    if scores.get(last.offset + k).is_some_and(|&s| s < last.score) {
                         improved[p] = true;
                     }
                 }
@@ -365,7 +504,7 @@ impl Ga {
             }
             _ => best.initial_steps(self.radius),
         };
-        let room = (self.population.len() - self.options.elite.min(self.population.len())) * 3 / 4;
+        let room = (self.population.len() - offset.min(self.population.len())) * 3 / 4;
         // the parameters in turn, both signs, starting where the generation says, so
         // that a poll too large for the room still visits every parameter in turn
         let start = self.generation * (room / 2).max(1) % n.max(1);
@@ -377,13 +516,15 @@ impl Ga {
             centre: best.clone(),
             score: scores[order[0]],
             steps,
+            offset,
             moves,
         }
     }
 
     /// `parents`: where given, every parent is drawn from these; else from tournaments
     /// of two by score.
-    fn breed_with(&mut self, scores: &[f64], elite: usize, parents: Option<&[usize]>) {
+    /// `basis`: hold the colour basis of the best for [`Ga::fit_colours`].
+    fn breed_with(&mut self, scores: &[f64], elite: usize, parents: Option<&[usize]>, basis: bool) {
         let pop = self.population.len();
         assert_eq!(scores.len(), pop, "one score per genome");
         let order = self.ranking(scores);
@@ -393,10 +534,42 @@ impl Ga {
             .take(elite.min(pop))
             .map(|&i| self.population[i].clone())
             .collect();
+        // the best with its colours fitted to the target
+        if let (Some(g), None) = (self.fitted.take(), parents)
+            && next.len() < pop
+        {
+            next.push(g);
+        }
+        // the last poll's Newton step from its centre, at a few lengths
+        if let (Some(last), None) = (&self.poll, parents)
+            && let Some(delta) = last.newton_step(scores)
+        {
+            for t in NEWTON_FRACTIONS {
+                let mut g = last.centre.clone();
+                for (p, d) in delta.iter().enumerate() {
+                    g.set_param(p, g.param(p) + t * d);
+                }
+                if next.len() < pop {
+                    next.push(g);
+                }
+            }
+        }
         // the pattern search around the best, from a quarter of a run on
         let late = 4 * generation >= self.options.generations;
+        // the colour basis of the best: all its colours black, then each primitive
+        // white alone (its render is linear in the colours; [`Ga::fit_colours`])
+        self.basis = None;
+        if basis && late && parents.is_none() && self.options.colour_fit {
+            let best = &self.population[order[0]];
+            let basis = colour_basis(best);
+            if next.len() + basis.len() <= pop {
+                self.basis = Some((next.len(), best.clone()));
+                next.extend(basis);
+            }
+        }
+        let offset = next.len();
         self.poll = match (parents, late) {
-            (None, true) => Some(self.next_poll(scores, &order)),
+            (None, true) => Some(self.next_poll(scores, &order, offset)),
             _ => None,
         };
         if let Some(poll) = &self.poll {
@@ -452,6 +625,52 @@ impl Ga {
     }
 }
 
+/// The colour basis of a genome: every primitive black, then each primitive white
+/// with the others black.
+fn colour_basis(g: &Genome) -> Vec<Genome> {
+    let paint = |white: Option<usize>| {
+        let mut b = g.clone();
+        for j in 0..g.len() {
+            let v = if Some(j) == white { 1.0 } else { 0.0 };
+            for p in g.colour_params(j) {
+                b.set_param(p, v);
+            }
+        }
+        b
+    };
+    std::iter::once(paint(None))
+        .chain((0..g.len()).map(|j| paint(Some(j))))
+        .collect()
+}
+
+/// Solves a small linear system by Gaussian elimination with partial pivoting (None
+/// where it is singular).
+fn solve(mut a: Vec<Vec<f64>>, mut b: Vec<f64>) -> Option<Vec<f64>> {
+    let n = b.len();
+    for col in 0..n {
+        let pivot = (col..n).max_by(|&i, &j| a[i][col].abs().total_cmp(&a[j][col].abs()))?;
+        if a[pivot][col].abs() < 1e-300 {
+            return None;
+        }
+        a.swap(col, pivot);
+        b.swap(col, pivot);
+        let pivot_row = a[col].clone();
+        for row in col + 1..n {
+            let f = a[row][col] / pivot_row[col];
+            for (x, p) in a[row][col..].iter_mut().zip(&pivot_row[col..]) {
+                *x -= f * p;
+            }
+            b[row] -= f * b[col];
+        }
+    }
+    let mut x = vec![0.0; n];
+    for row in (0..n).rev() {
+        let s: f64 = (row + 1..n).map(|c| a[row][c] * x[c]).sum();
+        x[row] = (b[row] - s) / a[row][row];
+    }
+    x.iter().all(|v| v.is_finite()).then_some(x)
+}
+
 /// Runs the search from a seeded random population; `observer` sees every generation.
 #[allow(clippy::too_many_arguments)]
 pub fn evolve(
@@ -466,6 +685,7 @@ pub fn evolve(
     let mut ga = Ga::new(o);
     let mut history = Vec::new();
     let generations = o.generations.max(1);
+    let target = fitness.target_pixels();
     loop {
         let thumbs = ga.render(r, stack, camera, background)?;
         let scores: Vec<f64> = ga
@@ -480,7 +700,10 @@ pub fn evolve(
         if ga.generation + 1 == generations {
             return Ok(history);
         }
-        ga.breed(&scores);
+        match &target {
+            Some(t) => ga.breed_toward(&scores, &thumbs, t),
+            None => ga.breed(&scores),
+        }
     }
 }
 
@@ -505,6 +728,127 @@ mod tests {
         assert_eq!(split_side_by_side(&strip).unwrap(), views);
         let e = split_side_by_side(&RgbImageF::new(10, 4, vec![[0.0; 3]; 40])).unwrap_err();
         assert!(e.contains("10×4"), "{e}");
+    }
+
+    /// On a separable quadratic the poll's ± scores give its minimum in one Newton
+    /// step; a parameter whose both sides are worse with no curvature stays.
+    #[test]
+    fn the_newton_step_reaches_a_quadratic_minimum() {
+        let centre = Genome::random(Space::Tf1d, &mut Rng::at(4, 4), 2);
+        let n = centre.param_count();
+        // within two steps of the centre (a Newton step goes at most that far)
+        let minimum: Vec<f64> = (0..n)
+            .map(|p| centre.param(p) + 0.005 * (p as f64 - 5.0))
+            .collect();
+        let weight = |p: usize| 1.0 + p as f64;
+        let f = |x: &[f64]| -> f64 {
+            x.iter()
+                .enumerate()
+                .map(|(p, v)| weight(p) * (v - minimum[p]).powi(2))
+                .sum()
+        };
+        let x0: Vec<f64> = (0..n).map(|p| centre.param(p)).collect();
+        let steps: Vec<f64> = (0..n).map(|p| 0.02 + 0.001 * p as f64).collect();
+        let moves: Vec<(usize, f64)> = (0..n).flat_map(|p| [(p, 1.0), (p, -1.0)]).collect();
+        let offset = 3;
+        let mut scores = vec![0.0; offset];
+        for &(p, sign) in &moves {
+            let mut x = x0.clone();
+            x[p] += sign * steps[p];
+            scores.push(f(&x));
+        }
+        let poll = Poll {
+            centre,
+            score: f(&x0),
+            steps: steps.clone(),
+            offset,
+            moves: moves.clone(),
+        };
+        let delta = poll.newton_step(&scores).unwrap();
+        for p in 0..n {
+            assert!(
+                (x0[p] + delta[p] - minimum[p]).abs() < 1e-9,
+                "parameter {p}"
+            );
+        }
+        // flat on both sides (no curvature, no better side): no move; a missing score: none
+        let flat = vec![poll.score; offset + moves.len()];
+        assert!(poll.newton_step(&flat).is_none());
+        assert!(poll.newton_step(&scores[..offset + 3]).is_none());
+    }
+
+    /// Views linear in the primitives' colours (as emission–absorption renders them):
+    /// the fit recovers the colours that made the target from the basis's views, and a
+    /// primitive no view shows keeps its own colour.
+    #[test]
+    fn colours_are_fitted_from_the_basis() {
+        let genome = Genome::random(Space::Tf1d, &mut Rng::at(9, 1), 3);
+        let k = genome.len();
+        assert!(k >= 2);
+        let o = GaOptions {
+            population: 2 + k + 1,
+            views: 2,
+            ..Default::default()
+        };
+        let mut ga = Ga::new(&o);
+        let at = 2;
+        ga.basis = Some((at, genome.clone()));
+        let (side, bg) = (4u32, [0.1, 0.2, 0.3]);
+        // primitive j covers the pixels i with i % (k + 1) == j; the last one nothing
+        let cover = |j: usize, i: usize| {
+            if j + 1 < k && i % (k + 1) == j {
+                0.5 + 0.01 * i as f64
+            } else {
+                0.0
+            }
+        };
+        let render = |colours: &dyn Fn(usize) -> [f64; 3]| -> Vec<RgbImageF> {
+            (0..o.views)
+                .map(|v| {
+                    let pixels = (0..(side * side) as usize)
+                        .map(|i| {
+                            let i = i + v * 7;
+                            std::array::from_fn(|c| {
+                                bg[c] * 0.4
+                                    + (0..k).map(|j| cover(j, i) * colours(j)[c]).sum::<f64>()
+                            })
+                        })
+                        .collect();
+                    RgbImageF::new(side, side, pixels)
+                })
+                .collect()
+        };
+        let truth = |j: usize| [0.2 + 0.3 * j as f64, 0.9 - 0.2 * j as f64, 0.5];
+        let mut views = vec![render(&|_| [0.0; 3]); at];
+        for b in colour_basis(&genome) {
+            let c = |j: usize| std::array::from_fn(|ch| b.param(b.colour_params(j).start + ch));
+            views.push(render(&c));
+        }
+        let target: Vec<[f64; 3]> = render(&truth)
+            .iter()
+            .flat_map(|v| v.pixels.iter().copied())
+            .collect();
+        ga.fit_colours(&views, &target);
+        let fitted = ga.fitted.clone().expect("colours changed");
+        for j in 0..k {
+            let want = if j + 1 < k {
+                truth(j)
+            } else {
+                std::array::from_fn(|ch| genome.param(genome.colour_params(j).start + ch))
+            };
+            for (ch, w) in want.iter().enumerate() {
+                let got = fitted.param(fitted.colour_params(j).start + ch);
+                assert!(
+                    (got - w).abs() < 1e-4,
+                    "primitive {j} channel {ch}: {got} for {w}"
+                );
+            }
+        }
+        // the fit is used once; without a basis there is nothing to fit
+        assert!(ga.basis.is_none());
+        ga.fitted = None;
+        ga.fit_colours(&views, &target);
+        assert!(ga.fitted.is_none());
     }
 
     #[test]

@@ -603,6 +603,13 @@ impl Genome {
         each!(self, p => set_coordinate(p, i, v))
     }
 
+    /// Primitive `j`'s colour coordinates: the last three of its pattern-search
+    /// coordinates, in both spaces (RGB; a 2D primitive's peak opacity is not one).
+    pub(crate) fn colour_params(&self, j: usize) -> std::ops::Range<usize> {
+        let per = self.param_count() / self.len().max(1);
+        j * per + per - 3..(j + 1) * per
+    }
+
     /// First steps of the pattern search at mutation radius `r`.
     pub(crate) fn initial_steps(&self, r: f64) -> Vec<f64> {
         each!(self, p => initial_steps(p, r))
