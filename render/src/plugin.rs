@@ -397,11 +397,15 @@ impl VolumePassDecl {
     }
 }
 
-/// What [`Plugin::statistics`] reads: the volume's dims and the instance's volume-pass
-/// targets as the GPU left them after the last frame (by target name: size and f32
-/// components, x fastest; None where the pass is absent).
+/// What [`Plugin::statistics`] reads: the document's volume and named volumes (what a
+/// plugin compares its passes' output with, e.g. its CPU twin's) and the instance's
+/// volume-pass targets as the GPU left them after the last frame (by target name, or
+/// `prepass` for its pre-pass target: size and f32 components, x fastest; None where
+/// the pass is absent).
 pub struct PassOutputs<'a> {
     pub volume_dims: [u32; 3],
+    pub volume: &'a Volume,
+    pub inputs: &'a crate::inputs::VolumeInputs,
     pub read: &'a ReadPassTarget<'a>,
 }
 

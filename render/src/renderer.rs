@@ -3697,6 +3697,44 @@ impl Renderer {
         read_texels_3d(&self.gpu, tex)
     }
 
+    /// The figures `inst` reports about what its passes computed after the last frame
+    /// ([`crate::plugin::Plugin::statistics`]): its volume-pass targets and its pre-pass
+    /// target (`prepass`) as the GPU left them, with this renderer's volume and named
+    /// volumes.
+    pub fn statistics_of(
+        &self,
+        inst: &crate::plugin::PluginInstance,
+    ) -> Vec<crate::plugin::Statistic> {
+        let read = |target: &str| {
+            self.read_pass_target(inst.uid, target).or_else(|| {
+                (target == "prepass")
+                    .then(|| self.read_prepass(inst.uid))
+                    .flatten()
+            })
+        };
+        let passes = crate::plugin::PassOutputs {
+            volume_dims: self.volume.dims,
+            volume: &self.volume,
+            inputs: &self.inputs,
+            read: &read,
+        };
+        inst.configured().statistics(&inst.params, &passes)
+    }
+
+    /// Makes the next frame rerun every pre-pass and volume pass as if its inputs had
+    /// changed (progressive passes from their first step), without recreating any
+    /// resource: for timing what a change costs more than once
+    /// (`update_repeats` in experiment files).
+    pub fn rerun_passes(&mut self) {
+        for g in self.instances.values_mut() {
+            g.prepass_done = None;
+            for st in &mut g.pass_state {
+                st.stamp = None;
+                st.steps_done = 0;
+            }
+        }
+    }
+
     /// Reads the target of the instance `uid`'s volume pass named `target`
     /// ([`crate::plugin::VolumePassDecl::target`]) as it stands after the last frame:
     /// its size and its texels' f32 components (x fastest). None when the instance has

@@ -288,7 +288,90 @@ fn update_time_counts_what_a_grid_point_reruns() {
     .unwrap();
     let err = experiment::load(&bad).unwrap_err().to_string();
     assert!(
-        err.contains("bad-pareto.ron") && err.contains("pareto_time must be frame_ms or update_ms"),
+        err.contains("bad-pareto.ron")
+            && err.contains("pareto_time must be frame_ms, update_ms or update_gpu_ms"),
+        "{err}"
+    );
+}
+
+/// `update_repeats`: a row whose change reran passes is updated again by
+/// `Renderer::rerun_passes` (which makes the next frame rerun every pre-pass, and only
+/// that frame) and reports medians; `update_gpu_ms` holds only stamps that can be the
+/// update's; `flow.lic3d.twin_rms` holds the GPU's LIC volume against its f64 twin.
+#[test]
+fn updates_are_timed_again_and_the_lic_is_held_against_its_twin() {
+    let scene = tmp("lic32.ron");
+    std::fs::write(
+        &scene,
+        r#"(version: 1, volume: Analytic((field: Abc, size: (32, 32, 32))),
+            render: (slice_spacing: 1.0, backend: Compute),
+            plugins: [(id: "flow.lic3d"), (id: "classify.tf1d")])"#,
+    )
+    .unwrap();
+    // the renderer: a pre-pass runs once, and again after rerun_passes
+    let doc = vwb_lab::document::load_document(Some(&scene)).unwrap();
+    let volume = vwb_lab::headless::load_volume(&doc.volume).unwrap();
+    let mut r = vwb_lab::headless::renderer_for(gpu(), &doc, volume).unwrap();
+    let mut s = doc.frame_settings();
+    (s.width, s.height) = (16, 16);
+    let runs = |r: &mut vwb_render::Renderer| r.render(&s).unwrap().prepasses_run();
+    assert_eq!(runs(&mut r), 1);
+    assert_eq!(runs(&mut r), 0);
+    r.rerun_passes();
+    assert_eq!(runs(&mut r), 1);
+    assert_eq!(runs(&mut r), 0);
+    let stats = r.statistics_of(&doc.stack[0]);
+    assert_eq!(stats.len(), 1);
+    assert!(stats[0].value < 0.5, "{stats:?}");
+
+    let file = tmp("repeats.ron");
+    std::fs::write(
+        &file,
+        format!(
+            r#"Experiment(
+        name: "repeats",
+        scenes: [Preset("{}")],
+        variants: [(name: "L 4", set: {{"flow.lic3d.length": 4.0}}), (name: "L 12", set: {{"flow.lic3d.length": 12.0}})],
+        reference: TimeOnly,
+        metrics: [update_ms, update_gpu_ms],
+        statistics: ["flow.lic3d.twin_rms"],
+        render: (size: (16, 16), target: "rgba32float"),
+        frames: 1,
+        update_repeats: 3,
+        assertions: ["flow.lic3d.twin_rms < 0.5", "update_ms(L 12) / update_ms(L 4) > 1.2"],
+    )"#,
+            scene.display()
+        ),
+    )
+    .unwrap();
+    let e = experiment::load(&file).unwrap();
+    assert_eq!(e.update_repeats, 3);
+    let o = experiment::run(gpu(), &e, &file, &tmp("repeats-report"), &mut |_| {}).unwrap();
+    assert!(o.failed().is_empty(), "{:#?}", o.assertions);
+    for row in &o.rows {
+        assert_eq!(row.update_passes, ["flow.lic3d/prepass"], "{row:?}");
+        assert!(row.update_ms.is_finite() && row.update_ms > 0.0, "{row:?}");
+        let twin = row.statistics["flow.lic3d.twin_rms"];
+        assert!((0.0..0.5).contains(&twin), "{row:?}");
+        if !crate::common::on_gpu() {
+            // lavapipe's compute stamps are near zero: not the update's
+            assert!(row.update_gpu_ms.is_nan(), "{row:?}");
+        }
+    }
+    assert!(
+        o.markdown.contains("| update, GPU (ms) |"),
+        "{}",
+        o.markdown
+    );
+    // at least one update
+    let err = experiment::parse(
+        "Experiment(name: \"x\", scenes: [Sample(\"ct_head\")], update_repeats: 0)",
+        Path::new("zero.ron"),
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(
+        err.contains("zero.ron: update_repeats must be in 1..=100"),
         "{err}"
     );
 }

@@ -245,110 +245,26 @@ fn flow_study() {
          machine (± 20 %)."
     );
 
-    // precompute time: the CPU twin at 128³, the GPU pre-pass at 128³ and 256³, and the
-    // GPU's LIC volume against the twin's (same field, same noise)
-    let _ = writeln!(
+    // precompute time: experiment files
+    let old = std::fs::read_to_string(bench_doc("flow.md")).unwrap_or_default();
+    let _ = write!(
         o,
-        "\n## Precompute time\n\nABC flow (period = the grid's side), white noise, RK4, h = 0.5, L = 8 (2 × 16 steps \
-         per voxel), tent kernel: `flow.lic3d`'s defaults; the last row L = 20 (2 × 40 steps), the issue's GPU target. GPU: the first frame's wall time minus the second's (the \
-         pre-pass runs once), at 32² so that slicing is negligible; GPU timestamps of the pre-pass on a GPU, the median of 7 \
-         reruns (— on a CPU adapter: lavapipe reports zeros for compute passes). Error: RMS difference of the GPU's LIC volume against the f64 \
-         twin with the same noise, in 1/255 units.\n"
-    );
-    let _ = writeln!(
-        o,
-        "| grid | RK4 steps | storage | CPU twin (s) | GPU pre-pass, wall (s) | GPU pre-pass, timestamps (s) | GPU vs twin (/255) |\n|---|---|---|---:|---:|---:|---:|"
-    );
-    // the issue's GPU target configuration: 256³, 2 × 40 RK4 steps (h = 0.5, L = 20),
-    // with the field and the noise in f32 and in f16
-    let mut target = Vec::new();
-    let mut twin_128: Option<(f64, vwb_render::flow::GridField)> = None;
-    for (side, length, storage) in [
-        (128u32, None, "f32"),
-        (128, None, "f16"),
-        (256, None, "f32"),
-        (256, Some(20.0f32), "f32"),
-        (256, Some(20.0), "f16"),
-    ] {
-        let vol = std::sync::Arc::new(vector_volume(
-            &Abc {
-                period: side as f64,
-                ..Default::default()
-            },
-            [side; 3],
-        ));
-        let mut lic = instance("flow.lic3d");
-        if let Some(l) = length {
-            lic.params.set("length", ParamValue::Float(l));
-        }
-        lic.params.set("storage", ParamValue::Enum(storage.into()));
-        let steps = (lic.params.float("length") / lic.params.float("step")).round();
-        let (mut r, s, first, once_ms) =
-            prepass_once(&vol, vec![lic.clone(), instance("classify.tf1d")]);
-        let gpu_s = once_ms / 1e3;
-        // on a GPU the median of 7 reruns (the first run pays for first use and the
-        // clocks ramp up): `density` is an input of the pre-pass that white noise
-        // ignores, so each rerun computes the same volume
-        let stamped = rerun_median_ms(&mut r, &s, |k| {
-            let mut again = lic.clone();
-            again
-                .params
-                .set("density", ParamValue::Float(0.01 + 0.001 * k as f32));
-            vec![again, instance("classify.tf1d")]
-        })
-        .or_else(|| stamped_ms(&first, |l| l.starts_with("prepass")));
-        if length.is_some() {
-            target.push((storage, stamped.unwrap_or(gpu_s * 1e3)));
-        }
-        let stamps = stamped.map_or_else(|| "—".to_string(), |ms| format!("{:.3}", ms / 1e3));
-        // the f64 twin (unrounded inputs) at 128³ only (256³ would take about 8× its
-        // 128³ time), computed once for both storages
-        let (twin_s, rms) = if side <= 128 {
-            let (secs, twin) = twin_128.get_or_insert_with(|| {
-                let mut full = lic.params.clone();
-                full.set("storage", ParamValue::Enum("f32".into()));
-                let t = Instant::now();
-                let twin = vwb_plugins::flow_lic3d::lic_of(&vol, 1, &full);
-                (t.elapsed().as_secs_f64(), twin)
-            });
-            let (dims, gpu_lic) = r.read_prepass(lic.uid).expect("the LIC volume");
-            assert_eq!(dims, twin.dims);
-            let rms = rms_255(&gpu_lic, &twin.data);
-            assert!(rms <= 0.5, "{side}³ {storage}: GPU vs twin {rms}/255");
-            (format!("{secs:.1}"), format!("{rms:.2e}"))
-        } else {
-            ("—".into(), "—".into())
-        };
-        eprintln!(
-            "LIC {side}³ 2 × {steps} steps {storage}: twin {twin_s} s, GPU {gpu_s:.3} s (timestamps {stamps}), RMS {rms}"
-        );
-        let _ = writeln!(
-            o,
-            "| {side}³ | 2 × {steps} | {storage} | {twin_s} | {gpu_s:.3} | {stamps} | {rms} |"
-        );
-    }
-    let verdict = if !on_gpu() {
-        "a CPU adapter cannot judge it; `VWB_TEST_GPU=1 bash bench/flow.sh` on a GPU writes docs/gpu/flow.md".to_string()
-    } else {
-        target
-            .iter()
-            .map(|(storage, ms)| {
-                let met = if *ms <= 150.0 { "met" } else { "not met" };
-                format!("{met} with {storage} storage ({ms:.1} ms)")
-            })
-            .collect::<Vec<_>>()
-            .join(", ")
-    };
-    let _ = writeln!(
-        o,
-        "\nThe issue's H100 target, 256³ with 2 × 40 RK4 steps in ≤ 150 ms (the last two rows; timestamps where the \
-         adapter has them, else wall): {verdict}. `storage: f16` keeps the field and the noise in half floats: half \
-         their memory and texture traffic, for the error in the 128³ f16 row (against the twin with unrounded \
-         inputs; against a twin that rounds them alike it is the f32 row's, `lic_prepass_matches_its_twin`).\n"
+        "\n## Precompute time\n\n\
+         The pre-pass of the precomputed mode: ABC flow (period = the grid's side), `flow.lic3d`'s defaults (white \
+         noise, RK4, h = 0.5, L = 8: 2 × 16 steps per voxel, tent kernel) and L = 20 (2 × 40 steps), in f32 and f16 \
+         storage, seen at 32² so that slicing costs little. `update (ms)` is the pre-pass as a change costs it (wall \
+         clock, the median of three reruns); `update, GPU (ms)` its GPU timestamps where the adapter has them. \
+         `twin_rms` is the RMS difference of the GPU's LIC volume against the f64 twin with the same noise and \
+         unrounded inputs, in 1/255 (`storage: f16` keeps the field and the noise in half floats: half their memory \
+         and texture traffic, for that error; against a twin that rounds them alike it is the f32 row's, \
+         `lic_prepass_matches_its_twin`). The issue's H100 target is the 256³ block's L = 20 rows in ≤ 150 ms \
+         (timestamps); a CPU adapter cannot judge it, and on a GPU `vwb run` writes the blocks into \
+         docs/gpu/flow.md. Each block is written by its experiment file (`vwb run experiments/NAME.ron`, the name \
+         in its marker) and kept by this study.\n\n{}",
+        kept_experiment_blocks(&old, &["flow_precompute", "flow_precompute_256"])
     );
 
     // on the fly against precomputed, and output sensitivity: experiment files
-    let old = std::fs::read_to_string(bench_doc("flow.md")).unwrap_or_default();
     let _ = write!(
         o,
         "## On the fly against precomputed\n\n\

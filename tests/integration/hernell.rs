@@ -180,13 +180,7 @@ fn flat_blocking_matches_its_twin() {
     let gpu_levels: Vec<i32> = gpu_levels.iter().map(|l| l.round() as i32).collect();
     assert_eq!(gpu_levels, blocks.levels);
     assert!(r.read_pass_target(stack[1].uid, "no such target").is_none());
-    let read = |t: &str| r.read_pass_target(stack[1].uid, t);
-    let passes = vwb_render::plugin::PassOutputs {
-        volume_dims: volume.dims,
-        read: &read,
-    };
-    let plugin = stack[1].configured();
-    let stats = plugin.statistics(&stack[1].params, &passes);
+    let stats = r.statistics_of(&stack[1]);
     let stat = |n: &str| stats.iter().find(|x| x.name == n).unwrap().value;
     assert_eq!(stat("data_reduction"), blocks.reduction());
     assert_eq!(stat("empty_blocks"), 7.0 / 12.0);
@@ -195,7 +189,7 @@ fn flat_blocking_matches_its_twin() {
     }
     assert_eq!(
         stats.iter().map(|x| x.name).collect::<Vec<_>>(),
-        plugin.statistic_names(&stack[1].params)
+        stack[1].configured().statistic_names(&stack[1].params)
     );
 }
 

@@ -30,8 +30,8 @@ use vwb_render::flow::{
 };
 use vwb_render::params::{Components, ParamSpec, ParamValues};
 use vwb_render::plugin::{
-    CpuContext, CpuSample, CpuTwin, GpuInit, GpuResource, Plugin, PluginError, PrepassDecl,
-    ResourceDecl, ResourceKind, ScalarField, ShaderSource, StorageFormat,
+    CpuContext, CpuSample, CpuTwin, GpuInit, GpuResource, PassOutputs, Plugin, PluginError,
+    PrepassDecl, ResourceDecl, ResourceKind, ScalarField, ShaderSource, Statistic, StorageFormat,
 };
 use vwb_render::volume::Volume;
 
@@ -221,6 +221,9 @@ impl LicInputs {
     }
 }
 
+/// The largest LIC grid (voxels) whose `twin_rms` statistic is computed: 128³.
+pub const TWIN_STATISTIC_VOXELS: u64 = 128 * 128 * 128;
+
 /// Whether the values select half-float storage for the field and the noise.
 pub fn half_storage(p: &ParamValues) -> bool {
     p.enumeration("storage") == "f16"
@@ -351,6 +354,48 @@ impl Plugin for Lic3d {
                 "integrator",
             ],
         })
+    }
+    /// Precomputed: `twin_rms`, the RMS difference (in 1/255) of the GPU's LIC volume
+    /// against the f64 twin's with the same noise and unrounded inputs (`storage: f32`;
+    /// a half-float run's error includes its rounding). The twin takes seconds per 128³,
+    /// so grids above [`TWIN_STATISTIC_VOXELS`] report NaN.
+    fn statistic_names(&self, params: &ParamValues) -> Vec<&'static str> {
+        if params.enumeration("mode") == "on_the_fly" {
+            Vec::new()
+        } else {
+            vec!["twin_rms"]
+        }
+    }
+    fn statistics(&self, params: &ParamValues, passes: &PassOutputs<'_>) -> Vec<Statistic> {
+        if self.on_the_fly {
+            return Vec::new();
+        }
+        let Some((dims, gpu)) = (passes.read)("prepass") else {
+            return Vec::new();
+        };
+        let voxels: u64 = dims.iter().map(|&d| d as u64).product();
+        let value = match passes.inputs.resolve(passes.volume, params, "field") {
+            Ok(field) if voxels <= TWIN_STATISTIC_VOXELS => {
+                let mut full = params.clone();
+                full.set("storage", vwb_render::params::ParamValue::Enum("f32".into()));
+                let twin = lic_on(passes.volume, field, self.frequency, &full);
+                if twin.dims == dims && twin.data.len() == gpu.len() {
+                    let sum: f64 = gpu
+                        .iter()
+                        .zip(&twin.data)
+                        .map(|(a, b)| ((a - b) as f64 * 255.0).powi(2))
+                        .sum();
+                    (sum / gpu.len().max(1) as f64).sqrt()
+                } else {
+                    f64::NAN
+                }
+            }
+            _ => f64::NAN,
+        };
+        vec![Statistic {
+            name: "twin_rms",
+            value,
+        }]
     }
     fn configure(&self, params: &ParamValues) -> Option<Arc<dyn Plugin>> {
         let c = Lic3d {
