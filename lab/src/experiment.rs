@@ -196,6 +196,10 @@ pub struct SearchSpec {
     pub views: Option<usize>,
     #[serde(default)]
     pub max_primitives: Option<usize>,
+    /// Fit the polled genome's colours to a target by least squares (default true;
+    /// `false` to measure the search without it).
+    #[serde(default)]
+    pub colour_fit: Option<bool>,
     /// The score at which `search.reached` counts the target as reached (default 3:
     /// RMS ΔE*uv 3 to a target's thumbnails).
     #[serde(default)]
@@ -232,6 +236,7 @@ impl SearchSpec {
             tile: self.tile.unwrap_or(d.tile),
             views: self.views.unwrap_or(d.views),
             max_primitives: self.max_primitives.unwrap_or(d.max_primitives),
+            colour_fit: self.colour_fit.unwrap_or(d.colour_fit),
             space,
             ..d
         }
@@ -606,6 +611,9 @@ pub struct SearchRecord {
     /// The best score of every generation (lower is better: RMS ΔE*uv to the target's
     /// thumbnails, or minus the objective).
     pub best_by_generation: Vec<f64>,
+    /// Where each generation's best came from (`vwb_render::search::genetic::Origin`:
+    /// random, elite, colour_fit, newton, poll, shape, structure, child).
+    pub best_origins: Vec<&'static str>,
     pub population: usize,
     pub views: usize,
     pub seconds: f64,
@@ -684,6 +692,7 @@ fn search_tf(
     Ok(SearchRecord {
         genome: best,
         best_by_generation: history.iter().map(|g| g.best_score).collect(),
+        best_origins: history.iter().map(|g| g.origin.name()).collect(),
         population: o.population,
         views: o.views,
         seconds,
@@ -2621,6 +2630,7 @@ mod tests {
         let record = SearchRecord {
             genome: vwb_render::search::genome::Genome::Tf1d(Vec::new()),
             best_by_generation: vec![9.0, 4.0, 2.5, 2.0],
+            best_origins: vec!["random", "child", "poll", "newton"],
             population: 10,
             views: 3,
             seconds: 2.0,

@@ -129,6 +129,9 @@ fn a_searched_variant_renders_the_tf_its_search_finds() {
     assert!(hidden.search.is_none() && hidden.statistics.is_empty());
     let (sa, sb) = (a.search.as_ref().unwrap(), b.search.as_ref().unwrap());
     assert_eq!(sa.best_by_generation, found);
+    // where each generation's best came from: the random start first
+    assert_eq!(sa.best_origins.len(), 4);
+    assert_eq!(sa.best_origins[0], "random");
     assert_eq!(a.statistics["search.best"], *found.last().unwrap());
     assert_eq!(a.statistics["search.first"], found[0]);
     assert!(a.statistics["search.seconds"] > 0.0);

@@ -197,10 +197,52 @@ pub fn split_side_by_side(strip: &RgbImageF) -> Result<Vec<RgbImageF>, String> {
         .collect())
 }
 
+/// Where a genome of a generation came from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Origin {
+    /// The seeded random first generation.
+    Random,
+    /// A survivor of the previous generation (elitism; the user's picks).
+    Elite,
+    /// The polled genome with its colours fitted to the target ([`Ga::fit_colours`]).
+    ColourFit,
+    /// The last poll's centre moved by its Newton step ([`Poll::newton_step`]).
+    Newton,
+    /// A genome of the colour basis (rendered for the fit, not meant to win).
+    ColourBasis,
+    /// The polled genome with one parameter moved by ± its step.
+    Poll,
+    /// The polled genome with one primitive in another shape.
+    Shape,
+    /// The polled genome with a primitive left out or one added.
+    Structure,
+    /// A child of two parents, blended and varied.
+    Child,
+}
+
+impl Origin {
+    pub fn name(self) -> &'static str {
+        match self {
+            Origin::Random => "random",
+            Origin::Elite => "elite",
+            Origin::ColourFit => "colour_fit",
+            Origin::Newton => "newton",
+            Origin::ColourBasis => "colour_basis",
+            Origin::Poll => "poll",
+            Origin::Shape => "shape",
+            Origin::Structure => "structure",
+            Origin::Child => "child",
+        }
+    }
+}
+
 /// One generation's outcome.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Generation {
     pub best: Genome,
+    /// Where the best came from (`Elite`: no genome of this generation beat the last
+    /// generation's best).
+    pub origin: Origin,
     /// The best score: RMS ΔE*uv to the target, or minus the objective.
     pub best_score: f64,
     pub mean_score: f64,
@@ -254,6 +296,8 @@ pub struct Ga {
     /// The generation `population` belongs to (0: the seeded random one).
     pub generation: usize,
     pub population: Vec<Genome>,
+    /// Where each genome of `population` came from.
+    pub origins: Vec<Origin>,
     /// The mutation radius the current population was bred with (`options.radius`
     /// for the first, then × `options.decay` per generation).
     pub radius: f64,
@@ -338,6 +382,7 @@ impl Ga {
         let pop = o.population.max(2);
         Ga {
             options: o.clone(),
+            origins: vec![Origin::Random; pop],
             generation: 0,
             population: (0..pop)
                 .map(|i| Genome::random(o.space, &mut Rng::at(o.seed, i as u64), o.max_primitives))
@@ -382,6 +427,7 @@ impl Ga {
         let best = self.ranking(scores)[0];
         Generation {
             best: self.population[best].clone(),
+            origin: self.origins.get(best).copied().unwrap_or(Origin::Random),
             best_score: scores[best],
             mean_score: scores.iter().sum::<f64>() / scores.len().max(1) as f64,
             radius: self.radius,
@@ -534,12 +580,14 @@ impl Ga {
             .take(elite.min(pop))
             .map(|&i| self.population[i].clone())
             .collect();
+        let mut origins = vec![Origin::Elite; next.len()];
         // the best with its colours fitted to the target
         if let (Some(g), None) = (self.fitted.take(), parents)
             && next.len() < pop
         {
             next.push(g);
         }
+        origins.resize(next.len(), Origin::ColourFit);
         // the last poll's Newton step from its centre, at a few lengths
         if let (Some(last), None) = (&self.poll, parents)
             && let Some(delta) = last.newton_step(scores)
@@ -554,6 +602,7 @@ impl Ga {
                 }
             }
         }
+        origins.resize(next.len(), Origin::Newton);
         // the pattern search around the best, from a quarter of a run on
         let late = 4 * generation >= self.options.generations;
         // the colour basis of the best: all its colours black, then each primitive
@@ -567,6 +616,7 @@ impl Ga {
                 next.extend(basis);
             }
         }
+        origins.resize(next.len(), Origin::ColourBasis);
         let offset = next.len();
         self.poll = match (parents, late) {
             (None, true) => Some(self.next_poll(scores, &order, offset)),
@@ -579,12 +629,14 @@ impl Ga {
                 g.set_param(p, v);
                 next.push(g);
             }
+            origins.resize(next.len(), Origin::Poll);
             // and each primitive in the other shapes
             for g in poll.centre.shape_variants() {
                 if next.len() < pop {
                     next.push(g);
                 }
             }
+            origins.resize(next.len(), Origin::Shape);
             // and the structure: each primitive left out, a few random ones added
             let mut rng = Rng::at(seed ^ 0x5EED_57A7, generation as u64);
             for g in poll
@@ -595,6 +647,7 @@ impl Ga {
                     next.push(g);
                 }
             }
+            origins.resize(next.len(), Origin::Structure);
         }
         let mut k = 0u64;
         while next.len() < pop {
@@ -619,7 +672,9 @@ impl Ga {
             );
             next.push(child);
         }
+        origins.resize(next.len(), Origin::Child);
         self.population = next;
+        self.origins = origins;
         self.generation += 1;
         self.radius *= self.options.decay;
     }
@@ -863,6 +918,10 @@ mod tests {
         assert_eq!(again, ga, "seeded");
         ga.breed_from_picks(&[5, 2]);
         assert_eq!(ga.generation, 1);
+        // where each came from: the picks survive, the others are children
+        assert_eq!(ga.origins.len(), ga.population.len());
+        assert_eq!(ga.origins[..2], [Origin::Elite, Origin::Elite]);
+        assert!(ga.origins[2..].iter().all(|&o| o == Origin::Child));
         assert!((ga.radius - o.radius * o.decay).abs() < 1e-12);
         // the picks survive, in index order (ties by index), and no other genome does
         assert_eq!(ga.population[0], first[2]);
