@@ -245,8 +245,18 @@ fn flow_study() {
          machine (± 20 %)."
     );
 
-    // precompute time: experiment files
+    // the integrators on the GPU (an experiment file's block with its discussion, kept
+    // as written), then the precompute time: experiment files
     let old = std::fs::read_to_string(bench_doc("flow.md")).unwrap_or_default();
+    o.push('\n');
+    o += kept_section(
+        &old,
+        "### On the GPU: the integrator against the image",
+        "## Precompute time",
+        &["flow_integrators"],
+    )
+    .trim_end();
+    o.push('\n');
     let _ = write!(
         o,
         "\n## Precompute time\n\n\
@@ -292,6 +302,9 @@ fn flow_study() {
 
     experiment_blocks(&mut o);
     arrival_study(&mut o);
+
+    // a field from a named volume (written by hand, kept as written)
+    o += &kept_section(&old, "## A field from a named volume", "## The storm", &[]);
 
     // the storm
     let (lic, field) = storm_lic(4, &LicParams::default(), Noise::White);
@@ -469,6 +482,19 @@ fn lic_output_sensitivity() {
         &body,
     );
     eprintln!("{body}");
+}
+
+/// The text of `old` (docs/flow.md before the study rewrites it) from the first line
+/// starting with `from` up to the line starting with `to`: a section written by hand
+/// around experiment blocks, kept as it stands. Where it is missing, `from` and the
+/// blocks of the experiment files `names` (empty, saying how to run them).
+fn kept_section(old: &str, from: &str, to: &str, names: &[&str]) -> String {
+    let start = old.find(&format!("\n{from}")).map(|i| i + 1);
+    let kept = start.and_then(|i| old[i..].find(&format!("\n{to}")).map(|j| &old[i..=i + j]));
+    match kept {
+        Some(text) => text.to_string(),
+        None => format!("{from}\n\n{}", kept_experiment_blocks("", names)),
+    }
 }
 
 /// The section holding the blocks of the experiment files that write into
@@ -722,6 +748,18 @@ fn arrival_study(o: &mut String) {
     ));
     let mut s = settings(side, side, Backend::Compute);
     s.camera.pitch_deg = 20.0;
+    // the integrators of the pre-pass on the GPU (an experiment file's block with its
+    // discussion, kept as written)
+    let old = std::fs::read_to_string(bench_doc("flow.md")).unwrap_or_default();
+    o.push('\n');
+    *o += kept_section(
+        &old,
+        "The integrator and the step of the pre-pass against the image",
+        "### Playing the time",
+        &["flow_arrival_integrators"],
+    )
+    .trim_end();
+    o.push('\n');
     let _ = writeln!(
         o,
         "\n### Playing the time\n\nThe 64³ tornado, `flow.arrival` (time 0 → 64 over the frames) before `flow.lic3d` and \
