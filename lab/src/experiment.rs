@@ -1600,17 +1600,11 @@ pub fn run(
                 }
                 let median = |v: &[f64]| measure::Summary::of(v).map_or(f64::NAN, |m| m.median);
                 let update_ms = (median(&walls) - timing.wall_ms.median).max(0.0);
-                // stamps that cannot be the update's (a CPU adapter's frame runs on the
-                // CPU the wall clock measures: at least a quarter of it; a GPU's at
-                // least 1 %, as measure::Timing::frame_ms judges frames)
+                // only stamps that can be the update's, as frames are judged
                 let stamped: Vec<f64> = stamps.into_iter().flatten().collect();
-                let least = if r.gpu().info.device_type == wgpu::DeviceType::Cpu {
-                    0.25
-                } else {
-                    0.01
-                };
+                let cpu = r.gpu().info.device_type == wgpu::DeviceType::Cpu;
                 let update_gpu_ms = Some(median(&stamped))
-                    .filter(|&g| g >= least * update_ms && g > 0.0)
+                    .filter(|&g| measure::stamps_plausible(cpu, g, update_ms))
                     .unwrap_or(f64::NAN);
                 let img = measure::gpu_image(&r, &d)?;
                 let memory: u64 = r.plugin_memory().iter().map(|(_, _, b)| b).sum();

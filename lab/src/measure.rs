@@ -79,12 +79,22 @@ impl Timing {
     /// stamps must cover at least a quarter of the wall time; a GPU's, which can be far
     /// below its submit-and-wait, at least 1 %.
     pub fn frame_ms(&self) -> (f64, &'static str) {
-        let least = if self.cpu_adapter { 0.25 } else { 0.01 };
         match self.gpu_ms {
-            Some(g) if g.median >= least * self.wall_ms.median => (g.median, "gpu"),
+            Some(g) if stamps_plausible(self.cpu_adapter, g.median, self.wall_ms.median) => {
+                (g.median, "gpu")
+            }
             _ => (self.wall_ms.median, "wall"),
         }
     }
+}
+
+/// Whether GPU timestamps of `gpu_ms` can be the work that took `wall_ms`: a CPU
+/// adapter's work runs on the CPU the wall clock measures, so its stamps must cover at
+/// least a quarter of the wall time; a GPU's, which can be far below its
+/// submit-and-wait, at least 1 %.
+pub fn stamps_plausible(cpu_adapter: bool, gpu_ms: f64, wall_ms: f64) -> bool {
+    let least = if cpu_adapter { 0.25 } else { 0.01 };
+    gpu_ms >= least * wall_ms
 }
 
 /// Renders `warmup` + `frames` frames and summarises the timed ones.

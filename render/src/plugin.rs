@@ -403,7 +403,6 @@ impl VolumePassDecl {
 /// `prepass` for its pre-pass target: size and f32 components, x fastest; None where
 /// the pass is absent).
 pub struct PassOutputs<'a> {
-    pub volume_dims: [u32; 3],
     pub volume: &'a Volume,
     pub inputs: &'a crate::inputs::VolumeInputs,
     pub read: &'a ReadPassTarget<'a>,

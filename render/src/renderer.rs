@@ -3713,7 +3713,6 @@ impl Renderer {
             })
         };
         let passes = crate::plugin::PassOutputs {
-            volume_dims: self.volume.dims,
             volume: &self.volume,
             inputs: &self.inputs,
             read: &read,

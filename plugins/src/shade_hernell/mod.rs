@@ -372,7 +372,7 @@ impl Plugin for Hernell {
         };
         let blocks = Blocks {
             dims: dims.map(|d| d as usize),
-            volume: passes.volume_dims.map(|d| d.max(1) as usize),
+            volume: passes.volume.dims.map(|d| d.max(1) as usize),
             levels: levels.iter().map(|l| l.round() as i32).collect(),
         };
         let h = blocks.histogram();
