@@ -20,4 +20,5 @@ mod test_input;
 pub mod tf2d_editor;
 pub mod tf_editor;
 pub mod tradeoff_ui;
+pub mod volumes_ui;
 pub mod window;

@@ -18,7 +18,7 @@ use std::path::PathBuf;
 use std::sync::Arc;
 use std::sync::mpsc;
 
-use anyhow::{Context as _, Result, anyhow};
+use anyhow::{Context as _, Result, anyhow, bail};
 use vwb_render::gpu::{self, GpuContext};
 use vwb_render::params::ParamValue;
 use vwb_render::plugin::{PluginInstance, Registry};
@@ -224,6 +224,8 @@ struct WgslEdit {
 enum Dialog {
     Volume(egui_file::FileDialog),
     Preset(egui_file::FileDialog),
+    /// The file of a named volume to add ([`crate::volumes_ui`]).
+    NamedVolume(egui_file::FileDialog),
 }
 
 pub struct Workbench {
@@ -244,6 +246,8 @@ pub struct Workbench {
     /// The last run's scene (see [`Persisted::session`]).
     last_session: Option<String>,
     dialog: Option<Dialog>,
+    /// The named volumes section's fields.
+    named_volumes: crate::volumes_ui::NamedVolumesUi,
     wgsl: Option<WgslEdit>,
     /// Full-quality resolution × (below 1 on slow devices and in tests).
     pub quality_scale: f32,
@@ -341,6 +345,7 @@ impl Workbench {
             gallery: Default::default(),
             evolve: Default::default(),
             dialog: None,
+            named_volumes: Default::default(),
             wgsl: None,
             quality_scale: 1.0,
             editing: false,
@@ -424,8 +429,10 @@ impl Workbench {
                 *p = a;
             }
         };
-        if let VolumeSource::File(p) = &mut doc.volume {
-            absolute(p);
+        for source in std::iter::once(&mut doc.volume).chain(doc.volumes.values_mut()) {
+            if let VolumeSource::File(p) = source {
+                absolute(p);
+            }
         }
         for inst in &mut doc.stack {
             for v in inst.params.values.values_mut() {
@@ -517,6 +524,64 @@ impl Workbench {
             .err()
             .map(|e| e.to_string());
         self.dirty = true;
+    }
+
+    /// Adds a named volume to the document (`volumes:`, [`crate::volumes_ui`]):
+    /// `source` is a file or a sample name, `name` a new volume name (empty: the
+    /// file's or sample's stem). It loads now; on an error (a name taken or invalid, a
+    /// file that does not load) nothing changes.
+    pub fn add_named_volume(&mut self, name: &str, source: &str) -> Result<String> {
+        let source = headless::volume_arg(std::path::Path::new(source));
+        let name = match (name, &source) {
+            ("", VolumeSource::Sample(n)) => vwb_render::params::volume_name_for(n.as_ref()),
+            ("", VolumeSource::File(p)) => vwb_render::params::volume_name_for(p),
+            (n, _) => n.to_string(),
+        };
+        if !vwb_render::params::valid_volume_name(&name) {
+            bail!(
+                "'{name}' is not a volume name (letters, digits and _, not starting with a digit)"
+            );
+        }
+        if self.doc.volumes.contains_key(&name) {
+            bail!("the document already has a volume named '{name}'");
+        }
+        let mut doc = self.doc.clone();
+        doc.volumes.insert(name.clone(), source);
+        let inputs = headless::inputs_for(&doc)?;
+        let added = inputs
+            .get(&name)
+            .map(|v| {
+                format!(
+                    "{}×{}×{}, {} component{}",
+                    v.dims[0],
+                    v.dims[1],
+                    v.dims[2],
+                    v.components,
+                    if v.components == 1 { "" } else { "s" }
+                )
+            })
+            .unwrap_or_default();
+        self.renderer.set_inputs(inputs);
+        self.doc = doc;
+        self.apply_stack();
+        Ok(format!("added volume '{name}' ({added})"))
+    }
+
+    /// Removes a named volume that no plugin's volume input names.
+    pub fn remove_named_volume(&mut self, name: &str) -> Result<String> {
+        let users = crate::volumes_ui::users_of(&self.doc, name);
+        if !users.is_empty() {
+            bail!(
+                "'{name}' is named by {}: pick another volume there first",
+                users.join(", ")
+            );
+        }
+        if self.doc.volumes.remove(name).is_none() {
+            bail!("there is no volume named '{name}'");
+        }
+        self.renderer.set_inputs(headless::inputs_for(&self.doc)?);
+        self.apply_stack();
+        Ok(format!("removed volume '{name}'"))
     }
 
     /// Reloads the user plugins whose files changed: the stack's instances of a
@@ -1288,6 +1353,35 @@ impl Workbench {
                 self.start_open_any(&p);
             }
         }
+        let action =
+            egui::CollapsingHeader::new(format!("Named volumes ({})", self.doc.volumes.len()))
+                .id_salt("named volumes")
+                .show(ui, |ui| {
+                    self.named_volumes.ui(ui, &self.doc, self.renderer.inputs())
+                })
+                .body_returned
+                .flatten();
+        match action {
+            Some(crate::volumes_ui::VolumesAction::Add { name, source }) => {
+                let outcome = self.add_named_volume(&name, &source);
+                if outcome.is_ok() {
+                    self.named_volumes = Default::default();
+                }
+                self.report(outcome);
+            }
+            Some(crate::volumes_ui::VolumesAction::Remove(name)) => {
+                let outcome = self.remove_named_volume(&name);
+                self.report(outcome);
+            }
+            Some(crate::volumes_ui::VolumesAction::Browse) => {
+                let mut d = egui_file::FileDialog::open_file()
+                    .initial_path(start_folder(&self.named_volumes.source, None))
+                    .title("Add a named volume");
+                d.open();
+                self.dialog = Some(Dialog::NamedVolume(d));
+            }
+            None => {}
+        }
         match &self.file_status {
             Some(Ok(m)) => {
                 ui.label(m);
@@ -1312,24 +1406,25 @@ impl Workbench {
     fn file_events(&mut self, ctx: &egui::Context) {
         let mut chosen = None;
         if let Some(dialog) = &mut self.dialog {
-            let (d, preset) = match dialog {
-                Dialog::Volume(d) => (d, false),
-                Dialog::Preset(d) => (d, true),
+            // what the chosen file is for: 0 a volume, 1 a preset, 2 a named volume
+            let (d, kind) = match dialog {
+                Dialog::Volume(d) => (d, 0),
+                Dialog::Preset(d) => (d, 1),
+                Dialog::NamedVolume(d) => (d, 2),
             };
             if d.show(ctx).selected() {
-                chosen = d.path().map(|p| (p.to_path_buf(), preset));
+                chosen = d.path().map(|p| (p.to_path_buf(), kind));
             }
             if !d.visible() {
                 self.dialog = None;
             }
         }
-        if let Some((path, preset)) = chosen {
-            if preset {
-                self.start_open(&path);
-            } else {
-                // a volume, or a mesh to clip by (.obj, .ply, .stl)
-                self.start_open_any(&path);
-            }
+        match chosen {
+            Some((path, 1)) => self.start_open(&path),
+            Some((path, 2)) => self.named_volumes.source = path.display().to_string(),
+            // a volume, or a mesh to clip by (.obj, .ply, .stl)
+            Some((path, _)) => self.start_open_any(&path),
+            None => {}
         }
         let dropped = ctx.input(|i| i.raw.dropped_files.clone());
         // the files of a DICOM series dropped together open once: one file opens its

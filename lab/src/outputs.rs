@@ -1,5 +1,6 @@
 //! Outputs never destroy inputs: every file a command reads (the preset, the volume,
-//! a detached NRRD's data file, label volumes and other path parameters) is
+//! a detached NRRD's data file, named volumes such as label volumes, and path
+//! parameters) is
 //! registered with `vwb_render::files::protect_input`, so every write (all go through
 //! `write_atomic`) refuses to replace one; commands also check their `-o` up front.
 //! Image formats come from the extension.
@@ -24,14 +25,17 @@ pub fn protect_volume(path: &Path) {
     }
 }
 
-/// Registers everything a document reads: its preset file, its volume (and data
-/// file), and file parameters (label volumes and their data files, maps).
+/// Registers everything a document reads: its preset file, its volume and its named
+/// volumes (label volumes, fields; with their data files), and file parameters (maps,
+/// meshes).
 pub fn protect_document(preset: Option<&Path>, doc: &Document) {
     if let Some(p) = preset {
         protect_input("preset", p);
     }
-    if let VolumeSource::File(v) = &doc.volume {
-        protect_volume(v);
+    for source in std::iter::once(&doc.volume).chain(doc.volumes.values()) {
+        if let VolumeSource::File(v) = source {
+            protect_volume(v);
+        }
     }
     for inst in &doc.stack {
         for v in inst.params.values.values() {

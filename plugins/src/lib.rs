@@ -8,6 +8,7 @@ pub use vwb_render::params;
 pub use vwb_render::plugin::*;
 
 pub mod held;
+pub mod label_input;
 pub mod lighting;
 #[cfg(feature = "ui")]
 pub mod ui;

@@ -8,7 +8,7 @@ use std::sync::Arc;
 use glam::{DVec3, DVec4};
 use vwb_render::params::{Group, ParamSpec, ParamValues};
 use vwb_render::plugin::{
-    CpuContext, CpuSample, CpuTwin, Plugin, PrepassDecl, ShaderSource, Transparency,
+    CpuContext, CpuSample, CpuTwin, Plugin, PrepassDecl, ShaderSource, Transparency, Volumes,
 };
 use vwb_render::shading::{
     GradientEstimator, Gradients, Light, LightKind, LightSpace, Material, shading_normal,
@@ -256,7 +256,7 @@ impl<M: LightingModel> Plugin for Lit<M> {
             .then(|| Arc::new(Self::with(gradient, on)) as Arc<dyn Plugin>)
     }
     /// Shading changes colours only.
-    fn transparency(&self, _params: &ParamValues) -> Transparency {
+    fn transparency(&self, _params: &ParamValues, _volumes: &Volumes<'_>) -> Transparency {
         Transparency::Keeps
     }
     fn cpu_twin(&self, params: &ParamValues) -> Option<Box<dyn CpuTwin>> {

@@ -35,6 +35,31 @@ pub struct VolumeInputs {
 /// stamps mean the same volumes.
 pub type InputStamp = Vec<(&'static str, String, usize)>;
 
+/// The document's volumes as a plugin's promises see them ([`crate::plugin::Plugin::
+/// transparency`], [`crate::plugin::Plugin::region`]): its own volume and its named
+/// ones, through which a plugin's volume inputs resolve.
+#[derive(Debug, Clone, Copy)]
+pub struct Volumes<'a> {
+    pub main: &'a Volume,
+    pub named: &'a VolumeInputs,
+}
+
+impl<'a> Volumes<'a> {
+    pub fn new(main: &'a Volume, named: &'a VolumeInputs) -> Self {
+        Self { main, named }
+    }
+
+    /// The document's own volume and no named ones.
+    pub fn of(main: &'a Volume) -> Self {
+        Self::new(main, VolumeInputs::empty())
+    }
+
+    /// The volume the input `key` of `params` names ([`VolumeInputs::resolve`]).
+    pub fn input(&self, params: &ParamValues, key: &str) -> Result<&'a Volume, String> {
+        self.named.resolve(self.main, params, key)
+    }
+}
+
 impl VolumeInputs {
     pub fn new(named: BTreeMap<String, Arc<Volume>>) -> Self {
         Self { named }

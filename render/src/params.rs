@@ -711,6 +711,28 @@ impl ParamSpec {
 }
 
 /// Whether `name` can name a volume in a preset's `volumes:` (an identifier).
+/// A volume name for a file ([`valid_volume_name`]): its stem without the volume
+/// suffixes (`.nii.gz`, `.nrrd`…), other characters as `_`, prefixed by `v_` where it
+/// would start with a digit; `volume` for an empty stem.
+pub fn volume_name_for(path: &std::path::Path) -> String {
+    let file = path
+        .file_name()
+        .map(|f| f.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let stem = file.split('.').next().unwrap_or_default();
+    let mut name: String = stem
+        .chars()
+        .map(|c| if c.is_ascii_alphanumeric() { c } else { '_' })
+        .collect();
+    if name.is_empty() {
+        name = "volume".into();
+    }
+    if !valid_volume_name(&name) {
+        name = format!("v_{name}");
+    }
+    name
+}
+
 pub fn valid_volume_name(name: &str) -> bool {
     let mut chars = name.chars();
     chars

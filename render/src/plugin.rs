@@ -36,6 +36,7 @@ use std::sync::Arc;
 use glam::{DVec2, DVec3, DVec4};
 
 use crate::inputs::VolumeInputs;
+pub use crate::inputs::Volumes;
 use crate::params::{ParamSpec, ParamValue, ParamValues, validate_specs};
 use crate::volume::Volume;
 
@@ -1055,17 +1056,19 @@ pub trait Plugin: Send + Sync + 'static {
     fn cpu_twin(&self, _params: &ParamValues) -> Option<Box<dyn CpuTwin>> {
         None
     }
-    /// Its promise about transparent samples, for empty-space skipping.
-    fn transparency(&self, _params: &ParamValues) -> Transparency {
+    /// Its promise about transparent samples, for empty-space skipping, over the
+    /// document's volumes (a promise may depend on a volume input: the labels a label
+    /// volume holds).
+    fn transparency(&self, _params: &ParamValues, _volumes: &Volumes<'_>) -> Transparency {
         Transparency::Unknown
     }
-    /// The region of world space outside which it drops every sample, over `volume`
-    /// (bricks wholly outside are skipped): by default that of
+    /// The region of world space outside which it drops every sample, over the
+    /// document's volume `volumes.main` (bricks wholly outside are skipped): by default that of
     /// [`Transparency::Region`]; a plugin whose region depends on the volume (a mesh
     /// voxelised over the volume box) answers here and promises
     /// [`Transparency::Keeps`].
-    fn region(&self, params: &ParamValues, _volume: &Volume) -> Option<Arc<RegionFn>> {
-        match self.transparency(params) {
+    fn region(&self, params: &ParamValues, volumes: &Volumes<'_>) -> Option<Arc<RegionFn>> {
+        match self.transparency(params, volumes) {
             Transparency::Region(f) => Some(f),
             _ => None,
         }
@@ -1084,6 +1087,12 @@ pub trait Plugin: Send + Sync + 'static {
     /// `None` (the default): the defaults render.
     fn demo_params(&self) -> Option<ParamValues> {
         None
+    }
+    /// The named volumes beside the embedded demo volume that its demo parameters'
+    /// volume inputs name (e.g. the demo's label volume); the test suite renders the
+    /// plugin with them. Empty (the default): the demo volume alone.
+    fn demo_inputs(&self) -> VolumeInputs {
+        VolumeInputs::default()
     }
     /// Its own converged reference, where refined slices do not converge to the model
     /// it approximates ([`ConvergedReference`]); `None` (the default): the refined-slices

@@ -268,6 +268,8 @@ impl Document {
             check_source(source).map_err(|e| value_err(path, e))?;
         }
         crate::validate::check_camera(&raw.camera).map_err(|e| value_err(e.field, e.message))?;
+        // named volumes, with those that legacy file paths in volume inputs add
+        let mut volumes = raw.volumes.clone();
         let mut stack = Vec::new();
         for (i, entry) in raw.plugins.iter().enumerate() {
             let plugin = registry
@@ -285,14 +287,30 @@ impl Document {
                         specs.iter().map(|s| s.key).collect::<Vec<_>>().join(", ")
                     )),
                     Some(spec) => {
+                        let migrated;
+                        let value = match legacy_volume_path(spec, value) {
+                            Some(legacy) => {
+                                let name = name_volume_file(&mut volumes, &legacy);
+                                warnings.push(format!(
+                                    "{file}: {path}: a file path where a volume name belongs \
+                                     (the form before named volumes); read as volumes: \
+                                     {{\"{name}\": File(\"{shown}\")}} and \"{key}\": \"{name}\" \
+                                     (saving writes that form)",
+                                    shown = legacy.display(),
+                                ));
+                                migrated = ron::Value::String(name);
+                                &migrated
+                            }
+                            None => value,
+                        };
                         let v = spec
                             .from_ron(value)
                             .map_err(|m| value_err(path.clone(), m))?;
                         if let crate::params::ParamValue::Volume(name) = &v
                             && !name.is_empty()
-                            && !raw.volumes.contains_key(name)
+                            && !volumes.contains_key(name)
                         {
-                            let known: Vec<&str> = raw.volumes.keys().map(String::as_str).collect();
+                            let known: Vec<&str> = volumes.keys().map(String::as_str).collect();
                             return Err(value_err(
                                 path,
                                 format!(
@@ -318,7 +336,7 @@ impl Document {
             document: Document {
                 description: raw.description,
                 volume: raw.volume,
-                volumes: raw.volumes,
+                volumes,
                 camera: raw.camera,
                 render: raw.render,
                 stack,
@@ -409,6 +427,38 @@ impl Document {
 }
 
 pub use crate::files::write_atomic;
+
+/// The file path a volume input's value held before volume inputs named the
+/// document's volumes (`"labels": "data/demo_labels.nrrd"`): a string that is not a
+/// volume name, given to a [`crate::params::ParamKind::Volume`] parameter.
+fn legacy_volume_path(spec: &crate::params::ParamSpec, value: &ron::Value) -> Option<PathBuf> {
+    match (&spec.kind, value) {
+        (crate::params::ParamKind::Volume { .. }, ron::Value::String(s))
+            if !s.is_empty() && !crate::params::valid_volume_name(s) =>
+        {
+            Some(PathBuf::from(s))
+        }
+        _ => None,
+    }
+}
+
+/// The name under which `volumes` holds the file `path`: the one it has, or a new one
+/// from the file's stem (letters, digits and _; `_2`, `_3`… where taken), added.
+fn name_volume_file(volumes: &mut BTreeMap<String, VolumeSource>, path: &Path) -> String {
+    let source = VolumeSource::File(path.to_path_buf());
+    if let Some((name, _)) = volumes.iter().find(|(_, s)| **s == source) {
+        return name.clone();
+    }
+    let name = crate::params::volume_name_for(path);
+    let mut unique = name.clone();
+    let mut n = 2;
+    while volumes.contains_key(&unique) {
+        unique = format!("{name}_{n}");
+        n += 1;
+    }
+    volumes.insert(unique.clone(), source);
+    unique
+}
 
 /// Checks what can be checked of a volume source before loading it: a sample's name,
 /// an analytic field's or a phantom's size.

@@ -1276,6 +1276,11 @@ impl Renderer {
         &self.inputs
     }
 
+    /// The volume and the named volumes, as plugins' promises see them.
+    fn volumes(&self) -> crate::inputs::Volumes<'_> {
+        crate::inputs::Volumes::new(&self.volume, &self.inputs)
+    }
+
     /// Replaces the volume; pre-passes rerun, plugin resources are recreated (compiled
     /// stacks are kept: they do not depend on the volume). The same volume (the same
     /// `Arc`) is not uploaded again and changes nothing.
@@ -1465,7 +1470,7 @@ impl Renderer {
     /// classification shows, or wholly outside its clip regions, are 0. `None` when
     /// skipping is off or a plugin promises nothing.
     fn occupancy_of(&self, stack: &[PluginInstance]) -> Option<Vec<u8>> {
-        self.occupancy_moving(stack, stack_moves(stack))
+        self.occupancy_moving(stack, stack_moves(stack, &self.volumes()))
     }
 
     /// [`Renderer::occupancy_of`] for a stack whose plugins move samples by `moves`
@@ -1474,7 +1479,7 @@ impl Renderer {
         if !self.skipping_enabled {
             return None;
         }
-        let visible = stack_visibility(stack)?;
+        let visible = stack_visibility(stack, &self.volumes())?;
         // a moved sample may read beyond its brick: ranges over a wider apron, and
         // regions widened by the move
         let apron = move_apron(moves, self.slice_spacing);
@@ -1487,7 +1492,7 @@ impl Renderer {
             self.bricks.dims,
             self.volume.dims,
             (self.vbox.min.as_dvec3(), self.vbox.max.as_dvec3()),
-            &stack_regions(stack, &self.volume),
+            &stack_regions(stack, &self.volumes()),
             moves * self.slice_spacing as f64 * self.vbox.voxel as f64,
         );
         Some(bytes)
@@ -1518,7 +1523,7 @@ impl Renderer {
     /// Recomputes the occupancy for the stack and uploads it when it changed.
     fn update_occupancy(&mut self, stack: &[PluginInstance]) {
         self.occupancy_stack = stack.to_vec();
-        self.occupancy_moves = stack_moves(stack);
+        self.occupancy_moves = stack_moves(stack, &self.volumes());
         self.occupancy_apron = move_apron(self.occupancy_moves, self.slice_spacing);
         let bytes = self.occupancy_moving(stack, self.occupancy_moves);
         if bytes == self.occupancy_bytes {

@@ -25,7 +25,7 @@ use rayon::prelude::*;
 
 use glam::DVec3;
 
-use crate::plugin::{PluginInstance, RegionFn, Transparency, VisibleFn};
+use crate::plugin::{PluginInstance, RegionFn, Transparency, VisibleFn, Volumes};
 
 /// Side of a brick in voxels, unless `VWB_SKIP_BRICK` says otherwise
 /// (`bench/brick_size.py`, docs/perf.md "Brick size").
@@ -134,15 +134,12 @@ pub fn visible_by_table(visible: Vec<bool>) -> Transparency {
 }
 
 /// The regions of the enabled instances that drop samples outside them, over
-/// `volume` ([`crate::plugin::Plugin::region`]).
-pub fn stack_regions(
-    stack: &[PluginInstance],
-    volume: &crate::volume::Volume,
-) -> Vec<Arc<RegionFn>> {
+/// the document's volume ([`crate::plugin::Plugin::region`]).
+pub fn stack_regions(stack: &[PluginInstance], volumes: &Volumes<'_>) -> Vec<Arc<RegionFn>> {
     stack
         .iter()
         .filter(|i| i.enabled)
-        .filter_map(|i| i.configured().region(&i.params, volume))
+        .filter_map(|i| i.configured().region(&i.params, volumes))
         .collect()
 }
 
@@ -281,10 +278,12 @@ pub fn clear_outside_regions(
 /// share of the volume box.
 pub const REGION_MARGIN: f64 = 1.0e-4;
 
-pub fn stack_visibility(stack: &[PluginInstance]) -> Option<Arc<VisibleFn>> {
+/// What the enabled instances' classifications show ([`Transparency::ByValue`] of the
+/// last classifier), `None` when one promises nothing.
+pub fn stack_visibility(stack: &[PluginInstance], volumes: &Volumes<'_>) -> Option<Arc<VisibleFn>> {
     let mut visible: Arc<VisibleFn> = Arc::new(|_lo: f64, hi: f64| hi > 0.0);
     for inst in stack.iter().filter(|i| i.enabled) {
-        match inst.configured().transparency(&inst.params) {
+        match inst.configured().transparency(&inst.params, volumes) {
             Transparency::Unknown => return None,
             Transparency::Keeps | Transparency::Region(_) | Transparency::Moves(_) => {}
             Transparency::ByValue(f) => visible = f,
@@ -295,11 +294,11 @@ pub fn stack_visibility(stack: &[PluginInstance]) -> Option<Arc<VisibleFn>> {
 
 /// How far the enabled instances move samples along their rays, in slice steps: the
 /// largest [`Transparency::Moves`] (0 when none does).
-pub fn stack_moves(stack: &[PluginInstance]) -> f64 {
+pub fn stack_moves(stack: &[PluginInstance], volumes: &Volumes<'_>) -> f64 {
     stack
         .iter()
         .filter(|i| i.enabled)
-        .filter_map(|i| match i.configured().transparency(&i.params) {
+        .filter_map(|i| match i.configured().transparency(&i.params, volumes) {
             Transparency::Moves(steps) => Some(steps.max(0.0)),
             _ => None,
         })

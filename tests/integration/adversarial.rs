@@ -236,6 +236,18 @@ fn outputs_never_overwrite_inputs() {
     assert!(e.contains("writes CSV"), "{e}");
     let e = fails(cmd(&[&"suggest-tf", &"-o", &d.join("tf.png")]));
     assert!(e.contains("name the output .ron"), "{e}");
+    // a named volume (a label preset's label volume), through a link
+    std::fs::create_dir_all(d.join("data")).unwrap();
+    let seg = d.join("data/demo_labels.nrrd");
+    std::fs::copy(repo().join("presets/data/demo_labels.nrrd"), &seg).unwrap();
+    let seg_before = std::fs::read(&seg).unwrap();
+    let labels_preset = d.join("labels.ron");
+    std::fs::copy(repo().join("presets/demo_labels.ron"), &labels_preset).unwrap();
+    let out = d.join("seg.png");
+    std::os::unix::fs::symlink(&seg, &out).unwrap();
+    let e = fails(render_16(&[&"--preset", &labels_preset, &"-o", &out]));
+    assert!(e.contains("refusing to overwrite the volume"), "{e}");
+    assert_eq!(std::fs::read(&seg).unwrap(), seg_before);
     assert_eq!(std::fs::read(&preset).unwrap(), before);
     assert_eq!(std::fs::read(&raw).unwrap(), raw_before);
 }
@@ -272,6 +284,16 @@ fn presets_saved_elsewhere_reopen_with_the_same_files() {
             _ => None,
         };
         assert_eq!(vol(a), vol(b));
+        let named = |d: &Document| {
+            d.volumes
+                .iter()
+                .map(|(n, s)| match s {
+                    VolumeSource::File(p) => format!("{n}: {}", absolute(p).display()),
+                    other => format!("{n}: {other:?}"),
+                })
+                .collect::<Vec<_>>()
+        };
+        assert_eq!(named(a), named(b));
         let paths = |d: &Document| {
             d.stack
                 .iter()
@@ -288,6 +310,11 @@ fn presets_saved_elsewhere_reopen_with_the_same_files() {
     };
     for preset in ["presets/ct_head.ron", "presets/demo_labels.ron"] {
         let opened = Document::load(Path::new(preset), &reg).unwrap().document;
+        // the label preset names its label volume
+        assert_eq!(
+            opened.volumes.len(),
+            usize::from(preset.ends_with("labels.ron"))
+        );
         let saved = rel_dir.join("sub").join("saved.ron");
         std::fs::create_dir_all(saved.parent().unwrap()).unwrap();
         opened.save(&saved).unwrap();

@@ -3,6 +3,8 @@
 //! bad TF input in presets. GPU vs CPU twin agreement for every mode is checked on the
 //! shipped presets (reference.rs), which use all three.
 
+use std::sync::Arc;
+
 use vwb_render::params::ParamValue;
 use vwb_render::preset::Document;
 use vwb_render::reference::{ReferenceOptions, render_reference};
@@ -190,42 +192,77 @@ fn bad_transfer_functions_in_presets_name_the_point_or_primitive() {
     assert!(msg.contains("point 0"), "{msg}");
 }
 
-fn labels_instance(path: &std::path::Path) -> PluginInstance {
+/// `classify.labels` reading the document's named volume `labels`.
+fn labels_instance() -> PluginInstance {
     let mut i = instance("classify.labels");
-    i.params.set("labels", ParamValue::Path(path.to_path_buf()));
+    i.params.set("labels", ParamValue::Volume("labels".into()));
     i
 }
 
-/// A label volume whose dims differ from the data is refused with the file named,
-/// and the last good pipeline keeps rendering.
+/// The demo's label volume as the named volume `labels`.
+fn demo_label_inputs() -> vwb_render::inputs::VolumeInputs {
+    vwb_plugins::label_input::demo_inputs()
+}
+
+/// A label volume is a named input: one that holds no labels (floating point), or a
+/// name the document lacks, is refused with the volume and its file named, and the
+/// last good pipeline keeps rendering. A label volume on another grid than the data
+/// spans the volume's box and renders.
 #[test]
-fn label_volume_with_other_dims_is_refused_and_the_old_pipeline_renders() {
-    let labels = repo().join("presets/data/demo_labels.nrrd");
+fn a_volume_that_holds_no_labels_is_refused_and_the_old_pipeline_renders() {
     let other = synthetic([16, 16, 16], |x, _, _| x as f32);
-    let mut r = Renderer::new(gpu(), other).unwrap();
+    let mut r = Renderer::new(gpu(), other.clone()).unwrap();
     r.update_stack(&[tf1d("post", sharp())], TargetFormat::Rgba32Float)
         .unwrap();
     r.render(&at(1.0)).unwrap();
     let before = r.read_pixels().unwrap().2;
+    // a float volume under the name
+    let d = tmp("float_labels");
+    std::fs::create_dir_all(&d).unwrap();
+    let file = d.join("scores.nrrd");
+    let mut bytes =
+        b"NRRD0004\ntype: float\ndimension: 3\nsizes: 2 2 2\nencoding: raw\nendian: little\n\n"
+            .to_vec();
+    bytes.extend((0..8).flat_map(|i| (i as f32 * 0.5).to_le_bytes()));
+    std::fs::write(&file, bytes).unwrap();
+    let scores = Arc::new(vwb_render::volume::load(&file).unwrap());
+    let mut inputs = vwb_render::inputs::VolumeInputs::default();
+    inputs.insert("labels", scores);
+    r.set_inputs(inputs);
     let e = r
-        .update_stack(&[labels_instance(&labels)], TargetFormat::Rgba32Float)
+        .update_stack(&[labels_instance()], TargetFormat::Rgba32Float)
         .unwrap_err()
         .to_string();
     assert!(
-        e.contains("demo_labels.nrrd") && e.contains("differ"),
+        e.contains("classify.labels") && e.contains("scores.nrrd") && e.contains("floating-point"),
         "{e}"
     );
     r.render(&at(1.0)).unwrap();
     assert_eq!(r.read_pixels().unwrap().2, before);
+    // a name the document does not have
+    r.set_inputs(vwb_render::inputs::VolumeInputs::default());
+    let e = r
+        .update_stack(&[labels_instance()], TargetFormat::Rgba32Float)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("no volume named 'labels'"), "{e}");
+    r.render(&at(1.0)).unwrap();
+    assert_eq!(r.read_pixels().unwrap().2, before);
+    // the demo's 64³ labels over this 16³ volume: read where they lie
+    r.set_inputs(demo_label_inputs());
+    r.update_stack(&[labels_instance()], TargetFormat::Rgba32Float)
+        .unwrap();
+    r.render(&at(1.0)).unwrap();
+    assert_ne!(r.read_pixels().unwrap().2, before);
 }
 
 /// Hiding a label removes exactly its voxels: all hidden gives an empty image, and
 /// the image with label 3 hidden differs from the full one.
 #[test]
 fn hidden_labels_disappear() {
-    let labels = repo().join("presets/data/demo_labels.nrrd");
     let mut r = Renderer::new(gpu(), demo()).unwrap();
-    let mut inst = labels_instance(&labels);
+    r.set_inputs(demo_label_inputs());
+    let mut inst = labels_instance();
     let full = render(&mut r, &[inst.clone()], TargetFormat::Rgba32Float, &at(1.0));
     assert!(full.iter().any(|p| p[3] > 0.1));
     inst.params.set("show_3", ParamValue::Bool(false));

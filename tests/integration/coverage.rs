@@ -9,7 +9,7 @@ use vwb_render::plugin::Category;
 use vwb_render::{Backend, PluginInstance, TargetFormat};
 
 use crate::common::*;
-use crate::reference::{delta_e_rms, gpu_and_references};
+use crate::reference::{delta_e_rms, gpu_and_references_with};
 
 /// The stack that shows `id` in the mode `values`: a classifier alone, anything else
 /// after the default 1D transfer function.
@@ -40,7 +40,13 @@ fn every_registered_plugin_in_every_mode_matches_its_cpu_twin() {
             let per_slice = configured.slice_state().is_some();
             let stack = stack_for(id, &values);
             let both = [Backend::Compute, Backend::Raster].map(|b| settings(48, 48, b));
-            let images = gpu_and_references(demo(), &stack, TargetFormat::Rgba32Float, &both);
+            let images = gpu_and_references_with(
+                demo(),
+                &plugin.demo_inputs(),
+                &stack,
+                TargetFormat::Rgba32Float,
+                &both,
+            );
             for (s, (px, reference)) in both.iter().zip(images) {
                 let backend = s.backend;
                 assert!(

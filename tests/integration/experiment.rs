@@ -334,14 +334,14 @@ fn updates_are_timed_again_and_the_lic_is_held_against_its_twin() {
             r#"Experiment(
         name: "repeats",
         scenes: [Preset("{}")],
-        variants: [(name: "L 4", set: {{"flow.lic3d.length": 4.0}}), (name: "L 12", set: {{"flow.lic3d.length": 12.0}})],
+        variants: [(name: "L 2", set: {{"flow.lic3d.length": 2.0}}), (name: "L 16", set: {{"flow.lic3d.length": 16.0}})],
         reference: TimeOnly,
         metrics: [update_ms, update_gpu_ms],
         statistics: ["flow.lic3d.twin_rms"],
         render: (size: (16, 16), target: "rgba32float"),
         frames: 1,
         update_repeats: 3,
-        assertions: ["flow.lic3d.twin_rms < 0.5", "update_ms(L 12) / update_ms(L 4) > 1.2"],
+        assertions: ["flow.lic3d.twin_rms < 0.5", "update_ms(L 16) / update_ms(L 2) > 1.2"],
     )"#,
             scene.display()
         ),

@@ -6,6 +6,7 @@ use vwb_render::composer::{TargetFormat, compose};
 use vwb_render::params::ParamValue;
 use vwb_render::plugin::Plugin;
 use vwb_render::preset::{Document, PresetError, VolumeSource, write_atomic};
+use vwb_render::{Backend, Renderer};
 
 use crate::common::*;
 
@@ -155,6 +156,76 @@ fn named_volumes_round_trip_and_resolve_beside_the_preset() {
     let saved = std::fs::read_to_string(&path).unwrap();
     assert!(saved.contains("File(\"data/demo_labels.nrrd\")"), "{saved}");
     std::fs::remove_dir_all(&dir).ok();
+}
+
+/// A preset written before label volumes were named inputs gives the label file's
+/// path as the plugin's `labels` value. It still opens: the file becomes a named
+/// volume (called after its stem; a second plugin naming the same file shares it), a
+/// warning says so, the paths resolve beside the preset, and it renders the image the
+/// new form renders. Saving writes the new form.
+#[test]
+fn legacy_label_paths_open_as_named_volumes() {
+    let reg = registry();
+    let dir = tmp("legacy_labels");
+    std::fs::create_dir_all(dir.join("data")).unwrap();
+    std::fs::copy(
+        repo().join("presets/data/demo_labels.nrrd"),
+        dir.join("data/demo_labels.nrrd"),
+    )
+    .unwrap();
+    let path = dir.join("old.ron");
+    std::fs::write(
+        &path,
+        r#"(version: 1, volume: Demo, volumes: {"demo_labels": Analytic((field: Abc, size: (4, 4, 4)))},
+        plugins: [
+            (id: "classify.labels", params: {"labels": "data/demo_labels.nrrd", "show_0": false}),
+            (id: "clip.labels", params: {"labels": "data/demo_labels.nrrd", "range0_from": 1, "range0_to": 1}),
+        ])"#,
+    )
+    .unwrap();
+    let loaded = Document::load(&path, &reg).unwrap();
+    let doc = loaded.document;
+    let all = loaded.warnings.join("\n");
+    assert!(
+        all.contains("plugins[0] classify.labels.labels") && all.contains("\"demo_labels_2\""),
+        "{all}"
+    );
+    // the stem is taken by another volume: `_2`; the clip plugin shares the name
+    assert_eq!(doc.stack[0].params.volume("labels"), "demo_labels_2");
+    assert_eq!(doc.stack[1].params.volume("labels"), "demo_labels_2");
+    assert_eq!(
+        doc.volumes["demo_labels_2"],
+        VolumeSource::File(dir.join("data/demo_labels.nrrd"))
+    );
+    // the image of the new form, the shipped preset's stack
+    let new = Document::load(&repo().join("presets/demo_labels.ron"), &reg)
+        .unwrap()
+        .document;
+    let inputs = vwb_lab::headless::inputs_for(&doc).unwrap();
+    let mut r = Renderer::new(gpu(), demo()).unwrap();
+    r.set_inputs(inputs);
+    let s = settings(48, 48, Backend::Compute);
+    let old_image = render(&mut r, &doc.stack[..1], TargetFormat::Rgba16Float, &s);
+    let mut fresh = Renderer::new(gpu(), demo()).unwrap();
+    fresh.set_inputs(vwb_lab::headless::inputs_for(&new).unwrap());
+    let mut stack = new.stack.clone();
+    stack[0].params = doc.stack[0].params.clone();
+    stack[0]
+        .params
+        .set("labels", ParamValue::Volume("labels".into()));
+    let new_image = render(&mut fresh, &stack, TargetFormat::Rgba16Float, &s);
+    assert!(old_image.iter().any(|p| p[3] > 0.05), "labels are visible");
+    assert!(old_image == new_image);
+    // saved: the new form, no path where a name belongs
+    doc.save(&path).unwrap();
+    let saved = std::fs::read_to_string(&path).unwrap();
+    assert!(
+        saved.contains("\"demo_labels_2\": File(\"data/demo_labels.nrrd\")")
+            && saved.contains("\"labels\": \"demo_labels_2\""),
+        "{saved}"
+    );
+    let reopened = Document::load(&path, &reg).unwrap();
+    assert!(reopened.warnings.is_empty(), "{:?}", reopened.warnings);
 }
 
 #[test]

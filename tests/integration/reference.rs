@@ -2,6 +2,7 @@
 //! every shipped preset, both backends, with the fp16 accumulation of an rgba16float
 //! eye buffer emulated.
 
+use vwb_render::inputs::VolumeInputs;
 use vwb_render::metrics::{RgbImageF, compare};
 use vwb_render::preset::Document;
 use vwb_render::reference::{ReferenceOptions, render_reference};
@@ -50,13 +51,26 @@ pub fn gpu_and_references(
     target: TargetFormat,
     settings: &[FrameSettings],
 ) -> Vec<GpuAndTwin> {
+    gpu_and_references_with(volume, &VolumeInputs::default(), stack, target, settings)
+}
+
+/// [`gpu_and_references`] with the document's named volumes `inputs` beside the volume.
+pub fn gpu_and_references_with(
+    volume: std::sync::Arc<vwb_render::Volume>,
+    inputs: &VolumeInputs,
+    stack: &[vwb_render::PluginInstance],
+    target: TargetFormat,
+    settings: &[FrameSettings],
+) -> Vec<GpuAndTwin> {
     let opts = ReferenceOptions {
         emulate_fp16: target == TargetFormat::Rgba16Float,
+        inputs: inputs.clone(),
         ..Default::default()
     };
     let mut out: Vec<GpuAndTwin> = Vec::new();
     // one renderer: its volume passes run once for all the settings
     let mut r = vwb_render::Renderer::new(gpu(), volume.clone()).expect("renderer");
+    r.set_inputs(inputs.clone());
     for (i, s) in settings.iter().enumerate() {
         let px = render(&mut r, stack, target, s);
         let shares = |t: &FrameSettings| {
@@ -95,7 +109,14 @@ fn every_shipped_preset_matches_its_cpu_twins() {
             backend,
             ..doc.frame_settings()
         });
-        let images = gpu_and_references(volume.clone(), &doc.stack, doc.render.target, &settings);
+        let inputs = vwb_lab::headless::inputs_for(&doc).unwrap();
+        let images = gpu_and_references_with(
+            volume.clone(),
+            &inputs,
+            &doc.stack,
+            doc.render.target,
+            &settings,
+        );
         for (s, (px, reference)) in settings.iter().zip(images) {
             let backend = s.backend;
             assert!(

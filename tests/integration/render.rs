@@ -83,6 +83,7 @@ fn check_golden(preset: &Path, golden: &Path, backend: Backend, side: u32, rms_l
     let doc = loaded.document;
     let volume = vwb_lab::headless::load_volume(&doc.volume).unwrap();
     let mut r = Renderer::new(gpu(), volume).unwrap();
+    r.set_inputs(vwb_lab::headless::inputs_for(&doc).unwrap());
     r.set_empty_space_skipping(doc.render.empty_space_skipping);
     let mut s = doc.frame_settings();
     s.width = side;
@@ -449,6 +450,7 @@ fn occupied_proxy_covers_less_and_keeps_the_image() {
         let mut shares = Vec::new();
         for on in [false, true] {
             let mut r = Renderer::new(gpu(), volume.clone()).unwrap();
+            r.set_inputs(vwb_lab::headless::inputs_for(&doc).unwrap());
             r.set_occupied_proxy(on);
             r.update_stack(&doc.stack, doc.render.target).unwrap();
             shares.push(r.render(&s).unwrap().proxy_share.unwrap());
@@ -607,10 +609,12 @@ fn empty_space_skipping_leaves_images_unchanged() {
         let name = path.file_name().unwrap().to_string_lossy().to_string();
         let doc = Document::load(&path, &registry).unwrap().document;
         let volume = vwb_lab::headless::load_volume(&doc.volume).unwrap();
+        let inputs = vwb_lab::headless::inputs_for(&doc).unwrap();
         // one renderer with skipping and one without, each drawing the three settings
         // (their volume passes run once per renderer)
         let mut renderers = [true, false].map(|on| {
             let mut r = Renderer::new(gpu(), volume.clone()).unwrap();
+            r.set_inputs(inputs.clone());
             r.set_empty_space_skipping(on);
             r
         });
@@ -641,7 +645,10 @@ fn empty_space_skipping_leaves_images_unchanged() {
             // where the classification has none)
             let no_promise = doc.stack.iter().filter(|i| i.enabled).any(|i| {
                 matches!(
-                    i.configured().transparency(&i.params),
+                    i.configured().transparency(
+                        &i.params,
+                        &vwb_render::inputs::Volumes::new(&volume, &inputs)
+                    ),
                     vwb_render::plugin::Transparency::Unknown
                 )
             });

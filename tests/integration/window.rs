@@ -968,6 +968,80 @@ fn window_a_dropped_mesh_clips_the_volume() {
     );
 }
 
+/// A label volume added in *Named volumes*, typed by its path: it loads and is listed
+/// with its grid, classify.labels' volume input picks it from its list, and the image
+/// is classified by its labels. A file that does not load and a name already taken are
+/// refused with the file or name in the message, changing nothing; the volume cannot
+/// be removed while the plugin names it, and can once the plugin has gone.
+#[test]
+fn window_adds_a_named_label_volume_and_a_plugin_picks_it() {
+    let mut h = demo_window();
+    let before = image(&h);
+    click(&mut h, "Named volumes (0)");
+    let labels = repo().join("presets/data/demo_labels.nrrd");
+    retype(&mut h, "file or sample", &labels.display().to_string());
+    click(&mut h, "Add");
+    let status = format!("{:?}", h.state().file_status());
+    assert!(
+        status.contains("added volume 'demo_labels'") && status.contains("1 component"),
+        "{status}"
+    );
+    assert!(
+        h.query_by_label_contains("demo_labels: demo_labels.nrrd")
+            .is_some()
+    );
+    // a file that does not load, and the same name again: refused, nothing changes
+    retype(&mut h, "file or sample", "/nonexistent/seg.nrrd");
+    click(&mut h, "Add");
+    let status = format!("{:?}", h.state().file_status());
+    assert!(
+        status.contains("Err") && status.contains("seg.nrrd"),
+        "{status}"
+    );
+    retype(
+        &mut h,
+        "/nonexistent/seg.nrrd",
+        &labels.display().to_string(),
+    );
+    click(&mut h, "Add");
+    let status = format!("{:?}", h.state().file_status());
+    assert!(
+        status.contains("already has a volume named 'demo_labels'"),
+        "{status}"
+    );
+    assert_eq!(h.state().document().volumes.len(), 1);
+    // classify.labels in place of the 1D TF, its input picking the new volume
+    add_plugin(&mut h, "classify", "Labels");
+    // its parameters are folded (eight transfer functions)
+    let folds = h.get_all_by_label("parameters").count();
+    click_nth(&mut h, "parameters", folds - 1);
+    click(&mut h, "Label volume");
+    click(&mut h, "demo_labels");
+    settle(&mut h);
+    let doc = h.state().document();
+    let inst = doc.stack.last().unwrap();
+    assert_eq!(inst.plugin.id(), "classify.labels");
+    assert_eq!(inst.params.volume("labels"), "demo_labels");
+    assert!(h.state().error().is_none(), "{:?}", h.state().error());
+    assert!(
+        rms(&before, &image(&h)) > 1.0,
+        "the labels classify the image"
+    );
+    // in use: Remove does nothing; the plugin gone, it removes the volume
+    click(&mut h, "Remove");
+    assert_eq!(h.state().document().volumes.len(), 1);
+    h.state_mut().document_mut().stack.pop();
+    h.state_mut().apply_stack();
+    settle(&mut h);
+    click(&mut h, "Remove");
+    assert!(h.state().document().volumes.is_empty());
+    assert!(
+        matches!(h.state().file_status(), Some(Ok(m)) if m.contains("removed volume 'demo_labels'")),
+        "{:?}",
+        h.state().file_status()
+    );
+}
+
 /// The file dialog (egui_file) opens on the presets folder and lists them; choosing
 /// one opens it; Cancel closes the dialog. egui_file's own path fields have no
 /// accessible names, so kittest's accessibility check is off here only.

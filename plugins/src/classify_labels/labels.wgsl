@@ -1,5 +1,5 @@
-// classify.labels — one 1D transfer function per label. The u8 label volume `labels`
-// (r = label/255) is read at the nearest voxel; the value is interpolated as usual
+// classify.labels — one 1D transfer function per label. The label volume `labels`
+// (one byte per voxel, r = min(label, 255)/255) is read at the nearest voxel; the value is interpolated as usual
 // and looked up in row `label` of the table `lut` (one row per label, hidden labels
 // all zero; labels beyond the last row use the last row).
 

@@ -1,25 +1,22 @@
-//! `classify.labels`: a u8 label volume beside the data (NRRD, same dims), one 1D
-//! transfer function per label, nearest-neighbour label lookup, labels that can be
-//! hidden.
+//! `classify.labels`: a label volume beside the data, one 1D transfer function per
+//! label, nearest-neighbour label lookup, labels that can be hidden.
 //!
-//! Parameters: `labels` (the label file; structural: a new file recreates the
-//! resources), `tf_0` … `tf_7` and `show_0` … `show_7` (labels 0–7; labels above 7
-//! use `tf_7` and `show_7`), `opacity` (global scale). The tables are baked into one
-//! 256 × 8 texture, a hidden label's row all zero. Label files are loaded once per
-//! path and modification time and shared by the GPU resources and the CPU twin.
+//! Parameters: `labels` (the label volume: a named volume input, or the document's own
+//! volume when empty; [`crate::label_input`]), `tf_0` … `tf_7` and `show_0` …
+//! `show_7` (labels 0–7; labels above 7 use `tf_7` and `show_7`), `opacity` (global
+//! scale). The tables are baked into one 256 × 8 texture, a hidden label's row all
+//! zero. The labels go to the GPU as one byte per voxel (labels above 255 read as 255,
+//! which uses the last row as any label above 7 does).
 
-use std::collections::HashMap;
-use std::path::{Path, PathBuf};
-use std::sync::{Arc, Mutex};
-
-use glam::{DVec3, DVec4};
-use vwb_render::params::{Group, ParamSpec, ParamValue, ParamValues};
+use glam::DVec4;
+use vwb_render::params::{Components, Group, ParamSpec, ParamValue, ParamValues};
 use vwb_render::plugin::{
     CpuContext, CpuSample, CpuTwin, GpuInit, GpuResource, Plugin, PluginError, ResourceDecl,
-    ResourceKind, ShaderSource, Transparency,
+    ResourceKind, ShaderSource, Transparency, Volumes,
 };
 use vwb_render::tf::{LUT_SIZE, TfCurve, eval_lut};
-use vwb_render::volume::{ScalarType, VoxelData};
+
+use crate::label_input::{self, LabelGrid};
 
 #[cfg(test)]
 mod tests;
@@ -33,129 +30,11 @@ pub const LABELS: Group = Group::new("Label", MAX_LABELS).switch("show_{}");
 
 pub struct Labels;
 
-/// A loaded label volume.
-#[derive(Debug, Clone, PartialEq)]
-pub struct LabelGrid {
-    pub file: PathBuf,
-    pub dims: [u32; 3],
-    pub labels: Vec<u8>,
-    /// Which of the table rows occur (labels above the last row count for it).
-    pub present: [bool; MAX_LABELS],
-}
-
-impl LabelGrid {
-    /// Nearest-voxel label at a texture coordinate, as the shader's `floor(tex·dims)`.
-    pub fn at(&self, tex: DVec3) -> u8 {
-        self.labels[nearest_voxel(self.dims, tex)]
-    }
-}
-
-/// Linear index (x fastest) of the voxel nearest to a texture coordinate, as the
-/// shaders' `clamp(floor(tex·dims), 0, dims − 1)`.
-pub fn nearest_voxel(dims: [u32; 3], tex: DVec3) -> usize {
-    let d = dims.map(|n| n.max(1) as usize);
-    let idx = |a: usize| {
-        let f = (tex[a] * d[a] as f64).floor();
-        if f.is_nan() {
-            0
-        } else {
-            (f.max(0.0) as usize).min(d[a] - 1)
-        }
-    };
-    (idx(2) * d[1] + idx(1)) * d[0] + idx(0)
-}
-
-/// `load(path)`, cached per value type, path and modification time (label volumes are
-/// read once and shared by the GPU resources and the CPU twin).
-pub fn cached_load<T: Send + Sync + 'static>(
-    path: &Path,
-    load: impl FnOnce(&Path) -> Result<T, String>,
-) -> Result<Arc<T>, String> {
-    type Key = (std::any::TypeId, PathBuf, Option<std::time::SystemTime>);
-    type Cache = Mutex<HashMap<Key, Arc<dyn std::any::Any + Send + Sync>>>;
-    static CACHE: std::sync::OnceLock<Cache> = std::sync::OnceLock::new();
-    let modified = std::fs::metadata(path).and_then(|m| m.modified()).ok();
-    let key = (std::any::TypeId::of::<T>(), path.to_path_buf(), modified);
-    let cache = CACHE.get_or_init(Default::default);
-    if let Some(v) = cache.lock().ok().and_then(|c| c.get(&key).cloned())
-        && let Ok(v) = v.downcast::<T>()
-    {
-        return Ok(v);
-    }
-    let v = Arc::new(load(path)?);
-    if let Ok(mut c) = cache.lock() {
-        c.insert(key, v.clone());
-    }
-    Ok(v)
-}
-
-/// Loads a u8 label volume (cached per path and modification time).
-pub fn load_labels(path: &Path) -> Result<Arc<LabelGrid>, String> {
-    cached_load(path, |path| {
-        let v = vwb_render::volume::load(path).map_err(|e| e.to_string())?;
-        let file = path.display();
-        if v.components != 1 || v.scalar_type() != ScalarType::U8 {
-            return Err(format!(
-                "{file}: a label volume must hold u8 scalars, found {} × {}",
-                v.components,
-                v.scalar_type().name()
-            ));
-        }
-        let VoxelData::U8(labels) = v.data else {
-            return Err(format!("{file}: a label volume must hold u8 scalars"));
-        };
-        let mut present = [false; MAX_LABELS];
-        for &l in &labels {
-            present[(l as usize).min(MAX_LABELS - 1)] = true;
-        }
-        Ok(LabelGrid {
-            file: path.to_path_buf(),
-            dims: v.dims,
-            labels,
-            present,
-        })
-    })
-}
-
-/// The label file named by the `labels` parameter, loaded by `load` and checked
-/// against the data's dims; errors name `plugin` and the file.
-pub fn label_file<T>(
-    plugin: &str,
-    params: &ParamValues,
-    data_dims: [u32; 3],
-    load: impl FnOnce(&Path) -> Result<Arc<T>, String>,
-    dims_of: impl FnOnce(&T) -> [u32; 3],
-) -> Result<Arc<T>, PluginError> {
-    let error = |message: String| PluginError::Invalid {
-        plugin: plugin.into(),
-        message,
-    };
-    let path = params
-        .path("labels")
-        .ok_or_else(|| error("no label volume set (parameter `labels`)".into()))?;
-    let grid = load(path).map_err(error)?;
-    let dims = dims_of(&grid);
-    if dims != data_dims {
-        return Err(error(format!(
-            "{}: label volume dims {:?} differ from the data's {:?}",
-            path.display(),
-            dims,
-            data_dims
-        )));
-    }
-    Ok(grid)
-}
-
 fn error(message: String) -> PluginError {
     PluginError::Invalid {
         plugin: "classify.labels".into(),
         message,
     }
-}
-
-/// The label grid for the parameters, checked against the data's dims.
-fn grid_for(params: &ParamValues, data_dims: [u32; 3]) -> Result<Arc<LabelGrid>, PluginError> {
-    label_file("classify.labels", params, data_dims, load_labels, |g| g.dims)
 }
 
 /// A distinct default colour per label; label 0 (background) transparent.
@@ -208,9 +87,9 @@ impl Plugin for Labels {
     }
     fn params(&self) -> Vec<ParamSpec> {
         let mut v = vec![
-            ParamSpec::path("labels", "Label volume", "")
-                .structural()
-                .with_doc("u8 NRRD with the data's dims; relative to the preset"),
+            ParamSpec::volume(label_input::KEY, "Label volume", Components::Scalar).with_doc(
+                "one non-negative integer label per voxel (u8, u16, i8, i16), on any grid over the volume's box",
+            ),
             ParamSpec::float_log("opacity", "Opacity scale", 0.01, 100.0, 1.0),
         ];
         v.extend(LABELS.specs(|l| {
@@ -244,13 +123,14 @@ impl Plugin for Labels {
         gpu: &GpuInit,
         params: &ParamValues,
     ) -> Result<Vec<GpuResource>, PluginError> {
-        let grid = grid_for(params, gpu.volume.dims)?;
+        let (dims, labels) = label_input::gpu_labels("classify.labels", gpu, params)?;
+        let bytes: Vec<u8> = labels.iter().map(|&l| l.min(255) as u8).collect();
         let (texture, view) = vwb_render::gpu::upload_r8_3d(
             gpu.device,
             gpu.queue,
             "classify.labels labels",
-            grid.dims,
-            &grid.labels,
+            dims,
+            &bytes,
         );
         let res = [
             GpuResource { texture, view },
@@ -272,12 +152,14 @@ impl Plugin for Labels {
         Ok(())
     }
     /// Visible where the table of any shown label that occurs in the label volume is
-    /// (the label is not known per brick). No promise when the labels cannot be read.
-    fn transparency(&self, params: &ParamValues) -> Transparency {
-        let Some(grid) = params.path("labels").and_then(|p| load_labels(p).ok()) else {
-            return Transparency::Unknown;
+    /// (the label is not known per brick; which labels occur comes from the volume's
+    /// histogram, [`label_input::rows_present`]). Where the input does not resolve,
+    /// every row counts.
+    fn transparency(&self, params: &ParamValues, volumes: &Volumes<'_>) -> Transparency {
+        let present = match volumes.input(params, label_input::KEY) {
+            Ok(v) => label_input::rows_present(v, MAX_LABELS),
+            Err(_) => vec![true; MAX_LABELS],
         };
-        let present = grid.present;
         let opacity = params.float("opacity");
         let table = bake(params);
         vwb_render::skipping::visible_by_table(
@@ -289,31 +171,50 @@ impl Plugin for Labels {
                 .collect(),
         )
     }
-    /// The demo's label volume (`presets/data/demo_labels.nrrd`, in this checkout).
+    /// A classification drops values, not regions (its promise bakes the tables: not
+    /// asked twice).
+    fn region(
+        &self,
+        _params: &ParamValues,
+        _volumes: &Volumes<'_>,
+    ) -> Option<std::sync::Arc<vwb_render::plugin::RegionFn>> {
+        None
+    }
+    /// The demo's label volume, named [`label_input::DEMO_NAME`] ([`Plugin::demo_inputs`]).
     fn demo_params(&self) -> Option<ParamValues> {
         let mut p = ParamValues::defaults(&self.params());
-        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../presets/data/demo_labels.nrrd");
-        p.set("labels", ParamValue::Path(path.into()));
+        p.set(
+            label_input::KEY,
+            ParamValue::Volume(label_input::DEMO_NAME.into()),
+        );
         Some(p)
     }
+    fn demo_inputs(&self) -> vwb_render::inputs::VolumeInputs {
+        label_input::demo_inputs()
+    }
     fn cpu_twin(&self, params: &ParamValues) -> Option<Box<dyn CpuTwin>> {
-        let grid = params.path("labels").and_then(|p| load_labels(p).ok())?;
         Some(Box::new(LabelsTwin {
             table: bake(params),
             opacity: params.float("opacity") as f64,
-            grid,
+            params: params.clone(),
+            grid: LabelGrid::default(),
         }))
     }
 }
 
-/// CPU twin of `classify`: the same nearest label and the same table row.
+/// CPU twin of `classify`: the same nearest label and the same table row. It reads
+/// its label volume in [`CpuTwin::prepare`], where the frame's inputs are known.
 pub struct LabelsTwin {
     pub table: Vec<[f32; 4]>,
     pub opacity: f64,
-    pub grid: Arc<LabelGrid>,
+    pub params: ParamValues,
+    pub grid: LabelGrid,
 }
 
 impl CpuTwin for LabelsTwin {
+    fn prepare(&mut self, ctx: &CpuContext) {
+        self.grid = LabelGrid::read(ctx.input(&self.params, label_input::KEY));
+    }
     fn classify(&self, _ctx: &CpuContext, s: &mut CpuSample) {
         let row = (self.grid.at(s.tex) as usize).min(MAX_LABELS - 1);
         let c = eval_lut(

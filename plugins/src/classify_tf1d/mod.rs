@@ -25,7 +25,7 @@ use glam::{DVec3, DVec4};
 use vwb_render::params::{ParamSpec, ParamValues};
 use vwb_render::plugin::{
     CpuContext, CpuSample, CpuTwin, GpuInit, GpuResource, Plugin, PluginError, PrepassDecl,
-    ResourceDecl, ResourceKind, ShaderSource, StorageFormat, Transparency,
+    ResourceDecl, ResourceKind, ShaderSource, StorageFormat, Transparency, Volumes,
 };
 use vwb_render::tf::{LUT_SIZE, TfCurve, TfPoint, eval_lut};
 
@@ -221,7 +221,7 @@ impl Plugin for Tf1d {
     /// included). Pre: a sample interpolates classified voxels whose values lie in its
     /// brick's range (apron included), so the same test holds. Pre-integrated: the slab
     /// reaches into the next slice's brick, so no promise.
-    fn transparency(&self, params: &ParamValues) -> Transparency {
+    fn transparency(&self, params: &ParamValues, _volumes: &Volumes<'_>) -> Transparency {
         if self.mode == Mode::Preintegrated {
             return Transparency::Unknown;
         }

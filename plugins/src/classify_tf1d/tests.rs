@@ -75,7 +75,8 @@ fn visibility_promise_is_conservative() {
         "tf",
         ParamValue::Tf(TfCurve::ramp(0.3, 0.6, [1.0, 1.0, 1.0, 0.7])),
     );
-    let Transparency::ByValue(visible) = p.transparency(&params) else {
+    let volumes = Volumes::of(&volume);
+    let Transparency::ByValue(visible) = p.transparency(&params, &volumes) else {
         panic!("tf1d classifies by value");
     };
     let twin = p.cpu_twin(&params).unwrap();
@@ -93,7 +94,7 @@ fn visibility_promise_is_conservative() {
     assert!(visible(0.9, 1.0));
     // a small opacity scale keeps the visible set
     params.set("opacity", ParamValue::Float(0.01));
-    let Transparency::ByValue(visible) = p.transparency(&params) else {
+    let Transparency::ByValue(visible) = p.transparency(&params, &volumes) else {
         panic!()
     };
     assert!(visible(0.5, 0.5));
@@ -118,7 +119,10 @@ fn mode_parameter_configures_the_plugin() {
         .configure(&params_for(Mode::Preintegrated, default_curve()))
         .unwrap();
     assert!(matches!(
-        pi.transparency(&params_for(Mode::Preintegrated, default_curve())),
+        pi.transparency(
+            &params_for(Mode::Preintegrated, default_curve()),
+            &Volumes::of(&vwb_render::volume::demo())
+        ),
         Transparency::Unknown
     ));
 }

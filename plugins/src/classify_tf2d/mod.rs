@@ -24,7 +24,7 @@ use glam::{DVec3, DVec4};
 use vwb_render::params::{ParamSpec, ParamValues};
 use vwb_render::plugin::{
     CpuContext, CpuSample, CpuTwin, GpuInit, GpuResource, Plugin, PluginError, PrepassDecl,
-    ResourceDecl, ResourceKind, ShaderSource, StorageFormat, Transparency,
+    ResourceDecl, ResourceKind, ShaderSource, StorageFormat, Transparency, Volumes,
 };
 use vwb_render::tf2d::{Primitive2d, Shape2d, Tf2d, eval_table, voxel_gradient};
 use vwb_render::volume::Volume;
@@ -223,7 +223,7 @@ impl Plugin for Tf2dPlugin {
     }
     /// A value range can be visible when the table has α > 0 for some value entry of
     /// the range at any gradient magnitude.
-    fn transparency(&self, params: &ParamValues) -> Transparency {
+    fn transparency(&self, params: &ParamValues, _volumes: &Volumes<'_>) -> Transparency {
         vwb_render::skipping::visible_by_table(
             tf(params).visible_columns(TABLE_SIZE, params.float("opacity")),
         )
@@ -233,7 +233,7 @@ impl Plugin for Tf2dPlugin {
     fn region(
         &self,
         _params: &ParamValues,
-        _volume: &Volume,
+        _volumes: &Volumes<'_>,
     ) -> Option<Arc<vwb_render::plugin::RegionFn>> {
         None
     }

@@ -1,24 +1,23 @@
-//! `clip.labels`: hides or shows a subset of the labels of a u8 or u16 label volume
-//! beside the data (NRRD, the data's dims), with nearest-voxel lookup.
+//! `clip.labels`: hides or shows a subset of the labels of a label volume beside the
+//! data, with nearest-voxel lookup.
 //!
-//! Parameters: `labels` (the file; structural), `mode` (`hide`: the selected labels
+//! Parameters: `labels` (the label volume: a named volume input, or the document's own
+//! volume when empty; [`crate::label_input`]), `mode` (`hide`: the selected labels
 //! are removed; `show`: only they stay) and [`RANGES`] label ranges `range<i>_from` …
 //! `range<i>_to` (inclusive; a range with `from` = −1 is unused), so any subset of the
 //! 65 536 labels is a handful of ranges. The selection is baked on the CPU into one
 //! byte per voxel (255 = kept), the GPU resource `kept`, re-uploaded when the
-//! selection changes; the twin reads the same bytes.
+//! selection changes; the twin bakes the same bytes from the same volume.
 
-use std::path::Path;
-use std::sync::{Arc, OnceLock};
+use std::sync::OnceLock;
 
-use vwb_render::params::{Group, ParamSpec, ParamValue, ParamValues};
+use vwb_render::params::{Components, Group, ParamSpec, ParamValue, ParamValues};
 use vwb_render::plugin::{
-    CpuSample, CpuTwin, GpuInit, GpuResource, Plugin, PluginError, ResourceDecl, ResourceKind,
-    ShaderSource, Transparency,
+    CpuContext, CpuSample, CpuTwin, GpuInit, GpuResource, Plugin, PluginError, ResourceDecl,
+    ResourceKind, ShaderSource, Transparency, Volumes,
 };
-use vwb_render::volume::VoxelData;
 
-use crate::classify_labels::{cached_load, label_file, nearest_voxel};
+use crate::label_input::{self, LabelGrid, nearest_voxel};
 
 #[cfg(test)]
 mod tests;
@@ -39,35 +38,6 @@ pub fn range_keys() -> &'static [(&'static str, &'static str); RANGES] {
                 RANGE_GROUP.key("range{}_from", i),
                 RANGE_GROUP.key("range{}_to", i),
             )
-        })
-    })
-}
-
-/// A loaded label volume (u8 or u16 widened).
-#[derive(Debug, Clone, PartialEq)]
-pub struct LabelVolume {
-    pub dims: [u32; 3],
-    pub labels: Vec<u16>,
-}
-
-/// Loads a u8 or u16 label volume (cached per path and modification time).
-pub fn load_label_volume(path: &Path) -> Result<Arc<LabelVolume>, String> {
-    cached_load(path, |path| {
-        let v = vwb_render::volume::load(path).map_err(|e| e.to_string())?;
-        let labels = match (v.components, v.data) {
-            (1, VoxelData::U8(l)) => l.into_iter().map(u16::from).collect(),
-            (1, VoxelData::U16(l)) => l,
-            (c, d) => {
-                return Err(format!(
-                    "{}: a label volume must hold one u8 or u16 scalar per voxel, found {c} × {}",
-                    path.display(),
-                    d.scalar_type().name()
-                ));
-            }
-        };
-        Ok(LabelVolume {
-            dims: v.dims,
-            labels,
         })
     })
 }
@@ -95,12 +65,12 @@ impl Selection {
         listed == self.show
     }
     /// One byte per voxel: 255 where the voxel's label is kept.
-    pub fn mask(&self, v: &LabelVolume) -> Vec<u8> {
+    pub fn mask(&self, labels: &[u16]) -> Vec<u8> {
         let mut table = vec![0u8; 65536];
         for (l, t) in table.iter_mut().enumerate() {
             *t = if self.keeps(l as u16) { 255 } else { 0 };
         }
-        v.labels.iter().map(|&l| table[l as usize]).collect()
+        labels.iter().map(|&l| table[l as usize]).collect()
     }
 }
 
@@ -109,11 +79,6 @@ fn error(message: String) -> PluginError {
         plugin: "clip.labels".into(),
         message,
     }
-}
-
-/// The label volume of the parameters, checked against the data's dims.
-fn volume_for(params: &ParamValues, data_dims: [u32; 3]) -> Result<Arc<LabelVolume>, PluginError> {
-    label_file("clip.labels", params, data_dims, load_label_volume, |v| v.dims)
 }
 
 pub struct ClipLabels;
@@ -134,9 +99,9 @@ impl Plugin for ClipLabels {
     }
     fn params(&self) -> Vec<ParamSpec> {
         let mut v = vec![
-            ParamSpec::path("labels", "Label volume", "")
-                .structural()
-                .with_doc("u8 or u16 NRRD with the data's dims; relative to the preset"),
+            ParamSpec::volume(label_input::KEY, "Label volume", Components::Scalar).with_doc(
+                "one non-negative integer label per voxel (u8, u16, i8, i16), on any grid over the volume's box",
+            ),
             ParamSpec::enumeration("mode", "Mode", &["hide", "show"], 0)
                 .with_doc("hide: the labels in the ranges are removed; show: only they stay"),
         ];
@@ -168,13 +133,13 @@ impl Plugin for ClipLabels {
         gpu: &GpuInit,
         params: &ParamValues,
     ) -> Result<Vec<GpuResource>, PluginError> {
-        let v = volume_for(params, gpu.volume.dims)?;
+        let (dims, labels) = label_input::gpu_labels("clip.labels", gpu, params)?;
         let (texture, view) = vwb_render::gpu::upload_r8_3d(
             gpu.device,
             gpu.queue,
             "clip.labels kept",
-            v.dims,
-            &Selection::from_params(params).mask(&v),
+            dims,
+            &Selection::from_params(params).mask(&labels),
         );
         Ok(vec![GpuResource { texture, view }])
     }
@@ -184,51 +149,67 @@ impl Plugin for ClipLabels {
         params: &ParamValues,
         resources: &[GpuResource],
     ) -> Result<(), PluginError> {
-        let v = volume_for(params, gpu.volume.dims)?;
+        let (dims, labels) = label_input::gpu_labels("clip.labels", gpu, params)?;
         let Some(kept) = resources.first() else {
             return Err(error("mask texture missing".into()));
         };
         gpu.queue.write_texture(
             kept.texture.as_image_copy(),
-            &Selection::from_params(params).mask(&v),
+            &Selection::from_params(params).mask(&labels),
             wgpu::TexelCopyBufferLayout {
                 offset: 0,
-                bytes_per_row: Some(v.dims[0]),
-                rows_per_image: Some(v.dims[1]),
+                bytes_per_row: Some(dims[0]),
+                rows_per_image: Some(dims[1]),
             },
             kept.texture.size(),
         );
         Ok(())
     }
-    fn transparency(&self, _params: &ParamValues) -> Transparency {
+    fn transparency(&self, _params: &ParamValues, _volumes: &Volumes<'_>) -> Transparency {
         Transparency::Keeps
     }
-    /// The demo's label volume with label 1 (left soft tissue) hidden.
+    /// The demo's label volume (named [`label_input::DEMO_NAME`],
+    /// [`Plugin::demo_inputs`]) with label 1 (left soft tissue) hidden.
     fn demo_params(&self) -> Option<ParamValues> {
         let mut p = ParamValues::defaults(&self.params());
-        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../presets/data/demo_labels.nrrd");
-        p.set("labels", ParamValue::Path(path.into()));
+        p.set(
+            label_input::KEY,
+            ParamValue::Volume(label_input::DEMO_NAME.into()),
+        );
         p.set(range_keys()[0].0, ParamValue::Int(1));
         p.set(range_keys()[0].1, ParamValue::Int(1));
         Some(p)
     }
+    fn demo_inputs(&self) -> vwb_render::inputs::VolumeInputs {
+        label_input::demo_inputs()
+    }
     fn cpu_twin(&self, params: &ParamValues) -> Option<Box<dyn CpuTwin>> {
-        let v = params.path("labels").and_then(|p| load_label_volume(p).ok())?;
         Some(Box::new(ClipLabelsTwin {
-            mask: Selection::from_params(params).mask(&v),
-            dims: v.dims,
+            selection: Selection::from_params(params),
+            params: params.clone(),
+            mask: Vec::new(),
+            dims: [1; 3],
         }))
     }
 }
 
-/// CPU twin of `clip`: the same mask at the same nearest voxel.
+/// CPU twin of `clip`: the same mask at the same nearest voxel, baked in
+/// [`CpuTwin::prepare`] from the frame's label volume (everything dropped where the
+/// volume holds no labels: the GPU refuses it).
 pub struct ClipLabelsTwin {
+    pub selection: Selection,
+    pub params: ParamValues,
     pub mask: Vec<u8>,
     pub dims: [u32; 3],
 }
 
 impl CpuTwin for ClipLabelsTwin {
+    fn prepare(&mut self, ctx: &CpuContext) {
+        let grid = LabelGrid::read(ctx.input(&self.params, label_input::KEY));
+        self.mask = self.selection.mask(&grid.labels);
+        self.dims = grid.dims;
+    }
     fn clip(&self, s: &CpuSample) -> bool {
-        self.mask[nearest_voxel(self.dims, s.tex)] > 127
+        !self.mask.is_empty() && self.mask[nearest_voxel(self.dims, s.tex)] > 127
     }
 }

@@ -1,8 +1,10 @@
-use std::path::PathBuf;
+use std::sync::Arc;
 
 use glam::DVec3;
+use vwb_render::inputs::VolumeInputs;
 use vwb_render::params::{ParamValue, ParamValues};
 use vwb_render::plugin::{CpuSample, Plugin};
+use vwb_render::volume::{Volume, VoxelData};
 
 use super::*;
 
@@ -15,17 +17,6 @@ fn selection(mode: &str, ranges: &[(i32, i32)]) -> ParamValues {
         p.set(t, ParamValue::Int(b));
     }
     p
-}
-
-/// A 4×2×1 u16 label volume written as NRRD.
-fn write_u16(name: &str, labels: &[u16; 8]) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("vwb_clip_labels_{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let path = dir.join(name);
-    let mut bytes = b"NRRD0004\ntype: uint16\ndimension: 3\nsizes: 4 2 1\nendian: little\nencoding: raw\n\n".to_vec();
-    bytes.extend(labels.iter().flat_map(|l| l.to_le_bytes()));
-    std::fs::write(&path, bytes).unwrap();
-    path
 }
 
 #[test]
@@ -42,16 +33,23 @@ fn hide_and_show_select_label_ranges_up_to_65535() {
 
 #[test]
 fn u16_label_volume_masks_voxels_and_the_twin_reads_the_nearest() {
-    let path = write_u16("l16.nhdr", &[0, 1, 300, 40000, 1, 1, 300, 0]);
-    let v = load_label_volume(&path).unwrap();
-    assert_eq!(v.dims, [4, 2, 1]);
+    let labels = vec![0u16, 1, 300, 40000, 1, 1, 300, 0];
+    let seg = Volume::new("seg", [4, 2, 1], 1, [1.0; 3], VoxelData::U16(labels.clone())).unwrap();
+    let mut inputs = VolumeInputs::default();
+    inputs.insert("seg", Arc::new(seg));
     let mut p = selection("show", &[(300, 40000)]);
-    p.set("labels", ParamValue::Path(path.clone()));
+    p.set("labels", ParamValue::Volume("seg".into()));
     assert_eq!(
-        Selection::from_params(&p).mask(&v),
+        Selection::from_params(&p).mask(&labels),
         vec![0, 0, 255, 255, 0, 0, 255, 0]
     );
-    let twin = ClipLabels.cpu_twin(&p).unwrap();
+    let data = Volume::new("v", [2, 2, 2], 1, [1.0; 3], VoxelData::U8(vec![0; 8])).unwrap();
+    let scalars = data.normalized_scalars();
+    let ctx = CpuContext::new(&data, &scalars).with_inputs(&inputs);
+    let mut twin = ClipLabels.cpu_twin(&p).unwrap();
+    // before prepare no labels are read: everything is dropped
+    assert!(!twin.clip(&CpuSample::default()));
+    twin.prepare(&ctx);
     let at = |x: f64, y: f64| {
         twin.clip(&CpuSample {
             tex: DVec3::new(x, y, 0.5),
@@ -62,18 +60,4 @@ fn u16_label_volume_masks_voxels_and_the_twin_reads_the_nearest() {
     assert!(at(0.6, 0.2) && !at(0.4, 0.2) && !at(0.9, 0.9));
     // outside [0,1] clamps to the border voxels, as the GPU does
     assert!(at(0.6, -0.5) && !at(1.5, 0.9));
-}
-
-#[test]
-fn a_float_or_missing_label_volume_is_an_error_naming_the_file() {
-    let dir = std::env::temp_dir().join(format!("vwb_clip_labels_{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let path = dir.join("float.nhdr");
-    let mut bytes = b"NRRD0004\ntype: float\ndimension: 3\nsizes: 1 1 1\nendian: little\nencoding: raw\n\n".to_vec();
-    bytes.extend(1.5f32.to_le_bytes());
-    std::fs::write(&path, bytes).unwrap();
-    let e = load_label_volume(&path).unwrap_err();
-    assert!(e.contains("float.nhdr") && e.contains("u8 or u16"), "{e}");
-    let e = load_label_volume(&dir.join("missing.nhdr")).unwrap_err();
-    assert!(e.contains("missing.nhdr"), "{e}");
 }

@@ -39,7 +39,7 @@ use glam::{DMat3, DVec3};
 use vwb_render::params::{ParamSpec, ParamValues};
 use vwb_render::plugin::{
     CpuContext, CpuSample, CpuTwin, GpuInit, GpuResource, Plugin, PluginError, RegionFn,
-    ResourceDecl, ResourceKind, ShaderSource, Transparency, trilinear_grid,
+    ResourceDecl, ResourceKind, ShaderSource, Transparency, trilinear_grid, Volumes,
 };
 use vwb_render::shading::{safe_normalize, set_cut_gradient};
 use vwb_render::slicing::VolumeBox;
@@ -131,14 +131,24 @@ pub struct CheckedMesh {
 /// Loads and checks a mesh file (cached per path and modification time, so a file is
 /// read, checked and its warning logged once per version). Errors name the file.
 pub fn load_checked(path: &Path) -> Result<Arc<CheckedMesh>, String> {
-    crate::classify_labels::cached_load(path, |path| {
-        let mut mesh = mesh::load(path)?;
-        let warning = mesh.check(&path.display().to_string())?.orientation;
-        if let Some(w) = &warning {
-            log::warn!("clip.mesh: {w}");
-        }
-        Ok(CheckedMesh { mesh, warning })
-    })
+    type Key = (std::path::PathBuf, Option<std::time::SystemTime>);
+    static CACHE: OnceLock<Mutex<HashMap<Key, Arc<CheckedMesh>>>> = OnceLock::new();
+    let modified = std::fs::metadata(path).and_then(|m| m.modified()).ok();
+    let key = (path.to_path_buf(), modified);
+    let cache = CACHE.get_or_init(Default::default);
+    if let Some(held) = cache.lock().ok().and_then(|c| c.get(&key).cloned()) {
+        return Ok(held);
+    }
+    let mut mesh = mesh::load(path)?;
+    let warning = mesh.check(&path.display().to_string())?.orientation;
+    if let Some(w) = &warning {
+        log::warn!("clip.mesh: {w}");
+    }
+    let checked = Arc::new(CheckedMesh { mesh, warning });
+    if let Ok(mut c) = cache.lock() {
+        c.insert(key, checked.clone());
+    }
+    Ok(checked)
 }
 
 /// The mesh in its own coordinates: the checked file, or a generated shape (closed and
@@ -428,14 +438,15 @@ impl Plugin for ClipMesh {
     }
     /// Keeps transparent samples transparent (a clip hook only removes samples); the
     /// region it keeps depends on the volume ([`Plugin::region`]).
-    fn transparency(&self, _params: &ParamValues) -> Transparency {
+    fn transparency(&self, _params: &ParamValues, _volumes: &Volumes<'_>) -> Transparency {
         Transparency::Keeps
     }
     /// The world boxes some point of which the grid keeps: a trilinear value is a
     /// convex blend of its eight texels, so a box none of whose texels (those any
     /// point in it blends) is kept keeps nothing. `None` (no skipping) when the mesh
     /// cannot be voxelised.
-    fn region(&self, params: &ParamValues, volume: &Volume) -> Option<Arc<RegionFn>> {
+    fn region(&self, params: &ParamValues, volumes: &Volumes<'_>) -> Option<Arc<RegionFn>> {
+        let volume = volumes.main;
         let grid = grid_for(params, volume).ok()?;
         let outside = params.enumeration("keep") == "outside";
         let vbox = VolumeBox::new(volume.dims, volume.spacing);

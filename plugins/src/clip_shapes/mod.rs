@@ -35,7 +35,7 @@ use std::sync::{Arc, OnceLock};
 use glam::DVec3;
 use vwb_render::params::{Group, ParamSpec, ParamValue, ParamValues};
 use vwb_render::plugin::{
-    CpuContext, CpuSample, CpuTwin, CpuView, Plugin, ShaderSource, Transparency,
+    CpuContext, CpuSample, CpuTwin, CpuView, Plugin, ShaderSource, Transparency, Volumes,
 };
 use vwb_render::shading::{safe_normalize, set_cut_gradient};
 
@@ -243,7 +243,7 @@ impl Plugin for Shapes {
     /// that), so no point of a box is kept when sd at its centre exceeds half its
     /// diagonal. The camera slab depends on the view, which the occupancy grid does
     /// not, so with it on the promise is only [`Transparency::Keeps`].
-    fn transparency(&self, params: &ParamValues) -> Transparency {
+    fn transparency(&self, params: &ParamValues, _volumes: &Volumes<'_>) -> Transparency {
         let region = ClipRegion::from_params(params);
         if region.slab.is_some() {
             return Transparency::Keeps;

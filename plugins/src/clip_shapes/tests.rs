@@ -262,6 +262,14 @@ fn bricks_wholly_clipped_are_reported_and_no_kept_point_is_lost() {
     assert!(clipped > 100, "{clipped}");
     // with the camera slab the promise is view-independent only
     let slab = params(|p| p.set("follow_camera", ParamValue::Bool(true)));
-    assert!(matches!(Shapes::default().transparency(&slab), Transparency::Keeps));
-    assert!(matches!(Shapes::default().transparency(&p), Transparency::Region(_)));
+    let demo = vwb_render::volume::demo();
+    let volumes = Volumes::of(&demo);
+    assert!(matches!(
+        Shapes::default().transparency(&slab, &volumes),
+        Transparency::Keeps
+    ));
+    assert!(matches!(
+        Shapes::default().transparency(&p, &volumes),
+        Transparency::Region(_)
+    ));
 }

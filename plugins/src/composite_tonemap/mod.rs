@@ -6,7 +6,7 @@
 
 use glam::{DVec2, DVec4};
 use vwb_render::params::{ParamSpec, ParamValue, ParamValues};
-use vwb_render::plugin::{CpuTwin, Plugin, ShaderSource, Transparency};
+use vwb_render::plugin::{CpuTwin, Plugin, ShaderSource, Transparency, Volumes};
 
 #[cfg(test)]
 mod tests;
@@ -38,7 +38,7 @@ impl Plugin for Tonemap {
         )
     }
     /// It never touches a sample.
-    fn transparency(&self, _params: &ParamValues) -> Transparency {
+    fn transparency(&self, _params: &ParamValues, _volumes: &Volumes<'_>) -> Transparency {
         Transparency::Keeps
     }
     /// One stop brighter with a gamma of 1.5, so that the tests see it act.

@@ -32,7 +32,7 @@ use vwb_render::flow::{
 use vwb_render::params::{Components, ParamSpec, ParamValue, ParamValues};
 use vwb_render::plugin::{
     CpuContext, CpuSample, CpuTwin, GpuInit, GpuResource, Plugin, PluginError, PrepassDecl,
-    ResourceDecl, ResourceKind, ShaderSource, StorageFormat, Transparency, trilinear_grid,
+    ResourceDecl, ResourceKind, ShaderSource, StorageFormat, Transparency, trilinear_grid, Volumes,
 };
 use vwb_render::volume::Volume;
 
@@ -219,7 +219,7 @@ impl Plugin for Arrival {
         }))
     }
     /// Samples are dropped, never made more opaque.
-    fn transparency(&self, _params: &ParamValues) -> Transparency {
+    fn transparency(&self, _params: &ParamValues, _volumes: &Volumes<'_>) -> Transparency {
         Transparency::Keeps
     }
 }

@@ -19,7 +19,7 @@
 use glam::{DVec2, DVec4};
 use vwb_render::params::{ParamSpec, ParamValues};
 use vwb_render::plugin::{
-    CpuContext, CpuRay, CpuSample, CpuTwin, Plugin, ShaderSource, Transparency,
+    CpuContext, CpuRay, CpuSample, CpuTwin, Plugin, ShaderSource, Transparency, Volumes,
 };
 
 #[cfg(test)]
@@ -56,7 +56,7 @@ impl Plugin for Jitter {
             include_str!("jitter.wgsl"),
         )
     }
-    fn transparency(&self, params: &ParamValues) -> Transparency {
+    fn transparency(&self, params: &ParamValues, _volumes: &Volumes<'_>) -> Transparency {
         // |amount·(u − ½)| < amount/2 of a step
         Transparency::Moves(0.5 * params.float("amount").abs() as f64)
     }

@@ -15,7 +15,7 @@ use glam::{DVec3, DVec4};
 use vwb_render::params::{ParamSpec, ParamValues};
 use vwb_render::plugin::{
     CpuContext, CpuSample, CpuTwin, GpuInit, GpuResource, Plugin, PluginError, PrepassDecl,
-    ResourceDecl, ResourceKind, ShaderSource, Transparency,
+    ResourceDecl, ResourceKind, ShaderSource, Transparency, Volumes,
 };
 use vwb_render::shading::{GradientEstimator, Gradients, Light, Material};
 
@@ -145,7 +145,7 @@ impl Plugin for BlinnPhong {
         (c != *self).then(|| Arc::new(c) as Arc<dyn Plugin>)
     }
     /// Shading changes colours and may lower opacity, never raises it from zero.
-    fn transparency(&self, _params: &ParamValues) -> Transparency {
+    fn transparency(&self, _params: &ParamValues, _volumes: &Volumes<'_>) -> Transparency {
         Transparency::Keeps
     }
     fn cpu_twin(&self, params: &ParamValues) -> Option<Box<dyn CpuTwin>> {

@@ -51,7 +51,7 @@ use glam::{DVec2, DVec3, DVec4};
 use vwb_render::params::{ParamSpec, ParamValues};
 use vwb_render::plugin::{
     ConvergedReference, CpuContext, CpuSample, CpuTwin, GpuInit, GpuResource, Plugin, PluginError, ResourceDecl,
-    ResourceKind, ShaderSource, SliceStateDecl, StorageFormat, Transparency,
+    ResourceKind, ShaderSource, SliceStateDecl, StorageFormat, Transparency, Volumes,
 };
 
 #[cfg(test)]
@@ -235,7 +235,7 @@ impl Plugin for Dos {
         Ok(vec![t])
     }
     /// `shade` scales colours and the occlusion pass reads only the sample's opacity.
-    fn transparency(&self, _params: &ParamValues) -> Transparency {
+    fn transparency(&self, _params: &ParamValues, _volumes: &Volumes<'_>) -> Transparency {
         Transparency::Keeps
     }
     /// Refined slices converge to the slice algorithm's own limit, not to the cone

@@ -17,7 +17,7 @@ use glam::{DVec3, DVec4};
 use vwb_render::params::{ParamSpec, ParamValues};
 use vwb_render::plugin::{
     CpuContext, CpuSample, CpuTwin, GpuInit, GpuResource, Plugin, PluginError, PrepassDecl,
-    ResourceDecl, ResourceKind, ShaderSource, Transparency,
+    ResourceDecl, ResourceKind, ShaderSource, Transparency, Volumes,
 };
 use vwb_render::shading::{
     GradientEstimator, Gradients, Light, Material, blinn_phong_factors, shading_normal,
@@ -113,7 +113,7 @@ impl Plugin for EnvMap {
             upload("shade.envmap irradiance", &m.irradiance),
         ])
     }
-    fn transparency(&self, _params: &ParamValues) -> Transparency {
+    fn transparency(&self, _params: &ParamValues, _volumes: &Volumes<'_>) -> Transparency {
         Transparency::Keeps
     }
     fn cpu_twin(&self, params: &ParamValues) -> Option<Box<dyn CpuTwin>> {

@@ -52,7 +52,7 @@ use vwb_render::params::{ParamSpec, ParamValues};
 use vwb_render::plugin::{
     CpuContext, CpuSample, CpuTwin, GpuInit, GpuResource, PassOutputs, Plugin, PluginError,
     ResourceDecl, ResourceKind, ShaderSource, StackClassify, Statistic,
-    Transparency, VolumePassDecl, trilinear_grid,
+    Transparency, VolumePassDecl, trilinear_grid, Volumes,
 };
 
 #[cfg(test)]
@@ -348,7 +348,7 @@ impl Plugin for Hernell {
         (c != *self).then(|| Arc::new(c) as Arc<dyn Plugin>)
     }
     /// The light scales colours, never opacity.
-    fn transparency(&self, _params: &ParamValues) -> Transparency {
+    fn transparency(&self, _params: &ParamValues, _volumes: &Volumes<'_>) -> Transparency {
         Transparency::Keeps
     }
     fn cpu_twin(&self, params: &ParamValues) -> Option<Box<dyn CpuTwin>> {

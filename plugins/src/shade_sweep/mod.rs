@@ -13,7 +13,7 @@ use glam::{DVec3, DVec4};
 use vwb_render::params::{ParamSpec, ParamValues};
 use vwb_render::plugin::{
     CpuContext, CpuSample, CpuTwin, Plugin, ShaderSource, StackClassify,
-    Transparency, VolumePassDecl,
+    Transparency, VolumePassDecl, Volumes,
 };
 use vwb_render::reference::correct_opacity;
 use vwb_render::sweep::Sweep;
@@ -93,7 +93,7 @@ impl Plugin for SweepShadows {
         (c != *self).then(|| std::sync::Arc::new(c) as std::sync::Arc<dyn Plugin>)
     }
     /// It scales colours only.
-    fn transparency(&self, _params: &ParamValues) -> Transparency {
+    fn transparency(&self, _params: &ParamValues, _volumes: &Volumes<'_>) -> Transparency {
         Transparency::Keeps
     }
     fn cpu_twin(&self, params: &ParamValues) -> Option<Box<dyn CpuTwin>> {

@@ -10,7 +10,7 @@ use glam::{DVec2, DVec4};
 use vwb_render::params::{ParamSpec, ParamValues};
 use vwb_render::plugin::{
     CpuContext, CpuSample, CpuTwin, Plugin, ShaderSource, SliceStateDecl, StorageFormat,
-    Transparency,
+    Transparency, Volumes,
 };
 
 pub struct SliceShadow;
@@ -40,7 +40,7 @@ impl Plugin for SliceShadow {
     }
     /// `shade` scales the colour only and `slice_update` reads only the contribution's
     /// opacity, so transparent samples stay without effect.
-    fn transparency(&self, _params: &ParamValues) -> Transparency {
+    fn transparency(&self, _params: &ParamValues, _volumes: &Volumes<'_>) -> Transparency {
         Transparency::Keeps
     }
     fn cpu_twin(&self, params: &ParamValues) -> Option<Box<dyn CpuTwin>> {

@@ -863,8 +863,9 @@ fn normalize(s: f64, lo: f64, hi: f64) -> f32 {
     }
 }
 
-/// The histogram bin of a scalar, `None` for non-finite ones.
-fn histogram_bin(s: f64, lo: f64, hi: f64) -> Option<usize> {
+/// The histogram bin of a scalar over `lo`…`hi` ([`Volume::histogram`]), `None` for
+/// non-finite ones.
+pub fn histogram_bin(s: f64, lo: f64, hi: f64) -> Option<usize> {
     if !s.is_finite() {
         return None;
     }

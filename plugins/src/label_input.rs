@@ -1,0 +1,195 @@
+//! Label volumes as named volume inputs, shared by `classify.labels` and `clip.labels`.
+//!
+//! Both plugins read their labels through the volume input `labels`
+//! ([`vwb_render::params::ParamKind::Volume`]): one of the document's named volumes
+//! (`volumes: {"labels": File("data/demo_labels.nrrd")}` in a preset), or the
+//! document's own volume when the name is empty (a segmentation opened as the volume).
+//! The GPU resources and the CPU twin read the same volume
+//! ([`vwb_render::plugin::GpuInit::input`], [`vwb_render::plugin::CpuContext::input`]).
+//!
+//! A label volume holds one non-negative integer per voxel: u8 or u16, or i8 / i16
+//! without a negative value (NIfTI segmentations are often signed). Floating-point
+//! volumes are refused: a label is read at the nearest voxel, never interpolated, and a
+//! fractional label has no meaning.
+//!
+//! *Choice:* a label volume spans the document volume's box whatever its grid, as every
+//! input does ([`vwb_render::inputs`]): the label of texture coordinate t is that of
+//! the label voxel nearest to t on the label volume's own grid, so a coarser or finer
+//! segmentation is read where it lies. (Before labels were named inputs, a label file
+//! had to have the data's dims.)
+
+use std::sync::{Arc, OnceLock};
+
+use glam::DVec3;
+use vwb_render::inputs::VolumeInputs;
+use vwb_render::params::ParamValues;
+use vwb_render::plugin::{GpuInit, PluginError};
+use vwb_render::volume::{Volume, VoxelData};
+
+/// The parameter key of both plugins' label input.
+pub const KEY: &str = "labels";
+
+/// The name the demo inputs give the demo's label volume.
+pub const DEMO_NAME: &str = "labels";
+
+/// Linear index (x fastest) of the voxel nearest to a texture coordinate, as the
+/// shaders' `clamp(floor(tex·dims), 0, dims − 1)`.
+pub fn nearest_voxel(dims: [u32; 3], tex: DVec3) -> usize {
+    let d = dims.map(|n| n.max(1) as usize);
+    let idx = |a: usize| {
+        let f = (tex[a] * d[a] as f64).floor();
+        if f.is_nan() {
+            0
+        } else {
+            (f.max(0.0) as usize).min(d[a] - 1)
+        }
+    };
+    (idx(2) * d[1] + idx(1)) * d[0] + idx(0)
+}
+
+/// How messages name a volume: its name and, where it came from a file, the file.
+pub fn describe(volume: &Volume) -> String {
+    match &volume.source {
+        Some(file) => format!("'{}' ({})", volume.name, file.display()),
+        None => format!("'{}'", volume.name),
+    }
+}
+
+/// The labels of `volume`, one per voxel (x fastest), widened to u16; refused, naming
+/// the volume and its file, unless it holds one non-negative integer per voxel.
+pub fn label_values(volume: &Volume) -> Result<Vec<u16>, String> {
+    let refuse = |what: String| {
+        Err(format!(
+            "the volume {} {what}; a label volume holds one non-negative integer per voxel \
+             (u8 or u16, or i8 / i16 without negative values)",
+            describe(volume)
+        ))
+    };
+    if volume.components != 1 {
+        return refuse(format!("has {} components", volume.components));
+    }
+    let negative = |min: i32| refuse(format!("holds a negative label ({min})"));
+    match &volume.data {
+        VoxelData::U8(v) => Ok(v.iter().map(|&l| u16::from(l)).collect()),
+        VoxelData::U16(v) => Ok(v.clone()),
+        VoxelData::I8(v) => match v.iter().copied().min() {
+            Some(m) if m < 0 => negative(i32::from(m)),
+            _ => Ok(v.iter().map(|&l| l as u16).collect()),
+        },
+        VoxelData::I16(v) => match v.iter().copied().min() {
+            Some(m) if m < 0 => negative(i32::from(m)),
+            _ => Ok(v.iter().map(|&l| l as u16).collect()),
+        },
+        VoxelData::F32(_) => refuse("holds floating-point values".into()),
+    }
+}
+
+/// Which of `rows` table rows the labels of `volume` can use: row l (< rows − 1) for
+/// label l, the last row for every label from rows − 1 up. Read from the volume's
+/// range and histogram, without a pass over the voxels: exact when the labels span
+/// fewer than [`vwb_render::volume::HISTOGRAM_BINS`] values (each integer then has a
+/// bin of its own), a superset otherwise; every row where it is not a label volume.
+pub fn rows_present(volume: &Volume, rows: usize) -> Vec<bool> {
+    let [lo, hi] = volume.range;
+    if label_type(volume).is_err() || rows == 0 {
+        return vec![true; rows];
+    }
+    let last = (rows - 1) as f64;
+    (0..rows)
+        .map(|row| {
+            let l = row as f64;
+            if row + 1 == rows {
+                return hi >= last;
+            }
+            l >= lo
+                && l <= hi
+                && vwb_render::volume::histogram_bin(l, lo, hi)
+                    .and_then(|b| volume.histogram.get(b))
+                    .is_some_and(|&n| n > 0)
+        })
+        .collect()
+}
+
+/// Whether `volume` can be a label volume by its type (one integer component; the
+/// sign of signed labels is checked on the voxels, [`label_values`]).
+fn label_type(volume: &Volume) -> Result<(), ()> {
+    match (&volume.data, volume.components) {
+        (VoxelData::F32(_), _) => Err(()),
+        (_, 1) if volume.range[0] >= 0.0 => Ok(()),
+        _ => Err(()),
+    }
+}
+
+/// The label volume the `labels` input of `params` names, for the GPU: its dims and
+/// labels, or an error naming `plugin`, the input and the volume.
+pub fn gpu_labels(
+    plugin: &str,
+    gpu: &GpuInit,
+    params: &ParamValues,
+) -> Result<([u32; 3], Vec<u16>), PluginError> {
+    let error = |message: String| PluginError::Invalid {
+        plugin: plugin.into(),
+        message,
+    };
+    let volume = gpu.inputs.resolve(gpu.volume, params, KEY).map_err(error)?;
+    let labels = label_values(volume).map_err(|m| error(format!("{KEY}: {m}")))?;
+    Ok((volume.dims, labels))
+}
+
+/// A label volume as a twin holds it after [`LabelGrid::read`]: empty (every voxel
+/// label 0) until read, and where the GPU refuses the volume.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct LabelGrid {
+    pub dims: [u32; 3],
+    pub labels: Vec<u16>,
+}
+
+impl LabelGrid {
+    /// The labels of `volume` (none where it is not a label volume: the GPU refuses
+    /// such a stack, and the reference renderer draws nothing to compare with).
+    pub fn read(volume: &Volume) -> Self {
+        match label_values(volume) {
+            Ok(labels) => Self {
+                dims: volume.dims,
+                labels,
+            },
+            Err(_) => Self::default(),
+        }
+    }
+
+    /// The label of the voxel nearest to a texture coordinate, as the shaders read it.
+    pub fn at(&self, tex: DVec3) -> u16 {
+        if self.labels.is_empty() {
+            return 0;
+        }
+        self.labels[nearest_voxel(self.dims, tex)]
+    }
+}
+
+/// The demo's label volume (`presets/data/demo_labels.nrrd` in this checkout, written
+/// by bench/make_demo_labels.py), loaded once.
+pub fn demo_labels() -> Result<Arc<Volume>, String> {
+    static DEMO: OnceLock<Result<Arc<Volume>, String>> = OnceLock::new();
+    DEMO.get_or_init(|| {
+        let path = concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../presets/data/demo_labels.nrrd"
+        );
+        vwb_render::volume::load(std::path::Path::new(path))
+            .map(Arc::new)
+            .map_err(|e| e.to_string())
+    })
+    .clone()
+}
+
+/// The demo's named volumes for the label plugins: the demo label volume as
+/// [`DEMO_NAME`] (none where this checkout lacks the file; the coverage test then
+/// fails on the missing labels).
+pub fn demo_inputs() -> VolumeInputs {
+    let mut inputs = VolumeInputs::default();
+    match demo_labels() {
+        Ok(v) => inputs.insert(DEMO_NAME, v),
+        Err(e) => log::error!("{e}"),
+    }
+    inputs
+}
