@@ -2378,10 +2378,19 @@ impl Renderer {
     }
 
     fn ensure_state(&mut self) {
-        let (Some(p), Some(t)) = (&self.pipelines, &self.target) else {
+        let Some(stack) = self.pipelines.as_ref().map(|p| p.stack.clone()) else {
             return;
         };
-        for (uid, plugin) in &p.stack {
+        self.ensure_state_of(&stack);
+    }
+
+    /// The per-slice state textures of the instances of `stack` that declare state, at
+    /// the eye buffer's size (an atlas's tiles each have their own instances).
+    fn ensure_state_of(&mut self, stack: &[(u64, Arc<dyn Plugin>)]) {
+        let Some(t) = &self.target else {
+            return;
+        };
+        for (uid, plugin) in stack {
             let Some(decl) = plugin.slice_state() else {
                 continue;
             };
@@ -2417,6 +2426,114 @@ impl Renderer {
         }
     }
 
+    /// Clears the per-slice state of the instances of `stack` that have one, before
+    /// the first slice.
+    fn encode_state_clear(&self, enc: &mut wgpu::CommandEncoder, stack: &[(u64, Arc<dyn Plugin>)]) {
+        for (uid, plugin) in stack {
+            let (Some(decl), Some(g)) = (plugin.slice_state(), self.instances.get(uid)) else {
+                continue;
+            };
+            let Some(state) = &g.state else { continue };
+            let c = decl.clear;
+            let _clear = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some("vwb clear state"),
+                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                    view: &state[0].1,
+                    depth_slice: None,
+                    resolve_target: None,
+                    ops: wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(wgpu::Color {
+                            r: c[0] as f64,
+                            g: c[1] as f64,
+                            b: c[2] as f64,
+                            a: c[3] as f64,
+                        }),
+                        store: wgpu::StoreOp::Store,
+                    },
+                })],
+                ..Default::default()
+            });
+        }
+    }
+
+    /// The compute backend's slices under per-slice state, for the instances `uids`
+    /// of the compiled stack `p` (their state cleared before): one dispatch per slice
+    /// where every state has the eye buffer's resolution (the state texel is the
+    /// pixel; the fused pipeline), else the slice and then each state update; then the
+    /// resolve. `groups` are bind groups 0 (the frame, indexed by slice), 1 and 3;
+    /// `size` the eye buffer's. Whether the fused pipeline ran.
+    fn encode_compute_slices(
+        &self,
+        enc: &mut wgpu::CommandEncoder,
+        p: &CompiledStack,
+        uids: &[u64],
+        [g0, g1, g3]: [&wgpu::BindGroup; 3],
+        count: u32,
+        size: [u32; 2],
+    ) -> bool {
+        let g2 = self.group2_for(p, uids);
+        let states: Vec<Option<wgpu::Extent3d>> = p
+            .updates
+            .iter()
+            .map(|(i, _)| {
+                let g = self.instances.get(uids.get(*i)?)?;
+                Some(g.state.as_ref()?[0].0.size())
+            })
+            .collect();
+        let fused = p.cs_slice_fused.as_ref().filter(|_| {
+            self.fused_slices
+                && states
+                    .iter()
+                    .all(|st| st.is_some_and(|e| [e.width, e.height] == size))
+        });
+        let wg = (size[0].div_ceil(8), size[1].div_ceil(8));
+        for k in 0..count {
+            let offset = [(k as u64 * SLICE_INFO_STRIDE) as u32];
+            {
+                let mut pass = enc.begin_compute_pass(&Default::default());
+                pass.set_pipeline(fused.unwrap_or(&p.cs_slice));
+                pass.set_bind_group(0, g0, &offset);
+                pass.set_bind_group(1, g1, &[]);
+                pass.set_bind_group(2, &g2[(k % 2) as usize], &[]);
+                pass.set_bind_group(3, g3, &[]);
+                pass.dispatch_workgroups(wg.0, wg.1, 1);
+            }
+            if fused.is_none() {
+                let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                    label: Some("vwb state update"),
+                    timestamp_writes: None,
+                });
+                pass.set_bind_group(0, g0, &offset);
+                pass.set_bind_group(1, g1, &[]);
+                pass.set_bind_group(2, &g2[(k % 2) as usize], &[]);
+                pass.set_bind_group(3, g3, &[]);
+                for ((_, pipeline), state) in p.updates.iter().zip(&states) {
+                    let Some(e) = state else { continue };
+                    pass.set_pipeline(pipeline);
+                    pass.dispatch_workgroups(e.width.div_ceil(8), e.height.div_ceil(8), 1);
+                }
+            }
+        }
+        let mut pass = enc.begin_compute_pass(&Default::default());
+        pass.set_pipeline(if count == 0 {
+            &p.cs_main
+        } else {
+            &p.cs_resolve
+        });
+        pass.set_bind_group(0, g0, &[0]);
+        pass.set_bind_group(1, g1, &[]);
+        pass.set_bind_group(2, &g2[0], &[]);
+        pass.set_bind_group(3, g3, &[]);
+        let n = if count == 0 {
+            let [mx, my] = self.main_workgroup;
+            (size[0].div_ceil(mx), size[1].div_ceil(my))
+        } else {
+            wg
+        };
+        pass.dispatch_workgroups(n.0, n.1, 1);
+        fused.is_some()
+    }
+
     /// Bind group of group 1 (plugins) for the main pipeline.
     fn group1(&self, p: &Pipelines) -> wgpu::BindGroup {
         self.group1_for(p, &p.uids())
@@ -2442,14 +2559,19 @@ impl Renderer {
 
     /// Bind groups of group 2 for even and odd slices.
     fn group2(&self, p: &Pipelines) -> [wgpu::BindGroup; 2] {
-        let uids = p.uids();
+        self.group2_for(p, &p.uids())
+    }
+
+    /// Bind groups of group 2 of a compiled stack drawn by the instances `uids`, for
+    /// even and odd slices.
+    fn group2_for(&self, p: &CompiledStack, uids: &[u64]) -> [wgpu::BindGroup; 2] {
         [0usize, 1].map(|parity| {
             let entries: Vec<wgpu::BindGroupEntry> = p
                 .composition
                 .bindings
                 .iter()
                 .filter(|b| b.group == 2)
-                .filter_map(|b| self.bind_entry(&uids, b, Some(parity)))
+                .filter_map(|b| self.bind_entry(uids, b, Some(parity)))
                 .collect();
             self.gpu
                 .device
@@ -3303,40 +3425,13 @@ impl Renderer {
         });
 
         stamp(enc, Some("slices".to_string()));
-        // clear the per-slice state
         if per_slice {
-            for (uid, plugin) in &p.stack {
-                let (Some(decl), Some(g)) = (plugin.slice_state(), self.instances.get(uid)) else {
-                    continue;
-                };
-                let Some(state) = &g.state else { continue };
-                let c = decl.clear;
-                let _clear = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
-                    label: Some("vwb clear state"),
-                    color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                        view: &state[0].1,
-                        depth_slice: None,
-                        resolve_target: None,
-                        ops: wgpu::Operations {
-                            load: wgpu::LoadOp::Clear(wgpu::Color {
-                                r: c[0] as f64,
-                                g: c[1] as f64,
-                                b: c[2] as f64,
-                                a: c[3] as f64,
-                            }),
-                            store: wgpu::StoreOp::Store,
-                        },
-                    })],
-                    ..Default::default()
-                });
-            }
+            self.encode_state_clear(enc, &p.stack);
         }
-        let wg = (t.width.div_ceil(8), t.height.div_ceil(8));
         // a brick dispatches its footprint only (offset in frame.settings.zw)
         let rect = self.pixel_rect(&view, [t.width, t.height]);
         // cs_main and cs_main_skip run in workgroups of the renderer's shape
         let [mx, my] = self.main_workgroup;
-        let wg_main = (t.width.div_ceil(mx), t.height.div_ceil(my));
         let wg_own = (
             (rect[2] - rect[0]).div_ceil(mx),
             (rect[3] - rect[1]).div_ceil(my),
@@ -3489,51 +3584,16 @@ impl Renderer {
             }
             Backend::Compute => {
                 if per_slice {
-                    // one dispatch per slice where every state has the eye buffer's
-                    // resolution (the state texel is the pixel), else two
-                    let fused = p.cs_slice_fused.as_ref().filter(|_| {
-                        p.updates.iter().all(|(i, _)| {
-                            self.instances
-                                .get(&p.stack[*i].0)
-                                .and_then(|g| g.state.as_ref())
-                                .is_some_and(|st| {
-                                    let size = st[0].0.size();
-                                    (size.width, size.height) == (t.width, t.height)
-                                })
-                        })
-                    });
-                    let fused = fused.filter(|_| self.fused_slices);
-                    fused_run = fused.is_some();
-                    for k in 0..plan.count {
-                        {
-                            let mut pass = enc.begin_compute_pass(&Default::default());
-                            pass.set_pipeline(fused.unwrap_or(&p.cs_slice));
-                            pass.set_bind_group(
-                                0,
-                                &self.g0,
-                                &[(k as u64 * SLICE_INFO_STRIDE) as u32],
-                            );
-                            pass.set_bind_group(1, &g1, &[]);
-                            pass.set_bind_group(2, &g2[(k % 2) as usize], &[]);
-                            pass.set_bind_group(3, &g3, &[]);
-                            pass.dispatch_workgroups(wg.0, wg.1, 1);
-                        }
-                        if fused.is_none() {
-                            run_updates(enc, k);
-                        }
-                    }
-                    let mut pass = enc.begin_compute_pass(&Default::default());
-                    pass.set_pipeline(if plan.count == 0 {
-                        &p.cs_main
-                    } else {
-                        &p.cs_resolve
-                    });
-                    pass.set_bind_group(0, &self.g0, &[0]);
-                    pass.set_bind_group(1, &g1, &[]);
-                    pass.set_bind_group(2, &g2[0], &[]);
-                    pass.set_bind_group(3, &g3, &[]);
-                    let n = if plan.count == 0 { wg_main } else { wg };
-                    pass.dispatch_workgroups(n.0, n.1, 1);
+                    let uids = p.uids();
+                    let groups = [&self.g0, &g1, &g3];
+                    fused_run = self.encode_compute_slices(
+                        enc,
+                        p,
+                        &uids,
+                        groups,
+                        plan.count,
+                        [t.width, t.height],
+                    );
                 } else {
                     let mut pass = enc.begin_compute_pass(&Default::default());
                     pass.set_pipeline(if self.occupancy_bytes.is_some() {

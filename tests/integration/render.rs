@@ -954,6 +954,26 @@ fn atlas_tiles(
 
 /// Tile `i` of an atlas against the same stack and camera rendered alone on a fresh
 /// renderer of `volume` (ΔE*uv RMS ≤ 0.01); the single render's statistics.
+/// The atlas `encoded` into `enc`, after submitting it.
+fn submitted(
+    r: &Renderer,
+    enc: wgpu::CommandEncoder,
+    encoded: &vwb_render::renderer::EncodedAtlas,
+    tiles: usize,
+) -> vwb_render::renderer::Atlas {
+    gpu().queue.submit([enc.finish()]);
+    vwb_render::renderer::Atlas {
+        cols: encoded.cols,
+        rows: encoded.rows,
+        tile: encoded.tile,
+        tiles,
+        pixels: r.read_atlas(encoded),
+        wall_ms: 0.0,
+        prepasses_run: 0,
+        volume_passes_run: 0,
+    }
+}
+
 fn assert_tile_is_its_single_render(
     atlas: &vwb_render::renderer::Atlas,
     i: usize,
@@ -1023,9 +1043,11 @@ fn atlas_runs_volume_passes_of(id: &str, least_passes: usize) {
 }
 
 /// An atlas of variants with per-slice state (TF variants under directional occlusion
-/// shading) is drawn tile by tile, and each tile equals its single render on a fresh
-/// renderer; `encode_atlas` (one submission) still refuses such a stack, and a design
-/// gallery on the DOS demo preset runs (it failed before session 49).
+/// shading) is drawn in one submission, each tile's slices and state updates in turn
+/// with its state cleared first, and each tile equals its single render on a fresh
+/// renderer. Two such atlases encoded into the caller's one encoder give the same
+/// tiles, at another tile size too (the state follows the tile), and a design gallery
+/// on the DOS demo preset runs (it failed before session 49).
 #[test]
 fn an_atlas_of_per_slice_variants_matches_their_single_renders() {
     let variants: Vec<_> = tf_variants(4)
@@ -1049,9 +1071,26 @@ fn an_atlas_of_per_slice_variants_matches_their_single_renders() {
             assert!(d > 1e-3, "tiles {} and {i} differ", i - 1);
         }
     }
+    // one encoder, two atlases: the tiles again, and at 24² each its single render
+    let small = FrameSettings {
+        width: 24,
+        height: 24,
+        ..s
+    };
     let mut enc = gpu().device.create_command_encoder(&Default::default());
-    let e = r.encode_atlas(&mut enc, &tiles, &s, t, 3).unwrap_err();
-    assert!(e.to_string().contains("per-slice state"), "{e}");
+    let first = r.encode_atlas(&mut enc, &tiles, &s, t, 3).unwrap();
+    let firsts = submitted(&r, enc, &first, tiles.len());
+    for i in 0..tiles.len() {
+        let (d, _) = diff(&rgb(&firsts.tile_pixels(i)), &rgb(&atlas.tile_pixels(i)));
+        assert!(d < 1e-6, "encoded tile {i}: {d}");
+    }
+    let mut enc = gpu().device.create_command_encoder(&Default::default());
+    let _ = r.encode_atlas(&mut enc, &tiles[..2], &s, t, 2).unwrap();
+    let second = r.encode_atlas(&mut enc, &tiles, &small, t, 2).unwrap();
+    let seconds = submitted(&r, enc, &second, tiles.len());
+    for (i, (camera, stack)) in variants.iter().enumerate() {
+        assert_tile_is_its_single_render(&seconds, i, &demo(), stack, *camera, &small, t);
+    }
 
     // a gallery on a DOS preset
     let doc = Document::load(&repo().join("presets/demo_dos.ron"), &registry())
@@ -1192,18 +1231,35 @@ fn an_atlas_of_64_variants_matches_their_single_renders() {
 }
 
 /// The atlas against a loop of single renders (update the stack, render, read back
-/// each), 64 TF variants from four viewpoints at 64² and 128² on the demo, median of 3
-/// rounds, interleaved. Writes docs/atlas_bench.json (docs/gpu/ on a GPU). Run:
+/// each), 64 TF variants from four viewpoints at 64² and 128² on the demo, and 16 of
+/// them under shade.dos (per-slice state) at 64², median of 3 rounds, interleaved.
+/// Writes docs/atlas_bench.json (docs/gpu/ on a GPU). Run:
 /// `bash bench/atlas.sh`.
 #[test]
 #[ignore = "benchmark: bash bench/atlas.sh"]
 fn atlas_benchmark() {
     use std::time::Instant;
     use vwb_render::renderer::AtlasTile;
-    let variants = tf_variants(64);
     let t = TargetFormat::Rgba32Float;
     let mut rows = Vec::new();
-    for side in [64u32, 128] {
+    // (stack, tiles, side): the 1D TF alone, and under shade.dos (per-slice state:
+    // a dispatch per slice and tile, in one submission since session 51)
+    let with_dos = |n: usize| -> Vec<_> {
+        tf_variants(n)
+            .into_iter()
+            .map(|(camera, mut stack)| {
+                stack.push(instance("shade.dos"));
+                (camera, stack)
+            })
+            .collect()
+    };
+    let cases = [
+        ("classify.tf1d", tf_variants(64), 64u32),
+        ("classify.tf1d", tf_variants(64), 128),
+        ("classify.tf1d + shade.dos", with_dos(16), 64),
+    ];
+    for (stack_name, variants, side) in cases {
+        let n = variants.len();
         let s = settings(side, side, Backend::Compute);
         let tiles: Vec<AtlasTile> = variants
             .iter()
@@ -1251,25 +1307,26 @@ fn atlas_benchmark() {
         };
         let (a, b) = (median(&mut atlas_ms), median(&mut single_ms));
         eprintln!(
-            "{side}²: atlas {a:.1} ms ({:.2} ms/tile), 64 single renders {b:.1} ms ({:.2} ms/tile): ratio {:.3}",
-            a / 64.0,
-            b / 64.0,
+            "{stack_name}, {side}²: atlas {a:.1} ms ({:.2} ms/tile), {n} single renders {b:.1} ms ({:.2} ms/tile): ratio {:.3}",
+            a / n as f64,
+            b / n as f64,
             a / b
         );
         rows.push(serde_json::json!({
+            "stack": stack_name,
             "tile": side,
-            "tiles": 64,
+            "tiles": n,
             "atlas_ms": a,
             "single_renders_ms": b,
-            "atlas_ms_per_tile": a / 64.0,
-            "single_ms_per_tile": b / 64.0,
+            "atlas_ms_per_tile": a / n as f64,
+            "single_ms_per_tile": b / n as f64,
             "atlas_over_single": a / b,
         }));
     }
     let out = serde_json::json!({
         "machine": vwb_lab::measure::machine(),
         "adapter": gpu().describe(),
-        "scene": "embedded demo, classify.tf1d ramps (64 variants, 4 viewpoints), compute, rgba32float, spacing 1",
+        "scene": "embedded demo, classify.tf1d ramps (64 variants, 4 viewpoints; 16 under shade.dos), compute, rgba32float, spacing 1",
         "rows": rows,
     });
     vwb_lab::measure::save_json(&bench_doc("atlas_bench.json"), &out).expect("write");

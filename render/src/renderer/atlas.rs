@@ -8,7 +8,8 @@
 //! one after another into the eye buffer and copied into the atlas texture inside one
 //! command encoder, submitted once. A stack's volume passes run once per variant; its
 //! view passes (those that read the camera) run again before each tile whose camera
-//! differs from the last one they ran with. The images are those of
+//! differs from the last one they ran with. Under per-slice state (`shade.dos`) each
+//! tile runs its slice dispatches in turn, its state cleared first. The images are those of
 //! [`Renderer::render`] with the same settings, tile by tile (tested).
 
 use super::*;
@@ -77,9 +78,9 @@ impl Renderer {
     /// tile's); the backend must be compute. The tiles' stacks must share one
     /// structure: the same enabled plugins with the same structural values in the same
     /// order; their parameter values and instances differ. A stack with per-slice
-    /// state (`shade.dos`) is drawn tile by tile instead, one frame and one submission
-    /// per tile, into the same atlas ([`Renderer::encode_atlas`] refuses it).
-    /// Afterwards the renderer draws the first tile's stack.
+    /// state (`shade.dos`) draws each tile's slices as its single render does, its
+    /// state cleared per tile, in the same submission. Afterwards the renderer draws
+    /// the first tile's stack.
     pub fn render_atlas(
         &mut self,
         tiles: &[AtlasTile],
@@ -88,20 +89,6 @@ impl Renderer {
         cols: u32,
     ) -> Result<Atlas, RenderError> {
         let start = Instant::now();
-        // per-slice state: a stack with a plugin that declares it (the compiled
-        // stack's updates are exactly those)
-        if s.backend == Backend::Compute
-            && self.split.is_none()
-            && tiles.first().is_some_and(|first| {
-                first
-                    .stack
-                    .iter()
-                    .filter(|i| i.enabled)
-                    .any(|i| i.configured().slice_state().is_some())
-            })
-        {
-            return self.render_tiles_one_by_one(tiles, s, target, cols, start);
-        }
         let mut enc = self
             .gpu
             .device
@@ -119,57 +106,6 @@ impl Renderer {
             wall_ms: start.elapsed().as_secs_f64() * 1e3,
             prepasses_run: encoded.prepasses_run,
             volume_passes_run: encoded.volume_passes_run,
-        })
-    }
-
-    /// The atlas of a stack with per-slice state: each tile's frame rendered and read
-    /// back in turn (its slices are a chain of dispatches over the tile's own slice
-    /// plan and state buffers, which one encoder cannot interleave across tiles yet).
-    fn render_tiles_one_by_one(
-        &mut self,
-        tiles: &[AtlasTile],
-        s: &FrameSettings,
-        target: TargetFormat,
-        cols: u32,
-        start: Instant,
-    ) -> Result<Atlas, RenderError> {
-        if cols == 0 {
-            return Err(RenderError::Atlas(
-                "an atlas needs at least one tile and one column".into(),
-            ));
-        }
-        let rows = tiles.len().div_ceil(cols as usize) as u32;
-        let (tw, th) = (s.width as usize, s.height as usize);
-        let width = tw * cols as usize;
-        let mut pixels = vec![[0.0f32; 4]; width * th * rows as usize];
-        let (mut prepasses_run, mut volume_passes_run) = (0, 0);
-        for (i, tile) in tiles.iter().enumerate() {
-            self.update_stack(tile.stack, target)?;
-            let stats = self.render(&FrameSettings {
-                camera: tile.camera,
-                ..*s
-            })?;
-            prepasses_run += stats.prepasses.len();
-            volume_passes_run += stats.volume_passes_run.len();
-            let (_, _, px) = self
-                .read_pixels()
-                .ok_or_else(|| RenderError::Atlas("the eye buffer is missing".into()))?;
-            let (x0, y0) = ((i % cols as usize) * tw, (i / cols as usize) * th);
-            for y in 0..th {
-                let at = (y0 + y) * width + x0;
-                pixels[at..at + tw].copy_from_slice(&px[y * tw..(y + 1) * tw]);
-            }
-        }
-        self.update_stack(tiles[0].stack, target)?;
-        Ok(Atlas {
-            cols,
-            rows,
-            tile: [s.width, s.height],
-            tiles: tiles.len(),
-            pixels,
-            wall_ms: start.elapsed().as_secs_f64() * 1e3,
-            prepasses_run,
-            volume_passes_run,
         })
     }
 
@@ -221,11 +157,9 @@ impl Renderer {
         }
         self.update_stack(tiles[0].stack, target)?;
         let p = self.pipelines.as_ref().expect("pipeline exists");
-        if !p.updates.is_empty() {
-            return Err(RenderError::Atlas(
-                "stacks with per-slice state render one view per submission".into(),
-            ));
-        }
+        // per-slice state: a stack with a plugin that declares it (the compiled
+        // stack's updates are exactly those)
+        let per_slice = !p.updates.is_empty();
         let structure: Vec<(&'static str, u64)> =
             p.key.entries.iter().map(|(_, id, h)| (*id, *h)).collect();
         let compiled = p.compiled.clone();
@@ -279,6 +213,16 @@ impl Renderer {
             .iter()
             .map(|v| SlicePlan::new(v, &self.vbox, s.slice_spacing))
             .collect::<Result<Vec<_>, _>>()?;
+        if per_slice {
+            let most = plans.iter().map(|p| p.count).max().unwrap_or(0);
+            if most > MAX_PER_SLICE_SLICES {
+                return Err(RenderError::TooManyPerSliceSlices {
+                    count: most,
+                    max: MAX_PER_SLICE_SLICES,
+                });
+            }
+            self.ensure_slice_info(most);
+        }
         let spacing = plans[0].spacing / self.vbox.voxel;
         self.slice_spacing = spacing;
         for (uid, plugin) in stacks.iter().flatten() {
@@ -296,6 +240,13 @@ impl Renderer {
             }
         }
         self.ensure_target(tw, th, target)?;
+        if per_slice {
+            // each tile's own state textures (the tiles of one variant share them,
+            // cleared before each tile's slices)
+            for stack in &stacks {
+                self.ensure_state_of(stack);
+            }
+        }
         // pre-passes read the volume through the frame uniform
         self.write_frame(
             &FrameSettings {
@@ -430,7 +381,17 @@ impl Renderer {
                 .encode_volume_passes(enc, &compiled, stack, &tile_plans[i], &g0, &mut |_, _| {})
                 .len();
             let g1 = self.group1_for(&compiled, &uids);
-            {
+            if per_slice {
+                self.encode_state_clear(enc, stack);
+                self.encode_compute_slices(
+                    enc,
+                    &compiled,
+                    &uids,
+                    [&g0, &g1, &g3],
+                    plans[i].count,
+                    [tw, th],
+                );
+            } else {
                 let mut pass = enc.begin_compute_pass(&Default::default());
                 pass.set_pipeline(if occupancy_texture.is_some() {
                     &compiled.cs_main_skip
