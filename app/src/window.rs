@@ -531,23 +531,8 @@ impl Workbench {
     /// file's or sample's stem). It loads now; on an error (a name taken or invalid, a
     /// file that does not load) nothing changes.
     pub fn add_named_volume(&mut self, name: &str, source: &str) -> Result<String> {
-        let source = headless::volume_arg(std::path::Path::new(source));
-        let name = match (name, &source) {
-            ("", VolumeSource::Sample(n)) => vwb_render::params::volume_name_for(n.as_ref()),
-            ("", VolumeSource::File(p)) => vwb_render::params::volume_name_for(p),
-            (n, _) => n.to_string(),
-        };
-        if !vwb_render::params::valid_volume_name(&name) {
-            bail!(
-                "'{name}' is not a volume name (letters, digits and _, not starting with a digit)"
-            );
-        }
-        if self.doc.volumes.contains_key(&name) {
-            bail!("the document already has a volume named '{name}'");
-        }
         let mut doc = self.doc.clone();
-        doc.volumes.insert(name.clone(), source);
-        let inputs = headless::inputs_for(&doc)?;
+        let (name, inputs) = vwb_lab::document::add_named_volume(&mut doc, name, source)?;
         let added = inputs
             .get(&name)
             .map(|v| {

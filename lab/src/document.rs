@@ -107,6 +107,37 @@ pub fn load_document(preset: Option<&Path>) -> Result<Document> {
     Ok(loaded.document)
 }
 
+/// Adds a named volume to `doc` (`volumes:`, which plugins' volume inputs name):
+/// `source` is a file or a sample name ([`crate::headless::volume_arg`]), `name` a new
+/// volume name, or empty for the file's or sample's stem. It loads at once; a name
+/// that is taken or not a name, or a source that does not load, is an error naming it,
+/// and `doc` is left as it was. Returns the name and the document's named volumes,
+/// loaded (for `Renderer::set_inputs`).
+pub fn add_named_volume(
+    doc: &mut Document,
+    name: &str,
+    source: &str,
+) -> Result<(String, vwb_render::inputs::VolumeInputs)> {
+    use anyhow::bail;
+    let source = crate::headless::volume_arg(Path::new(source));
+    let name = match (name, &source) {
+        ("", VolumeSource::Sample(n)) => vwb_render::params::volume_name_for(Path::new(n)),
+        ("", VolumeSource::File(p)) => vwb_render::params::volume_name_for(p),
+        (n, _) => n.to_string(),
+    };
+    if !vwb_render::params::valid_volume_name(&name) {
+        bail!("'{name}' is not a volume name (letters, digits and _, not starting with a digit)");
+    }
+    if doc.volumes.contains_key(&name) {
+        bail!("the document already has a volume named '{name}'");
+    }
+    let mut with = doc.clone();
+    with.volumes.insert(name.clone(), source);
+    let inputs = crate::headless::inputs_for(&with)?;
+    *doc = with;
+    Ok((name, inputs))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

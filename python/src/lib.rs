@@ -204,6 +204,35 @@ impl Scene {
         Ok(())
     }
 
+    /// Adds a named volume (a preset's `volumes:`) that plugins' volume inputs then
+    /// name, e.g. a label volume for `classify.labels`: `source` is a file or a sample
+    /// name, `name` a new name (empty: the file's stem). It loads now; a taken or
+    /// invalid name, or a file that does not load, is refused and nothing changes.
+    /// Returns the name.
+    #[pyo3(signature = (source, name=""))]
+    fn add_volume(&mut self, source: &str, name: &str) -> PyResult<String> {
+        let mut doc = self.doc.clone();
+        let (name, inputs) = document::add_named_volume(&mut doc, name, source)
+            .map_err(|e| PyValueError::new_err(format!("{e:#}")))?;
+        if let Some(r) = &mut self.renderer {
+            r.set_inputs(inputs);
+        }
+        self.doc = doc;
+        Ok(name)
+    }
+
+    /// The named volumes: name → (dims (x, y, z), components).
+    fn volumes(&self) -> PyResult<std::collections::BTreeMap<String, ((u32, u32, u32), u32)>> {
+        let inputs = headless::inputs_for(&self.doc).map_err(err)?;
+        Ok(inputs
+            .names()
+            .filter_map(|n| {
+                let v = inputs.get(n)?;
+                Some((n.to_string(), ((v.dims[0], v.dims[1], v.dims[2]), v.components)))
+            })
+            .collect())
+    }
+
     /// The enabled plugins' ids, in stack order.
     fn plugins(&self) -> Vec<String> {
         self.doc

@@ -124,6 +124,27 @@ def test_a_named_volume_feeds_a_plugin_input(tmp_path):
         s.render(size=(32, 32))
 
 
+def test_a_label_volume_added_by_name_classifies_the_scene():
+    labels = str(REPO / "presets" / "data" / "demo_labels.nrrd")
+    s = vwb.Scene(str(REPO / "presets" / "demo_labels.ron"))
+    shipped = s.render(size=(40, 40))
+    assert s.add_volume(labels, name="seg") == "seg"
+    vols = s.volumes()
+    assert set(vols) == {"labels", "seg"} and vols["seg"][1] == 1
+    assert vols["seg"][0] == vols["labels"][0]
+    s.set("classify.labels.labels", "seg")
+    assert vwb.compare(shipped, s.render(size=(40, 40)))["rms_delta_e"] == 0.0, "the same labels"
+    s.set("classify.labels.labels", "")  # the demo itself read as labels: another image
+    assert vwb.compare(shipped, s.render(size=(40, 40)))["rms_delta_e"] > 0.5
+    with pytest.raises(ValueError, match="already has a volume named 'seg'"):
+        s.add_volume(labels, name="seg")
+    with pytest.raises(ValueError, match="not a volume name"):
+        s.add_volume(labels, name="1st")
+    with pytest.raises(ValueError, match="absent.nrrd"):
+        s.add_volume("/nonexistent/absent.nrrd")
+    assert set(s.volumes()) == {"labels", "seg"}, "a refused volume changes nothing"
+
+
 def test_a_user_plugin_loads_swaps_in_and_renders(tmp_path):
     ids = vwb.load_plugins(str(REPO / "examples" / "plugins" / "gooch"))
     assert "shade.gooch" in ids

@@ -186,7 +186,7 @@ impl Document {
                 *p = dir.join(&*p);
             }
         }
-        // and so are path parameters (e.g. label volumes)
+        // and so are path parameters (e.g. environment maps, meshes)
         if let Some(dir) = path.parent() {
             for inst in &mut loaded.document.stack {
                 for v in inst.params.values.values_mut() {
@@ -413,7 +413,7 @@ impl Document {
     }
 
     /// Saves atomically (temporary file + rename in the same folder). File paths (the
-    /// volume, path parameters such as label volumes), held relative to the working
+    /// volume and the named volumes, path parameters such as maps and meshes), held relative to the working
     /// folder or absolute, are written relative to the preset's own folder, as
     /// [`Document::load`] reads them (absolute where no relative path exists).
     pub fn save(&self, path: &Path) -> Result<(), PresetError> {
