@@ -44,6 +44,17 @@ pub fn describe_source(source: &VolumeSource) -> String {
     }
 }
 
+/// A volume's grid, and its components where it is a vector volume: `64×64×64`,
+/// `32×32×32 × 3 components`.
+pub fn describe_grid(v: &vwb_render::Volume) -> String {
+    let [x, y, z] = v.dims;
+    if v.components == 1 {
+        format!("{x}×{y}×{z}")
+    } else {
+        format!("{x}×{y}×{z} × {} components", v.components)
+    }
+}
+
 /// The plugins (as `id.key`) whose volume inputs name `name` in `doc`.
 pub fn users_of(doc: &Document, name: &str) -> Vec<String> {
     doc.stack
@@ -74,19 +85,9 @@ impl NamedVolumesUi {
         }
         for (name, source) in &doc.volumes {
             ui.horizontal(|ui| {
-                let grid = inputs.get(name).map_or_else(String::new, |v| {
-                    format!(
-                        ", {}×{}×{}{}",
-                        v.dims[0],
-                        v.dims[1],
-                        v.dims[2],
-                        if v.components == 1 {
-                            String::new()
-                        } else {
-                            format!(" × {} components", v.components)
-                        }
-                    )
-                });
+                let grid = inputs
+                    .get(name)
+                    .map_or_else(String::new, |v| format!(", {}", describe_grid(v)));
                 ui.label(format!("{name}: {}{grid}", describe_source(source)));
                 let users = users_of(doc, name);
                 let remove = ui.add_enabled(users.is_empty(), egui::Button::new("Remove"));

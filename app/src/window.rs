@@ -220,6 +220,14 @@ struct WgslEdit {
     text: String,
 }
 
+/// What a chosen file is for.
+#[derive(Clone, Copy)]
+enum Purpose {
+    Volume,
+    Preset,
+    NamedVolume,
+}
+
 /// Which file dialog is open.
 enum Dialog {
     Volume(egui_file::FileDialog),
@@ -535,16 +543,7 @@ impl Workbench {
         let (name, inputs) = vwb_lab::document::add_named_volume(&mut doc, name, source)?;
         let added = inputs
             .get(&name)
-            .map(|v| {
-                format!(
-                    "{}×{}×{}, {} component{}",
-                    v.dims[0],
-                    v.dims[1],
-                    v.dims[2],
-                    v.components,
-                    if v.components == 1 { "" } else { "s" }
-                )
-            })
+            .map(|v| crate::volumes_ui::describe_grid(v))
             .unwrap_or_default();
         self.renderer.set_inputs(inputs);
         self.doc = doc;
@@ -1391,24 +1390,25 @@ impl Workbench {
     fn file_events(&mut self, ctx: &egui::Context) {
         let mut chosen = None;
         if let Some(dialog) = &mut self.dialog {
-            // what the chosen file is for: 0 a volume, 1 a preset, 2 a named volume
-            let (d, kind) = match dialog {
-                Dialog::Volume(d) => (d, 0),
-                Dialog::Preset(d) => (d, 1),
-                Dialog::NamedVolume(d) => (d, 2),
+            let (d, purpose) = match dialog {
+                Dialog::Volume(d) => (d, Purpose::Volume),
+                Dialog::Preset(d) => (d, Purpose::Preset),
+                Dialog::NamedVolume(d) => (d, Purpose::NamedVolume),
             };
             if d.show(ctx).selected() {
-                chosen = d.path().map(|p| (p.to_path_buf(), kind));
+                chosen = d.path().map(|p| (p.to_path_buf(), purpose));
             }
             if !d.visible() {
                 self.dialog = None;
             }
         }
         match chosen {
-            Some((path, 1)) => self.start_open(&path),
-            Some((path, 2)) => self.named_volumes.source = path.display().to_string(),
+            Some((path, Purpose::Preset)) => self.start_open(&path),
+            Some((path, Purpose::NamedVolume)) => {
+                self.named_volumes.source = path.display().to_string();
+            }
             // a volume, or a mesh to clip by (.obj, .ply, .stl)
-            Some((path, _)) => self.start_open_any(&path),
+            Some((path, Purpose::Volume)) => self.start_open_any(&path),
             None => {}
         }
         let dropped = ctx.input(|i| i.raw.dropped_files.clone());

@@ -415,8 +415,8 @@ impl Document {
     /// Saves atomically (temporary file + rename in the same folder). File paths (the
     /// volume and the named volumes, path parameters such as maps and meshes), held
     /// relative to the working folder or absolute, are written relative to the preset's
-    /// own folder, as
-    /// [`Document::load`] reads them (absolute where no relative path exists).
+    /// own folder, as [`Document::load`] reads them (absolute where no relative path
+    /// exists).
     pub fn save(&self, path: &Path) -> Result<(), PresetError> {
         write_atomic(path, self.relative_to_preset(path).to_ron().as_bytes()).map_err(|cause| {
             PresetError::Io {

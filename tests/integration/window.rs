@@ -983,7 +983,7 @@ fn window_adds_a_named_label_volume_and_a_plugin_picks_it() {
     click(&mut h, "Add");
     let status = format!("{:?}", h.state().file_status());
     assert!(
-        status.contains("added volume 'demo_labels'") && status.contains("1 component"),
+        status.contains("added volume 'demo_labels' (") && status.contains("×"),
         "{status}"
     );
     assert!(
