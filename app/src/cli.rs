@@ -780,6 +780,16 @@ pub fn volume_report(v: &vwb_render::Volume) -> String {
         "orientation: +x left, +y posterior, +z superior (LPS) where the file records it; otherwise the axes as stored"
     );
     let _ = writeln!(s, "value range: {} .. {}", v.range[0], v.range[1]);
+    // what classify.labels and clip.labels would read, for choosing labels to show or
+    // hide (any volume of non-negative integers qualifies, labelled or not)
+    if let Some(labels) = vwb_plugins::label_input::distinct_labels(v) {
+        let _ = writeln!(
+            s,
+            "integer values: {} distinct: {} (as the labels of classify.labels / clip.labels)",
+            labels.len(),
+            vwb_plugins::label_input::label_runs(&labels, 12)
+        );
+    }
     if v.non_finite > 0 {
         let _ = writeln!(s, "non-finite samples: {}", v.non_finite);
     }

@@ -342,6 +342,17 @@ pub struct StackUi<'a> {
     /// The names of the document's named volumes (`volumes:`), which volume inputs
     /// choose from.
     pub inputs: &'a [String],
+    /// The named volumes as loaded (plugins' own widgets read their inputs: a label
+    /// plugin lists its labels).
+    pub named: &'a vwb_render::inputs::VolumeInputs,
+}
+
+impl StackUi<'_> {
+    /// The volume and the named volumes, where the editor has the volume.
+    fn volumes(&self) -> Option<vwb_render::inputs::Volumes<'_>> {
+        self.volume
+            .map(|v| vwb_render::inputs::Volumes::new(v, self.named))
+    }
 }
 
 /// "Suggest" beside a 1D TF editor: replaces `tf` by the data-driven suggestion for the
@@ -464,7 +475,7 @@ pub fn stack_editor(
                 .default_open(i == 0)
                 .show(ui, |ui| {
                     if let Some(custom) = vwb_plugins::ui::custom_ui(inst.plugin.id()) {
-                        changed |= custom(ui, &mut inst.params);
+                        changed |= custom(ui, &mut inst.params, cx.volumes().as_ref());
                     }
                     let specs = inst.plugin.params();
                     changed |= param_widgets(ui, inst.uid, &specs, &mut inst.params, cx);
@@ -602,6 +613,7 @@ mod tests {
                     histogram: &[],
                     volume: None,
                     inputs: &[],
+                    named: vwb_render::inputs::VolumeInputs::empty(),
                 };
                 param_widgets(ui, 7, &specs, &mut i.params, &cx);
             });
@@ -639,6 +651,7 @@ mod tests {
                             histogram: &[1, 10, 100],
                             volume: None,
                             inputs: &[],
+                            named: vwb_render::inputs::VolumeInputs::empty(),
                         };
                         changed |= stack_editor(ui, &cx, &mut all).changed;
                     });
@@ -669,14 +682,16 @@ mod kittest_tests {
         stack: Vec<PluginInstance>,
         height: f32,
     ) -> Harness<'static, Vec<PluginInstance>> {
-        harness_with_inputs(stack, height, Vec::new())
+        harness_with_inputs(stack, height, Vec::new(), Default::default())
     }
 
-    /// [`demo_harness`] for a document with the named volumes `inputs`.
+    /// [`demo_harness`] for a document with the named volumes `inputs`, of which
+    /// `named` are loaded.
     fn harness_with_inputs(
         stack: Vec<PluginInstance>,
         height: f32,
         inputs: Vec<String>,
+        named: vwb_render::inputs::VolumeInputs,
     ) -> Harness<'static, Vec<PluginInstance>> {
         let r = vwb_plugins::builtin_registry();
         let volume = std::sync::Arc::new(vwb_render::volume::demo());
@@ -690,6 +705,7 @@ mod kittest_tests {
                         histogram: &volume.histogram,
                         volume: Some(&volume),
                         inputs: &inputs,
+                        named: &named,
                     };
                     egui::ScrollArea::vertical().show(ui, |ui| {
                         stack_editor(ui, &cx, stack);
@@ -771,7 +787,12 @@ mod kittest_tests {
     fn a_volume_input_picks_among_the_documents_volumes() {
         let r = vwb_plugins::builtin_registry();
         let stack = vec![PluginInstance::new(r.get("flow.lic3d").unwrap())];
-        let mut h = harness_with_inputs(stack, 1200.0, vec!["storm".into(), "wind".into()]);
+        let mut h = harness_with_inputs(
+            stack,
+            1200.0,
+            vec!["storm".into(), "wind".into()],
+            Default::default(),
+        );
         if h.query_by_label("Vector field").is_none() {
             h.get_by_label("parameters").click();
             h.run();
@@ -787,6 +808,37 @@ mod kittest_tests {
         h.get_by_label("(the volume)").click();
         h.run();
         assert_eq!(h.state()[0].params.volume("field"), "");
+    }
+
+    /// A label plugin lists the labels its label volume holds above its parameters
+    /// (from the volume's histogram), and says so when its input names no volume.
+    #[test]
+    fn a_label_plugin_lists_its_labels() {
+        let r = vwb_plugins::builtin_registry();
+        let mut inst = PluginInstance::new(r.get("clip.labels").unwrap());
+        inst.params.set(
+            "labels",
+            vwb_render::params::ParamValue::Volume("labels".into()),
+        );
+        let named = vwb_plugins::label_input::demo_inputs();
+        let mut h = harness_with_inputs(vec![inst], 900.0, vec!["labels".into()], named);
+        h.run();
+        assert!(
+            h.query_by_label("labels in 'demo_labels': 0–3 (4 distinct)")
+                .is_some(),
+            "the demo's four labels are listed"
+        );
+        let mut inst = PluginInstance::new(r.get("classify.labels").unwrap());
+        inst.params.set(
+            "labels",
+            vwb_render::params::ParamValue::Volume("seg".into()),
+        );
+        let mut h = harness_with_inputs(vec![inst], 900.0, Vec::new(), Default::default());
+        h.run();
+        assert!(
+            h.query_by_label_contains("no volume named 'seg'").is_some(),
+            "a missing input is named"
+        );
     }
 
     /// "Suggest" beside the 1D TF editor puts the volume's suggestion into the curve,

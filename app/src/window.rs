@@ -882,6 +882,7 @@ impl Workbench {
             histogram: &volume.histogram,
             volume: Some(&volume),
             inputs: &inputs,
+            named: self.renderer.inputs(),
         };
         let response = crate::stack_ui::stack_editor(ui, &cx, &mut self.doc.stack);
         changed |= response.changed;

@@ -90,24 +90,121 @@ pub fn label_values(volume: &Volume) -> Result<Vec<u16>, String> {
 /// fewer than [`vwb_render::volume::HISTOGRAM_BINS`] values (each integer then has a
 /// bin of its own), a superset otherwise; every row where it is not a label volume.
 pub fn rows_present(volume: &Volume, rows: usize) -> Vec<bool> {
-    let [lo, hi] = volume.range;
     if label_type(volume).is_err() || rows == 0 {
         return vec![true; rows];
     }
     let last = (rows - 1) as f64;
     (0..rows)
         .map(|row| {
-            let l = row as f64;
             if row + 1 == rows {
-                return hi >= last;
+                volume.range[1] >= last
+            } else {
+                may_occur(volume, row as f64)
             }
-            l >= lo
-                && l <= hi
-                && vwb_render::volume::histogram_bin(l, lo, hi)
-                    .and_then(|b| volume.histogram.get(b))
-                    .is_some_and(|&n| n > 0)
         })
         .collect()
+}
+
+/// Whether the integer `l` may occur in `volume`, by its range and histogram: exactly
+/// when its values span fewer than [`vwb_render::volume::HISTOGRAM_BINS`] integers.
+fn may_occur(volume: &Volume, l: f64) -> bool {
+    let [lo, hi] = volume.range;
+    l >= lo
+        && l <= hi
+        && vwb_render::volume::histogram_bin(l, lo, hi)
+            .and_then(|b| volume.histogram.get(b))
+            .is_some_and(|&n| n > 0)
+}
+
+/// What a label plugin's widget says of its label volume, from its range and
+/// histogram (no pass over the voxels): its labels as runs where they span fewer than
+/// 256 values, else their range; or why it holds no labels.
+pub fn labels_summary(volume: &Volume) -> String {
+    if label_type(volume).is_err() {
+        return format!(
+            "'{}' holds no labels (one non-negative integer per voxel)",
+            volume.name
+        );
+    }
+    let [lo, hi] = volume.range.map(|x| x.round() as u32);
+    if hi - lo < vwb_render::volume::HISTOGRAM_BINS as u32 {
+        let labels: Vec<u16> = (lo..=hi)
+            .filter(|&l| may_occur(volume, f64::from(l)))
+            .map(|l| l as u16)
+            .collect();
+        format!(
+            "labels in '{}': {} ({} distinct)",
+            volume.name,
+            label_runs(&labels, 12),
+            labels.len()
+        )
+    } else {
+        format!(
+            "labels in '{}': {lo} … {hi} (`vwb info --volume` lists them)",
+            volume.name
+        )
+    }
+}
+
+/// The label plugins' own widget (feature `ui`): which labels their label volume
+/// holds, above the generated widgets, so that a user picks tables or ranges for
+/// labels that exist.
+#[cfg(feature = "ui")]
+pub fn present_labels(
+    ui: &mut egui::Ui,
+    params: &mut ParamValues,
+    volumes: Option<&vwb_render::inputs::Volumes<'_>>,
+) -> bool {
+    if let Some(v) = volumes {
+        match v.input(params, KEY) {
+            Ok(volume) => ui.weak(labels_summary(volume)),
+            Err(e) => ui.colored_label(egui::Color32::from_rgb(230, 160, 40), e),
+        };
+    }
+    false
+}
+
+/// The distinct labels of `volume` in increasing order, or `None` where it is not a
+/// label volume ([`label_values`]); one pass over the voxels.
+pub fn distinct_labels(volume: &Volume) -> Option<Vec<u16>> {
+    let labels = label_values(volume).ok()?;
+    let mut seen = vec![false; 1 << 16];
+    for l in labels {
+        seen[l as usize] = true;
+    }
+    Some(
+        seen.iter()
+            .enumerate()
+            .filter(|(_, s)| **s)
+            .map(|(l, _)| l as u16)
+            .collect(),
+    )
+}
+
+/// Sorted labels as runs, `0–3, 7, 9–12`; after `max_runs` runs, `…`.
+pub fn label_runs(labels: &[u16], max_runs: usize) -> String {
+    let mut runs: Vec<(u16, u16)> = Vec::new();
+    for &l in labels {
+        match runs.last_mut() {
+            Some((_, hi)) if u32::from(*hi) + 1 == u32::from(l) => *hi = l,
+            _ => runs.push((l, l)),
+        }
+    }
+    let mut parts: Vec<String> = runs
+        .iter()
+        .take(max_runs)
+        .map(|&(a, b)| {
+            if a == b {
+                a.to_string()
+            } else {
+                format!("{a}–{b}")
+            }
+        })
+        .collect();
+    if runs.len() > max_runs {
+        parts.push("…".into());
+    }
+    parts.join(", ")
 }
 
 /// Whether `volume` can be a label volume by its type (one integer component; the

@@ -21,7 +21,8 @@ use params::{ParamKind, ParamValue, ParamValues};
 /// Declares each plugin folder as a module and lists its plugin in
 /// [`builtin_registry`], so that a new plugin is one line here. A plugin with widgets of
 /// its own (drawn above the generated ones in the window) names them on the same line
-/// after `; ui`: a function in its folder, compiled with the `ui` feature only, so the
+/// after `; ui`: a function in its folder (or in a module plugins share, as the label
+/// plugins share `label_input`), compiled with the `ui` feature only, so the
 /// plugins stay free of egui for headless users.
 macro_rules! builtin_plugins {
     ($($folder:ident => $plugin:expr $(; ui $widgets:path)?,)*) => {
@@ -48,11 +49,11 @@ macro_rules! builtin_plugins {
 // One line per plugin: its folder and its value (and its own widgets, if any).
 builtin_plugins! {
     clip_shapes => clip_shapes::Shapes::default(),
-    clip_labels => clip_labels::ClipLabels,
+    clip_labels => clip_labels::ClipLabels; ui label_input::present_labels,
     clip_mesh => clip_mesh::ClipMesh::default(),
     sample_jitter => sample_jitter::Jitter,
     classify_tf1d => classify_tf1d::Tf1d::default(),
-    classify_labels => classify_labels::Labels,
+    classify_labels => classify_labels::Labels; ui label_input::present_labels,
     classify_tf2d => classify_tf2d::Tf2dPlugin::default(),
     shade_blinn_phong => shade_blinn_phong::BlinnPhong::default(),
     shade_isosurface => shade_isosurface::Isosurface::default(),

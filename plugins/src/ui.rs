@@ -8,8 +8,11 @@ use std::sync::OnceLock;
 
 use crate::params::ParamValues;
 
-/// Draws extra widgets for a plugin's parameters; true when a value changed.
-pub type CustomUi = fn(&mut egui::Ui, &mut ParamValues) -> bool;
+/// Draws extra widgets for a plugin's parameters, with the document's volumes where
+/// the window has them (a label plugin lists its label volume's labels); true when a
+/// value changed.
+pub type CustomUi =
+    fn(&mut egui::Ui, &mut ParamValues, Option<&vwb_render::inputs::Volumes<'_>>) -> bool;
 
 /// The own widgets of the built-in plugin `plugin_id`, if it has any.
 pub fn custom_ui(plugin_id: &str) -> Option<CustomUi> {
@@ -32,7 +35,7 @@ mod tests {
             .map(|p| p.id())
             .filter(|id| custom_ui(id).is_some())
             .collect();
-        assert_eq!(with, ["shade.dos"]);
+        assert_eq!(with, ["clip.labels", "classify.labels", "shade.dos"]);
         assert!(custom_ui("no.such.plugin").is_none());
     }
 }

@@ -248,7 +248,7 @@ fn a_volume_that_holds_no_labels_is_refused_and_the_old_pipeline_renders() {
     assert!(e.contains("no volume named 'labels'"), "{e}");
     r.render(&at(1.0)).unwrap();
     assert_eq!(r.read_pixels().unwrap().2, before);
-    // the demo's 64³ labels over this 16³ volume: read where they lie
+    // the demo's 128×128×84 labels over this 16³ volume: read where they lie
     r.set_inputs(demo_label_inputs());
     r.update_stack(&[labels_instance()], TargetFormat::Rgba32Float)
         .unwrap();

@@ -232,6 +232,19 @@ fn info_prints_what_was_read() {
     ] {
         assert!(text.contains(want), "missing '{want}' in:\n{text}");
     }
+    // signed with negative values: not a label volume, no label line
+    assert!(!text.contains("integer values"), "{text}");
+    // the demo's label volume: its labels, for choosing ranges to hide
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_vwb"))
+        .args(["info", "--volume"])
+        .arg(crate::common::repo().join("presets/data/demo_labels.nrrd"))
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        text.contains("integer values: 4 distinct: 0–3 (as the labels of"),
+        "{text}"
+    );
     // a lying header: 30000³ voxels, refused before allocating, naming the file
     let mut bytes = std::fs::read(&nii).unwrap();
     bytes.truncate(352 + 64);

@@ -173,3 +173,14 @@ fn label_volumes_hold_non_negative_integers() {
     assert!(wide[0] && wide[7]);
     assert!(rows(VoxelData::F32(vec![0.0, 1.0])).iter().all(|&r| r));
 }
+
+#[test]
+fn distinct_labels_are_listed_as_runs() {
+    let v = |data: VoxelData| Volume::new("seg", [6, 1, 1], 1, [1.0; 3], data).unwrap();
+    let labels = label_input::distinct_labels(&v(VoxelData::U16(vec![9, 0, 3, 1, 2, 9]))).unwrap();
+    assert_eq!(labels, [0, 1, 2, 3, 9]);
+    assert_eq!(label_input::label_runs(&labels, 8), "0–3, 9");
+    assert_eq!(label_input::label_runs(&labels, 1), "0–3, …");
+    assert_eq!(label_input::label_runs(&[65535], 8), "65535");
+    assert!(label_input::distinct_labels(&v(VoxelData::F32(vec![0.0; 6]))).is_none());
+}

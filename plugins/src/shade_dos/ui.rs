@@ -8,7 +8,11 @@ const CONE_HEIGHT: f32 = 70.0;
 /// Directional occlusion: the backward cone of aperture θ drawn to scale over a few
 /// slices (Schott et al. 2009, Fig. 3): the occlusion extent d·tan θ grows with the
 /// slice distance d. Dragging sideways on the diagram sets θ.
-pub fn cone(ui: &mut egui::Ui, params: &mut ParamValues) -> bool {
+pub fn cone(
+    ui: &mut egui::Ui,
+    params: &mut ParamValues,
+    _volumes: Option<&vwb_render::inputs::Volumes<'_>>,
+) -> bool {
     let theta = params.float("theta_deg");
     let width = ui.available_width().clamp(120.0, 260.0);
     let (rect, response) =
@@ -102,7 +106,7 @@ mod tests {
             let mut out = ctx.run_ui(input, |ui| {
                 egui::CentralPanel::default().show(ui, |ui| {
                     let top = ui.cursor().min;
-                    changed |= hook(ui, &mut inst.params);
+                    changed |= hook(ui, &mut inst.params, None);
                     rect.set(egui::Rect::from_min_size(
                         top,
                         egui::vec2(120.0, CONE_HEIGHT),
