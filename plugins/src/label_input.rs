@@ -90,7 +90,7 @@ pub fn label_values(volume: &Volume) -> Result<Vec<u16>, String> {
 /// fewer than [`vwb_render::volume::HISTOGRAM_BINS`] values (each integer then has a
 /// bin of its own), a superset otherwise; every row where it is not a label volume.
 pub fn rows_present(volume: &Volume, rows: usize) -> Vec<bool> {
-    if label_type(volume).is_err() || rows == 0 {
+    if !may_hold_labels(volume) || rows == 0 {
         return vec![true; rows];
     }
     let last = (rows - 1) as f64;
@@ -120,7 +120,7 @@ fn may_occur(volume: &Volume, l: f64) -> bool {
 /// histogram (no pass over the voxels): its labels as runs where they span fewer than
 /// 256 values, else their range; or why it holds no labels.
 pub fn labels_summary(volume: &Volume) -> String {
-    if label_type(volume).is_err() {
+    if !may_hold_labels(volume) {
         return format!(
             "'{}' holds no labels (one non-negative integer per voxel)",
             volume.name
@@ -207,14 +207,10 @@ pub fn label_runs(labels: &[u16], max_runs: usize) -> String {
     parts.join(", ")
 }
 
-/// Whether `volume` can be a label volume by its type (one integer component; the
-/// sign of signed labels is checked on the voxels, [`label_values`]).
-fn label_type(volume: &Volume) -> Result<(), ()> {
-    match (&volume.data, volume.components) {
-        (VoxelData::F32(_), _) => Err(()),
-        (_, 1) if volume.range[0] >= 0.0 => Ok(()),
-        _ => Err(()),
-    }
+/// Whether `volume` can be a label volume by its type and range (one integer
+/// component, nothing below 0; [`label_values`] checks the voxels themselves).
+fn may_hold_labels(volume: &Volume) -> bool {
+    !matches!(volume.data, VoxelData::F32(_)) && volume.components == 1 && volume.range[0] >= 0.0
 }
 
 /// The label volume the `labels` input of `params` names, for the GPU: its dims and

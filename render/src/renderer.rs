@@ -2456,62 +2456,83 @@ impl Renderer {
         }
     }
 
+    /// The sizes of the state textures the compiled stack's state updates write, for
+    /// the instances `uids` (`None` where an instance has no state).
+    fn state_sizes(&self, p: &CompiledStack, uids: &[u64]) -> Vec<Option<wgpu::Extent3d>> {
+        p.updates
+            .iter()
+            .map(|(i, _)| {
+                let g = self.instances.get(uids.get(*i)?)?;
+                Some(g.state.as_ref()?[0].0.size())
+            })
+            .collect()
+    }
+
+    /// The state updates after slice `k`, one dispatch per state texel of each state
+    /// (`sizes`: [`Renderer::state_sizes`]); `groups` are bind groups 0 (the frame,
+    /// indexed by slice), 1, 2 (the slice's parity) and 3.
+    fn encode_state_updates(
+        &self,
+        enc: &mut wgpu::CommandEncoder,
+        p: &CompiledStack,
+        sizes: &[Option<wgpu::Extent3d>],
+        [g0, g1, g2, g3]: [&wgpu::BindGroup; 4],
+        k: u32,
+    ) {
+        let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("vwb state update"),
+            timestamp_writes: None,
+        });
+        pass.set_bind_group(0, g0, &[(k as u64 * SLICE_INFO_STRIDE) as u32]);
+        pass.set_bind_group(1, g1, &[]);
+        pass.set_bind_group(2, g2, &[]);
+        pass.set_bind_group(3, g3, &[]);
+        for ((_, pipeline), size) in p.updates.iter().zip(sizes) {
+            let Some(e) = size else { continue };
+            pass.set_pipeline(pipeline);
+            pass.dispatch_workgroups(e.width.div_ceil(8), e.height.div_ceil(8), 1);
+        }
+    }
+
     /// The compute backend's slices under per-slice state, for the instances `uids`
     /// of the compiled stack `p` (their state cleared before): one dispatch per slice
     /// where every state has the eye buffer's resolution (the state texel is the
     /// pixel; the fused pipeline), else the slice and then each state update; then the
-    /// resolve. `groups` are bind groups 0 (the frame, indexed by slice), 1 and 3;
-    /// `size` the eye buffer's. Whether the fused pipeline ran.
+    /// resolve. `groups` are bind groups 0 (the frame, indexed by slice), 1 and 3, `g2`
+    /// group 2 for even and odd slices ([`Renderer::group2_for`] of `uids`); `size`
+    /// the eye buffer's. Whether the fused pipeline ran.
+    #[allow(clippy::too_many_arguments)]
     fn encode_compute_slices(
         &self,
         enc: &mut wgpu::CommandEncoder,
         p: &CompiledStack,
         uids: &[u64],
         [g0, g1, g3]: [&wgpu::BindGroup; 3],
+        g2: &[wgpu::BindGroup; 2],
         count: u32,
         size: [u32; 2],
     ) -> bool {
-        let g2 = self.group2_for(p, uids);
-        let states: Vec<Option<wgpu::Extent3d>> = p
-            .updates
-            .iter()
-            .map(|(i, _)| {
-                let g = self.instances.get(uids.get(*i)?)?;
-                Some(g.state.as_ref()?[0].0.size())
-            })
-            .collect();
+        let sizes = self.state_sizes(p, uids);
         let fused = p.cs_slice_fused.as_ref().filter(|_| {
             self.fused_slices
-                && states
+                && sizes
                     .iter()
                     .all(|st| st.is_some_and(|e| [e.width, e.height] == size))
         });
         let wg = (size[0].div_ceil(8), size[1].div_ceil(8));
         for k in 0..count {
-            let offset = [(k as u64 * SLICE_INFO_STRIDE) as u32];
+            let parity = &g2[(k % 2) as usize];
             {
                 let mut pass = enc.begin_compute_pass(&Default::default());
                 pass.set_pipeline(fused.unwrap_or(&p.cs_slice));
-                pass.set_bind_group(0, g0, &offset);
+                pass.set_bind_group(0, g0, &[(k as u64 * SLICE_INFO_STRIDE) as u32]);
                 pass.set_bind_group(1, g1, &[]);
-                pass.set_bind_group(2, &g2[(k % 2) as usize], &[]);
+                pass.set_bind_group(2, parity, &[]);
                 pass.set_bind_group(3, g3, &[]);
                 pass.dispatch_workgroups(wg.0, wg.1, 1);
             }
             if fused.is_none() {
-                let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                    label: Some("vwb state update"),
-                    timestamp_writes: None,
-                });
-                pass.set_bind_group(0, g0, &offset);
-                pass.set_bind_group(1, g1, &[]);
-                pass.set_bind_group(2, &g2[(k % 2) as usize], &[]);
-                pass.set_bind_group(3, g3, &[]);
-                for ((_, pipeline), state) in p.updates.iter().zip(&states) {
-                    let Some(e) = state else { continue };
-                    pass.set_pipeline(pipeline);
-                    pass.dispatch_workgroups(e.width.div_ceil(8), e.height.div_ceil(8), 1);
-                }
+                self.encode_state_updates(enc, p, &sizes, [g0, g1, parity, g3], k);
             }
         }
         let mut pass = enc.begin_compute_pass(&Default::default());
@@ -3439,24 +3460,14 @@ impl Renderer {
         // a brick's raster passes shade its footprint only (the composite reads no other)
         let scissor = (self.region.is_some() && rect[2] > rect[0] && rect[3] > rect[1])
             .then(|| [rect[0], rect[1], rect[2] - rect[0], rect[3] - rect[1]]);
+        let state_sizes = if per_slice {
+            self.state_sizes(p, &p.uids())
+        } else {
+            Vec::new()
+        };
         let run_updates = |enc: &mut wgpu::CommandEncoder, k: u32| {
-            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some("vwb state update"),
-                timestamp_writes: None,
-            });
-            pass.set_bind_group(0, &self.g0, &[(k as u64 * SLICE_INFO_STRIDE) as u32]);
-            pass.set_bind_group(1, &g1, &[]);
-            pass.set_bind_group(2, &g2[(k % 2) as usize], &[]);
-            pass.set_bind_group(3, &g3, &[]);
-            for (i, pipeline) in &p.updates {
-                let uid = p.stack[*i].0;
-                let Some(state) = self.instances.get(&uid).and_then(|g| g.state.as_ref()) else {
-                    continue;
-                };
-                let size = state[0].0.size();
-                pass.set_pipeline(pipeline);
-                pass.dispatch_workgroups(size.width.div_ceil(8), size.height.div_ceil(8), 1);
-            }
+            let groups = [&self.g0, &g1, &g2[(k % 2) as usize], &g3];
+            self.encode_state_updates(enc, p, &state_sizes, groups, k);
         };
         match s.backend {
             Backend::Raster => {
@@ -3591,6 +3602,7 @@ impl Renderer {
                         p,
                         &uids,
                         groups,
+                        &g2,
                         plan.count,
                         [t.width, t.height],
                     );

@@ -322,18 +322,10 @@ impl Renderer {
                 },
             ],
         });
+        // group 2 holds per-slice state only: the same for every tile of a stack
+        // without it; a stack with it binds each tile's own below
         let uids0: Vec<u64> = stacks[0].iter().map(|(u, _)| *u).collect();
-        let g2 = device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("vwb group 2"),
-            layout: &compiled.g2_layout,
-            entries: &compiled
-                .composition
-                .bindings
-                .iter()
-                .filter(|b| b.group == 2)
-                .filter_map(|b| self.bind_entry(&uids0, b, Some(0)))
-                .collect::<Vec<_>>(),
-        });
+        let [g2, _] = self.group2_for(&compiled, &uids0);
         // empty-space skipping by each tile's own classification, as its single render
         // would skip: one occupancy grid per distinct stack (the views of one variant
         // share it), made and uploaded once
@@ -388,6 +380,7 @@ impl Renderer {
                     &compiled,
                     &uids,
                     [&g0, &g1, &g3],
+                    &self.group2_for(&compiled, &uids),
                     plans[i].count,
                     [tw, th],
                 );
