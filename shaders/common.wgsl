@@ -42,6 +42,15 @@ struct Frame {
     // when the max face along axis a is shared with the next brick (half-open there)
     own_min: vec4<f32>,
     own_max: vec4<f32>,
+    // xyz: unit normal of the slice planes (`forward`, or the half-angle axis under
+    // half-angle slicing, render/src/slicing.rs); w: 1 under half-angle slicing
+    slicing: vec4<f32>,
+    // half-angle slicing: xyz the unit direction the light travels, w the path length
+    // along it between two slice planes
+    light: vec4<f32>,
+    // half-angle slicing: the per-slice state's rays, across the light: origin =
+    // state_rays · (ndc, 0, 1), direction = column 2 (the light's)
+    state_rays: mat4x4<f32>,
 }
 
 // A sweep pass's geometry (render/src/sweep.rs): the axis its planes are normal to,
@@ -119,6 +128,9 @@ struct Sample {
     ray_dir: vec3<f32>,
     // screen coordinate in [0,1]^2 (y down)
     uv: vec2<f32>,
+    // where per-slice state is read (`state_prev`): `uv`, or the coordinate in the
+    // light's space under half-angle slicing
+    state_uv: vec2<f32>,
     // normalised scalar value (set by the core sampler, may be replaced by `sample` hooks)
     value: f32,
     // world distance along the ray to the next slice plane
@@ -342,4 +354,42 @@ fn blinn_phong_factors(n: vec3<f32>, v: vec3<f32>, l: vec3<f32>, shininess: f32)
         spec = pow(ndh, shininess);
     }
     return vec2<f32>(diff, spec);
+}
+
+// Whether the frame is sliced halfway between the view and a light, with per-slice
+// state in the light's space (render/src/slicing.rs, `HalfAngle`).
+fn half_angle() -> bool {
+    return frame.slicing.w > 0.5;
+}
+
+// The state coordinate of a world point under half-angle slicing.
+fn light_uv(p: vec3<f32>) -> vec2<f32> {
+    let q = p - frame.state_rays[3].xyz;
+    let a = frame.state_rays[0].xyz;
+    let b = frame.state_rays[1].xyz;
+    let ndc = vec2<f32>(dot(q, a) / dot(a, a), dot(q, b) / dot(b, b));
+    return vec2<f32>(ndc.x * 0.5 + 0.5, 0.5 - ndc.y * 0.5);
+}
+
+// State-uv units per world unit across the per-slice state's rays on slice k's plane:
+// the screen's at the slice's depth (Schott et al. 2009, eqs 12–15), or the light
+// space's under half-angle slicing. Twin: CpuView::state_uv_per_world.
+fn state_uv_per_world(k: u32) -> vec2<f32> {
+    if (half_angle()) {
+        return 0.5 / vec2<f32>(length(frame.state_rays[0].xyz), length(frame.state_rays[1].xyz));
+    }
+    var depth = 1.0;
+    if (frame.eye.w > 0.5) {
+        depth = max(frame.box_max.w + f32(k) * frame.forward.w, 1.0e-9);
+    }
+    return 0.5 / (vec2<f32>(length(frame.ray_basis[0].xyz), length(frame.ray_basis[1].xyz)) * depth);
+}
+
+// The path length of the per-slice state's rays between two slice planes: the slice
+// spacing, or the light's step under half-angle slicing. Twin: CpuView::state_step.
+fn state_step() -> f32 {
+    if (half_angle()) {
+        return frame.light.w;
+    }
+    return frame.forward.w;
 }

@@ -113,9 +113,14 @@ fn make_sample(pos: vec3<f32>, ray_dir: vec3<f32>, uv: vec2<f32>, slice: u32) ->
     s.tex = (pos - frame.box_min.xyz) / (frame.box_max.xyz - frame.box_min.xyz);
     s.ray_dir = ray_dir;
     s.uv = uv;
+    s.state_uv = uv;
+    if (half_angle()) {
+        s.state_uv = light_uv(pos);
+    }
     s.value = 0.0;
-    // distance along this ray between two slice planes
-    s.step = frame.forward.w / max(dot(ray_dir, frame.forward.xyz), 1.0e-6);
+    // distance along this ray between two slice planes (a ray may advance against the
+    // planes' normal under half-angle slicing)
+    s.step = frame.forward.w / max(abs(dot(ray_dir, frame.slicing.xyz)), 1.0e-6);
     s.color = vec4<f32>(0.0);
     s.normal = vec3<f32>(0.0);
     s.shade_at = 0.0;
@@ -126,6 +131,12 @@ fn make_sample(pos: vec3<f32>, ray_dir: vec3<f32>, uv: vec2<f32>, slice: u32) ->
 // Front-to-back "under" compositing: C += (1 − A)·c (c premultiplied).
 fn under(acc: vec4<f32>, c: vec4<f32>) -> vec4<f32> {
     return acc + (1.0 - acc.a) * c;
+}
+
+// Back-to-front "over" compositing: C = c + (1 − a)·C, for a ray that meets the
+// half-angle slices from back to front.
+fn over(acc: vec4<f32>, c: vec4<f32>) -> vec4<f32> {
+    return c + (1.0 - c.a) * acc;
 }
 
 // Round to fp16 like an rgba16float blend target does, so that both backends
@@ -233,7 +244,8 @@ fn pixel_ray(uv: vec2<f32>) -> Ray {
 // lies outside this renderer's own box or behind the near plane.
 fn slice_hit(r: Ray, k: u32) -> f32 {
     let d = frame.box_max.w + f32(k) * frame.forward.w;
-    let t = (d - dot(r.origin - frame.eye.xyz, frame.forward.xyz)) / dot(r.dir, frame.forward.xyz);
+    let n = frame.slicing.xyz;
+    let t = (d - dot(r.origin - frame.eye.xyz, n)) / dot(r.dir, n);
     let p = r.origin + r.dir * t;
     if (t < 0.0 || !in_own_box(p)) {
         return -1.0;
@@ -267,8 +279,8 @@ fn slice_range(r: Ray) -> vec2<u32> {
     if (t_out < t_in) {
         return vec2<u32>(0u, 0u);
     }
-    let dd = dot(r.dir, frame.forward.xyz);
-    let depth0 = dot(r.origin - frame.eye.xyz, frame.forward.xyz);
+    let dd = dot(r.dir, frame.slicing.xyz);
+    let depth0 = dot(r.origin - frame.eye.xyz, frame.slicing.xyz);
     let ka = (depth0 + t_in * dd - frame.box_max.w) / frame.forward.w;
     let kb = (depth0 + t_out * dd - frame.box_max.w) / frame.forward.w;
     let lo = floor(min(ka, kb)) - 2.0;
@@ -295,7 +307,7 @@ fn brick_exit_slice(r: Ray, tex: vec3<f32>) -> u32 {
     let ta = (lo - r.origin) / d;
     let tb = (hi - r.origin) / d;
     let t_out = min(min(max(ta.x, tb.x), max(ta.y, tb.y)), max(ta.z, tb.z));
-    let depth = dot(r.origin - frame.eye.xyz, frame.forward.xyz) + t_out * dot(r.dir, frame.forward.xyz);
+    let depth = dot(r.origin - frame.eye.xyz, frame.slicing.xyz) + t_out * dot(r.dir, frame.slicing.xyz);
     let k = floor((depth - frame.box_max.w) / frame.forward.w - 0.01);
     // not finite: no jump
     if (!(k >= 0.0)) {
@@ -383,9 +395,11 @@ fn slice_step(px: vec2<u32>, size: vec2<u32>, always: bool) -> Evaluated {
     if (slice_info.index == 0u) {
         acc = vec4<f32>(0.0);
     }
-    let early = frame.counts.z != 0u && acc.a >= frame.settings.x;
     let uv = (vec2<f32>(px) + 0.5) * frame.viewport.zw;
     let r = pixel_ray(uv);
+    // front to back unless the ray meets the (half-angle) slices from behind
+    let ahead = dot(r.dir, frame.slicing.xyz) >= 0.0;
+    let early = ahead && frame.counts.z != 0u && acc.a >= frame.settings.x;
     let t = slice_hit(r, slice_info.index);
     run_setup(r, uv);
     var e: Evaluated;
@@ -394,7 +408,11 @@ fn slice_step(px: vec2<u32>, size: vec2<u32>, always: bool) -> Evaluated {
     if (t >= 0.0 && (always || !early)) {
         e = evaluate(pixel_sample(r, t, uv, slice_info.index));
         if (!early) {
-            acc = round_like_target(under(acc, e.c));
+            if (ahead) {
+                acc = round_like_target(under(acc, e.c));
+            } else {
+                acc = round_like_target(over(acc, e.c));
+            }
         }
     }
     accum[idx] = acc;
@@ -423,20 +441,48 @@ fn cs_resolve(@builtin(global_invocation_id) gid: vec3<u32>) {
     textureStore(out_tex, vec2<i32>(gid.xy), run_post(accum[gid.y * size.x + gid.x], uv));
 }
 
-// Sample of the current slice under a state texel (for per-slice state updates).
+// The ray of per-slice state coordinate `uv`: the pixel's, or under half-angle
+// slicing the light's ray through the state texel (origin upstream of the box).
+fn state_ray(uv: vec2<f32>) -> Ray {
+    if (!half_angle()) {
+        return pixel_ray(uv);
+    }
+    let ndc = vec2<f32>(uv.x * 2.0 - 1.0, 1.0 - uv.y * 2.0);
+    var r: Ray;
+    r.origin = (frame.state_rays * vec4<f32>(ndc, 0.0, 1.0)).xyz;
+    r.dir = frame.state_rays[2].xyz;
+    return r;
+}
+
+// The screen coordinate of a world point.
+fn screen_uv(p: vec3<f32>) -> vec2<f32> {
+    let c = frame.view_proj * vec4<f32>(p, 1.0);
+    let ndc = c.xy / c.w;
+    return vec2<f32>(ndc.x * 0.5 + 0.5, 0.5 - ndc.y * 0.5);
+}
+
+// Sample of the current slice under a state texel (for per-slice state updates): at
+// its state coordinate (`s.state_uv`), and under half-angle slicing at the screen
+// coordinate of its point (`s.uv`).
 fn state_texel_sample(texel: vec2<u32>, state_size: vec2<u32>) -> Evaluated {
     let uv = (vec2<f32>(texel) + 0.5) / vec2<f32>(state_size);
-    let r = pixel_ray(uv);
+    let r = state_ray(uv);
     let k = slice_info.index;
     let t = slice_hit(r, k);
     run_setup(r, uv);
     var e: Evaluated;
     if (t < 0.0) {
         e.s = make_sample(r.origin, r.dir, uv, k);
+        e.s.state_uv = uv;
         e.c = vec4<f32>(0.0);
         return e;
     }
-    return evaluate(pixel_sample(r, t, uv, k));
+    var s = pixel_sample(r, t, uv, k);
+    s.state_uv = uv;
+    if (half_angle()) {
+        s.uv = screen_uv(s.pos);
+    }
+    return evaluate(s);
 }
 
 //!UPDATES

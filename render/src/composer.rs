@@ -1176,7 +1176,7 @@ pub fn compose_with(
                          let size = textureDimensions({p}state_next);\n    \
                          if (gid.x >= size.x || gid.y >= size.y) {{\n        return;\n    }}\n    \
                          let e = state_texel_sample(gid.xy, size);\n    \
-                         textureStore({p}state_next, vec2<i32>(gid.xy), {p}slice_update(e.s, e.c, e.s.uv));\n\
+                         textureStore({p}state_next, vec2<i32>(gid.xy), {p}slice_update(e.s, e.c, e.s.state_uv));\n\
                          }}"
                     );
                     m.push_generated("state update entry point", &code, Some(inst.input_index));
@@ -1188,7 +1188,7 @@ pub fn compose_with(
                 .map(|inst| {
                     let p = &inst.prefix;
                     format!(
-                        "    textureStore({p}state_next, vec2<i32>(gid.xy), {p}slice_update(e.s, e.c, e.s.uv));\n"
+                        "    textureStore({p}state_next, vec2<i32>(gid.xy), {p}slice_update(e.s, e.c, e.s.state_uv));\n"
                     )
                 })
                 .collect();

@@ -16,7 +16,8 @@
 //! - `fn shade(s: Sample) -> Sample` — modifies `s.color`
 //! - `fn composite(s: Sample, c: vec4<f32>) -> vec4<f32>` — premultiplied contribution
 //! - `fn slice_update(s: Sample, c: vec4<f32>, uv: vec2<f32>) -> vec4<f32>` — next
-//!   state texel after the current slice (needs [`SliceStateDecl`])
+//!   state texel (at state coordinate `uv`) after the current slice (needs
+//!   [`SliceStateDecl`])
 //! - pre-pass file: `fn prepass(voxel: vec3<u32>, dims: vec3<u32>) -> vec4<f32>`
 //! - volume pass (a function of the plugin's hook file named by [`VolumePassDecl`]):
 //!   `fn <entry>(voxel: vec3<u32>, dims: vec3<u32>, step: u32, prev: vec4<f32>) -> vec4<f32>`;
@@ -26,7 +27,7 @@
 //!
 //! Names the plugin can use: `params.<key>` (its uniform parameters), each declared
 //! resource by name, `state_prev` (its state of the previous slice, a texture_2d
-//! read with `linear_clamp` at `s.uv`), its pre-pass target by name (a texture_3d),
+//! read with `linear_clamp` at `s.state_uv`), its pre-pass target by name (a texture_3d),
 //! and everything in `shaders/common.wgsl`.
 
 use std::borrow::Cow;
@@ -233,9 +234,14 @@ impl StorageFormat {
     }
 }
 
-/// Per-slice state: a pair of 2D textures in eye-buffer space, swapped after each
-/// slice. The plugin reads the previous one as `state_prev` and returns the next texel
-/// from `slice_update`. Its resolution is the eye buffer's times `scale`.
+/// Per-slice state: a pair of 2D textures swapped after each slice. The plugin reads
+/// the previous one as `state_prev` (at `s.state_uv`) and returns the next texel from
+/// `slice_update`. Its resolution is the eye buffer's times `scale`. It lives in
+/// eye-buffer space (`s.state_uv` = `s.uv`), or, when a plugin of the stack names a
+/// light ([`Plugin::slice_light`]), in the light's space under half-angle slicing
+/// ([`crate::slicing::HalfAngle`]; `state_uv_per_world` and `state_step` in
+/// shaders/common.wgsl, [`CpuView::state_uv_per_world`] and [`CpuView::state_step`]
+/// for the twin).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SliceStateDecl {
     pub format: StorageFormat,
@@ -574,6 +580,9 @@ pub struct CpuSample {
     pub tex: DVec3,
     pub ray_dir: DVec3,
     pub uv: DVec2,
+    /// Where the instance's per-slice state is read (`state_prev`): `uv`, or the
+    /// light-space coordinate under half-angle slicing ([`CpuLightSpace::uv`]).
+    pub state_uv: DVec2,
     pub value: f64,
     pub step: f64,
     pub color: DVec4,
@@ -631,6 +640,57 @@ pub struct CpuView {
     /// in world units (`frame.forward.w`).
     pub slice_depth0: f64,
     pub slice_spacing: f64,
+    /// Under half-angle slicing, the light's space of the per-slice state
+    /// ([`crate::slicing::HalfAngle`], as uploaded); `None`: view-aligned slicing,
+    /// the state in eye-buffer space.
+    pub light: Option<CpuLightSpace>,
+}
+
+/// The per-slice state's light space under half-angle slicing (the twin of
+/// `frame.slicing`, `frame.light` and `frame.state_rays`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CpuLightSpace {
+    /// Unit slice-plane normal.
+    pub normal: DVec3,
+    /// Unit direction the light travels.
+    pub dir: DVec3,
+    /// Path length along the light between two slice planes.
+    pub step: f64,
+    /// One state-NDC unit right and up (world), and the state image's centre.
+    pub right: DVec3,
+    pub up: DVec3,
+    pub origin: DVec3,
+}
+
+impl CpuLightSpace {
+    pub fn new(h: &crate::slicing::HalfAngle) -> Self {
+        let m = h.state_rays.as_dmat4();
+        Self {
+            normal: h.normal.as_dvec3(),
+            dir: m.z_axis.truncate(),
+            step: h.light_step as f64,
+            right: m.x_axis.truncate(),
+            up: m.y_axis.truncate(),
+            origin: m.w_axis.truncate(),
+        }
+    }
+
+    /// The state ray through state coordinate `uv`: origin upstream of the box, and
+    /// the light's direction (`state_ray`).
+    pub fn ray(&self, uv: DVec2) -> (DVec3, DVec3) {
+        let ndc = DVec2::new(uv.x * 2.0 - 1.0, 1.0 - uv.y * 2.0);
+        (self.origin + self.right * ndc.x + self.up * ndc.y, self.dir)
+    }
+
+    /// The state coordinate of a world point (`light_uv`).
+    pub fn uv(&self, p: DVec3) -> DVec2 {
+        let q = p - self.origin;
+        let ndc = DVec2::new(
+            q.dot(self.right) / self.right.length_squared(),
+            q.dot(self.up) / self.up.length_squared(),
+        );
+        DVec2::new(ndc.x * 0.5 + 0.5, 0.5 - ndc.y * 0.5)
+    }
 }
 
 impl Default for CpuView {
@@ -645,6 +705,7 @@ impl Default for CpuView {
             perspective: false,
             slice_depth0: 0.0,
             slice_spacing: 1.0,
+            light: None,
         }
     }
 }
@@ -664,6 +725,7 @@ impl CpuView {
             perspective: v.perspective,
             slice_depth0: slice_depth0 as f64,
             slice_spacing: slice_spacing as f64,
+            light: None,
         }
     }
 
@@ -677,6 +739,25 @@ impl CpuView {
             1.0
         };
         0.5 / (self.ray_scale * depth)
+    }
+
+    /// State-uv units per world unit across the state's rays on the plane of slice
+    /// `k` (`state_uv_per_world`): [`CpuView::uv_per_world`], or the light space's
+    /// under half-angle slicing.
+    pub fn state_uv_per_world(&self, k: u32) -> DVec2 {
+        match &self.light {
+            Some(l) => 0.5 / DVec2::new(l.right.length(), l.up.length()),
+            None => self.uv_per_world(k),
+        }
+    }
+
+    /// The path length of the state's rays between two slice planes (`state_step`):
+    /// the slice spacing, or the light's step under half-angle slicing.
+    pub fn state_step(&self) -> f64 {
+        match &self.light {
+            Some(l) => l.step,
+            None => self.slice_spacing,
+        }
     }
 }
 
@@ -1026,6 +1107,19 @@ pub trait Plugin: Send + Sync + 'static {
         Vec::new()
     }
     fn slice_state(&self) -> Option<SliceStateDecl> {
+        None
+    }
+    /// The direction (world space, any length) a light travels along which this
+    /// plugin's per-slice state sweeps under `params`, seen from `view`; `None` (the
+    /// default): the state travels with the eye. Where an enabled instance of a stack
+    /// returns one, the frame is sliced halfway between the view and that light
+    /// ([`crate::slicing::HalfAngle`]) and every per-slice state lives in the light's
+    /// space; the first such instance in stack order decides.
+    fn slice_light(
+        &self,
+        _params: &ParamValues,
+        _view: &crate::camera::View,
+    ) -> Option<glam::Vec3> {
         None
     }
     fn prepass(&self) -> Option<PrepassDecl> {

@@ -42,6 +42,14 @@
 //! state texel's [`CpuTwin::slice_update`] from the sample under its centre (no
 //! contribution where the ray misses slice k), the new state rounded to the declared
 //! storage format (fp16 for rgba16float).
+//!
+//! Where a plugin with per-slice state names a light
+//! ([`Plugin::slice_light`](crate::plugin::Plugin::slice_light)), the planes are those of
+//! [`SlicePlan::half_angle`] and `forward` above reads as their normal n: a pixel whose
+//! ray advances along n composites "under" as above, one advancing against it
+//! composites "over" (`acc = c + (1 − c.a)·acc`) and never stops early; the state
+//! texels' rays are the light's ([`crate::plugin::CpuLightSpace::ray`]) and a sample's
+//! `state_uv` is its light-space coordinate.
 
 use std::ops::Range;
 use std::sync::Arc;
@@ -283,6 +291,9 @@ struct Prepared<'a> {
     /// slices where a plugin reads them; a render with the same key reuses them (a
     /// converged reference's halvings).
     passes_for: Option<(CpuView, Option<f64>)>,
+    /// The enabled plugins with per-slice state and their parameters, in stack order
+    /// (the one naming a light decides the slicing).
+    lights: Vec<(Arc<dyn crate::plugin::Plugin>, crate::params::ParamValues)>,
 }
 
 impl<'a> Prepared<'a> {
@@ -312,8 +323,22 @@ impl<'a> Prepared<'a> {
             setup: stack.iter().any(|i| {
                 i.enabled && crate::composer::defines_fn(&i.configured().shader().source, "setup")
             }),
+            lights: stack
+                .iter()
+                .filter(|i| i.enabled)
+                .map(|i| (i.configured(), i.params.clone()))
+                .filter(|(p, _)| p.slice_state().is_some())
+                .collect(),
             passes_for: None,
         })
+    }
+
+    /// The light the stack's per-slice state travels with, seen from `view`
+    /// ([`crate::plugin::Plugin::slice_light`]; the renderer's choice).
+    fn light(&self, view: &crate::camera::View) -> Option<glam::Vec3> {
+        self.lights
+            .iter()
+            .find_map(|(p, params)| p.slice_light(params, view))
     }
 
     fn render(
@@ -325,7 +350,13 @@ impl<'a> Prepared<'a> {
         check_size(settings)?;
         let frame = Frame {
             setup: self.setup,
-            ..Frame::new(self.volume, settings, spacing_voxels, opts.emulate_fp16)?
+            ..Frame::new(
+                self.volume,
+                settings,
+                spacing_voxels,
+                opts.emulate_fp16,
+                &|v| self.light(v),
+            )?
         };
         let ctx = CpuContext::new(self.volume, &self.scalars)
             .with_inputs(&self.inputs)
@@ -421,17 +452,28 @@ impl Prepared<'_> {
                     *s = a.w >= t;
                 }
             }
+            // rays that meet half-angle slices from behind composite "over" and never
+            // stop early
+            let ahead = |r: &PixelRay| frame.ahead(r.dir);
             acc.par_chunks_mut(w as usize)
                 .zip(stopped.par_chunks(w as usize))
                 .enumerate()
                 .for_each(|(y, (row, stopped))| {
                     for (x, a) in row.iter_mut().enumerate() {
-                        if stopped[x] {
+                        if stopped[x] && frame.view.light.is_none() {
                             continue;
                         }
                         let r = frame.pixel_ray(ctx, &self.twins, frame.uv(x as u32, y as u32));
+                        let ahead = ahead(&r);
+                        if stopped[x] && ahead {
+                            continue;
+                        }
                         if let Some((_, c)) = frame.slice_sample(ctx, &self.twins, &states, &r, k) {
-                            *a += (1.0 - a.w) * c;
+                            *a = if ahead {
+                                *a + (1.0 - a.w) * c
+                            } else {
+                                c + (1.0 - c.w) * *a
+                            };
                             if frame.fp16 {
                                 *a = round_f16(*a);
                             }
@@ -454,9 +496,9 @@ impl Prepared<'_> {
                         .map(|n| {
                             let (tx, ty) = ((n % sw as usize) as f64, (n / sw as usize) as f64);
                             let uv = DVec2::new((tx + 0.5) / sw as f64, (ty + 0.5) / sh as f64);
-                            let r = frame.pixel_ray(ctx, &self.twins, uv);
+                            let r = frame.state_ray(ctx, &self.twins, uv);
                             let (mut s, c) = frame
-                                .slice_sample(ctx, &self.twins, &states, &r, k)
+                                .state_sample(ctx, &self.twins, &states, &r, k)
                                 .unwrap_or_else(|| (frame.missed_sample(&r, k), DVec4::ZERO));
                             s.ray_record = r.records.get(i).copied().unwrap_or(DVec4::ZERO);
                             round_state(self.twins[i].slice_update(&ctx_i, &s, c, uv), decl.format)
@@ -537,6 +579,9 @@ struct Frame {
     view: crate::plugin::CpuView,
     /// Whether to make ray records (`run_setup`): the stack has a `setup` hook.
     setup: bool,
+    /// Unit normal of the slice planes: `forward`, or the half-angle axis.
+    normal: DVec3,
+    view_proj: DMat4,
 }
 
 /// A pixel's ray (`pixel_ray`) and its twins' `setup` records, in stack order (empty
@@ -549,16 +594,25 @@ struct PixelRay {
 }
 
 impl Frame {
+    /// The frame of `settings`, sliced halfway between the view and `light(view)`
+    /// where that names a light (as the renderer does).
     fn new(
         volume: &Volume,
         settings: &FrameSettings,
         spacing_voxels: f32,
         fp16: bool,
+        light: &dyn Fn(&crate::camera::View) -> Option<glam::Vec3>,
     ) -> Result<Self, ReferenceError> {
         let (w, h) = (settings.width, settings.height);
         let view = settings.camera.view(w as f32 / h as f32);
         let vbox = VolumeBox::new(volume.dims, volume.spacing);
-        let plan = SlicePlan::new(&view, &vbox, spacing_voxels)?;
+        let (plan, half) = match light(&view) {
+            Some(l) => {
+                let (plan, half) = SlicePlan::half_angle(&view, &vbox, spacing_voxels, l)?;
+                (plan, Some(half))
+            }
+            None => (SlicePlan::new(&view, &vbox, spacing_voxels)?, None),
+        };
         let view_proj: DMat4 = view.proj.as_dmat4() * view.view.as_dmat4();
         let early = match (settings.backend, settings.early_termination) {
             (Backend::Compute, Some(t)) => Some((t as f64, 1)),
@@ -579,9 +633,53 @@ impl Frame {
             height: h,
             early,
             fp16,
-            view: crate::plugin::CpuView::from_view(&view, plan.d0, plan.spacing),
+            view: crate::plugin::CpuView {
+                light: half.as_ref().map(crate::plugin::CpuLightSpace::new),
+                ..crate::plugin::CpuView::from_view(&view, plan.d0, plan.spacing)
+            },
             setup: false,
+            normal: plan.forward.as_dvec3(),
+            view_proj,
         })
+    }
+
+    /// The ray of state coordinate `uv` (`state_ray`): the pixel's, or the light's
+    /// under half-angle slicing.
+    fn state_ray(&self, ctx: &CpuContext, twins: &[Box<dyn CpuTwin>], uv: DVec2) -> PixelRay {
+        let Some(l) = &self.view.light else {
+            return self.pixel_ray(ctx, twins, uv);
+        };
+        let (origin, dir) = l.ray(uv);
+        let records = if self.setup {
+            let ray = CpuRay {
+                origin,
+                dir,
+                uv,
+                size: DVec2::new(self.width as f64, self.height as f64),
+            };
+            twins.iter().map(|t| t.setup(ctx, &ray)).collect()
+        } else {
+            Vec::new()
+        };
+        PixelRay {
+            origin,
+            dir,
+            uv,
+            records,
+        }
+    }
+
+    /// The screen coordinate of a world point (`screen_uv`).
+    fn screen_uv(&self, p: DVec3) -> DVec2 {
+        let c = self.view_proj * p.extend(1.0);
+        let ndc = c.truncate().truncate() / c.w;
+        DVec2::new(ndc.x * 0.5 + 0.5, 0.5 - ndc.y * 0.5)
+    }
+
+    /// Whether the ray along `dir` meets the slices front to back (else it composites
+    /// them "over", back to front).
+    fn ahead(&self, dir: DVec3) -> bool {
+        dir.dot(self.normal) >= 0.0
     }
 
     /// `pixel_ray`: origin on the near plane and unit direction.
@@ -639,8 +737,8 @@ impl Frame {
     /// The sample of slice `k` on the ray through `uv` (`pixel_sample`), before the
     /// hooks run; `None` where the ray misses the slice inside the box.
     fn make_sample(&self, origin: DVec3, dir: DVec3, uv: DVec2, k: u32) -> Option<CpuSample> {
-        let dd = dir.dot(self.forward);
-        let depth0 = (origin - self.eye).dot(self.forward);
+        let dd = dir.dot(self.normal);
+        let depth0 = (origin - self.eye).dot(self.normal);
         let d = self.d0 + k as f64 * self.spacing;
         let t = (d - depth0) / dd;
         let pos = origin + dir * t;
@@ -652,8 +750,12 @@ impl Frame {
             tex: (pos - self.box_min) / (self.box_max - self.box_min),
             ray_dir: dir,
             uv,
+            state_uv: match &self.view.light {
+                Some(l) => l.uv(pos),
+                None => uv,
+            },
             value: 0.0,
-            step: self.spacing / dd.max(1.0e-6),
+            step: self.spacing / dd.abs().max(1.0e-6),
             color: DVec4::ZERO,
             normal: DVec3::ZERO,
             slice: k,
@@ -663,7 +765,7 @@ impl Frame {
     }
 
     fn ratio(&self, dir: DVec3) -> f64 {
-        self.spacing / dir.dot(self.forward).max(1.0e-6) / self.voxel
+        self.spacing / dir.dot(self.normal).abs().max(1.0e-6) / self.voxel
     }
 
     /// Slice `k` on the ray `r` through all hooks: the shaded sample and its
@@ -677,6 +779,32 @@ impl Frame {
         k: u32,
     ) -> Option<(CpuSample, DVec4)> {
         let sample = self.make_sample(r.origin, r.dir, r.uv, k)?;
+        Some(evaluate(
+            ctx,
+            twins,
+            states,
+            &r.records,
+            sample,
+            self.ratio(r.dir),
+        ))
+    }
+
+    /// `state_texel_sample`: slice `k` on the state ray `r` through all hooks, read at
+    /// the ray's state coordinate and, under half-angle slicing, at the screen
+    /// coordinate of its point.
+    fn state_sample(
+        &self,
+        ctx: &CpuContext,
+        twins: &[Box<dyn CpuTwin>],
+        states: &[Option<StateImage>],
+        r: &PixelRay,
+        k: u32,
+    ) -> Option<(CpuSample, DVec4)> {
+        let mut sample = self.make_sample(r.origin, r.dir, r.uv, k)?;
+        sample.state_uv = r.uv;
+        if self.view.light.is_some() {
+            sample.uv = self.screen_uv(sample.pos);
+        }
         Some(evaluate(
             ctx,
             twins,
@@ -720,7 +848,8 @@ impl Frame {
             tex: (r.origin - self.box_min) / (self.box_max - self.box_min),
             ray_dir: r.dir,
             uv: r.uv,
-            step: self.spacing / r.dir.dot(self.forward).max(1.0e-6),
+            state_uv: r.uv,
+            step: self.spacing / r.dir.dot(self.normal).abs().max(1.0e-6),
             slice: k,
             ..Default::default()
         }
@@ -731,8 +860,8 @@ impl Frame {
         let uv = self.uv(x, y);
         let r = self.pixel_ray(ctx, twins, uv);
         let (origin, dir) = (r.origin, r.dir);
-        let dd = dir.dot(self.forward);
-        let depth0 = (origin - self.eye).dot(self.forward);
+        let dd = dir.dot(self.normal);
+        let depth0 = (origin - self.eye).dot(self.normal);
         let ratio = self.ratio(dir);
         let mut acc = DVec4::ZERO;
         for k in self.slice_range(origin, dir, depth0, dd) {
@@ -904,7 +1033,7 @@ pub fn render_single_scattering(
 ) -> Result<ScatteringImage, ReferenceError> {
     check_size(settings)?;
     let mut prepared = Prepared::new(volume, &classifying(stack), VolumeInputs::empty())?;
-    let frame = Frame::new(volume, settings, settings.slice_spacing, false)?;
+    let frame = Frame::new(volume, settings, settings.slice_spacing, false, &|_| None)?;
     let ctx = CpuContext::new(volume, &prepared.scalars)
         .with_spacing(frame.spacing / frame.voxel)
         .with_view(frame.view);

@@ -39,7 +39,7 @@ use crate::plugin::{
 use crate::skipping::{
     BrickRanges, clear_outside_regions, move_apron, stack_moves, stack_regions, stack_visibility,
 };
-use crate::slicing::{SliceError, SlicePlan, VolumeBox};
+use crate::slicing::{FramePlan, SliceError, SlicePlan, VolumeBox};
 use crate::volume::Volume;
 
 mod atlas;
@@ -132,6 +132,12 @@ pub enum RenderError {
     NoFloat32Blending,
     #[error("per-slice passes are limited to {max} slices, this frame needs {count}")]
     TooManyPerSliceSlices { count: u32, max: u32 },
+    #[error(
+        "half-angle slicing: the view's rays meet the slices in both orders (a wide view \
+         across the light, or the eye inside the volume); the raster backend blends one \
+         order per frame, use the compute backend"
+    )]
+    HalfAngleMixedOrder,
     #[error("GPU error: {0}")]
     Gpu(String),
     #[error(
@@ -210,6 +216,9 @@ struct FrameUniform {
     settings: [f32; 4],
     own_min: [f32; 4],
     own_max: [f32; 4],
+    slicing: [f32; 4],
+    light: [f32; 4],
+    state_rays: [f32; 16],
 }
 
 const SLICE_INFO_STRIDE: u64 = 256;
@@ -234,6 +243,7 @@ fn raster_pipeline(
     target: TargetFormat,
     fragment: &str,
     depth_stencil: Option<wgpu::DepthStencilState>,
+    blend: wgpu::BlendComponent,
 ) -> wgpu::RenderPipeline {
     device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
         label: Some("vwb raster slices"),
@@ -270,7 +280,14 @@ fn raster_pipeline(
             module,
             entry_point: Some(fragment),
             compilation_options: Default::default(),
-            targets: &[Some(under_target(target))],
+            targets: &[Some(wgpu::ColorTargetState {
+                format: target.wgpu(),
+                blend: Some(wgpu::BlendState {
+                    color: blend,
+                    alpha: blend,
+                }),
+                write_mask: wgpu::ColorWrites::ALL,
+            })],
         }),
         multiview_mask: None,
         cache: None,
@@ -362,6 +379,12 @@ fn eye_texture_entry(binding: u32) -> wgpu::BindGroupLayoutEntry {
 const UNDER: wgpu::BlendComponent = wgpu::BlendComponent {
     src_factor: wgpu::BlendFactor::OneMinusDstAlpha,
     dst_factor: wgpu::BlendFactor::One,
+    operation: wgpu::BlendOperation::Add,
+};
+/// Back-to-front "over" blending of premultiplied colour: C = c + (1 − a)·C.
+const OVER: wgpu::BlendComponent = wgpu::BlendComponent {
+    src_factor: wgpu::BlendFactor::One,
+    dst_factor: wgpu::BlendFactor::OneMinusSrcAlpha,
     operation: wgpu::BlendOperation::Add,
 };
 /// The display pass (`shaders/display.wgsl`).
@@ -486,9 +509,10 @@ struct CompiledStack {
     /// the slices (`fs_post`) and its group 3 (`post_src`, a copy of the eye buffer).
     post: Option<(wgpu::RenderPipeline, wgpu::BindGroupLayout)>,
     /// The raster pipelines by (early-termination depth test, fragment at the exact
-    /// ray–plane point), index `et + 2·exact`: the plain one built with the stack (so
-    /// that the device validates it), the others on first use.
-    raster: [std::sync::OnceLock<wgpu::RenderPipeline>; 4],
+    /// ray–plane point, back-to-front "over" blending for half-angle frames whose
+    /// slices the eye meets from behind), index `et + 2·exact + 4·over`: the plain one
+    /// built with the stack (so that the device validates it), the others on first use.
+    raster: [std::sync::OnceLock<wgpu::RenderPipeline>; 8],
     module: wgpu::ShaderModule,
     raster_layout: wgpu::PipelineLayout,
     target: TargetFormat,
@@ -510,8 +534,14 @@ struct CompiledStack {
 impl CompiledStack {
     /// The raster pipeline for early termination (depth test) and the exact fragment
     /// position (proxy cut to the occupied cells).
-    fn raster_for(&self, device: &wgpu::Device, et: bool, exact: bool) -> &wgpu::RenderPipeline {
-        self.raster[et as usize + 2 * exact as usize].get_or_init(|| {
+    fn raster_for(
+        &self,
+        device: &wgpu::Device,
+        et: bool,
+        exact: bool,
+        over: bool,
+    ) -> &wgpu::RenderPipeline {
+        self.raster[et as usize + 2 * exact as usize + 4 * over as usize].get_or_init(|| {
             raster_pipeline(
                 device,
                 &self.module,
@@ -519,6 +549,7 @@ impl CompiledStack {
                 self.target,
                 if exact { "fs_exact" } else { "fs_main" },
                 et.then(raster_et::slice_depth_state),
+                if over { OVER } else { UNDER },
             )
         })
     }
@@ -2093,7 +2124,15 @@ impl Renderer {
             immediate_size: 0,
         });
         let compute_layout = layout_with("vwb compute", &g3_layout);
-        let raster = raster_pipeline(device, &module, &raster_layout, target, "fs_main", None);
+        let raster = raster_pipeline(
+            device,
+            &module,
+            &raster_layout,
+            target,
+            "fs_main",
+            None,
+            UNDER,
+        );
         let post = composition.post.then(|| {
             let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
                 label: Some("vwb group 3 (post source)"),
@@ -2227,12 +2266,11 @@ impl Renderer {
             g1_layout,
             g2_layout,
             g3_layout,
-            raster: [
-                raster.into(),
-                Default::default(),
-                Default::default(),
-                Default::default(),
-            ],
+            raster: {
+                let locks: [std::sync::OnceLock<wgpu::RenderPipeline>; 8] = Default::default();
+                let _ = locks[0].set(raster);
+                locks
+            },
             module,
             raster_layout,
             post,
@@ -2500,7 +2538,8 @@ impl Renderer {
     /// pixel; the fused pipeline), else the slice and then each state update; then the
     /// resolve. `groups` are bind groups 0 (the frame, indexed by slice), 1 and 3, `g2`
     /// group 2 for even and odd slices ([`Renderer::group2_for`] of `uids`); `size`
-    /// the eye buffer's. Whether the fused pipeline ran.
+    /// the eye buffer's; `view_aligned` false under half-angle slicing (no fused
+    /// pipeline). Whether the fused pipeline ran.
     #[allow(clippy::too_many_arguments)]
     fn encode_compute_slices(
         &self,
@@ -2511,10 +2550,14 @@ impl Renderer {
         g2: &[wgpu::BindGroup; 2],
         count: u32,
         size: [u32; 2],
+        view_aligned: bool,
     ) -> bool {
         let sizes = self.state_sizes(p, uids);
+        // the fused pipeline updates the state texel under each pixel: the state must
+        // be in eye-buffer space (not a half-angle frame's light space)
         let fused = p.cs_slice_fused.as_ref().filter(|_| {
             self.fused_slices
+                && view_aligned
                 && sizes
                     .iter()
                     .all(|st| st.is_some_and(|e| [e.width, e.height] == size))
@@ -2636,7 +2679,7 @@ impl Renderer {
         })
     }
 
-    fn write_frame(&self, s: &FrameSettings, plan: &SlicePlan, view: &crate::camera::View) {
+    fn write_frame(&self, s: &FrameSettings, plan: &FramePlan, view: &crate::camera::View) {
         let t = self.target.as_ref().expect("target exists");
         let occupancy = self.occupancy_bytes.as_deref();
         let u = self.frame_uniform(s, plan, view, [t.width, t.height], t.format, occupancy);
@@ -2651,7 +2694,7 @@ impl Renderer {
     fn frame_uniform(
         &self,
         s: &FrameSettings,
-        plan: &SlicePlan,
+        plan: &FramePlan,
         view: &crate::camera::View,
         size: [u32; 2],
         format: TargetFormat,
@@ -2667,6 +2710,8 @@ impl Renderer {
         let rect = self.pixel_rect(view, size);
         let range = self.volume.range;
         let span = (range[1] - range[0]) as f32;
+        let (half, plan) = (plan.half.as_ref(), &plan.slices);
+        let n = half.map_or(view.forward, |h| h.normal);
         FrameUniform {
             view_proj: vp.to_cols_array(),
             ray_basis: ray_basis(view).to_cols_array(),
@@ -2720,7 +2765,39 @@ impl Renderer {
             ],
             own_min: [own.min.x, own.min.y, own.min.z, 0.0],
             own_max: [own.max.x, own.max.y, own.max.z, open as f32],
+            slicing: [n.x, n.y, n.z, half.is_some() as u32 as f32],
+            light: half.map_or([0.0; 4], |h| h.light.extend(h.light_step).to_array()),
+            state_rays: half.map_or([0.0; 16], |h| h.state_rays.to_cols_array()),
         }
+    }
+
+    /// The slices of a frame of `stack` seen from `view`: view-aligned, or halfway
+    /// between the view and a light where an enabled instance with per-slice state names
+    /// one ([`Plugin::slice_light`]; the first in stack order).
+    fn frame_plan(
+        &self,
+        stack: &[(u64, Arc<dyn Plugin>)],
+        view: &crate::camera::View,
+        vbox: &VolumeBox,
+        spacing: f32,
+    ) -> Result<FramePlan, SliceError> {
+        let light = stack.iter().find_map(|(uid, plugin)| {
+            plugin.slice_state()?;
+            plugin.slice_light(&self.instances.get(uid)?.params, view)
+        });
+        Ok(match light {
+            None => FramePlan {
+                slices: SlicePlan::new(view, vbox, spacing)?,
+                half: None,
+            },
+            Some(l) => {
+                let (slices, half) = SlicePlan::half_angle(view, vbox, spacing, l)?;
+                FramePlan {
+                    slices,
+                    half: Some(half),
+                }
+            }
+        })
     }
 
     /// The part of the box whose samples this renderer takes, and the axes whose max
@@ -3224,8 +3301,18 @@ impl Renderer {
 
     /// The slice plan for settings (what the frame will draw).
     pub fn plan(&self, s: &FrameSettings) -> Result<SlicePlan, RenderError> {
+        Ok(self.frame_plan_for(s)?.slices)
+    }
+
+    /// The slice plan for settings and, under half-angle slicing, its geometry.
+    pub fn frame_plan_for(&self, s: &FrameSettings) -> Result<FramePlan, RenderError> {
         let view = s.camera.view(s.width as f32 / s.height.max(1) as f32);
-        Ok(SlicePlan::new(&view, self.lattice_box(), s.slice_spacing)?)
+        let stack = self
+            .pipelines
+            .as_ref()
+            .map(|p| p.stack.clone())
+            .unwrap_or_default();
+        Ok(self.frame_plan(&stack, &view, self.lattice_box(), s.slice_spacing)?)
     }
 
     /// Renders one frame into the eye buffer with the current (last good) pipeline.
@@ -3298,8 +3385,14 @@ impl Renderer {
         }
         crate::validate::check_camera(&s.camera)?;
         let view = s.camera.view(s.width as f32 / s.height as f32);
-        let plan = SlicePlan::new(&view, self.lattice_box(), s.slice_spacing)?;
-        let spacing_updates = self.sync_spacing(plan.spacing / self.vbox.voxel)?;
+        let stack = self
+            .pipelines
+            .as_ref()
+            .map(|p| p.stack.clone())
+            .unwrap_or_default();
+        let frame_plan = self.frame_plan(&stack, &view, self.lattice_box(), s.slice_spacing)?;
+        let plan = frame_plan.slices;
+        let spacing_updates = self.sync_spacing(frame_plan.ray_spacing() / self.vbox.voxel)?;
         // the occupancy's apron for moved samples follows the slice spacing
         let moves = self.occupancy_moves;
         if moves > 0.0 && move_apron(moves, self.slice_spacing) != self.occupancy_apron {
@@ -3340,10 +3433,18 @@ impl Renderer {
             }
             _ => Vec::new(),
         };
-        self.write_frame(s, &plan, &view);
+        self.write_frame(s, &frame_plan, &view);
         // the raster backend's early-termination mask: its bind group for this eye buffer
+        // half-angle slices that the eye meets from behind: the raster backend blends
+        // "over" (and terminates no ray early); it cannot mix both orders in one frame
+        let raster_over = match (s.backend, &frame_plan.half) {
+            (Backend::Raster, Some(_)) => frame_plan
+                .back_to_front(&view, &self.vbox)
+                .ok_or(RenderError::HalfAngleMixedOrder)?,
+            _ => false,
+        };
         let mask_group = match (s.backend, s.early_termination) {
-            (Backend::Raster, Some(threshold)) => {
+            (Backend::Raster, Some(threshold)) if !raster_over => {
                 let et = self
                     .raster_et
                     .get_or_insert_with(|| raster_et::RasterEt::new(&self.gpu.device));
@@ -3474,7 +3575,7 @@ impl Renderer {
                 let vbuf = &self.vertices.as_ref().expect("vertex buffer").0;
                 // with early termination: the depth mask, the slice pipeline that tests it
                 let et = mask_group.as_ref().zip(self.raster_et.as_ref());
-                let raster = p.raster_for(device, et.is_some(), cut_proxy);
+                let raster = p.raster_for(device, et.is_some(), cut_proxy, raster_over);
                 let begin = |enc: &'_ mut wgpu::CommandEncoder, clear: bool| {
                     enc.begin_render_pass(&wgpu::RenderPassDescriptor {
                         label: Some("vwb slices"),
@@ -3605,6 +3706,7 @@ impl Renderer {
                         &g2,
                         plan.count,
                         [t.width, t.height],
+                        frame_plan.half.is_none(),
                     );
                 } else {
                     let mut pass = enc.begin_compute_pass(&Default::default());

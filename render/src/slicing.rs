@@ -9,6 +9,12 @@
 //! the near plane are dropped, which lets the camera sit inside the volume.
 //! Both backends use these planes: the raster backend draws the polygons, the
 //! compute backend intersects each pixel's ray with the same planes.
+//!
+//! Half-angle slicing (Kniss, Premože, Hansen, Shirley and McPherson 2003;
+//! [`HalfAngle`]) tilts the planes halfway between the view and a light, for per-slice
+//! state that travels with the light rather than with the eye (shadows from a light
+//! other than the viewer: the extension of directional occlusion shading that Schott
+//! et al. 2009 name as future work).
 
 use glam::Vec3;
 
@@ -166,6 +172,48 @@ impl SlicePlan {
         self.d0 + k as f32 * self.spacing
     }
 
+    /// Half-angle slicing for a light travelling along `light` (world space, any
+    /// length): planes normal to the half-angle axis ([`HalfAngle::new`]), anchored at
+    /// the box centre and ordered along the light, so that the light crosses plane k
+    /// before plane k + 1. `spacing_voxels` is the spacing along the view's centre ray
+    /// and along the light, as for view-aligned slices: the planes lie
+    /// `spacing · |view · normal|` apart. The near plane drops no slice (a ray's
+    /// samples behind the eye are skipped one by one).
+    pub fn half_angle(
+        view: &View,
+        vbox: &VolumeBox,
+        spacing_voxels: f32,
+        light: Vec3,
+    ) -> Result<(Self, HalfAngle), SliceError> {
+        if !(spacing_voxels.is_finite() && spacing_voxels > 0.0) {
+            return Err(SliceError::BadSpacing(spacing_voxels));
+        }
+        let h = HalfAngle::new(view, vbox, light, spacing_voxels * vbox.voxel);
+        let spacing = h.plane_spacing;
+        let depths = vbox.corners().map(|c| (c - view.eye).dot(h.normal));
+        let dmin = depths.iter().copied().fold(f32::INFINITY, f32::min);
+        let dmax = depths.iter().copied().fold(f32::NEG_INFINITY, f32::max);
+        let dc = (vbox.centre() - view.eye).dot(h.normal);
+        let m0 = ((dmin - dc) / spacing).ceil() as f64;
+        let m1 = ((dmax - dc) / spacing).floor() as f64;
+        let n = m1 - m0 + 1.0;
+        if n > MAX_SLICES as f64 {
+            return Err(SliceError::TooMany {
+                spacing: spacing_voxels,
+                count: n as u64,
+            });
+        }
+        let count = if n >= 1.0 { n as u32 } else { 0 };
+        let plan = Self {
+            eye: view.eye,
+            forward: h.normal,
+            spacing,
+            d0: dc + m0 as f32 * spacing,
+            count,
+        };
+        Ok((plan, h))
+    }
+
     /// Proxy polygon of slice k: box ∩ plane, 3 to 6 vertices ordered around the
     /// polygon (counter-clockwise seen from the eye). Empty if the plane misses the box.
     pub fn polygon(&self, vbox: &VolumeBox, k: u32) -> Vec<Vec3> {
@@ -193,6 +241,134 @@ impl SlicePlan {
             }
         }
         out
+    }
+}
+
+/// A frame's slices: view-aligned (`half` is `None`) or half-angle.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FramePlan {
+    pub slices: SlicePlan,
+    pub half: Option<HalfAngle>,
+}
+
+impl FramePlan {
+    /// World distance between samples along the view's centre ray (what plugins that
+    /// depend on the slice spacing are given): the planes' spacing for view-aligned
+    /// slices, the light's step (the same along the view's centre ray) for half-angle
+    /// ones.
+    pub fn ray_spacing(&self) -> f32 {
+        match &self.half {
+            Some(h) => h.light_step,
+            None => self.slices.spacing,
+        }
+    }
+
+    /// The order in which the rays of `view` that meet `vbox` cross the slices: `Some
+    /// (false)` all front to back, `Some(true)` all back to front, `None` both (only
+    /// under half-angle slicing, with a wide view or the eye inside the box).
+    pub fn back_to_front(&self, view: &View, vbox: &VolumeBox) -> Option<bool> {
+        let n = self.slices.forward;
+        if !view.perspective {
+            return Some(view.forward.dot(n) < 0.0);
+        }
+        if vbox.contains(view.eye) {
+            return (self.half.is_none()).then_some(false);
+        }
+        // the rays through the box lie in the cone of its corners' directions
+        let signs = vbox.corners().map(|c| (c - view.eye).dot(n) < 0.0);
+        if signs.iter().all(|&b| b) {
+            Some(true)
+        } else if signs.iter().all(|&b| !b) {
+            Some(false)
+        } else {
+            None
+        }
+    }
+}
+
+/// The geometry of half-angle slicing ([`SlicePlan::half_angle`]) for one view and
+/// one directional light.
+///
+/// The slice normal is the half-angle axis: normalize(v + ℓ) when the light travels
+/// away from the viewer's side (v·ℓ ≥ 0, v the view direction, ℓ the direction the
+/// light travels), else normalize(ℓ − v), as Kniss et al. 2003 choose. Slice k + 1 lies
+/// downstream of slice k for the light either way. A pixel whose ray advances along the
+/// normal composites slices front to back ("under"); one whose ray advances against it
+/// meets them back to front and composites "over" (the whole image when the light faces
+/// the viewer; per pixel, a wide perspective view can hold both).
+///
+/// Per-slice state then lives in the light's space: an orthographic image across the
+/// light (`state_rays`), whose texel (u, v) is the light ray through
+/// `state_rays · (ndc, 0, 1)` along `state_rays` column 2, covering the box's shadow.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct HalfAngle {
+    /// Unit slice-plane normal.
+    pub normal: Vec3,
+    /// Unit direction the light travels.
+    pub light: Vec3,
+    /// World distance between two planes along `normal`.
+    pub plane_spacing: f32,
+    /// World path length along the light between two planes.
+    pub light_step: f32,
+    /// The state's rays: columns 0 and 1 step one NDC unit across the light (right and
+    /// up in the state image), column 2 is `light`, column 3 the centre of the state
+    /// image on a plane upstream of the box.
+    pub state_rays: glam::Mat4,
+}
+
+impl HalfAngle {
+    /// The half-angle geometry for `view` and a light travelling along `light`, with
+    /// `spacing` world units between samples along the view's centre ray and along
+    /// the light. A light that is zero or not finite is taken as the viewer's (along
+    /// the view direction).
+    pub fn new(view: &View, vbox: &VolumeBox, light: Vec3, spacing: f32) -> Self {
+        let v = view.forward.as_dvec3().normalize();
+        let l = light.as_dvec3();
+        let l = if l.is_finite() && l.length_squared() > 0.0 {
+            l.normalize()
+        } else {
+            v
+        };
+        let n = if v.dot(l) >= 0.0 {
+            (v + l).normalize()
+        } else {
+            (l - v).normalize()
+        };
+        // the planes are spaced so that both the view's centre ray and the light
+        // advance `spacing` from one to the next (|v·n| = |ℓ·n| ≥ cos 45°)
+        let cos = l.dot(n).abs().max(1.0e-6);
+        let plane_spacing = spacing as f64 * cos;
+        // the state image: across the light, covering the box's projection
+        let reference = if l.y.abs() < 0.9 {
+            glam::DVec3::Y
+        } else {
+            glam::DVec3::X
+        };
+        let right = l.cross(reference).normalize();
+        let up = right.cross(l);
+        let c = vbox.centre().as_dvec3();
+        let corners = vbox.corners().map(|p| p.as_dvec3() - c);
+        let half = |axis: glam::DVec3| {
+            corners
+                .iter()
+                .map(|p| p.dot(axis).abs())
+                .fold(0.0, f64::max)
+                .max(1.0e-9)
+        };
+        let reach = corners.iter().map(|p| p.length()).fold(0.0, f64::max);
+        let state_rays = glam::DMat4::from_cols(
+            (right * half(right)).extend(0.0),
+            (up * half(up)).extend(0.0),
+            l.extend(0.0),
+            (c - l * (reach + spacing as f64)).extend(1.0),
+        );
+        Self {
+            normal: n.as_vec3(),
+            light: l.as_vec3(),
+            plane_spacing: plane_spacing as f32,
+            light_step: (plane_spacing / cos) as f32,
+            state_rays: state_rays.as_mat4(),
+        }
     }
 }
 
@@ -246,6 +422,127 @@ mod tests {
             a += (poly[i] - poly[0]).cross(poly[i + 1] - poly[0]);
         }
         a.length() * 0.5
+    }
+
+    /// The half-angle axis bisects the view and the light (or the light and the
+    /// reversed view when the light faces the viewer), the planes keep the requested
+    /// spacing along the view's centre ray and along the light, the state's rays start
+    /// upstream of the box and its image covers the box's shadow, and a headlight
+    /// slices as the view does.
+    #[test]
+    fn half_angle_planes_bisect_the_view_and_the_light() {
+        let vbox = VolumeBox::new([64, 48, 40], [1.0, 1.0, 1.5]);
+        let cam = Camera {
+            yaw_deg: 30.0,
+            pitch_deg: 20.0,
+            ..Default::default()
+        };
+        let view = cam.view(1.0);
+        let v = view.forward;
+        let spacing = 0.5;
+        let ds = spacing * vbox.voxel;
+        for light in [
+            v,
+            v + view.right,
+            view.up - v * 0.3,
+            -v + view.right * 0.2,
+            -v,
+        ] {
+            let (plan, h) = SlicePlan::half_angle(&view, &vbox, spacing, light).unwrap();
+            let l = light.normalize();
+            let n = h.normal;
+            assert!((n.length() - 1.0).abs() < 1e-5 && plan.forward == n);
+            if v.dot(l) >= 0.0 {
+                assert!((n.dot(v) - n.dot(l)).abs() < 1e-5, "{light}");
+            } else {
+                assert!((n.dot(l) + n.dot(v)).abs() < 1e-5, "{light}");
+            }
+            assert!(
+                n.dot(l) > 0.7,
+                "the light crosses the planes in order: {light}"
+            );
+            // Δs between planes along the view's centre ray and along the light
+            assert!(
+                (plan.spacing / n.dot(v).abs() - ds).abs() < 1e-5 * ds,
+                "{light}"
+            );
+            assert!(
+                (h.light_step - ds).abs() < 1e-5 * ds
+                    && (h.plane_spacing - plan.spacing).abs() < 1e-9
+            );
+            // the planes span the box along n
+            let depths = vbox.corners().map(|c| (c - view.eye).dot(n));
+            let (lo, hi) = depths
+                .iter()
+                .fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), &d| {
+                    (a.min(d), b.max(d))
+                });
+            assert!(plan.d0 >= lo - 1e-6 && plan.d0 < lo + plan.spacing);
+            let last = plan.depth(plan.count - 1);
+            assert!(last <= hi + 1e-6 && last > hi - plan.spacing);
+            // every corner lies on a state ray, inside the state image, downstream of
+            // the rays' origins
+            let m = h.state_rays;
+            for c in vbox.corners() {
+                let q = c - m.w_axis.truncate();
+                let ndc = [m.x_axis.truncate(), m.y_axis.truncate()]
+                    .map(|a| q.dot(a) / a.length_squared());
+                assert!(ndc.iter().all(|x| x.abs() <= 1.0 + 1e-5), "{light} {ndc:?}");
+                assert!(q.dot(m.z_axis.truncate()) > 0.0);
+            }
+        }
+        let (plan, _) = SlicePlan::half_angle(&view, &vbox, spacing, v * 3.0).unwrap();
+        assert!((plan.forward - v).length() < 1e-6);
+        // a zero light is the viewer's; bad spacings are refused as for view slicing
+        let (plan, _) = SlicePlan::half_angle(&view, &vbox, spacing, Vec3::ZERO).unwrap();
+        assert!((plan.forward - v).length() < 1e-6);
+        assert!(SlicePlan::half_angle(&view, &vbox, 0.0, v).is_err());
+        assert!(SlicePlan::half_angle(&view, &vbox, 1e-9, v).is_err());
+    }
+
+    /// The order a frame's rays meet the planes in: one order for a view in front of
+    /// the box, none for half-angle slices with the eye inside it.
+    #[test]
+    fn frames_know_the_order_their_rays_meet_the_slices() {
+        let vbox = unit_box();
+        let view = Camera::default().view(1.0);
+        let v = view.forward;
+        let plan = |light: Option<Vec3>, view: &View| match light {
+            None => FramePlan {
+                slices: SlicePlan::new(view, &vbox, 1.0).unwrap(),
+                half: None,
+            },
+            Some(l) => {
+                let (slices, half) = SlicePlan::half_angle(view, &vbox, 1.0, l).unwrap();
+                FramePlan {
+                    slices,
+                    half: Some(half),
+                }
+            }
+        };
+        assert_eq!(plan(None, &view).back_to_front(&view, &vbox), Some(false));
+        assert_eq!(
+            plan(Some(v + view.up), &view).back_to_front(&view, &vbox),
+            Some(false)
+        );
+        assert_eq!(
+            plan(Some(-v + view.up), &view).back_to_front(&view, &vbox),
+            Some(true)
+        );
+        let inside = Camera {
+            distance: 0.2,
+            ..Default::default()
+        }
+        .view(1.0);
+        assert_eq!(
+            plan(Some(inside.right), &inside).back_to_front(&inside, &vbox),
+            None
+        );
+        assert_eq!(
+            plan(None, &inside).back_to_front(&inside, &vbox),
+            Some(false)
+        );
+        assert!((plan(Some(v), &view).ray_spacing() - vbox.voxel).abs() < 1e-6);
     }
 
     #[test]

@@ -303,10 +303,10 @@ fn update_time_counts_what_a_grid_point_reruns() {
 /// update's; `flow.lic3d.twin_rms` holds the GPU's LIC volume against its f64 twin.
 #[test]
 fn updates_are_timed_again_and_the_lic_is_held_against_its_twin() {
-    let scene = tmp("lic32.ron");
+    let scene = tmp("lic64.ron");
     std::fs::write(
         &scene,
-        r#"(version: 1, volume: Analytic((field: Abc, size: (32, 32, 32))),
+        r#"(version: 1, volume: Analytic((field: Abc, size: (64, 64, 64))),
             render: (slice_spacing: 1.0, backend: Compute),
             plugins: [(id: "flow.lic3d"), (id: "classify.tf1d")])"#,
     )

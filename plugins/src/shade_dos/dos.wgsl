@@ -14,12 +14,12 @@ fn shade(s: Sample) -> Sample {
     var o = s;
     // chromatic: begin
     if (params.extinction == 1u) {
-        let rgb = textureSampleLevel(state_prev, linear_clamp, s.uv, 0.0).rgb;
+        let rgb = textureSampleLevel(state_prev, linear_clamp, s.state_uv, 0.0).rgb;
         o.color = vec4<f32>(s.color.rgb * (params.la * rgb + params.ambient), s.color.a);
         return o;
     }
     // chromatic: end
-    let v = textureSampleLevel(state_prev, linear_clamp, s.uv, 0.0).r;
+    let v = textureSampleLevel(state_prev, linear_clamp, s.state_uv, 0.0).r;
     o.color = vec4<f32>(s.color.rgb * (params.la * v + params.ambient), s.color.a);
     return o;
 }
@@ -73,16 +73,16 @@ fn chromatic_taps(uv: vec2<f32>, scale: vec2<f32>, extent: f32, d: f32, sigma_t:
 // Occlusion pass (Algorithms 2 and 3): the next buffer at `uv` averages the previous
 // one over the base of the cone, radius d·tan θ (eq 11), mapped to the screen at
 // this slice's depth (eqs 12–15), with σt of the current slice at the cone's tip.
+// With a directional light (`light: directional`) the frame is sliced halfway between
+// the view and the light and the buffer lies across the light: d is the light's path
+// between two slices and the cone opens towards the light (state_step,
+// state_uv_per_world).
 fn slice_update(s: Sample, c: vec4<f32>, uv: vec2<f32>) -> vec4<f32> {
     let a = clamp(s.color.a, 0.0, 1.0);
     let sigma_t = -log(max(1.0 - a, 1.0e-30)) / frame.box_min.w;
-    let d = frame.forward.w;
+    let d = state_step();
     let extent = d * tan(radians(params.theta_deg));
-    var depth = 1.0;
-    if (frame.eye.w > 0.5) {
-        depth = max(frame.box_max.w + f32(s.slice) * frame.forward.w, 1.0e-9);
-    }
-    let scale = 0.5 / (vec2<f32>(length(frame.ray_basis[0].xyz), length(frame.ray_basis[1].xyz)) * depth);
+    let scale = state_uv_per_world(s.slice);
     // chromatic: begin
     if (params.extinction == 1u) {
         return vec4<f32>(chromatic_taps(uv, scale, extent, d, sigma_t), 1.0);

@@ -14,7 +14,9 @@
 //! `shade.dos` is the last shading plugin of the stack). The visibility `V(x) = ∫ T(x, x₀,ᵢ) Φθ dωᵢ` (eq 10) is estimated with
 //! `directions` directions drawn uniformly in the cone of aperture θ around the
 //! direction back along the pixel ray (uniform in solid angle, which is what Φθ
-//! weights), each marched to the box exit with step `cone_step`·Δs0. The eye ray stops
+//! weights), or with `light: directional` around the direction towards the light
+//! (the cone that half-angle slicing follows), each marched to the box exit with step
+//! `cone_step`·Δs0. The eye ray stops
 //! once T_eye < 10⁻⁴ and cone rays once T < 10⁻⁴ (bias below 10⁻⁴). With chromatic
 //! extinction the cone rays' transmittance is per channel, e^(−κ_c·τ), and V is an
 //! RGB visibility.
@@ -96,7 +98,7 @@ impl ConvergedReference for MonteCarloReference {
             pixels: mc.pixels,
         })
     }
-    /// θ, L_a, the ambient term and κ of `shade.dos`, the other enabled plugins and the
+    /// θ, L_a, the ambient term, κ and the light of `shade.dos`, the other enabled plugins and the
     /// options: the kernel, the distance mode and the buffers do not change the integral.
     fn key(&self, stack: &[PluginInstance]) -> Option<String> {
         let mut parts = Vec::new();
@@ -182,6 +184,9 @@ struct Integral {
     ambient: f64,
     /// κ of the chromatic extinction ((1, 1, 1) when achromatic).
     kappa: DVec3,
+    /// `light: directional`: whether `light_vector` is in world space, and the vector
+    /// (towards the light); `None`: the viewer's light.
+    light: Option<(bool, [f32; 3])>,
 }
 
 impl Integral {
@@ -191,6 +196,8 @@ impl Integral {
             la: p.float("la") as f64,
             ambient: p.float("ambient") as f64,
             kappa: super::extinction(p).unwrap_or(DVec3::ONE),
+            light: (p.enumeration("light") == "directional")
+                .then(|| (p.enumeration("light_space") == "world", p.vec3("light_vector"))),
         }
     }
 }
@@ -200,9 +207,16 @@ impl Integral {
 struct Scene {
     integral: Integral,
     twins: Vec<Box<dyn CpuTwin>>,
+    /// The unit direction towards a directional light in world space (`None`: the
+    /// viewer's light, back along each eye ray).
+    towards_light: Option<DVec3>,
 }
 
-fn scene(stack: &[PluginInstance], ctx: &CpuContext) -> Result<Scene, String> {
+fn scene(
+    stack: &[PluginInstance],
+    ctx: &CpuContext,
+    view: &vwb_render::camera::View,
+) -> Result<Scene, String> {
     let dos = stack
         .iter()
         .find(|i| i.enabled && i.plugin.id() == "shade.dos")
@@ -219,9 +233,14 @@ fn scene(stack: &[PluginInstance], ctx: &CpuContext) -> Result<Scene, String> {
         t.prepare(ctx);
         twins.push(t);
     }
+    let towards_light = super::light_direction(&dos.params, view)
+        .map(|l| -l.as_dvec3())
+        .filter(|l| l.is_finite() && l.length_squared() > 0.0)
+        .map(DVec3::normalize);
     Ok(Scene {
         integral: Integral::of(&dos.params),
         twins,
+        towards_light,
     })
 }
 
@@ -308,8 +327,8 @@ pub fn render_mc(
     }
     let scalars = volume.normalized_scalars();
     let ctx = CpuContext::new(volume, &scalars);
-    let sc = scene(stack, &ctx)?;
     let view = settings.camera.view(w as f32 / h as f32);
+    let sc = scene(stack, &ctx, &view)?;
     let inv_vp: DMat4 = (view.proj.as_dmat4() * view.view.as_dmat4()).inverse();
     let b = VolumeBox::new(volume.dims, volume.spacing);
     let (lo, hi) = (b.min.as_dvec3(), b.max.as_dvec3());
@@ -367,7 +386,8 @@ pub fn render_mc(
                 for (r, rng) in rngs.iter_mut().enumerate() {
                     let mut v = DVec3::ZERO;
                     for _ in 0..per_replica {
-                        let omega = cone_direction(-dir, sc.integral.theta, rng);
+                        let axis = sc.towards_light.unwrap_or(-dir);
+                        let omega = cone_direction(axis, sc.integral.theta, rng);
                         v += transmittance(pos, omega);
                     }
                     v /= per_replica as f64;

@@ -37,6 +37,21 @@
 //!   κ = (1, 1, 1) gives the achromatic image. The single-scattering ground truth
 //!   takes the same κ on its shadow rays (`ScatteringOptions::extinction`). Choice: κ
 //!   is one colour for the whole volume, not per material (the TF carries one α).
+//! - Light (`light`): `viewer`, the paper's (the cone points back at the viewer, the
+//!   slices are view-aligned), or `directional`, the extension Schott et al. name as
+//!   future work (§5): the renderer slices halfway between the view and the light
+//!   (half-angle slicing, Kniss et al. 2003; `vwb_render::slicing::HalfAngle`), the
+//!   occlusion buffer lies across the light in the light's space, and the cone opens
+//!   towards the light (`light_vector`, towards the light, in view or world space).
+//!   Per slice the cone's base grows by d·tan θ with d the light's path between two
+//!   slices, mapped to the buffer by its texels' world size (orthographic: no
+//!   perspective correction). *Choices:* the planes keep the slice spacing along the
+//!   view's centre ray and along the light (so they lie Δs·cos ψ apart, ψ half the
+//!   angle between the two, and a frame has up to √2 × the slices); the buffer keeps
+//!   the eye buffer's texel count (`buffer_scale`) and covers the box's shadow, so
+//!   its texels are as large as the box's extent across the light requires. A pixel
+//!   whose ray meets the slices from behind (a light facing the viewer) composites
+//!   back to front. Measured in docs/dos.md ("A directional light").
 //! - θ = 0: every tap reads the texel itself, V becomes the transmittance towards the
 //!   viewer (no lateral occlusion): the image equals `test.slice_shadow` at strength 1
 //!   with L_a = 1 and no ambient.
@@ -63,6 +78,22 @@ pub const MAX_POISSON: usize = 64;
 pub const SCALES: [&str; 3] = ["1", "0.5", "0.25"];
 pub const FORMATS: [&str; 2] = ["fp16", "fp32"];
 pub const EXTINCTIONS: [&str; 2] = ["achromatic", "chromatic"];
+pub const LIGHTS: [&str; 2] = ["viewer", "directional"];
+
+/// The direction a `light: directional` light travels in world space, seen from
+/// `view` (`None` for the viewer's light).
+pub fn light_direction(params: &ParamValues, view: &vwb_render::camera::View) -> Option<glam::Vec3> {
+    if params.enumeration("light") != "directional" {
+        return None;
+    }
+    let v = glam::Vec3::from(params.vec3("light_vector"));
+    let towards = if params.enumeration("light_space") == "world" {
+        v
+    } else {
+        view.right * v.x + view.up * v.y - view.forward * v.z
+    };
+    Some(-towards)
+}
 
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Dos {
@@ -155,6 +186,15 @@ impl Plugin for Dos {
             ParamSpec::float("la", "Ambient radiance L_a", 0.0, 4.0, 1.0),
             ParamSpec::float("ambient", "Ambient term", 0.0, 1.0, 0.0)
                 .with_doc("added to L_a·V so that fully occluded matter is not black"),
+            ParamSpec::enumeration("light", "Light", &LIGHTS, 0).with_doc(
+                "viewer: the paper's light at the eye (view-aligned slices); directional: soft shadows from a directional light, by half-angle slicing (Kniss et al. 2003)",
+            ),
+            ParamSpec::enumeration("light_space", "Light space", &["view", "world"], 0)
+                .shown_when("light", "directional")
+                .with_doc("view: x right, y up, z towards the viewer"),
+            ParamSpec::vec3("light_vector", "Direction to the light", -1.0, 1.0, [0.5, 0.5, 1.0])
+                .shown_when("light", "directional")
+                .with_doc("towards the light, any length"),
             ParamSpec::enumeration("extinction", "Extinction", &EXTINCTIONS, 0)
                 .structural()
                 .with_doc(
@@ -202,6 +242,9 @@ impl Plugin for Dos {
                 [1.0, 0.0, 0.0, 1.0]
             },
         })
+    }
+    fn slice_light(&self, params: &ParamValues, view: &vwb_render::camera::View) -> Option<glam::Vec3> {
+        light_direction(params, view)
     }
     fn configure(&self, params: &ParamValues) -> Option<Arc<dyn Plugin>> {
         let scale = params
@@ -274,7 +317,7 @@ pub struct DosTwin {
 
 impl CpuTwin for DosTwin {
     fn shade(&self, ctx: &CpuContext, s: &mut CpuSample) {
-        let state = ctx.state_prev(s.uv);
+        let state = ctx.state_prev(s.state_uv);
         let v = if self.extinction.is_some() {
             state.truncate()
         } else {
@@ -291,9 +334,9 @@ impl CpuTwin for DosTwin {
             s.color.w.clamp(0.0, 1.0)
         };
         let sigma_t = -(1.0 - a).max(1.0e-30).ln() / ctx.reference_step();
-        let d = ctx.view.slice_spacing;
+        let d = ctx.view.state_step();
         let extent = d * (self.theta_deg as f32).to_radians().tan() as f64;
-        let scale = ctx.view.uv_per_world(s.slice);
+        let scale = ctx.view.state_uv_per_world(s.slice);
         let mut sum = DVec3::ZERO;
         for q in &self.kernel {
             let p = *q * extent;

@@ -20,7 +20,8 @@ pub fn cone(
     let painter = ui.painter_at(rect);
     let visuals = ui.visuals();
     painter.rect_filled(rect, 2.0, visuals.extreme_bg_color);
-    // the apex (the sample) at the right, the cone opening towards the eye at the left
+    // the apex (the sample) at the right, the cone opening towards the eye (or the
+    // directional light) at the left
     let apex = egui::pos2(rect.right() - 10.0, rect.center().y);
     let slices = 5;
     let step = (rect.width() - 20.0) / slices as f32;
@@ -54,7 +55,14 @@ pub fn cone(
     painter.text(
         rect.left_top() + egui::vec2(4.0, 2.0),
         egui::Align2::LEFT_TOP,
-        format!("θ = {theta:.1}° (drag)"),
+        format!(
+            "θ = {theta:.1}°, cone towards the {} (drag)",
+            if params.enumeration("light") == "directional" {
+                "light"
+            } else {
+                "eye"
+            }
+        ),
         egui::FontId::proportional(11.0),
         visuals.text_color(),
     );

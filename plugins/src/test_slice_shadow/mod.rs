@@ -57,7 +57,7 @@ pub struct SliceShadowTwin {
 
 impl CpuTwin for SliceShadowTwin {
     fn shade(&self, ctx: &CpuContext, s: &mut CpuSample) {
-        let occ = ctx.state_prev(s.uv).x;
+        let occ = ctx.state_prev(s.state_uv).x;
         let k = 1.0 - self.strength * occ;
         s.color = DVec4::new(s.color.x * k, s.color.y * k, s.color.z * k, s.color.w);
     }

@@ -211,10 +211,11 @@ impl Renderer {
             .collect();
         let plans = views
             .iter()
-            .map(|v| SlicePlan::new(v, &self.vbox, s.slice_spacing))
+            .zip(&stacks)
+            .map(|(v, stack)| self.frame_plan(stack, v, &self.vbox, s.slice_spacing))
             .collect::<Result<Vec<_>, _>>()?;
         if per_slice {
-            let most = plans.iter().map(|p| p.count).max().unwrap_or(0);
+            let most = plans.iter().map(|p| p.slices.count).max().unwrap_or(0);
             if most > MAX_PER_SLICE_SLICES {
                 return Err(RenderError::TooManyPerSliceSlices {
                     count: most,
@@ -223,7 +224,7 @@ impl Renderer {
             }
             self.ensure_slice_info(most);
         }
-        let spacing = plans[0].spacing / self.vbox.voxel;
+        let spacing = plans[0].ray_spacing() / self.vbox.voxel;
         self.slice_spacing = spacing;
         for (uid, plugin) in stacks.iter().flatten() {
             if !plugin.uses_slice_spacing() {
@@ -381,8 +382,9 @@ impl Renderer {
                     &uids,
                     [&g0, &g1, &g3],
                     &self.group2_for(&compiled, &uids),
-                    plans[i].count,
+                    plans[i].slices.count,
                     [tw, th],
+                    plans[i].half.is_none(),
                 );
             } else {
                 let mut pass = enc.begin_compute_pass(&Default::default());
