@@ -128,9 +128,6 @@ struct Sample {
     ray_dir: vec3<f32>,
     // screen coordinate in [0,1]^2 (y down)
     uv: vec2<f32>,
-    // where per-slice state is read (`state_prev`): `uv`, or the coordinate in the
-    // light's space under half-angle slicing
-    state_uv: vec2<f32>,
     // normalised scalar value (set by the core sampler, may be replaced by `sample` hooks)
     value: f32,
     // world distance along the ray to the next slice plane
@@ -357,7 +354,10 @@ fn blinn_phong_factors(n: vec3<f32>, v: vec3<f32>, l: vec3<f32>, shininess: f32)
 }
 
 // Whether the frame is sliced halfway between the view and a light, with per-slice
-// state in the light's space (render/src/slicing.rs, `HalfAngle`).
+// state in the light's space (render/src/slicing.rs, `HalfAngle`). The composer keeps
+// the `half_angle` regions (here and in slice.wgsl) only for stacks whose per-slice
+// state may travel with a light (`SliceStateDecl::light`): a branch on a uniform costs
+// a CPU device both of its sides.
 fn half_angle() -> bool {
     return frame.slicing.w > 0.5;
 }
@@ -371,13 +371,28 @@ fn light_uv(p: vec3<f32>) -> vec2<f32> {
     return vec2<f32>(ndc.x * 0.5 + 0.5, 0.5 - ndc.y * 0.5);
 }
 
+// Where a sample reads per-slice state (`state_prev`): its screen coordinate, or
+// under half-angle slicing its coordinate in the light's space. A function rather
+// than a Sample field: a larger Sample costs the CPU device in every hook call.
+// Twin: CpuView::state_coord.
+fn state_coord(s: Sample) -> vec2<f32> {
+    // half_angle: begin
+    if (half_angle()) {
+        return light_uv(s.pos);
+    }
+    // half_angle: end
+    return s.uv;
+}
+
 // State-uv units per world unit across the per-slice state's rays on slice k's plane:
 // the screen's at the slice's depth (Schott et al. 2009, eqs 12–15), or the light
 // space's under half-angle slicing. Twin: CpuView::state_uv_per_world.
 fn state_uv_per_world(k: u32) -> vec2<f32> {
+    // half_angle: begin
     if (half_angle()) {
         return 0.5 / vec2<f32>(length(frame.state_rays[0].xyz), length(frame.state_rays[1].xyz));
     }
+    // half_angle: end
     var depth = 1.0;
     if (frame.eye.w > 0.5) {
         depth = max(frame.box_max.w + f32(k) * frame.forward.w, 1.0e-9);
@@ -388,8 +403,10 @@ fn state_uv_per_world(k: u32) -> vec2<f32> {
 // The path length of the per-slice state's rays between two slice planes: the slice
 // spacing, or the light's step under half-angle slicing. Twin: CpuView::state_step.
 fn state_step() -> f32 {
+    // half_angle: begin
     if (half_angle()) {
         return frame.light.w;
     }
+    // half_angle: end
     return frame.forward.w;
 }

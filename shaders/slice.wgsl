@@ -113,10 +113,6 @@ fn make_sample(pos: vec3<f32>, ray_dir: vec3<f32>, uv: vec2<f32>, slice: u32) ->
     s.tex = (pos - frame.box_min.xyz) / (frame.box_max.xyz - frame.box_min.xyz);
     s.ray_dir = ray_dir;
     s.uv = uv;
-    s.state_uv = uv;
-    if (half_angle()) {
-        s.state_uv = light_uv(pos);
-    }
     s.value = 0.0;
     // distance along this ray between two slice planes (a ray may advance against the
     // planes' normal under half-angle slicing)
@@ -398,7 +394,10 @@ fn slice_step(px: vec2<u32>, size: vec2<u32>, always: bool) -> Evaluated {
     let uv = (vec2<f32>(px) + 0.5) * frame.viewport.zw;
     let r = pixel_ray(uv);
     // front to back unless the ray meets the (half-angle) slices from behind
-    let ahead = dot(r.dir, frame.slicing.xyz) >= 0.0;
+    var ahead = true;
+    // half_angle: begin
+    ahead = dot(r.dir, frame.slicing.xyz) >= 0.0;
+    // half_angle: end
     let early = ahead && frame.counts.z != 0u && acc.a >= frame.settings.x;
     let t = slice_hit(r, slice_info.index);
     run_setup(r, uv);
@@ -444,14 +443,16 @@ fn cs_resolve(@builtin(global_invocation_id) gid: vec3<u32>) {
 // The ray of per-slice state coordinate `uv`: the pixel's, or under half-angle
 // slicing the light's ray through the state texel (origin upstream of the box).
 fn state_ray(uv: vec2<f32>) -> Ray {
-    if (!half_angle()) {
-        return pixel_ray(uv);
+    // half_angle: begin
+    if (half_angle()) {
+        let ndc = vec2<f32>(uv.x * 2.0 - 1.0, 1.0 - uv.y * 2.0);
+        var r: Ray;
+        r.origin = (frame.state_rays * vec4<f32>(ndc, 0.0, 1.0)).xyz;
+        r.dir = frame.state_rays[2].xyz;
+        return r;
     }
-    let ndc = vec2<f32>(uv.x * 2.0 - 1.0, 1.0 - uv.y * 2.0);
-    var r: Ray;
-    r.origin = (frame.state_rays * vec4<f32>(ndc, 0.0, 1.0)).xyz;
-    r.dir = frame.state_rays[2].xyz;
-    return r;
+    // half_angle: end
+    return pixel_ray(uv);
 }
 
 // The screen coordinate of a world point.
@@ -462,8 +463,9 @@ fn screen_uv(p: vec3<f32>) -> vec2<f32> {
 }
 
 // Sample of the current slice under a state texel (for per-slice state updates): at
-// its state coordinate (`s.state_uv`), and under half-angle slicing at the screen
-// coordinate of its point (`s.uv`).
+// its state coordinate, which is `s.uv`, or under half-angle slicing at the screen
+// coordinate of its point (`s.uv`; `state_coord(s)` is then its light-space
+// coordinate, the texel's `uv`).
 fn state_texel_sample(texel: vec2<u32>, state_size: vec2<u32>) -> Evaluated {
     let uv = (vec2<f32>(texel) + 0.5) / vec2<f32>(state_size);
     let r = state_ray(uv);
@@ -473,15 +475,15 @@ fn state_texel_sample(texel: vec2<u32>, state_size: vec2<u32>) -> Evaluated {
     var e: Evaluated;
     if (t < 0.0) {
         e.s = make_sample(r.origin, r.dir, uv, k);
-        e.s.state_uv = uv;
         e.c = vec4<f32>(0.0);
         return e;
     }
     var s = pixel_sample(r, t, uv, k);
-    s.state_uv = uv;
+    // half_angle: begin
     if (half_angle()) {
         s.uv = screen_uv(s.pos);
     }
+    // half_angle: end
     return evaluate(s);
 }
 

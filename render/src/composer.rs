@@ -895,6 +895,21 @@ pub fn with_main_workgroup(source: &str, wg: [u32; 2]) -> std::borrow::Cow<'_, s
     source.replace(&from, &to).into()
 }
 
+/// A core shader file with its `half_angle` regions (the half-angle slicing paths,
+/// render/src/slicing.rs) kept, or blanked line for line (so that errors keep their
+/// lines) for stacks whose per-slice state never travels with a light.
+fn half_angle_code(
+    file: &'static str,
+    source: &'static str,
+    keep: bool,
+) -> std::borrow::Cow<'static, str> {
+    if keep {
+        std::borrow::Cow::Borrowed(source)
+    } else {
+        crate::plugin::ShaderSource::without_region(file, source, "half_angle", "").source
+    }
+}
+
 /// Composes the enabled plugins (in stack order) into the slice shader.
 pub fn compose(
     plugins: &[&dyn Plugin],
@@ -1118,9 +1133,17 @@ pub fn compose_with(
         });
     }
 
-    // assemble
+    // assemble (the half-angle paths only where a per-slice state may travel with a
+    // light)
+    let half_angle = plugins
+        .iter()
+        .any(|p| p.slice_state().is_some_and(|st| st.light));
     let mut m = ComposedModule::new();
-    m.push_file(COMMON_FILE, COMMON_WGSL, None);
+    m.push_file(
+        COMMON_FILE,
+        &half_angle_code(COMMON_FILE, COMMON_WGSL, half_angle),
+        None,
+    );
     m.push_generated(
         "shading scalar",
         &shading_scalar_wgsl(
@@ -1130,7 +1153,8 @@ pub fn compose_with(
         ),
         scalar_provider.as_ref().map(|(_, _, i)| *i),
     );
-    for (i, line) in TEMPLATE_WGSL.lines().enumerate() {
+    let template = half_angle_code(TEMPLATE_FILE, TEMPLATE_WGSL, half_angle);
+    for (i, line) in template.lines().enumerate() {
         let origin = Origin::File {
             file: TEMPLATE_FILE.to_string(),
             line: i as u32 + 1,
@@ -1176,7 +1200,8 @@ pub fn compose_with(
                          let size = textureDimensions({p}state_next);\n    \
                          if (gid.x >= size.x || gid.y >= size.y) {{\n        return;\n    }}\n    \
                          let e = state_texel_sample(gid.xy, size);\n    \
-                         textureStore({p}state_next, vec2<i32>(gid.xy), {p}slice_update(e.s, e.c, e.s.state_uv));\n\
+                         let uv = (vec2<f32>(gid.xy) + 0.5) / vec2<f32>(size);\n    \
+                         textureStore({p}state_next, vec2<i32>(gid.xy), {p}slice_update(e.s, e.c, uv));\n\
                          }}"
                     );
                     m.push_generated("state update entry point", &code, Some(inst.input_index));
@@ -1188,7 +1213,7 @@ pub fn compose_with(
                 .map(|inst| {
                     let p = &inst.prefix;
                     format!(
-                        "    textureStore({p}state_next, vec2<i32>(gid.xy), {p}slice_update(e.s, e.c, e.s.state_uv));\n"
+                        "    textureStore({p}state_next, vec2<i32>(gid.xy), {p}slice_update(e.s, e.c, e.s.uv));\n"
                     )
                 })
                 .collect();
@@ -1287,7 +1312,11 @@ fn compose_prepass(
     let mut names: HashSet<String> = decls.iter().map(|d| d.name.clone()).collect();
     names.extend(iso.iter().map(|b| b.local_name.clone()));
     let mut m = ComposedModule::new();
-    m.push_file(COMMON_FILE, COMMON_WGSL, None);
+    m.push_file(
+        COMMON_FILE,
+        &half_angle_code(COMMON_FILE, COMMON_WGSL, false),
+        None,
+    );
     m.push_generated("shading scalar", &shading_scalar_wgsl(None), None);
     m.push_generated("bindings", &decls_text(&iso, prefix, uniform), Some(index));
     m.push_file(

@@ -27,7 +27,7 @@
 //!
 //! Names the plugin can use: `params.<key>` (its uniform parameters), each declared
 //! resource by name, `state_prev` (its state of the previous slice, a texture_2d
-//! read with `linear_clamp` at `s.state_uv`), its pre-pass target by name (a texture_3d),
+//! read with `linear_clamp` at `state_coord(s)`), its pre-pass target by name (a texture_3d),
 //! and everything in `shaders/common.wgsl`.
 
 use std::borrow::Cow;
@@ -235,9 +235,9 @@ impl StorageFormat {
 }
 
 /// Per-slice state: a pair of 2D textures swapped after each slice. The plugin reads
-/// the previous one as `state_prev` (at `s.state_uv`) and returns the next texel from
+/// the previous one as `state_prev` (at `state_coord(s)`) and returns the next texel from
 /// `slice_update`. Its resolution is the eye buffer's times `scale`. It lives in
-/// eye-buffer space (`s.state_uv` = `s.uv`), or, when a plugin of the stack names a
+/// eye-buffer space (`state_coord(s)` = `s.uv`), or, when a plugin of the stack names a
 /// light ([`Plugin::slice_light`]), in the light's space under half-angle slicing
 /// ([`crate::slicing::HalfAngle`]; `state_uv_per_world` and `state_step` in
 /// shaders/common.wgsl, [`CpuView::state_uv_per_world`] and [`CpuView::state_step`]
@@ -248,6 +248,11 @@ pub struct SliceStateDecl {
     pub scale: f32,
     /// Value the state is cleared to before the first slice.
     pub clear: [f32; 4],
+    /// The state may travel with a light ([`Plugin::slice_light`]): the composed code
+    /// keeps the half-angle slicing paths, which cost a CPU device even when a frame
+    /// does not take them. Without it they are compiled out and `slice_light` is not
+    /// asked.
+    pub light: bool,
 }
 
 /// A pre-pass: a compute pass that fills a 3D texture named `target` (read by the
@@ -580,9 +585,6 @@ pub struct CpuSample {
     pub tex: DVec3,
     pub ray_dir: DVec3,
     pub uv: DVec2,
-    /// Where the instance's per-slice state is read (`state_prev`): `uv`, or the
-    /// light-space coordinate under half-angle slicing ([`CpuLightSpace::uv`]).
-    pub state_uv: DVec2,
     pub value: f64,
     pub step: f64,
     pub color: DVec4,
@@ -748,6 +750,15 @@ impl CpuView {
         match &self.light {
             Some(l) => 0.5 / DVec2::new(l.right.length(), l.up.length()),
             None => self.uv_per_world(k),
+        }
+    }
+
+    /// Where a sample reads per-slice state (`state_coord`): its screen coordinate, or
+    /// its light-space coordinate under half-angle slicing ([`CpuLightSpace::uv`]).
+    pub fn state_coord(&self, s: &CpuSample) -> DVec2 {
+        match &self.light {
+            Some(l) => l.uv(s.pos),
+            None => s.uv,
         }
     }
 
@@ -1111,7 +1122,9 @@ pub trait Plugin: Send + Sync + 'static {
     }
     /// The direction (world space, any length) a light travels along which this
     /// plugin's per-slice state sweeps under `params`, seen from `view`; `None` (the
-    /// default): the state travels with the eye. Where an enabled instance of a stack
+    /// default): the state travels with the eye. Asked only where the plugin's
+    /// [`SliceStateDecl::light`] is set (make the parameters that name a light
+    /// structural). Where an enabled instance of a stack
     /// returns one, the frame is sliced halfway between the view and that light
     /// ([`crate::slicing::HalfAngle`]) and every per-slice state lives in the light's
     /// space; the first such instance in stack order decides.

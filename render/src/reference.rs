@@ -49,7 +49,7 @@
 //! ray advances along n composites "under" as above, one advancing against it
 //! composites "over" (`acc = c + (1 − c.a)·acc`) and never stops early; the state
 //! texels' rays are the light's ([`crate::plugin::CpuLightSpace::ray`]) and a sample's
-//! `state_uv` is its light-space coordinate.
+//! state coordinate is its light-space one ([`crate::plugin::CpuView::state_coord`]).
 
 use std::ops::Range;
 use std::sync::Arc;
@@ -327,7 +327,7 @@ impl<'a> Prepared<'a> {
                 .iter()
                 .filter(|i| i.enabled)
                 .map(|i| (i.configured(), i.params.clone()))
-                .filter(|(p, _)| p.slice_state().is_some())
+                .filter(|(p, _)| p.slice_state().is_some_and(|st| st.light))
                 .collect(),
             passes_for: None,
         })
@@ -750,10 +750,6 @@ impl Frame {
             tex: (pos - self.box_min) / (self.box_max - self.box_min),
             ray_dir: dir,
             uv,
-            state_uv: match &self.view.light {
-                Some(l) => l.uv(pos),
-                None => uv,
-            },
             value: 0.0,
             step: self.spacing / dd.abs().max(1.0e-6),
             color: DVec4::ZERO,
@@ -801,7 +797,6 @@ impl Frame {
         k: u32,
     ) -> Option<(CpuSample, DVec4)> {
         let mut sample = self.make_sample(r.origin, r.dir, r.uv, k)?;
-        sample.state_uv = r.uv;
         if self.view.light.is_some() {
             sample.uv = self.screen_uv(sample.pos);
         }
@@ -848,7 +843,6 @@ impl Frame {
             tex: (r.origin - self.box_min) / (self.box_max - self.box_min),
             ray_dir: r.dir,
             uv: r.uv,
-            state_uv: r.uv,
             step: self.spacing / r.dir.dot(self.normal).abs().max(1.0e-6),
             slice: k,
             ..Default::default()

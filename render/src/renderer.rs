@@ -2782,7 +2782,9 @@ impl Renderer {
         spacing: f32,
     ) -> Result<FramePlan, SliceError> {
         let light = stack.iter().find_map(|(uid, plugin)| {
-            plugin.slice_state()?;
+            if !plugin.slice_state()?.light {
+                return None;
+            }
             plugin.slice_light(&self.instances.get(uid)?.params, view)
         });
         Ok(match light {

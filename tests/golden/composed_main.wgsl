@@ -128,9 +128,6 @@ struct Sample {
     ray_dir: vec3<f32>,
     // screen coordinate in [0,1]^2 (y down)
     uv: vec2<f32>,
-    // where per-slice state is read (`state_prev`): `uv`, or the coordinate in the
-    // light's space under half-angle slicing
-    state_uv: vec2<f32>,
     // normalised scalar value (set by the core sampler, may be replaced by `sample` hooks)
     value: f32,
     // world distance along the ray to the next slice plane
@@ -357,7 +354,10 @@ fn blinn_phong_factors(n: vec3<f32>, v: vec3<f32>, l: vec3<f32>, shininess: f32)
 }
 
 // Whether the frame is sliced halfway between the view and a light, with per-slice
-// state in the light's space (render/src/slicing.rs, `HalfAngle`).
+// state in the light's space (render/src/slicing.rs, `HalfAngle`). The composer keeps
+// the `half_angle` regions (here and in slice.wgsl) only for stacks whose per-slice
+// state may travel with a light (`SliceStateDecl::light`): a branch on a uniform costs
+// a CPU device both of its sides.
 fn half_angle() -> bool {
     return frame.slicing.w > 0.5;
 }
@@ -371,13 +371,28 @@ fn light_uv(p: vec3<f32>) -> vec2<f32> {
     return vec2<f32>(ndc.x * 0.5 + 0.5, 0.5 - ndc.y * 0.5);
 }
 
+// Where a sample reads per-slice state (`state_prev`): its screen coordinate, or
+// under half-angle slicing its coordinate in the light's space. A function rather
+// than a Sample field: a larger Sample costs the CPU device in every hook call.
+// Twin: CpuView::state_coord.
+fn state_coord(s: Sample) -> vec2<f32> {
+
+
+
+
+
+    return s.uv;
+}
+
 // State-uv units per world unit across the per-slice state's rays on slice k's plane:
 // the screen's at the slice's depth (Schott et al. 2009, eqs 12–15), or the light
 // space's under half-angle slicing. Twin: CpuView::state_uv_per_world.
 fn state_uv_per_world(k: u32) -> vec2<f32> {
-    if (half_angle()) {
-        return 0.5 / vec2<f32>(length(frame.state_rays[0].xyz), length(frame.state_rays[1].xyz));
-    }
+
+
+
+
+
     var depth = 1.0;
     if (frame.eye.w > 0.5) {
         depth = max(frame.box_max.w + f32(k) * frame.forward.w, 1.0e-9);
@@ -388,9 +403,11 @@ fn state_uv_per_world(k: u32) -> vec2<f32> {
 // The path length of the per-slice state's rays between two slice planes: the slice
 // spacing, or the light's step under half-angle slicing. Twin: CpuView::state_step.
 fn state_step() -> f32 {
-    if (half_angle()) {
-        return frame.light.w;
-    }
+
+
+
+
+
     return frame.forward.w;
 }
 fn shading_value(tex: vec3<f32>) -> f32 {
@@ -460,7 +477,7 @@ fn p1_tf1d_classify(s: Sample) -> Sample {
 
 fn p2_slice_shadow_shade(s: Sample) -> Sample {
     var o = s;
-    let occ = textureSampleLevel(p2_slice_shadow_state_prev, linear_clamp, s.state_uv, 0.0).r;
+    let occ = textureSampleLevel(p2_slice_shadow_state_prev, linear_clamp, state_coord(s), 0.0).r;
     o.color = vec4<f32>(s.color.rgb * (1.0 - p2_slice_shadow_params.strength * occ), s.color.a);
     return o;
 }
@@ -584,10 +601,6 @@ fn make_sample(pos: vec3<f32>, ray_dir: vec3<f32>, uv: vec2<f32>, slice: u32) ->
     s.tex = (pos - frame.box_min.xyz) / (frame.box_max.xyz - frame.box_min.xyz);
     s.ray_dir = ray_dir;
     s.uv = uv;
-    s.state_uv = uv;
-    if (half_angle()) {
-        s.state_uv = light_uv(pos);
-    }
     s.value = 0.0;
     // distance along this ray between two slice planes (a ray may advance against the
     // planes' normal under half-angle slicing)
@@ -869,7 +882,10 @@ fn slice_step(px: vec2<u32>, size: vec2<u32>, always: bool) -> Evaluated {
     let uv = (vec2<f32>(px) + 0.5) * frame.viewport.zw;
     let r = pixel_ray(uv);
     // front to back unless the ray meets the (half-angle) slices from behind
-    let ahead = dot(r.dir, frame.slicing.xyz) >= 0.0;
+    var ahead = true;
+
+
+
     let early = ahead && frame.counts.z != 0u && acc.a >= frame.settings.x;
     let t = slice_hit(r, slice_info.index);
     run_setup(r, uv);
@@ -915,14 +931,16 @@ fn cs_resolve(@builtin(global_invocation_id) gid: vec3<u32>) {
 // The ray of per-slice state coordinate `uv`: the pixel's, or under half-angle
 // slicing the light's ray through the state texel (origin upstream of the box).
 fn state_ray(uv: vec2<f32>) -> Ray {
-    if (!half_angle()) {
-        return pixel_ray(uv);
-    }
-    let ndc = vec2<f32>(uv.x * 2.0 - 1.0, 1.0 - uv.y * 2.0);
-    var r: Ray;
-    r.origin = (frame.state_rays * vec4<f32>(ndc, 0.0, 1.0)).xyz;
-    r.dir = frame.state_rays[2].xyz;
-    return r;
+
+
+
+
+
+
+
+
+
+    return pixel_ray(uv);
 }
 
 // The screen coordinate of a world point.
@@ -933,8 +951,9 @@ fn screen_uv(p: vec3<f32>) -> vec2<f32> {
 }
 
 // Sample of the current slice under a state texel (for per-slice state updates): at
-// its state coordinate (`s.state_uv`), and under half-angle slicing at the screen
-// coordinate of its point (`s.uv`).
+// its state coordinate, which is `s.uv`, or under half-angle slicing at the screen
+// coordinate of its point (`s.uv`; `state_coord(s)` is then its light-space
+// coordinate, the texel's `uv`).
 fn state_texel_sample(texel: vec2<u32>, state_size: vec2<u32>) -> Evaluated {
     let uv = (vec2<f32>(texel) + 0.5) / vec2<f32>(state_size);
     let r = state_ray(uv);
@@ -944,15 +963,15 @@ fn state_texel_sample(texel: vec2<u32>, state_size: vec2<u32>) -> Evaluated {
     var e: Evaluated;
     if (t < 0.0) {
         e.s = make_sample(r.origin, r.dir, uv, k);
-        e.s.state_uv = uv;
         e.c = vec4<f32>(0.0);
         return e;
     }
     var s = pixel_sample(r, t, uv, k);
-    s.state_uv = uv;
-    if (half_angle()) {
-        s.uv = screen_uv(s.pos);
-    }
+
+
+
+
+
     return evaluate(s);
 }
 
@@ -963,7 +982,8 @@ fn cs_update_2(@builtin(global_invocation_id) gid: vec3<u32>) {
         return;
     }
     let e = state_texel_sample(gid.xy, size);
-    textureStore(p2_slice_shadow_state_next, vec2<i32>(gid.xy), p2_slice_shadow_slice_update(e.s, e.c, e.s.state_uv));
+    let uv = (vec2<f32>(gid.xy) + 0.5) / vec2<f32>(size);
+    textureStore(p2_slice_shadow_state_next, vec2<i32>(gid.xy), p2_slice_shadow_slice_update(e.s, e.c, uv));
 }
 // The slice and every state update in one dispatch, each sample evaluated once
 // (used when every per-slice state has the eye buffer's resolution).
@@ -974,5 +994,5 @@ fn cs_slice_fused(@builtin(global_invocation_id) gid: vec3<u32>) {
         return;
     }
     let e = slice_step(gid.xy, size, true);
-    textureStore(p2_slice_shadow_state_next, vec2<i32>(gid.xy), p2_slice_shadow_slice_update(e.s, e.c, e.s.state_uv));
+    textureStore(p2_slice_shadow_state_next, vec2<i32>(gid.xy), p2_slice_shadow_slice_update(e.s, e.c, e.s.uv));
 }

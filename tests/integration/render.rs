@@ -1043,22 +1043,44 @@ fn atlas_runs_volume_passes_of(id: &str, least_passes: usize) {
 }
 
 /// An atlas of variants with per-slice state (TF variants under directional occlusion
-/// shading) is drawn in one submission, each tile's slices and state updates in turn
+/// shading, from the viewer, and in a second atlas from directional lights) is drawn in one submission, each tile's slices and state updates in turn
 /// with its state cleared first, and each tile equals its single render on a fresh
 /// renderer. Two such atlases encoded into the caller's one encoder give the same
 /// tiles, at another tile size too (the state follows the tile), and a design gallery
 /// on the DOS demo preset runs (it failed before session 49).
 #[test]
 fn an_atlas_of_per_slice_variants_matches_their_single_renders() {
-    let variants: Vec<_> = tf_variants(4)
-        .into_iter()
-        .map(|(camera, mut stack)| {
-            stack.push(instance("shade.dos"));
-            (camera, stack)
-        })
-        .collect();
+    // the viewer's light; or a directional light (half-angle slicing: two dispatches
+    // per slice, the state in the light's space), its vector varying by tile
+    let dos_variants = |directional: bool| -> Vec<_> {
+        tf_variants(4)
+            .into_iter()
+            .enumerate()
+            .map(|(i, (camera, mut stack))| {
+                let mut dos = instance("shade.dos");
+                if directional {
+                    dos.params
+                        .set("light", ParamValue::Enum("directional".into()));
+                    dos.params.set(
+                        "light_vector",
+                        ParamValue::Vec3([0.6, 0.5 - 0.3 * i as f32, 0.6]),
+                    );
+                }
+                stack.push(dos);
+                (camera, stack)
+            })
+            .collect()
+    };
     let s = settings(32, 32, Backend::Compute);
     let t = TargetFormat::Rgba32Float;
+    let lit = dos_variants(true);
+    let lit_tiles = atlas_tiles(&lit);
+    let mut r = Renderer::new(gpu(), demo()).unwrap();
+    let atlas = r.render_atlas(&lit_tiles, &s, t, 2).unwrap();
+    for (i, (camera, stack)) in lit.iter().enumerate() {
+        assert_tile_is_its_single_render(&atlas, i, &demo(), stack, *camera, &s, t);
+    }
+    let variants = dos_variants(false);
     let tiles = atlas_tiles(&variants);
     let mut r = Renderer::new(gpu(), demo()).unwrap();
     let atlas = r.render_atlas(&tiles, &s, t, 3).unwrap();

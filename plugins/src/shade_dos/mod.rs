@@ -102,6 +102,9 @@ pub struct Dos {
     pub format: StorageFormat,
     /// Per-channel visibility in the occlusion buffer (chromatic extinction).
     pub chromatic: bool,
+    /// `light: directional`: the buffer travels with a directional light (half-angle
+    /// slicing).
+    pub directional: bool,
 }
 
 impl Default for Dos {
@@ -110,6 +113,7 @@ impl Default for Dos {
             scale: 1.0,
             format: StorageFormat::R32Float,
             chromatic: false,
+            directional: false,
         }
     }
 }
@@ -186,9 +190,11 @@ impl Plugin for Dos {
             ParamSpec::float("la", "Ambient radiance L_a", 0.0, 4.0, 1.0),
             ParamSpec::float("ambient", "Ambient term", 0.0, 1.0, 0.0)
                 .with_doc("added to L_a·V so that fully occluded matter is not black"),
-            ParamSpec::enumeration("light", "Light", &LIGHTS, 0).with_doc(
-                "viewer: the paper's light at the eye (view-aligned slices); directional: soft shadows from a directional light, by half-angle slicing (Kniss et al. 2003)",
-            ),
+            ParamSpec::enumeration("light", "Light", &LIGHTS, 0)
+                .structural()
+                .with_doc(
+                    "viewer: the paper's light at the eye (view-aligned slices); directional: soft shadows from a directional light, by half-angle slicing (Kniss et al. 2003)",
+                ),
             ParamSpec::enumeration("light_space", "Light space", &["view", "world"], 0)
                 .shown_when("light", "directional")
                 .with_doc("view: x right, y up, z towards the viewer"),
@@ -241,6 +247,7 @@ impl Plugin for Dos {
             } else {
                 [1.0, 0.0, 0.0, 1.0]
             },
+            light: self.directional,
         })
     }
     fn slice_light(&self, params: &ParamValues, view: &vwb_render::camera::View) -> Option<glam::Vec3> {
@@ -261,6 +268,7 @@ impl Plugin for Dos {
             scale,
             format,
             chromatic,
+            directional: params.enumeration("light") == "directional",
         };
         (c != *self).then(|| Arc::new(c) as Arc<dyn Plugin>)
     }
@@ -317,7 +325,7 @@ pub struct DosTwin {
 
 impl CpuTwin for DosTwin {
     fn shade(&self, ctx: &CpuContext, s: &mut CpuSample) {
-        let state = ctx.state_prev(s.state_uv);
+        let state = ctx.state_prev(ctx.view.state_coord(s));
         let v = if self.extinction.is_some() {
             state.truncate()
         } else {

@@ -63,6 +63,24 @@ fn structural_parameters_choose_the_buffer() {
     assert_eq!(chromatic.lines().count(), achromatic.lines().count());
     assert!(chromatic.contains("params.extinction"));
     assert!(!achromatic.contains("params.extinction") && !achromatic.contains("fn chromatic_taps"));
+    // a directional light: the state travels with it, and the composed slice shader
+    // keeps its half-angle paths only then (line for line)
+    let limits = wgpu::Limits::default();
+    let compose = |d: &dyn Plugin| {
+        vwb_render::composer::compose(&[d], vwb_render::TargetFormat::Rgba16Float, &limits)
+            .unwrap()
+            .main
+            .source
+    };
+    let viewer = compose(&base);
+    assert!(!base.slice_state().unwrap().light);
+    let mut q = ParamValues::defaults(&base.params());
+    q.set("light", ParamValue::Enum("directional".into()));
+    let lit = base.configure(&q).unwrap();
+    assert!(lit.slice_state().unwrap().light);
+    let lit = compose(lit.as_ref());
+    assert_eq!(lit.lines().count(), viewer.lines().count());
+    assert!(lit.contains("return light_uv(s.pos);") && !viewer.contains("light_uv(s.pos)"));
 }
 
 /// Homogeneous slab seen head on, θ = 0: V(s) is the transmittance back to the front

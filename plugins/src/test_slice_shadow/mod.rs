@@ -36,6 +36,7 @@ impl Plugin for SliceShadow {
             format: StorageFormat::Rgba32Float,
             scale: 1.0,
             clear: [0.0; 4],
+            light: false,
         })
     }
     /// `shade` scales the colour only and `slice_update` reads only the contribution's
@@ -57,7 +58,7 @@ pub struct SliceShadowTwin {
 
 impl CpuTwin for SliceShadowTwin {
     fn shade(&self, ctx: &CpuContext, s: &mut CpuSample) {
-        let occ = ctx.state_prev(s.state_uv).x;
+        let occ = ctx.state_prev(ctx.view.state_coord(s)).x;
         let k = 1.0 - self.strength * occ;
         s.color = DVec4::new(s.color.x * k, s.color.y * k, s.color.z * k, s.color.w);
     }
