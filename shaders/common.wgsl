@@ -371,17 +371,17 @@ fn light_uv(p: vec3<f32>) -> vec2<f32> {
     return vec2<f32>(ndc.x * 0.5 + 0.5, 0.5 - ndc.y * 0.5);
 }
 
-// Where a sample reads per-slice state (`state_prev`): its screen coordinate, or
-// under half-angle slicing its coordinate in the light's space. A function rather
-// than a Sample field: a larger Sample costs the CPU device in every hook call.
-// Twin: CpuView::state_coord.
-fn state_coord(s: Sample) -> vec2<f32> {
+// Where a sample at world point `pos` and coordinate `uv` reads per-slice state
+// (`state_prev`; call it as `state_coord(s.pos, s.uv)`): `uv`, or under half-angle
+// slicing its coordinate in the light's space (in a state update `uv` is the state
+// texel's own coordinate either way). A function rather than a Sample field, since a
+// larger Sample costs the CPU device in every hook call. Twin: CpuView::state_coord.
+fn state_coord(pos: vec3<f32>, uv: vec2<f32>) -> vec2<f32> {
+    var c = uv;
     // half_angle: begin
-    if (half_angle()) {
-        return light_uv(s.pos);
-    }
+    c = select(uv, light_uv(pos), half_angle());
     // half_angle: end
-    return s.uv;
+    return c;
 }
 
 // State-uv units per world unit across the per-slice state's rays on slice k's plane:

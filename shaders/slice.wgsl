@@ -455,17 +455,9 @@ fn state_ray(uv: vec2<f32>) -> Ray {
     return pixel_ray(uv);
 }
 
-// The screen coordinate of a world point.
-fn screen_uv(p: vec3<f32>) -> vec2<f32> {
-    let c = frame.view_proj * vec4<f32>(p, 1.0);
-    let ndc = c.xy / c.w;
-    return vec2<f32>(ndc.x * 0.5 + 0.5, 0.5 - ndc.y * 0.5);
-}
-
-// Sample of the current slice under a state texel (for per-slice state updates): at
-// its state coordinate, which is `s.uv`, or under half-angle slicing at the screen
-// coordinate of its point (`s.uv`; `state_coord(s)` is then its light-space
-// coordinate, the texel's `uv`).
+// Sample of the current slice under a state texel (for per-slice state updates), with
+// the texel's coordinate as `s.uv` (the pixel's in view-aligned slicing; under
+// half-angle slicing a light-space coordinate, which `state_coord` also gives).
 fn state_texel_sample(texel: vec2<u32>, state_size: vec2<u32>) -> Evaluated {
     let uv = (vec2<f32>(texel) + 0.5) / vec2<f32>(state_size);
     let r = state_ray(uv);
@@ -478,13 +470,7 @@ fn state_texel_sample(texel: vec2<u32>, state_size: vec2<u32>) -> Evaluated {
         e.c = vec4<f32>(0.0);
         return e;
     }
-    var s = pixel_sample(r, t, uv, k);
-    // half_angle: begin
-    if (half_angle()) {
-        s.uv = screen_uv(s.pos);
-    }
-    // half_angle: end
-    return evaluate(s);
+    return evaluate(pixel_sample(r, t, uv, k));
 }
 
 //!UPDATES

@@ -1200,8 +1200,7 @@ pub fn compose_with(
                          let size = textureDimensions({p}state_next);\n    \
                          if (gid.x >= size.x || gid.y >= size.y) {{\n        return;\n    }}\n    \
                          let e = state_texel_sample(gid.xy, size);\n    \
-                         let uv = (vec2<f32>(gid.xy) + 0.5) / vec2<f32>(size);\n    \
-                         textureStore({p}state_next, vec2<i32>(gid.xy), {p}slice_update(e.s, e.c, uv));\n\
+                         textureStore({p}state_next, vec2<i32>(gid.xy), {p}slice_update(e.s, e.c, e.s.uv));\n\
                          }}"
                     );
                     m.push_generated("state update entry point", &code, Some(inst.input_index));

@@ -27,7 +27,7 @@
 //!
 //! Names the plugin can use: `params.<key>` (its uniform parameters), each declared
 //! resource by name, `state_prev` (its state of the previous slice, a texture_2d
-//! read with `linear_clamp` at `state_coord(s)`), its pre-pass target by name (a texture_3d),
+//! read with `linear_clamp` at `state_coord(s.pos, s.uv)`), its pre-pass target by name (a texture_3d),
 //! and everything in `shaders/common.wgsl`.
 
 use std::borrow::Cow;
@@ -235,9 +235,9 @@ impl StorageFormat {
 }
 
 /// Per-slice state: a pair of 2D textures swapped after each slice. The plugin reads
-/// the previous one as `state_prev` (at `state_coord(s)`) and returns the next texel from
+/// the previous one as `state_prev` (at `state_coord(s.pos, s.uv)`) and returns the next texel from
 /// `slice_update`. Its resolution is the eye buffer's times `scale`. It lives in
-/// eye-buffer space (`state_coord(s)` = `s.uv`), or, when a plugin of the stack names a
+/// eye-buffer space (`state_coord(s.pos, s.uv)` = `s.uv`), or, when a plugin of the stack names a
 /// light ([`Plugin::slice_light`]), in the light's space under half-angle slicing
 /// ([`crate::slicing::HalfAngle`]; `state_uv_per_world` and `state_step` in
 /// shaders/common.wgsl, [`CpuView::state_uv_per_world`] and [`CpuView::state_step`]

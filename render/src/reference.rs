@@ -9,9 +9,9 @@
 //! the unprojection of NDC `(2·uv.x − 1, 1 − 2·uv.y)` at depth 0 towards depth 1.
 //! The camera's f32 [`View`](crate::camera::View) (view and projection matrices, eye,
 //! forward) is converted to f64 and the view-projection is multiplied and inverted in
-//! f64; the slice planes are those of [`SlicePlan`] (f32 `d0` and `Δs`, as uploaded
-//! to the GPU, converted to f64), plane k at eye depth `d_k = d0 + k·Δs` along
-//! `forward`. A ray meets plane k at `t = (d_k − (origin − eye)·forward) / (dir·forward)`;
+//! f64; the slice planes are those of [`SlicePlan`](crate::slicing::SlicePlan) (f32
+//! `d0` and `Δs`, as uploaded to the GPU, converted to f64), plane k at eye depth
+//! `d_k = d0 + k·Δs` along `forward`. A ray meets plane k at `t = (d_k − (origin − eye)·forward) / (dir·forward)`;
 //! the point is dropped when `t < 0` or it lies outside the volume box (faces
 //! included). Each sample runs the hook chain of `evaluate()`:
 //! clip (every twin; one `false` drops the sample) → value = trilinear scalar
@@ -44,12 +44,13 @@
 //! storage format (fp16 for rgba16float).
 //!
 //! Where a plugin with per-slice state names a light
-//! ([`Plugin::slice_light`](crate::plugin::Plugin::slice_light)), the planes are those of
-//! [`SlicePlan::half_angle`] and `forward` above reads as their normal n: a pixel whose
-//! ray advances along n composites "under" as above, one advancing against it
-//! composites "over" (`acc = c + (1 − c.a)·acc`) and never stops early; the state
-//! texels' rays are the light's ([`crate::plugin::CpuLightSpace::ray`]) and a sample's
-//! state coordinate is its light-space one ([`crate::plugin::CpuView::state_coord`]).
+//! ([`Plugin::slice_light`](crate::plugin::Plugin::slice_light)), the planes are those
+//! of [`SlicePlan::half_angle`](crate::slicing::SlicePlan::half_angle) and `forward`
+//! above reads as their normal n: a pixel whose ray advances along n composites
+//! "under" as above, one advancing against it composites "over"
+//! (`acc = c + (1 − c.a)·acc`) and never stops early; the state texels' rays are the
+//! light's ([`crate::plugin::CpuLightSpace::ray`]) and a sample's state coordinate is
+//! its light-space one ([`crate::plugin::CpuView::state_coord`]).
 
 use std::ops::Range;
 use std::sync::Arc;
@@ -65,7 +66,7 @@ use crate::plugin::{
     StorageFormat,
 };
 use crate::renderer::{Backend, FrameSettings};
-use crate::slicing::{SliceError, SlicePlan, VolumeBox};
+use crate::slicing::{FramePlan, SliceError, VolumeBox};
 use crate::volume::Volume;
 
 /// Largest image side the reference renderer accepts.
@@ -498,7 +499,7 @@ impl Prepared<'_> {
                             let uv = DVec2::new((tx + 0.5) / sw as f64, (ty + 0.5) / sh as f64);
                             let r = frame.state_ray(ctx, &self.twins, uv);
                             let (mut s, c) = frame
-                                .state_sample(ctx, &self.twins, &states, &r, k)
+                                .slice_sample(ctx, &self.twins, &states, &r, k)
                                 .unwrap_or_else(|| (frame.missed_sample(&r, k), DVec4::ZERO));
                             s.ray_record = r.records.get(i).copied().unwrap_or(DVec4::ZERO);
                             round_state(self.twins[i].slice_update(&ctx_i, &s, c, uv), decl.format)
@@ -581,7 +582,6 @@ struct Frame {
     setup: bool,
     /// Unit normal of the slice planes: `forward`, or the half-angle axis.
     normal: DVec3,
-    view_proj: DMat4,
 }
 
 /// A pixel's ray (`pixel_ray`) and its twins' `setup` records, in stack order (empty
@@ -606,13 +606,8 @@ impl Frame {
         let (w, h) = (settings.width, settings.height);
         let view = settings.camera.view(w as f32 / h as f32);
         let vbox = VolumeBox::new(volume.dims, volume.spacing);
-        let (plan, half) = match light(&view) {
-            Some(l) => {
-                let (plan, half) = SlicePlan::half_angle(&view, &vbox, spacing_voxels, l)?;
-                (plan, Some(half))
-            }
-            None => (SlicePlan::new(&view, &vbox, spacing_voxels)?, None),
-        };
+        let FramePlan { slices: plan, half } =
+            FramePlan::new(&view, &vbox, spacing_voxels, light(&view))?;
         let view_proj: DMat4 = view.proj.as_dmat4() * view.view.as_dmat4();
         let early = match (settings.backend, settings.early_termination) {
             (Backend::Compute, Some(t)) => Some((t as f64, 1)),
@@ -639,7 +634,6 @@ impl Frame {
             },
             setup: false,
             normal: plan.forward.as_dvec3(),
-            view_proj,
         })
     }
 
@@ -650,9 +644,23 @@ impl Frame {
             return self.pixel_ray(ctx, twins, uv);
         };
         let (origin, dir) = l.ray(uv);
+        self.traced(ctx, twins, origin, dir, origin, uv)
+    }
+
+    /// The ray from `origin` along `dir` with coordinate `uv`, and its twins' `setup`
+    /// records for the same ray starting at `setup_origin`.
+    fn traced(
+        &self,
+        ctx: &CpuContext,
+        twins: &[Box<dyn CpuTwin>],
+        origin: DVec3,
+        dir: DVec3,
+        setup_origin: DVec3,
+        uv: DVec2,
+    ) -> PixelRay {
         let records = if self.setup {
             let ray = CpuRay {
-                origin,
+                origin: setup_origin,
                 dir,
                 uv,
                 size: DVec2::new(self.width as f64, self.height as f64),
@@ -667,13 +675,6 @@ impl Frame {
             uv,
             records,
         }
-    }
-
-    /// The screen coordinate of a world point (`screen_uv`).
-    fn screen_uv(&self, p: DVec3) -> DVec2 {
-        let c = self.view_proj * p.extend(1.0);
-        let ndc = c.truncate().truncate() / c.w;
-        DVec2::new(ndc.x * 0.5 + 0.5, 0.5 - ndc.y * 0.5)
     }
 
     /// Whether the ray along `dir` meets the slices front to back (else it composites
@@ -785,55 +786,14 @@ impl Frame {
         ))
     }
 
-    /// `state_texel_sample`: slice `k` on the state ray `r` through all hooks, read at
-    /// the ray's state coordinate and, under half-angle slicing, at the screen
-    /// coordinate of its point.
-    fn state_sample(
-        &self,
-        ctx: &CpuContext,
-        twins: &[Box<dyn CpuTwin>],
-        states: &[Option<StateImage>],
-        r: &PixelRay,
-        k: u32,
-    ) -> Option<(CpuSample, DVec4)> {
-        let mut sample = self.make_sample(r.origin, r.dir, r.uv, k)?;
-        if self.view.light.is_some() {
-            sample.uv = self.screen_uv(sample.pos);
-        }
-        Some(evaluate(
-            ctx,
-            twins,
-            states,
-            &r.records,
-            sample,
-            self.ratio(r.dir),
-        ))
-    }
-
     /// The ray through `uv` (`pixel_ray`) and, where the stack has a `setup` hook, each
     /// twin's record for it in stack order (`run_setup`). The ray `setup` sees starts at
     /// the eye, or on the plane through the eye for an orthographic camera, as on the
     /// GPU.
     fn pixel_ray(&self, ctx: &CpuContext, twins: &[Box<dyn CpuTwin>], uv: DVec2) -> PixelRay {
         let (origin, dir) = self.ray(uv);
-        let records = if self.setup {
-            let back = (origin - self.eye).dot(self.forward) / dir.dot(self.forward);
-            let ray = CpuRay {
-                origin: origin - dir * back,
-                dir,
-                uv,
-                size: DVec2::new(self.width as f64, self.height as f64),
-            };
-            twins.iter().map(|t| t.setup(ctx, &ray)).collect()
-        } else {
-            Vec::new()
-        };
-        PixelRay {
-            origin,
-            dir,
-            uv,
-            records,
-        }
+        let back = (origin - self.eye).dot(self.forward) / dir.dot(self.forward);
+        self.traced(ctx, twins, origin, dir, origin - dir * back, uv)
     }
 
     /// What `state_texel_sample` passes on where the ray `r` misses slice `k`.

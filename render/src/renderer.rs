@@ -224,11 +224,16 @@ struct FrameUniform {
 const SLICE_INFO_STRIDE: u64 = 256;
 /// A colour target of `format` that blends [`UNDER`].
 fn under_target(format: TargetFormat) -> wgpu::ColorTargetState {
+    blend_target(format, UNDER)
+}
+
+/// A colour target of `format` that blends colour and alpha by `blend`.
+fn blend_target(format: TargetFormat, blend: wgpu::BlendComponent) -> wgpu::ColorTargetState {
     wgpu::ColorTargetState {
         format: format.wgpu(),
         blend: Some(wgpu::BlendState {
-            color: UNDER,
-            alpha: UNDER,
+            color: blend,
+            alpha: blend,
         }),
         write_mask: wgpu::ColorWrites::ALL,
     }
@@ -280,14 +285,7 @@ fn raster_pipeline(
             module,
             entry_point: Some(fragment),
             compilation_options: Default::default(),
-            targets: &[Some(wgpu::ColorTargetState {
-                format: target.wgpu(),
-                blend: Some(wgpu::BlendState {
-                    color: blend,
-                    alpha: blend,
-                }),
-                write_mask: wgpu::ColorWrites::ALL,
-            })],
+            targets: &[Some(blend_target(target, blend))],
         }),
         multiview_mask: None,
         cache: None,
@@ -2787,19 +2785,7 @@ impl Renderer {
             }
             plugin.slice_light(&self.instances.get(uid)?.params, view)
         });
-        Ok(match light {
-            None => FramePlan {
-                slices: SlicePlan::new(view, vbox, spacing)?,
-                half: None,
-            },
-            Some(l) => {
-                let (slices, half) = SlicePlan::half_angle(view, vbox, spacing, l)?;
-                FramePlan {
-                    slices,
-                    half: Some(half),
-                }
-            }
-        })
+        FramePlan::new(view, vbox, spacing, light)
     }
 
     /// The part of the box whose samples this renderer takes, and the axes whose max

@@ -142,29 +142,47 @@ impl SlicePlan {
         if !(spacing_voxels.is_finite() && spacing_voxels > 0.0) {
             return Err(SliceError::BadSpacing(spacing_voxels));
         }
-        let f = view.forward;
         let spacing = spacing_voxels * vbox.voxel;
-        let depths = vbox.corners().map(|c| (c - view.eye).dot(f));
+        Self::across(
+            view,
+            vbox,
+            spacing_voxels,
+            view.forward,
+            spacing,
+            Some(view.near),
+        )
+    }
+
+    /// Planes normal to `n`, `spacing` world units apart, anchored at the box centre
+    /// and covering the box (from eye depth `near` on, where given).
+    fn across(
+        view: &View,
+        vbox: &VolumeBox,
+        spacing_voxels: f32,
+        n: Vec3,
+        spacing: f32,
+        near: Option<f32>,
+    ) -> Result<Self, SliceError> {
+        let depths = vbox.corners().map(|c| (c - view.eye).dot(n));
         let dmin = depths.iter().copied().fold(f32::INFINITY, f32::min);
         let dmax = depths.iter().copied().fold(f32::NEG_INFINITY, f32::max);
-        let start = dmin.max(view.near);
-        let dc = (vbox.centre() - view.eye).dot(f);
+        let start = near.map_or(dmin, |near| dmin.max(near));
+        let dc = (vbox.centre() - view.eye).dot(n);
         let m0 = ((start - dc) / spacing).ceil() as f64;
         let m1 = ((dmax - dc) / spacing).floor() as f64;
-        let n = m1 - m0 + 1.0;
-        if n > MAX_SLICES as f64 {
+        let count = m1 - m0 + 1.0;
+        if count > MAX_SLICES as f64 {
             return Err(SliceError::TooMany {
                 spacing: spacing_voxels,
-                count: n as u64,
+                count: count as u64,
             });
         }
-        let count = if n >= 1.0 { n as u32 } else { 0 };
         Ok(Self {
             eye: view.eye,
-            forward: f,
+            forward: n,
             spacing,
             d0: dc + m0 as f32 * spacing,
-            count,
+            count: if count >= 1.0 { count as u32 } else { 0 },
         })
     }
 
@@ -189,28 +207,7 @@ impl SlicePlan {
             return Err(SliceError::BadSpacing(spacing_voxels));
         }
         let h = HalfAngle::new(view, vbox, light, spacing_voxels * vbox.voxel);
-        let spacing = h.plane_spacing;
-        let depths = vbox.corners().map(|c| (c - view.eye).dot(h.normal));
-        let dmin = depths.iter().copied().fold(f32::INFINITY, f32::min);
-        let dmax = depths.iter().copied().fold(f32::NEG_INFINITY, f32::max);
-        let dc = (vbox.centre() - view.eye).dot(h.normal);
-        let m0 = ((dmin - dc) / spacing).ceil() as f64;
-        let m1 = ((dmax - dc) / spacing).floor() as f64;
-        let n = m1 - m0 + 1.0;
-        if n > MAX_SLICES as f64 {
-            return Err(SliceError::TooMany {
-                spacing: spacing_voxels,
-                count: n as u64,
-            });
-        }
-        let count = if n >= 1.0 { n as u32 } else { 0 };
-        let plan = Self {
-            eye: view.eye,
-            forward: h.normal,
-            spacing,
-            d0: dc + m0 as f32 * spacing,
-            count,
-        };
+        let plan = Self::across(view, vbox, spacing_voxels, h.normal, h.plane_spacing, None)?;
         Ok((plan, h))
     }
 
@@ -252,6 +249,29 @@ pub struct FramePlan {
 }
 
 impl FramePlan {
+    /// The slices of a frame of `view`: view-aligned, or half-angle for a light that
+    /// travels along `light` ([`SlicePlan::half_angle`]).
+    pub fn new(
+        view: &View,
+        vbox: &VolumeBox,
+        spacing_voxels: f32,
+        light: Option<Vec3>,
+    ) -> Result<Self, SliceError> {
+        Ok(match light {
+            None => Self {
+                slices: SlicePlan::new(view, vbox, spacing_voxels)?,
+                half: None,
+            },
+            Some(l) => {
+                let (slices, half) = SlicePlan::half_angle(view, vbox, spacing_voxels, l)?;
+                Self {
+                    slices,
+                    half: Some(half),
+                }
+            }
+        })
+    }
+
     /// World distance between samples along the view's centre ray (what plugins that
     /// depend on the slice spacing are given): the planes' spacing for view-aligned
     /// slices, the light's step (the same along the view's centre ray) for half-angle
@@ -507,19 +527,8 @@ mod tests {
         let vbox = unit_box();
         let view = Camera::default().view(1.0);
         let v = view.forward;
-        let plan = |light: Option<Vec3>, view: &View| match light {
-            None => FramePlan {
-                slices: SlicePlan::new(view, &vbox, 1.0).unwrap(),
-                half: None,
-            },
-            Some(l) => {
-                let (slices, half) = SlicePlan::half_angle(view, &vbox, 1.0, l).unwrap();
-                FramePlan {
-                    slices,
-                    half: Some(half),
-                }
-            }
-        };
+        let plan =
+            |light: Option<Vec3>, view: &View| FramePlan::new(view, &vbox, 1.0, light).unwrap();
         assert_eq!(plan(None, &view).back_to_front(&view, &vbox), Some(false));
         assert_eq!(
             plan(Some(v + view.up), &view).back_to_front(&view, &vbox),

@@ -371,17 +371,17 @@ fn light_uv(p: vec3<f32>) -> vec2<f32> {
     return vec2<f32>(ndc.x * 0.5 + 0.5, 0.5 - ndc.y * 0.5);
 }
 
-// Where a sample reads per-slice state (`state_prev`): its screen coordinate, or
-// under half-angle slicing its coordinate in the light's space. A function rather
-// than a Sample field: a larger Sample costs the CPU device in every hook call.
-// Twin: CpuView::state_coord.
-fn state_coord(s: Sample) -> vec2<f32> {
+// Where a sample at world point `pos` and coordinate `uv` reads per-slice state
+// (`state_prev`; call it as `state_coord(s.pos, s.uv)`): `uv`, or under half-angle
+// slicing its coordinate in the light's space (in a state update `uv` is the state
+// texel's own coordinate either way). A function rather than a Sample field, since a
+// larger Sample costs the CPU device in every hook call. Twin: CpuView::state_coord.
+fn state_coord(pos: vec3<f32>, uv: vec2<f32>) -> vec2<f32> {
+    var c = uv;
 
 
 
-
-
-    return s.uv;
+    return c;
 }
 
 // State-uv units per world unit across the per-slice state's rays on slice k's plane:
@@ -477,7 +477,7 @@ fn p1_tf1d_classify(s: Sample) -> Sample {
 
 fn p2_slice_shadow_shade(s: Sample) -> Sample {
     var o = s;
-    let occ = textureSampleLevel(p2_slice_shadow_state_prev, linear_clamp, state_coord(s), 0.0).r;
+    let occ = textureSampleLevel(p2_slice_shadow_state_prev, linear_clamp, state_coord(s.pos, s.uv), 0.0).r;
     o.color = vec4<f32>(s.color.rgb * (1.0 - p2_slice_shadow_params.strength * occ), s.color.a);
     return o;
 }
@@ -943,17 +943,9 @@ fn state_ray(uv: vec2<f32>) -> Ray {
     return pixel_ray(uv);
 }
 
-// The screen coordinate of a world point.
-fn screen_uv(p: vec3<f32>) -> vec2<f32> {
-    let c = frame.view_proj * vec4<f32>(p, 1.0);
-    let ndc = c.xy / c.w;
-    return vec2<f32>(ndc.x * 0.5 + 0.5, 0.5 - ndc.y * 0.5);
-}
-
-// Sample of the current slice under a state texel (for per-slice state updates): at
-// its state coordinate, which is `s.uv`, or under half-angle slicing at the screen
-// coordinate of its point (`s.uv`; `state_coord(s)` is then its light-space
-// coordinate, the texel's `uv`).
+// Sample of the current slice under a state texel (for per-slice state updates), with
+// the texel's coordinate as `s.uv` (the pixel's in view-aligned slicing; under
+// half-angle slicing a light-space coordinate, which `state_coord` also gives).
 fn state_texel_sample(texel: vec2<u32>, state_size: vec2<u32>) -> Evaluated {
     let uv = (vec2<f32>(texel) + 0.5) / vec2<f32>(state_size);
     let r = state_ray(uv);
@@ -966,13 +958,7 @@ fn state_texel_sample(texel: vec2<u32>, state_size: vec2<u32>) -> Evaluated {
         e.c = vec4<f32>(0.0);
         return e;
     }
-    var s = pixel_sample(r, t, uv, k);
-
-
-
-
-
-    return evaluate(s);
+    return evaluate(pixel_sample(r, t, uv, k));
 }
 
 @compute @workgroup_size(8, 8, 1)
@@ -982,8 +968,7 @@ fn cs_update_2(@builtin(global_invocation_id) gid: vec3<u32>) {
         return;
     }
     let e = state_texel_sample(gid.xy, size);
-    let uv = (vec2<f32>(gid.xy) + 0.5) / vec2<f32>(size);
-    textureStore(p2_slice_shadow_state_next, vec2<i32>(gid.xy), p2_slice_shadow_slice_update(e.s, e.c, uv));
+    textureStore(p2_slice_shadow_state_next, vec2<i32>(gid.xy), p2_slice_shadow_slice_update(e.s, e.c, e.s.uv));
 }
 // The slice and every state update in one dispatch, each sample evaluated once
 // (used when every per-slice state has the eye buffer's resolution).

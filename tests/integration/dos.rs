@@ -60,21 +60,28 @@ fn both_backends_match_the_twin_and_each_other() {
             .set("buffer_format", ParamValue::Enum(format.into()));
         d.params.set("buffer_scale", ParamValue::Enum(scale.into()));
         let stack = vec![instance("classify.tf1d"), d];
-        let mut images = Vec::new();
-        for backend in [Backend::Compute, Backend::Raster] {
-            let s = settings(48, 48, backend);
-            let (px, reference) = gpu_and_reference(demo(), &stack, TargetFormat::Rgba32Float, &s);
-            let rms = delta_e_rms(&px, &reference, 48, 48);
-            eprintln!(
-                "dos {kernel} {distance} {format} ×{scale} κ {extinction:?} {backend:?}: ΔE RMS vs twin {rms:.4}"
-            );
-            assert!(rms < 0.5, "{kernel} {backend:?}: {rms}");
-            images.push(px);
-        }
-        let (rms, _) = diff(&rgb(&images[0]), &rgb(&images[1]));
-        eprintln!("dos compute vs raster: RGB RMS {rms:.4}");
-        assert!(rms < 0.01, "{rms}");
+        backends_match_the_twin_and_each_other(
+            &stack,
+            &format!("dos {kernel} {distance} {format} ×{scale} κ {extinction:?}"),
+        );
     }
+}
+
+/// The demo under `stack` at 48² on both backends: each within 0.5 ΔE*uv RMS of the
+/// CPU twin, and the two within 0.01 RGB RMS of each other.
+fn backends_match_the_twin_and_each_other(stack: &[PluginInstance], what: &str) {
+    let mut images = Vec::new();
+    for backend in [Backend::Compute, Backend::Raster] {
+        let s = settings(48, 48, backend);
+        let (px, reference) = gpu_and_reference(demo(), stack, TargetFormat::Rgba32Float, &s);
+        let rms = delta_e_rms(&px, &reference, 48, 48);
+        eprintln!("{what} {backend:?}: ΔE RMS vs twin {rms:.4}");
+        assert!(rms < 0.5, "{what} {backend:?}: {rms}");
+        images.push(px);
+    }
+    let (rms, _) = diff(&rgb(&images[0]), &rgb(&images[1]));
+    eprintln!("{what}: compute vs raster RGB RMS {rms:.4}");
+    assert!(rms < 0.01, "{what}: {rms}");
 }
 
 /// The compute backend runs a slice and the occlusion update in one dispatch, each
@@ -270,44 +277,10 @@ fn chromatic_extinction_colours_the_shadow() {
 /// σt-at-the-tip approximations on top).
 #[test]
 fn dos_converges_towards_its_monte_carlo_reference() {
-    use vwb_plugins::shade_dos::mc::{McOptions, render_mc};
-    let (vol, tf) = block_and_wall(24, [8..16, 8..16, 4..8], 14..18, [0.9, 0.8, 0.7, 0.3]);
-    let mut s = ortho_axis(32, 32, Backend::Compute);
-    s.camera.yaw_deg += 10.0;
-    s.camera.pitch_deg += 8.0;
-    let mut r = Renderer::new(gpu(), vol.clone()).unwrap();
-    for theta in [0.0, 60.0] {
-        let mut d = dos(theta);
-        d.params
-            .set("buffer_format", ParamValue::Enum("fp32".into()));
-        d.params.set("grid", ParamValue::Int(8));
-        let stack = vec![tf.clone(), d];
-        let opts = McOptions {
-            directions: 64,
-            eye_step: 0.25,
-            cone_step: 0.5,
-            ..Default::default()
-        };
-        let mc = render_mc(&vol, &stack, &s, &opts, None).unwrap();
-        let mut errors = Vec::new();
-        for spacing in [1.0, 0.5, 0.25] {
-            s.slice_spacing = spacing;
-            let px = render(&mut r, &stack, TargetFormat::Rgba32Float, &s);
-            errors.push(delta_e_rms(&px, &mc.pixels, 32, 32));
-        }
-        eprintln!(
-            "θ {theta}: DOS vs Monte Carlo ΔE RMS at spacing 1 / 0.5 / 0.25: {errors:.3?} (MC std error RMS {:.5})",
-            mc.rms_std_error()
-        );
-        // θ = 0: first order (measured 6.2 / 3.2 / 1.65). θ = 60°: slower (10.4 / 7.8 /
-        // 6.5): repeated averaging over per-slice disks of radius d·tan θ spreads the
-        // occlusion like a random walk (∝ √(k)·d), narrower than the cone (∝ k·d)
-        let (ratio, bound) = if theta == 0.0 { (0.6, 2.0) } else { (0.9, 7.5) };
-        assert!(
-            errors[1] < ratio * errors[0] && errors[2] < ratio * errors[1] && errors[2] < bound,
-            "θ {theta}: {errors:?}"
-        );
-    }
+    // θ = 0: first order (measured 6.2 / 3.2 / 1.65). θ = 60°: slower (10.4 / 7.8 /
+    // 6.5): repeated averaging over per-slice disks of radius d·tan θ spreads the
+    // occlusion like a random walk (∝ √(k)·d), narrower than the cone (∝ k·d)
+    converges_towards_monte_carlo("viewer", dos, [(0.6, 2.0), (0.9, 7.5)]);
 }
 
 /// With a directional light the Monte-Carlo reference integrates the cone around the
@@ -315,14 +288,33 @@ fn dos_converges_towards_its_monte_carlo_reference() {
 /// viewer's do towards theirs: first order at θ = 0, more slowly at θ = 60°.
 #[test]
 fn a_directional_light_converges_towards_its_monte_carlo_reference() {
+    // measured: θ = 0: 6.4 / 3.4 / 2.0 (the viewer's light: 6.2 / 3.2 / 1.65; the
+    // light-space buffer is resampled once more per slice); θ = 60°: 10.6 / 8.1 / 7.0
+    // (the viewer's 10.4 / 7.8 / 6.5)
+    converges_towards_monte_carlo(
+        "directional light",
+        |theta| dos_lit(theta, [-0.7, 0.4, 1.0]),
+        [(0.65, 2.5), (0.9, 7.5)],
+    );
+}
+
+/// DOS (`dos_at(θ)`, 8 × 8 grid, fp32 buffer) on the block-and-wall phantom at 32²
+/// against its Monte-Carlo reference at slice spacings 1, ½ and ¼, at θ = 0 and 60°:
+/// each halving cuts the error by `bounds[i].0` at least, and the finest error is under
+/// `bounds[i].1`.
+fn converges_towards_monte_carlo(
+    what: &str,
+    dos_at: impl Fn(f32) -> PluginInstance,
+    bounds: [(f64, f64); 2],
+) {
     use vwb_plugins::shade_dos::mc::{McOptions, render_mc};
     let (vol, tf) = block_and_wall(24, [8..16, 8..16, 4..8], 14..18, [0.9, 0.8, 0.7, 0.3]);
     let mut s = ortho_axis(32, 32, Backend::Compute);
     s.camera.yaw_deg += 10.0;
     s.camera.pitch_deg += 8.0;
     let mut r = Renderer::new(gpu(), vol.clone()).unwrap();
-    for theta in [0.0, 60.0] {
-        let mut d = dos_lit(theta, [-0.7, 0.4, 1.0]);
+    for (theta, (ratio, bound)) in [0.0, 60.0].into_iter().zip(bounds) {
+        let mut d = dos_at(theta);
         d.params
             .set("buffer_format", ParamValue::Enum("fp32".into()));
         d.params.set("grid", ParamValue::Int(8));
@@ -341,20 +333,12 @@ fn a_directional_light_converges_towards_its_monte_carlo_reference() {
             errors.push(delta_e_rms(&px, &mc.pixels, 32, 32));
         }
         eprintln!(
-            "directional light, θ {theta}: DOS vs Monte Carlo ΔE RMS at spacing 1 / 0.5 / 0.25: {errors:.3?} (MC std error RMS {:.5})",
+            "{what}, θ {theta}: DOS vs Monte Carlo ΔE RMS at spacing 1 / 0.5 / 0.25: {errors:.3?} (MC std error RMS {:.5})",
             mc.rms_std_error()
         );
-        // measured: θ = 0: 6.4 / 3.4 / 2.0 (the viewer's light: 6.2 / 3.2 / 1.65; the
-        // light-space buffer is resampled once more per slice); θ = 60°: 10.6 / 8.1 /
-        // 7.0 (the viewer's 10.4 / 7.8 / 6.5)
-        let (ratio, bound) = if theta == 0.0 {
-            (0.65, 2.5)
-        } else {
-            (0.9, 7.5)
-        };
         assert!(
             errors[1] < ratio * errors[0] && errors[2] < ratio * errors[1] && errors[2] < bound,
-            "θ {theta}: {errors:?}"
+            "{what}, θ {theta}: {errors:?}"
         );
     }
 }
@@ -418,20 +402,10 @@ fn a_directional_light_slices_half_angle_and_both_backends_match_the_twin() {
         d.params.set("kernel", ParamValue::Enum(kernel.into()));
         d.params.set("buffer_scale", ParamValue::Enum(scale.into()));
         let stack = vec![instance("classify.tf1d"), d];
-        let mut images = Vec::new();
-        for backend in [Backend::Compute, Backend::Raster] {
-            let s = settings(48, 48, backend);
-            let (px, reference) = gpu_and_reference(demo(), &stack, TargetFormat::Rgba32Float, &s);
-            let rms = delta_e_rms(&px, &reference, 48, 48);
-            eprintln!(
-                "dos light {towards:?} ({space}) {kernel} ×{scale} {backend:?}: ΔE RMS vs twin {rms:.4}"
-            );
-            assert!(rms < 0.5, "{towards:?} {backend:?}: {rms}");
-            images.push(px);
-        }
-        let (rms, _) = diff(&rgb(&images[0]), &rgb(&images[1]));
-        eprintln!("dos light {towards:?}: compute vs raster RGB RMS {rms:.4}");
-        assert!(rms < 0.01, "{rms}");
+        backends_match_the_twin_and_each_other(
+            &stack,
+            &format!("dos light {towards:?} ({space}) {kernel} ×{scale}"),
+        );
     }
 }
 

@@ -14,12 +14,12 @@ fn shade(s: Sample) -> Sample {
     var o = s;
     // chromatic: begin
     if (params.extinction == 1u) {
-        let rgb = textureSampleLevel(state_prev, linear_clamp, state_coord(s), 0.0).rgb;
+        let rgb = textureSampleLevel(state_prev, linear_clamp, state_coord(s.pos, s.uv), 0.0).rgb;
         o.color = vec4<f32>(s.color.rgb * (params.la * rgb + params.ambient), s.color.a);
         return o;
     }
     // chromatic: end
-    let v = textureSampleLevel(state_prev, linear_clamp, state_coord(s), 0.0).r;
+    let v = textureSampleLevel(state_prev, linear_clamp, state_coord(s.pos, s.uv), 0.0).r;
     o.color = vec4<f32>(s.color.rgb * (params.la * v + params.ambient), s.color.a);
     return o;
 }

@@ -80,7 +80,8 @@ fn structural_parameters_choose_the_buffer() {
     assert!(lit.slice_state().unwrap().light);
     let lit = compose(lit.as_ref());
     assert_eq!(lit.lines().count(), viewer.lines().count());
-    assert!(lit.contains("return light_uv(s.pos);") && !viewer.contains("light_uv(s.pos)"));
+    assert!(lit.contains("c = select(uv, light_uv(pos), half_angle());"));
+    assert!(!viewer.contains("light_uv(pos)"));
 }
 
 /// Homogeneous slab seen head on, θ = 0: V(s) is the transmittance back to the front

@@ -6,7 +6,7 @@
 
 fn shade(s: Sample) -> Sample {
     var o = s;
-    let occ = textureSampleLevel(state_prev, linear_clamp, state_coord(s), 0.0).r;
+    let occ = textureSampleLevel(state_prev, linear_clamp, state_coord(s.pos, s.uv), 0.0).r;
     o.color = vec4<f32>(s.color.rgb * (1.0 - params.strength * occ), s.color.a);
     return o;
 }
