@@ -139,7 +139,8 @@ pub struct Variant {
     /// `render.early_termination`, `render.skipping` (true, false),
     /// `render.occupied_proxy` (true, false),
     /// `render.volume_format` (auto, r32float, r16float, r16unorm), `camera.yaw_deg`,
-    /// `camera.pitch_deg`, `camera.distance`.
+    /// `camera.pitch_deg`, `camera.distance`, `camera.fov_y_deg` (a perspective
+    /// camera's vertical field of view).
     #[serde(default)]
     pub set: BTreeMap<String, SetValue>,
     /// (from, to): the first instance of plugin `from` is replaced by plugin `to` with
@@ -340,8 +341,8 @@ pub enum SetValue {
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct GridAxis {
-    /// `render.slice_spacing`, `camera.yaw_deg`, `camera.pitch_deg`, `camera.distance`
-    /// or `<plugin id>.<key>` (a float or int parameter).
+    /// `render.slice_spacing`, `camera.yaw_deg`, `camera.pitch_deg`, `camera.distance`,
+    /// `camera.fov_y_deg` or `<plugin id>.<key>` (a float or int parameter).
     pub param: String,
     #[serde(default)]
     pub values: Option<Vec<f64>>,
@@ -1207,7 +1208,7 @@ pub fn set_value(doc: &mut Document, key: &str, value: &SetValue) -> Result<()> 
         "render.slices" => {
             bail!("'{key}' depends on the scene's volume; it is set in an experiment's variants")
         }
-        "camera.yaw_deg" | "camera.pitch_deg" | "camera.distance" => {
+        "camera.yaw_deg" | "camera.pitch_deg" | "camera.distance" | "camera.fov_y_deg" => {
             let v = num("degrees, or world units for the distance")?;
             let k = measure::CameraKey::parse(key).expect("matched");
             k.set(doc, v).map_err(|e| anyhow!("'{key}': {e}"))?;

@@ -823,31 +823,36 @@ pub enum CameraKey {
     YawDeg,
     PitchDeg,
     Distance,
+    /// The vertical field of view of a perspective camera.
+    FovYDeg,
 }
 
 impl CameraKey {
-    /// `camera.yaw_deg`, `camera.pitch_deg` or `camera.distance`.
+    /// `camera.yaw_deg`, `camera.pitch_deg`, `camera.distance` or `camera.fov_y_deg`.
     pub fn parse(name: &str) -> Option<CameraKey> {
         match name {
             "camera.yaw_deg" => Some(CameraKey::YawDeg),
             "camera.pitch_deg" => Some(CameraKey::PitchDeg),
             "camera.distance" => Some(CameraKey::Distance),
+            "camera.fov_y_deg" => Some(CameraKey::FovYDeg),
             _ => None,
         }
     }
 
-    /// Sets the value on a document's camera, after checking it (finite; a distance
-    /// > 0; a pitch within ±90°, the camera's own limit).
+    /// Sets the value on a document's camera, after checking it (finite; a positive
+    /// distance; a pitch within ±90°; a field of view in [1°, 170°] on a perspective
+    /// camera: the camera's own limits).
     pub fn set(self, doc: &mut Document, v: f64) -> Result<()> {
         let ok = v.is_finite()
             && match self {
                 CameraKey::YawDeg => true,
                 CameraKey::PitchDeg => v.abs() <= 90.0,
                 CameraKey::Distance => v > 0.0,
+                CameraKey::FovYDeg => (1.0..=170.0).contains(&v),
             };
         if !ok {
             bail!(
-                "{self:?}: {v} is outside the camera's range (finite; distance > 0; |pitch| ≤ 90°)"
+                "{self:?}: {v} is outside the camera's range (finite; distance > 0; |pitch| ≤ 90°; field of view 1–170°)"
             );
         }
         let c = &mut doc.camera;
@@ -855,6 +860,12 @@ impl CameraKey {
             CameraKey::YawDeg => c.yaw_deg = v as f32,
             CameraKey::PitchDeg => c.pitch_deg = v as f32,
             CameraKey::Distance => c.distance = v as f32,
+            CameraKey::FovYDeg => match &mut c.projection {
+                Projection::Perspective { fov_y_deg } => *fov_y_deg = v as f32,
+                Projection::Orthographic { .. } => {
+                    bail!("{self:?}: the scene's camera is orthographic; it has no field of view")
+                }
+            },
         }
         Ok(())
     }
@@ -939,7 +950,7 @@ pub fn axis_for(name: &str, values: Vec<f64>, doc: &Document) -> Result<Axis> {
         let (id, key) = name
             .rsplit_once('.')
             .ok_or_else(|| {
-                anyhow!("{name}: expected render.slice_spacing, camera.yaw_deg, camera.pitch_deg, camera.distance or <plugin id>.<key>")
+                anyhow!("{name}: expected render.slice_spacing, camera.yaw_deg, camera.pitch_deg, camera.distance, camera.fov_y_deg or <plugin id>.<key>")
             })?;
         let index = doc
             .stack

@@ -132,12 +132,6 @@ pub enum RenderError {
     NoFloat32Blending,
     #[error("per-slice passes are limited to {max} slices, this frame needs {count}")]
     TooManyPerSliceSlices { count: u32, max: u32 },
-    #[error(
-        "half-angle slicing: the view's rays meet the slices in both orders (a wide view \
-         across the light, or the eye inside the volume); the raster backend blends one \
-         order per frame, use the compute backend"
-    )]
-    HalfAngleMixedOrder,
     #[error("GPU error: {0}")]
     Gpu(String),
     #[error(
@@ -507,9 +501,10 @@ struct CompiledStack {
     /// the slices (`fs_post`) and its group 3 (`post_src`, a copy of the eye buffer).
     post: Option<(wgpu::RenderPipeline, wgpu::BindGroupLayout)>,
     /// The raster pipelines by (early-termination depth test, fragment at the exact
-    /// ray–plane point, back-to-front "over" blending for half-angle frames whose
-    /// slices the eye meets from behind), index `et + 2·exact + 4·over`: the plain one
-    /// built with the stack (so that the device validates it), the others on first use.
+    /// ray–plane point, back-to-front "over" blending for the pixels of half-angle
+    /// frames that meet the slices from behind), index `et + 2·exact + 4·over`: the
+    /// plain one built with the stack (so that the device validates it), the others on
+    /// first use.
     raster: [std::sync::OnceLock<wgpu::RenderPipeline>; 8],
     module: wgpu::ShaderModule,
     raster_layout: wgpu::PipelineLayout,
@@ -545,7 +540,12 @@ impl CompiledStack {
                 &self.module,
                 &self.raster_layout,
                 self.target,
-                if exact { "fs_exact" } else { "fs_main" },
+                match (exact, over) {
+                    (false, false) => "fs_main",
+                    (true, false) => "fs_exact",
+                    (false, true) => "fs_main_behind",
+                    (true, true) => "fs_exact_behind",
+                },
                 et.then(raster_et::slice_depth_state),
                 if over { OVER } else { UNDER },
             )
@@ -3422,17 +3422,22 @@ impl Renderer {
             _ => Vec::new(),
         };
         self.write_frame(s, &frame_plan, &view);
-        // the raster backend's early-termination mask: its bind group for this eye buffer
-        // half-angle slices that the eye meets from behind: the raster backend blends
-        // "over" (and terminates no ray early); it cannot mix both orders in one frame
-        let raster_over = match (s.backend, &frame_plan.half) {
-            (Backend::Raster, Some(_)) => frame_plan
-                .back_to_front(&view, &self.vbox)
-                .ok_or(RenderError::HalfAngleMixedOrder)?,
-            _ => false,
+        // the orders in which the raster backend blends the slices: "under" (front to
+        // back), or for half-angle slices "over" where the eye meets them from behind,
+        // and both (each pixel drawn by its own order's pipeline) where the view's rays
+        // meet them in both orders
+        let raster_orders: &[bool] = match (s.backend, &frame_plan.half) {
+            (Backend::Raster, Some(_)) => match frame_plan.back_to_front(&view, &self.vbox) {
+                Some(false) => &[false],
+                Some(true) => &[true],
+                None => &[false, true],
+            },
+            _ => &[false],
         };
+        // the raster backend's early-termination mask: its bind group for this eye
+        // buffer; a ray composited "over" cannot terminate early
         let mask_group = match (s.backend, s.early_termination) {
-            (Backend::Raster, Some(threshold)) if !raster_over => {
+            (Backend::Raster, Some(threshold)) if raster_orders == [false] => {
                 let et = self
                     .raster_et
                     .get_or_insert_with(|| raster_et::RasterEt::new(&self.gpu.device));
@@ -3563,7 +3568,10 @@ impl Renderer {
                 let vbuf = &self.vertices.as_ref().expect("vertex buffer").0;
                 // with early termination: the depth mask, the slice pipeline that tests it
                 let et = mask_group.as_ref().zip(self.raster_et.as_ref());
-                let raster = p.raster_for(device, et.is_some(), cut_proxy, raster_over);
+                let raster: Vec<&wgpu::RenderPipeline> = raster_orders
+                    .iter()
+                    .map(|&over| p.raster_for(device, et.is_some(), cut_proxy, over))
+                    .collect();
                 let begin = |enc: &'_ mut wgpu::CommandEncoder, clear: bool| {
                     enc.begin_render_pass(&wgpu::RenderPassDescriptor {
                         label: Some("vwb slices"),
@@ -3600,12 +3608,14 @@ impl Renderer {
                             if let Some([x, y, w, h]) = scissor {
                                 pass.set_scissor_rect(x, y, w, h);
                             }
-                            pass.set_pipeline(raster);
                             pass.set_bind_group(0, &self.g0, &[0]);
                             pass.set_bind_group(1, &g1, &[]);
                             pass.set_bind_group(2, &g2[(k % 2) as usize], &[]);
                             pass.set_vertex_buffer(0, vbuf.slice(..));
-                            pass.draw(a..b, 0..1);
+                            for pipeline in &raster {
+                                pass.set_pipeline(pipeline);
+                                pass.draw(a..b, 0..1);
+                            }
                         }
                         run_updates(enc, k);
                         if (k + 1) % et_interval == 0 && k + 1 < plan.count {
@@ -3630,13 +3640,15 @@ impl Renderer {
                         if let Some([x, y, w, h]) = scissor {
                             pass.set_scissor_rect(x, y, w, h);
                         }
-                        pass.set_pipeline(raster);
                         pass.set_bind_group(0, &self.g0, &[0]);
                         pass.set_bind_group(1, &g1, &[]);
                         pass.set_bind_group(2, &g2[0], &[]);
                         pass.set_vertex_buffer(0, vbuf.slice(..));
                         if let (Some(a), Some(b)) = (a, b) {
-                            pass.draw(a..b, 0..1);
+                            for pipeline in &raster {
+                                pass.set_pipeline(pipeline);
+                                pass.draw(a..b, 0..1);
+                            }
                         }
                         drop(pass);
                         if r + 1 < runs {

@@ -285,24 +285,31 @@ impl FramePlan {
 
     /// The order in which the rays of `view` that meet `vbox` cross the slices: `Some
     /// (false)` all front to back, `Some(true)` all back to front, `None` both (only
-    /// under half-angle slicing, with a wide view or the eye inside the box).
+    /// under half-angle slicing, with a view wider than 90° across the slices, seen
+    /// from inside the box or from close by). A ray's order is the sign of its
+    /// direction along the slice normal, so one order holds where every direction in
+    /// a cone that holds the rays has the same sign: the cone of the frustum's edges,
+    /// or, from outside the box, that of its corners.
     pub fn back_to_front(&self, view: &View, vbox: &VolumeBox) -> Option<bool> {
         let n = self.slices.forward;
-        if !view.perspective {
+        if !view.perspective || self.half.is_none() {
             return Some(view.forward.dot(n) < 0.0);
         }
-        if vbox.contains(view.eye) {
-            return (self.half.is_none()).then_some(false);
-        }
-        // the rays through the box lie in the cone of its corners' directions
-        let signs = vbox.corners().map(|c| (c - view.eye).dot(n) < 0.0);
-        if signs.iter().all(|&b| b) {
-            Some(true)
-        } else if signs.iter().all(|&b| !b) {
-            Some(false)
-        } else {
-            None
-        }
+        let one_order = |dirs: &[Vec3]| {
+            let behind = dirs[0].dot(n) < 0.0;
+            dirs.iter()
+                .all(|d| (d.dot(n) < 0.0) == behind)
+                .then_some(behind)
+        };
+        let inv = view.view_proj().inverse();
+        let edges = [(-1.0, -1.0), (1.0, -1.0), (-1.0, 1.0), (1.0, 1.0)].map(|(x, y)| {
+            inv.project_point3(Vec3::new(x, y, 1.0)) - inv.project_point3(Vec3::new(x, y, 0.0))
+        });
+        one_order(&edges).or_else(|| {
+            (!vbox.contains(view.eye))
+                .then(|| one_order(&vbox.corners().map(|c| c - view.eye)))
+                .flatten()
+        })
     }
 }
 
@@ -538,19 +545,30 @@ mod tests {
             plan(Some(-v + view.up), &view).back_to_front(&view, &vbox),
             Some(true)
         );
-        let inside = Camera {
-            distance: 0.2,
-            ..Default::default()
-        }
-        .view(1.0);
+        // from inside the box, a 35° view across the light meets the slices in one
+        // order (the half-angle normal is at most 45° off the view), a 120° one in both
+        let inside = |fov_y_deg: f32| {
+            Camera {
+                distance: 0.2,
+                projection: crate::camera::Projection::Perspective { fov_y_deg },
+                ..Default::default()
+            }
+            .view(1.0)
+        };
+        let (narrow, wide) = (inside(35.0), inside(120.0));
         assert_eq!(
-            plan(Some(inside.right), &inside).back_to_front(&inside, &vbox),
+            plan(Some(narrow.right + 0.2 * narrow.forward), &narrow).back_to_front(&narrow, &vbox),
+            Some(false)
+        );
+        assert_eq!(
+            plan(Some(wide.right), &wide).back_to_front(&wide, &vbox),
             None
         );
         assert_eq!(
-            plan(None, &inside).back_to_front(&inside, &vbox),
-            Some(false)
+            plan(Some(-wide.forward), &wide).back_to_front(&wide, &vbox),
+            Some(true)
         );
+        assert_eq!(plan(None, &wide).back_to_front(&wide, &vbox), Some(false));
         assert!((plan(Some(v), &view).ray_spacing() - vbox.voxel).abs() < 1e-6);
     }
 

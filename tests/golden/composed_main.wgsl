@@ -665,20 +665,41 @@ fn ray_dir_to(pos: vec3<f32>) -> vec3<f32> {
     return frame.forward.xyz;
 }
 
-@fragment
-fn fs_main(in: VsOut) -> @location(0) vec4<f32> {
+// Half-angle frames on the raster backend: a pipeline blends one order, so each pixel
+// is drawn only by the pipeline of its own order ("under" where the ray advances along
+// the slice normal, "over" where it meets the slices from behind, `fs_*_behind`). A
+// frame whose pixels hold both orders draws each slice with both pipelines.
+fn in_order(uv: vec2<f32>, behind: bool) -> bool {
+    var keep = true;
+
+
+
+    return keep;
+}
+
+fn fragment_proxy(in: VsOut, behind: bool) -> vec4<f32> {
     let uv = in.clip_pos.xy * frame.viewport.zw;
+    if (!in_order(uv, behind)) {
+        discard;
+    }
     run_setup(pixel_ray(uv), uv);
     let s = make_sample(in.world, ray_dir_to(in.world), uv, in.slice);
     return evaluate(s).c;
 }
 
+@fragment
+fn fs_main(in: VsOut) -> @location(0) vec4<f32> {
+    return fragment_proxy(in, false);
+}
+
 // The sample at the pixel's exact ray–plane point, as the compute backend takes it,
 // rather than at the position interpolated over the proxy polygon: used when the
 // proxies are cut to the occupied cells, whose sliver triangles interpolate poorly.
-@fragment
-fn fs_exact(in: VsOut) -> @location(0) vec4<f32> {
+fn fragment_exact(in: VsOut, behind: bool) -> vec4<f32> {
     let uv = in.clip_pos.xy * frame.viewport.zw;
+    if (!in_order(uv, behind)) {
+        discard;
+    }
     let r = pixel_ray(uv);
     let t = slice_hit(r, in.slice);
     if (t < 0.0) {
@@ -687,6 +708,23 @@ fn fs_exact(in: VsOut) -> @location(0) vec4<f32> {
     run_setup(r, uv);
     return evaluate(pixel_sample(r, t, uv, in.slice)).c;
 }
+
+@fragment
+fn fs_exact(in: VsOut) -> @location(0) vec4<f32> {
+    return fragment_exact(in, false);
+}
+
+
+
+
+
+
+
+
+
+
+
+
 
 // The post hooks on the raster backend: a full-screen triangle over the eye buffer,
 // reading a copy of it (`post_src`), after the last slice.

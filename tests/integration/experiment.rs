@@ -414,6 +414,10 @@ fn bad_experiments_are_refused_naming_the_file_and_cause() {
             "variants: [(name: \"a\", set: {\"camera.distance\": -1.0})]",
             "'camera.distance': Distance: -1 is outside the camera's range",
         ),
+        (
+            "variants: [(name: \"a\", set: {\"camera.fov_y_deg\": 180.0})]",
+            "'camera.fov_y_deg': FovYDeg: 180 is outside the camera's range",
+        ),
     ];
     for (i, (fields, expect)) in cases.iter().enumerate() {
         let file = write(
