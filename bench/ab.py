@@ -22,6 +22,14 @@ also renders every preset and backend once with each build (`vwb render`, that s
 and adds how far B's 8-bit image is from A's: RMS and largest difference in levels, and
 the pixels that differ (needs numpy and pillow). The JSON names the machine and the
 adapter.
+
+Build OLD in a target folder of its own, e.g.
+
+    git worktree add /tmp/old REV && (cd /tmp/old && CARGO_TARGET_DIR=/tmp/old-target cargo build)
+
+Not in the repository's target/: Cargo leaves the source folder out of a workspace
+member's artefact hash, so the old build takes the same slots, and the repository's
+next `cargo build` can find them fresh and keep the old code (it did in session 52).
 """
 import argparse
 import csv
