@@ -441,12 +441,8 @@ fn a_headlight_gives_the_viewers_image() {
         TargetFormat::Rgba32Float,
         &s,
     );
-    let rms = delta_e_rms(
-        &lit,
-        &viewer.iter().map(|p| p.map(f64::from)).collect::<Vec<_>>(),
-        64,
-        64,
-    );
+    let viewer: Vec<[f64; 4]> = viewer.iter().map(|p| p.map(f64::from)).collect();
+    let rms = delta_e_rms(&lit, &viewer, 64, 64);
     eprintln!("headlight vs viewer: ΔE RMS {rms:.4}");
     assert!(rms < 1.0, "{rms}");
     // and the light moved off the view changes the image
@@ -457,12 +453,7 @@ fn a_headlight_gives_the_viewers_image() {
         TargetFormat::Rgba32Float,
         &s,
     );
-    let moved = delta_e_rms(
-        &side,
-        &viewer.iter().map(|p| p.map(f64::from)).collect::<Vec<_>>(),
-        64,
-        64,
-    );
+    let moved = delta_e_rms(&side, &viewer, 64, 64);
     eprintln!("light from the right vs viewer: ΔE RMS {moved:.4}");
     assert!(moved > 4.0 * rms.max(0.1), "{moved} vs {rms}");
 }
