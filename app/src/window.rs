@@ -242,6 +242,9 @@ pub struct Workbench {
     /// Reloads user plugins whose files change (checked about once a second).
     plugin_watch: vwb_plugins::user::Watch,
     plugin_watch_at: std::time::Instant,
+    /// Named volumes whose changed file did not load, with the file's stamp then: not
+    /// tried again until the file changes again.
+    volume_reload_failed: std::collections::HashMap<String, headless::Stamp>,
     /// The transfer-function gallery panel.
     pub gallery: crate::gallery_ui::GalleryPanel,
     /// The genetic-search panel.
@@ -350,6 +353,7 @@ impl Workbench {
             last_session: persisted.session,
             plugin_watch: Default::default(),
             plugin_watch_at: std::time::Instant::now(),
+            volume_reload_failed: Default::default(),
             gallery: Default::default(),
             evolve: Default::default(),
             dialog: None,
@@ -566,6 +570,43 @@ impl Workbench {
         self.renderer.set_inputs(headless::inputs_for(&self.doc)?);
         self.apply_stack();
         Ok(format!("removed volume '{name}'"))
+    }
+
+    /// Reloads the named volumes whose files changed on disk (checked about once a
+    /// second, with the user plugins): the renderer gets the new volume and reruns
+    /// what reads it. A file that does not load (half written, say) leaves the last
+    /// good volume drawing, shows its error, and is tried again when it changes again.
+    /// True when something was reloaded or failed.
+    pub fn reload_changed_volumes(&mut self) -> bool {
+        let changed: Vec<(String, headless::Stamp)> = headless::changed_named_volumes(&self.doc)
+            .into_iter()
+            .filter(|(name, stamp)| self.volume_reload_failed.get(name) != Some(stamp))
+            .collect();
+        if changed.is_empty() {
+            return false;
+        }
+        let names = changed
+            .iter()
+            .map(|(n, _)| format!("'{n}'"))
+            .collect::<Vec<_>>()
+            .join(", ");
+        match headless::inputs_for(&self.doc) {
+            Ok(inputs) => {
+                self.renderer.set_inputs(inputs);
+                self.apply_stack();
+                self.volume_reload_failed.clear();
+                self.file_status = Some(Ok(format!(
+                    "reloaded volume {names}: its file changed on disk"
+                )));
+            }
+            Err(e) => {
+                self.volume_reload_failed.extend(changed);
+                self.file_status = Some(Err(format!(
+                    "volume {names} changed on disk and did not load; the last good one stays: {e:#}"
+                )));
+            }
+        }
+        true
     }
 
     /// Reloads the user plugins whose files changed: the stack's instances of a
@@ -1810,6 +1851,7 @@ impl eframe::App for Workbench {
         if self.plugin_watch_at.elapsed() >= std::time::Duration::from_secs(1) {
             self.plugin_watch_at = std::time::Instant::now();
             self.reload_user_plugins();
+            self.reload_changed_volumes();
         }
         egui::Panel::left("side").show(ui, |ui| {
             // wheel and scroll bar only: a drag belongs to the widget under it (stack

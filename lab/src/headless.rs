@@ -30,30 +30,61 @@ pub fn load_volume_within(src: &VolumeSource, budget: Option<u64>) -> Result<Arc
     }))
 }
 
+/// What a file source looked like on disk: its modification time and length (`None`
+/// for the embedded demo, samples, generated volumes, and a file that cannot be read).
+/// For a header with a separate data file (NIfTI .hdr/.img, MetaImage .mhd/.raw) it is
+/// the header's.
+pub type Stamp = Option<(std::time::SystemTime, u64)>;
+
+/// The [`Stamp`] of `source` now.
+pub fn source_stamp(source: &VolumeSource) -> Stamp {
+    match source {
+        VolumeSource::File(p) => {
+            let m = std::fs::metadata(p).ok()?;
+            Some((m.modified().ok()?, m.len()))
+        }
+        _ => None,
+    }
+}
+
+/// A named volume loaded by [`inputs_for`], while anything holds it.
+struct Held {
+    source: VolumeSource,
+    stamp: Stamp,
+    volume: std::sync::Weak<Volume>,
+}
+
+static LOADED: std::sync::Mutex<Vec<Held>> = std::sync::Mutex::new(Vec::new());
+
 /// The named volumes a document's `volumes:` lists ([`vwb_render::inputs`]), loaded.
 ///
 /// Each source is loaded once while any renderer or reference still holds it: a
 /// second document naming the same source (a reopened preset, an experiment's
 /// variants, a reference beside a renderer) gets the same `Arc`, so the renderer sees
-/// no change ([`Renderer::set_inputs`]) and nothing is uploaded or rerun again.
+/// no change ([`Renderer::set_inputs`]) and nothing is uploaded or rerun again. A file
+/// whose [`Stamp`] changed since it was loaded (edited on disk) is loaded again.
 pub fn inputs_for(doc: &Document) -> Result<vwb_render::inputs::VolumeInputs> {
-    use std::sync::{Mutex, Weak};
-    static LOADED: Mutex<Vec<(VolumeSource, Weak<Volume>)>> = Mutex::new(Vec::new());
     let mut inputs = vwb_render::inputs::VolumeInputs::default();
     for (name, source) in &doc.volumes {
+        let stamp = source_stamp(source);
         let held = LOADED.lock().ok().and_then(|mut loaded| {
-            loaded.retain(|(_, w)| w.strong_count() > 0);
+            loaded.retain(|h| h.volume.strong_count() > 0);
             loaded
                 .iter()
-                .find(|(s, _)| s == source)
-                .and_then(|(_, w)| w.upgrade())
+                .find(|h| h.source == *source && h.stamp == stamp)
+                .and_then(|h| h.volume.upgrade())
         });
         let volume = match held {
             Some(v) => v,
             None => {
                 let v = load_volume(source).with_context(|| format!("volumes.{name}"))?;
                 if let Ok(mut loaded) = LOADED.lock() {
-                    loaded.push((source.clone(), Arc::downgrade(&v)));
+                    loaded.retain(|h| h.source != *source);
+                    loaded.push(Held {
+                        source: source.clone(),
+                        stamp,
+                        volume: Arc::downgrade(&v),
+                    });
                 }
                 v
             }
@@ -61,6 +92,26 @@ pub fn inputs_for(doc: &Document) -> Result<vwb_render::inputs::VolumeInputs> {
         inputs.insert(name, volume);
     }
     Ok(inputs)
+}
+
+/// The named volumes of `doc` that are held (loaded by [`inputs_for`]) but whose file
+/// changed on disk since, each with its [`Stamp`] now: what [`inputs_for`] would load
+/// again. The window checks this once a second.
+pub fn changed_named_volumes(doc: &Document) -> Vec<(String, Stamp)> {
+    let Ok(loaded) = LOADED.lock() else {
+        return Vec::new();
+    };
+    doc.volumes
+        .iter()
+        .filter(|(_, source)| matches!(source, VolumeSource::File(_)))
+        .filter_map(|(name, source)| {
+            let held = loaded
+                .iter()
+                .find(|h| h.source == *source && h.volume.strong_count() > 0)?;
+            let now = source_stamp(source);
+            (held.stamp != now).then(|| (name.clone(), now))
+        })
+        .collect()
 }
 
 /// `VWB_GPU_MEMORY_LIMIT`, the budget of renderers made from the environment.

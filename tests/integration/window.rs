@@ -1321,3 +1321,73 @@ fn window_reloads_an_edited_user_plugin_and_survives_a_broken_one() {
         "the last good pipeline keeps drawing"
     );
 }
+
+/// A named volume's file edited on disk while the window shows it is loaded again (the
+/// window's once-a-second check, called directly here), and the image follows it. A
+/// file that does not load (half written) leaves the last good volume drawing with its
+/// error shown, and is not tried again until it changes again.
+#[test]
+fn window_reloads_a_named_volume_edited_on_disk() {
+    let file = tmp("reloaded_labels.nrrd");
+    // every voxel one label, on a 4³ grid over the demo's box; the modification time
+    // set, so that each write is seen as a change however fast the file system's clock
+    let stamp = |secs: u64| {
+        std::fs::File::options()
+            .write(true)
+            .open(&file)
+            .unwrap()
+            .set_modified(std::time::UNIX_EPOCH + Duration::from_secs(secs))
+            .unwrap();
+    };
+    let write_labels = |label: u8, secs: u64| {
+        let mut bytes =
+            b"NRRD0004\ntype: uchar\ndimension: 3\nsizes: 4 4 4\nencoding: raw\n\n".to_vec();
+        bytes.extend(std::iter::repeat_n(label, 64));
+        std::fs::write(&file, bytes).unwrap();
+        stamp(secs);
+    };
+    write_labels(1, 1_000_000);
+    let mut doc = Document::load(&repo().join("presets/demo_labels.ron"), &registry())
+        .unwrap()
+        .document;
+    doc.volumes
+        .insert("labels".into(), VolumeSource::File(file.clone()));
+    let mut h = window(doc, 0.25);
+    settle(&mut h);
+    let orange = image(&h);
+    assert!(
+        !h.state_mut().reload_changed_volumes(),
+        "nothing changed yet"
+    );
+    // the labels edited: label 2 (blue) everywhere
+    write_labels(2, 1_000_010);
+    assert!(h.state_mut().reload_changed_volumes());
+    settle(&mut h);
+    let status = format!("{:?}", h.state().file_status());
+    assert!(status.contains("reloaded volume 'labels'"), "{status}");
+    let blue = image(&h);
+    assert!(rms(&orange, &blue) > 1.0, "{}", rms(&orange, &blue));
+    // half written: refused, the blue image stays, and it is not retried
+    std::fs::write(&file, b"NRRD0004\ntype: uchar\ndimension: 3\n").unwrap();
+    stamp(1_000_020);
+    assert!(h.state_mut().reload_changed_volumes());
+    settle(&mut h);
+    let status = format!("{:?}", h.state().file_status());
+    assert!(
+        status.contains("Err")
+            && status.contains("did not load")
+            && status.contains("reloaded_labels.nrrd"),
+        "{status}"
+    );
+    assert_eq!(rms(&blue, &image(&h)), 0.0);
+    assert!(!h.state_mut().reload_changed_volumes(), "not tried again");
+    // written whole again: loads, and the image is the first one
+    write_labels(1, 1_000_030);
+    assert!(h.state_mut().reload_changed_volumes());
+    settle(&mut h);
+    assert!(
+        rms(&orange, &image(&h)) < 0.5,
+        "{}",
+        rms(&orange, &image(&h))
+    );
+}
