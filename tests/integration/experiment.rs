@@ -301,6 +301,8 @@ fn update_time_counts_what_a_grid_point_reruns() {
 /// `Renderer::rerun_passes` (which makes the next frame rerun every pre-pass, and only
 /// that frame) and reports medians; `update_gpu_ms` holds only stamps that can be the
 /// update's; `flow.lic3d.twin_rms` holds the GPU's LIC volume against its f64 twin.
+/// Three timed frames: with one, a frame delayed by the parallel suite (over 100 ms on
+/// two cores) made the L 2 update 0 and failed the ratio once (session 52).
 #[test]
 fn updates_are_timed_again_and_the_lic_is_held_against_its_twin() {
     let scene = tmp("lic64.ron");
@@ -339,7 +341,7 @@ fn updates_are_timed_again_and_the_lic_is_held_against_its_twin() {
         metrics: [update_ms, update_gpu_ms],
         statistics: ["flow.lic3d.twin_rms"],
         render: (size: (16, 16), target: "rgba32float"),
-        frames: 1,
+        frames: 3,
         update_repeats: 3,
         assertions: ["flow.lic3d.twin_rms < 0.5", "update_ms(L 16) / update_ms(L 2) > 1.2"],
     )"#,
