@@ -222,7 +222,7 @@ fn update_time_counts_what_a_grid_point_reruns() {
         metrics: [update_ms, frame_ms, rms_delta_e],
         pareto_time: update_ms,
         render: (size: (24, 24), target: "rgba32float"),
-        frames: 1,
+        frames: 3,
         assertions: ["rms_delta_e(piecewise) < 3"],
     )"#,
         preset.display()
@@ -253,7 +253,13 @@ fn update_time_counts_what_a_grid_point_reruns() {
             "{v}: {:?}",
             first.update_passes
         );
-        assert!(first.update_ms > 0.0, "{v}: {first:?}");
+        // timed: by the wall clock, or where the parallel suite's work on the shared
+        // device delayed the timed frames past it (a 1 ms frame once took 2.5 s), by the
+        // update's GPU stamps
+        assert!(
+            first.update_ms > 0.0 || first.update_gpu_ms > 0.0,
+            "{v}: {first:?}"
+        );
         // a new slice spacing reruns no light pass
         let spacing = row(v, [4.0, 2.0]);
         assert!(spacing.update_passes.is_empty(), "{v}: {spacing:?}");
