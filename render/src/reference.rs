@@ -752,7 +752,7 @@ impl Frame {
             ray_dir: dir,
             uv,
             value: 0.0,
-            step: self.spacing / dd.abs().max(1.0e-6),
+            step: self.step(dir),
             color: DVec4::ZERO,
             normal: DVec3::ZERO,
             slice: k,
@@ -761,8 +761,14 @@ impl Frame {
         })
     }
 
+    /// The distance along a ray of direction `dir` between two slice planes
+    /// (`s.step` in slice.wgsl's `make_sample`).
+    fn step(&self, dir: DVec3) -> f64 {
+        self.spacing / dir.dot(self.normal).abs().max(1.0e-6)
+    }
+
     fn ratio(&self, dir: DVec3) -> f64 {
-        self.spacing / dir.dot(self.normal).abs().max(1.0e-6) / self.voxel
+        self.step(dir) / self.voxel
     }
 
     /// Slice `k` on the ray `r` through all hooks: the shaded sample and its
@@ -803,7 +809,7 @@ impl Frame {
             tex: (r.origin - self.box_min) / (self.box_max - self.box_min),
             ray_dir: r.dir,
             uv: r.uv,
-            step: self.spacing / r.dir.dot(self.normal).abs().max(1.0e-6),
+            step: self.step(r.dir),
             slice: k,
             ..Default::default()
         }

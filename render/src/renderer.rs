@@ -3295,12 +3295,17 @@ impl Renderer {
     /// The slice plan for settings and, under half-angle slicing, its geometry.
     pub fn frame_plan_for(&self, s: &FrameSettings) -> Result<FramePlan, RenderError> {
         let view = s.camera.view(s.width as f32 / s.height.max(1) as f32);
-        let stack = self
-            .pipelines
-            .as_ref()
-            .map(|p| p.stack.clone())
-            .unwrap_or_default();
-        Ok(self.frame_plan(&stack, &view, self.lattice_box(), s.slice_spacing)?)
+        Ok(self.current_frame_plan(&view, s.slice_spacing)?)
+    }
+
+    /// [`Self::frame_plan`] of the current (last good) stack over the lattice box.
+    fn current_frame_plan(
+        &self,
+        view: &crate::camera::View,
+        spacing: f32,
+    ) -> Result<FramePlan, SliceError> {
+        let stack = self.pipelines.as_ref().map_or(&[][..], |p| &p.stack[..]);
+        self.frame_plan(stack, view, self.lattice_box(), spacing)
     }
 
     /// Renders one frame into the eye buffer with the current (last good) pipeline.
@@ -3373,12 +3378,7 @@ impl Renderer {
         }
         crate::validate::check_camera(&s.camera)?;
         let view = s.camera.view(s.width as f32 / s.height as f32);
-        let stack = self
-            .pipelines
-            .as_ref()
-            .map(|p| p.stack.clone())
-            .unwrap_or_default();
-        let frame_plan = self.frame_plan(&stack, &view, self.lattice_box(), s.slice_spacing)?;
+        let frame_plan = self.current_frame_plan(&view, s.slice_spacing)?;
         let plan = frame_plan.slices;
         let spacing_updates = self.sync_spacing(frame_plan.ray_spacing() / self.vbox.voxel)?;
         // the occupancy's apron for moved samples follows the slice spacing

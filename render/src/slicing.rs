@@ -139,9 +139,6 @@ pub struct SlicePlan {
 impl SlicePlan {
     /// Plans slices `spacing_voxels` voxels apart (1 = one slice per voxel) for a view.
     pub fn new(view: &View, vbox: &VolumeBox, spacing_voxels: f32) -> Result<Self, SliceError> {
-        if !(spacing_voxels.is_finite() && spacing_voxels > 0.0) {
-            return Err(SliceError::BadSpacing(spacing_voxels));
-        }
         let spacing = spacing_voxels * vbox.voxel;
         Self::across(
             view,
@@ -154,7 +151,8 @@ impl SlicePlan {
     }
 
     /// Planes normal to `n`, `spacing` world units apart, anchored at the box centre
-    /// and covering the box (from eye depth `near` on, where given).
+    /// and covering the box (from eye depth `near` on, where given); `spacing_voxels`
+    /// is the spacing the caller was asked for, checked here.
     fn across(
         view: &View,
         vbox: &VolumeBox,
@@ -163,6 +161,9 @@ impl SlicePlan {
         spacing: f32,
         near: Option<f32>,
     ) -> Result<Self, SliceError> {
+        if !(spacing_voxels.is_finite() && spacing_voxels > 0.0) {
+            return Err(SliceError::BadSpacing(spacing_voxels));
+        }
         let depths = vbox.corners().map(|c| (c - view.eye).dot(n));
         let dmin = depths.iter().copied().fold(f32::INFINITY, f32::min);
         let dmax = depths.iter().copied().fold(f32::NEG_INFINITY, f32::max);
@@ -203,9 +204,6 @@ impl SlicePlan {
         spacing_voxels: f32,
         light: Vec3,
     ) -> Result<(Self, HalfAngle), SliceError> {
-        if !(spacing_voxels.is_finite() && spacing_voxels > 0.0) {
-            return Err(SliceError::BadSpacing(spacing_voxels));
-        }
         let h = HalfAngle::new(view, vbox, light, spacing_voxels * vbox.voxel);
         let plan = Self::across(view, vbox, spacing_voxels, h.normal, h.plane_spacing, None)?;
         Ok((plan, h))
