@@ -151,11 +151,15 @@ impl ComposedModule {
 /// What a binding is.
 #[derive(Debug, Clone, PartialEq)]
 pub enum BindingKind {
-    Uniform { size: u32 },
+    Uniform {
+        size: u32,
+    },
     Texture2d,
     Texture3d,
     StorageTexture2d(StorageFormat),
     StorageTexture3d(StorageFormat),
+    /// A read-write storage buffer of u32 (the per-slice state's tile marks).
+    StorageBufferU32,
 }
 
 /// One generated binding: the WGSL declaration and the layout entry come from it.
@@ -181,6 +185,8 @@ pub enum BindingRole {
     PassTarget(usize),
     StatePrev,
     StateNext,
+    /// The marks of the state's tiles that left `clear` ([`crate::plugin::SliceStateDecl::track_clear`]).
+    StateTiles,
 }
 
 impl Binding {
@@ -189,6 +195,12 @@ impl Binding {
             BindingKind::Uniform { .. } => {
                 return format!(
                     "@group({}) @binding({}) var<uniform> {prefix}{}: {struct_name};",
+                    self.group, self.binding, self.local_name
+                );
+            }
+            BindingKind::StorageBufferU32 => {
+                return format!(
+                    "@group({}) @binding({}) var<storage, read_write> {prefix}{}: array<u32>;",
                     self.group, self.binding, self.local_name
                 );
             }
@@ -235,12 +247,17 @@ impl Binding {
                     },
                 }
             }
+            BindingKind::StorageBufferU32 => wgpu::BindingType::Buffer {
+                ty: wgpu::BufferBindingType::Storage { read_only: false },
+                has_dynamic_offset: false,
+                min_binding_size: wgpu::BufferSize::new(4),
+            },
         };
         let visibility = match self.kind {
             // storage writes happen in compute passes only
-            BindingKind::StorageTexture2d(_) | BindingKind::StorageTexture3d(_) => {
-                wgpu::ShaderStages::COMPUTE
-            }
+            BindingKind::StorageTexture2d(_)
+            | BindingKind::StorageTexture3d(_)
+            | BindingKind::StorageBufferU32 => wgpu::ShaderStages::COMPUTE,
             _ => visibility,
         };
         wgpu::BindGroupLayoutEntry {
@@ -262,6 +279,8 @@ pub struct InstanceLayout {
     pub uniform: UniformLayout,
     /// Entry point of its state update, if it has per-slice state.
     pub update_entry: Option<String>,
+    /// Its per-slice state's tiles are tracked ([`crate::plugin::SliceStateDecl::track_clear`]).
+    pub track_clear: bool,
     /// Its pre-pass module (bindings in group 1) and the module's bindings.
     pub prepass: Option<(ComposedModule, Vec<Binding>)>,
     /// Its volume passes, in declaration order: the entry point in the main module
@@ -336,6 +355,45 @@ fn differentiates_the_shading_scalar(source: &str) -> bool {
 /// volume passes). One private variable per such instance, renamed with its prefix.
 pub const RAY_RECORD: &str = "ray_record";
 const RAY_RECORD_DECL: &str = "var<private> ray_record: vec4<f32>;";
+
+/// Side length of the tiles of per-slice state texels whose marks
+/// [`crate::plugin::SliceStateDecl::track_clear`] keeps.
+pub const STATE_TILE: u32 = 8;
+
+/// The functions of a tracked per-slice state (unprefixed): `state_prev_clear(uv,
+/// reach)` for the plugin's hooks, and `state_mark(texel, v)`, which the generated
+/// update entry points call after storing `v`: a value other than `clear` marks the
+/// texel's tile. Marks are plain stores of 1 (concurrent stores of the same value;
+/// a read in the same dispatch may miss one, which only a later slice needs, after
+/// the dispatch's barrier).
+fn state_track_wgsl(clear: [f32; 4]) -> String {
+    let c = clear.map(|v| format!("{v:?}")).join(", ");
+    let t = STATE_TILE;
+    format!(
+        "fn state_prev_clear(uv: vec2<f32>, reach: vec2<f32>) -> bool {{\n    \
+         let size = vec2<i32>(textureDimensions(state_prev));\n    \
+         let tiles_x = (size.x + {t} - 1) / {t};\n    \
+         let texels = vec2<f32>(size);\n    \
+         let lo = clamp(vec2<i32>(floor((uv - reach) * texels - 0.5)), vec2<i32>(0), size - 1) / {t};\n    \
+         let hi = clamp(vec2<i32>(floor((uv + reach) * texels - 0.5)) + 1, vec2<i32>(0), size - 1) / {t};\n    \
+         for (var ty = lo.y; ty <= hi.y; ty = ty + 1) {{\n        \
+         for (var tx = lo.x; tx <= hi.x; tx = tx + 1) {{\n            \
+         if (state_tiles[ty * tiles_x + tx] != 0u) {{\n                return false;\n            }}\n        \
+         }}\n    \
+         }}\n    \
+         return true;\n\
+         }}\n\
+         fn state_mark(texel: vec2<u32>, v: vec4<f32>) {{\n    \
+         if (any(v != vec4<f32>({c}))) {{\n        \
+         let tiles_x = (textureDimensions(state_next).x + {t}u - 1u) / {t}u;\n        \
+         state_tiles[(texel.y / {t}u) * tiles_x + texel.x / {t}u] = 1u;\n    \
+         }}\n\
+         }}\n"
+    )
+}
+
+/// The functions [`state_track_wgsl`] defines.
+const STATE_TRACK_FNS: [&str; 2] = ["state_prev_clear", "state_mark"];
 
 /// What `stack_classify` is, for checking a plugin file in isolation.
 const STACK_CLASSIFY_STUB: &str = "fn stack_classify(tex: vec3<f32>, dir: vec3<f32>) -> vec4<f32> { return vec4<f32>(tex + dir, 0.0); }";
@@ -666,6 +724,15 @@ fn instance_bindings(
             BindingKind::StorageTexture2d(st.format),
             BindingRole::StateNext,
         );
+        if st.track_clear {
+            push(
+                2,
+                group2_next,
+                "state_tiles",
+                BindingKind::StorageBufferU32,
+                BindingRole::StateTiles,
+            );
+        }
     }
     out
 }
@@ -971,6 +1038,13 @@ pub fn compose_with(
             iso_decls.push_str(STACK_CLASSIFY_STUB);
             iso_decls.push('\n');
         }
+        let track = plugin
+            .slice_state()
+            .filter(|st| st.track_clear)
+            .map(|st| state_track_wgsl(st.clear));
+        if let Some(code) = &track {
+            iso_decls.push_str(code);
+        }
         let decls = check_plugin_file(plugin, &shader.file, &shader.source, &iso_decls, &allowed)?;
         for vp in &passes {
             if !decls.iter().any(|d| d.is_fn && d.name == vp.entry) {
@@ -1035,6 +1109,10 @@ pub fn compose_with(
             instance_decls.push_str(&rename(RAY_RECORD_DECL, &names, &prefix));
             instance_decls.push('\n');
         }
+        if let Some(code) = &track {
+            names.extend(STATE_TRACK_FNS.iter().map(|f| f.to_string()));
+            instance_decls.push_str(&rename(code, &names, &prefix));
+        }
         let renamed = rename(&shader.source, &names, &prefix);
 
         // the pre-pass module
@@ -1057,6 +1135,7 @@ pub fn compose_with(
             hooks,
             uniform,
             update_entry,
+            track_clear: track.is_some(),
             prepass,
             passes: Vec::new(),
         });
@@ -1193,15 +1272,16 @@ pub fn compose_with(
         } else if trimmed == "//!UPDATES" {
             for inst in &instances {
                 if let Some(entry) = &inst.update_entry {
-                    let p = &inst.prefix;
+                    let store = state_store(inst);
                     let code = format!(
                         "@compute @workgroup_size(8, 8, 1)\n\
                          fn {entry}(@builtin(global_invocation_id) gid: vec3<u32>) {{\n    \
                          let size = textureDimensions({p}state_next);\n    \
                          if (gid.x >= size.x || gid.y >= size.y) {{\n        return;\n    }}\n    \
-                         let e = state_texel_sample(gid.xy, size);\n    \
-                         textureStore({p}state_next, vec2<i32>(gid.xy), {p}slice_update(e.s, e.c, e.s.uv));\n\
-                         }}"
+                         let e = state_texel_sample(gid.xy, size);\n\
+                         {store}\
+                         }}",
+                        p = inst.prefix
                     );
                     m.push_generated("state update entry point", &code, Some(inst.input_index));
                 }
@@ -1209,12 +1289,7 @@ pub fn compose_with(
             let stores: String = instances
                 .iter()
                 .filter(|inst| inst.update_entry.is_some())
-                .map(|inst| {
-                    let p = &inst.prefix;
-                    format!(
-                        "    textureStore({p}state_next, vec2<i32>(gid.xy), {p}slice_update(e.s, e.c, e.s.uv));\n"
-                    )
-                })
+                .map(state_store)
                 .collect();
             if !stores.is_empty() {
                 let code = format!(
@@ -1244,6 +1319,25 @@ pub fn compose_with(
         bindings,
         instances,
     })
+}
+
+/// The statements of an update entry point that store instance `inst`'s next state
+/// texel at `gid.xy` from the sample `e` (and mark its tile where it is tracked).
+fn state_store(inst: &InstanceLayout) -> String {
+    let p = &inst.prefix;
+    if inst.track_clear {
+        format!(
+            "    {{\n        \
+             let v = {p}slice_update(e.s, e.c, e.s.uv);\n        \
+             textureStore({p}state_next, vec2<i32>(gid.xy), v);\n        \
+             {p}state_mark(gid.xy, v);\n    \
+             }}\n"
+        )
+    } else {
+        format!(
+            "    textureStore({p}state_next, vec2<i32>(gid.xy), {p}slice_update(e.s, e.c, e.s.uv));\n"
+        )
+    }
 }
 
 /// The entry point of a sweep pass writing `out` (group 3, `binding`; its `SweepInfo`

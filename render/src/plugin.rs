@@ -27,8 +27,9 @@
 //!
 //! Names the plugin can use: `params.<key>` (its uniform parameters), each declared
 //! resource by name, `state_prev` (its state of the previous slice, a texture_2d
-//! read with `linear_clamp` at `state_coord(s.pos, s.uv)`), its pre-pass target by name (a texture_3d),
-//! and everything in `shaders/common.wgsl`.
+//! read with `linear_clamp` at `state_coord(s.pos, s.uv)`), `state_prev_clear(uv, reach)` where
+//! the state tracks its clear tiles ([`SliceStateDecl::track_clear`]), its pre-pass target by
+//! name (a texture_3d), and everything in `shaders/common.wgsl`.
 
 use std::borrow::Cow;
 use std::collections::HashMap;
@@ -253,6 +254,16 @@ pub struct SliceStateDecl {
     /// does not take them. Without it they are compiled out and `slice_light` is not
     /// asked.
     pub light: bool,
+    /// The renderer tracks which tiles of 8 × 8 state texels still hold `clear` in
+    /// this frame, and the plugin's hooks may ask `state_prev_clear(uv, reach)`: true
+    /// when every texel of `state_prev` that a bilinear read within `reach` (state uv,
+    /// per axis) of `uv` can touch still holds `clear`. An update that then knows its
+    /// result exactly (e.g. `shade.dos`: an empty sample under a cone of clear buffer
+    /// gives `clear` again) skips its reads. A tile is marked once any update writes a
+    /// value other than `clear` into it, and stays marked until the state is cleared
+    /// (before the first slice), so the answer errs only towards false. Without it the
+    /// tracking is compiled out.
+    pub track_clear: bool,
 }
 
 /// A pre-pass: a compute pass that fills a 3D texture named `target` (read by the

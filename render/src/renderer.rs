@@ -29,7 +29,7 @@ use wgpu::util::DeviceExt;
 
 use crate::camera::Camera;
 use crate::composer::{
-    Binding, BindingRole, ComposeError, Composition, TargetFormat, compose_with,
+    Binding, BindingRole, ComposeError, Composition, STATE_TILE, TargetFormat, compose_with,
 };
 use crate::gpu::GpuContext;
 use crate::params::ParamValues;
@@ -441,6 +441,9 @@ struct InstanceGpu {
     /// use it.
     spacing: f32,
     state: Option<[(wgpu::Texture, wgpu::TextureView); 2]>,
+    /// The marks of the state's tiles that left `clear`, where the plugin tracks them
+    /// ([`crate::plugin::SliceStateDecl::track_clear`]); made with `state`.
+    state_tiles: Option<wgpu::Buffer>,
 }
 
 impl InstanceGpu {
@@ -988,6 +991,9 @@ pub struct Renderer {
     /// Compute backend: the slice and the state updates in one dispatch per slice where
     /// every state has the eye buffer's resolution ([`Renderer::set_fused_slices`]).
     fused_slices: bool,
+    /// Per-slice state: track the tiles that still hold their clear value
+    /// ([`Renderer::set_state_tracking`]).
+    state_tracking: bool,
 }
 
 fn uniform_entry(
@@ -1205,6 +1211,7 @@ impl Renderer {
             raster_et: None,
             occupied_proxy: false,
             fused_slices: fused_slices(),
+            state_tracking: std::env::var("VWB_STATE_TRACKING").map_or(true, |v| v.trim() != "0"),
             volume_bytes,
             gpu_budget: budget,
             volume_format,
@@ -1463,6 +1470,22 @@ impl Renderer {
     /// (docs/perf.md, "Per-slice state in one dispatch"). The image is the same.
     pub fn set_fused_slices(&mut self, on: bool) {
         self.fused_slices = on;
+    }
+
+    /// Per-slice state whose plugin tracks its clear tiles
+    /// ([`crate::plugin::SliceStateDecl::track_clear`], `shade.dos`): keep the marks of
+    /// the tiles that left the clear value, so that updates under clear tiles skip
+    /// their reads (on by default; `VWB_STATE_TRACKING=0` starts renderers with it
+    /// off), or mark every tile for good, so that every update reads (docs/perf.md,
+    /// "Per-slice state: skipping the clear buffer"). The image is the same.
+    pub fn set_state_tracking(&mut self, on: bool) {
+        if self.state_tracking != on {
+            self.state_tracking = on;
+            for g in self.instances.values_mut() {
+                g.state = None;
+                g.state_tiles = None;
+            }
+        }
     }
 
     /// Raster backend: cut the proxy polygons to the cells of bricks that can be
@@ -2024,6 +2047,7 @@ impl Renderer {
                 inputs,
                 spacing: self.slice_spacing,
                 state: None,
+                state_tiles: None,
             },
         );
         Ok(true)
@@ -2329,6 +2353,7 @@ impl Renderer {
         // state textures follow the eye buffer's size
         for g in self.instances.values_mut() {
             g.state = None;
+            g.state_tiles = None;
         }
         Ok(())
     }
@@ -2452,13 +2477,32 @@ impl Renderer {
                     format: decl.format.wgpu(),
                     usage: wgpu::TextureUsages::STORAGE_BINDING
                         | wgpu::TextureUsages::TEXTURE_BINDING
-                        | wgpu::TextureUsages::RENDER_ATTACHMENT,
+                        | wgpu::TextureUsages::RENDER_ATTACHMENT
+                        | wgpu::TextureUsages::COPY_SRC,
                     view_formats: &[],
                 });
                 let view = tex.create_view(&Default::default());
                 (tex, view)
             };
             g.state = Some([make(), make()]);
+            // one mark per tile; with tracking off every tile is marked for good (the
+            // marks are then not cleared per frame)
+            g.state_tiles = decl.track_clear.then(|| {
+                let tiles = w.div_ceil(STATE_TILE) as u64 * h.div_ceil(STATE_TILE) as u64;
+                let buf = self.gpu.device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some("vwb slice state tiles"),
+                    size: tiles * 4,
+                    usage: wgpu::BufferUsages::STORAGE
+                        | wgpu::BufferUsages::COPY_DST
+                        | wgpu::BufferUsages::COPY_SRC,
+                    mapped_at_creation: false,
+                });
+                if !self.state_tracking {
+                    let marked = vec![0xff_u8; (tiles * 4) as usize];
+                    self.gpu.queue.write_buffer(&buf, 0, &marked);
+                }
+                buf
+            });
         }
     }
 
@@ -2470,6 +2514,9 @@ impl Renderer {
                 continue;
             };
             let Some(state) = &g.state else { continue };
+            if let (Some(tiles), true) = (&g.state_tiles, self.state_tracking) {
+                enc.clear_buffer(tiles, 0, None);
+            }
             let c = decl.clear;
             let _clear = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
                 label: Some("vwb clear state"),
@@ -2670,6 +2717,7 @@ impl Renderer {
             BindingRole::StateNext => {
                 wgpu::BindingResource::TextureView(&g.state.as_ref()?[1 - parity.unwrap_or(0)].1)
             }
+            BindingRole::StateTiles => g.state_tiles.as_ref()?.as_entire_binding(),
         };
         Some(wgpu::BindGroupEntry {
             binding: b.binding,
@@ -3876,6 +3924,41 @@ impl Renderer {
         read_texels_3d(&self.gpu, tex)
     }
 
+    /// The per-slice state of the instance `uid` as the last frame left it (for tests):
+    /// both textures of the pair, and the marks of its tiles where its plugin tracks
+    /// them ([`crate::plugin::SliceStateDecl::track_clear`]). None without state, for
+    /// a split volume (each brick has its own), or for a 16-bit state format.
+    pub fn read_state(&self, uid: u64) -> Option<StateReadback> {
+        let g = self.instances.get(&uid)?;
+        let [a, b] = g.state.as_ref()?;
+        let (size, first) = read_texels_3d(&self.gpu, &a.0)?;
+        let (_, second) = read_texels_3d(&self.gpu, &b.0)?;
+        if a.0.format().block_copy_size(None)? / 4 != a.0.format().components() as u32 {
+            return None;
+        }
+        let tiles = g.state_tiles.as_ref().map(|buf| {
+            let staging = self.gpu.device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("vwb read state tiles"),
+                size: buf.size(),
+                usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            });
+            let mut enc = self.gpu.device.create_command_encoder(&Default::default());
+            enc.copy_buffer_to_buffer(buf, 0, &staging, 0, buf.size());
+            self.gpu.queue.submit([enc.finish()]);
+            read_buffer(&self.gpu, &staging, buf.size())
+                .chunks_exact(4)
+                .map(|c| u32::from_le_bytes(c.try_into().expect("4 bytes")))
+                .collect()
+        });
+        Some(StateReadback {
+            size: [size[0], size[1]],
+            components: a.0.format().components() as usize,
+            textures: [first, second],
+            tiles,
+        })
+    }
+
     /// The figures `inst` reports about what its passes computed after the last frame
     /// ([`crate::plugin::Plugin::statistics`]): its volume-pass targets and its pre-pass
     /// target (`prepass`) as the GPU left them, with this renderer's volume and named
@@ -3985,6 +4068,20 @@ fn sum_by_uid(
         }
     }
     out
+}
+
+/// A per-slice state read back ([`Renderer::read_state`]).
+#[derive(Debug, Clone)]
+pub struct StateReadback {
+    /// Texels of each texture (width, height).
+    pub size: [u32; 2],
+    /// Components per texel in `textures`.
+    pub components: usize,
+    /// The pair's textures: f32 components, x fastest.
+    pub textures: [Vec<f32>; 2],
+    /// The tiles' marks (row-major, [`crate::composer::STATE_TILE`] texels on a side;
+    /// nonzero: a texel of the tile left the clear value), where they are tracked.
+    pub tiles: Option<Vec<u32>>,
 }
 
 /// RGBA texels read back with rows padded to 256 bytes, `bpp` 8 (rgba16float) or 16.

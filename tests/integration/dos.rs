@@ -127,6 +127,123 @@ fn one_dispatch_per_slice_keeps_the_image() {
     }
 }
 
+/// The occlusion update skips its taps where the sample is empty and every tap would
+/// read the clear buffer (`SliceStateDecl::track_clear`): the image is the one with
+/// every tile marked (every update reads), bit for bit, on both backends, for both
+/// kernels and distances, chromatic extinction, a half-resolution buffer and a
+/// directional light. After a frame every tile that holds a texel off the clear value
+/// is marked; behind a small block only the tiles its shadow reaches are.
+#[test]
+fn clear_tiles_skip_taps_and_keep_the_image() {
+    let mut r = Renderer::new(gpu(), demo()).unwrap();
+    for (kernel, distance, scale, extinction, light) in [
+        ("grid", "slice", "1", None, None),
+        ("poisson", "exact", "0.5", None, None),
+        ("grid", "exact", "1", Some([0.4, 1.0, 2.5]), None),
+        ("grid", "slice", "1", None, Some([0.6, 0.4, 1.0])),
+        ("poisson", "slice", "0.5", None, Some([0.3, -0.5, -1.0])),
+    ] {
+        let mut d = match light {
+            Some(l) => dos_lit(60.0, l),
+            None => dos(70.0),
+        };
+        if let Some(k) = extinction {
+            d.params
+                .set("extinction", ParamValue::Enum("chromatic".into()));
+            d.params.set("extinction_rgb", ParamValue::Vec3(k));
+        }
+        d.params.set("kernel", ParamValue::Enum(kernel.into()));
+        d.params.set("distance", ParamValue::Enum(distance.into()));
+        d.params.set("buffer_scale", ParamValue::Enum(scale.into()));
+        let what = format!("{kernel} {distance} ×{scale} κ {extinction:?} light {light:?}");
+        for backend in [Backend::Compute, Backend::Raster] {
+            let stack = [instance("classify.tf1d"), d.clone()];
+            clear_tiles_keep_the_image(&mut r, &stack, &settings(64, 64, backend), &what);
+        }
+    }
+    // a block at the back of an empty box, seen head-on: its shadow marks the middle
+    let (vol, tf) = block_and_wall(32, [12..20, 12..20, 24..30], 0..0, [0.9, 0.9, 0.9, 0.9]);
+    let mut r = Renderer::new(gpu(), vol).unwrap();
+    let stack = [tf, dos(30.0)];
+    let s = ortho_axis(64, 64, Backend::Compute);
+    let (marked, tiles) = clear_tiles_keep_the_image(&mut r, &stack, &s, "block");
+    assert!(
+        marked > 0 && 2 * marked < tiles,
+        "block: {marked} of {tiles} tiles marked"
+    );
+}
+
+/// Renders `stack` under `s` with the clear tiles tracked and with every tile marked:
+/// the same pixels, and with tracking every texel off the clear value in a marked
+/// tile. The tiles marked and in all, with tracking.
+fn clear_tiles_keep_the_image(
+    r: &mut Renderer,
+    stack: &[PluginInstance],
+    s: &FrameSettings,
+    what: &str,
+) -> (usize, usize) {
+    let mut stack = stack.to_vec();
+    let dos = stack.len() - 1;
+    stack[dos]
+        .params
+        .set("buffer_format", ParamValue::Enum("fp32".into()));
+    let tile = vwb_render::composer::STATE_TILE as usize;
+    let mut images = Vec::new();
+    let mut counts = (0, 0);
+    for tracking in [true, false] {
+        r.set_state_tracking(tracking);
+        r.update_stack(&stack, TargetFormat::Rgba32Float).unwrap();
+        let stats = r.render(s).unwrap();
+        assert!(stats.per_slice_mode && stats.slices > 0, "{what}");
+        images.push(r.read_pixels().unwrap().2);
+        let st = r
+            .read_state(stack[dos].uid)
+            .expect("an fp32 state reads back");
+        let tiles = st.tiles.expect("shade.dos tracks its clear tiles");
+        let tiles_x = (st.size[0] as usize).div_ceil(tile);
+        assert_eq!(
+            tiles.len(),
+            tiles_x * (st.size[1] as usize).div_ceil(tile),
+            "{what}"
+        );
+        let marked = tiles.iter().filter(|&&m| m != 0).count();
+        if !tracking {
+            assert_eq!(
+                marked,
+                tiles.len(),
+                "{what}: without tracking every tile is marked"
+            );
+            continue;
+        }
+        // every texel off the clear value (V = 1 in each channel) lies in a marked tile
+        let n = st.components;
+        for tex in &st.textures {
+            for (i, texel) in tex.chunks_exact(n).enumerate() {
+                let (x, y) = (i % st.size[0] as usize, i / st.size[0] as usize);
+                assert!(
+                    texel.iter().all(|&v| v == 1.0) || tiles[(y / tile) * tiles_x + x / tile] != 0,
+                    "{what} {:?}: texel ({x}, {y}) = {texel:?} in an unmarked tile",
+                    s.backend
+                );
+            }
+        }
+        eprintln!(
+            "{what} {:?}: {marked} of {} tiles marked",
+            s.backend,
+            tiles.len()
+        );
+        counts = (marked, tiles.len());
+    }
+    r.set_state_tracking(true);
+    assert!(
+        images[0] == images[1],
+        "{what} {:?}: the image with clear tiles skipped differs",
+        s.backend
+    );
+    assert!(mean_luma(&rgb(&images[0])) > 0.001, "{what}");
+    counts
+}
+
 /// θ = 0: every tap reads its own texel, so V is the transmittance towards the
 /// viewer, what `test.slice_shadow` at strength 1 computes. Orthographic, so that the
 /// slice distance d of Algorithm 3 is also the ray's step (in perspective the rays off

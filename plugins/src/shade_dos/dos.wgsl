@@ -83,6 +83,19 @@ fn slice_update(s: Sample, c: vec4<f32>, uv: vec2<f32>) -> vec4<f32> {
     let d = state_step();
     let extent = d * tan(radians(params.theta_deg));
     let scale = state_uv_per_world(s.slice);
+    // An empty sample (σt = 0: every tap's transmittance is exactly 1) under a cone
+    // whose taps all read the clear buffer (V = 1) gives V = 1 exactly, so its taps
+    // are skipped: the renderer tracks which tiles of the buffer are still clear
+    // (SliceStateDecl::track_clear). Most of a frame's texels are such (in front of
+    // the matter and beside it); the image is the same.
+    if (sigma_t == 0.0 && state_prev_clear(uv, extent * abs(scale))) {
+        // chromatic: begin
+        if (params.extinction == 1u) {
+            return vec4<f32>(1.0);
+        }
+        // chromatic: end
+        return vec4<f32>(1.0, 0.0, 0.0, 1.0);
+    }
     // chromatic: begin
     if (params.extinction == 1u) {
         return vec4<f32>(chromatic_taps(uv, scale, extent, d, sigma_t), 1.0);

@@ -248,6 +248,8 @@ impl Plugin for Dos {
                 [1.0, 0.0, 0.0, 1.0]
             },
             light: self.directional,
+            // empty samples under clear cones skip their taps (dos.wgsl)
+            track_clear: true,
         })
     }
     fn slice_light(&self, params: &ParamValues, view: &vwb_render::camera::View) -> Option<glam::Vec3> {

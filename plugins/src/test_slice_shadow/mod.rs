@@ -37,6 +37,7 @@ impl Plugin for SliceShadow {
             scale: 1.0,
             clear: [0.0; 4],
             light: false,
+            track_clear: false,
         })
     }
     /// `shade` scales the colour only and `slice_update` reads only the contribution's

@@ -306,6 +306,7 @@ pub(super) struct ChildSettings {
     skipping_enabled: bool,
     occupied_proxy: bool,
     fused_slices: bool,
+    state_tracking: bool,
     refinement_budget: Option<u32>,
 }
 
@@ -317,6 +318,7 @@ impl ChildSettings {
             skipping_enabled: parent.skipping_enabled,
             occupied_proxy: parent.occupied_proxy,
             fused_slices: parent.fused_slices,
+            state_tracking: parent.state_tracking,
             refinement_budget: parent.refinement_budget,
         }
     }
@@ -327,6 +329,7 @@ impl ChildSettings {
         r.skipping_enabled = self.skipping_enabled;
         r.occupied_proxy = self.occupied_proxy;
         r.fused_slices = self.fused_slices;
+        r.set_state_tracking(self.state_tracking);
         r.refinement_budget = self.refinement_budget;
     }
 }
