@@ -1928,7 +1928,7 @@ fn markdown(e: &Experiment, file: &Path, gpu: &GpuContext, o: &Outcome) -> Strin
         file.display(),
         measure::machine(),
         gpu.describe(),
-        env!("CARGO_PKG_VERSION"),
+        measure::build(),
         e.seed
             .map_or_else(|| "as the presets set it".to_string(), |s| s.to_string()),
         e.frames,
@@ -2199,6 +2199,7 @@ fn write_outputs(
             "machine": measure::machine(),
             "adapter": gpu.describe(),
             "version": env!("CARGO_PKG_VERSION"),
+            "commit": measure::build_commit(),
             "seed": e.seed,
             "frames": e.frames,
             "references": o.references,

@@ -433,6 +433,21 @@ fn over(img: &ReferenceImage, doc: &Document) -> RgbImageF {
 }
 
 /// CPU model and core count, for the docs.
+/// The build: the package version and the commit it was built from, e.g.
+/// `0.1.0 (commit 1a2b3c4d5e6f)`, or the version alone where the source tree was no
+/// git checkout (lab/build.rs).
+pub fn build() -> String {
+    match env!("VWB_BUILD_COMMIT") {
+        "" => env!("CARGO_PKG_VERSION").to_string(),
+        commit => format!("{} (commit {commit})", env!("CARGO_PKG_VERSION")),
+    }
+}
+
+/// The build's commit (lab/build.rs), None where the source tree was no git checkout.
+pub fn build_commit() -> Option<&'static str> {
+    Some(env!("VWB_BUILD_COMMIT")).filter(|c| !c.is_empty())
+}
+
 pub fn machine() -> String {
     let cpu = std::fs::read_to_string("/proc/cpuinfo")
         .ok()

@@ -862,10 +862,12 @@ fn check_plugin_file(
 /// Per-stage resource counts of a composition, checked against device limits.
 fn check_limits(bindings: &[Binding], limits: &wgpu::Limits) -> Result<(), ComposeError> {
     // group 0: frame + slice_info uniforms, volume texture, 2 samplers;
-    // group 3 (compute): output storage texture + accumulation storage buffer.
+    // group 3 (compute): output storage texture + accumulation storage buffer
+    // (the bindings' storage buffers: per-slice state tile marks).
     let mut uniforms = 2u32;
     let mut sampled = 1u32;
     let mut storage_tex = 1u32;
+    let mut storage_buf = 1u32;
     let mut per_group = [5u32, 0, 0, 2];
     let mut max_uniform = 0u32;
     for b in bindings {
@@ -876,7 +878,8 @@ fn check_limits(bindings: &[Binding], limits: &wgpu::Limits) -> Result<(), Compo
                 max_uniform = max_uniform.max(size);
             }
             BindingKind::Texture2d | BindingKind::Texture3d => sampled += 1,
-            _ => storage_tex += 1,
+            BindingKind::StorageBufferU32 => storage_buf += 1,
+            BindingKind::StorageTexture2d(_) | BindingKind::StorageTexture3d(_) => storage_tex += 1,
         }
     }
     let checks = [
@@ -894,6 +897,11 @@ fn check_limits(bindings: &[Binding], limits: &wgpu::Limits) -> Result<(), Compo
             "storage textures per shader stage",
             storage_tex,
             limits.max_storage_textures_per_shader_stage,
+        ),
+        (
+            "storage buffers per shader stage",
+            storage_buf,
+            limits.max_storage_buffers_per_shader_stage,
         ),
         (
             "bindings per bind group",

@@ -77,6 +77,22 @@ fn a_small_experiment_runs_and_checks_what_it_measured() {
         "{report}"
     );
     assert!(report.contains("pass `slices > 10`"), "{report}");
+    // the report names the build: the version and, from a git checkout, the commit
+    let build = vwb_lab::measure::build();
+    assert!(report.contains(&format!("; vwb {build};")), "{report}");
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("results.json")).unwrap()).unwrap();
+    let head = std::process::Command::new("git")
+        .args(["rev-parse", "--short=12", "HEAD"])
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .output()
+        .ok()
+        .filter(|o| o.status.success())
+        .map(|o| String::from_utf8_lossy(&o.stdout).trim().to_string());
+    if let Some(head) = head {
+        assert_eq!(json["commit"], serde_json::json!(head), "{build}");
+        assert!(build.ends_with(&format!("(commit {head})")), "{build}");
+    }
 }
 
 /// A searched variant: a seeded genetic search toward another variant's views at each
