@@ -49,22 +49,34 @@ fn both_backends_match_the_twin_and_each_other() {
         ("poisson", "slice", "fp16", "0.5", Some([2.0, 1.0, 0.3])),
     ] {
         let mut d = dos(70.0);
-        if let Some(k) = extinction {
-            d.params
-                .set("extinction", ParamValue::Enum("chromatic".into()));
-            d.params.set("extinction_rgb", ParamValue::Vec3(k));
-        }
-        d.params.set("kernel", ParamValue::Enum(kernel.into()));
-        d.params.set("distance", ParamValue::Enum(distance.into()));
+        set_kernel(&mut d, kernel, distance, scale, extinction);
         d.params
             .set("buffer_format", ParamValue::Enum(format.into()));
-        d.params.set("buffer_scale", ParamValue::Enum(scale.into()));
         let stack = vec![instance("classify.tf1d"), d];
         backends_match_the_twin_and_each_other(
             &stack,
             &format!("dos {kernel} {distance} {format} ×{scale} κ {extinction:?}"),
         );
     }
+}
+
+/// Sets `d`'s (shade.dos) kernel, distance, buffer scale and, where `extinction` is
+/// given, chromatic extinction with that κ.
+fn set_kernel(
+    d: &mut PluginInstance,
+    kernel: &str,
+    distance: &str,
+    scale: &str,
+    extinction: Option<[f32; 3]>,
+) {
+    if let Some(k) = extinction {
+        d.params
+            .set("extinction", ParamValue::Enum("chromatic".into()));
+        d.params.set("extinction_rgb", ParamValue::Vec3(k));
+    }
+    d.params.set("kernel", ParamValue::Enum(kernel.into()));
+    d.params.set("distance", ParamValue::Enum(distance.into()));
+    d.params.set("buffer_scale", ParamValue::Enum(scale.into()));
 }
 
 /// The demo under `stack` at 48² on both backends: each within 0.5 ΔE*uv RMS of the
@@ -147,14 +159,7 @@ fn clear_tiles_skip_taps_and_keep_the_image() {
             Some(l) => dos_lit(60.0, l),
             None => dos(70.0),
         };
-        if let Some(k) = extinction {
-            d.params
-                .set("extinction", ParamValue::Enum("chromatic".into()));
-            d.params.set("extinction_rgb", ParamValue::Vec3(k));
-        }
-        d.params.set("kernel", ParamValue::Enum(kernel.into()));
-        d.params.set("distance", ParamValue::Enum(distance.into()));
-        d.params.set("buffer_scale", ParamValue::Enum(scale.into()));
+        set_kernel(&mut d, kernel, distance, scale, extinction);
         let what = format!("{kernel} {distance} ×{scale} κ {extinction:?} light {light:?}");
         for backend in [Backend::Compute, Backend::Raster] {
             let stack = [instance("classify.tf1d"), d.clone()];
