@@ -274,6 +274,9 @@ pub struct Workbench {
     file_status: Option<Result<String, String>>,
     /// A volume loading in the background (app/src/loading.rs).
     loading: Option<crate::loading::VolumeLoad>,
+    /// Named volumes loading in the background: one added from a large file, or
+    /// large files reloaded after they changed on disk.
+    inputs_load: Option<InputsLoad>,
     /// Volume files of at least this many bytes (and streams) load in the background.
     pub async_load_bytes: u64,
     /// A missing sample's fetch button.
@@ -354,6 +357,7 @@ impl Workbench {
             plugin_watch: Default::default(),
             plugin_watch_at: std::time::Instant::now(),
             volume_reload_failed: Default::default(),
+            inputs_load: None,
             gallery: Default::default(),
             evolve: Default::default(),
             dialog: None,
@@ -540,19 +544,121 @@ impl Workbench {
 
     /// Adds a named volume to the document (`volumes:`, [`crate::volumes_ui`]):
     /// `source` is a file or a sample name, `name` a new volume name (empty: the
-    /// file's or sample's stem). It loads now; on an error (a name taken or invalid, a
-    /// file that does not load) nothing changes.
+    /// file's or sample's stem). A small file or a sample loads now; a file of at
+    /// least [`Workbench::async_load_bytes`] loads in a background thread (progress line
+    /// and Cancel under the file fields) and joins the document when loaded. On an
+    /// error (a name taken or invalid, a file that does not load) nothing changes.
     pub fn add_named_volume(&mut self, name: &str, source: &str) -> Result<String> {
+        let (name, source) = vwb_lab::document::name_new_volume(&self.doc, name, source)?;
+        if self.loads_in_background(&source) {
+            if self.inputs_load.is_some() {
+                bail!("a volume is still loading: wait for it, or cancel it, first");
+            }
+            let mut with = self.doc.clone();
+            with.volumes.insert(name.clone(), source.clone());
+            self.inputs_load = Some(InputsLoad::start(
+                with,
+                Some((name.clone(), source)),
+                Vec::new(),
+            ));
+            return Ok(format!("loading volume '{name}' in the background"));
+        }
         let mut doc = self.doc.clone();
-        let (name, inputs) = vwb_lab::document::add_named_volume(&mut doc, name, source)?;
+        doc.volumes.insert(name.clone(), source);
+        let inputs = headless::inputs_for(&doc)?;
+        self.doc = doc;
+        Ok(self.added_volume(&name, inputs))
+    }
+
+    /// Puts the named volumes `inputs` (the document's, with `name` added) into the
+    /// renderer; the message.
+    fn added_volume(&mut self, name: &str, inputs: vwb_render::inputs::VolumeInputs) -> String {
         let added = inputs
-            .get(&name)
+            .get(name)
             .map(|v| crate::volumes_ui::describe_grid(v))
             .unwrap_or_default();
         self.renderer.set_inputs(inputs);
-        self.doc = doc;
         self.apply_stack();
-        Ok(format!("added volume '{name}' ({added})"))
+        format!("added volume '{name}' ({added})")
+    }
+
+    /// Whether a named volume from `source` loads in a background thread: a file (or
+    /// stream) of at least [`Workbench::async_load_bytes`].
+    fn loads_in_background(&self, source: &VolumeSource) -> bool {
+        matches!(source, VolumeSource::File(p) if crate::loading::VolumeLoad::wanted(p, self.async_load_bytes))
+    }
+
+    /// Named volumes are loading in the background.
+    pub fn is_loading_volumes(&self) -> bool {
+        self.inputs_load.is_some()
+    }
+
+    /// Finishes the named volumes' background load once its thread is done: an added
+    /// volume joins the document (unless its name was taken meanwhile), reloaded ones
+    /// replace the last good ones, and what reads them reruns. True when it finished.
+    pub fn poll_volume_loads(&mut self) -> bool {
+        let Some(result) = self.inputs_load.as_ref().and_then(|l| l.job.poll()) else {
+            return false;
+        };
+        let Some(load) = self.inputs_load.take() else {
+            return false;
+        };
+        // `held` keeps the loaded volumes alive while inputs_for finds them again for
+        // the document as it is now (edited meanwhile, perhaps)
+        let outcome = result.map_err(|e| anyhow!(e)).and_then(|held| {
+            let mut doc = self.doc.clone();
+            if let Some((name, source)) = &load.add {
+                if doc.volumes.contains_key(name) {
+                    bail!("the document already has a volume named '{name}'");
+                }
+                doc.volumes.insert(name.clone(), source.clone());
+            }
+            let inputs = headless::inputs_for(&doc);
+            drop(held);
+            Ok((doc, inputs?))
+        });
+        match (&load.add, outcome) {
+            (Some((name, _)), Ok((doc, inputs))) => {
+                self.doc = doc;
+                let msg = self.added_volume(name, inputs);
+                self.file_status = Some(Ok(msg));
+            }
+            (Some((name, _)), Err(e)) => {
+                self.file_status = Some(Err(format!("volume '{name}' was not added: {e:#}")));
+            }
+            (None, outcome) => self.reloaded_volumes(load.changed, outcome.map(|(_, i)| i)),
+        }
+        true
+    }
+
+    /// The background load's line: what loads, for how long, and Cancel (which drops
+    /// its result; the file is read to its end in the background).
+    fn volume_loads_ui(&mut self, ui: &mut egui::Ui) {
+        let Some(load) = &self.inputs_load else {
+            return;
+        };
+        let what = match &load.add {
+            Some((name, _)) => format!("loading volume '{name}'"),
+            None => format!("reloading {}", names_list(&load.changed)),
+        };
+        let cancel = ui
+            .horizontal(|ui| {
+                ui.spinner();
+                ui.label(format!(
+                    "{what}… {:.0} s",
+                    load.started.elapsed().as_secs_f64()
+                ));
+                ui.button("Cancel").clicked()
+            })
+            .inner;
+        if cancel {
+            let load = self.inputs_load.take();
+            // a cancelled reload is not retried until the file changes again
+            if let Some(load) = load {
+                self.volume_reload_failed.extend(load.changed);
+            }
+            self.file_status = Some(Ok(format!("cancelled {what}")));
+        }
     }
 
     /// Removes a named volume that no plugin's volume input names.
@@ -576,8 +682,13 @@ impl Workbench {
     /// second, with the user plugins): the renderer gets the new volume and reruns
     /// what reads it. A file that does not load (half written, say) leaves the last
     /// good volume drawing, shows its error, and is tried again when it changes again.
-    /// True when something was reloaded or failed.
+    /// Large files (at least [`Workbench::async_load_bytes`]) load in a background
+    /// thread, the last good volumes drawing meanwhile; no check runs while one loads.
+    /// True when something was reloaded, failed, or started loading.
     pub fn reload_changed_volumes(&mut self) -> bool {
+        if self.inputs_load.is_some() {
+            return false;
+        }
         let changed: Vec<(String, headless::Stamp)> = headless::changed_named_volumes(&self.doc)
             .into_iter()
             .filter(|(name, stamp)| self.volume_reload_failed.get(name) != Some(stamp))
@@ -585,12 +696,34 @@ impl Workbench {
         if changed.is_empty() {
             return false;
         }
-        let names = changed
-            .iter()
-            .map(|(n, _)| format!("'{n}'"))
-            .collect::<Vec<_>>()
-            .join(", ");
-        match headless::inputs_for(&self.doc) {
+        // large files load in a background thread; the last good volumes draw meanwhile
+        if changed.iter().any(|(name, _)| {
+            self.doc
+                .volumes
+                .get(name)
+                .is_some_and(|s| self.loads_in_background(s))
+        }) {
+            self.file_status = Some(Ok(format!(
+                "reloading volume {} in the background: its file changed on disk",
+                names_list(&changed)
+            )));
+            self.inputs_load = Some(InputsLoad::start(self.doc.clone(), None, changed));
+            return true;
+        }
+        let inputs = headless::inputs_for(&self.doc);
+        self.reloaded_volumes(changed, inputs);
+        true
+    }
+
+    /// Puts reloaded named volumes into the renderer, or keeps the last good ones
+    /// drawing and records the failure (not retried until the files change again).
+    fn reloaded_volumes(
+        &mut self,
+        changed: Vec<(String, headless::Stamp)>,
+        inputs: Result<vwb_render::inputs::VolumeInputs>,
+    ) {
+        let names = names_list(&changed);
+        match inputs {
             Ok(inputs) => {
                 self.renderer.set_inputs(inputs);
                 self.apply_stack();
@@ -606,7 +739,6 @@ impl Workbench {
                 )));
             }
         }
-        true
     }
 
     /// Reloads the user plugins whose files changed: the stack's instances of a
@@ -1316,6 +1448,7 @@ impl Workbench {
             }
         });
         self.loading_ui(ui);
+        self.volume_loads_ui(ui);
         ui.horizontal(|ui| {
             ui.add(
                 egui::TextEdit::singleline(&mut self.preset_path)
@@ -1853,6 +1986,11 @@ impl eframe::App for Workbench {
             self.reload_user_plugins();
             self.reload_changed_volumes();
         }
+        if self.poll_volume_loads() {
+            ctx.request_repaint();
+        } else if self.inputs_load.is_some() {
+            ctx.request_repaint_after(std::time::Duration::from_millis(100));
+        }
         egui::Panel::left("side").show(ui, |ui| {
             // wheel and scroll bar only: a drag belongs to the widget under it (stack
             // handles, TF editors, sliders)
@@ -1869,4 +2007,45 @@ impl eframe::App for Workbench {
         self.wgsl_window(&ctx);
         self.screenshot(&ctx);
     }
+}
+
+/// Named volumes loading in a background thread ([`Workbench::add_named_volume`] and
+/// [`Workbench::reload_changed_volumes`] for files of at least
+/// [`Workbench::async_load_bytes`]).
+struct InputsLoad {
+    /// The document's named volumes, loaded (they stay held while this lives).
+    job: vwb_lab::job::Job<vwb_render::inputs::VolumeInputs>,
+    /// The volume being added (its name and source); None for a reload.
+    add: Option<(String, VolumeSource)>,
+    /// The reloaded volumes with their files' stamps (for a reload).
+    changed: Vec<(String, headless::Stamp)>,
+    started: std::time::Instant,
+}
+
+impl InputsLoad {
+    /// Loads `doc`'s named volumes in a thread ([`headless::inputs_for`]).
+    fn start(
+        doc: Document,
+        add: Option<(String, VolumeSource)>,
+        changed: Vec<(String, headless::Stamp)>,
+    ) -> Self {
+        let job = vwb_lab::job::Job::spawn("volume loading", move || {
+            headless::inputs_for(&doc).map_err(|e| format!("{e:#}"))
+        });
+        Self {
+            job,
+            add,
+            changed,
+            started: std::time::Instant::now(),
+        }
+    }
+}
+
+/// `'a', 'b'`: the names of `changed`.
+fn names_list(changed: &[(String, headless::Stamp)]) -> String {
+    changed
+        .iter()
+        .map(|(n, _)| format!("'{n}'"))
+        .collect::<Vec<_>>()
+        .join(", ")
 }

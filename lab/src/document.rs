@@ -118,6 +118,19 @@ pub fn add_named_volume(
     name: &str,
     source: &str,
 ) -> Result<(String, vwb_render::inputs::VolumeInputs)> {
+    let (name, source) = name_new_volume(doc, name, source)?;
+    let mut with = doc.clone();
+    with.volumes.insert(name.clone(), source);
+    let inputs = crate::headless::inputs_for(&with)?;
+    *doc = with;
+    Ok((name, inputs))
+}
+
+/// The name and source a new named volume of `doc` takes, loading nothing (what
+/// [`add_named_volume`] checks first): `source` a file or a sample name, `name` a new
+/// volume name (empty: the file's or sample's stem). An error where the name is not a
+/// volume name or is taken.
+pub fn name_new_volume(doc: &Document, name: &str, source: &str) -> Result<(String, VolumeSource)> {
     use anyhow::bail;
     let source = crate::headless::volume_arg(Path::new(source));
     let name = match (name, &source) {
@@ -131,11 +144,7 @@ pub fn add_named_volume(
     if doc.volumes.contains_key(&name) {
         bail!("the document already has a volume named '{name}'");
     }
-    let mut with = doc.clone();
-    with.volumes.insert(name.clone(), source);
-    let inputs = crate::headless::inputs_for(&with)?;
-    *doc = with;
-    Ok((name, inputs))
+    Ok((name, source))
 }
 
 #[cfg(test)]

@@ -1322,6 +1322,117 @@ fn window_reloads_an_edited_user_plugin_and_survives_a_broken_one() {
     );
 }
 
+/// Writes a label volume to `file`: every voxel `label`, on a 4³ grid over the demo's
+/// box, its modification time set to `secs` (so that each write is seen as a change
+/// however fast the file system's clock).
+fn write_labels(file: &std::path::Path, label: u8, secs: u64) {
+    let mut bytes =
+        b"NRRD0004\ntype: uchar\ndimension: 3\nsizes: 4 4 4\nencoding: raw\n\n".to_vec();
+    bytes.extend(std::iter::repeat_n(label, 64));
+    std::fs::write(file, bytes).unwrap();
+    set_modified(file, secs);
+}
+
+fn set_modified(file: &std::path::Path, secs: u64) {
+    std::fs::File::options()
+        .write(true)
+        .open(file)
+        .unwrap()
+        .set_modified(std::time::UNIX_EPOCH + Duration::from_secs(secs))
+        .unwrap();
+}
+
+/// The window on presets/demo_labels.ron with its label volume from `file` (label 1
+/// written at `secs`), settled, and its image.
+fn window_with_labels_file(
+    file: &std::path::Path,
+    secs: u64,
+) -> (Harness<'static, Workbench>, image::RgbImage) {
+    write_labels(file, 1, secs);
+    let mut doc = Document::load(&repo().join("presets/demo_labels.ron"), &registry())
+        .unwrap()
+        .document;
+    doc.volumes
+        .insert("labels".into(), VolumeSource::File(file.to_path_buf()));
+    let mut h = window(doc, 0.25);
+    settle(&mut h);
+    let img = image(&h);
+    (h, img)
+}
+
+/// Runs the window's frames until its named volumes' background load has finished
+/// (at most 20 s).
+fn until_volumes_loaded(h: &mut Harness<'_, Workbench>) {
+    let start = std::time::Instant::now();
+    while h.state().is_loading_volumes() {
+        assert!(
+            start.elapsed() < Duration::from_secs(20),
+            "the volumes never loaded"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+        h.run_steps(1);
+    }
+    settle(h);
+}
+
+/// Named volumes from large files (here every file: `async_load_bytes` 0) load in a
+/// background thread, the last good image drawing meanwhile: a file changed on disk
+/// is reloaded so, an added volume joins the document only once loaded (a second one
+/// waits for it), and one that does not load is not added and says why.
+#[test]
+fn window_loads_large_named_volumes_in_the_background() {
+    let file = tmp("background_labels.nrrd");
+    let (mut h, orange) = window_with_labels_file(&file, 2_000_000);
+    h.state_mut().async_load_bytes = 0;
+    // reloaded in the background
+    write_labels(&file, 2, 2_000_010);
+    assert!(h.state_mut().reload_changed_volumes());
+    assert!(h.state().is_loading_volumes());
+    let status = format!("{:?}", h.state().file_status());
+    assert!(status.contains("in the background"), "{status}");
+    assert!(
+        !h.state_mut().reload_changed_volumes(),
+        "one load at a time"
+    );
+    until_volumes_loaded(&mut h);
+    let status = format!("{:?}", h.state().file_status());
+    assert!(status.contains("reloaded volume 'labels'"), "{status}");
+    assert!(
+        rms(&orange, &image(&h)) > 1.0,
+        "{}",
+        rms(&orange, &image(&h))
+    );
+    // added in the background
+    let source = file.display().to_string();
+    let msg = h.state_mut().add_named_volume("extra", &source).unwrap();
+    assert!(
+        msg.contains("loading volume 'extra' in the background"),
+        "{msg}"
+    );
+    assert!(!h.state().document().volumes.contains_key("extra"));
+    let busy = h.state_mut().add_named_volume("more", &source).unwrap_err();
+    assert!(format!("{busy:#}").contains("still loading"), "{busy:#}");
+    until_volumes_loaded(&mut h);
+    assert!(h.state().document().volumes.contains_key("extra"));
+    let status = format!("{:?}", h.state().file_status());
+    assert!(status.contains("added volume 'extra'"), "{status}");
+    // a file that does not load is not added, and says so
+    let broken = tmp("background_broken.nrrd");
+    std::fs::write(&broken, b"NRRD0004\ntype: uchar\ndimension: 3\n").unwrap();
+    h.state_mut()
+        .add_named_volume("broken", &broken.display().to_string())
+        .unwrap();
+    until_volumes_loaded(&mut h);
+    assert!(!h.state().document().volumes.contains_key("broken"));
+    let status = format!("{:?}", h.state().file_status());
+    assert!(
+        status.contains("Err")
+            && status.contains("'broken' was not added")
+            && status.contains("background_broken.nrrd"),
+        "{status}"
+    );
+}
+
 /// A named volume's file edited on disk while the window shows it is loaded again (the
 /// window's once-a-second check, called directly here), and the image follows it. A
 /// file that does not load (half written) leaves the last good volume drawing with its
@@ -1329,38 +1440,13 @@ fn window_reloads_an_edited_user_plugin_and_survives_a_broken_one() {
 #[test]
 fn window_reloads_a_named_volume_edited_on_disk() {
     let file = tmp("reloaded_labels.nrrd");
-    // every voxel one label, on a 4³ grid over the demo's box; the modification time
-    // set, so that each write is seen as a change however fast the file system's clock
-    let stamp = |secs: u64| {
-        std::fs::File::options()
-            .write(true)
-            .open(&file)
-            .unwrap()
-            .set_modified(std::time::UNIX_EPOCH + Duration::from_secs(secs))
-            .unwrap();
-    };
-    let write_labels = |label: u8, secs: u64| {
-        let mut bytes =
-            b"NRRD0004\ntype: uchar\ndimension: 3\nsizes: 4 4 4\nencoding: raw\n\n".to_vec();
-        bytes.extend(std::iter::repeat_n(label, 64));
-        std::fs::write(&file, bytes).unwrap();
-        stamp(secs);
-    };
-    write_labels(1, 1_000_000);
-    let mut doc = Document::load(&repo().join("presets/demo_labels.ron"), &registry())
-        .unwrap()
-        .document;
-    doc.volumes
-        .insert("labels".into(), VolumeSource::File(file.clone()));
-    let mut h = window(doc, 0.25);
-    settle(&mut h);
-    let orange = image(&h);
+    let (mut h, orange) = window_with_labels_file(&file, 1_000_000);
     assert!(
         !h.state_mut().reload_changed_volumes(),
         "nothing changed yet"
     );
     // the labels edited: label 2 (blue) everywhere
-    write_labels(2, 1_000_010);
+    write_labels(&file, 2, 1_000_010);
     assert!(h.state_mut().reload_changed_volumes());
     settle(&mut h);
     let status = format!("{:?}", h.state().file_status());
@@ -1369,7 +1455,7 @@ fn window_reloads_a_named_volume_edited_on_disk() {
     assert!(rms(&orange, &blue) > 1.0, "{}", rms(&orange, &blue));
     // half written: refused, the blue image stays, and it is not retried
     std::fs::write(&file, b"NRRD0004\ntype: uchar\ndimension: 3\n").unwrap();
-    stamp(1_000_020);
+    set_modified(&file, 1_000_020);
     assert!(h.state_mut().reload_changed_volumes());
     settle(&mut h);
     let status = format!("{:?}", h.state().file_status());
@@ -1382,7 +1468,7 @@ fn window_reloads_a_named_volume_edited_on_disk() {
     assert_eq!(rms(&blue, &image(&h)), 0.0);
     assert!(!h.state_mut().reload_changed_volumes(), "not tried again");
     // written whole again: loads, and the image is the first one
-    write_labels(1, 1_000_030);
+    write_labels(&file, 1, 1_000_030);
     assert!(h.state_mut().reload_changed_volumes());
     settle(&mut h);
     assert!(
