@@ -563,10 +563,7 @@ impl Workbench {
             ));
             return Ok(format!("loading volume '{name}' in the background"));
         }
-        let mut doc = self.doc.clone();
-        doc.volumes.insert(name.clone(), source);
-        let inputs = headless::inputs_for(&doc)?;
-        self.doc = doc;
+        let inputs = vwb_lab::document::insert_named_volume(&mut self.doc, &name, source)?;
         Ok(self.added_volume(&name, inputs))
     }
 
@@ -607,13 +604,12 @@ impl Workbench {
         // the document as it is now (edited meanwhile, perhaps)
         let outcome = result.map_err(|e| anyhow!(e)).and_then(|held| {
             let mut doc = self.doc.clone();
-            if let Some((name, source)) = &load.add {
-                if doc.volumes.contains_key(name) {
-                    bail!("the document already has a volume named '{name}'");
+            let inputs = match &load.add {
+                Some((name, source)) => {
+                    vwb_lab::document::insert_named_volume(&mut doc, name, source.clone())
                 }
-                doc.volumes.insert(name.clone(), source.clone());
-            }
-            let inputs = headless::inputs_for(&doc);
+                None => headless::inputs_for(&doc),
+            };
             drop(held);
             Ok((doc, inputs?))
         });

@@ -119,11 +119,31 @@ pub fn add_named_volume(
     source: &str,
 ) -> Result<(String, vwb_render::inputs::VolumeInputs)> {
     let (name, source) = name_new_volume(doc, name, source)?;
+    let inputs = insert_named_volume(doc, &name, source)?;
+    Ok((name, inputs))
+}
+
+/// Puts the named volume `name` from `source` (as [`name_new_volume`] gives them) into
+/// `doc` and loads the document's named volumes. A name taken (since it was chosen) or
+/// a source that does not load is an error, and `doc` is left as it was.
+pub fn insert_named_volume(
+    doc: &mut Document,
+    name: &str,
+    source: VolumeSource,
+) -> Result<vwb_render::inputs::VolumeInputs> {
+    name_is_free(doc, name)?;
     let mut with = doc.clone();
-    with.volumes.insert(name.clone(), source);
+    with.volumes.insert(name.to_string(), source);
     let inputs = crate::headless::inputs_for(&with)?;
     *doc = with;
-    Ok((name, inputs))
+    Ok(inputs)
+}
+
+fn name_is_free(doc: &Document, name: &str) -> Result<()> {
+    if doc.volumes.contains_key(name) {
+        anyhow::bail!("the document already has a volume named '{name}'");
+    }
+    Ok(())
 }
 
 /// The name and source a new named volume of `doc` takes, loading nothing (what
@@ -141,9 +161,7 @@ pub fn name_new_volume(doc: &Document, name: &str, source: &str) -> Result<(Stri
     if !vwb_render::params::valid_volume_name(&name) {
         bail!("'{name}' is not a volume name (letters, digits and _, not starting with a digit)");
     }
-    if doc.volumes.contains_key(&name) {
-        bail!("the document already has a volume named '{name}'");
-    }
+    name_is_free(doc, &name)?;
     Ok((name, source))
 }
 

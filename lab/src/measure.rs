@@ -432,7 +432,6 @@ fn over(img: &ReferenceImage, doc: &Document) -> RgbImageF {
     RgbImageF::from_rgba_premultiplied_over(&img.pixels, img.width, img.height, background(doc))
 }
 
-/// CPU model and core count, for the docs.
 /// The build: the package version and the commit it was built from, e.g.
 /// `0.1.0 (commit 1a2b3c4d5e6f)`, or the version alone where the source tree was no
 /// git checkout (lab/build.rs).
@@ -448,6 +447,7 @@ pub fn build_commit() -> Option<&'static str> {
     Some(env!("VWB_BUILD_COMMIT")).filter(|c| !c.is_empty())
 }
 
+/// CPU model and core count, for the docs.
 pub fn machine() -> String {
     let cpu = std::fs::read_to_string("/proc/cpuinfo")
         .ok()

@@ -334,10 +334,11 @@ fn fullscreen_pipeline(
     (pipeline, layout)
 }
 
-/// The default of [`Renderer::set_fused_slices`]: on unless `VWB_FUSED_SLICES=0` (a
-/// benchmark override that restores a dispatch per slice and per update).
-fn fused_slices() -> bool {
-    std::env::var("VWB_FUSED_SLICES").map_or(true, |v| v.trim() != "0")
+/// Whether the benchmark switch `name` is on: unless it is set to `0` (the defaults of
+/// [`Renderer::set_fused_slices`], `VWB_FUSED_SLICES=0` restoring a dispatch per slice
+/// and per update, and [`Renderer::set_state_tracking`], `VWB_STATE_TRACKING`).
+fn env_on(name: &str) -> bool {
+    std::env::var(name).map_or(true, |v| v.trim() != "0")
 }
 
 /// A count (≥ 1) from the environment variable `name`, else `default`: the benchmark
@@ -1210,8 +1211,8 @@ impl Renderer {
             target: None,
             raster_et: None,
             occupied_proxy: false,
-            fused_slices: fused_slices(),
-            state_tracking: std::env::var("VWB_STATE_TRACKING").map_or(true, |v| v.trim() != "0"),
+            fused_slices: env_on("VWB_FUSED_SLICES"),
+            state_tracking: env_on("VWB_STATE_TRACKING"),
             volume_bytes,
             gpu_budget: budget,
             volume_format,
@@ -1477,7 +1478,7 @@ impl Renderer {
     /// the tiles that left the clear value, so that updates under clear tiles skip
     /// their reads (on by default; `VWB_STATE_TRACKING=0` starts renderers with it
     /// off), or mark every tile for good, so that every update reads (docs/perf.md,
-    /// "Per-slice state: skipping the clear buffer"). The image is the same.
+    /// "Per-slice state: the taps under a clear buffer"). The image is the same.
     pub fn set_state_tracking(&mut self, on: bool) {
         if self.state_tracking != on {
             self.state_tracking = on;
@@ -3931,11 +3932,11 @@ impl Renderer {
     pub fn read_state(&self, uid: u64) -> Option<StateReadback> {
         let g = self.instances.get(&uid)?;
         let [a, b] = g.state.as_ref()?;
-        let (size, first) = read_texels_3d(&self.gpu, &a.0)?;
-        let (_, second) = read_texels_3d(&self.gpu, &b.0)?;
         if a.0.format().block_copy_size(None)? / 4 != a.0.format().components() as u32 {
             return None;
         }
+        let (size, first) = read_texels_3d(&self.gpu, &a.0)?;
+        let (_, second) = read_texels_3d(&self.gpu, &b.0)?;
         let tiles = g.state_tiles.as_ref().map(|buf| {
             let staging = self.gpu.device.create_buffer(&wgpu::BufferDescriptor {
                 label: Some("vwb read state tiles"),
