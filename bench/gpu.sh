@@ -8,9 +8,10 @@
 # VWB: target/release/vwb; INTEGRATION: the binary `cargo test --locked --test
 # integration --no-run` prints; DATA_DIR: the sample data (VWB_DATA_DIR). Writes to OUT:
 #   perf.md            docs/perf.md with its `foundation-gpu` block (bench/perf.py --gpu)
-#   gpu-docs.tar       docs/gpu/: flow.md and hernell.md (`flow_study`,
-#                      `hernell_512_benchmark` on the GPU, and the blocks of the
-#                      experiment files flow_modes, flow_animation, hernell_light,
+#   gpu-docs.tar       docs/gpu/: flow.md and hernell.md (`hernell_512_benchmark`
+#                      on the GPU, and the blocks of the experiment files
+#                      flow_precompute_256, flow_arrival_prepass_large, flow_modes,
+#                      flow_animation, hernell_light,
 #                      hernell_scattering, hernell_extremes and hernell_blocking),
 #                      perf.md (experiments/volume_format.ron), clipping.md and
 #                      clip_mesh.md (clip_planes, clip_skipping, clip_mesh_cost: the
@@ -34,8 +35,9 @@ step() { # name limit_s command...
 step perf 90 python3 bench/perf.py --vwb "$vwb" --gpu --block foundation-gpu --frames 20
 cp docs/perf.md "$out/perf.md"
 step benchmarks 240 "$integration" --ignored --test-threads=1 --nocapture \
-    flow::flow_study hernell::hernell_512_benchmark
-step experiments 360 "$vwb" run experiments/volume_format.ron experiments/flow_modes.ron \
+    hernell::hernell_512_benchmark
+step experiments 420 "$vwb" run experiments/volume_format.ron experiments/flow_modes.ron \
+    experiments/flow_precompute_256.ron experiments/flow_arrival_prepass_large.ron \
     experiments/flow_animation.ron experiments/hernell_light.ron \
     experiments/hernell_scattering.ron experiments/hernell_extremes.ron \
     experiments/hernell_blocking.ron experiments/clip_planes.ron \

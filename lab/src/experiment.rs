@@ -41,6 +41,8 @@ use vwb_render::{GpuContext, TargetFormat, Volume};
 use crate::headless;
 use crate::measure::{self, Axis, SweepPoint};
 
+mod probe;
+
 /// A study declared in an experiment file.
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -49,7 +51,15 @@ pub struct Experiment {
     pub name: String,
     #[serde(default)]
     pub description: String,
+    /// Empty only with a `probe`.
+    #[serde(default)]
     pub scenes: Vec<Scene>,
+    /// A plugin's probe instead of scenes: the study runs that computation of the
+    /// plugin's CPU twin (no GPU, no image) over the variants and the grid, whose keys
+    /// are the probe's parameters; its figures are the table's columns
+    /// ([`vwb_render::plugin::Probe`], `crate::probe`).
+    #[serde(default)]
+    pub probe: Option<ProbeSpec>,
     /// Empty: one variant, each scene as it is.
     #[serde(default)]
     pub variants: Vec<Variant>,
@@ -118,6 +128,17 @@ fn default_update_repeats() -> u32 {
 }
 fn default_tolerance() -> f64 {
     0.1
+}
+
+/// The probe an experiment runs instead of rendering scenes.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ProbeSpec {
+    /// `<plugin id>.<probe name>`, e.g. `flow.lic3d.drift`.
+    pub id: String,
+    /// The Pareto front's (time, error) figures; None: no front and no plot.
+    #[serde(default)]
+    pub pareto: Option<(String, String)>,
 }
 
 /// A scene: a preset file (relative to the experiment file's folder) or a sample data
@@ -426,6 +447,9 @@ pub enum Metric {
     /// a quarter of `update_ms` on a CPU adapter, under 1 % on a GPU: lavapipe reports
     /// near-zero times for compute passes).
     UpdateGpuMs,
+    /// How many pre-passes and volume-pass dispatches the grid point's first frame ran
+    /// ([`Row::update_passes`]): 0 where the change reran nothing.
+    PassesRerun,
     Slices,
     GpuMemoryMib,
     /// The share of empty-space-skipping bricks that no sample can make visible (the
@@ -434,7 +458,7 @@ pub enum Metric {
 }
 
 impl Metric {
-    pub const ALL: [Metric; 13] = [
+    pub const ALL: [Metric; 14] = [
         Metric::RmsDeltaE,
         Metric::MeanDeltaE,
         Metric::MaxDeltaE,
@@ -445,6 +469,7 @@ impl Metric {
         Metric::FrameMs,
         Metric::UpdateMs,
         Metric::UpdateGpuMs,
+        Metric::PassesRerun,
         Metric::Slices,
         Metric::GpuMemoryMib,
         Metric::EmptyBrickShare,
@@ -462,6 +487,7 @@ impl Metric {
             Metric::FrameMs => "frame_ms",
             Metric::UpdateMs => "update_ms",
             Metric::UpdateGpuMs => "update_gpu_ms",
+            Metric::PassesRerun => "passes_rerun",
             Metric::Slices => "slices",
             Metric::GpuMemoryMib => "gpu_memory_mib",
             Metric::EmptyBrickShare => "empty_brick_share",
@@ -480,6 +506,7 @@ impl Metric {
             Metric::FrameMs => "time (ms)",
             Metric::UpdateMs => "update (ms)",
             Metric::UpdateGpuMs => "update, GPU (ms)",
+            Metric::PassesRerun => "passes rerun",
             Metric::Slices => "slices",
             Metric::GpuMemoryMib => "GPU memory (MiB)",
             Metric::EmptyBrickShare => "empty bricks",
@@ -506,6 +533,7 @@ impl Metric {
             Metric::FrameMs => row.frame_ms,
             Metric::UpdateMs => row.update_ms,
             Metric::UpdateGpuMs => row.update_gpu_ms,
+            Metric::PassesRerun => row.update_passes.len() as f64,
             Metric::Slices => row.slices as f64,
             Metric::GpuMemoryMib => row.gpu_memory_bytes as f64 / (1u64 << 20) as f64,
             Metric::EmptyBrickShare => row.empty_brick_share,
@@ -521,7 +549,7 @@ impl Metric {
             // small shares keep a second digit
             Metric::ShareAbove6 if v > 0.0 && v < 0.01 => format!("{:.2} %", 100.0 * v),
             Metric::ShareAbove6 => format!("{:.1} %", 100.0 * v),
-            Metric::Slices => format!("{v}"),
+            Metric::Slices | Metric::PassesRerun => format!("{v}"),
             Metric::Ssim => format!("{v:.4}"),
             Metric::GpuMemoryMib => format!("{v:.1}"),
             Metric::EmptyBrickShare => format!("{v:.3}"),
@@ -555,6 +583,11 @@ pub struct RenderOverrides {
 pub struct DocBlock {
     pub file: PathBuf,
     pub block: String,
+    /// Also copy the rows' images next to the doc (`images/<experiment>_<row>.png` in
+    /// its folder) and show them in the block, in row order (a figure the doc shows,
+    /// regenerated with its table). Only into the CPU device's doc.
+    #[serde(default)]
+    pub images: bool,
 }
 
 /// One measured image.
@@ -702,6 +735,31 @@ fn search_tf(
     })
 }
 
+/// A number in an assertion's detail: four decimals, or four digits in scientific
+/// notation below 10⁻³ (a probe's small errors).
+fn detail_number(x: f64) -> String {
+    if x != 0.0 && x.abs() < 1e-3 {
+        format!("{x:.3e}")
+    } else {
+        format!("{x:.4}")
+    }
+}
+
+/// The metrics of a row with no reference: every error NaN (shown as —).
+fn no_metrics(width: u32, height: u32) -> Metrics {
+    Metrics {
+        width,
+        height,
+        rms_delta_e: f64::NAN,
+        mean_delta_e: f64::NAN,
+        max_delta_e: f64::NAN,
+        share_above_6: f64::NAN,
+        psnr_db: f64::NAN,
+        ssim: f64::NAN,
+        rms_delta_e_blur: f64::NAN,
+    }
+}
+
 /// An assertion's outcome.
 #[derive(Debug, Clone, Serialize)]
 pub struct Checked {
@@ -745,9 +803,12 @@ pub fn parse(text: &str, path: &Path) -> Result<Experiment> {
     let e: Experiment = options
         .from_str(text)
         .map_err(|err| anyhow!("{}: {err}", path.display()))?;
+    if e.probe.is_some() {
+        return probe::checked(e, path);
+    }
     let file = path.display();
     if e.scenes.is_empty() {
-        bail!("{file}: an experiment needs at least one scene");
+        bail!("{file}: an experiment needs at least one scene (or a probe)");
     }
     if !(1..=1000).contains(&e.frames) {
         bail!("{file}: frames must be in 1..=1000, got {}", e.frames);
@@ -1015,6 +1076,12 @@ enum Assertion {
 
 impl Assertion {
     fn parse(s: &str) -> Result<Assertion, String> {
+        Self::parse_in(s, &[])
+    }
+
+    /// [`Assertion::parse`] where the names in `figures` (a probe's) read statistics
+    /// too, as `<plugin id>.<name>` always does.
+    pub(crate) fn parse_in(s: &str, figures: &[String]) -> Result<Assertion, String> {
         let ops = [("<=", Op::Le), (">=", Op::Ge), ("<", Op::Lt), (">", Op::Gt)];
         let (lhs, op, rhs) = ops
             .iter()
@@ -1043,7 +1110,9 @@ impl Assertion {
             };
             let metric = match Metric::parse(name) {
                 Some(m) => Measure::Metric(m),
-                None if name.contains('.') => Measure::Statistic(name.to_string()),
+                None if name.contains('.') || figures.iter().any(|f| f == name) => {
+                    Measure::Statistic(name.to_string())
+                }
                 None => {
                     let all: Vec<&str> = Metric::ALL.iter().map(|m| m.name()).collect();
                     return Err(format!(
@@ -1126,11 +1195,11 @@ impl Assertion {
                     (
                         failing.is_empty(),
                         format!(
-                            "{} of {} rows fail; worst {} = {:.4} ({})",
+                            "{} of {} rows fail; worst {} = {} ({})",
                             failing.len(),
                             rs.len(),
                             term.metric.name(),
-                            term.metric.of(worst),
+                            detail_number(term.metric.of(worst)),
                             worst.label()
                         ),
                     )
@@ -1147,11 +1216,11 @@ impl Assertion {
                         (
                             op.holds(ratio, *bound),
                             format!(
-                                "median {} {:.4} / median {} {:.4} = {:.4}",
+                                "median {} {} / median {} {} = {:.4}",
                                 a.metric.name(),
-                                x,
+                                detail_number(x),
                                 b.metric.name(),
-                                y,
+                                detail_number(y),
                                 ratio
                             ),
                         )
@@ -1241,28 +1310,38 @@ pub fn set_value(doc: &mut Document, key: &str, value: &SetValue) -> Result<()> 
                 .iter()
                 .find(|s| s.key == k)
                 .ok_or_else(|| anyhow!("'{key}': plugin '{id}' has no parameter '{k}'"))?;
-            let v = match (&spec.kind, value) {
-                (ParamKind::Float { .. }, SetValue::Number(x)) => ParamValue::Float(*x as f32),
-                (ParamKind::Int { .. }, SetValue::Number(x)) if x.fract() == 0.0 => {
-                    ParamValue::Int(*x as i32)
-                }
-                (ParamKind::Bool { .. }, SetValue::Bool(b)) => ParamValue::Bool(*b),
-                (ParamKind::Enum { .. }, SetValue::Text(t)) => ParamValue::Enum(t.clone()),
-                (ParamKind::Path { .. }, SetValue::Text(t)) => ParamValue::Path(t.into()),
-                (ParamKind::Volume { .. }, SetValue::Text(t)) => ParamValue::Volume(t.clone()),
-                (ParamKind::Vec3 { .. }, SetValue::Numbers(x)) if x.len() == 3 => {
-                    ParamValue::Vec3([x[0] as f32, x[1] as f32, x[2] as f32])
-                }
-                (ParamKind::Color { .. }, SetValue::Numbers(x)) if x.len() == 4 => {
-                    ParamValue::Color([x[0] as f32, x[1] as f32, x[2] as f32, x[3] as f32])
-                }
-                (_, v) => bail!("'{key}' takes {}; {v:?} does not fit it", spec.kind_name()),
-            };
-            spec.check(&v).map_err(|e| anyhow!("'{key}': {e}"))?;
-            inst.params.set(k, v);
+            inst.params.set(k, param_value(key, spec, value)?);
         }
     }
     Ok(())
+}
+
+/// A `set` value as the value of the parameter `spec` (named `key` in errors), checked
+/// against its kind and range.
+fn param_value(
+    key: &str,
+    spec: &vwb_render::params::ParamSpec,
+    value: &SetValue,
+) -> Result<ParamValue> {
+    let v = match (&spec.kind, value) {
+        (ParamKind::Float { .. }, SetValue::Number(x)) => ParamValue::Float(*x as f32),
+        (ParamKind::Int { .. }, SetValue::Number(x)) if x.fract() == 0.0 => {
+            ParamValue::Int(*x as i32)
+        }
+        (ParamKind::Bool { .. }, SetValue::Bool(b)) => ParamValue::Bool(*b),
+        (ParamKind::Enum { .. }, SetValue::Text(t)) => ParamValue::Enum(t.clone()),
+        (ParamKind::Path { .. }, SetValue::Text(t)) => ParamValue::Path(t.into()),
+        (ParamKind::Volume { .. }, SetValue::Text(t)) => ParamValue::Volume(t.clone()),
+        (ParamKind::Vec3 { .. }, SetValue::Numbers(x)) if x.len() == 3 => {
+            ParamValue::Vec3([x[0] as f32, x[1] as f32, x[2] as f32])
+        }
+        (ParamKind::Color { .. }, SetValue::Numbers(x)) if x.len() == 4 => {
+            ParamValue::Color([x[0] as f32, x[1] as f32, x[2] as f32, x[3] as f32])
+        }
+        (_, v) => bail!("'{key}' takes {}; {v:?} does not fit it", spec.kind_name()),
+    };
+    spec.check(&v).map_err(|e| anyhow!("'{key}': {e}"))?;
+    Ok(v)
 }
 
 /// `raster` or `compute` (experiment files, the Python package).
@@ -1454,6 +1533,9 @@ pub fn run(
     out: &Path,
     observer: &mut dyn FnMut(Event<'_>),
 ) -> Result<Outcome> {
+    if e.probe.is_some() {
+        return probe::run(e, file, out, observer);
+    }
     let dir = file.parent().unwrap_or(Path::new("."));
     let fname = file.display();
     let default_variant = [Variant {
@@ -1809,17 +1891,7 @@ pub fn run(
                     Some(theirs) => {
                         metrics::try_compare(&img, theirs).map_err(|err| anyhow!(err))?
                     }
-                    None => Metrics {
-                        width: img.width,
-                        height: img.height,
-                        rms_delta_e: f64::NAN,
-                        mean_delta_e: f64::NAN,
-                        max_delta_e: f64::NAN,
-                        share_above_6: f64::NAN,
-                        psnr_db: f64::NAN,
-                        ssim: f64::NAN,
-                        rms_delta_e_blur: f64::NAN,
-                    },
+                    None => no_metrics(img.width, img.height),
                 };
                 let (ms, clock) = timing.frame_ms();
                 let image = format!("images/row_{:03}.png", rows.len());
@@ -1884,7 +1956,7 @@ pub fn run(
         .assertions
         .iter()
         .map(|a| {
-            Assertion::parse(a)
+            Assertion::parse_in(a, &e.statistics)
                 .expect("checked at load")
                 .check(a, &rows)
         })
@@ -1896,8 +1968,8 @@ pub fn run(
         assertions,
         markdown: String::new(),
     };
-    outcome.markdown = markdown(e, file, gpu, &outcome);
-    write_outputs(e, file, gpu, out, &outcome)?;
+    outcome.markdown = markdown(e, file, Some(gpu), &outcome);
+    write_outputs(e, file, Some(gpu), out, &outcome)?;
     Ok(outcome)
 }
 
@@ -1914,26 +1986,31 @@ fn short(x: f64) -> String {
 }
 
 /// The report's Markdown (the part a doc block receives).
-fn markdown(e: &Experiment, file: &Path, gpu: &GpuContext, o: &Outcome) -> String {
+/// A probe's (`e.probe`) has no GPU and no image: `gpu` is None.
+fn markdown(e: &Experiment, file: &Path, gpu: Option<&GpuContext>, o: &Outcome) -> String {
     let mut s = String::new();
-    let _ = writeln!(
-        s,
-        "Experiment `{}` ({}), run by `vwb run {}`. Machine: {}; adapter: {}; vwb {}; seed {}; {} timed frames per image ({} clock, median).",
-        e.name,
-        if e.description.is_empty() {
-            "no description"
-        } else {
-            &e.description
-        },
-        file.display(),
-        measure::machine(),
-        gpu.describe(),
-        measure::build(),
-        e.seed
-            .map_or_else(|| "as the presets set it".to_string(), |s| s.to_string()),
-        e.frames,
-        o.rows.first().map_or("gpu", |r| r.clock),
-    );
+    if let Some(spec) = &e.probe {
+        s += &probe::header(e, file, spec);
+    } else {
+        let _ = writeln!(
+            s,
+            "Experiment `{}` ({}), run by `vwb run {}`. Machine: {}; adapter: {}; vwb {}; seed {}; {} timed frames per image ({} clock, median).",
+            e.name,
+            if e.description.is_empty() {
+                "no description"
+            } else {
+                &e.description
+            },
+            file.display(),
+            measure::machine(),
+            gpu.map_or_else(|| "none".to_string(), |g| g.describe()),
+            measure::build(),
+            e.seed
+                .map_or_else(|| "as the presets set it".to_string(), |s| s.to_string()),
+            e.frames,
+            o.rows.first().map_or("gpu", |r| r.clock),
+        );
+    }
     if e.metrics.contains(&Metric::UpdateMs) || e.pareto_time == Metric::UpdateMs {
         let _ = writeln!(
             s,
@@ -2041,12 +2118,21 @@ fn markdown(e: &Experiment, file: &Path, gpu: &GpuContext, o: &Outcome) -> Strin
         }
     }
     let _ = writeln!(s);
+    // a probe's rows have no scene
+    let scenes = e.probe.is_none();
     let mut header = vec!["scene".to_string(), "variant".to_string()];
+    if !scenes {
+        header.remove(0);
+    }
+    let named = header.len();
     header.extend(e.grid.iter().map(|a| a.param.clone()));
     header.extend(e.metrics.iter().map(|m| m.header().to_string()));
     header.extend(statistic_headers(&e.statistics));
     // the front is time against error: without the time in the table it says nothing
-    let timed = e.metrics.contains(&e.pareto_time);
+    let timed = match &e.probe {
+        Some(p) => p.pareto.is_some(),
+        None => e.metrics.contains(&e.pareto_time),
+    };
     if timed {
         header.push("Pareto".into());
     }
@@ -2054,11 +2140,14 @@ fn markdown(e: &Experiment, file: &Path, gpu: &GpuContext, o: &Outcome) -> Strin
     let align: Vec<&str> = header
         .iter()
         .enumerate()
-        .map(|(i, _)| if i < 2 { "---" } else { "---:" })
+        .map(|(i, _)| if i < named { "---" } else { "---:" })
         .collect();
     let _ = writeln!(s, "|{}|", align.join("|"));
     for r in &o.rows {
         let mut cells = vec![r.scene.clone(), r.variant.clone()];
+        if !scenes {
+            cells.remove(0);
+        }
         cells.extend(r.values.iter().map(|v| format!("{v}")));
         cells.extend(e.metrics.iter().map(|m| m.cell(r)));
         cells.extend(
@@ -2092,16 +2181,21 @@ fn markdown(e: &Experiment, file: &Path, gpu: &GpuContext, o: &Outcome) -> Strin
     s
 }
 
+/// The report's files; `gpu` is None for a probe's run.
 fn write_outputs(
     e: &Experiment,
     file: &Path,
-    gpu: &GpuContext,
+    gpu: Option<&GpuContext>,
     out: &Path,
     o: &Outcome,
 ) -> Result<()> {
-    // Pareto plot per scene
+    // Pareto plot per scene (a probe's: of its time and error figures, where it names them)
+    let pareto_figures = e.probe.as_ref().and_then(|p| p.pareto.as_ref());
     let mut scenes: Vec<&str> = o.rows.iter().map(|r| r.scene.as_str()).collect();
     scenes.dedup();
+    if e.probe.is_some() && pareto_figures.is_none() {
+        scenes.clear();
+    }
     let mut plots = String::new();
     for scene in &scenes {
         let rows: Vec<&Row> = o.rows.iter().filter(|r| &r.scene == scene).collect();
@@ -2122,6 +2216,21 @@ fn write_outputs(
             .map(|r| {
                 let mut values = vec![variant_index(&r.variant)];
                 values.extend(&r.values);
+                if let Some((time, error)) = pareto_figures {
+                    let figure = |f: &String| r.statistics.get(f).copied().unwrap_or(f64::NAN);
+                    let mut metrics = no_metrics(0, 0);
+                    metrics.rms_delta_e = figure(error);
+                    return SweepPoint {
+                        values,
+                        slices: 0,
+                        ms: figure(time),
+                        clock: r.clock,
+                        wall_ms: figure(time),
+                        metrics,
+                        image: String::new(),
+                        pareto: r.pareto,
+                    };
+                }
                 SweepPoint {
                     values,
                     slices: r.slices,
@@ -2138,7 +2247,13 @@ fn write_outputs(
                 }
             })
             .collect();
-        let svg = measure::pareto_svg(&format!("{} — {scene}", e.name), &axes, &points);
+        let title = format!("{} — {scene}", e.name);
+        let svg = measure::pareto_svg_labelled(
+            &title,
+            pareto_figures.map(|(t, e)| (t.as_str(), e.as_str())),
+            &axes,
+            &points,
+        );
         let name = format!("pareto_{}.svg", file_safe(scene));
         measure::save_text(&out.join(&name), &svg)?;
         let _ = writeln!(plots, "![Pareto front, {scene}]({name})");
@@ -2166,7 +2281,9 @@ fn write_outputs(
     for a in &e.grid {
         let _ = write!(csv, ",{}", a.param);
     }
-    for m in Metric::ALL {
+    // a probe's rows have no image metrics
+    let metric_columns: &[Metric] = if e.probe.is_some() { &[] } else { &Metric::ALL };
+    for m in metric_columns {
         let _ = write!(csv, ",{}", m.name());
     }
     for st in &e.statistics {
@@ -2178,7 +2295,7 @@ fn write_outputs(
         for v in &r.values {
             let _ = write!(csv, ",{v}");
         }
-        for m in Metric::ALL {
+        for m in metric_columns {
             let _ = write!(csv, ",{}", m.of(r));
         }
         for st in &e.statistics {
@@ -2197,7 +2314,8 @@ fn write_outputs(
             "experiment": e.name,
             "file": file,
             "machine": measure::machine(),
-            "adapter": gpu.describe(),
+            "adapter": gpu.map(|g| g.describe()),
+            "probe": e.probe.as_ref().map(|p| &p.id),
             "version": env!("CARGO_PKG_VERSION"),
             "commit": measure::build_commit(),
             "seed": e.seed,
@@ -2211,8 +2329,12 @@ fn write_outputs(
     if let Some(block) = &e.doc_block {
         let dir = file.parent().unwrap_or(Path::new("."));
         let doc = dir.join(&block.file);
-        if gpu.info.device_type == wgpu::DeviceType::Cpu {
-            write_block(&doc, &block.block, &o.markdown)?;
+        if gpu.is_none_or(|g| g.info.device_type == wgpu::DeviceType::Cpu) {
+            let mut body = o.markdown.clone();
+            if block.images {
+                body += &doc_images(e, out, &doc, o)?;
+            }
+            write_block(&doc, &block.block, &body)?;
         } else {
             // a GPU's figures go beside the CPU device's, in docs/gpu/ (the doc's
             // folder's `gpu/`), as the benchmarks write theirs
@@ -2227,6 +2349,30 @@ fn write_outputs(
         }
     }
     Ok(())
+}
+
+/// The rows' images copied beside `doc` (`images/<experiment>_<row>.png`, atomically)
+/// and the Markdown that shows them, each captioned with its row.
+fn doc_images(e: &Experiment, out: &Path, doc: &Path, o: &Outcome) -> Result<String> {
+    let dir = doc.parent().unwrap_or(Path::new(".")).join("images");
+    std::fs::create_dir_all(&dir).with_context(|| format!("{}: cannot create", dir.display()))?;
+    let mut s = String::from("\n");
+    for (i, r) in o
+        .rows
+        .iter()
+        .enumerate()
+        .filter(|(_, r)| !r.image.is_empty())
+    {
+        let name = format!("{}_{i:03}.png", file_safe(&e.name));
+        let from = out.join(&r.image);
+        let bytes =
+            std::fs::read(&from).with_context(|| format!("{}: cannot read", from.display()))?;
+        let to = dir.join(&name);
+        vwb_render::files::write_atomic(&to, &bytes)
+            .with_context(|| format!("{}: cannot write", to.display()))?;
+        let _ = writeln!(s, "![{}](images/{name})", r.label());
+    }
+    Ok(s)
 }
 
 fn file_safe(s: &str) -> String {
@@ -2259,6 +2405,8 @@ fn statistic_headers(statistics: &[String]) -> Vec<String> {
 fn statistic_cell(v: Option<f64>) -> String {
     match v {
         Some(v) if v.is_finite() && v == v.round() && v.abs() < 1e15 => format!("{v}"),
+        // small figures (a probe's errors) in scientific notation, three digits
+        Some(v) if v.is_finite() && v.abs() < 1e-3 => format!("{v:.2e}"),
         Some(v) if v.is_finite() => {
             let digits = (2 - v.abs().log10().floor() as i32).max(0) as usize;
             format!("{v:.digits$}")
@@ -2387,8 +2535,6 @@ pub fn run_file(file: &Path, out: Option<&Path>) -> Result<Outcome> {
         Path::to_path_buf,
     );
     crate::outputs::check_output(&out.join("report.md"))?;
-    let gpu = GpuContext::new_headless()?;
-    eprintln!("adapter: {}", gpu.describe());
     // the update's time where the row's change reran volume passes
     let update = |row: &Row| {
         if row.update_passes.is_empty() {
@@ -2397,7 +2543,7 @@ pub fn run_file(file: &Path, out: Option<&Path>) -> Result<Outcome> {
             format!("  update {:.2} ms", row.update_ms)
         }
     };
-    let o = run(&gpu, &e, file, &out, &mut |ev| match ev {
+    let mut print = |ev: Event<'_>| match ev {
         Event::Reference { scene, what } => eprintln!("{scene}: computing the {what}"),
         Event::Generation {
             scene,
@@ -2405,6 +2551,15 @@ pub fn run_file(file: &Path, out: Option<&Path>) -> Result<Outcome> {
             generation,
             best,
         } => eprintln!("{scene} · {variant}: search generation {generation}, best {best:.3}"),
+        Event::Row { index, row } if row.clock == probe::CLOCK => eprintln!(
+            "[{index:>3}] {}: {}",
+            row.label(),
+            row.statistics
+                .iter()
+                .map(|(k, v)| format!("{k} {}", short(*v)))
+                .collect::<Vec<_>>()
+                .join("  ")
+        ),
         Event::Row { index, row } if row.reference.is_none() => eprintln!(
             "[{index:>3}] {}: {:>4} slices {:>8.2} ms{}  (timed only)",
             row.label(),
@@ -2421,7 +2576,15 @@ pub fn run_file(file: &Path, out: Option<&Path>) -> Result<Outcome> {
             row.metrics.rms_delta_e,
             100.0 * row.metrics.share_above_6
         ),
-    })?;
+    };
+    let o = if e.probe.is_some() {
+        // the CPU twin alone: no adapter
+        probe::run(&e, file, &out, &mut print)?
+    } else {
+        let gpu = GpuContext::new_headless()?;
+        eprintln!("adapter: {}", gpu.describe());
+        run(&gpu, &e, file, &out, &mut print)?
+    };
     eprintln!("report: {}", out.join("report.md").display());
     let failed = o.failed();
     if !failed.is_empty() {

@@ -1088,6 +1088,17 @@ fn ticks(lo: f64, hi: f64) -> Vec<f64> {
 /// The Pareto plot as SVG: GPU (or wall) ms against RMS ΔE*uv, every point labelled
 /// with its axis values, the front drawn as a red staircase.
 pub fn pareto_svg(title: &str, axes: &[Axis], points: &[SweepPoint]) -> String {
+    pareto_svg_labelled(title, None, axes, points)
+}
+
+/// [`pareto_svg`] with its own axis labels (x, y): a probe's time and error figures,
+/// carried in each point's `ms` and `metrics.rms_delta_e`.
+pub fn pareto_svg_labelled(
+    title: &str,
+    labels: Option<(&str, &str)>,
+    axes: &[Axis],
+    points: &[SweepPoint],
+) -> String {
     let (w, h) = (720.0, 480.0);
     let (l, r, t, b) = (70.0, 20.0, 40.0, 55.0);
     let finite: Vec<&SweepPoint> = points
@@ -1142,21 +1153,25 @@ pub fn pareto_svg(title: &str, axes: &[Axis], points: &[SweepPoint]) -> String {
         w - r
     );
     // `update`: an experiment's `pareto_time: update_ms`
-    let xlabel = if clock == "update" {
+    let xlabel = if let Some((x, _)) = labels {
+        x.to_string()
+    } else if clock == "update" {
         "update time (the first frame after a change less a frame), wall ms".to_string()
     } else {
         format!("frame time, {clock} ms (median)")
     };
     let _ = writeln!(
         s,
-        r#"<text x="{}" y="{}" text-anchor="middle">{xlabel}</text>"#,
+        r#"<text x="{}" y="{}" text-anchor="middle">{}</text>"#,
         (l + w - r) / 2.0,
-        h - 15.0
+        h - 15.0,
+        escape(&xlabel)
     );
     let _ = writeln!(
         s,
-        r#"<text transform="translate(18 {}) rotate(-90)" text-anchor="middle">RMS ΔE*uv against the converged reference</text>"#,
-        (t + h - b) / 2.0
+        r#"<text transform="translate(18 {}) rotate(-90)" text-anchor="middle">{}</text>"#,
+        (t + h - b) / 2.0,
+        escape(labels.map_or("RMS ΔE*uv against the converged reference", |(_, y)| y))
     );
     let mut front: Vec<&SweepPoint> = finite.iter().copied().filter(|p| p.pareto).collect();
     front.sort_by(|p, q| p.ms.total_cmp(&q.ms));

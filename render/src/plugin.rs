@@ -446,6 +446,25 @@ pub struct Statistic {
     pub value: f64,
 }
 
+/// A numerical study of a plugin's CPU twin on its own, with no image and no GPU: an
+/// integrator's drift on an analytic field, a twin's error against a finer twin of
+/// itself, its CPU time. An experiment file runs it over variants and a grid of its
+/// parameters (`probe:` in the file, docs/experiments.md), so that a plugin's own
+/// numerics are studied as its images are, with a report, assertions and a doc block.
+pub trait Probe: Send + Sync {
+    /// Unique within its plugin; experiment files name it `<plugin id>.<name>`.
+    fn name(&self) -> &'static str;
+    /// One line: what it computes, on what.
+    fn description(&self) -> &'static str;
+    /// Its parameters, with their defaults and ranges (checked as a plugin's are).
+    fn params(&self) -> Vec<ParamSpec>;
+    /// The figures every run reports: (name, what it is and its unit).
+    fn figures(&self) -> Vec<(&'static str, &'static str)>;
+    /// Runs at `params` (every key of [`Probe::params`], checked); returns each figure
+    /// of [`Probe::figures`] once. Errors are for inputs the ranges cannot express.
+    fn run(&self, params: &ParamValues) -> Result<Vec<Statistic>, String>;
+}
+
 /// What a plugin gets to create and update its resources.
 pub struct GpuInit<'a> {
     pub device: &'a wgpu::Device,
@@ -1218,6 +1237,10 @@ pub trait Plugin: Send + Sync + 'static {
     fn converged_reference(&self) -> Option<Arc<dyn ConvergedReference>> {
         None
     }
+    /// Studies of its CPU twin that need no image ([`Probe`]); none by default.
+    fn probes(&self) -> Vec<Arc<dyn Probe>> {
+        Vec::new()
+    }
     /// Whether it renders a volume split into bricks (the volume longer than the 3D
     /// texture limit, `vwb_render::renderer::RendererOptions`) as it renders the whole
     /// volume: every input it reads at a sample is the scalar volume within a few
@@ -1268,6 +1291,35 @@ pub enum RegistryError {
     Unknown(String),
 }
 
+/// A plugin's probes are well formed: names are lowercase identifiers, unique within
+/// the plugin, as are each probe's figure names; each parameter spec validates.
+fn check_probes(plugin: &dyn Plugin) -> Result<(), String> {
+    let ident = |s: &str| {
+        s.chars().next().is_some_and(|c| c.is_ascii_lowercase())
+            && s.chars()
+                .all(|c| c.is_ascii_lowercase() || c.is_ascii_digit() || c == '_')
+    };
+    let mut names = std::collections::HashSet::new();
+    for p in plugin.probes() {
+        let name = p.name();
+        if !ident(name) || !names.insert(name) {
+            return Err(format!(
+                "probe '{name}': a probe name is a unique lowercase identifier"
+            ));
+        }
+        validate_specs(&p.params()).map_err(|m| format!("probe '{name}': {m}"))?;
+        let mut figures = std::collections::HashSet::new();
+        for (f, _) in p.figures() {
+            if !ident(f) || !figures.insert(f) {
+                return Err(format!(
+                    "probe '{name}': figure '{f}': a figure name is a unique lowercase identifier"
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
 /// Typed registry of plugin types; ids are unique.
 #[derive(Default, Clone)]
 pub struct Registry {
@@ -1308,6 +1360,10 @@ impl Registry {
             return Err(RegistryError::Duplicate(id.to_string()));
         }
         validate_specs(&plugin.params()).map_err(|message| RegistryError::BadSpec {
+            id: id.to_string(),
+            message,
+        })?;
+        check_probes(plugin.as_ref()).map_err(|message| RegistryError::BadSpec {
             id: id.to_string(),
             message,
         })?;
@@ -1457,5 +1513,86 @@ mod tests {
         assert_eq!(r.ids().collect::<Vec<_>>(), vec!["classify.a"]);
         assert_eq!(r.get("classify.a").unwrap().category(), Category::Classify);
         assert!(r.get("classify.b").is_err());
+    }
+
+    /// A probe with the given name, parameter keys and figure names.
+    struct P(
+        &'static str,
+        &'static [&'static str],
+        &'static [&'static str],
+    );
+    impl Probe for P {
+        fn name(&self) -> &'static str {
+            self.0
+        }
+        fn description(&self) -> &'static str {
+            ""
+        }
+        fn params(&self) -> Vec<ParamSpec> {
+            self.1
+                .iter()
+                .map(|k| ParamSpec::float(k, "x", 0.0, 1.0, 0.5))
+                .collect()
+        }
+        fn figures(&self) -> Vec<(&'static str, &'static str)> {
+            self.2.iter().map(|f| (*f, "")).collect()
+        }
+        fn run(&self, _: &ParamValues) -> Result<Vec<Statistic>, String> {
+            Ok(Vec::new())
+        }
+    }
+    struct Probing(
+        Vec<(
+            &'static str,
+            &'static [&'static str],
+            &'static [&'static str],
+        )>,
+    );
+    impl Plugin for Probing {
+        fn id(&self) -> &'static str {
+            "flow.probing"
+        }
+        fn display_name(&self) -> &'static str {
+            "Probing"
+        }
+        fn params(&self) -> Vec<ParamSpec> {
+            Vec::new()
+        }
+        fn shader(&self) -> ShaderSource {
+            ShaderSource::new_static("probing.wgsl", "")
+        }
+        fn probes(&self) -> Vec<Arc<dyn Probe>> {
+            self.0
+                .iter()
+                .map(|&(n, k, f)| Arc::new(P(n, k, f)) as Arc<dyn Probe>)
+                .collect()
+        }
+    }
+
+    #[test]
+    fn registry_checks_the_probes() {
+        let ok = Probing(vec![
+            ("drift", &["step"], &["drift", "steps"]),
+            ("time", &[], &["seconds"]),
+        ]);
+        Registry::new().register(Arc::new(ok)).unwrap();
+        for (bad, why) in [
+            (
+                Probing(vec![("a", &[], &[]), ("a", &[], &[])]),
+                "probe 'a': a probe name",
+            ),
+            (Probing(vec![("Bad", &[], &[])]), "probe 'Bad'"),
+            (Probing(vec![("a", &["step", "step"], &[])]), "probe 'a': "),
+            (Probing(vec![("a", &[], &["x", "x"])]), "figure 'x'"),
+            (Probing(vec![("a", &[], &["no-dash"])]), "figure 'no-dash'"),
+        ] {
+            match Registry::new().register(Arc::new(bad)) {
+                Err(RegistryError::BadSpec { id, message }) => {
+                    assert_eq!(id, "flow.probing");
+                    assert!(message.contains(why), "{message}");
+                }
+                other => panic!("{why}: {:?}", other.err()),
+            }
+        }
     }
 }

@@ -29,36 +29,6 @@ pub fn load_average() -> String {
         .unwrap_or_else(|| "unknown".into())
 }
 
-/// The blocks of the experiment files `names` (`experiments/NAME.ron`, block
-/// `experiment NAME`) as `old` (a doc a benchmark is about to rewrite) holds them,
-/// markers included, each followed by a blank line; a placeholder for a block it lacks.
-pub fn kept_experiment_blocks(old: &str, names: &[&str]) -> String {
-    let mut out = String::new();
-    for name in names {
-        out += &kept_block(
-            old,
-            &format!("experiment {name}"),
-            &format!("`vwb run experiments/{name}.ron`"),
-        );
-        out += "\n\n";
-    }
-    out
-}
-
-/// The block `name` of a document's old text (markers included), or an empty one that
-/// says how to run what writes it.
-pub fn kept_block(old: &str, name: &str, run: &str) -> String {
-    let (begin, end) = (
-        format!("<!-- BEGIN {name} -->"),
-        format!("<!-- END {name} -->"),
-    );
-    let kept = old.find(&begin).and_then(|i| {
-        let j = old[i..].find(&end)? + i;
-        Some(old[i..j + end.len()].to_string())
-    });
-    kept.unwrap_or_else(|| format!("{begin}\nNot run yet: {run}.\n{end}"))
-}
-
 /// Writes `body` into the block `name` of `doc`, first adding the block under
 /// `heading` at the end where the document has none (a GPU's copy written before the
 /// block existed).

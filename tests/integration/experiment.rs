@@ -298,6 +298,19 @@ fn update_time_counts_what_a_grid_point_reruns() {
     );
     let csv = std::fs::read_to_string(out.join("results.csv")).unwrap();
     assert!(csv.lines().next().unwrap().contains(",update_ms,"), "{csv}");
+    // `passes_rerun`: what each row's first frame ran (0 for a new slice spacing)
+    let header: Vec<&str> = csv.lines().next().unwrap().split(',').collect();
+    let col = header.iter().position(|h| *h == "passes_rerun").unwrap();
+    for (line, r) in csv.lines().skip(1).zip(&o.rows) {
+        let cell: f64 = line.split(',').nth(col).unwrap().parse().unwrap();
+        assert_eq!(cell, r.update_passes.len() as f64, "{line}");
+    }
+    assert!(
+        csv.lines()
+            .skip(1)
+            .any(|l| l.split(',').nth(col) == Some("0")),
+        "{csv}"
+    );
     let svg = std::fs::read_to_string(out.join("pareto_demo_hernell.svg")).unwrap();
     assert!(svg.contains("update time"), "{svg}");
     let json: serde_json::Value =
@@ -348,8 +361,11 @@ fn updates_are_timed_again_and_the_lic_is_held_against_its_twin() {
     assert_eq!(runs(&mut r), 1);
     assert_eq!(runs(&mut r), 0);
     let stats = r.statistics_of(&doc.stack[0]);
-    assert_eq!(stats.len(), 1);
-    assert!(stats[0].value < 0.5, "{stats:?}");
+    let stat = |name: &str| stats.iter().find(|s| s.name == name).unwrap().value;
+    assert_eq!(stats.len(), 2);
+    assert!(stat("twin_rms") < 0.5, "{stats:?}");
+    // the LIC's streaks follow the flow: neighbours along it are more alike than across
+    assert!(stat("along_across") < 0.8, "{stats:?}");
 
     let file = tmp("repeats.ron");
     std::fs::write(
@@ -729,4 +745,260 @@ fn clipping_studies_compare_clipped_with_cropped_data() {
             assert!(clipped(145.0) < 0.15 && clipped(215.0) > 1.0);
         }
     }
+}
+
+/// A probe's experiment (`probe:` instead of scenes): each row is the plugin's twin
+/// computation at the variant's and grid point's parameters, exactly what the twin's
+/// own functions give there (the seed included); the front is the probe's (time, error)
+/// figures; the report, CSV, JSON and Pareto plot name the probe and no adapter; a
+/// failing assertion on a figure fails the run; bad probe files are refused naming the
+/// file and the cause. No GPU is asked for.
+#[test]
+fn a_probe_experiment_studies_a_twin_without_a_gpu() {
+    use vwb_render::flow::{
+        Abc, Integrator, LicParams, Noise, Rotation, lic_volume, noise_volume, rotation_drift,
+    };
+    let file = tmp("probe_lic.ron");
+    std::fs::write(
+        &file,
+        r#"Experiment(
+        name: "probe_lic",
+        description: "a small twin LIC",
+        probe: (id: "flow.lic3d.twin_lic", pareto: ("seconds", "rms_255")),
+        variants: [
+            (name: "Euler", set: {"integrator": "euler", "size": 12, "reference_step": 0.25}),
+            (name: "RK4", set: {"integrator": "rk4", "size": 12, "reference_step": 0.25}),
+        ],
+        grid: [(param: "step", values: [1.0, 0.5])],
+        seed: 3,
+        assertions: ["reference_seconds > 0", "rms_255(RK4) < 100"],
+    )"#,
+    )
+    .unwrap();
+    let e = experiment::load(&file).unwrap();
+    assert_eq!(e.statistics, ["seconds", "rms_255", "reference_seconds"]);
+    assert!(e.metrics.is_empty());
+    let out = tmp("probe_lic-report");
+    let o = experiment::run_file(&file, Some(&out)).unwrap();
+    assert_eq!(o.rows.len(), 4);
+    // the rows are the twin's own numbers at their parameters (the experiment's seed)
+    let lic = |step: f64, integrator: Integrator| {
+        let p = LicParams {
+            step,
+            integrator,
+            ..Default::default()
+        };
+        let abc = Abc {
+            period: 12.0,
+            ..Default::default()
+        };
+        lic_volume(&abc, &noise_volume([12; 3], Noise::White, 3), &p)
+    };
+    let reference = lic(0.25, Integrator::Rk4);
+    for r in &o.rows {
+        let integrator = if r.variant == "Euler" {
+            Integrator::Euler
+        } else {
+            Integrator::Rk4
+        };
+        let want =
+            vwb_plugins::flow_lic3d::probes::rms_255(&lic(r.values[0], integrator), &reference);
+        assert_eq!(r.statistics["rms_255"], want, "{r:?}");
+        assert!(want > 0.0, "{r:?}");
+        assert!(
+            r.statistics["seconds"] > 0.0 && r.frame_ms.is_nan(),
+            "{r:?}"
+        );
+    }
+    // the front: no row on it is beaten in both figures by another
+    let fig = |r: &experiment::Row| (r.statistics["seconds"], r.statistics["rms_255"]);
+    let front: Vec<_> = o.rows.iter().filter(|r| r.pareto).collect();
+    assert!(!front.is_empty());
+    for f in &front {
+        let (t, err) = fig(f);
+        assert!(
+            !o.rows.iter().any(|q| {
+                let (qt, qe) = fig(q);
+                qt <= t && qe <= err && (qt < t || qe < err)
+            }),
+            "{f:?}"
+        );
+    }
+    assert!(o.failed().is_empty(), "{:#?}", o.assertions);
+    let report = std::fs::read_to_string(out.join("report.md")).unwrap();
+    assert!(report.contains("Probe `flow.lic3d.twin_lic`"), "{report}");
+    assert!(report.contains("no GPU and no image"), "{report}");
+    assert!(
+        report
+            .contains("| variant | step | `seconds` | `rms_255` | `reference_seconds` | Pareto |"),
+        "{report}"
+    );
+    let csv = std::fs::read_to_string(out.join("results.csv")).unwrap();
+    assert_eq!(
+        csv.lines().next().unwrap(),
+        "scene,variant,step,seconds,rms_255,reference_seconds,clock,pareto,image"
+    );
+    let svg = std::fs::read_to_string(out.join("pareto_flow_lic3d_twin_lic.svg")).unwrap();
+    assert!(
+        svg.contains(">seconds<") && svg.contains(">rms_255<"),
+        "{svg}"
+    );
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("results.json")).unwrap()).unwrap();
+    assert_eq!(json["probe"], "flow.lic3d.twin_lic");
+    assert!(json["adapter"].is_null(), "{}", json["adapter"]);
+
+    // the drift probe against the twin's function, and a failing assertion on a figure
+    let file = tmp("probe_drift.ron");
+    std::fs::write(
+        &file,
+        r#"Experiment(
+        name: "probe_drift",
+        probe: (id: "flow.lic3d.drift"),
+        variants: [(name: "Euler", set: {"integrator": "euler"}), (name: "RK4")],
+        grid: [(param: "radius", values: [4.0, 8.0]), (param: "step", values: [0.5])],
+        assertions: ["drift(RK4) < 1e-5", "drift(Euler) < 1e-5"],
+    )"#,
+    )
+    .unwrap();
+    let out = tmp("probe_drift-report");
+    let err = experiment::run_file(&file, Some(&out))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("probe_drift.ron") && err.contains("1 of 2 assertions failed"),
+        "{err}"
+    );
+    assert!(err.contains("drift(Euler) < 1e-5"), "{err}");
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("results.json")).unwrap()).unwrap();
+    let rows = json["rows"].as_array().unwrap();
+    assert_eq!(rows.len(), 4);
+    let c = glam::DVec3::splat(128.0);
+    for r in rows {
+        let radius = r["values"][0].as_f64().unwrap();
+        let integrator = if r["variant"] == "Euler" {
+            Integrator::Euler
+        } else {
+            Integrator::Rk4
+        };
+        let steps = (std::f64::consts::TAU * radius / 0.5).ceil() as usize;
+        let want = rotation_drift(&Rotation { center: c }, c, radius, 0.5, integrator, steps);
+        assert_eq!(r["statistics"]["drift"].as_f64().unwrap(), want, "{r}");
+        assert_eq!(
+            r["statistics"]["steps"].as_f64().unwrap(),
+            steps as f64,
+            "{r}"
+        );
+    }
+    let junit = std::fs::read_to_string(out.join("junit.xml")).unwrap();
+    assert!(junit.contains("failures=\"1\""), "{junit}");
+
+    // bad probe files
+    let cases = [
+        (
+            "probe: (id: \"flow.lic3d.nope\")",
+            "plugin 'flow.lic3d' has no probe 'nope' (it has: drift, twin_lic)",
+        ),
+        (
+            "probe: (id: \"shade.nothing.x\")",
+            "probe 'shade.nothing.x': no plugin 'shade.nothing'",
+        ),
+        (
+            "probe: (id: \"flow.lic3d.drift\"), scenes: [Sample(\"ct_head\")]",
+            "has no scenes",
+        ),
+        (
+            "probe: (id: \"flow.lic3d.drift\"), render: (size: (16, 16))",
+            "renders nothing",
+        ),
+        (
+            "probe: (id: \"flow.lic3d.drift\"), variants: [(name: \"a\", set: {\"bogus\": 1.0})]",
+            "variant 'a': probe 'flow.lic3d.drift' has no parameter 'bogus'",
+        ),
+        (
+            "probe: (id: \"flow.lic3d.drift\"), variants: [(name: \"a\", set: {\"step\": 100.0})]",
+            "variant 'a': 'step':",
+        ),
+        (
+            "probe: (id: \"flow.lic3d.drift\"), variants: [(name: \"a\", swap: [(\"x.y\", \"x.z\")])]",
+            "may only `set`",
+        ),
+        (
+            "probe: (id: \"flow.lic3d.drift\"), grid: [(param: \"integrator\", values: [1.0])]",
+            "only float and int",
+        ),
+        (
+            "probe: (id: \"flow.lic3d.drift\"), statistics: [\"nope\"]",
+            "reports no 'nope' (it reports: steps, drift)",
+        ),
+        (
+            "probe: (id: \"flow.lic3d.drift\", pareto: (\"steps\", \"nope\"))",
+            "pareto: probe 'flow.lic3d.drift' reports no 'nope'",
+        ),
+        (
+            "probe: (id: \"flow.lic3d.drift\"), assertions: [\"rms_delta_e < 1\"]",
+            "reads an image metric",
+        ),
+        (
+            "probe: (id: \"flow.lic3d.drift\"), assertions: [\"nope < 1\"]",
+            "unknown metric 'nope'",
+        ),
+    ];
+    for (i, (fields, expect)) in cases.iter().enumerate() {
+        let file = tmp(&format!("bad_probe{i}.ron"));
+        std::fs::write(&file, format!("Experiment(name: \"bad\", {fields})")).unwrap();
+        let err = format!("{:#}", experiment::load(&file).unwrap_err());
+        assert!(
+            err.contains(&format!("bad_probe{i}.ron")) && err.contains(expect),
+            "{err}"
+        );
+    }
+}
+
+/// `doc_block: (.., images: true)`: the rows' images are copied beside the doc and
+/// shown in its block under the table, in row order.
+#[test]
+fn doc_blocks_carry_the_rows_images() {
+    let dir = tmp("imgdoc");
+    std::fs::create_dir_all(&dir).unwrap();
+    let doc = dir.join("doc.md");
+    std::fs::write(
+        &doc,
+        "# Doc\n\n<!-- BEGIN experiment pics -->\n<!-- END experiment pics -->\n",
+    )
+    .unwrap();
+    let file = dir.join("pics.ron");
+    std::fs::write(
+        &file,
+        format!(
+            r#"Experiment(
+            name: "pics",
+            scenes: [Preset("{}")],
+            grid: [(param: "render.slice_spacing", values: [1.0, 2.0])],
+            reference: TimeOnly,
+            render: (size: (16, 16)),
+            frames: 1,
+            doc_block: (file: "doc.md", block: "experiment pics", images: true),
+        )"#,
+            repo().join("presets/demo.ron").display()
+        ),
+    )
+    .unwrap();
+    let out = dir.join("report");
+    let e = experiment::load(&file).unwrap();
+    let o = experiment::run(gpu(), &e, &file, &out, &mut |_| {}).unwrap();
+    let text = std::fs::read_to_string(&doc).unwrap();
+    for (i, r) in o.rows.iter().enumerate() {
+        let link = format!("![demo, as is, {}](images/pics_{i:03}.png)", r.values[0]);
+        assert!(text.contains(&link), "{link} in {text}");
+        assert_eq!(
+            std::fs::read(dir.join(format!("images/pics_{i:03}.png"))).unwrap(),
+            std::fs::read(out.join(&r.image)).unwrap()
+        );
+    }
+    assert!(
+        text.find("| demo |").unwrap() < text.find("![demo").unwrap(),
+        "{text}"
+    );
 }

@@ -27,7 +27,7 @@ use std::sync::Arc;
 
 use glam::{DVec3, DVec4};
 use vwb_render::flow::{
-    ArrivalParams, Field, GridField, Integrator, NoFlow, OnGrid, SeedBox, arrival_volume,
+    ArrivalParams, Field, GridField, Integrator, NEVER, NoFlow, OnGrid, SeedBox, arrival_volume,
 };
 use vwb_render::params::{Components, ParamSpec, ParamValue, ParamValues};
 use vwb_render::plugin::{
@@ -36,6 +36,7 @@ use vwb_render::plugin::{
 };
 use vwb_render::volume::Volume;
 
+pub mod probes;
 #[cfg(test)]
 mod tests;
 
@@ -117,6 +118,42 @@ pub fn arrival_on(grid: &Volume, field: &Volume, p: &ParamValues) -> Vec<f32> {
     arrival_volume(field, grid.dims, &seed_box(p), &arrival_params(p))
 }
 
+/// The largest grid (voxels) whose twin statistics are computed: 128³ (the twin takes
+/// seconds there).
+pub const TWIN_STATISTIC_VOXELS: u64 = 128 * 128 * 128;
+
+/// An arrival volume (the GPU's) against its twin's: the voxels where one is reached and
+/// the other not, the voxels both reach, and over those |Δt| / (1 + t), RMS and worst.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Agreement {
+    pub disagree: usize,
+    pub reached: usize,
+    pub rms: f64,
+    pub worst: f64,
+}
+
+impl Agreement {
+    pub fn of(gpu: &[f32], twin: &[f32]) -> Self {
+        let (mut disagree, mut reached, mut worst, mut sq) = (0usize, 0usize, 0.0f64, 0.0f64);
+        for (g, c) in gpu.iter().zip(twin) {
+            if (*g == NEVER) != (*c == NEVER) {
+                disagree += 1;
+            } else if *c != NEVER {
+                reached += 1;
+                let e = (*g as f64 - *c as f64).abs() / (1.0 + *c as f64);
+                worst = worst.max(e);
+                sq += e * e;
+            }
+        }
+        Self {
+            disagree,
+            reached,
+            rms: (sq / reached.max(1) as f64).sqrt(),
+            worst,
+        }
+    }
+}
+
 /// Whether a sample with arrival time `t` is kept at `time` with `band`.
 pub fn kept(t: f64, time: f64, band: f64) -> bool {
     t <= time && (band <= 0.0 || t > time - band)
@@ -126,6 +163,52 @@ impl Plugin for Arrival {
     /// Its pre-pass follows paths through the whole vector volume.
     fn splits_into_bricks(&self) -> bool {
         false
+    }
+    /// `reached`: the share of voxels the GPU's pre-pass reaches. On grids up to
+    /// [`TWIN_STATISTIC_VOXELS`] (else NaN), against the f64 twin ([`Agreement`]):
+    /// `twin_disagree`, the share of voxels one reaches and the other not; `twin_rms`, the
+    /// RMS of |Δt| / (1 + t) over the voxels both reach; `twin_seconds`, the twin's wall
+    /// time on this machine's cores.
+    fn statistic_names(&self, _params: &ParamValues) -> Vec<&'static str> {
+        vec!["reached", "twin_disagree", "twin_rms", "twin_seconds"]
+    }
+    fn statistics(
+        &self,
+        params: &ParamValues,
+        passes: &vwb_render::plugin::PassOutputs<'_>,
+    ) -> Vec<vwb_render::plugin::Statistic> {
+        let Some((dims, gpu)) = (passes.read)("prepass") else {
+            return Vec::new();
+        };
+        let n = gpu.len().max(1) as f64;
+        let reached = gpu.iter().filter(|t| **t != NEVER).count() as f64 / n;
+        let voxels: u64 = dims.iter().map(|&d| d as u64).product();
+        let (mut disagree, mut rms, mut seconds) = (f64::NAN, f64::NAN, f64::NAN);
+        if let Ok(field) = passes.inputs.resolve(passes.volume, params, "field")
+            && voxels <= TWIN_STATISTIC_VOXELS
+        {
+            let t = std::time::Instant::now();
+            let twin = arrival_on(passes.volume, field, params);
+            seconds = t.elapsed().as_secs_f64();
+            if twin.len() == gpu.len() {
+                let a = Agreement::of(&gpu, &twin);
+                disagree = a.disagree as f64 / n;
+                rms = a.rms;
+            }
+        }
+        [
+            ("reached", reached),
+            ("twin_disagree", disagree),
+            ("twin_rms", rms),
+            ("twin_seconds", seconds),
+        ]
+        .into_iter()
+        .map(|(name, value)| vwb_render::plugin::Statistic { name, value })
+        .collect()
+    }
+    /// The twin's arrival times against the exact ones on the rotation ([`probes`]).
+    fn probes(&self) -> Vec<Arc<dyn vwb_render::plugin::Probe>> {
+        vec![Arc::new(probes::OnRotation)]
     }
     fn id(&self) -> &'static str {
         "flow.arrival"

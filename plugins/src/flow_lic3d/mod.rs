@@ -31,10 +31,12 @@ use vwb_render::flow::{
 use vwb_render::params::{Components, ParamSpec, ParamValues};
 use vwb_render::plugin::{
     CpuContext, CpuSample, CpuTwin, GpuInit, GpuResource, PassOutputs, Plugin, PluginError,
-    PrepassDecl, ResourceDecl, ResourceKind, ScalarField, ShaderSource, Statistic, StorageFormat,
+    PrepassDecl, Probe, ResourceDecl, ResourceKind, ScalarField, ShaderSource, Statistic,
+    StorageFormat,
 };
 use vwb_render::volume::Volume;
 
+pub mod probes;
 #[cfg(test)]
 mod tests;
 
@@ -221,6 +223,49 @@ impl LicInputs {
     }
 }
 
+/// Mean |I(p) − I(p + t)| and |I(p) − I(p + s)| over every other voxel of a LIC volume
+/// (`data` on `dims`, x fastest; the border left out), with t one voxel along the flow
+/// and s one across it (t × z, or t × x where the flow is vertical): streaks along the
+/// flow make the first far smaller than the second. `field` is in the LIC grid's voxel
+/// coordinates; voxels without flow are skipped. NaN where no voxel counts.
+pub fn along_and_across(data: &[f32], dims: [u32; 3], field: &dyn Field) -> (f64, f64) {
+    let at = |p: DVec3| {
+        let q = p.round();
+        ((0..3).all(|a| q[a] >= 0.0 && q[a] < dims[a] as f64)).then(|| {
+            let i = q.x as usize + dims[0] as usize * (q.y as usize + dims[1] as usize * q.z as usize);
+            data.get(i).map_or(0.0, |v| *v as f64)
+        })
+    };
+    let (mut along, mut across, mut n) = (0.0, 0.0, 0usize);
+    for z in 1..dims[2].saturating_sub(1) {
+        for y in (1..dims[1].saturating_sub(1)).step_by(2) {
+            for x in (1..dims[0].saturating_sub(1)).step_by(2) {
+                let p = DVec3::new(x as f64, y as f64, z as f64);
+                let Some(v) = field.at(p).filter(|v| v.length() > 1e-9) else {
+                    continue;
+                };
+                let t = v.normalize();
+                let side = if t.z.abs() < 0.9 {
+                    t.cross(DVec3::Z)
+                } else {
+                    t.cross(DVec3::X)
+                }
+                .normalize();
+                let (Some(i0), Some(a), Some(b)) = (at(p), at(p + t), at(p + side)) else {
+                    continue;
+                };
+                along += (i0 - a).abs();
+                across += (i0 - b).abs();
+                n += 1;
+            }
+        }
+    }
+    if n == 0 {
+        return (f64::NAN, f64::NAN);
+    }
+    (along / n as f64, across / n as f64)
+}
+
 /// The largest LIC grid (voxels) whose `twin_rms` statistic is computed: 128³.
 pub const TWIN_STATISTIC_VOXELS: u64 = 128 * 128 * 128;
 
@@ -355,7 +400,17 @@ impl Plugin for Lic3d {
             ],
         })
     }
-    /// Precomputed: `twin_rms`, the RMS difference (in 1/255) of the GPU's LIC volume
+    /// The twin's streamline drift on the rotation and its LIC's time against error
+    /// ([`probes`]).
+    fn probes(&self) -> Vec<Arc<dyn Probe>> {
+        vec![
+            Arc::new(probes::Drift),
+            Arc::new(probes::TwinLic::default()),
+        ]
+    }
+    /// Precomputed: `along_across`, the mean |ΔI| between neighbours of the GPU's LIC
+    /// volume along the flow over that across it ([`along_and_across`]: well under 1
+    /// where the LIC shows streaks along the flow), and `twin_rms`, the RMS difference (in 1/255) of the GPU's LIC volume
     /// against the f64 twin's with the same noise and unrounded inputs (`storage: f32`;
     /// a half-float run's error includes its rounding). The twin takes seconds per 128³,
     /// so grids above [`TWIN_STATISTIC_VOXELS`] report NaN.
@@ -363,7 +418,7 @@ impl Plugin for Lic3d {
         if params.enumeration("mode") == "on_the_fly" {
             Vec::new()
         } else {
-            vec!["twin_rms"]
+            vec!["twin_rms", "along_across"]
         }
     }
     fn statistics(&self, params: &ParamValues, passes: &PassOutputs<'_>) -> Vec<Statistic> {
@@ -374,7 +429,17 @@ impl Plugin for Lic3d {
             return Vec::new();
         };
         let voxels: u64 = dims.iter().map(|&d| d as u64).product();
-        let value = match passes.inputs.resolve(passes.volume, params, "field") {
+        let field = passes.inputs.resolve(passes.volume, params, "field");
+        let along_across = match &field {
+            Ok(field) => {
+                let inputs = LicInputs::new(passes.volume, field, self.frequency, params);
+                let (along, across) =
+                    inputs.with_field(|f| along_and_across(&gpu, dims, f));
+                along / across
+            }
+            Err(_) => f64::NAN,
+        };
+        let value = match field {
             Ok(field) if voxels <= TWIN_STATISTIC_VOXELS => {
                 let mut full = params.clone();
                 full.set("storage", vwb_render::params::ParamValue::Enum("f32".into()));
@@ -392,10 +457,16 @@ impl Plugin for Lic3d {
             }
             _ => f64::NAN,
         };
-        vec![Statistic {
-            name: "twin_rms",
-            value,
-        }]
+        vec![
+            Statistic {
+                name: "twin_rms",
+                value,
+            },
+            Statistic {
+                name: "along_across",
+                value: along_across,
+            },
+        ]
     }
     fn configure(&self, params: &ParamValues) -> Option<Arc<dyn Plugin>> {
         let c = Lic3d {
