@@ -189,6 +189,149 @@ pub struct Variant {
     /// statistics `search.*` ([`SEARCH_STATISTICS`]).
     #[serde(default)]
     pub search: Option<SearchSpec>,
+    /// A design gallery of its TF is drawn at each grid point (docs/search.md: random
+    /// genomes rendered as thumbnails in batched atlases, the most dispersed chosen);
+    /// its figures are the statistics `gallery.*` ([`GALLERY_STATISTICS`]) and its sheet
+    /// is saved beside the row's image.
+    #[serde(default)]
+    pub gallery: Option<GallerySpec>,
+}
+
+/// A variant's design gallery ([`vwb_render::search::gallery::GalleryOptions`]; the
+/// fields left out take `vwb gallery`'s defaults: pool 256, k 36, tile 64, views 3,
+/// seed 1, spacing 1 voxel, at most 3 primitives, 96 tiles per atlas).
+#[derive(Debug, Clone, Default, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GallerySpec {
+    /// Genomes drawn.
+    pub pool: Option<usize>,
+    /// Genomes chosen.
+    pub k: Option<usize>,
+    /// Thumbnail side (pixels).
+    pub tile: Option<u32>,
+    /// Viewpoints per genome.
+    pub views: Option<usize>,
+    pub seed: Option<u64>,
+    /// The thumbnails' slice spacing, voxels.
+    pub spacing: Option<f64>,
+    pub max_primitives: Option<usize>,
+    /// Tiles per atlas (one submission each).
+    pub batch: Option<usize>,
+}
+
+/// The figures of a variant's gallery, as statistics: thumbnails rendered per second of
+/// atlas rendering and read-back (`gallery.thumbnails_per_s`), the smallest pairwise
+/// descriptor distance (RMS ΔE*uv) among the chosen (`gallery.dispersion`) and among as
+/// many drawn at random (`gallery.random_dispersion`), their ratio
+/// (`gallery.dispersion_gain`), and the gallery's wall time (`gallery.seconds`).
+pub const GALLERY_STATISTICS: [&str; 5] = [
+    "gallery.thumbnails_per_s",
+    "gallery.dispersion",
+    "gallery.random_dispersion",
+    "gallery.dispersion_gain",
+    "gallery.seconds",
+];
+
+impl GallerySpec {
+    fn options(&self) -> vwb_render::search::gallery::GalleryOptions {
+        let d = vwb_render::search::gallery::GalleryOptions::default();
+        vwb_render::search::gallery::GalleryOptions {
+            pool: self.pool.unwrap_or(d.pool),
+            k: self.k.unwrap_or(d.k),
+            tile: self.tile.unwrap_or(d.tile),
+            views: self.views.unwrap_or(d.views),
+            seed: self.seed.unwrap_or(d.seed),
+            slice_spacing: self.spacing.map_or(d.slice_spacing, |s| s as f32),
+            max_primitives: self.max_primitives.unwrap_or(d.max_primitives),
+            batch: self.batch.unwrap_or(d.batch),
+            around: None,
+        }
+    }
+
+    /// The options are in range (`own`: the variant, for errors).
+    fn check(&self, own: &str) -> Result<(), String> {
+        let o = self.options();
+        let checks: [(&str, usize, std::ops::RangeInclusive<usize>); 6] = [
+            ("pool", o.pool, 2..=65536),
+            ("k", o.k, 1..=o.pool.min(1024)),
+            ("tile", o.tile as usize, 8..=512),
+            ("views", o.views, 1..=16),
+            (
+                "max_primitives",
+                o.max_primitives,
+                1..=vwb_render::search::genome::MAX_PRIMITIVES,
+            ),
+            ("batch", o.batch, 1..=1024),
+        ];
+        for (name, v, range) in checks {
+            if !range.contains(&v) {
+                return Err(format!(
+                    "the gallery of variant '{own}': {name} {v} is outside {}..={}",
+                    range.start(),
+                    range.end()
+                ));
+            }
+        }
+        if !(o.slice_spacing.is_finite() && o.slice_spacing > 0.0) {
+            return Err(format!(
+                "the gallery of variant '{own}': spacing must be > 0"
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// What a variant's gallery gave at one grid point.
+#[derive(Debug, Clone, Serialize)]
+pub struct GalleryRecord {
+    pub thumbnails: usize,
+    pub render_ms: f64,
+    pub seconds: f64,
+    pub dispersion: f64,
+    pub random_dispersion: f64,
+    /// The sheet (chosen thumbnails on their grid), relative to the report's folder.
+    pub sheet: String,
+}
+
+impl GalleryRecord {
+    /// A statistic of [`GALLERY_STATISTICS`].
+    fn statistic(&self, name: &str) -> f64 {
+        match name {
+            "gallery.thumbnails_per_s" => self.thumbnails as f64 / (self.render_ms / 1e3).max(1e-9),
+            "gallery.dispersion" => self.dispersion,
+            "gallery.random_dispersion" => self.random_dispersion,
+            "gallery.dispersion_gain" => self.dispersion / self.random_dispersion,
+            "gallery.seconds" => self.seconds,
+            _ => f64::NAN,
+        }
+    }
+}
+
+/// Draws a variant's gallery on its renderer from `d`'s stack and camera, and saves its
+/// sheet as `images/gallery_NNN.png` (`row`: the row's index) in `out`.
+fn gallery_of(
+    spec: &GallerySpec,
+    r: &mut vwb_render::Renderer,
+    d: &Document,
+    out: &Path,
+    row: usize,
+) -> Result<GalleryRecord> {
+    let o = spec.options();
+    let start = std::time::Instant::now();
+    let g =
+        vwb_render::search::gallery::gallery(r, &d.stack, &d.camera, measure::background(d), &o)
+            .map_err(|e| anyhow!("gallery: {e}"))?;
+    let seconds = start.elapsed().as_secs_f64();
+    let sheet = format!("images/gallery_{row:03}.png");
+    headless::save_png(&crate::search::sheet(&g, o.tile), &out.join(&sheet))?;
+    Ok(GalleryRecord {
+        thumbnails: g.rendered,
+        render_ms: g.render_ms,
+        seconds,
+        dispersion: g.dispersion,
+        random_dispersion: g.random_dispersion,
+        sheet,
+    })
 }
 
 /// A variant's TF search: toward the views another variant gives from the search's
@@ -585,9 +728,33 @@ pub struct DocBlock {
     pub block: String,
     /// Also copy the rows' images next to the doc (`images/<experiment>_<row>.png` in
     /// its folder) and show them in the block, in row order (a figure the doc shows,
-    /// regenerated with its table). Only into the CPU device's doc.
+    /// regenerated with its table): `true` for every row, or a list of row indices
+    /// (from 0). Only into the CPU device's doc.
     #[serde(default)]
-    pub images: bool,
+    pub images: DocImages,
+}
+
+/// Which rows' images a doc block shows ([`DocBlock::images`]).
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(untagged)]
+pub enum DocImages {
+    All(bool),
+    Rows(Vec<usize>),
+}
+
+impl Default for DocImages {
+    fn default() -> Self {
+        DocImages::All(false)
+    }
+}
+
+impl DocImages {
+    fn shows(&self, row: usize) -> bool {
+        match self {
+            DocImages::All(all) => *all,
+            DocImages::Rows(rows) => rows.contains(&row),
+        }
+    }
 }
 
 /// One measured image.
@@ -623,6 +790,8 @@ pub struct Row {
     pub pareto: bool,
     /// What a searched variant's search found (None for other variants).
     pub search: Option<SearchRecord>,
+    /// What a gallery variant's gallery gave (None for other variants).
+    pub gallery: Option<GalleryRecord>,
 }
 
 /// The GPU timestamps of a frame's pre-passes and volume passes (ms), None where the
@@ -879,9 +1048,31 @@ pub fn parse(text: &str, path: &Path) -> Result<Experiment> {
             }
         }
     }
+    for v in &e.variants {
+        if let Some(g) = &v.gallery {
+            if v.search.is_some() {
+                bail!(
+                    "{file}: variant '{}' has both a search and a gallery; give each its own variant",
+                    v.name
+                );
+            }
+            g.check(&v.name).map_err(|err| anyhow!("{file}: {err}"))?;
+        }
+    }
     let searched = e.variants.iter().any(|v| v.search.is_some());
+    let galleries = e.variants.iter().any(|v| v.gallery.is_some());
     for st in &e.statistics {
-        if st.starts_with("search.") {
+        if st.starts_with("gallery.") {
+            if !GALLERY_STATISTICS.contains(&st.as_str()) {
+                bail!(
+                    "{file}: statistic '{st}': a gallery reports {}",
+                    GALLERY_STATISTICS.join(", ")
+                );
+            }
+            if !galleries {
+                bail!("{file}: statistic '{st}': no variant has a gallery");
+            }
+        } else if st.starts_with("search.") {
             if !SEARCH_STATISTICS.contains(&st.as_str()) {
                 bail!(
                     "{file}: statistic '{st}': a search reports {}",
@@ -982,7 +1173,10 @@ fn statistics_of(
 ) -> BTreeMap<String, f64> {
     let mut reports: HashMap<&str, Vec<Statistic>> = HashMap::new();
     let mut out = BTreeMap::new();
-    for st in wanted.iter().filter(|st| !st.starts_with("search.")) {
+    for st in wanted
+        .iter()
+        .filter(|st| !st.starts_with("search.") && !st.starts_with("gallery."))
+    {
         let (id, name) = st.rsplit_once('.').expect("checked at load");
         let Some(inst) = enabled_instance(d, id) else {
             continue;
@@ -1604,7 +1798,11 @@ pub fn run(
                 .map_err(|err| anyhow!("{fname}: scene '{}': {err}", sc.name))?;
             docs.push((v, d, axes, volume));
         }
-        for st in e.statistics.iter().filter(|st| !st.starts_with("search.")) {
+        for st in e
+            .statistics
+            .iter()
+            .filter(|st| !st.starts_with("search.") && !st.starts_with("gallery."))
+        {
             check_statistic(st, docs.iter().map(|(_, d, _, _)| d))
                 .map_err(|err| anyhow!("{fname}: scene '{}': statistic '{st}': {err}", sc.name))?;
         }
@@ -1666,6 +1864,20 @@ pub fn run(
                     }
                     None => None,
                 };
+                // a gallery variant draws its gallery here (the frame below renders
+                // the stack as it is)
+                let gallery = match &v.gallery {
+                    Some(spec) => Some(gallery_of(spec, &mut r, &d, out, rows.len()).map_err(
+                        |err| {
+                            anyhow!(
+                                "{fname}: variant '{}' on scene '{}': {err}",
+                                v.name,
+                                sc.name
+                            )
+                        },
+                    )?),
+                    None => None,
+                };
                 let s = d.frame_settings();
                 r.update_stack(&d.stack, d.render.target)?;
                 // the untimed first frame runs what the change invalidated
@@ -1695,6 +1907,11 @@ pub fn run(
                 if let Some(found) = &search {
                     for st in e.statistics.iter().filter(|st| st.starts_with("search.")) {
                         statistics.insert(st.clone(), found.statistic(st));
+                    }
+                }
+                if let Some(g) = &gallery {
+                    for st in e.statistics.iter().filter(|st| st.starts_with("gallery.")) {
+                        statistics.insert(st.clone(), g.statistic(st));
                     }
                 }
                 let spec = v.reference.as_ref().unwrap_or(&e.reference);
@@ -1931,6 +2148,7 @@ pub fn run(
                     reference,
                     pareto: false,
                     search,
+                    gallery,
                 });
                 observer(Event::Row {
                     index: rows.len() - 1,
@@ -2331,8 +2549,12 @@ fn write_outputs(
         let doc = dir.join(&block.file);
         if gpu.is_none_or(|g| g.info.device_type == wgpu::DeviceType::Cpu) {
             let mut body = o.markdown.clone();
-            if block.images {
-                body += &doc_images(e, out, &doc, o)?;
+            if o.rows
+                .iter()
+                .enumerate()
+                .any(|(i, _)| block.images.shows(i))
+            {
+                body += &doc_images(e, out, &doc, o, &block.images)?;
             }
             write_block(&doc, &block.block, &body)?;
         } else {
@@ -2353,7 +2575,13 @@ fn write_outputs(
 
 /// The rows' images copied beside `doc` (`images/<experiment>_<row>.png`, atomically)
 /// and the Markdown that shows them, each captioned with its row.
-fn doc_images(e: &Experiment, out: &Path, doc: &Path, o: &Outcome) -> Result<String> {
+fn doc_images(
+    e: &Experiment,
+    out: &Path,
+    doc: &Path,
+    o: &Outcome,
+    which: &DocImages,
+) -> Result<String> {
     let dir = doc.parent().unwrap_or(Path::new(".")).join("images");
     std::fs::create_dir_all(&dir).with_context(|| format!("{}: cannot create", dir.display()))?;
     let mut s = String::from("\n");
@@ -2361,10 +2589,11 @@ fn doc_images(e: &Experiment, out: &Path, doc: &Path, o: &Outcome) -> Result<Str
         .rows
         .iter()
         .enumerate()
-        .filter(|(_, r)| !r.image.is_empty())
+        .filter(|(i, r)| !r.image.is_empty() && which.shows(*i))
     {
         let name = format!("{}_{i:03}.png", file_safe(&e.name));
-        let from = out.join(&r.image);
+        // a gallery variant's figure is its sheet
+        let from = out.join(r.gallery.as_ref().map_or(&r.image, |g| &g.sheet));
         let bytes =
             std::fs::read(&from).with_context(|| format!("{}: cannot read", from.display()))?;
         let to = dir.join(&name);
@@ -2671,6 +2900,7 @@ mod tests {
             reference: Some(0),
             pareto: false,
             search: None,
+            gallery: None,
         }
     }
 

@@ -57,21 +57,7 @@ pub fn run_gallery(preset: &Path, o: &GalleryOptions, out: &Path) -> Result<Gall
         o,
     )
     .map_err(|e| anyhow!("{}: {e}", preset.display()))?;
-    // the grid image
-    let t = o.tile;
-    let rows = g.cells.iter().map(|c| c[1]).max().map_or(1, |r| r + 1);
-    let mut img = image::RgbImage::new(g.cols * (t + 2), rows * (t + 2));
-    for (views, cell) in g.views.iter().zip(&g.cells) {
-        let thumb = &views[0];
-        let rgb = thumb.to_rgb8();
-        image::imageops::replace(
-            &mut img,
-            &rgb,
-            (cell[0] * (t + 2) + 1) as i64,
-            (cell[1] * (t + 2) + 1) as i64,
-        );
-    }
-    headless::save_png(&img, &out.join("gallery.png"))?;
+    headless::save_png(&sheet(&g, o.tile), &out.join("gallery.png"))?;
     let file = GalleryFile {
         preset: preset.to_path_buf(),
         seed: o.seed,
@@ -101,6 +87,24 @@ pub fn run_gallery(preset: &Path, o: &GalleryOptions, out: &Path) -> Result<Gall
         }),
     )?;
     Ok(g)
+}
+
+/// The gallery's sheet: the chosen thumbnails (first viewpoint, `tile` pixels) on their
+/// MDS grid cells, one pixel apart.
+pub fn sheet(g: &Gallery, tile: u32) -> image::RgbImage {
+    let t = tile;
+    let rows = g.cells.iter().map(|c| c[1]).max().map_or(1, |r| r + 1);
+    let mut img = image::RgbImage::new(g.cols * (t + 2), rows * (t + 2));
+    for (views, cell) in g.views.iter().zip(&g.cells) {
+        let rgb = views[0].to_rgb8();
+        image::imageops::replace(
+            &mut img,
+            &rgb,
+            (cell[0] * (t + 2) + 1) as i64,
+            (cell[1] * (t + 2) + 1) as i64,
+        );
+    }
+    img
 }
 
 /// One line per gallery for the terminal.

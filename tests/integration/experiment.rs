@@ -1002,3 +1002,118 @@ fn doc_blocks_carry_the_rows_images() {
         "{text}"
     );
 }
+
+/// A gallery variant: its figures are the gallery's own (the same as
+/// `vwb_render::search::gallery::gallery` gives with those options on a fresh renderer),
+/// its sheet is saved and is the row's figure in a doc block; bad gallery files are
+/// refused naming the file and the cause.
+#[test]
+fn a_gallery_variant_reports_the_gallery_and_shows_its_sheet() {
+    use vwb_render::search::gallery::{GalleryOptions, gallery};
+    let dir = tmp("gallerydoc");
+    std::fs::create_dir_all(&dir).unwrap();
+    let doc = dir.join("doc.md");
+    std::fs::write(&doc, "<!-- BEGIN g -->\n<!-- END g -->\n").unwrap();
+    let preset = repo().join("presets/demo.ron");
+    let file = dir.join("g.ron");
+    std::fs::write(
+        &file,
+        format!(
+            r#"Experiment(
+            name: "g",
+            scenes: [Preset("{}")],
+            variants: [(name: "small", gallery: (pool: 12, k: 4, tile: 16, views: 1, seed: 5))],
+            reference: TimeOnly,
+            metrics: [],
+            statistics: ["gallery.thumbnails_per_s", "gallery.dispersion", "gallery.random_dispersion", "gallery.dispersion_gain"],
+            render: (size: (16, 16)),
+            frames: 1,
+            assertions: ["gallery.dispersion_gain(small) > 1"],
+            doc_block: (file: "doc.md", block: "g", images: [0]),
+        )"#,
+            preset.display()
+        ),
+    )
+    .unwrap();
+    let e = experiment::load(&file).unwrap();
+    let out = dir.join("report");
+    let o = experiment::run(gpu(), &e, &file, &out, &mut |_| {}).unwrap();
+    assert!(o.failed().is_empty(), "{:#?}", o.assertions);
+    let row = &o.rows[0];
+    // the same gallery drawn directly
+    let d = vwb_lab::document::load_document(Some(&preset)).unwrap();
+    let volume = vwb_lab::headless::load_volume(&d.volume).unwrap();
+    let mut r = vwb_lab::headless::renderer_for(gpu(), &d, volume).unwrap();
+    let opts = GalleryOptions {
+        pool: 12,
+        k: 4,
+        tile: 16,
+        views: 1,
+        seed: 5,
+        ..Default::default()
+    };
+    let g = gallery(
+        &mut r,
+        &d.stack,
+        &d.camera,
+        vwb_lab::measure::background(&d),
+        &opts,
+    )
+    .unwrap();
+    assert_eq!(row.statistics["gallery.dispersion"], g.dispersion);
+    assert_eq!(
+        row.statistics["gallery.random_dispersion"],
+        g.random_dispersion
+    );
+    assert!(row.statistics["gallery.thumbnails_per_s"] > 0.0, "{row:?}");
+    let record = row.gallery.as_ref().unwrap();
+    assert_eq!(record.thumbnails, 12);
+    let sheet = image::open(out.join(&record.sheet)).unwrap();
+    assert_eq!(sheet.width() % 18, 0, "tiles of 16 px, one apart");
+    // the doc block shows the sheet, not the row's frame
+    let text = std::fs::read_to_string(&doc).unwrap();
+    assert!(text.contains("![demo, small](images/g_000.png)"), "{text}");
+    assert_eq!(
+        std::fs::read(dir.join("images/g_000.png")).unwrap(),
+        std::fs::read(out.join(&record.sheet)).unwrap()
+    );
+
+    let cases = [
+        (
+            "variants: [(name: \"a\", gallery: (pool: 1))]",
+            "the gallery of variant 'a': pool 1 is outside 2..=65536",
+        ),
+        (
+            "variants: [(name: \"a\", gallery: (pool: 8, k: 9))]",
+            "k 9 is outside 1..=8",
+        ),
+        (
+            "variants: [(name: \"a\", gallery: (), search: (objective: \"entropy\"))]",
+            "has both a search and a gallery",
+        ),
+        (
+            "variants: [(name: \"a\")], statistics: [\"gallery.dispersion\"]",
+            "no variant has a gallery",
+        ),
+        (
+            "variants: [(name: \"a\", gallery: ())], statistics: [\"gallery.nope\"]",
+            "a gallery reports gallery.thumbnails_per_s",
+        ),
+    ];
+    for (i, (fields, expect)) in cases.iter().enumerate() {
+        let file = tmp(&format!("bad_gallery{i}.ron"));
+        std::fs::write(
+            &file,
+            format!(
+                "Experiment(name: \"bad\", scenes: [Preset(\"{}\")], {fields})",
+                preset.display()
+            ),
+        )
+        .unwrap();
+        let err = experiment::load(&file).unwrap_err().to_string();
+        assert!(
+            err.contains(&format!("bad_gallery{i}.ron")) && err.contains(expect),
+            "{err}"
+        );
+    }
+}

@@ -126,6 +126,7 @@ pub(super) fn checked(mut e: Experiment, path: &Path) -> Result<Experiment> {
             || v.reference.is_some()
             || v.crop.is_some()
             || v.search.is_some()
+            || v.gallery.is_some()
         {
             bail!(
                 "{file}: variant '{}' of probe '{id}' may only `set` the probe's parameters",
@@ -300,6 +301,7 @@ pub(super) fn run(
                 reference: None,
                 pareto: false,
                 search: None,
+                gallery: None,
             });
             observer(Event::Row {
                 index: rows.len() - 1,
