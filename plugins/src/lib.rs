@@ -146,6 +146,33 @@ mod tests {
         assert!(fresh.register(r.plugins()[0].clone()).is_err());
     }
 
+    /// Every built-in probe runs at its defaults (the sample data aside: the suggestion's
+    /// default is the embedded demo) and reports each of its figures once, finite.
+    #[test]
+    fn every_probe_runs_at_its_defaults_and_reports_its_figures() {
+        let r = builtin_registry();
+        let mut n = 0;
+        for p in r.plugins() {
+            for probe in p.probes() {
+                let params = vwb_render::params::ParamValues::defaults(&probe.params());
+                let out = probe
+                    .run(&params)
+                    .unwrap_or_else(|e| panic!("{}.{}: {e}", p.id(), probe.name()));
+                let names: Vec<&str> = out.iter().map(|s| s.name).collect();
+                let want: Vec<&str> = probe.figures().iter().map(|(f, _)| *f).collect();
+                assert_eq!(names, want, "{}.{}", p.id(), probe.name());
+                assert!(
+                    out.iter().all(|s| s.value.is_finite()),
+                    "{}.{}: {out:?}",
+                    p.id(),
+                    probe.name()
+                );
+                n += 1;
+            }
+        }
+        assert!(n >= 6, "{n} probes");
+    }
+
     #[test]
     fn every_builtin_composes_alone_and_twice() {
         let r = builtin_registry();

@@ -21,14 +21,6 @@ pub fn data_dir() -> PathBuf {
     vwb_render::samples::data_dir().expect("a data directory")
 }
 
-/// The 1-minute load average (`/proc/loadavg`), for benchmark reports.
-pub fn load_average() -> String {
-    std::fs::read_to_string("/proc/loadavg")
-        .ok()
-        .and_then(|l| l.split_whitespace().next().map(str::to_string))
-        .unwrap_or_else(|| "unknown".into())
-}
-
 /// Writes `body` into the block `name` of `doc`, first adding the block under
 /// `heading` at the end where the document has none (a GPU's copy written before the
 /// block existed).

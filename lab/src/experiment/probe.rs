@@ -205,10 +205,12 @@ pub(super) fn checked(mut e: Experiment, path: &Path) -> Result<Experiment> {
 }
 
 /// The parameters of one row: the probe's defaults, the experiment's seed (into a
-/// parameter named `seed`), the variant's `set`, then the grid point.
+/// parameter named `seed`), the variant's `set`, then the grid point; a relative path
+/// is taken from `dir`, the experiment file's folder.
 fn row_params(
     probe: &dyn Probe,
     e: &Experiment,
+    dir: &Path,
     set: &BTreeMap<String, super::SetValue>,
     point: &[f64],
 ) -> Result<ParamValues> {
@@ -223,7 +225,13 @@ fn row_params(
     }
     for (key, value) in set {
         let s = spec(&specs, "", key).map_err(|err| anyhow!(err))?;
-        p.set(key, param_value(key, s, value)?);
+        let v = match param_value(key, s, value)? {
+            ParamValue::Path(path) if path.is_relative() && !path.as_os_str().is_empty() => {
+                ParamValue::Path(dir.join(path))
+            }
+            v => v,
+        };
+        p.set(key, v);
     }
     for (a, v) in e.grid.iter().zip(point) {
         let s = spec(&specs, "", &a.param).map_err(|err| anyhow!(err))?;
@@ -242,6 +250,7 @@ pub(super) fn run(
     observer: &mut dyn FnMut(Event<'_>),
 ) -> Result<Outcome> {
     let fname = file.display();
+    let dir = file.parent().unwrap_or(Path::new("."));
     let spec = e.probe.as_ref().expect("a probe's experiment");
     let probe = find(&spec.id).map_err(|err| anyhow!("{fname}: {err}"))?;
     let axes: Vec<Axis> = e
@@ -269,7 +278,7 @@ pub(super) fn run(
     let mut rows: Vec<Row> = Vec::new();
     for v in variants {
         for point in &points {
-            let params = row_params(probe.as_ref(), e, &v.set, point)
+            let params = row_params(probe.as_ref(), e, dir, &v.set, point)
                 .map_err(|err| anyhow!("{fname}: variant '{}': {err}", v.name))?;
             let figures = probe.run(&params).map_err(|err| {
                 anyhow!("{fname}: probe '{}', variant '{}': {err}", spec.id, v.name)

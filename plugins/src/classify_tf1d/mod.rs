@@ -18,6 +18,7 @@
 //! same filtering as the GPU samplers.
 
 pub mod preint;
+pub mod probes;
 
 use std::sync::Arc;
 
@@ -98,6 +99,11 @@ fn curve(params: &ParamValues) -> TfCurve {
 impl Plugin for Tf1d {
     fn id(&self) -> &'static str {
         "classify.tf1d"
+    }
+    /// The pre-integration table's rebuild and the TF suggestion, on the CPU
+    /// ([`probes`]).
+    fn probes(&self) -> Vec<Arc<dyn vwb_render::plugin::Probe>> {
+        vec![Arc::new(probes::PreintTable), Arc::new(probes::Suggest)]
     }
     fn display_name(&self) -> &'static str {
         "1D transfer function"

@@ -48,6 +48,7 @@ use vwb_render::volume::Volume;
 use crate::clip_shapes::cut::{CutShading, SubstituteTwin, substitute_wgsl};
 
 pub mod mesh;
+pub mod probes;
 pub mod voxelize;
 
 #[cfg(test)]
@@ -341,6 +342,33 @@ impl Plugin for ClipMesh {
     /// It reads a voxelised mesh over the whole volume box, in the volume's texture coordinates.
     fn splits_into_bricks(&self) -> bool {
         false
+    }
+    /// The voxelisation on its own ([`probes::Voxelise`]).
+    fn probes(&self) -> Vec<Arc<dyn vwb_render::plugin::Probe>> {
+        vec![Arc::new(probes::Voxelise)]
+    }
+    /// `grid_builds` and `grid_uploads`: how often the mesh pass has built the grid of
+    /// these parameters over this volume, and uploaded it, in this process
+    /// ([`mesh_pass_counts`]): a camera orbit leaves both where the first frame put them.
+    fn statistic_names(&self, _params: &ParamValues) -> Vec<&'static str> {
+        vec!["grid_builds", "grid_uploads"]
+    }
+    fn statistics(
+        &self,
+        params: &ParamValues,
+        passes: &vwb_render::plugin::PassOutputs<'_>,
+    ) -> Vec<vwb_render::plugin::Statistic> {
+        let (builds, uploads) = mesh_pass_counts(params, passes.volume);
+        vec![
+            vwb_render::plugin::Statistic {
+                name: "grid_builds",
+                value: builds as f64,
+            },
+            vwb_render::plugin::Statistic {
+                name: "grid_uploads",
+                value: uploads as f64,
+            },
+        ]
     }
     fn id(&self) -> &'static str {
         "clip.mesh"
