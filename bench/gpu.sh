@@ -10,7 +10,8 @@
 #   perf.md            docs/perf.md with its `foundation-gpu` block (bench/perf.py --gpu)
 #   gpu-docs.tar       docs/gpu/: flow.md and hernell.md (`hernell_512_benchmark`
 #                      on the GPU, and the blocks of the experiment files
-#                      flow_precompute_256, flow_arrival_prepass_large, flow_modes,
+#                      flow_precompute_256, flow_arrival_prepass_large,
+#                      flow_output_sensitivity_large, flow_modes,
 #                      search_gallery, search_gallery_large (into search.md),
 #                      flow_animation, hernell_light,
 #                      hernell_scattering, hernell_extremes and hernell_blocking),
@@ -40,6 +41,7 @@ step benchmarks 240 "$integration" --ignored --test-threads=1 --nocapture \
 step experiments 420 "$vwb" run experiments/volume_format.ron experiments/flow_modes.ron \
     experiments/flow_precompute_256.ron experiments/flow_arrival_prepass_large.ron \
     experiments/search_gallery.ron experiments/search_gallery_large.ron \
+    experiments/flow_output_sensitivity_large.ron \
     experiments/flow_animation.ron experiments/hernell_light.ron \
     experiments/hernell_scattering.ron experiments/hernell_extremes.ron \
     experiments/hernell_blocking.ron experiments/clip_planes.ron \

@@ -505,8 +505,9 @@ pub enum SetValue {
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct GridAxis {
-    /// `render.slice_spacing`, `camera.yaw_deg`, `camera.pitch_deg`, `camera.distance`,
-    /// `camera.fov_y_deg` or `<plugin id>.<key>` (a float or int parameter).
+    /// `render.slice_spacing`, `render.size` (the image's side: side × side pixels),
+    /// `camera.yaw_deg`, `camera.pitch_deg`, `camera.distance`, `camera.fov_y_deg` or
+    /// `<plugin id>.<key>` (a float or int parameter).
     pub param: String,
     #[serde(default)]
     pub values: Option<Vec<f64>>,
@@ -598,10 +599,13 @@ pub enum Metric {
     /// The share of empty-space-skipping bricks that no sample can make visible (the
     /// transfer function's and the clipping's), NaN with skipping off.
     EmptyBrickShare,
+    /// The share of the image's pixels that are not transparent (α > 0.01): what a view
+    /// covers, e.g. a clipped view against the whole one.
+    Coverage,
 }
 
 impl Metric {
-    pub const ALL: [Metric; 14] = [
+    pub const ALL: [Metric; 15] = [
         Metric::RmsDeltaE,
         Metric::MeanDeltaE,
         Metric::MaxDeltaE,
@@ -616,6 +620,7 @@ impl Metric {
         Metric::Slices,
         Metric::GpuMemoryMib,
         Metric::EmptyBrickShare,
+        Metric::Coverage,
     ];
 
     pub fn name(self) -> &'static str {
@@ -634,6 +639,7 @@ impl Metric {
             Metric::Slices => "slices",
             Metric::GpuMemoryMib => "gpu_memory_mib",
             Metric::EmptyBrickShare => "empty_brick_share",
+            Metric::Coverage => "coverage",
         }
     }
 
@@ -653,6 +659,7 @@ impl Metric {
             Metric::Slices => "slices",
             Metric::GpuMemoryMib => "GPU memory (MiB)",
             Metric::EmptyBrickShare => "empty bricks",
+            Metric::Coverage => "image covered",
         }
     }
 
@@ -680,6 +687,7 @@ impl Metric {
             Metric::Slices => row.slices as f64,
             Metric::GpuMemoryMib => row.gpu_memory_bytes as f64 / (1u64 << 20) as f64,
             Metric::EmptyBrickShare => row.empty_brick_share,
+            Metric::Coverage => row.coverage,
         }
     }
 
@@ -691,7 +699,7 @@ impl Metric {
         match self {
             // small shares keep a second digit
             Metric::ShareAbove6 if v > 0.0 && v < 0.01 => format!("{:.2} %", 100.0 * v),
-            Metric::ShareAbove6 => format!("{:.1} %", 100.0 * v),
+            Metric::ShareAbove6 | Metric::Coverage => format!("{:.1} %", 100.0 * v),
             Metric::Slices | Metric::PassesRerun => format!("{v}"),
             Metric::Ssim => format!("{v:.4}"),
             Metric::GpuMemoryMib => format!("{v:.1}"),
@@ -779,6 +787,8 @@ pub struct Row {
     pub gpu_memory_bytes: u64,
     /// [`Metric::EmptyBrickShare`] (NaN with skipping off).
     pub empty_brick_share: f64,
+    /// [`Metric::Coverage`] (NaN unless the experiment shows or asserts it).
+    pub coverage: f64,
     pub metrics: Metrics,
     /// [`Experiment::statistics`] by name (absent where the plugin is off).
     pub statistics: BTreeMap<String, f64>,
@@ -1759,6 +1769,11 @@ pub fn run(
     let mut twin_images: HashMap<String, RgbImageF> = HashMap::new();
     let image_key =
         |scene: &str, variant: &str, values: &[f64]| format!("{scene}|{variant}|{values:?}");
+    // the coverage costs a read-back: only where the table or an assertion reads it
+    let wants_coverage = e.metrics.contains(&Metric::Coverage)
+        || e.assertions
+            .iter()
+            .any(|a| a.contains(Metric::Coverage.name()));
     for scene in &e.scenes {
         let sc = load_scene(scene, dir, e).with_context(|| format!("{fname}"))?;
         // every variant's document and axes, checked before anything renders
@@ -1902,6 +1917,11 @@ pub fn run(
                     .filter(|&g| measure::stamps_plausible(cpu, g, update_ms))
                     .unwrap_or(f64::NAN);
                 let img = measure::gpu_image(&r, &d)?;
+                let coverage = if wants_coverage {
+                    measure::coverage(&r)?
+                } else {
+                    f64::NAN
+                };
                 let memory: u64 = r.plugin_memory().iter().map(|(_, _, b)| b).sum();
                 let mut statistics = statistics_of(&e.statistics, &r, &d);
                 if let Some(found) = &search {
@@ -2142,6 +2162,7 @@ pub fn run(
                         .collect(),
                     gpu_memory_bytes: memory,
                     empty_brick_share: r.empty_brick_share().unwrap_or(f64::NAN),
+                    coverage,
                     metrics: m,
                     statistics,
                     image,
@@ -2884,6 +2905,7 @@ mod tests {
             update_passes: Vec::new(),
             gpu_memory_bytes: 0,
             empty_brick_share: f64::NAN,
+            coverage: f64::NAN,
             metrics: Metrics {
                 width: 1,
                 height: 1,

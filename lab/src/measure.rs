@@ -159,6 +159,15 @@ pub fn background(doc: &Document) -> [f64; 3] {
 }
 
 /// The eye buffer composited over the document's background.
+/// The share of the last frame's pixels that are not transparent (α > 0.01): what a
+/// view covers, e.g. against a clipped view of it.
+pub fn coverage(r: &Renderer) -> Result<f64> {
+    let (_, _, px) = r
+        .read_pixels()
+        .ok_or_else(|| anyhow!("nothing was rendered"))?;
+    Ok(px.iter().filter(|p| p[3] > 0.01).count() as f64 / px.len().max(1) as f64)
+}
+
 pub fn gpu_image(r: &Renderer, doc: &Document) -> Result<RgbImageF> {
     let (w, h, px) = r
         .read_pixels()
@@ -815,6 +824,8 @@ pub struct Axis {
 #[derive(Debug, Clone, PartialEq)]
 pub enum AxisTarget {
     Spacing,
+    /// The image: `render.size`, a side (the frame is side × side pixels).
+    Size,
     /// The camera: `camera.yaw_deg`, `camera.pitch_deg` or `camera.distance`.
     Camera(CameraKey),
     /// A float or int parameter of the first instance of a plugin in the stack.
@@ -828,7 +839,10 @@ pub enum AxisTarget {
 impl AxisTarget {
     /// Whether the axis changes the converged reference.
     fn changes_reference(&self) -> bool {
-        matches!(self, AxisTarget::Param { .. } | AxisTarget::Camera(_))
+        matches!(
+            self,
+            AxisTarget::Param { .. } | AxisTarget::Camera(_) | AxisTarget::Size
+        )
     }
 }
 
@@ -955,6 +969,14 @@ pub fn axis_for(name: &str, values: Vec<f64>, doc: &Document) -> Result<Axis> {
             bail!("{name}: slice spacing must be > 0, got {v}");
         }
         AxisTarget::Spacing
+    } else if name == "render.size" {
+        if let Some(v) = values
+            .iter()
+            .find(|v| v.fract() != 0.0 || !(1.0..=16384.0).contains(*v))
+        {
+            bail!("{name}: an image side is a whole number of pixels in 1..=16384, got {v}");
+        }
+        AxisTarget::Size
     } else if let Some(key) = CameraKey::parse(name) {
         for v in &values {
             key.set(&mut doc.clone(), *v)
@@ -1010,6 +1032,7 @@ pub fn axis_for(name: &str, values: Vec<f64>, doc: &Document) -> Result<Axis> {
 pub fn apply_axis(doc: &mut Document, axis: &Axis, v: f64) {
     match &axis.target {
         AxisTarget::Spacing => doc.render.slice_spacing = v as f32,
+        AxisTarget::Size => doc.render.size = [v as u32; 2],
         // checked by axis_for
         AxisTarget::Camera(key) => key.set(doc, v).expect("checked when the axis was made"),
         AxisTarget::Param { index, key, int } => {

@@ -21,13 +21,6 @@ pub fn data_dir() -> PathBuf {
     vwb_render::samples::data_dir().expect("a data directory")
 }
 
-/// Writes `body` into the block `name` of `doc`, first adding the block under
-/// `heading` at the end where the document has none (a GPU's copy written before the
-/// block existed).
-pub fn write_or_add_block(doc: &Path, name: &str, heading: &str, body: &str) {
-    vwb_lab::experiment::write_or_add_block(doc, "", name, heading, body).unwrap();
-}
-
 /// A path in this test run's scratch directory.
 pub fn tmp(name: &str) -> PathBuf {
     let d = std::env::temp_dir().join(format!("vwb-test-{}", std::process::id()));

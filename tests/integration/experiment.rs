@@ -458,6 +458,10 @@ fn bad_experiments_are_refused_naming_the_file_and_cause() {
             "variants: [(name: \"a\", set: {\"camera.fov_y_deg\": 180.0})]",
             "'camera.fov_y_deg': FovYDeg: 180 is outside the camera's range",
         ),
+        (
+            "grid: [(param: \"render.size\", values: [16.5])]",
+            "render.size: an image side is a whole number of pixels in 1..=16384, got 16.5",
+        ),
     ];
     for (i, (fields, expect)) in cases.iter().enumerate() {
         let file = write(
@@ -975,9 +979,9 @@ fn doc_blocks_carry_the_rows_images() {
             r#"Experiment(
             name: "pics",
             scenes: [Preset("{}")],
-            grid: [(param: "render.slice_spacing", values: [1.0, 2.0])],
+            grid: [(param: "render.size", values: [16, 24])],
             reference: TimeOnly,
-            render: (size: (16, 16)),
+            metrics: [frame_ms, coverage],
             frames: 1,
             doc_block: (file: "doc.md", block: "experiment pics", images: true),
         )"#,
@@ -990,6 +994,10 @@ fn doc_blocks_carry_the_rows_images() {
     let o = experiment::run(gpu(), &e, &file, &out, &mut |_| {}).unwrap();
     let text = std::fs::read_to_string(&doc).unwrap();
     for (i, r) in o.rows.iter().enumerate() {
+        // `render.size` sizes the frame; `coverage` is its share of pixels not transparent
+        let side = r.values[0] as u32;
+        assert_eq!((r.metrics.width, r.metrics.height), (side, side), "{r:?}");
+        assert!(r.coverage > 0.05 && r.coverage < 1.0, "{r:?}");
         let link = format!("![demo, as is, {}](images/pics_{i:03}.png)", r.values[0]);
         assert!(text.contains(&link), "{link} in {text}");
         assert_eq!(

@@ -2,8 +2,6 @@
 //! rendered by slicing as the thesis does (§9.3: a precomputed LIC volume, a TF). The
 //! studies behind docs/flow.md are experiment files (`bash bench/flow.sh`).
 
-use std::fmt::Write as _;
-
 use glam::DVec3;
 use vwb_render::flow::{
     Abc, Field, GridField, LicParams, Noise, Rotation, Scaled, lic_volume, noise_volume,
@@ -37,19 +35,6 @@ fn plugin_bytes(r: &Renderer, uid: u64) -> u64 {
 /// Share of a frame's pixels that are not transparent.
 fn covered(px: &[[f32; 4]]) -> f64 {
     px.iter().filter(|p| p[3] > 0.01).count() as f64 / px.len() as f64
-}
-
-/// The time a study quotes for a frame: its GPU time on a GPU (the wall time there is
-/// mostly overhead), else its wall time.
-fn quoted_ms(wall: f64, gpu: Option<f64>) -> f64 {
-    if on_gpu() { gpu.unwrap_or(wall) } else { wall }
-}
-
-/// Frames of `r` timed as the studies time them: on a GPU 9 after 10 warm-up frames
-/// (its clocks ramp up), else 3 after 1.
-fn study_timing(r: &mut Renderer, s: &vwb_render::FrameSettings) -> vwb_lab::measure::Timing {
-    let (warm, frames) = if on_gpu() { (10, 9) } else { (1, 3) };
-    vwb_lab::measure::time_frames(r, s, warm, frames).unwrap()
 }
 
 /// The storm's LIC volume at `factor` times its resolution, and its field on that grid.
@@ -99,119 +84,6 @@ fn storm_lic_shows_structure_along_the_flow() {
     );
     assert!(px.iter().flatten().all(|c| c.is_finite()));
     assert!(px.iter().filter(|p| p[3] > 0.2).count() > 64 * 64 / 10);
-}
-
-/// The scene of the on-the-fly study, experiments/scenes/abc_lic_half.ron (the
-/// experiment files flow_modes and flow_animation read it too): the ABC flow on 64³;
-/// `flow.lic3d` in a mode; `clip.shapes` with a plane through the centre (axis x),
-/// switched on, which, head-on along z, clips away half of the volume's footprint;
-/// the default 1D TF; and the scene's frame settings at `side`².
-#[allow(clippy::type_complexity)]
-fn lic_half_scene() -> (
-    std::sync::Arc<Volume>,
-    impl Fn(&str) -> vwb_render::PluginInstance,
-    vwb_render::PluginInstance,
-    vwb_render::PluginInstance,
-    impl Fn(u32) -> vwb_render::FrameSettings,
-) {
-    let (doc, vol) = preset_scene("experiments/scenes/abc_lic_half.ron");
-    let of = |id: &str| {
-        let mut i = doc
-            .stack
-            .iter()
-            .find(|i| i.plugin.id() == id)
-            .unwrap()
-            .clone();
-        i.enabled = true;
-        i
-    };
-    let (lic, plane, tf) = (of("flow.lic3d"), of("clip.shapes"), of("classify.tf1d"));
-    let with_mode = move |mode: &str| {
-        let mut i = lic.clone();
-        i.params.set("mode", ParamValue::Enum(mode.into()));
-        i
-    };
-    let frame = doc.frame_settings();
-    let at = move |side: u32| {
-        let mut s = frame;
-        (s.width, s.height) = (side, side);
-        s
-    };
-    (vol, with_mode, plane, tf, at)
-}
-
-const SENSITIVITY_HEADING: &str = "### Output sensitivity by image size";
-
-/// Output sensitivity of on-the-fly LIC by image size (docs/flow.md or docs/gpu/flow.md,
-/// block `lic_output_sensitivity`): the frame with half the image clipped against the
-/// full one, in the scene of [`lic_half_scene`]. A GPU runs one thread per pixel; an
-/// image too small to fill it several times over is bound by the latency of one
-/// thread's integrals, not by the work, and clipping half of the threads saves less
-/// than half the time. Run: `bash bench/ignored_test.sh lic_output_sensitivity`.
-#[test]
-#[ignore = "benchmark: bash bench/ignored_test.sh lic_output_sensitivity"]
-fn lic_output_sensitivity() {
-    let (vol, with_mode, plane, tf, head_on) = lic_half_scene();
-    let sides: &[u32] = if on_gpu() {
-        &[256, 512, 1024, 2048]
-    } else {
-        &[64, 128, 256]
-    };
-    let mut rows = String::new();
-    for &side in sides {
-        let s = head_on(side);
-        let mut ms = Vec::new();
-        for stack in [
-            vec![with_mode("on_the_fly"), tf.clone()],
-            vec![with_mode("on_the_fly"), plane.clone(), tf.clone()],
-        ] {
-            let mut r = Renderer::new(gpu(), vol.clone()).unwrap();
-            r.update_stack(&stack, TargetFormat::Rgba32Float).unwrap();
-            let t = study_timing(&mut r, &s);
-            let (_, _, px) = r.read_pixels().unwrap();
-            let frame = quoted_ms(t.wall_ms.median, t.gpu_ms.map(|g| g.median));
-            ms.push((frame, covered(&px)));
-        }
-        let (full, half) = (ms[0], ms[1]);
-        eprintln!("{side}²: {:.2} ms full, {:.2} ms half", full.0, half.0);
-        let _ = writeln!(
-            rows,
-            "| {side}² | {} | {} | {:.0} % | {:.2} |",
-            fmt_ms(full.0),
-            fmt_ms(half.0),
-            half.1 / full.1.max(1e-12) * 100.0,
-            half.0 / full.0
-        );
-    }
-    let body = format!(
-        "Machine: {}; adapter: {}. Command: `bash bench/ignored_test.sh lic_output_sensitivity`. The scene of the \
-         on-the-fly study above (ABC flow on 64³, `flow.lic3d` on the fly with its defaults, head-on along z, one \
-         slice per voxel, compute backend); frame: median {} of {} frames after {}. Coverage: the clipped frame's \
-         non-transparent pixels against the full frame's.\n\n\
-         | image | full (ms) | half clipped (ms) | pixels kept | ratio |\n|---|---:|---:|---:|---:|\n{rows}\n\
-         The compute backend runs one thread per pixel, which marches its ray; a clipped pixel's thread finishes \
-         early. Where the image holds fewer threads than the device keeps in flight (an H200: 132 SMs of up to \
-         2048 threads), a frame lasts as long as the slowest threads' chains of dependent texture reads, so \
-         removing half of the threads saves less than half the time; once the image fills the device several \
-         times over, the time follows the work. A CPU device (lavapipe) runs the work in order on its cores and \
-         saves half at every size.\n",
-        vwb_lab::measure::machine(),
-        gpu().describe(),
-        if on_gpu() {
-            "GPU time (timestamps)"
-        } else {
-            "wall time"
-        },
-        if on_gpu() { 9 } else { 3 },
-        if on_gpu() { 10 } else { 1 },
-    );
-    write_or_add_block(
-        &bench_doc("flow.md"),
-        "lic_output_sensitivity",
-        SENSITIVITY_HEADING,
-        &body,
-    );
-    eprintln!("{body}");
 }
 
 /// The twin tests' vector volume: an ABC flow (period 16 voxels) on 24×20×12.

@@ -304,6 +304,7 @@ pub(super) fn run(
                 update_passes: Vec::new(),
                 gpu_memory_bytes: 0,
                 empty_brick_share: f64::NAN,
+                coverage: f64::NAN,
                 metrics: no_metrics(0, 0),
                 statistics,
                 image: String::new(),
