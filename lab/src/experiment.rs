@@ -591,6 +591,11 @@ pub enum Metric {
     /// a quarter of `update_ms` on a CPU adapter, under 1 % on a GPU: lavapipe reports
     /// near-zero times for compute passes).
     UpdateGpuMs,
+    /// The wall time of applying the grid point's stack to the renderer
+    /// (`Renderer::update_stack`: composing and compiling where the code changed, the
+    /// uniforms, resource updates such as re-baked tables or masks), before its first
+    /// frame: the CPU side of a change, which `update_ms` (frames) does not see.
+    ApplyMs,
     /// How many pre-passes and volume-pass dispatches the grid point's first frame ran
     /// ([`Row::update_passes`]): 0 where the change reran nothing.
     PassesRerun,
@@ -605,7 +610,7 @@ pub enum Metric {
 }
 
 impl Metric {
-    pub const ALL: [Metric; 15] = [
+    pub const ALL: [Metric; 16] = [
         Metric::RmsDeltaE,
         Metric::MeanDeltaE,
         Metric::MaxDeltaE,
@@ -616,6 +621,7 @@ impl Metric {
         Metric::FrameMs,
         Metric::UpdateMs,
         Metric::UpdateGpuMs,
+        Metric::ApplyMs,
         Metric::PassesRerun,
         Metric::Slices,
         Metric::GpuMemoryMib,
@@ -635,6 +641,7 @@ impl Metric {
             Metric::FrameMs => "frame_ms",
             Metric::UpdateMs => "update_ms",
             Metric::UpdateGpuMs => "update_gpu_ms",
+            Metric::ApplyMs => "apply_ms",
             Metric::PassesRerun => "passes_rerun",
             Metric::Slices => "slices",
             Metric::GpuMemoryMib => "gpu_memory_mib",
@@ -655,6 +662,7 @@ impl Metric {
             Metric::FrameMs => "time (ms)",
             Metric::UpdateMs => "update (ms)",
             Metric::UpdateGpuMs => "update, GPU (ms)",
+            Metric::ApplyMs => "apply (ms)",
             Metric::PassesRerun => "passes rerun",
             Metric::Slices => "slices",
             Metric::GpuMemoryMib => "GPU memory (MiB)",
@@ -683,6 +691,7 @@ impl Metric {
             Metric::FrameMs => row.frame_ms,
             Metric::UpdateMs => row.update_ms,
             Metric::UpdateGpuMs => row.update_gpu_ms,
+            Metric::ApplyMs => row.apply_ms,
             Metric::PassesRerun => row.update_passes.len() as f64,
             Metric::Slices => row.slices as f64,
             Metric::GpuMemoryMib => row.gpu_memory_bytes as f64 / (1u64 << 20) as f64,
@@ -780,6 +789,8 @@ pub struct Row {
     pub update_ms: f64,
     /// [`Metric::UpdateGpuMs`] (NaN without timestamps).
     pub update_gpu_ms: f64,
+    /// [`Metric::ApplyMs`].
+    pub apply_ms: f64,
     /// The pre-passes (`<plugin id>/prepass`) and volume passes (`<plugin id>/<target>`,
     /// one per dispatch) of the first frame after the grid point's stack was applied:
     /// what `update_ms` paid for.
@@ -1894,7 +1905,9 @@ pub fn run(
                     None => None,
                 };
                 let s = d.frame_settings();
+                let applying = std::time::Instant::now();
                 r.update_stack(&d.stack, d.render.target)?;
+                let apply_ms = applying.elapsed().as_secs_f64() * 1e3;
                 // the untimed first frame runs what the change invalidated
                 let first = r.render(&s)?;
                 let timing = measure::time_frames(&mut r, &s, 0, e.frames)?;
@@ -2155,6 +2168,7 @@ pub fn run(
                     clock,
                     update_ms,
                     update_gpu_ms,
+                    apply_ms,
                     update_passes: first
                         .prepasses
                         .into_iter()
@@ -2902,6 +2916,7 @@ mod tests {
             clock: "gpu",
             update_ms: 0.0,
             update_gpu_ms: f64::NAN,
+            apply_ms: f64::NAN,
             update_passes: Vec::new(),
             gpu_memory_bytes: 0,
             empty_brick_share: f64::NAN,

@@ -301,6 +301,7 @@ pub(super) fn run(
                 clock: CLOCK,
                 update_ms: f64::NAN,
                 update_gpu_ms: f64::NAN,
+                apply_ms: f64::NAN,
                 update_passes: Vec::new(),
                 gpu_memory_bytes: 0,
                 empty_brick_share: f64::NAN,
