@@ -277,6 +277,85 @@ fn hidden_labels_disappear() {
     assert!(none.iter().all(|p| p[3] == 0.0));
 }
 
+/// `clip.labels` holds the label volume on the GPU once and a selection change writes
+/// its label table alone (no new instance, the same memory); labels above 255 (stored
+/// as their low and high byte) select exactly as the same labels below 256 do, pixel
+/// for pixel, and what a range hides changes the image.
+#[test]
+fn clip_labels_select_wide_labels_as_narrow_ones_without_a_new_upload() {
+    use vwb_render::volume::{Volume, VoxelData};
+    let narrow = vwb_plugins::label_input::demo_labels().unwrap();
+    let labels = vwb_plugins::label_input::label_values(&narrow).unwrap();
+    assert!(labels.iter().all(|&l| l < 256));
+    let shift = 768u16;
+    let wide = Arc::new(
+        Volume::new(
+            "wide",
+            narrow.dims,
+            1,
+            narrow.spacing,
+            VoxelData::U16(labels.iter().map(|&l| l + shift).collect()),
+        )
+        .unwrap(),
+    );
+    let renderer = |v: Arc<Volume>| {
+        let mut r = Renderer::new(gpu(), demo()).unwrap();
+        let mut inputs = vwb_render::inputs::VolumeInputs::default();
+        inputs.insert("labels", v);
+        r.set_inputs(inputs);
+        r
+    };
+    let clip = |from: i32, to: i32| {
+        let mut c = instance("clip.labels");
+        c.params.set("labels", ParamValue::Volume("labels".into()));
+        c.params.set("range0_from", ParamValue::Int(from));
+        c.params.set("range0_to", ParamValue::Int(to));
+        c
+    };
+    let (mut a, mut b) = (renderer(narrow), renderer(wide));
+    let (mut ca, mut cb) = (clip(1, 1), clip(1 + shift as i32, 1 + shift as i32));
+    let tf = tf1d("post", sharp());
+    let mut first = None;
+    for to in [1, 3] {
+        ca.params.set("range0_to", ParamValue::Int(to));
+        cb.params
+            .set("range0_to", ParamValue::Int(to + shift as i32));
+        let pa = render(
+            &mut a,
+            &[tf.clone(), ca.clone()],
+            TargetFormat::Rgba32Float,
+            &at(1.0),
+        );
+        let pb = render(
+            &mut b,
+            &[tf.clone(), cb.clone()],
+            TargetFormat::Rgba32Float,
+            &at(1.0),
+        );
+        assert!(
+            pa == pb,
+            "labels {to} and {} select alike",
+            to + shift as i32
+        );
+        assert!(pa.iter().any(|p| p[3] > 0.1));
+        match &first {
+            None => {
+                first = Some((pa, b.counters().instance_creations, b.plugin_memory()));
+            }
+            Some((f, created, memory)) => {
+                assert!(f != &pa, "hiding labels 1–3 differs from hiding 1");
+                // the selection changed a table, not the instance or its label texture
+                assert_eq!(b.counters().instance_creations, *created);
+                assert_eq!(&b.plugin_memory(), memory);
+            }
+        }
+    }
+    // the wide labels are held as two bytes a voxel, the narrow as one
+    let bytes = |r: &Renderer| -> u64 { r.plugin_memory().iter().map(|(_, _, n)| n).sum() };
+    let voxels: u64 = labels.len() as u64;
+    assert_eq!(bytes(&b) - bytes(&a), voxels);
+}
+
 /// The precomputed gradient volume is built once per volume (not per TF change), and
 /// both estimators give close images (RGB RMS over black).
 #[test]
