@@ -222,27 +222,6 @@ pub fn upload_r8_3d(
     dims: [u32; 3],
     bytes: &[u8],
 ) -> (wgpu::Texture, wgpu::TextureView) {
-    upload_bytes_3d(
-        device,
-        queue,
-        label,
-        dims,
-        wgpu::TextureFormat::R8Unorm,
-        bytes,
-    )
-}
-
-/// A 3D texture of an 8-bit-per-channel `format` (r8unorm, rg8unorm, rgba8unorm) filled
-/// with `bytes`, x fastest, its channels interleaved.
-pub fn upload_bytes_3d(
-    device: &wgpu::Device,
-    queue: &wgpu::Queue,
-    label: &str,
-    dims: [u32; 3],
-    format: wgpu::TextureFormat,
-    bytes: &[u8],
-) -> (wgpu::Texture, wgpu::TextureView) {
-    let texel = format.block_copy_size(None).unwrap_or(1);
     let size = wgpu::Extent3d {
         width: dims[0],
         height: dims[1],
@@ -254,7 +233,7 @@ pub fn upload_bytes_3d(
         mip_level_count: 1,
         sample_count: 1,
         dimension: wgpu::TextureDimension::D3,
-        format,
+        format: wgpu::TextureFormat::R8Unorm,
         usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
         view_formats: &[],
     });
@@ -263,7 +242,7 @@ pub fn upload_bytes_3d(
         bytes,
         wgpu::TexelCopyBufferLayout {
             offset: 0,
-            bytes_per_row: Some(dims[0] * texel),
+            bytes_per_row: Some(dims[0]),
             rows_per_image: Some(dims[1]),
         },
         size,

@@ -5,12 +5,11 @@
 //! volume when empty; [`crate::label_input`]), `mode` (`hide`: the selected labels
 //! are removed; `show`: only they stay) and [`RANGES`] label ranges `range<i>_from` …
 //! `range<i>_to` (inclusive; a range with `from` = −1 is unused), so any subset of the
-//! 65 536 labels is a handful of ranges. The label volume is uploaded once per volume
-//! (the GPU resource `labels`: r8unorm where every label is below 256, else rg8unorm
-//! holding the low and the high byte) and the selection is a 256 × 256 table of one
-//! byte per label (`kept`, 255 = kept, row = the high byte), the only upload a
-//! selection change makes: 64 KiB, not a byte per voxel. The twin bakes the same
-//! per-voxel answer from the same volume.
+//! 65 536 labels is a handful of ranges. The selection is baked on the CPU into one
+//! byte per voxel (255 = kept), the GPU resource `kept`, so that a sample costs one
+//! texel load; a selection change maps the voxels through the selection's table of
+//! 65 536 bytes in parallel and re-uploads the mask. The twin bakes the same bytes from
+//! the same volume.
 
 use std::sync::OnceLock;
 
@@ -67,8 +66,7 @@ impl Selection {
         let listed = self.ranges.iter().any(|&(a, b)| a <= label && label <= b);
         listed == self.show
     }
-    /// One byte per label, 0 … 65535: 255 where the label is kept (the GPU's `kept`
-    /// table, label l at row l / 256, column l % 256).
+    /// One byte per label, 0 … 65535: 255 where the label is kept.
     pub fn table(&self) -> Vec<u8> {
         (0..=u16::MAX)
             .map(|l| if self.keeps(l) { 255 } else { 0 })
@@ -130,82 +128,54 @@ impl Plugin for ClipLabels {
         )
     }
     fn resources(&self) -> Vec<ResourceDecl> {
-        vec![
-            ResourceDecl {
-                name: "labels",
-                kind: ResourceKind::Texture3d,
-            },
-            ResourceDecl {
-                name: "kept",
-                kind: ResourceKind::Texture2d,
-            },
-        ]
+        vec![ResourceDecl {
+            name: "kept",
+            kind: ResourceKind::Texture3d,
+        }]
     }
-    /// The label volume, once per volume (a new volume under the name makes a new
-    /// instance), and the selection's table.
+    /// The mask of the selection over the label volume, which this checks (a new volume
+    /// under the name makes a new instance).
     fn create_resources(
         &self,
         gpu: &GpuInit,
         params: &ParamValues,
     ) -> Result<Vec<GpuResource>, PluginError> {
         let (dims, labels) = label_input::gpu_labels("clip.labels", gpu, params)?;
-        // one byte per voxel where every label fits, else the low and the high byte
-        let (format, bytes) = if labels.iter().all(|&l| l < 256) {
-            let bytes: Vec<u8> = labels.iter().map(|&l| l as u8).collect();
-            (wgpu::TextureFormat::R8Unorm, bytes)
-        } else {
-            let bytes: Vec<u8> = labels.iter().flat_map(|l| l.to_le_bytes()).collect();
-            (wgpu::TextureFormat::Rg8Unorm, bytes)
-        };
-        let (texture, view) = vwb_render::gpu::upload_bytes_3d(
+        let (texture, view) = vwb_render::gpu::upload_r8_3d(
             gpu.device,
             gpu.queue,
-            "clip.labels labels",
+            "clip.labels kept",
             dims,
-            format,
-            &bytes,
+            &Selection::from_params(params).mask(&labels),
         );
-        let table = gpu.device.create_texture(&wgpu::TextureDescriptor {
-            label: Some("clip.labels kept"),
-            size: wgpu::Extent3d {
-                width: 256,
-                height: 256,
-                depth_or_array_layers: 1,
-            },
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
-            format: wgpu::TextureFormat::R8Unorm,
-            usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
-            view_formats: &[],
-        });
-        let res = vec![
-            GpuResource { texture, view },
-            GpuResource {
-                view: table.create_view(&Default::default()),
-                texture: table,
-            },
-        ];
-        self.update_resources(gpu, params, &res)?;
-        Ok(res)
+        Ok(vec![GpuResource { texture, view }])
     }
-    /// A selection change writes the 256 × 256 table alone.
+    /// A selection change maps the volume's voxels through the selection's table
+    /// ([`label_input::map_labels`]: in parallel, from the labels as stored) and
+    /// uploads the mask.
     fn update_resources(
         &self,
         gpu: &GpuInit,
         params: &ParamValues,
         resources: &[GpuResource],
     ) -> Result<(), PluginError> {
-        let Some(kept) = resources.get(1) else {
-            return Err(error("the selection table is missing".into()));
+        let Some(kept) = resources.first() else {
+            return Err(error("mask texture missing".into()));
         };
+        let volume = gpu
+            .inputs
+            .resolve(gpu.volume, params, label_input::KEY)
+            .map_err(error)?;
+        let mask = label_input::map_labels(volume, &Selection::from_params(params).table())
+            .map_err(|m| error(format!("{}: {m}", label_input::KEY)))?;
+        let dims = volume.dims;
         gpu.queue.write_texture(
             kept.texture.as_image_copy(),
-            &Selection::from_params(params).table(),
+            &mask,
             wgpu::TexelCopyBufferLayout {
                 offset: 0,
-                bytes_per_row: Some(256),
-                rows_per_image: Some(256),
+                bytes_per_row: Some(dims[0]),
+                rows_per_image: Some(dims[1]),
             },
             kept.texture.size(),
         );
