@@ -195,6 +195,105 @@ pub struct Variant {
     /// is saved beside the row's image.
     #[serde(default)]
     pub gallery: Option<GallerySpec>,
+    /// Its 1D TF is suggested from the data at each grid point (`vwb suggest-tf`:
+    /// Kindlmann & Durkin's histogram volume with the noise handling of
+    /// docs/classification.md) and the row renders it; the suggestion's figures,
+    /// its fog among them, are the statistics `suggest.*` ([`SUGGEST_STATISTICS`]).
+    #[serde(default)]
+    pub suggest: Option<SuggestSpec>,
+}
+
+/// A variant's suggested TF ([`vwb_render::suggest::SuggestOptions`]).
+#[derive(Debug, Clone, Default, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SuggestSpec {
+    /// The noise handling (pre-filter, noise floor, transparent background); default
+    /// true, false for the suggestion as it was without it.
+    pub filtered: Option<bool>,
+    /// Half width (voxels) of the boundary emphasis.
+    pub thickness: Option<f64>,
+    /// Peak opacity.
+    pub max_opacity: Option<f64>,
+}
+
+/// The figures of a variant's suggested TF, as statistics: value bins on a boundary
+/// (`suggest.bins`, of 256), the pre-filter σ in voxels (`suggest.smoothing`), the
+/// suggestion's time (`suggest.ms`), the middle of the first boundary above the
+/// background of the noise-handling suggestion (`suggest.first_boundary`: the fog's
+/// cut, whatever the variant's options), the fog in all and away from the silhouette
+/// (`suggest.fog`, `suggest.fog_away`: `crate::search::fog_share`) and the share of the
+/// image the TF covers (`suggest.covered`, α ≥ 0.05).
+pub const SUGGEST_STATISTICS: [&str; 7] = [
+    "suggest.bins",
+    "suggest.smoothing",
+    "suggest.ms",
+    "suggest.first_boundary",
+    "suggest.fog",
+    "suggest.fog_away",
+    "suggest.covered",
+];
+
+impl SuggestSpec {
+    fn options(&self) -> vwb_render::suggest::SuggestOptions {
+        let base = if self.filtered.unwrap_or(true) {
+            vwb_render::suggest::SuggestOptions::default()
+        } else {
+            vwb_render::suggest::SuggestOptions::unfiltered()
+        };
+        vwb_render::suggest::SuggestOptions {
+            thickness: self.thickness.unwrap_or(base.thickness),
+            max_opacity: self.max_opacity.unwrap_or(base.max_opacity),
+            ..base
+        }
+    }
+}
+
+/// Suggests a variant's TF from `volume`, measures its fog on `r` with `d`'s stack at
+/// `d`'s frame, and puts the suggestion into `d`'s first `classify.tf1d`.
+fn suggest_tf(
+    spec: &SuggestSpec,
+    r: &mut vwb_render::Renderer,
+    d: &mut Document,
+    volume: &Volume,
+) -> Result<BTreeMap<String, f64>> {
+    use vwb_render::suggest::{SuggestOptions, suggest};
+    let o = spec.options();
+    o.check().map_err(|e| anyhow!("suggest: {e}"))?;
+    let start = std::time::Instant::now();
+    let s = suggest(volume, &o).map_err(|e| anyhow!("suggest: {e}"))?;
+    let ms = start.elapsed().as_secs_f64() * 1e3;
+    // the fog's cut: the noise-handling suggestion's first boundary
+    let first = if o == SuggestOptions::default() {
+        s.first_boundary()
+    } else {
+        suggest(volume, &SuggestOptions::default())
+            .ok()
+            .and_then(|n| n.first_boundary())
+    };
+    let frame = d.frame_settings();
+    let (fog, away) = match first {
+        Some(f) => crate::search::fog_share(r, &d.stack, &s.curve, f, &frame)?,
+        None => (f64::NAN, f64::NAN),
+    };
+    let covered = crate::search::covered(r, &d.stack, &s.curve, &frame)?;
+    let tf = d
+        .stack
+        .iter_mut()
+        .find(|i| i.enabled && i.plugin.id() == "classify.tf1d")
+        .ok_or_else(|| anyhow!("suggest: the stack has no classify.tf1d"))?;
+    tf.params.set("tf", ParamValue::Tf(s.curve.clone()));
+    Ok(BTreeMap::from([
+        ("suggest.bins".to_string(), s.boundary_bins() as f64),
+        ("suggest.smoothing".to_string(), s.smoothing),
+        ("suggest.ms".to_string(), ms),
+        (
+            "suggest.first_boundary".to_string(),
+            first.unwrap_or(f64::NAN),
+        ),
+        ("suggest.fog".to_string(), fog),
+        ("suggest.fog_away".to_string(), away),
+        ("suggest.covered".to_string(), covered),
+    ]))
 }
 
 /// A variant's design gallery ([`vwb_render::search::gallery::GalleryOptions`]; the
@@ -1070,20 +1169,37 @@ pub fn parse(text: &str, path: &Path) -> Result<Experiment> {
         }
     }
     for v in &e.variants {
+        let tf_sources = [v.search.is_some(), v.gallery.is_some(), v.suggest.is_some()];
+        if tf_sources.iter().filter(|&&x| x).count() > 1 {
+            bail!(
+                "{file}: variant '{}' has more than one of a search, a gallery and a suggestion; give each its own variant",
+                v.name
+            );
+        }
         if let Some(g) = &v.gallery {
-            if v.search.is_some() {
-                bail!(
-                    "{file}: variant '{}' has both a search and a gallery; give each its own variant",
-                    v.name
-                );
-            }
             g.check(&v.name).map_err(|err| anyhow!("{file}: {err}"))?;
         }
+        if let Some(sg) = &v.suggest {
+            sg.options()
+                .check()
+                .map_err(|err| anyhow!("{file}: the suggestion of variant '{}': {err}", v.name))?;
+        }
     }
+    let suggested = e.variants.iter().any(|v| v.suggest.is_some());
     let searched = e.variants.iter().any(|v| v.search.is_some());
     let galleries = e.variants.iter().any(|v| v.gallery.is_some());
     for st in &e.statistics {
-        if st.starts_with("gallery.") {
+        if st.starts_with("suggest.") {
+            if !SUGGEST_STATISTICS.contains(&st.as_str()) {
+                bail!(
+                    "{file}: statistic '{st}': a suggestion reports {}",
+                    SUGGEST_STATISTICS.join(", ")
+                );
+            }
+            if !suggested {
+                bail!("{file}: statistic '{st}': no variant has a suggested TF");
+            }
+        } else if st.starts_with("gallery.") {
             if !GALLERY_STATISTICS.contains(&st.as_str()) {
                 bail!(
                     "{file}: statistic '{st}': a gallery reports {}",
@@ -1151,6 +1267,14 @@ pub fn parse(text: &str, path: &Path) -> Result<Experiment> {
     Ok(e)
 }
 
+/// Whether a statistic is the runner's own (a search's, a gallery's or a suggestion's
+/// figures) rather than a plugin's.
+fn runner_statistic(st: &str) -> bool {
+    ["search.", "gallery.", "suggest."]
+        .iter()
+        .any(|p| st.starts_with(p))
+}
+
 /// The first enabled instance of plugin `id` in a document's stack, configured.
 fn enabled_instance<'a>(d: &'a Document, id: &str) -> Option<&'a PluginInstance> {
     d.stack.iter().find(|i| i.enabled && i.plugin.id() == id)
@@ -1194,10 +1318,7 @@ fn statistics_of(
 ) -> BTreeMap<String, f64> {
     let mut reports: HashMap<&str, Vec<Statistic>> = HashMap::new();
     let mut out = BTreeMap::new();
-    for st in wanted
-        .iter()
-        .filter(|st| !st.starts_with("search.") && !st.starts_with("gallery."))
-    {
+    for st in wanted.iter().filter(|st| !runner_statistic(st)) {
         let (id, name) = st.rsplit_once('.').expect("checked at load");
         let Some(inst) = enabled_instance(d, id) else {
             continue;
@@ -1824,11 +1945,7 @@ pub fn run(
                 .map_err(|err| anyhow!("{fname}: scene '{}': {err}", sc.name))?;
             docs.push((v, d, axes, volume));
         }
-        for st in e
-            .statistics
-            .iter()
-            .filter(|st| !st.starts_with("search.") && !st.starts_with("gallery."))
-        {
+        for st in e.statistics.iter().filter(|st| !runner_statistic(st)) {
             check_statistic(st, docs.iter().map(|(_, d, _, _)| d))
                 .map_err(|err| anyhow!("{fname}: scene '{}': statistic '{st}': {err}", sc.name))?;
         }
@@ -1904,6 +2021,19 @@ pub fn run(
                     )?),
                     None => None,
                 };
+                // a suggested variant's TF comes from the data
+                let suggested = match &v.suggest {
+                    Some(spec) => {
+                        Some(suggest_tf(spec, &mut r, &mut d, volume).map_err(|err| {
+                            anyhow!(
+                                "{fname}: variant '{}' on scene '{}': {err}",
+                                v.name,
+                                sc.name
+                            )
+                        })?)
+                    }
+                    None => None,
+                };
                 let s = d.frame_settings();
                 let applying = std::time::Instant::now();
                 r.update_stack(&d.stack, d.render.target)?;
@@ -1945,6 +2075,11 @@ pub fn run(
                 if let Some(g) = &gallery {
                     for st in e.statistics.iter().filter(|st| st.starts_with("gallery.")) {
                         statistics.insert(st.clone(), g.statistic(st));
+                    }
+                }
+                if let Some(figures) = &suggested {
+                    for st in e.statistics.iter().filter(|st| st.starts_with("suggest.")) {
+                        statistics.insert(st.clone(), figures[st]);
                     }
                 }
                 let spec = v.reference.as_ref().unwrap_or(&e.reference);

@@ -364,3 +364,75 @@ pub fn run_adapt(
     measure::save_text(out, &text)?;
     Ok(w)
 }
+
+/// The pixels (straight RGBA) of `stack` with its first `classify.tf1d` showing `curve`
+/// cut to the values `keep` accepts (α = 0 at every other point), rendered on `r` at
+/// `s` (the TF suggestion's fog, [`fog_share`]).
+pub fn cut_image(
+    r: &mut vwb_render::Renderer,
+    stack: &[vwb_render::PluginInstance],
+    curve: &vwb_render::tf::TfCurve,
+    keep: &dyn Fn(f64) -> bool,
+    s: &vwb_render::FrameSettings,
+) -> Result<Vec<[f32; 4]>> {
+    let mut c = curve.clone();
+    for p in &mut c.points {
+        if !keep(p.x as f64) {
+            p.color[3] = 0.0;
+        }
+    }
+    let mut stack = stack.to_vec();
+    let tf = stack
+        .iter_mut()
+        .find(|i| i.enabled && i.plugin.id() == "classify.tf1d")
+        .ok_or_else(|| anyhow!("the stack has no classify.tf1d to show the suggestion"))?;
+    tf.params.set("tf", vwb_render::params::ParamValue::Tf(c));
+    r.update_stack(&stack, vwb_render::TargetFormat::Rgba32Float)?;
+    r.render(s)?;
+    let (_, _, px) = r
+        .read_pixels()
+        .ok_or_else(|| anyhow!("nothing was rendered"))?;
+    Ok(px)
+}
+
+/// The fog of a suggested transfer function `curve`: the pixels whose only
+/// contribution comes from values below `first` (the middle of the first boundary
+/// above the background), those the TF cut to values below `first` covers (α ≥ 0.05)
+/// and the TF cut to values from `first` up leaves clear. Their share of the image, and
+/// the share of those more than 3 pixels from any pixel the upper values cover (away
+/// from the silhouette, whose rim grazes the low side of the boundary).
+pub fn fog_share(
+    r: &mut vwb_render::Renderer,
+    stack: &[vwb_render::PluginInstance],
+    curve: &vwb_render::tf::TfCurve,
+    first: f64,
+    s: &vwb_render::FrameSettings,
+) -> Result<(f64, f64)> {
+    let below = cut_image(r, stack, curve, &|x| x < first, s)?;
+    let above = cut_image(r, stack, curve, &|x| x >= first, s)?;
+    let (w, h) = (s.width as i64, s.height as i64);
+    let shown = |x: i64, y: i64| {
+        x >= 0 && y >= 0 && x < w && y < h && above[(y * w + x) as usize][3] >= 0.05
+    };
+    let near = |i: usize| {
+        let (x, y) = (i as i64 % w, i as i64 / w);
+        (-3..=3).any(|dy| (-3..=3).any(|dx| shown(x + dx, y + dy)))
+    };
+    let fog: Vec<usize> = (0..below.len())
+        .filter(|&i| below[i][3] >= 0.05 && above[i][3] < 0.05)
+        .collect();
+    let away = fog.iter().filter(|&&i| !near(i)).count();
+    let n = below.len().max(1) as f64;
+    Ok((fog.len() as f64 / n, away as f64 / n))
+}
+
+/// The share of pixels `curve` covers (α ≥ 0.05) in `stack`'s image on `r` at `s`.
+pub fn covered(
+    r: &mut vwb_render::Renderer,
+    stack: &[vwb_render::PluginInstance],
+    curve: &vwb_render::tf::TfCurve,
+    s: &vwb_render::FrameSettings,
+) -> Result<f64> {
+    let px = cut_image(r, stack, curve, &|_| true, s)?;
+    Ok(px.iter().filter(|p| p[3] >= 0.05).count() as f64 / px.len().max(1) as f64)
+}

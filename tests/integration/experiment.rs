@@ -1125,3 +1125,88 @@ fn a_gallery_variant_reports_the_gallery_and_shows_its_sheet() {
         );
     }
 }
+
+/// A suggested variant renders the TF `vwb suggest-tf` gives for its volume, and its
+/// statistics are that suggestion's (the same bins, boundary and fog as computed
+/// directly); a variant with two TF sources, or a `suggest.*` statistic without a
+/// suggested variant, is refused naming the file.
+#[test]
+fn a_suggested_variant_renders_the_suggestion_and_reports_its_fog() {
+    use vwb_render::suggest::{SuggestOptions, suggest};
+    let preset = repo().join("presets/demo.ron");
+    let file = tmp("suggested.ron");
+    std::fs::write(
+        &file,
+        format!(
+            r#"Experiment(
+            name: "suggested",
+            scenes: [Preset("{}")],
+            variants: [(name: "s", suggest: ())],
+            reference: TimeOnly,
+            metrics: [],
+            statistics: ["suggest.bins", "suggest.first_boundary", "suggest.fog", "suggest.fog_away", "suggest.covered"],
+            render: (size: (32, 32), backend: "compute"),
+            frames: 1,
+        )"#,
+            preset.display()
+        ),
+    )
+    .unwrap();
+    let e = experiment::load(&file).unwrap();
+    let o = experiment::run(gpu(), &e, &file, &tmp("suggested-out"), &mut |_| {}).unwrap();
+    let row = &o.rows[0];
+    let volume = vwb_render::volume::demo();
+    let s = suggest(&volume, &SuggestOptions::default()).unwrap();
+    assert_eq!(row.statistics["suggest.bins"], s.boundary_bins() as f64);
+    let first = s.first_boundary().unwrap();
+    assert_eq!(row.statistics["suggest.first_boundary"], first);
+    // the fog as the search module computes it on the row's stack and frame
+    let d = vwb_lab::document::load_document(Some(&preset)).unwrap();
+    let mut frame = d.frame_settings();
+    (frame.width, frame.height) = (32, 32);
+    frame.backend = vwb_render::Backend::Compute;
+    let mut r = vwb_lab::headless::renderer_for(gpu(), &d, std::sync::Arc::new(volume)).unwrap();
+    let (fog, away) =
+        vwb_lab::search::fog_share(&mut r, &d.stack, &s.curve, first, &frame).unwrap();
+    assert_eq!(
+        (
+            row.statistics["suggest.fog"],
+            row.statistics["suggest.fog_away"]
+        ),
+        (fog, away)
+    );
+    let covered = row.statistics["suggest.covered"];
+    assert!(covered > 0.1 && covered < 1.0, "{covered}");
+    for (i, (fields, expect)) in [
+        (
+            "variants: [(name: \"a\", suggest: (), gallery: ())]",
+            "more than one of a search, a gallery and a suggestion",
+        ),
+        (
+            "variants: [(name: \"a\")], statistics: [\"suggest.bins\"]",
+            "no variant has a suggested TF",
+        ),
+        (
+            "variants: [(name: \"a\", suggest: ())], statistics: [\"suggest.nope\"]",
+            "a suggestion reports suggest.bins",
+        ),
+    ]
+    .iter()
+    .enumerate()
+    {
+        let bad = tmp(&format!("bad_suggest{i}.ron"));
+        std::fs::write(
+            &bad,
+            format!(
+                "Experiment(name: \"bad\", scenes: [Preset(\"{}\")], {fields})",
+                preset.display()
+            ),
+        )
+        .unwrap();
+        let err = experiment::load(&bad).unwrap_err().to_string();
+        assert!(
+            err.contains(&format!("bad_suggest{i}.ron")) && err.contains(expect),
+            "{err}"
+        );
+    }
+}

@@ -853,66 +853,6 @@ fn the_window_gallery_panel_renders_refines_and_steps_back() {
     assert_eq!(panel.history.len(), 2, "the graph keeps the refinement");
 }
 
-/// The image of `curve` with the opacity of the control points outside `keep` set to
-/// 0 (rgba32float, `classify.tf1d` alone).
-fn image_of(
-    volume: &std::sync::Arc<vwb_render::Volume>,
-    curve: &vwb_render::tf::TfCurve,
-    keep: &dyn Fn(f64) -> bool,
-    s: &vwb_render::FrameSettings,
-) -> Vec<[f32; 4]> {
-    let mut c = curve.clone();
-    for p in &mut c.points {
-        if !keep(p.x as f64) {
-            p.color[3] = 0.0;
-        }
-    }
-    let mut tf = instance("classify.tf1d");
-    tf.params.set("tf", vwb_render::params::ParamValue::Tf(c));
-    let mut r = Renderer::new(gpu(), volume.clone()).unwrap();
-    render(&mut r, &[tf], vwb_render::TargetFormat::Rgba32Float, s)
-}
-
-/// The fog of a suggested transfer function: the pixels whose only contribution comes
-/// from values below `first` (the middle of the first boundary above the background),
-/// that is, those the TF cut to values below `first` covers (α ≥ 0.05) and the TF cut
-/// to values from `first` up leaves clear (α < 0.05). Returns their share of the image
-/// and the share of those more than 3 pixels from any pixel the upper values cover
-/// (away from the silhouette, whose rim grazes the low side of the boundary).
-fn fog_share(
-    volume: &std::sync::Arc<vwb_render::Volume>,
-    curve: &vwb_render::tf::TfCurve,
-    first: f64,
-    s: &vwb_render::FrameSettings,
-) -> (f64, f64) {
-    let below = image_of(volume, curve, &|x| x < first, s);
-    let above = image_of(volume, curve, &|x| x >= first, s);
-    let (w, h) = (s.width as i64, s.height as i64);
-    let shown = |x: i64, y: i64| {
-        x >= 0 && y >= 0 && x < w && y < h && above[(y * w + x) as usize][3] >= 0.05
-    };
-    let near = |i: usize| {
-        let (x, y) = (i as i64 % w, i as i64 / w);
-        (-3..=3).any(|dy| (-3..=3).any(|dx| shown(x + dx, y + dy)))
-    };
-    let fog: Vec<usize> = (0..below.len())
-        .filter(|&i| below[i][3] >= 0.05 && above[i][3] < 0.05)
-        .collect();
-    let away = fog.iter().filter(|&&i| !near(i)).count();
-    let n = below.len() as f64;
-    (fog.len() as f64 / n, away as f64 / n)
-}
-
-/// The share of pixels a TF covers (α ≥ 0.05).
-fn covered(
-    volume: &std::sync::Arc<vwb_render::Volume>,
-    curve: &vwb_render::tf::TfCurve,
-    s: &vwb_render::FrameSettings,
-) -> f64 {
-    let px = image_of(volume, curve, &|_| true, s);
-    px.iter().filter(|p| p[3] >= 0.05).count() as f64 / px.len() as f64
-}
-
 /// The first TF a user sees (issue 18, item 7): on the MRI demo the data-driven
 /// suggestion keeps the boundaries and drops the background. Its fog away from the
 /// silhouette, pixels whose only contribution comes from values below the first
@@ -927,11 +867,13 @@ fn the_suggested_tf_shows_the_demo_without_fog() {
     let old = suggest(&volume, &SuggestOptions::unfiltered()).unwrap();
     let first = new.first_boundary().expect("the skin's boundary");
     let s = settings(128, 128, vwb_render::Backend::Compute);
-    let ((all_new, away_new), (all_old, away_old)) = (
-        fog_share(&volume, &new.curve, first, &s),
-        fog_share(&volume, &old.curve, first, &s),
-    );
-    let shown = covered(&volume, &new.curve, &s);
+    let mut r = Renderer::new(gpu(), volume.clone()).unwrap();
+    let stack = [instance("classify.tf1d")];
+    let fog =
+        |r: &mut Renderer, curve| vwb_lab::search::fog_share(r, &stack, curve, first, &s).unwrap();
+    let ((all_new, away_new), (all_old, away_old)) =
+        (fog(&mut r, &new.curve), fog(&mut r, &old.curve));
+    let shown = vwb_lab::search::covered(&mut r, &stack, &new.curve, &s).unwrap();
     eprintln!(
         "suggestion on the demo: fog {:.1} % ({:.1} % away from the silhouette), unfiltered {:.1} % ({:.1} %), image covered {:.1} %, first boundary {first:.3}",
         all_new * 100.0,
@@ -946,94 +888,4 @@ fn the_suggested_tf_shows_the_demo_without_fog() {
     assert!(all_new <= 0.05, "fog {all_new}");
     // and the head is there
     assert!(shown > 0.2, "{shown}");
-}
-
-/// Writes the block `suggestion` of docs/classification.md: per volume, the unfiltered
-/// suggestion against the noise-handling one (bins on a boundary, the fog in all and
-/// away from the silhouette, the image covered, the time), and the synthetic tomogram.
-/// Run: `bash bench/ignored_test.sh suggestion_benchmark`.
-#[test]
-#[ignore = "benchmark: bash bench/ignored_test.sh suggestion_benchmark"]
-fn suggestion_benchmark() {
-    use std::fmt::Write as _;
-    use vwb_render::suggest::{SuggestOptions, noisy_ball, suggest};
-    let mut rows = String::new();
-    let mut scenes = vec![("MRI demo (embedded)".to_string(), demo(), {
-        settings(128, 128, vwb_render::Backend::Compute)
-    })];
-    for preset in ["presets/ct_head.ron", "presets/nuclei.ron"] {
-        let doc = Document::load(&repo().join(preset), &registry())
-            .unwrap()
-            .document;
-        let volume = vwb_lab::headless::load_volume(&doc.volume).unwrap();
-        let mut s = doc.frame_settings();
-        (s.width, s.height, s.backend) = (128, 128, vwb_render::Backend::Compute);
-        scenes.push((format!("{} (`{preset}`'s view)", volume.name), volume, s));
-    }
-    let pct = |x: f64| format!("{:.1} %", x * 100.0);
-    for (name, volume, s) in &scenes {
-        let timed = |o: &SuggestOptions| {
-            let t = std::time::Instant::now();
-            let r = suggest(volume, o).unwrap();
-            (r, t.elapsed().as_secs_f64() * 1e3)
-        };
-        let (new, new_ms) = timed(&SuggestOptions::default());
-        let (old, old_ms) = timed(&SuggestOptions::unfiltered());
-        let bins = vwb_render::suggest::Suggestion::boundary_bins;
-        let first = new.first_boundary().unwrap_or(0.0);
-        let (fog_old, fog_new) = (
-            fog_share(volume, &old.curve, first, s),
-            fog_share(volume, &new.curve, first, s),
-        );
-        let _ = writeln!(
-            rows,
-            "| {name} | {} | {} ({}) | {old_ms:.0} | {} | {} | {first:.3} | {} ({}) | {} | {new_ms:.0} |",
-            bins(&old),
-            pct(fog_old.0),
-            pct(fog_old.1),
-            new.smoothing,
-            bins(&new),
-            pct(fog_new.0),
-            pct(fog_new.1),
-            pct(covered(volume, &new.curve, s)),
-        );
-    }
-    let mut tomo = String::new();
-    for contrast in [0.15, 0.0] {
-        let v = noisy_ball(contrast);
-        let (old, new) = (
-            suggest(&v, &SuggestOptions::unfiltered()).unwrap(),
-            suggest(&v, &SuggestOptions::default()).unwrap(),
-        );
-        let bins = vwb_render::suggest::Suggestion::boundary_bins;
-        let _ = writeln!(
-            tomo,
-            "| {contrast} | {} | {} | {} | {} |",
-            bins(&old),
-            bins(&new),
-            new.smoothing,
-            if new.found() {
-                "a boundary"
-            } else {
-                "none (says so)"
-            }
-        );
-    }
-    let body = format!(
-        "Machine: {}; adapter: {}. Command: `bash bench/ignored_test.sh suggestion_benchmark` (the ignored test \
-         `suggestion_benchmark` in tests/integration/search.rs). Images 128², compute backend, one slice per voxel; \
-         fog as defined above (in all, and away from the silhouette in brackets); the first boundary from the new \
-         suggestion, for both; time of `suggest` in this process (the volume loaded).\n\n\
-         | volume | unfiltered: bins on a boundary | fog | ms | pre-filter σ (voxels) | bins on a boundary | first boundary | fog | image covered | ms |\n\
-         |---|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n{rows}\n\
-         The synthetic tomogram (`vwb_render::suggest::noisy_ball`: a ball of radius 14 and the given contrast in \
-         Gaussian noise of σ 0.1, 48³):\n\n\
-         | ball contrast | unfiltered: bins on a boundary | bins on a boundary | pre-filter σ (voxels) | found |\n\
-         |---:|---:|---:|---:|---|\n{tomo}",
-        vwb_lab::measure::machine(),
-        gpu().describe()
-    );
-    vwb_lab::experiment::write_block(&repo().join("docs/classification.md"), "suggestion", &body)
-        .unwrap();
-    eprintln!("{body}");
 }

@@ -127,6 +127,7 @@ pub(super) fn checked(mut e: Experiment, path: &Path) -> Result<Experiment> {
             || v.crop.is_some()
             || v.search.is_some()
             || v.gallery.is_some()
+            || v.suggest.is_some()
         {
             bail!(
                 "{file}: variant '{}' of probe '{id}' may only `set` the probe's parameters",

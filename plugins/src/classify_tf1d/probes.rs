@@ -77,7 +77,10 @@ impl Probe for PreintTable {
 
 /// `classify.tf1d.suggest`: the transfer-function suggestion (`vwb suggest-tf`, Kindlmann
 /// & Durkin's histogram volume) for a sample data set by name (`vwb data list`; empty:
-/// the embedded demo volume): the time to load it and to suggest, and what it found.
+/// the embedded demo volume) or for the synthetic tomogram
+/// ([`vwb_render::suggest::noisy_ball`] at `ball_contrast` ≥ 0), with the noise handling
+/// or without it (`filtered`): the time to load the data and to suggest, and what it
+/// found.
 pub struct Suggest;
 
 impl Probe for Suggest {
@@ -88,11 +91,15 @@ impl Probe for Suggest {
         "the transfer-function suggestion from the histogram volume of a sample data set"
     }
     fn params(&self) -> Vec<ParamSpec> {
-        vec![ParamSpec::volume(
-            "sample",
-            "Sample data set (empty: the demo volume)",
-            Components::Scalar,
-        )]
+        vec![
+            ParamSpec::volume(
+                "sample",
+                "Sample data set (empty: the demo volume)",
+                Components::Scalar,
+            ),
+            ParamSpec::float("ball_contrast", "Synthetic tomogram's contrast (−1: the sample)", -1.0, 1.0, -1.0),
+            ParamSpec::boolean("filtered", "Noise handling", true),
+        ]
     }
     fn figures(&self) -> Vec<(&'static str, &'static str)> {
         vec![
@@ -101,11 +108,16 @@ impl Probe for Suggest {
             ("boundary_bins", "value bins on a boundary (of 256)"),
             ("noise_floor", "the median |∇f| over interior voxels"),
             ("sigma", "the boundary blur σ, voxels"),
+            ("smoothing", "the pre-filter σ, voxels"),
+            ("first_boundary", "the middle of the first boundary above the background (— where none)"),
+            ("found", "1 where some value is on a boundary, 0 where the suggestion says none"),
         ]
     }
     fn run(&self, p: &ParamValues) -> Result<Vec<Statistic>, String> {
         let start = Instant::now();
+        let contrast = p.float("ball_contrast");
         let volume = match p.volume("sample") {
+            _ if contrast >= 0.0 => vwb_render::suggest::noisy_ball(contrast as f64),
             "" => vwb_render::volume::demo(),
             name => {
                 let path = vwb_render::samples::resolve(name).map_err(|e| e.to_string())?;
@@ -114,7 +126,12 @@ impl Probe for Suggest {
         };
         let load_seconds = start.elapsed().as_secs_f64();
         let start = Instant::now();
-        let s = vwb_render::suggest::suggest(&volume, &Default::default()).map_err(|e| e.to_string())?;
+        let options = if p.boolean("filtered") {
+            vwb_render::suggest::SuggestOptions::default()
+        } else {
+            vwb_render::suggest::SuggestOptions::unfiltered()
+        };
+        let s = vwb_render::suggest::suggest(&volume, &options).map_err(|e| e.to_string())?;
         let seconds = start.elapsed().as_secs_f64();
         Ok(vec![
             figure("load_seconds", load_seconds),
@@ -122,6 +139,9 @@ impl Probe for Suggest {
             figure("boundary_bins", s.boundary_bins() as f64),
             figure("noise_floor", s.noise_floor),
             figure("sigma", s.sigma),
+            figure("smoothing", s.smoothing),
+            figure("first_boundary", s.first_boundary().unwrap_or(f64::NAN)),
+            figure("found", if s.found() { 1.0 } else { 0.0 }),
         ])
     }
 }
