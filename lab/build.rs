@@ -1,8 +1,9 @@
 //! Records the commit the laboratory is built from as `VWB_BUILD_COMMIT`, so that an
 //! experiment's report names the build that measured it (`vwb_lab::measure::build`):
 //! `git rev-parse --short=12 HEAD` in the source tree, empty where the tree is no git
-//! checkout (a source archive) or git is missing. Reruns when HEAD moves. Uncommitted
-//! changes are not recorded (the script does not rerun for every source edit).
+//! checkout (a source archive) or git is missing; with `+dirty` where the sources the
+//! binary is built from (the crates, the shaders, the lock file; [`SOURCES`]) differ from
+//! that commit. Reruns when HEAD moves or one of those sources changes.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -19,9 +20,39 @@ fn git(dir: &Path, args: &[&str]) -> Option<String> {
         .filter(|s| !s.is_empty())
 }
 
+/// What the binaries are built from, relative to the workspace root: a change in any of
+/// them makes a build `+dirty` until it is committed (docs, presets and experiment files
+/// do not change the binary).
+const SOURCES: [&str; 8] = [
+    "app",
+    "lab",
+    "plugins",
+    "render",
+    "shaders",
+    "Cargo.toml",
+    "Cargo.lock",
+    "build.rs",
+];
+
 fn main() {
     let dir = PathBuf::from(std::env::var("CARGO_MANIFEST_DIR").unwrap_or_else(|_| ".".into()));
-    let commit = git(&dir, &["rev-parse", "--short=12", "HEAD"]).unwrap_or_default();
+    let root = dir.parent().unwrap_or(&dir).to_path_buf();
+    let mut commit = git(&dir, &["rev-parse", "--short=12", "HEAD"]).unwrap_or_default();
+    if !commit.is_empty() {
+        let mut args = vec!["status", "--porcelain", "--untracked-files=normal", "--"];
+        args.extend(SOURCES.iter().copied().filter(|s| root.join(s).exists()));
+        // `git status` prints nothing for a clean tree (and fails outside a checkout)
+        if git(&root, &args).is_some() {
+            commit.push_str("+dirty");
+        }
+        for s in SOURCES {
+            let path = root.join(s);
+            if path.exists() {
+                // a folder is scanned for changes throughout
+                println!("cargo:rerun-if-changed={}", path.display());
+            }
+        }
+    }
     println!("cargo:rustc-env=VWB_BUILD_COMMIT={commit}");
     // HEAD, the branch it points at and the packed refs: where a commit or a checkout
     // shows; only paths that exist (a missing one would rerun the script every build)

@@ -90,8 +90,27 @@ fn a_small_experiment_runs_and_checks_what_it_measured() {
         .filter(|o| o.status.success())
         .map(|o| String::from_utf8_lossy(&o.stdout).trim().to_string());
     if let Some(head) = head {
-        assert_eq!(json["commit"], serde_json::json!(head), "{build}");
-        assert!(build.ends_with(&format!("(commit {head})")), "{build}");
+        // `+dirty` where the built sources differ from HEAD
+        let dirty = std::process::Command::new("git")
+            .args([
+                "status",
+                "--porcelain",
+                "--",
+                "app",
+                "lab",
+                "plugins",
+                "render",
+                "shaders",
+                "Cargo.toml",
+                "Cargo.lock",
+            ])
+            .current_dir(repo())
+            .output()
+            .map(|o| !o.stdout.is_empty())
+            .unwrap_or(false);
+        let commit = if dirty { format!("{head}+dirty") } else { head };
+        assert_eq!(json["commit"], serde_json::json!(commit), "{build}");
+        assert!(build.ends_with(&format!("(commit {commit})")), "{build}");
     }
 }
 
