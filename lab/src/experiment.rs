@@ -1275,6 +1275,15 @@ fn runner_statistic(st: &str) -> bool {
         .any(|p| st.starts_with(p))
 }
 
+/// Names for an error message, comma-separated, or `none` where there are none.
+fn listed(names: &[&str], none: &str) -> String {
+    if names.is_empty() {
+        none.to_string()
+    } else {
+        names.join(", ")
+    }
+}
+
 /// The first enabled instance of plugin `id` in a document's stack, configured.
 fn enabled_instance<'a>(d: &'a Document, id: &str) -> Option<&'a PluginInstance> {
     d.stack.iter().find(|i| i.enabled && i.plugin.id() == id)
@@ -1294,11 +1303,7 @@ fn check_statistic<'a>(st: &str, docs: impl Iterator<Item = &'a Document>) -> Re
         if !names.contains(&name) {
             bail!(
                 "plugin '{id}' reports no '{name}' (it reports: {})",
-                if names.is_empty() {
-                    "nothing".to_string()
-                } else {
-                    names.join(", ")
-                }
+                listed(&names, "nothing")
             );
         }
     }
@@ -2326,20 +2331,44 @@ pub fn run(
                 });
             }
         }
-        // the front of the rows with an error (rows timed only have none)
-        let measured: Vec<usize> = (first_row..rows.len())
-            .filter(|&i| rows[i].metrics.rms_delta_e.is_finite())
-            .collect();
-        let front = measure::pareto_front(
-            &measured
-                .iter()
-                .map(|&i| (e.pareto_time.of(&rows[i]), rows[i].metrics.rms_delta_e))
-                .collect::<Vec<_>>(),
-        );
-        for (&i, f) in measured.iter().zip(front) {
-            rows[i].pareto = f;
-        }
+        // the front of the scene's rows with an error (rows timed only have none)
+        mark_front(&mut rows[first_row..], |r| {
+            (e.pareto_time.of(r), r.metrics.rms_delta_e)
+        });
     }
+    finish(e, file, Some(gpu), out, rows, references)
+}
+
+/// Marks the rows on the Pareto front of `time_error` (lower is better in both); rows
+/// whose time or error is not finite stay off it.
+fn mark_front(rows: &mut [Row], time_error: impl Fn(&Row) -> (f64, f64)) {
+    let measured: Vec<usize> = (0..rows.len())
+        .filter(|&i| {
+            let (t, err) = time_error(&rows[i]);
+            t.is_finite() && err.is_finite()
+        })
+        .collect();
+    let front = measure::pareto_front(
+        &measured
+            .iter()
+            .map(|&i| time_error(&rows[i]))
+            .collect::<Vec<_>>(),
+    );
+    for (&i, f) in measured.iter().zip(front) {
+        rows[i].pareto = f;
+    }
+}
+
+/// Checks the assertions on the rows, writes the report and returns the outcome (`gpu`:
+/// None for a probe's run).
+fn finish(
+    e: &Experiment,
+    file: &Path,
+    gpu: Option<&GpuContext>,
+    out: &Path,
+    rows: Vec<Row>,
+    references: Vec<serde_json::Value>,
+) -> Result<Outcome> {
     let assertions: Vec<Checked> = e
         .assertions
         .iter()
@@ -2356,9 +2385,18 @@ pub fn run(
         assertions,
         markdown: String::new(),
     };
-    outcome.markdown = markdown(e, file, Some(gpu), &outcome);
-    write_outputs(e, file, Some(gpu), out, &outcome)?;
+    outcome.markdown = markdown(e, file, gpu, &outcome);
+    write_outputs(e, file, gpu, out, &outcome)?;
     Ok(outcome)
+}
+
+/// The experiment's description for a report line.
+fn described(e: &Experiment) -> &str {
+    if e.description.is_empty() {
+        "no description"
+    } else {
+        &e.description
+    }
 }
 
 /// A number for a report line: whole numbers as they are, others to four significant
@@ -2384,11 +2422,7 @@ fn markdown(e: &Experiment, file: &Path, gpu: Option<&GpuContext>, o: &Outcome) 
             s,
             "Experiment `{}` ({}), run by `vwb run {}`. Machine: {}; adapter: {}; vwb {}; seed {}; {} timed frames per image ({} clock, median).",
             e.name,
-            if e.description.is_empty() {
-                "no description"
-            } else {
-                &e.description
-            },
+            described(e),
             file.display(),
             measure::machine(),
             gpu.map_or_else(|| "none".to_string(), |g| g.describe()),

@@ -969,13 +969,8 @@ fn a_probe_experiment_studies_a_twin_without_a_gpu() {
         ),
     ];
     for (i, (fields, expect)) in cases.iter().enumerate() {
-        let file = tmp(&format!("bad_probe{i}.ron"));
-        std::fs::write(&file, format!("Experiment(name: \"bad\", {fields})")).unwrap();
-        let err = format!("{:#}", experiment::load(&file).unwrap_err());
-        assert!(
-            err.contains(&format!("bad_probe{i}.ron")) && err.contains(expect),
-            "{err}"
-        );
+        let text = format!("Experiment(name: \"bad\", {fields})");
+        refused(&format!("bad_probe{i}"), &text, expect);
     }
 }
 
@@ -1028,6 +1023,27 @@ fn doc_blocks_carry_the_rows_images() {
         text.find("| demo |").unwrap() < text.find("![demo").unwrap(),
         "{text}"
     );
+}
+
+/// The experiment file `text`, written as `name`.ron, is refused when it loads, naming
+/// the file and `expect`.
+fn refused(name: &str, text: &str, expect: &str) {
+    let file = tmp(&format!("{name}.ron"));
+    std::fs::write(&file, text).unwrap();
+    let err = format!("{:#}", experiment::load(&file).unwrap_err());
+    assert!(
+        err.contains(&format!("{name}.ron")) && err.contains(expect),
+        "{err}"
+    );
+}
+
+/// [`refused`] for an experiment on `preset` with `fields`.
+fn refused_on(name: &str, preset: &Path, fields: &str, expect: &str) {
+    let text = format!(
+        "Experiment(name: \"bad\", scenes: [Preset(\"{}\")], {fields})",
+        preset.display()
+    );
+    refused(name, &text, expect);
 }
 
 /// A gallery variant: its figures are the gallery's own (the same as
@@ -1116,7 +1132,7 @@ fn a_gallery_variant_reports_the_gallery_and_shows_its_sheet() {
         ),
         (
             "variants: [(name: \"a\", gallery: (), search: (objective: \"entropy\"))]",
-            "has both a search and a gallery",
+            "has more than one of a search, a gallery and a suggestion",
         ),
         (
             "variants: [(name: \"a\")], statistics: [\"gallery.dispersion\"]",
@@ -1128,20 +1144,7 @@ fn a_gallery_variant_reports_the_gallery_and_shows_its_sheet() {
         ),
     ];
     for (i, (fields, expect)) in cases.iter().enumerate() {
-        let file = tmp(&format!("bad_gallery{i}.ron"));
-        std::fs::write(
-            &file,
-            format!(
-                "Experiment(name: \"bad\", scenes: [Preset(\"{}\")], {fields})",
-                preset.display()
-            ),
-        )
-        .unwrap();
-        let err = experiment::load(&file).unwrap_err().to_string();
-        assert!(
-            err.contains(&format!("bad_gallery{i}.ron")) && err.contains(expect),
-            "{err}"
-        );
+        refused_on(&format!("bad_gallery{i}"), &preset, fields, expect);
     }
 }
 
@@ -1213,19 +1216,6 @@ fn a_suggested_variant_renders_the_suggestion_and_reports_its_fog() {
     .iter()
     .enumerate()
     {
-        let bad = tmp(&format!("bad_suggest{i}.ron"));
-        std::fs::write(
-            &bad,
-            format!(
-                "Experiment(name: \"bad\", scenes: [Preset(\"{}\")], {fields})",
-                preset.display()
-            ),
-        )
-        .unwrap();
-        let err = experiment::load(&bad).unwrap_err().to_string();
-        assert!(
-            err.contains(&format!("bad_suggest{i}.ron")) && err.contains(expect),
-            "{err}"
-        );
+        refused_on(&format!("bad_suggest{i}"), &preset, fields, expect);
     }
 }

@@ -24,8 +24,8 @@ use vwb_render::params::{ParamKind, ParamSpec, ParamValue, ParamValues};
 use vwb_render::plugin::Probe;
 
 use super::{
-    Assertion, Checked, Event, Experiment, Outcome, ProbeSpec, ReferenceSpec, Row, axis_values,
-    markdown, no_metrics, param_value, write_outputs,
+    Assertion, Event, Experiment, Outcome, ProbeSpec, ReferenceSpec, Row, axis_values, described,
+    finish, listed, mark_front, no_metrics, param_value,
 };
 use crate::measure::{self, Axis};
 
@@ -49,11 +49,7 @@ pub fn find(id: &str) -> Result<Arc<dyn Probe>, String> {
         .ok_or_else(|| {
             format!(
                 "plugin '{plugin}' has no probe '{name}' (it has: {})",
-                if names.is_empty() {
-                    "none".to_string()
-                } else {
-                    names.join(", ")
-                }
+                listed(&names, "none")
             )
         })
 }
@@ -322,42 +318,11 @@ pub(super) fn run(
         }
     }
     if let Some((time, error)) = &spec.pareto {
-        let measured: Vec<usize> = (0..rows.len())
-            .filter(|&i| {
-                rows[i].statistics[time].is_finite() && rows[i].statistics[error].is_finite()
-            })
-            .collect();
-        let front = measure::pareto_front(
-            &measured
-                .iter()
-                .map(|&i| (rows[i].statistics[time], rows[i].statistics[error]))
-                .collect::<Vec<_>>(),
-        );
-        for (&i, f) in measured.iter().zip(front) {
-            rows[i].pareto = f;
-        }
+        mark_front(&mut rows, |r| (r.statistics[time], r.statistics[error]));
     }
-    let assertions: Vec<Checked> = e
-        .assertions
-        .iter()
-        .map(|a| {
-            Assertion::parse_in(a, &e.statistics)
-                .expect("checked at load")
-                .check(a, &rows)
-        })
-        .collect();
     std::fs::create_dir_all(out)
         .map_err(|err| anyhow!("{}: cannot create: {err}", out.display()))?;
-    let mut outcome = Outcome {
-        name: e.name.clone(),
-        rows,
-        references: Vec::new(),
-        assertions,
-        markdown: String::new(),
-    };
-    outcome.markdown = markdown(e, file, None, &outcome);
-    write_outputs(e, file, None, out, &outcome)?;
-    Ok(outcome)
+    finish(e, file, None, out, rows, Vec::new())
 }
 
 /// The report's first lines for a probe: the run, the probe and its figures.
@@ -372,11 +337,7 @@ pub(super) fn header(e: &Experiment, file: &Path, spec: &ProbeSpec) -> String {
         "Experiment `{}` ({}), run by `vwb run {}`. Machine: {}; vwb {}; seed {}. Probe `{}`: {description}; \
          the plugin's CPU twin (f64) alone, no GPU and no image.",
         e.name,
-        if e.description.is_empty() {
-            "no description"
-        } else {
-            &e.description
-        },
+        described(e),
         file.display(),
         measure::machine(),
         measure::build(),
