@@ -41,6 +41,9 @@ pub fn describe_source(source: &VolumeSource) -> String {
         VolumeSource::Sample(n) => format!("sample {n}"),
         VolumeSource::Analytic(f) => format!("analytic {:?} {:?}", f.field, f.size),
         VolumeSource::Phantom(p) => format!("phantom {:?}", p.size),
+        VolumeSource::Resampled(r) => {
+            format!("{} resampled to {:?}", describe_source(&r.source), r.size)
+        }
     }
 }
 

@@ -27,6 +27,7 @@ pub fn load_volume_within(src: &VolumeSource, budget: Option<u64>) -> Result<Arc
         }
         VolumeSource::Analytic(a) => a.volume().map_err(anyhow::Error::msg)?,
         VolumeSource::Phantom(p) => p.volume().map_err(anyhow::Error::msg)?,
+        VolumeSource::Resampled(r) => load_volume_within(&r.source, budget)?.resampled(r.size)?,
     }))
 }
 

@@ -1548,7 +1548,9 @@ pub fn scene_json(doc: &Document, volume: &Volume, preset: &Path) -> serde_json:
                 .map(|p| std::fs::canonicalize(&p).unwrap_or(p)),
             None,
         ),
-        VolumeSource::Analytic(_) | VolumeSource::Phantom(_) => (None, None),
+        VolumeSource::Analytic(_) | VolumeSource::Phantom(_) | VolumeSource::Resampled(_) => {
+            (None, None)
+        }
     };
     // Blinn–Phong material of an enabled shade.blinn_phong (for peers' shading)
     let shading = doc

@@ -38,6 +38,31 @@ pub enum VolumeSource {
     /// ([`crate::volume::phantom::Phantom`]), e.g.
     /// `Phantom((size: (32, 32, 32), boxes: [(from: (0, 0, 20), to: (32, 32, 24), value: 1.0)]))`.
     Phantom(crate::volume::phantom::Phantom),
+    /// Another source on a grid of `size` voxels over the same box, by nearest
+    /// neighbour ([`crate::volume::Volume::resampled`]), e.g. the CT head at twice its
+    /// resolution: `Resampled((source: Sample("ct_head"), size: (512, 512, 216)))`.
+    Resampled(Resampled),
+}
+
+/// A [`VolumeSource::Resampled`]: the source and the grid it is resampled to.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Resampled {
+    pub source: Box<VolumeSource>,
+    /// 2–1024 voxels per side.
+    pub size: [u32; 3],
+}
+
+impl VolumeSource {
+    /// The file it reads, within a resampled source too (relative paths are the
+    /// preset's).
+    pub fn file_mut(&mut self) -> Option<&mut PathBuf> {
+        match self {
+            VolumeSource::File(p) => Some(p),
+            VolumeSource::Resampled(r) => r.source.file_mut(),
+            _ => None,
+        }
+    }
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -179,7 +204,7 @@ impl Document {
         // relative volume paths are relative to the preset
         let doc = &mut loaded.document;
         for source in std::iter::once(&mut doc.volume).chain(doc.volumes.values_mut()) {
-            if let VolumeSource::File(p) = source
+            if let Some(p) = source.file_mut()
                 && p.is_relative()
                 && let Some(dir) = path.parent()
             {
@@ -387,7 +412,7 @@ impl Document {
         };
         let mut doc = self.clone();
         for source in std::iter::once(&mut doc.volume).chain(doc.volumes.values_mut()) {
-            if let VolumeSource::File(p) = source {
+            if let Some(p) = source.file_mut() {
                 *p = rel(p);
             }
         }
@@ -471,6 +496,15 @@ fn check_source(source: &VolumeSource) -> Result<(), String> {
             .map_err(|e| e.to_string()),
         VolumeSource::Analytic(a) => a.check(),
         VolumeSource::Phantom(p) => p.check(),
+        VolumeSource::Resampled(r) => {
+            if !r.size.iter().all(|s| (2..=1024).contains(s)) {
+                return Err(format!(
+                    "a resampled volume's size must be 2–1024 voxels per side, got {:?}",
+                    r.size
+                ));
+            }
+            check_source(&r.source)
+        }
         VolumeSource::Demo | VolumeSource::File(_) => Ok(()),
     }
 }

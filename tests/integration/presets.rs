@@ -60,6 +60,8 @@ fn every_shipped_preset_loads_and_composes() {
                 p.volume()
                     .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
             }
+            // shipped presets name their data at its own resolution
+            VolumeSource::Resampled(r) => panic!("{}: resampled {r:?}", path.display()),
             VolumeSource::Demo => {}
         }
         let configured: Vec<_> = doc
@@ -132,10 +134,11 @@ fn round_trip_saves_only_non_default_parameters() {
 fn named_volumes_round_trip_and_resolve_beside_the_preset() {
     let reg = registry();
     let text = r#"(version: 1, volume: Demo,
-        volumes: {"wind": Analytic((field: Abc, size: (8, 6, 4))), "labels": File("data/demo_labels.nrrd")},
+        volumes: {"wind": Analytic((field: Abc, size: (8, 6, 4))), "labels": File("data/demo_labels.nrrd"),
+            "fine": Resampled((source: File("data/demo_labels.nrrd"), size: (16, 16, 8)))},
         plugins: [(id: "flow.lic3d", params: {"field": "wind"})])"#;
     let doc = Document::parse(text, "named.ron", &reg).unwrap().document;
-    assert_eq!(doc.volumes.len(), 2);
+    assert_eq!(doc.volumes.len(), 3);
     assert_eq!(doc.stack[0].params.volume("field"), "wind");
     let again = Document::parse(&doc.to_ron(), "again.ron", &reg)
         .unwrap()
@@ -152,9 +155,36 @@ fn named_volumes_round_trip_and_resolve_beside_the_preset() {
         loaded.volumes["labels"],
         VolumeSource::File(dir.join("data/demo_labels.nrrd"))
     );
+    // a resampled file's path too
+    let VolumeSource::Resampled(fine) = &loaded.volumes["fine"] else {
+        panic!("{:?}", loaded.volumes["fine"])
+    };
+    assert_eq!(
+        *fine.source,
+        VolumeSource::File(dir.join("data/demo_labels.nrrd"))
+    );
     loaded.save(&path).unwrap();
     let saved = std::fs::read_to_string(&path).unwrap();
     assert!(saved.contains("File(\"data/demo_labels.nrrd\")"), "{saved}");
+    let resaved = Document::parse(&saved, "saved.ron", &reg).unwrap().document;
+    assert_eq!(resaved.volumes["fine"], doc.volumes["fine"], "{saved}");
+    // it loads at its size over the same box
+    std::fs::create_dir_all(dir.join("data")).unwrap();
+    std::fs::copy(
+        repo().join("presets/data/demo_labels.nrrd"),
+        dir.join("data/demo_labels.nrrd"),
+    )
+    .unwrap();
+    let labels = vwb_lab::headless::load_volume(&loaded.volumes["labels"]).unwrap();
+    let v = vwb_lab::headless::load_volume(&loaded.volumes["fine"]).unwrap();
+    assert_eq!(v.dims, [16, 16, 8]);
+    for a in 0..3 {
+        let (old, new) = (
+            labels.spacing[a] * labels.dims[a] as f64,
+            v.spacing[a] * v.dims[a] as f64,
+        );
+        assert!((old - new).abs() < 1e-9, "axis {a}");
+    }
     std::fs::remove_dir_all(&dir).ok();
 }
 
@@ -297,6 +327,14 @@ fn bad_values_fail_with_their_path() {
         (
             r#"(version: 1, volume: Phantom((size: (8, 8, 8), colour: 1.0)))"#,
             "colour",
+        ),
+        (
+            r#"(version: 1, volume: Resampled((source: Sample("ct_head"), size: (512, 512, 2000))))"#,
+            "volume: a resampled volume's size must be 2–1024 voxels per side, got [512, 512, 2000]",
+        ),
+        (
+            r#"(version: 1, volume: Resampled((source: Sample("ct_hed"), size: (8, 8, 8))))"#,
+            "volume: unknown sample 'ct_hed'",
         ),
         (
             r#"(version: 1, volumes: {"wind": Sample("storm_wnd")})"#,

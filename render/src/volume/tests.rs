@@ -1985,3 +1985,52 @@ fn cropping_removes_the_voxels_outside_and_keeps_the_range() {
     let e = v.cropped([[2, 2], [0, 3], [0, 2]]).unwrap_err().to_string();
     assert!(e.contains("non-empty"), "{e}");
 }
+
+/// Resampling by nearest neighbour keeps the box (the spacing scales), takes voxel
+/// ⌊i · old / new⌋ along each axis, keeps every component of a vector, and doubling
+/// then halving gives the volume back.
+#[test]
+fn resampling_takes_the_nearest_voxel_and_keeps_the_box() {
+    let data: Vec<i16> = (0..4 * 3 * 2).map(|i| 100 + i as i16).collect();
+    let v = Volume::new("ramp", [4, 3, 2], 1, [1.0, 2.0, 3.0], VoxelData::I16(data)).unwrap();
+    let r = v.resampled([8, 6, 5]).unwrap();
+    assert_eq!(r.dims, [8, 6, 5]);
+    for a in 0..3 {
+        let (old, new) = (
+            v.spacing[a] * v.dims[a] as f64,
+            r.spacing[a] * r.dims[a] as f64,
+        );
+        assert!((old - new).abs() < 1e-12, "axis {a}: box {old} → {new}");
+    }
+    for z in 0..5 {
+        for y in 0..6 {
+            for x in 0..8 {
+                let want = v.scalar(x / 2, y / 2, z * 2 / 5);
+                assert_eq!(r.scalar(x, y, z), want, "({x}, {y}, {z})");
+            }
+        }
+    }
+    assert_eq!(r.name, "ramp_8x6x5");
+    assert!(r.notes.iter().any(|n| n.contains("resampled")));
+    let back = v
+        .resampled([8, 6, 4])
+        .unwrap()
+        .resampled([4, 3, 2])
+        .unwrap();
+    assert_eq!(back.data, v.data);
+    let w = Volume::new(
+        "wind",
+        [2, 1, 1],
+        2,
+        [1.0; 3],
+        VoxelData::F32(vec![3.0, 4.0, 1.0, 1.0]),
+    )
+    .unwrap();
+    let wr = w.resampled([4, 1, 1]).unwrap();
+    assert_eq!(
+        wr.data,
+        VoxelData::F32(vec![3.0, 4.0, 3.0, 4.0, 1.0, 1.0, 1.0, 1.0])
+    );
+    let e = v.resampled([0, 3, 2]).unwrap_err().to_string();
+    assert!(e.contains("'ramp'") && e.contains("[0, 3, 2]"), "{e}");
+}
