@@ -8,8 +8,8 @@
 # VWB: target/release/vwb; INTEGRATION: the binary `cargo test --locked --test
 # integration --no-run` prints; DATA_DIR: the sample data (VWB_DATA_DIR). Writes to OUT:
 #   perf.md            docs/perf.md with its `foundation-gpu` block (bench/perf.py --gpu)
-#   gpu-docs.tar       docs/gpu/: flow.md and hernell.md (`hernell_512_benchmark`
-#                      on the GPU, and the blocks of the experiment files
+#   gpu-docs.tar       docs/gpu/: flow.md and hernell.md (the blocks of the
+#                      experiment files hernell_512,
 #                      flow_precompute_256, flow_arrival_prepass_large,
 #                      flow_output_sensitivity_large, flow_modes,
 #                      search_gallery, search_gallery_large (into search.md),
@@ -36,12 +36,10 @@ step() { # name limit_s command...
 }
 step perf 90 python3 bench/perf.py --vwb "$vwb" --gpu --block foundation-gpu --frames 20
 cp docs/perf.md "$out/perf.md"
-step benchmarks 240 "$integration" --ignored --test-threads=1 --nocapture \
-    hernell::hernell_512_benchmark
-step experiments 420 "$vwb" run experiments/volume_format.ron experiments/flow_modes.ron \
+step experiments 540 "$vwb" run experiments/volume_format.ron experiments/flow_modes.ron \
     experiments/flow_precompute_256.ron experiments/flow_arrival_prepass_large.ron \
     experiments/search_gallery.ron experiments/search_gallery_large.ron \
-    experiments/flow_output_sensitivity_large.ron \
+    experiments/flow_output_sensitivity_large.ron experiments/hernell_512.ron \
     experiments/flow_animation.ron experiments/hernell_light.ron \
     experiments/hernell_scattering.ron experiments/hernell_extremes.ron \
     experiments/hernell_blocking.ron experiments/clip_planes.ron \

@@ -1189,7 +1189,13 @@ pub fn parse(text: &str, path: &Path) -> Result<Experiment> {
     let searched = e.variants.iter().any(|v| v.search.is_some());
     let galleries = e.variants.iter().any(|v| v.gallery.is_some());
     for st in &e.statistics {
-        if st.starts_with("suggest.") {
+        if let Some(targets) = st.strip_prefix(PASS_MS) {
+            if targets.split('+').any(|t| t.is_empty() || t.contains('/')) {
+                bail!(
+                    "{file}: statistic '{st}': name a pass's target after {PASS_MS} (several joined by +), e.g. pass_ms.alpha_lp+alpha_g"
+                );
+            }
+        } else if st.starts_with("suggest.") {
             if !SUGGEST_STATISTICS.contains(&st.as_str()) {
                 bail!(
                     "{file}: statistic '{st}': a suggestion reports {}",
@@ -1268,11 +1274,36 @@ pub fn parse(text: &str, path: &Path) -> Result<Experiment> {
 }
 
 /// Whether a statistic is the runner's own (a search's, a gallery's or a suggestion's
-/// figures) rather than a plugin's.
+/// figures, a pass's GPU time) rather than a plugin's.
 fn runner_statistic(st: &str) -> bool {
-    ["search.", "gallery.", "suggest."]
+    ["search.", "gallery.", "suggest.", PASS_MS]
         .iter()
         .any(|p| st.starts_with(p))
+}
+
+/// The statistics of the GPU time of a row's update passes: `pass_ms.T` is the median,
+/// over the update's measurements (`update_repeats`), of the timestamps of the volume
+/// passes and pre-passes whose target is `T` (their label ends with `/T`, or is
+/// `prepass T` for a plugin's pre-pass); `pass_ms.T1+T2` sums several targets (e.g.
+/// `pass_ms.alpha_lp+alpha_g`, `shade.hernell`'s level (A)). NaN where no such pass
+/// was stamped (a CPU adapter without timestamps, or lavapipe's zeros).
+pub const PASS_MS: &str = "pass_ms.";
+
+fn pass_ms(st: &str, updates: &[Vec<(String, f64)>]) -> f64 {
+    let targets: Vec<&str> = st[PASS_MS.len()..].split('+').collect();
+    let of = |label: &str| {
+        targets
+            .iter()
+            .any(|t| label.ends_with(&format!("/{t}")) || label == format!("prepass {t}"))
+    };
+    let sums: Vec<f64> = updates
+        .iter()
+        .filter_map(|passes| {
+            let ms: f64 = passes.iter().filter(|(l, _)| of(l)).map(|(_, ms)| ms).sum();
+            (ms > 0.0).then_some(ms)
+        })
+        .collect();
+    measure::Summary::of(&sums).map_or(f64::NAN, |m| m.median)
 }
 
 /// Names for an error message, comma-separated, or `none` where there are none.
@@ -2048,12 +2079,15 @@ pub fn run(
                 let timing = measure::time_frames(&mut r, &s, 0, e.frames)?;
                 // the update again, where the change reran passes
                 let (mut walls, mut stamps) = (vec![first.wall_ms], vec![update_stamps(&first)]);
+                // every update's GPU stamps by pass, for `pass_ms.*`
+                let mut pass_stamps = vec![first.gpu_passes.clone()];
                 if !(first.prepasses.is_empty() && first.volume_passes_run.is_empty()) {
                     for _ in 1..e.update_repeats {
                         r.rerun_passes();
                         let again = r.render(&s)?;
                         walls.push(again.wall_ms);
                         stamps.push(update_stamps(&again));
+                        pass_stamps.push(again.gpu_passes);
                     }
                 }
                 let median = |v: &[f64]| measure::Summary::of(v).map_or(f64::NAN, |m| m.median);
@@ -2081,6 +2115,9 @@ pub fn run(
                     for st in e.statistics.iter().filter(|st| st.starts_with("gallery.")) {
                         statistics.insert(st.clone(), g.statistic(st));
                     }
+                }
+                for st in e.statistics.iter().filter(|st| st.starts_with(PASS_MS)) {
+                    statistics.insert(st.clone(), pass_ms(st, &pass_stamps));
                 }
                 if let Some(figures) = &suggested {
                     for st in e.statistics.iter().filter(|st| st.starts_with("suggest.")) {
@@ -3039,6 +3076,27 @@ pub fn run_file(file: &Path, out: Option<&Path>) -> Result<Outcome> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// `pass_ms.T1+T2`: the median over the updates of the stamps of the passes with
+    /// those targets (and pre-passes by plugin); NaN where none was stamped.
+    #[test]
+    fn pass_times_sum_their_targets_over_the_median_update() {
+        let update = |a: f64, g: f64| {
+            vec![
+                ("pass shade.hernell/alpha_lp".to_string(), a),
+                ("pass shade.hernell/alpha_g".to_string(), g),
+                ("pass shade.hernell/light_volume".to_string(), 5.0),
+                ("prepass flow.lic3d".to_string(), 7.0),
+                ("slices".to_string(), 11.0),
+            ]
+        };
+        let updates = [update(2.0, 1.0), update(4.0, 2.0), update(3.0, 0.5)];
+        assert_eq!(pass_ms("pass_ms.alpha_lp+alpha_g", &updates), 3.5);
+        assert_eq!(pass_ms("pass_ms.light_volume", &updates), 5.0);
+        assert_eq!(pass_ms("pass_ms.flow.lic3d", &updates), 7.0);
+        assert!(pass_ms("pass_ms.nothing", &updates).is_nan());
+        assert!(pass_ms("pass_ms.alpha_lp", &[update(0.0, 0.0)]).is_nan());
+    }
 
     #[test]
     fn assertions_parse_and_refuse_nonsense() {

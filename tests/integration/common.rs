@@ -77,16 +77,6 @@ pub fn twin_bound(backend: vwb_render::Backend, per_slice: bool) -> f64 {
     }
 }
 
-/// Milliseconds with three significant digits or so, for benchmark tables (GPU
-/// frames take fractions of one).
-pub fn fmt_ms(ms: f64) -> String {
-    match ms {
-        m if m >= 100.0 => format!("{m:.0}"),
-        m if m >= 10.0 => format!("{m:.1}"),
-        m => format!("{m:.2}"),
-    }
-}
-
 /// Replaces the generated section `name` of the document at `path` (from
 /// `<!-- name:begin` to `<!-- name:end -->`, markers included) with `section`.
 pub fn replace_section(path: &Path, name: &str, section: &str) {
@@ -112,23 +102,6 @@ pub fn bench_doc(name: &str) -> PathBuf {
         .join(name);
     std::fs::create_dir_all(p.parent().expect("a file under docs/")).unwrap();
     p
-}
-
-/// The GPU ms of the timestamped passes whose label passes `pick`, summed; `None`
-/// on a CPU adapter (lavapipe reports zeros for compute passes and books one pass's
-/// time to the next, since it overlaps consecutive dispatches) or where the adapter
-/// reports none.
-pub fn stamped_ms(
-    stats: &vwb_render::renderer::FrameStats,
-    pick: impl Fn(&str) -> bool,
-) -> Option<f64> {
-    let ms: f64 = stats
-        .gpu_passes
-        .iter()
-        .filter(|(label, _)| pick(label))
-        .map(|(_, ms)| ms)
-        .sum();
-    (on_gpu() && ms > 0.0).then_some(ms)
 }
 
 /// Bytes of one voxel of the renderer's volume texture on the test adapter (r32float

@@ -1212,6 +1212,10 @@ fn a_suggested_variant_renders_the_suggestion_and_reports_its_fog() {
             "variants: [(name: \"a\", suggest: ())], statistics: [\"suggest.nope\"]",
             "a suggestion reports suggest.bins",
         ),
+        (
+            "statistics: [\"pass_ms.alpha_lp+\"]",
+            "name a pass's target after pass_ms.",
+        ),
     ]
     .iter()
     .enumerate()
