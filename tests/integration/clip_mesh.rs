@@ -3,7 +3,7 @@
 //! DOS casts no shadow from matter the mesh removes; a broken mesh file is refused with
 //! its name and the last good stack keeps rendering. The twin scenes are
 //! experiments/scenes/demo_mesh_*.ron; figures: `bash bench/clipping.sh` (experiment
-//! files, and the mesh pass's section from `clip_mesh_benchmark`).
+//! files; the mesh pass's voxelisation is `clip.mesh`'s probe, clip_mesh_pass.ron).
 
 use std::sync::Arc;
 use std::time::Instant;
