@@ -23,6 +23,7 @@
 
 use std::collections::{BTreeMap, HashMap};
 use std::fmt::Write as _;
+use std::ops::RangeInclusive;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
@@ -257,8 +258,8 @@ fn suggest_tf(
     volume: &Volume,
 ) -> Result<BTreeMap<String, f64>> {
     use vwb_render::suggest::{SuggestOptions, suggest};
+    // checked at load, and again by `suggest`
     let o = spec.options();
-    o.check().map_err(|e| anyhow!("suggest: {e}"))?;
     let start = std::time::Instant::now();
     let s = suggest(volume, &o).map_err(|e| anyhow!("suggest: {e}"))?;
     let ms = start.elapsed().as_secs_f64() * 1e3;
@@ -350,7 +351,8 @@ impl GallerySpec {
     /// The options are in range (`own`: the variant, for errors).
     fn check(&self, own: &str) -> Result<(), String> {
         let o = self.options();
-        let checks: [(&str, usize, std::ops::RangeInclusive<usize>); 6] = [
+        let what = format!("the gallery of variant '{own}'");
+        let checks: [(&str, usize, RangeInclusive<usize>); 6] = [
             ("pool", o.pool, 2..=65536),
             ("k", o.k, 1..=o.pool.min(1024)),
             ("tile", o.tile as usize, 8..=512),
@@ -362,22 +364,27 @@ impl GallerySpec {
             ),
             ("batch", o.batch, 1..=1024),
         ];
-        for (name, v, range) in checks {
-            if !range.contains(&v) {
-                return Err(format!(
-                    "the gallery of variant '{own}': {name} {v} is outside {}..={}",
-                    range.start(),
-                    range.end()
-                ));
-            }
-        }
+        in_ranges(&what, &checks)?;
         if !(o.slice_spacing.is_finite() && o.slice_spacing > 0.0) {
-            return Err(format!(
-                "the gallery of variant '{own}': spacing must be > 0"
-            ));
+            return Err(format!("{what}: spacing must be > 0"));
         }
         Ok(())
     }
+}
+
+/// Each named count within its range, or an error naming `what`, the count and the
+/// range (a search's or a gallery's options).
+fn in_ranges(what: &str, checks: &[(&str, usize, RangeInclusive<usize>)]) -> Result<(), String> {
+    for (name, v, range) in checks {
+        if !range.contains(v) {
+            return Err(format!(
+                "{what}: {name} {v} is outside {}..={}",
+                range.start(),
+                range.end()
+            ));
+        }
+    }
+    Ok(())
 }
 
 /// What a variant's gallery gave at one grid point.
@@ -536,7 +543,7 @@ impl SearchSpec {
                 ));
             }
         }
-        let checks: [(&str, Option<usize>, std::ops::RangeInclusive<usize>); 4] = [
+        let checks = [
             ("population", self.population, 2..=1024),
             ("generations", self.generations, 1..=1000),
             ("views", self.views, 1..=16),
@@ -545,25 +552,14 @@ impl SearchSpec {
                 self.max_primitives,
                 1..=vwb_render::search::genome::MAX_PRIMITIVES,
             ),
+            ("tile", self.tile.map(|t| t as usize), 8..=512),
         ];
-        for (name, v, range) in checks {
-            if let Some(v) = v
-                && !range.contains(&v)
-            {
-                return Err(format!(
-                    "the search of variant '{own}': {name} {v} is outside {}..={}",
-                    range.start(),
-                    range.end()
-                ));
-            }
-        }
-        if let Some(t) = self.tile
-            && !(8..=512).contains(&t)
-        {
-            return Err(format!(
-                "the search of variant '{own}': tile {t} is outside 8..=512"
-            ));
-        }
+        // only what the file sets: the search's defaults are in range
+        let set: Vec<_> = checks
+            .into_iter()
+            .filter_map(|(name, v, range)| v.map(|v| (name, v, range)))
+            .collect();
+        in_ranges(&format!("the search of variant '{own}'"), &set)?;
         if let Some(r) = self.reach
             && !r.is_finite()
         {
@@ -897,7 +893,7 @@ pub struct Row {
     pub gpu_memory_bytes: u64,
     /// [`Metric::EmptyBrickShare`] (NaN with skipping off).
     pub empty_brick_share: f64,
-    /// [`Metric::Coverage`] (NaN unless the experiment shows or asserts it).
+    /// [`Metric::Coverage`] (NaN for a probe's rows).
     pub coverage: f64,
     pub metrics: Metrics,
     /// [`Experiment::statistics`] by name (absent where the plugin is off).
@@ -1937,11 +1933,6 @@ pub fn run(
     let mut twin_images: HashMap<String, RgbImageF> = HashMap::new();
     let image_key =
         |scene: &str, variant: &str, values: &[f64]| format!("{scene}|{variant}|{values:?}");
-    // the coverage costs a read-back: only where the table or an assertion reads it
-    let wants_coverage = e.metrics.contains(&Metric::Coverage)
-        || e.assertions
-            .iter()
-            .any(|a| a.contains(Metric::Coverage.name()));
     for scene in &e.scenes {
         let sc = load_scene(scene, dir, e).with_context(|| format!("{fname}"))?;
         // every variant's document and axes, checked before anything renders
@@ -2098,12 +2089,7 @@ pub fn run(
                 let update_gpu_ms = Some(median(&stamped))
                     .filter(|&g| measure::stamps_plausible(cpu, g, update_ms))
                     .unwrap_or(f64::NAN);
-                let img = measure::gpu_image(&r, &d)?;
-                let coverage = if wants_coverage {
-                    measure::coverage(&r)?
-                } else {
-                    f64::NAN
-                };
+                let (img, coverage) = measure::gpu_image_covered(&r, &d)?;
                 let memory: u64 = r.plugin_memory().iter().map(|(_, _, b)| b).sum();
                 let mut statistics = statistics_of(&e.statistics, &r, &d);
                 if let Some(found) = &search {

@@ -159,25 +159,19 @@ pub fn background(doc: &Document) -> [f64; 3] {
 }
 
 /// The eye buffer composited over the document's background.
-/// The share of the last frame's pixels that are not transparent (α > 0.01): what a
-/// view covers, e.g. against a clipped view of it.
-pub fn coverage(r: &Renderer) -> Result<f64> {
-    let (_, _, px) = r
-        .read_pixels()
-        .ok_or_else(|| anyhow!("nothing was rendered"))?;
-    Ok(px.iter().filter(|p| p[3] > 0.01).count() as f64 / px.len().max(1) as f64)
+pub fn gpu_image(r: &Renderer, doc: &Document) -> Result<RgbImageF> {
+    gpu_image_covered(r, doc).map(|(img, _)| img)
 }
 
-pub fn gpu_image(r: &Renderer, doc: &Document) -> Result<RgbImageF> {
+/// [`gpu_image`], and from the same read-back the share of its pixels that are not
+/// transparent (α > 0.01): what a view covers, e.g. against a clipped view of it.
+pub fn gpu_image_covered(r: &Renderer, doc: &Document) -> Result<(RgbImageF, f64)> {
     let (w, h, px) = r
         .read_pixels()
         .ok_or_else(|| anyhow!("nothing was rendered"))?;
-    Ok(RgbImageF::from_rgba_f32_premultiplied_over(
-        &px,
-        w,
-        h,
-        background(doc),
-    ))
+    let covered = px.iter().filter(|p| p[3] > 0.01).count() as f64 / px.len().max(1) as f64;
+    let img = RgbImageF::from_rgba_f32_premultiplied_over(&px, w, h, background(doc));
+    Ok((img, covered))
 }
 
 /// Runs `f` with reference options whose progress counter drives a progress bar

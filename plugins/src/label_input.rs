@@ -85,15 +85,14 @@ pub fn label_values(volume: &Volume) -> Result<Vec<u16>, String> {
 }
 
 /// One byte per voxel of a label volume: `table[label]` (0 beyond the table), x
-/// fastest, computed in parallel from the voxels as stored, with no widened copy of
-/// the labels. For a volume [`label_values`] has accepted (its negative values, which
-/// it refuses, would read entry 0); an error where it holds no integers.
+/// fastest, from the voxels as stored, with no widened copy of the labels (a single
+/// thread: beside lavapipe's threads, rayon made it slower). For a volume
+/// [`label_values`] has accepted (its negative values, which it refuses, would read
+/// entry 0); where the volume holds no integer labels, [`label_values`]'s error.
 pub fn map_labels(volume: &Volume, table: &[u8]) -> Result<Vec<u8>, String> {
     let at = |l: usize| table.get(l).copied().unwrap_or(0);
-    if volume.components != 1 {
-        return label_values(volume).map(|_| Vec::new());
-    }
     Ok(match &volume.data {
+        _ if volume.components != 1 => return label_values(volume).map(|_| Vec::new()),
         VoxelData::U8(v) => v.iter().map(|&l| at(l as usize)).collect(),
         VoxelData::U16(v) => v.iter().map(|&l| at(l as usize)).collect(),
         VoxelData::I8(v) => v.iter().map(|&l| at(l.max(0) as usize)).collect(),

@@ -1053,16 +1053,19 @@ impl UniformLayout {
     }
 }
 
+/// A lowercase identifier: a lowercase ASCII letter, then lowercase letters, digits
+/// and `_` (parameter keys, plugin and probe names, probe figures).
+pub fn lowercase_ident(s: &str) -> bool {
+    s.chars().next().is_some_and(|c| c.is_ascii_lowercase())
+        && s.chars()
+            .all(|c| c.is_ascii_lowercase() || c.is_ascii_digit() || c == '_')
+}
+
 /// Checks that a plugin's specs are well formed (unique identifier keys, defaults valid).
 pub fn validate_specs(specs: &[ParamSpec]) -> Result<(), String> {
     let mut seen = std::collections::HashSet::new();
     for s in specs {
-        let valid_ident = !s.key.is_empty()
-            && s.key.chars().next().is_some_and(|c| c.is_ascii_lowercase())
-            && s.key
-                .chars()
-                .all(|c| c.is_ascii_lowercase() || c.is_ascii_digit() || c == '_');
-        if !valid_ident {
+        if !lowercase_ident(s.key) {
             return Err(format!(
                 "parameter key '{}' must be a lowercase identifier",
                 s.key

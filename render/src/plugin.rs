@@ -1294,11 +1294,7 @@ pub enum RegistryError {
 /// A plugin's probes are well formed: names are lowercase identifiers, unique within
 /// the plugin, as are each probe's figure names; each parameter spec validates.
 fn check_probes(plugin: &dyn Plugin) -> Result<(), String> {
-    let ident = |s: &str| {
-        s.chars().next().is_some_and(|c| c.is_ascii_lowercase())
-            && s.chars()
-                .all(|c| c.is_ascii_lowercase() || c.is_ascii_digit() || c == '_')
-    };
+    let ident = crate::params::lowercase_ident;
     let mut names = std::collections::HashSet::new();
     for p in plugin.probes() {
         let name = p.name();
@@ -1338,12 +1334,7 @@ pub fn valid_id(id: &str) -> bool {
     let Some((cat, name)) = id.split_once('.') else {
         return false;
     };
-    Category::from_name(cat).is_some()
-        && !name.is_empty()
-        && name.chars().next().is_some_and(|c| c.is_ascii_lowercase())
-        && name
-            .chars()
-            .all(|c| c.is_ascii_lowercase() || c.is_ascii_digit() || c == '_')
+    Category::from_name(cat).is_some() && crate::params::lowercase_ident(name)
 }
 
 impl Registry {

@@ -12,15 +12,10 @@ use vwb_render::{Backend, Renderer, TargetFormat};
 
 use crate::common::*;
 
-/// RMS difference of two scalar volumes, in 1/255 units.
+/// RMS difference of two scalar volumes of one size, in 1/255 units.
 fn rms_255(a: &[f32], b: &[f32]) -> f64 {
     assert_eq!(a.len(), b.len());
-    (a.iter()
-        .zip(b)
-        .map(|(x, y)| ((x - y) as f64 * 255.0).powi(2))
-        .sum::<f64>()
-        / a.len().max(1) as f64)
-        .sqrt()
+    vwb_plugins::flow_lic3d::probes::rms_255(a, b)
 }
 
 /// GPU memory of one plugin instance (its resources and pass targets), in bytes.

@@ -8,7 +8,7 @@
 //! 65 536 labels is a handful of ranges. The selection is baked on the CPU into one
 //! byte per voxel (255 = kept), the GPU resource `kept`, so that a sample costs one
 //! texel load; a selection change maps the voxels through the selection's table of
-//! 65 536 bytes in parallel and re-uploads the mask. The twin bakes the same bytes from
+//! 65 536 bytes and re-uploads the mask. The twin bakes the same bytes from
 //! the same volume.
 
 use std::sync::OnceLock;
@@ -151,8 +151,8 @@ impl Plugin for ClipLabels {
         Ok(vec![GpuResource { texture, view }])
     }
     /// A selection change maps the volume's voxels through the selection's table
-    /// ([`label_input::map_labels`]: in parallel, from the labels as stored) and
-    /// uploads the mask.
+    /// ([`label_input::map_labels`]: from the labels as stored, with no widened copy)
+    /// and uploads the mask.
     fn update_resources(
         &self,
         gpu: &GpuInit,

@@ -445,12 +445,7 @@ impl Plugin for Lic3d {
                 full.set("storage", vwb_render::params::ParamValue::Enum("f32".into()));
                 let twin = lic_on(passes.volume, field, self.frequency, &full);
                 if twin.dims == dims && twin.data.len() == gpu.len() {
-                    let sum: f64 = gpu
-                        .iter()
-                        .zip(&twin.data)
-                        .map(|(a, b)| ((a - b) as f64 * 255.0).powi(2))
-                        .sum();
-                    (sum / gpu.len().max(1) as f64).sqrt()
+                    probes::rms_255(&gpu, &twin.data)
                 } else {
                     f64::NAN
                 }
