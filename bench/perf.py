@@ -2,7 +2,9 @@
 """Frame-time table for docs/perf.md (foundation benchmarks).
 
 Runs `vwb render --timings` for the demo and the CT head at 512², one slice per
-voxel, raster and compute, and rewrites the block between
+voxel, raster and compute (and the compute march's samples with nothing but a
+trilinear fetch each, `VWB_RAW_SAMPLES=1`, for the share of the raw sampling rate that
+plain DVR reaches), and rewrites the block between
 <!-- BEGIN <block> --> and <!-- END <block> --> in docs/perf.md with a table, the
 machine and the adapter. Rerun:
 
@@ -23,6 +25,11 @@ CASES = [
     ("demo (MRI 128×128×84)", "presets/demo.ron"),
     ("CT head 256×256×108", "presets/ct_head.ron"),
 ]
+
+
+# `VWB_RAW_SAMPLES=1`: the compute march's samples with one trilinear fetch each and
+# nothing else (`Renderer::set_raw_samples`), the rate plain DVR is measured against.
+RAW = "compute, raw samples: one trilinear fetch each, nothing else"
 
 
 def run(vwb, preset, backend, size, frames, env, extra=()):
@@ -65,27 +72,42 @@ def main():
     a = ap.parse_args()
     env = vwb_env(a.gpu)
     rows = []
+    shares = []
     adapter = "?"
     cases = [(n, a.ct_preset if "CT" in n else p) for n, p in CASES]
+    raw_env = {**env, "VWB_RAW_SAMPLES": "1"}
     for name, preset in cases:
+        plain = raw = None
         for backend, extra in (
             ("raster", ()),
             ("compute", ()),
             ("compute, no empty-space skipping", ("--skipping", "off")),
             ("compute, early termination 0.99", ("--early-termination", "0.99")),
+            (RAW, ("--skipping", "off")),
         ):
-            r = run(a.vwb, preset, backend.split(",")[0], a.size, a.frames, env, extra)
+            r = run(a.vwb, preset, backend.split(",")[0], a.size, a.frames,
+                    raw_env if backend == RAW else env, extra)
             adapter = r["adapter"]
             g = r["gpu"]
             w = r["wall"]
+            t = (g or w)[0]
+            if backend == RAW:
+                raw = t
+            elif "no empty-space" in backend:
+                plain = t
             rows.append(
                 f"| {name} | {backend} | {r['slices']} | "
                 + (f"{ms(g[0])} ({ms(g[1])}–{ms(g[2])})" if g else "n/a")
                 + f" | {ms(w[0])} |"
             )
+        shares.append(f"{name}: {100 * raw / plain:.0f} % ({ms(raw)} ms of raw sampling "
+                      f"against {ms(plain)} ms of DVR)")
+    build = "release" if "/release/" in a.vwb else "debug (the GPU's time does not depend on it)"
+    commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=REPO,
+                            capture_output=True, text=True).stdout.strip() or "?"
     cmd = "python3 bench/perf.py" + (" --gpu --block " + a.block if a.gpu else "")
     lines = [
-        f"Command: `{cmd}` (release build; `vwb render --timings`, median of {a.frames} frames after 2 warm-up frames).",
+        f"Command: `{cmd}` ({build} build of vwb, {commit}; `vwb render --timings`, median of {a.frames} frames after 2 warm-up frames).",
         "",
         f"- Machine: {machine_line()}",
         f"- Adapter: {adapter}" + ("" if a.gpu else f" (LP_NUM_THREADS={env['LP_NUM_THREADS']})"),
@@ -94,6 +116,10 @@ def main():
         "| volume | backend | slices | GPU ms median (min–max) | wall ms median |",
         "|---|---|---|---|---|",
         *rows,
+        "",
+        "Share of the raw trilinear sampling rate that plain DVR reaches (the raw-samples "
+        "frame's time over the compute frame's without skipping, the same samples): "
+        + "; ".join(shares) + ".",
     ]
     block = "\n".join(lines)
     if a.print_only:

@@ -107,10 +107,16 @@ fn stack_classify(tex: vec3<f32>, dir: vec3<f32>) -> vec4<f32> {
     return s.color;
 }
 
+// Volume texture coordinate of a world point: a product with the box's reciprocal
+// extent (`frame.inv_extent`), which saves a division per coordinate.
+fn tex_of(pos: vec3<f32>) -> vec3<f32> {
+    return (pos - frame.box_min.xyz) * frame.inv_extent.xyz;
+}
+
 fn make_sample(pos: vec3<f32>, ray_dir: vec3<f32>, uv: vec2<f32>, slice: u32) -> Sample {
     var s: Sample;
     s.pos = pos;
-    s.tex = (pos - frame.box_min.xyz) / (frame.box_max.xyz - frame.box_min.xyz);
+    s.tex = tex_of(pos);
     s.ray_dir = ray_dir;
     s.uv = uv;
     s.value = 0.0;
@@ -216,12 +222,12 @@ fn fragment_exact(in: VsOut, behind: bool) -> vec4<f32> {
         discard;
     }
     let r = pixel_ray(uv);
-    let t = slice_hit(r, in.slice);
-    if (t < 0.0) {
+    let rs = ray_slices(r);
+    if (!slice_point_in(rs, in.slice)) {
         return vec4<f32>(0.0);
     }
     run_setup(r, uv);
-    return evaluate(pixel_sample(r, t, uv, in.slice)).c;
+    return evaluate(slice_sample(r, rs, uv, in.slice)).c;
 }
 
 @fragment
@@ -288,17 +294,51 @@ fn slice_normal() -> vec3<f32> {
     return n;
 }
 
-// Parameter t >= 0 along the ray of the point on slice plane k, or -1 if the point
-// lies outside this renderer's own box or behind the near plane.
-fn slice_hit(r: Ray, k: u32) -> f32 {
-    let d = frame.box_max.w + f32(k) * frame.forward.w;
+// Where a ray meets the slice planes. Plane k lies at eye depth d_k = d_0 + k·Δs
+// along the slice normal n, so the ray meets it at t_k = a + k·b with
+// a = (d_0 − (origin − eye)·n) / (dir·n) and b = Δs / (dir·n): its point and texture
+// coordinate are affine in k as well. A ray computes the three once; a sample then
+// costs three multiply–adds each, where it cost a division for t and three for the
+// texture coordinate (on lavapipe those divisions and the uniform loads around them
+// were a fifth of an unshaded frame: docs/perf.md, "Per-sample overhead"). Every path
+// (the compute march, the per-slice dispatches, the raster backend's exact fragments)
+// takes its points from here, so they agree on them to the bit, and so do the bricks
+// of a split volume, which share the planes (`d_0`, `Δs`, k).
+struct RaySlices {
+    a: f32,
+    b: f32,
+    // world point and texture coordinate of plane 0 and their change per plane
+    p0: vec3<f32>,
+    dp: vec3<f32>,
+    tex0: vec3<f32>,
+    dtex: vec3<f32>,
+}
+
+fn ray_slices(r: Ray) -> RaySlices {
     let n = slice_normal();
-    let t = (d - dot(r.origin - frame.eye.xyz, n)) / dot(r.dir, n);
-    let p = r.origin + r.dir * t;
-    if (t < 0.0 || !in_own_box(p)) {
-        return -1.0;
-    }
-    return t;
+    let dd = dot(r.dir, n);
+    var rs: RaySlices;
+    rs.a = (frame.box_max.w - dot(r.origin - frame.eye.xyz, n)) / dd;
+    rs.b = frame.forward.w / dd;
+    rs.p0 = r.origin + r.dir * rs.a;
+    rs.dp = r.dir * rs.b;
+    rs.tex0 = tex_of(rs.p0);
+    rs.dtex = rs.dp * frame.inv_extent.xyz;
+    return rs;
+}
+
+// Whether the ray's point on slice plane k is a sample: in front of the eye (t ≥ 0)
+// and inside this renderer's own box.
+fn slice_point_in(rs: RaySlices, k: u32) -> bool {
+    let t = rs.a + f32(k) * rs.b;
+    return !(t < 0.0) && in_own_box(rs.p0 + f32(k) * rs.dp);
+}
+
+// The sample of slice k on the ray (at a point `slice_point_in` accepted).
+fn slice_sample(r: Ray, rs: RaySlices, uv: vec2<f32>, k: u32) -> Sample {
+    var s = make_sample(rs.p0 + f32(k) * rs.dp, r.dir, uv, k);
+    s.tex = rs.tex0 + f32(k) * rs.dtex;
+    return s;
 }
 
 // Whether a world point is one of this renderer's samples: inside its own box, which
@@ -313,7 +353,7 @@ fn in_own_box(p: vec3<f32>) -> bool {
 
 // Slices [first, last) that can meet the box along the ray: the ray's slab interval
 // through the box mapped to slice indices, widened by two slices against rounding.
-// Every slice in the range is still tested exactly by slice_hit, so the samples are
+// Every slice in the range is still tested exactly by slice_point_in, so the samples are
 // the same as looping over all slices; the range only skips planes the ray cannot hit
 // inside the box (pixels that miss the box loop over none).
 fn slice_range(r: Ray) -> vec2<u32> {
@@ -366,10 +406,6 @@ fn brick_exit_slice(r: Ray, tex: vec3<f32>) -> u32 {
     return u32(min(k, f32(frame.counts.x)));
 }
 
-fn pixel_sample(r: Ray, t: f32, uv: vec2<f32>, k: u32) -> Sample {
-    return make_sample(r.origin + r.dir * t, r.dir, uv, k);
-}
-
 @group(3) @binding(0) var out_tex: texture_storage_2d<{{TARGET_FORMAT}}, write>;
 @group(3) @binding(1) var<storage, read_write> accum: array<vec4<f32>>;
 
@@ -382,13 +418,13 @@ fn march(r: Ray, uv: vec2<f32>, skipping: bool) -> vec4<f32> {
     var acc = vec4<f32>(0.0);
     let early = frame.counts.z != 0u;
     let range = slice_range(r);
+    let rs = ray_slices(r);
     run_setup(r, uv);
     for (var k = range.x; k < range.y; k = k + 1u) {
-        let t = slice_hit(r, k);
-        if (t < 0.0) {
+        if (!slice_point_in(rs, k)) {
             continue;
         }
-        let s = pixel_sample(r, t, uv, k);
+        let s = slice_sample(r, rs, uv, k);
         if (skipping && !brick_visible(s.tex)) {
             let exit = brick_exit_slice(r, s.tex);
             if (exit > k + 1u) {
@@ -435,6 +471,34 @@ fn cs_main_skip(@builtin(global_invocation_id) gid: vec3<u32>) {
     textureStore(out_tex, vec2<i32>(px), run_post(march(pixel_ray(uv), uv, true), uv));
 }
 
+// The samples `cs_main` takes, with one trilinear fetch of the volume each and nothing
+// else (no hooks, skipping or early termination): the raw sampling rate that plain DVR
+// is measured against (issue 23). Run instead of `cs_main` under the benchmark switch
+// `VWB_RAW_SAMPLES=1` (`Renderer::set_raw_samples`); stores (Σ value, sample count, 0,
+// 1), so a test can check that it takes exactly the march's samples.
+@compute @workgroup_size(8, 8, 1)
+fn cs_main_raw(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let size = vec2<u32>(frame.viewport.xy);
+    let px = gid.xy + dispatch_offset();
+    if (px.x >= size.x || px.y >= size.y) {
+        return;
+    }
+    let uv = (vec2<f32>(px) + 0.5) * frame.viewport.zw;
+    let r = pixel_ray(uv);
+    let range = slice_range(r);
+    let rs = ray_slices(r);
+    var sum = 0.0;
+    var n = 0.0;
+    for (var k = range.x; k < range.y; k = k + 1u) {
+        if (!slice_point_in(rs, k)) {
+            continue;
+        }
+        sum = sum + volume_value(rs.tex0 + f32(k) * rs.dtex);
+        n = n + 1.0;
+    }
+    textureStore(out_tex, vec2<i32>(px), vec4<f32>(sum, n, 0.0, 1.0));
+}
+
 // Slice `slice_info.index` at pixel `px`: composites its sample into `accum` (unless
 // the pixel's ray has terminated early) and returns it. With `always`, the sample is
 // evaluated even where the ray terminated, for the per-slice state updates of the
@@ -453,13 +517,14 @@ fn slice_step(px: vec2<u32>, size: vec2<u32>, always: bool) -> Evaluated {
     ahead = dot(r.dir, frame.slicing.xyz) >= 0.0;
     // half_angle: end
     let early = ahead && frame.counts.z != 0u && acc.a >= frame.settings.x;
-    let t = slice_hit(r, slice_info.index);
+    let rs = ray_slices(r);
+    let hit = slice_point_in(rs, slice_info.index);
     run_setup(r, uv);
     var e: Evaluated;
     e.s = make_sample(r.origin, r.dir, uv, slice_info.index);
     e.c = vec4<f32>(0.0);
-    if (t >= 0.0 && (always || !early)) {
-        e = evaluate(pixel_sample(r, t, uv, slice_info.index));
+    if (hit && (always || !early)) {
+        e = evaluate(slice_sample(r, rs, uv, slice_info.index));
         if (!early) {
             if (ahead) {
                 acc = round_like_target(under(acc, e.c));
@@ -516,15 +581,15 @@ fn state_texel_sample(texel: vec2<u32>, state_size: vec2<u32>) -> Evaluated {
     let uv = (vec2<f32>(texel) + 0.5) / vec2<f32>(state_size);
     let r = state_ray(uv);
     let k = slice_info.index;
-    let t = slice_hit(r, k);
+    let rs = ray_slices(r);
     run_setup(r, uv);
     var e: Evaluated;
-    if (t < 0.0) {
+    if (!slice_point_in(rs, k)) {
         e.s = make_sample(r.origin, r.dir, uv, k);
         e.c = vec4<f32>(0.0);
         return e;
     }
-    return evaluate(pixel_sample(r, t, uv, k));
+    return evaluate(slice_sample(r, rs, uv, k));
 }
 
 //!UPDATES

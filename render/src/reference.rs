@@ -735,7 +735,7 @@ impl Frame {
         )
     }
 
-    /// The sample of slice `k` on the ray through `uv` (`pixel_sample`), before the
+    /// The sample of slice `k` on the ray through `uv` (`slice_sample`), before the
     /// hooks run; `None` where the ray misses the slice inside the box.
     fn make_sample(&self, origin: DVec3, dir: DVec3, uv: DVec2, k: u32) -> Option<CpuSample> {
         let dd = dir.dot(self.normal);

@@ -213,6 +213,7 @@ struct FrameUniform {
     slicing: [f32; 4],
     light: [f32; 4],
     state_rays: [f32; 16],
+    inv_extent: [f32; 4],
 }
 
 const SLICE_INFO_STRIDE: u64 = 256;
@@ -512,6 +513,9 @@ struct CompiledStack {
     raster: [std::sync::OnceLock<wgpu::RenderPipeline>; 8],
     module: wgpu::ShaderModule,
     raster_layout: wgpu::PipelineLayout,
+    compute_layout: wgpu::PipelineLayout,
+    /// `cs_main_raw` ([`Renderer::set_raw_samples`]), built on first use.
+    cs_main_raw: std::sync::OnceLock<wgpu::ComputePipeline>,
     target: TargetFormat,
     cs_main: wgpu::ComputePipeline,
     /// `cs_main` with empty-space skipping.
@@ -553,6 +557,20 @@ impl CompiledStack {
                 et.then(raster_et::slice_depth_state),
                 if over { OVER } else { UNDER },
             )
+        })
+    }
+
+    /// `cs_main_raw`, built on first use.
+    fn raw_pipeline(&self, device: &wgpu::Device) -> &wgpu::ComputePipeline {
+        self.cs_main_raw.get_or_init(|| {
+            device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                label: Some("cs_main_raw"),
+                layout: Some(&self.compute_layout),
+                module: &self.module,
+                entry_point: Some("cs_main_raw"),
+                compilation_options: Default::default(),
+                cache: None,
+            })
         })
     }
 }
@@ -995,6 +1013,9 @@ pub struct Renderer {
     /// Per-slice state: track the tiles that still hold their clear value
     /// ([`Renderer::set_state_tracking`]).
     state_tracking: bool,
+    /// Compute backend: take the march's samples with one fetch each and nothing else
+    /// ([`Renderer::set_raw_samples`]).
+    raw_samples: bool,
 }
 
 fn uniform_entry(
@@ -1213,6 +1234,7 @@ impl Renderer {
             occupied_proxy: false,
             fused_slices: env_on("VWB_FUSED_SLICES"),
             state_tracking: env_on("VWB_STATE_TRACKING"),
+            raw_samples: std::env::var("VWB_RAW_SAMPLES").is_ok_and(|v| v.trim() == "1"),
             volume_bytes,
             gpu_budget: budget,
             volume_format,
@@ -1471,6 +1493,16 @@ impl Renderer {
     /// (docs/perf.md, "Per-slice state in one dispatch"). The image is the same.
     pub fn set_fused_slices(&mut self, on: bool) {
         self.fused_slices = on;
+    }
+
+    /// A benchmark of the sampling itself (issue 23: the share of the raw trilinear
+    /// sampling rate that DVR reaches): the compute backend's single-pass frames run
+    /// `cs_main_raw`, which takes the samples `cs_main` takes with one trilinear fetch
+    /// of the volume each and nothing else, and stores (Σ value, sample count, 0, 1) per
+    /// pixel. Off by default; `VWB_RAW_SAMPLES=1` starts renderers with it on. Stacks
+    /// with per-slice state, split volumes' bricks and atlases render as usual.
+    pub fn set_raw_samples(&mut self, on: bool) {
+        self.raw_samples = on;
     }
 
     /// Per-slice state whose plugin tracks its clear tiles
@@ -2296,6 +2328,8 @@ impl Renderer {
             },
             module,
             raster_layout,
+            compute_layout,
+            cs_main_raw: std::sync::OnceLock::new(),
             post,
             target,
             cs_main,
@@ -2815,6 +2849,10 @@ impl Renderer {
             slicing: [n.x, n.y, n.z, half.is_some() as u32 as f32],
             light: half.map_or([0.0; 4], |h| h.light.extend(h.light_step).to_array()),
             state_rays: half.map_or([0.0; 16], |h| h.state_rays.to_cols_array()),
+            inv_extent: (self.vbox.max - self.vbox.min)
+                .recip()
+                .extend(0.0)
+                .to_array(),
         }
     }
 
@@ -3759,7 +3797,9 @@ impl Renderer {
                     );
                 } else {
                     let mut pass = enc.begin_compute_pass(&Default::default());
-                    pass.set_pipeline(if self.occupancy_bytes.is_some() {
+                    pass.set_pipeline(if self.raw_samples {
+                        p.raw_pipeline(&self.gpu.device)
+                    } else if self.occupancy_bytes.is_some() {
                         &p.cs_main_skip
                     } else {
                         &p.cs_main

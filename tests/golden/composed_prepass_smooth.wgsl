@@ -51,6 +51,8 @@ struct Frame {
     // half-angle slicing: the per-slice state's rays, across the light: origin =
     // state_rays · (ndc, 0, 1), direction = column 2 (the light's)
     state_rays: mat4x4<f32>,
+    // xyz: 1 / (box_max − box_min), world to volume texture coordinates (`tex_of`)
+    inv_extent: vec4<f32>,
 }
 
 // A sweep pass's geometry (render/src/sweep.rs): the axis its planes are normal to,

@@ -192,6 +192,66 @@ fn flat_tf(c: f32, a: f32) -> ParamValue {
     ]))
 }
 
+/// `cs_main_raw`, the raw-sampling benchmark ([`Renderer::set_raw_samples`]), takes
+/// exactly the samples of the compute march. Under an orthographic camera every sample's
+/// step is one slice spacing, so a constant opacity a composites to 1 − (1 − a)^n over a
+/// ray's n samples: n read back from that image must be the raw kernel's count, pixel
+/// for pixel. Its sum is of the values it fetched: n where the volume is 1, less where a
+/// ray passes the one voxel of 0.
+#[test]
+fn raw_samples_take_the_samples_of_the_march() {
+    use vwb_render::{Camera, Projection};
+    let vol = synthetic(
+        [24, 20, 16],
+        |x, y, z| if x + y + z == 0 { 0.0 } else { 1.0 },
+    );
+    let mut r = Renderer::new(gpu(), vol).unwrap();
+    let a = 0.02;
+    r.update_stack(
+        &[tf_constant([1.0, 1.0, 1.0, a])],
+        TargetFormat::Rgba32Float,
+    )
+    .unwrap();
+    let camera = Camera {
+        projection: Projection::Orthographic { height: 1.6 },
+        yaw_deg: 37.0,
+        pitch_deg: 23.0,
+        ..Default::default()
+    };
+    let s = FrameSettings {
+        camera,
+        width: 48,
+        height: 48,
+        slice_spacing: 1.0,
+        backend: Backend::Compute,
+        early_termination: None,
+    };
+    r.render(&s).unwrap();
+    let dvr = r.read_pixels().unwrap().2;
+    r.set_raw_samples(true);
+    r.render(&s).unwrap();
+    let raw = r.read_pixels().unwrap().2;
+    let (mut hit, mut short) = (0, 0.0);
+    for (i, (d, w)) in dvr.iter().zip(&raw).enumerate() {
+        let n = ((1.0 - d[3] as f64).ln() / (1.0 - a as f64).ln()).round();
+        assert_eq!(w[1] as f64, n, "pixel {i}: raw count against the march's");
+        assert!(
+            w[0] <= w[1] + 1e-4 && w[0] >= w[1] - 2.0,
+            "pixel {i}: sum {} of {} samples",
+            w[0],
+            w[1]
+        );
+        hit += (n > 0.0) as u32;
+        short += (w[1] - w[0]) as f64;
+    }
+    assert!(hit > 48 * 48 / 4, "{hit} pixels see the box");
+    assert!(short > 0.01, "no ray fetched the voxel of 0");
+    // and back: the march again
+    r.set_raw_samples(false);
+    r.render(&s).unwrap();
+    assert_eq!(r.read_pixels().unwrap().2, dvr);
+}
+
 #[test]
 fn per_slice_state_matches_its_closed_form_on_both_backends() {
     // homogeneous medium: every sample has colour c and opacity a

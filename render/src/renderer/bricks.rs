@@ -13,7 +13,7 @@
 //! - its slices are planned on the whole volume's box (one global slice lattice, so the
 //!   planes of neighbouring bricks are the same planes and no seam appears), and
 //! - it takes only the samples inside its own box, half-open at faces it shares with
-//!   the next brick (`in_own_box` in `slice.wgsl`; the raster backend draws polygons
+//!   the next brick (`slice_point_in` in `slice.wgsl`; the raster backend draws polygons
 //!   clipped to that box, whose shared edges are bit-identical, so each pixel of a
 //!   slice is covered once).
 //!
