@@ -902,25 +902,34 @@ fn brick_exit_slice(r: Ray, tex: vec3<f32>) -> u32 {
 // Front to back over the slices the ray can meet. With `skipping`, a sample in an
 // empty brick jumps to the last slice that may still lie in that brick: the skipped
 // samples would each have added exactly nothing (and `round_like_target` is
-// idempotent), so the image is the same. `skipping` is a constant at both call sites,
-// so each entry point compiles only its own loop.
+// idempotent), so the image is the same. The brick is looked up once per brick the
+// ray enters, not per sample: after a visible brick the samples up to its exit slice
+// are evaluated without a lookup. Should the exit be off by rounding, the extra sample
+// lies in an empty brick, adds exactly nothing and changes nothing either.
+// `skipping` is a constant at both call sites, so each entry point compiles only its
+// own loop.
 fn march(r: Ray, uv: vec2<f32>, skipping: bool) -> vec4<f32> {
     var acc = vec4<f32>(0.0);
     let early = frame.counts.z != 0u;
     let range = slice_range(r);
     let rs = ray_slices(r);
+    // the first slice whose brick is still to be looked up
+    var lookup = 0u;
     run_setup(r, uv);
     for (var k = range.x; k < range.y; k = k + 1u) {
         if (!slice_point_in(rs, k)) {
             continue;
         }
         let s = slice_sample(r, rs, uv, k);
-        if (skipping && !brick_visible(s.tex)) {
+        if (skipping && k >= lookup) {
             let exit = brick_exit_slice(r, s.tex);
-            if (exit > k + 1u) {
-                k = exit - 1u;
+            if (!brick_visible(s.tex)) {
+                if (exit > k + 1u) {
+                    k = exit - 1u;
+                }
+                continue;
             }
-            continue;
+            lookup = exit + 1u;
         }
         let e = evaluate(s);
         acc = round_like_target(under(acc, e.c));
