@@ -446,7 +446,7 @@ impl Workbench {
             }
         };
         for source in std::iter::once(&mut doc.volume).chain(doc.volumes.values_mut()) {
-            if let VolumeSource::File(p) = source {
+            if let Some(p) = source.file_mut() {
                 absolute(p);
             }
         }

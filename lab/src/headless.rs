@@ -34,18 +34,13 @@ pub fn load_volume_within(src: &VolumeSource, budget: Option<u64>) -> Result<Arc
 /// What a file source looked like on disk: its modification time and length (`None`
 /// for the embedded demo, samples, generated volumes, and a file that cannot be read).
 /// For a header with a separate data file (NIfTI .hdr/.img, MetaImage .mhd/.raw) it is
-/// the header's.
+/// the header's; for a resampled file, the file's ([`VolumeSource::file`]).
 pub type Stamp = Option<(std::time::SystemTime, u64)>;
 
 /// The [`Stamp`] of `source` now.
 pub fn source_stamp(source: &VolumeSource) -> Stamp {
-    match source {
-        VolumeSource::File(p) => {
-            let m = std::fs::metadata(p).ok()?;
-            Some((m.modified().ok()?, m.len()))
-        }
-        _ => None,
-    }
+    let m = std::fs::metadata(source.file()?).ok()?;
+    Some((m.modified().ok()?, m.len()))
 }
 
 /// A named volume loaded by [`inputs_for`], while anything holds it.
@@ -104,7 +99,7 @@ pub fn changed_named_volumes(doc: &Document) -> Vec<(String, Stamp)> {
     };
     doc.volumes
         .iter()
-        .filter(|(_, source)| matches!(source, VolumeSource::File(_)))
+        .filter(|(_, source)| source.file().is_some())
         .filter_map(|(name, source)| {
             let held = loaded
                 .iter()

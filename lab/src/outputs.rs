@@ -10,7 +10,7 @@ use std::path::Path;
 use anyhow::{Result, bail};
 use vwb_render::files::{check_not_input, protect_input};
 use vwb_render::params::ParamValue;
-use vwb_render::preset::{Document, VolumeSource};
+use vwb_render::preset::Document;
 
 /// Registers a volume file and its detached data file as inputs.
 pub fn protect_volume(path: &Path) {
@@ -33,7 +33,7 @@ pub fn protect_document(preset: Option<&Path>, doc: &Document) {
         protect_input("preset", p);
     }
     for source in std::iter::once(&doc.volume).chain(doc.volumes.values()) {
-        if let VolumeSource::File(v) = source {
+        if let Some(v) = source.file() {
             protect_volume(v);
         }
     }

@@ -953,8 +953,9 @@ pub fn main_workgroup(gpu: &crate::gpu::GpuContext, requested: Option<[u32; 2]>)
 /// The shape chosen on CPU devices (lavapipe).
 pub const CPU_WORKGROUP: [u32; 2] = [8, 8];
 
-/// The composed module with `cs_main` and `cs_main_skip` in workgroups of `wg` (the
-/// template declares [`MAIN_WORKGROUP`]); the other entry points keep theirs.
+/// The composed module with `cs_main`, `cs_main_skip` and `cs_main_raw` (every entry
+/// point whose name begins with `cs_main`) in workgroups of `wg` (the template declares
+/// [`MAIN_WORKGROUP`]); the other entry points keep theirs.
 pub fn with_main_workgroup(source: &str, wg: [u32; 2]) -> std::borrow::Cow<'_, str> {
     if wg == MAIN_WORKGROUP {
         return source.into();

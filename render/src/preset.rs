@@ -55,7 +55,16 @@ pub struct Resampled {
 
 impl VolumeSource {
     /// The file it reads, within a resampled source too (relative paths are the
-    /// preset's).
+    /// preset's); `None` for the demo, samples and generated volumes.
+    pub fn file(&self) -> Option<&std::path::Path> {
+        match self {
+            VolumeSource::File(p) => Some(p),
+            VolumeSource::Resampled(r) => r.source.file(),
+            _ => None,
+        }
+    }
+
+    /// [`VolumeSource::file`], to rewrite it.
     pub fn file_mut(&mut self) -> Option<&mut PathBuf> {
         match self {
             VolumeSource::File(p) => Some(p),

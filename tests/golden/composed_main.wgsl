@@ -790,7 +790,8 @@ fn slice_normal() -> vec3<f32> {
 // coordinate are affine in k as well. A ray computes the three once; a sample then
 // costs three multiply–adds each, where it cost a division for t and three for the
 // texture coordinate (on lavapipe those divisions and the uniform loads around them
-// were a fifth of an unshaded frame: docs/perf.md, "Per-sample overhead"). Every path
+// were up to 15 % of an unshaded frame: docs/perf.md, "Per-sample overhead of the
+// compute march"). Every path
 // (the compute march, the per-slice dispatches, the raster backend's exact fragments)
 // takes its points from here, so they agree on them to the bit, and so do the bricks
 // of a split volume, which share the planes (`d_0`, `Δs`, k).
@@ -817,11 +818,12 @@ fn ray_slices(r: Ray) -> RaySlices {
     return rs;
 }
 
-// Whether the ray's point on slice plane k is a sample: in front of the eye (t ≥ 0)
-// and inside this renderer's own box.
+// Whether the ray's point on slice plane k is a sample: in front of the eye (t ≥ 0;
+// not NaN, which a ray parallel to the planes could give) and inside this renderer's
+// own box.
 fn slice_point_in(rs: RaySlices, k: u32) -> bool {
     let t = rs.a + f32(k) * rs.b;
-    return !(t < 0.0) && in_own_box(rs.p0 + f32(k) * rs.dp);
+    return t >= 0.0 && in_own_box(rs.p0 + f32(k) * rs.dp);
 }
 
 // The sample of slice k on the ray (at a point `slice_point_in` accepted).

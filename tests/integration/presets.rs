@@ -397,3 +397,60 @@ fn saves_are_atomic() {
     assert!(leftovers.is_empty());
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// A named volume resampled from a file is watched like the file itself: edited on
+/// disk, it is reported changed ([`vwb_lab::headless::changed_named_volumes`], what the
+/// window checks once a second) and loaded again, resampled again. Outputs may not
+/// overwrite it either.
+#[test]
+fn a_resampled_file_is_watched_and_protected_like_the_file() {
+    use vwb_lab::headless::{changed_named_volumes, inputs_for};
+    use vwb_render::preset::Resampled;
+    let file = tmp("resampled_source.nrrd");
+    let write = |value: u8, secs: u64| {
+        let mut bytes =
+            b"NRRD0004\ntype: uchar\ndimension: 3\nsizes: 4 4 4\nencoding: raw\n\n".to_vec();
+        bytes.extend((0..64u8).map(|i| if i == 0 { 0 } else { value }));
+        std::fs::write(&file, bytes).unwrap();
+        std::fs::File::options()
+            .write(true)
+            .open(&file)
+            .unwrap()
+            .set_modified(std::time::UNIX_EPOCH + std::time::Duration::from_secs(secs))
+            .unwrap();
+    };
+    write(10, 2_000_000);
+    let mut doc = Document::load(&repo().join("presets/demo.ron"), &registry())
+        .unwrap()
+        .document;
+    doc.volumes.insert(
+        "fine".into(),
+        VolumeSource::Resampled(Resampled {
+            source: Box::new(VolumeSource::File(file.clone())),
+            size: [8, 8, 8],
+        }),
+    );
+    let first = inputs_for(&doc).unwrap();
+    let v1 = first.get("fine").unwrap().clone();
+    assert_eq!(v1.dims, [8, 8, 8]);
+    assert!(
+        changed_named_volumes(&doc).is_empty(),
+        "nothing changed yet"
+    );
+    write(200, 2_000_010);
+    let changed = changed_named_volumes(&doc);
+    assert_eq!(changed.len(), 1, "{changed:?}");
+    assert_eq!(changed[0].0, "fine");
+    let again = inputs_for(&doc).unwrap();
+    let v2 = again.get("fine").unwrap();
+    assert!(!std::sync::Arc::ptr_eq(&v1, v2), "loaded again");
+    assert_eq!(v2.dims, [8, 8, 8]);
+    assert_ne!(v1.range, v2.range, "the new file's values");
+    assert!(changed_named_volumes(&doc).is_empty());
+    // an output may not overwrite the file under the resampling
+    vwb_lab::outputs::protect_document(None, &doc);
+    let err = vwb_lab::outputs::check_output(&file)
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("resampled_source.nrrd"), "{err}");
+}
