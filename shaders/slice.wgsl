@@ -386,21 +386,20 @@ fn slice_range(r: Ray) -> vec2<u32> {
 }
 
 // The last slice whose sample may still lie in the brick holding `tex` (rounded down
-// with a margin, so that no slice beyond the brick is ever skipped).
-fn brick_exit_slice(r: Ray, tex: vec3<f32>) -> u32 {
+// with a margin, so that no slice beyond the brick is ever skipped). Solved in texture
+// space, where the ray's samples lie at tex0 + k·dtex (`RaySlices`): the slice k at
+// which the ray leaves the brick's box is the least over the axes of the larger of
+// the two faces' (face − tex0) / dtex; `inv_dtex` is the ray's 1 / dtex (a tiny step
+// in place of a zero one), so a brick costs no division.
+fn brick_exit_slice(rs: RaySlices, inv_dtex: vec3<f32>, tex: vec3<f32>) -> u32 {
+    // the brick as `brick_visible` finds it, so that both name the same brick
     let b = frame.settings.y;
     let brick = floor(tex * frame.volume_dims.xyz / b);
-    let extent = frame.box_max.xyz - frame.box_min.xyz;
-    let lo = frame.box_min.xyz + extent * (brick * b / frame.volume_dims.xyz);
-    let hi = frame.box_min.xyz + extent * min((brick + 1.0) * b / frame.volume_dims.xyz, vec3<f32>(1.0));
-    let tiny = vec3<f32>(1.0e-20);
-    let d = select(r.dir, tiny, abs(r.dir) < tiny);
-    let ta = (lo - r.origin) / d;
-    let tb = (hi - r.origin) / d;
-    let t_out = min(min(max(ta.x, tb.x), max(ta.y, tb.y)), max(ta.z, tb.z));
-    let n = slice_normal();
-    let depth = dot(r.origin - frame.eye.xyz, n) + t_out * dot(r.dir, n);
-    let k = floor((depth - frame.box_max.w) / frame.forward.w - 0.01);
+    let lo = brick * b / frame.volume_dims.xyz;
+    let hi = min((brick + 1.0) * b / frame.volume_dims.xyz, vec3<f32>(1.0));
+    let ka = (lo - rs.tex0) * inv_dtex;
+    let kb = (hi - rs.tex0) * inv_dtex;
+    let k = floor(min(min(max(ka.x, kb.x), max(ka.y, kb.y)), max(ka.z, kb.z)) - 0.01);
     // not finite: no jump
     if (!(k >= 0.0)) {
         return 0u;
@@ -427,6 +426,8 @@ fn march(r: Ray, uv: vec2<f32>, skipping: bool) -> vec4<f32> {
     let rs = ray_slices(r);
     // the first slice whose brick is still to be looked up
     var lookup = 0u;
+    let tiny = vec3<f32>(1.0e-20);
+    let inv_dtex = 1.0 / select(rs.dtex, tiny, abs(rs.dtex) < tiny);
     run_setup(r, uv);
     for (var k = range.x; k < range.y; k = k + 1u) {
         if (!slice_point_in(rs, k)) {
@@ -434,7 +435,7 @@ fn march(r: Ray, uv: vec2<f32>, skipping: bool) -> vec4<f32> {
         }
         let s = slice_sample(r, rs, uv, k);
         if (skipping && k >= lookup) {
-            let exit = brick_exit_slice(r, s.tex);
+            let exit = brick_exit_slice(rs, inv_dtex, s.tex);
             if (!brick_visible(s.tex)) {
                 if (exit > k + 1u) {
                     k = exit - 1u;
