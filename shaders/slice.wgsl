@@ -390,7 +390,8 @@ fn slice_range(r: Ray) -> vec2<u32> {
 // space, where the ray's samples lie at tex0 + k·dtex (`RaySlices`): the slice k at
 // which the ray leaves the brick's box is the least over the axes of the larger of
 // the two faces' (face − tex0) / dtex; `inv_dtex` is the ray's 1 / dtex (a tiny step
-// in place of a zero one), so a brick costs no division.
+// in place of a zero one), so the ray's side of the exit costs no division (the
+// brick's faces still divide by the grid, as the brick's index does).
 fn brick_exit_slice(rs: RaySlices, inv_dtex: vec3<f32>, tex: vec3<f32>) -> u32 {
     // the brick as `brick_visible` finds it, so that both name the same brick
     let b = frame.settings.y;
