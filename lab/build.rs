@@ -2,8 +2,9 @@
 //! experiment's report names the build that measured it (`vwb_lab::measure::build`):
 //! `git rev-parse --short=12 HEAD` in the source tree, empty where the tree is no git
 //! checkout (a source archive) or git is missing; with `+dirty` where the sources the
-//! binary is built from (the crates, the shaders, the lock file; [`SOURCES`]) differ from
-//! that commit. Reruns when HEAD moves or one of those sources changes.
+//! binary is built from (the crates, the shaders, the lock file; the list in
+//! `src/build_sources.rs`) differ from that commit. Reruns when HEAD moves or one of
+//! those sources changes.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -20,19 +21,9 @@ fn git(dir: &Path, args: &[&str]) -> Option<String> {
         .filter(|s| !s.is_empty())
 }
 
-/// What the binaries are built from, relative to the workspace root: a change in any of
-/// them makes a build `+dirty` until it is committed (docs, presets and experiment files
-/// do not change the binary).
-const SOURCES: [&str; 8] = [
-    "app",
-    "lab",
-    "plugins",
-    "render",
-    "shaders",
-    "Cargo.toml",
-    "Cargo.lock",
-    "build.rs",
-];
+#[path = "src/build_sources.rs"]
+mod build_sources;
+use build_sources::BUILD_SOURCES as SOURCES;
 
 fn main() {
     let dir = PathBuf::from(std::env::var("CARGO_MANIFEST_DIR").unwrap_or_else(|_| ".".into()));

@@ -10,6 +10,7 @@
 //! binding, an experiment runner) can use it directly. No module here imports the app.
 
 pub mod animation;
+pub mod build_sources;
 pub mod document;
 pub mod experiment;
 pub mod headless;

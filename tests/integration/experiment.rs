@@ -92,18 +92,8 @@ fn a_small_experiment_runs_and_checks_what_it_measured() {
     if let Some(head) = head {
         // `+dirty` where the built sources differ from HEAD
         let dirty = std::process::Command::new("git")
-            .args([
-                "status",
-                "--porcelain",
-                "--",
-                "app",
-                "lab",
-                "plugins",
-                "render",
-                "shaders",
-                "Cargo.toml",
-                "Cargo.lock",
-            ])
+            .args(["status", "--porcelain", "--"])
+            .args(vwb_lab::build_sources::BUILD_SOURCES)
             .current_dir(repo())
             .output()
             .map(|o| !o.stdout.is_empty())

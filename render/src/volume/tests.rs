@@ -1942,6 +1942,18 @@ fn ascii_bzip2_and_hex_encodings() {
 /// Cropping removes every voxel outside the box (the lowest scalar; a vector's zero),
 /// keeps the value range so that a TF maps both alike, counts the histogram over it,
 /// and refuses a box outside the volume naming the volume.
+/// A vector field of two voxels along x: (3, 4) and (1, 1).
+fn wind_pair() -> Volume {
+    Volume::new(
+        "wind",
+        [2, 1, 1],
+        2,
+        [1.0; 3],
+        VoxelData::F32(vec![3.0, 4.0, 1.0, 1.0]),
+    )
+    .unwrap()
+}
+
 #[test]
 fn cropping_removes_the_voxels_outside_and_keeps_the_range() {
     let data: Vec<i16> = (0..4 * 3 * 2).map(|i| 100 + i as i16).collect();
@@ -1966,14 +1978,7 @@ fn cropping_removes_the_voxels_outside_and_keeps_the_range() {
     );
     assert!(c.notes.iter().any(|n| n.contains("cropped")));
     // a vector field's removed voxels are zero vectors
-    let w = Volume::new(
-        "wind",
-        [2, 1, 1],
-        2,
-        [1.0; 3],
-        VoxelData::F32(vec![3.0, 4.0, 1.0, 1.0]),
-    )
-    .unwrap();
+    let w = wind_pair();
     let wc = w.cropped([[1, 2], [0, 1], [0, 1]]).unwrap();
     assert_eq!(wc.data, VoxelData::F32(vec![0.0, 0.0, 1.0, 1.0]));
     assert_eq!(wc.range, w.range);
@@ -2018,14 +2023,7 @@ fn resampling_takes_the_nearest_voxel_and_keeps_the_box() {
         .resampled([4, 3, 2])
         .unwrap();
     assert_eq!(back.data, v.data);
-    let w = Volume::new(
-        "wind",
-        [2, 1, 1],
-        2,
-        [1.0; 3],
-        VoxelData::F32(vec![3.0, 4.0, 1.0, 1.0]),
-    )
-    .unwrap();
+    let w = wind_pair();
     let wr = w.resampled([4, 1, 1]).unwrap();
     assert_eq!(
         wr.data,
