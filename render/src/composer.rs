@@ -154,6 +154,7 @@ pub enum BindingKind {
     Uniform {
         size: u32,
     },
+    Texture1d,
     Texture2d,
     Texture3d,
     StorageTexture2d(StorageFormat),
@@ -204,6 +205,7 @@ impl Binding {
                     self.group, self.binding, self.local_name
                 );
             }
+            BindingKind::Texture1d => "texture_1d<f32>".to_string(),
             BindingKind::Texture2d => "texture_2d<f32>".to_string(),
             BindingKind::Texture3d => "texture_3d<f32>".to_string(),
             BindingKind::StorageTexture2d(f) => {
@@ -227,15 +229,17 @@ impl Binding {
                 has_dynamic_offset: false,
                 min_binding_size: wgpu::BufferSize::new(*size as u64),
             },
-            BindingKind::Texture2d | BindingKind::Texture3d => wgpu::BindingType::Texture {
-                sample_type: wgpu::TextureSampleType::Float { filterable: true },
-                view_dimension: if self.kind == BindingKind::Texture2d {
-                    wgpu::TextureViewDimension::D2
-                } else {
-                    wgpu::TextureViewDimension::D3
-                },
-                multisampled: false,
-            },
+            BindingKind::Texture1d | BindingKind::Texture2d | BindingKind::Texture3d => {
+                wgpu::BindingType::Texture {
+                    sample_type: wgpu::TextureSampleType::Float { filterable: true },
+                    view_dimension: match self.kind {
+                        BindingKind::Texture1d => wgpu::TextureViewDimension::D1,
+                        BindingKind::Texture2d => wgpu::TextureViewDimension::D2,
+                        _ => wgpu::TextureViewDimension::D3,
+                    },
+                    multisampled: false,
+                }
+            }
             BindingKind::StorageTexture2d(f) | BindingKind::StorageTexture3d(f) => {
                 wgpu::BindingType::StorageTexture {
                     access: wgpu::StorageTextureAccess::WriteOnly,
@@ -685,6 +689,7 @@ fn instance_bindings(
     );
     for (i, r) in plugin.resources().iter().enumerate() {
         let kind = match r.kind {
+            ResourceKind::Texture1d => BindingKind::Texture1d,
             ResourceKind::Texture2d => BindingKind::Texture2d,
             ResourceKind::Texture3d => BindingKind::Texture3d,
         };
@@ -877,7 +882,9 @@ fn check_limits(bindings: &[Binding], limits: &wgpu::Limits) -> Result<(), Compo
                 uniforms += 1;
                 max_uniform = max_uniform.max(size);
             }
-            BindingKind::Texture2d | BindingKind::Texture3d => sampled += 1,
+            BindingKind::Texture1d | BindingKind::Texture2d | BindingKind::Texture3d => {
+                sampled += 1
+            }
             BindingKind::StorageBufferU32 => storage_buf += 1,
             BindingKind::StorageTexture2d(_) | BindingKind::StorageTexture3d(_) => storage_tex += 1,
         }

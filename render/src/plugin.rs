@@ -164,6 +164,8 @@ impl ShaderSource {
 /// Sampled resources a plugin owns (it creates them in [`Plugin::create_resources`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum ResourceKind {
+    /// `texture_1d<f32>`, filterable (a table of one row: [`GpuInit::create_table_1d`])
+    Texture1d,
     /// `texture_2d<f32>`, filterable
     Texture2d,
     /// `texture_3d<f32>`, filterable
@@ -505,6 +507,31 @@ impl GpuInit<'_> {
             mip_level_count: 1,
             sample_count: 1,
             dimension: wgpu::TextureDimension::D2,
+            format: self.lut_format(),
+            usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+            view_formats: &[],
+        });
+        GpuResource {
+            view: texture.create_view(&Default::default()),
+            texture,
+        }
+    }
+
+    /// A one-row lookup table as a 1D texture (`ResourceKind::Texture1d`), in the
+    /// format of [`GpuInit::create_table`]. Sampled with `textureSampleLevel(t, s, x,
+    /// 0.0)`, it gives a 2D table of one row's values (the row's weight is zero there)
+    /// at half the texel reads, which on CPU adapters is half the lookup's cost.
+    pub fn create_table_1d(&self, label: &str, width: u32) -> GpuResource {
+        let texture = self.device.create_texture(&wgpu::TextureDescriptor {
+            label: Some(label),
+            size: wgpu::Extent3d {
+                width,
+                height: 1,
+                depth_or_array_layers: 1,
+            },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D1,
             format: self.lut_format(),
             usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
             view_formats: &[],

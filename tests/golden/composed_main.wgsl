@@ -436,7 +436,7 @@ struct p1_tf1d_Params {
     shade_at: u32,
 }
 @group(1) @binding(2) var<uniform> p1_tf1d_params: p1_tf1d_Params;
-@group(1) @binding(3) var p1_tf1d_lut: texture_2d<f32>;
+@group(1) @binding(3) var p1_tf1d_lut: texture_1d<f32>;
 struct p2_slice_shadow_Params {
     strength: f32,
 }
@@ -449,7 +449,7 @@ struct p3_tf1d_Params {
     shade_at: u32,
 }
 @group(1) @binding(5) var<uniform> p3_tf1d_params: p3_tf1d_Params;
-@group(1) @binding(6) var p3_tf1d_lut: texture_2d<f32>;
+@group(1) @binding(6) var p3_tf1d_lut: texture_1d<f32>;
 
 // test.smooth — demonstrates a pre-pass that fills a 3D texture: the sample hook
 // blends the interpolated value with the box-filtered volume `smoothed`.
@@ -465,9 +465,9 @@ fn p0_smooth_sample(s: Sample) -> Sample {
 
 fn p1_tf1d_classify(s: Sample) -> Sample {
     var o = s;
-    let n = f32(textureDimensions(p1_tf1d_lut).x);
+    let n = f32(textureDimensions(p1_tf1d_lut));
     let x = (clamp(s.value, 0.0, 1.0) * (n - 1.0) + 0.5) / n;
-    let c = textureSampleLevel(p1_tf1d_lut, linear_clamp, vec2<f32>(x, 0.5), 0.0);
+    let c = textureSampleLevel(p1_tf1d_lut, linear_clamp, x, 0.0);
     o.color = vec4<f32>(c.rgb, clamp(c.a * p1_tf1d_params.opacity, 0.0, 1.0));
     return o;
 }
@@ -494,9 +494,9 @@ fn p2_slice_shadow_slice_update(s: Sample, c: vec4<f32>, uv: vec2<f32>) -> vec4<
 
 fn p3_tf1d_classify(s: Sample) -> Sample {
     var o = s;
-    let n = f32(textureDimensions(p3_tf1d_lut).x);
+    let n = f32(textureDimensions(p3_tf1d_lut));
     let x = (clamp(s.value, 0.0, 1.0) * (n - 1.0) + 0.5) / n;
-    let c = textureSampleLevel(p3_tf1d_lut, linear_clamp, vec2<f32>(x, 0.5), 0.0);
+    let c = textureSampleLevel(p3_tf1d_lut, linear_clamp, x, 0.0);
     o.color = vec4<f32>(c.rgb, clamp(c.a * p3_tf1d_params.opacity, 0.0, 1.0));
     return o;
 }

@@ -60,9 +60,12 @@ fn clamped(v: vec3<i32>) -> vec3<u32> {
 enum Lut {
     /// α = 0.02·v, colour v: no table.
     None,
-    /// A 256×1 rgba32float texture through the linear sampler (what classify.tf1d
-    /// does).
+    /// A 256×1 rgba32float 2D texture through the linear sampler (what classify.tf1d
+    /// did before session 56).
     Texture,
+    /// The same 256 entries as a 1D texture through the linear sampler (what
+    /// classify.tf1d does).
+    Texture1d,
     /// The same 256 entries in a storage buffer, two loads interpolated in the shader.
     Storage,
     /// The same 256 entries in a uniform buffer, two loads interpolated in the shader.
@@ -73,7 +76,8 @@ impl Lut {
     fn name(self) -> &'static str {
         match self {
             Lut::None => "none",
-            Lut::Texture => "256×1 texture, sampler",
+            Lut::Texture => "256×1 2D texture, sampler",
+            Lut::Texture1d => "256 1D texture, sampler",
             Lut::Storage => "storage buffer, 2 loads",
             Lut::Uniform => "uniform buffer, 2 loads",
         }
@@ -156,6 +160,9 @@ fn row(i: vec3<i32>, w: f32) -> f32 {{
         Lut::Texture => {
             "let c = textureSampleLevel(lut_tex, lin, vec2<f32>((clamp(v, 0.0, 1.0) * 255.0 + 0.5) / 256.0, 0.5), 0.0);"
         }
+        Lut::Texture1d => {
+            "let c = textureSampleLevel(lut_1d, lin, (clamp(v, 0.0, 1.0) * 255.0 + 0.5) / 256.0, 0.0);"
+        }
         Lut::Storage => {
             "let x = clamp(v, 0.0, 1.0) * 255.0;
         let i = u32(x);
@@ -179,6 +186,7 @@ const STEPS: u32 = {STEPS}u;
 @group(0) @binding(5) var lut_tex: texture_2d<f32>;
 @group(0) @binding(6) var<storage, read> lut_buf: array<vec4<f32>>;
 @group(0) @binding(7) var<uniform> lut_uni: array<vec4<f32>, 256>;
+@group(0) @binding(8) var lut_1d: texture_1d<f32>;
 {fetch}
 @compute @workgroup_size(8, 8)
 fn main(@builtin(global_invocation_id) id: vec3<u32>) {{
@@ -292,27 +300,33 @@ fn fetch_benchmark() {
         mapped_at_creation: false,
     });
     let lut_data = lut_entries();
-    let lut_tex = device
-        .create_texture_with_data(
-            queue,
-            &wgpu::TextureDescriptor {
-                label: Some("fetch lut"),
-                size: wgpu::Extent3d {
-                    width: 256,
-                    height: 1,
-                    depth_or_array_layers: 1,
+    let lut_texture = |dimension| {
+        device
+            .create_texture_with_data(
+                queue,
+                &wgpu::TextureDescriptor {
+                    label: Some("fetch lut"),
+                    size: wgpu::Extent3d {
+                        width: 256,
+                        height: 1,
+                        depth_or_array_layers: 1,
+                    },
+                    mip_level_count: 1,
+                    sample_count: 1,
+                    dimension,
+                    format: wgpu::TextureFormat::Rgba32Float,
+                    usage: wgpu::TextureUsages::TEXTURE_BINDING,
+                    view_formats: &[],
                 },
-                mip_level_count: 1,
-                sample_count: 1,
-                dimension: wgpu::TextureDimension::D2,
-                format: wgpu::TextureFormat::Rgba32Float,
-                usage: wgpu::TextureUsages::TEXTURE_BINDING,
-                view_formats: &[],
-            },
-            wgpu::util::TextureDataOrder::LayerMajor,
-            &bytes_of(&lut_data),
-        )
-        .create_view(&Default::default());
+                wgpu::util::TextureDataOrder::LayerMajor,
+                &bytes_of(&lut_data),
+            )
+            .create_view(&Default::default())
+    };
+    let (lut_tex, lut_1d) = (
+        lut_texture(wgpu::TextureDimension::D2),
+        lut_texture(wgpu::TextureDimension::D1),
+    );
     let lut_buffer = |usage| {
         device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("fetch lut buffer"),
@@ -333,7 +347,7 @@ fn fetch_benchmark() {
     let groups: Vec<Vec<Variant>> = vec![
         Fetch::ALL.map(|f| plain(f, false)).to_vec(),
         Fetch::ALL.map(|f| plain(f, true)).to_vec(),
-        [Lut::Texture, Lut::Storage, Lut::Uniform]
+        [Lut::Texture, Lut::Texture1d, Lut::Storage, Lut::Uniform]
             .map(|lut| Variant {
                 fetch: Fetch::Sampler,
                 gradient: false,
@@ -361,7 +375,8 @@ fn fetch_benchmark() {
             // Auto layouts keep only the bindings the shader uses.
             let entry = |binding, resource| wgpu::BindGroupEntry { binding, resource };
             let mut entries = vec![entry(3, out.as_entire_binding())];
-            let sampled = v.fetch == Fetch::Sampler || v.lut == Lut::Texture;
+            let sampled =
+                v.fetch == Fetch::Sampler || matches!(v.lut, Lut::Texture | Lut::Texture1d);
             if sampled {
                 entries.push(entry(1, wgpu::BindingResource::Sampler(&sampler)));
             }
@@ -376,6 +391,9 @@ fn fetch_benchmark() {
                 Lut::None => {}
                 Lut::Texture => {
                     entries.push(entry(5, wgpu::BindingResource::TextureView(&lut_tex)))
+                }
+                Lut::Texture1d => {
+                    entries.push(entry(8, wgpu::BindingResource::TextureView(&lut_1d)))
                 }
                 Lut::Storage => entries.push(entry(6, lut_storage.as_entire_binding())),
                 Lut::Uniform => entries.push(entry(7, lut_uniform.as_entire_binding())),

@@ -148,7 +148,11 @@ impl Plugin for Tf1d {
         };
         let mut decls = vec![ResourceDecl {
             name,
-            kind: ResourceKind::Texture2d,
+            kind: if self.mode == Mode::Preintegrated {
+                ResourceKind::Texture2d
+            } else {
+                ResourceKind::Texture1d
+            },
         }];
         if self.mode == Mode::Preintegrated {
             decls.push(ResourceDecl {
@@ -184,7 +188,7 @@ impl Plugin for Tf1d {
     ) -> Result<Vec<GpuResource>, PluginError> {
         let n = LUT_SIZE as u32;
         let res = match self.mode {
-            Mode::Post | Mode::Pre => vec![gpu.create_table("classify.tf1d lut", n, 1)],
+            Mode::Post | Mode::Pre => vec![gpu.create_table_1d("classify.tf1d lut", n)],
             Mode::Preintegrated => vec![
                 gpu.create_table("classify.tf1d pre-integration table", n, n),
                 gpu.create_table("classify.tf1d pre-integration centroids", n, n),

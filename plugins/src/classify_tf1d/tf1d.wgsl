@@ -4,9 +4,9 @@
 
 fn classify(s: Sample) -> Sample {
     var o = s;
-    let n = f32(textureDimensions(lut).x);
+    let n = f32(textureDimensions(lut));
     let x = (clamp(s.value, 0.0, 1.0) * (n - 1.0) + 0.5) / n;
-    let c = textureSampleLevel(lut, linear_clamp, vec2<f32>(x, 0.5), 0.0);
+    let c = textureSampleLevel(lut, linear_clamp, x, 0.0);
     o.color = vec4<f32>(c.rgb, clamp(c.a * params.opacity, 0.0, 1.0));
     return o;
 }

@@ -4,8 +4,8 @@
 
 fn prepass(voxel: vec3<u32>, dims: vec3<u32>) -> vec4<f32> {
     let v = volume_voxel(vec3<i32>(voxel));
-    let n = f32(textureDimensions(lut).x);
+    let n = f32(textureDimensions(lut));
     let x = (clamp(v, 0.0, 1.0) * (n - 1.0) + 0.5) / n;
-    let c = textureSampleLevel(lut, linear_clamp, vec2<f32>(x, 0.5), 0.0);
+    let c = textureSampleLevel(lut, linear_clamp, x, 0.0);
     return vec4<f32>(c.rgb * c.a, c.a);
 }

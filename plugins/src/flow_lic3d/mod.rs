@@ -155,42 +155,35 @@ fn noise_of(dims: [u32; 3], params: &ParamValues) -> GridField {
     noise_volume(dims, noise_kind(params), params.int("seed") as u64)
 }
 
-/// What the LIC integrates, on the LIC grid: the field (none for a scalar volume; on
-/// its own grid, its vectors in voxels of the document's grid), the noise and the
-/// integration parameters. Both twins use it: the precomputed one
-/// integrates at every voxel ([`LicInputs::volume`]), the on-the-fly one at each
-/// sample ([`LicInputs::at`]).
-pub struct LicInputs {
+/// Rounds a grid's values to half floats, as a texture with `storage: f16` stores them.
+fn round_to_half(g: &mut GridField) {
+    for v in &mut g.data {
+        *v = half::f16::from_f32(*v).to_f32();
+    }
+}
+
+/// The flow the LIC follows, as the GPU holds it: the field (none for a scalar volume;
+/// on its own grid, its vectors in voxels of the document's grid), rounded to half
+/// floats under `storage: f16`, and the map onto the LIC grid.
+pub struct LicFlow {
     pub field: Option<GridField>,
     /// The document volume's grid, which the LIC grid refines by `frequency`.
     pub grid: [u32; 3],
-    pub noise: GridField,
     pub frequency: f64,
-    pub params: LicParams,
 }
 
-impl LicInputs {
-    /// The inputs as the GPU holds them, for the document's volume `grid` and the
-    /// vector volume `field` (the same or a named input): with `storage: f16`, the field
-    /// and the noise rounded to half floats, as their textures store them.
+impl LicFlow {
+    /// The flow for the document's volume `grid` and the vector volume `field` (the
+    /// same or a named input).
     pub fn new(grid: &Volume, field: &Volume, frequency: u32, params: &ParamValues) -> Self {
         let mut field = field_on(grid, field);
-        let mut noise = noise_of(lic_dims(grid, frequency), params);
         if half_storage(params) {
-            let round = |g: &mut GridField| {
-                for v in &mut g.data {
-                    *v = half::f16::from_f32(*v).to_f32();
-                }
-            };
-            field.iter_mut().for_each(round);
-            round(&mut noise);
+            field.iter_mut().for_each(round_to_half);
         }
         Self {
             field,
             grid: grid.dims,
-            noise,
             frequency: frequency as f64,
-            params: lic_params(params),
         }
     }
 
@@ -206,6 +199,35 @@ impl LicInputs {
             }),
             None => f(&NoFlow),
         }
+    }
+}
+
+/// What the LIC integrates, on the LIC grid: the flow, the noise and the integration
+/// parameters. Both twins use it: the precomputed one integrates at every voxel
+/// ([`LicInputs::volume`]), the on-the-fly one at each sample ([`LicInputs::at`]).
+pub struct LicInputs {
+    pub flow: LicFlow,
+    pub noise: GridField,
+    pub params: LicParams,
+}
+
+impl LicInputs {
+    /// The inputs as the GPU holds them (see [`LicFlow::new`]); with `storage: f16`, the
+    /// noise rounded to half floats as well.
+    pub fn new(grid: &Volume, field: &Volume, frequency: u32, params: &ParamValues) -> Self {
+        let mut noise = noise_of(lic_dims(grid, frequency), params);
+        if half_storage(params) {
+            round_to_half(&mut noise);
+        }
+        Self {
+            flow: LicFlow::new(grid, field, frequency, params),
+            noise,
+            params: lic_params(params),
+        }
+    }
+
+    fn with_field<R>(&self, f: impl FnOnce(&dyn Field) -> R) -> R {
+        self.flow.with_field(f)
     }
 
     /// I at a point of the LIC grid (voxel coordinates), as the on-the-fly hook computes it.
@@ -432,9 +454,9 @@ impl Plugin for Lic3d {
         let field = passes.inputs.resolve(passes.volume, params, "field");
         let along_across = match &field {
             Ok(field) => {
-                let inputs = LicInputs::new(passes.volume, field, self.frequency, params);
-                let (along, across) =
-                    inputs.with_field(|f| along_and_across(&gpu, dims, f));
+                // the flow only: the statistic reads the GPU's LIC, not the noise
+                let flow = LicFlow::new(passes.volume, field, self.frequency, params);
+                let (along, across) = flow.with_field(|f| along_and_across(&gpu, dims, f));
                 along / across
             }
             Err(_) => f64::NAN,
