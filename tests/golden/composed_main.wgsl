@@ -460,7 +460,9 @@ fn p0_smooth_sample(s: Sample) -> Sample {
     return o;
 }
 // classify.tf1d — post-classification: interpolate the scalar, then look up a
-// piecewise-linear RGBA transfer function baked into the 256×1 table `lut`.
+// piecewise-linear RGBA transfer function baked into the 256-entry 1D texture `lut`
+// (a 1D texture, not a 256×1 2D one: the same linear lookup at half the texel reads,
+// which is what it costs on CPU adapters; docs/perf.md).
 // Texel centres sit at (i + 0.5)/N, so x ∈ [0,1] maps to (x·(N−1) + 0.5)/N.
 
 fn p1_tf1d_classify(s: Sample) -> Sample {
@@ -489,7 +491,9 @@ fn p2_slice_shadow_slice_update(s: Sample, c: vec4<f32>, uv: vec2<f32>) -> vec4<
     return vec4<f32>(prev + (1.0 - prev) * c.a, 0.0, 0.0, 1.0);
 }
 // classify.tf1d — post-classification: interpolate the scalar, then look up a
-// piecewise-linear RGBA transfer function baked into the 256×1 table `lut`.
+// piecewise-linear RGBA transfer function baked into the 256-entry 1D texture `lut`
+// (a 1D texture, not a 256×1 2D one: the same linear lookup at half the texel reads,
+// which is what it costs on CPU adapters; docs/perf.md).
 // Texel centres sit at (i + 0.5)/N, so x ∈ [0,1] maps to (x·(N−1) + 0.5)/N.
 
 fn p3_tf1d_classify(s: Sample) -> Sample {
@@ -690,9 +694,6 @@ fn in_order(uv: vec2<f32>, behind: bool) -> bool {
 
 fn fragment_proxy(in: VsOut, behind: bool) -> vec4<f32> {
     let uv = in.clip_pos.xy * frame.viewport.zw;
-    if (!in_order(uv, behind)) {
-        discard;
-    }
     run_setup(pixel_ray(uv), uv);
     let s = make_sample(in.world, ray_dir_to(in.world), uv, in.slice);
     return evaluate(s).c;

@@ -1,5 +1,7 @@
 // classify.tf1d — post-classification: interpolate the scalar, then look up a
-// piecewise-linear RGBA transfer function baked into the 256×1 table `lut`.
+// piecewise-linear RGBA transfer function baked into the 256-entry 1D texture `lut`
+// (a 1D texture, not a 256×1 2D one: the same linear lookup at half the texel reads,
+// which is what it costs on CPU adapters; docs/perf.md).
 // Texel centres sit at (i + 0.5)/N, so x ∈ [0,1] maps to (x·(N−1) + 0.5)/N.
 
 fn classify(s: Sample) -> Sample {
