@@ -497,6 +497,25 @@ impl GpuInit<'_> {
     /// A `width` × `height` lookup-table texture in [`GpuInit::lut_format`], sampled by
     /// hooks with `linear_clamp`; fill it with [`GpuInit::write_table`].
     pub fn create_table(&self, label: &str, width: u32, height: u32) -> GpuResource {
+        self.table(label, width, height, wgpu::TextureDimension::D2)
+    }
+
+    /// A one-row lookup table as a 1D texture (`ResourceKind::Texture1d`), in the
+    /// format of [`GpuInit::create_table`]. `textureSampleLevel(t, s, x, 0.0)` gives
+    /// what a 256 × 1 2D table gives (its second row has weight zero) at half the texel
+    /// reads; on lavapipe the lookup takes about three quarters of the 2D one's time
+    /// (docs/perf.md, "Sample fetch").
+    pub fn create_table_1d(&self, label: &str, width: u32) -> GpuResource {
+        self.table(label, width, 1, wgpu::TextureDimension::D1)
+    }
+
+    fn table(
+        &self,
+        label: &str,
+        width: u32,
+        height: u32,
+        dimension: wgpu::TextureDimension,
+    ) -> GpuResource {
         let texture = self.device.create_texture(&wgpu::TextureDescriptor {
             label: Some(label),
             size: wgpu::Extent3d {
@@ -506,32 +525,7 @@ impl GpuInit<'_> {
             },
             mip_level_count: 1,
             sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
-            format: self.lut_format(),
-            usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
-            view_formats: &[],
-        });
-        GpuResource {
-            view: texture.create_view(&Default::default()),
-            texture,
-        }
-    }
-
-    /// A one-row lookup table as a 1D texture (`ResourceKind::Texture1d`), in the
-    /// format of [`GpuInit::create_table`]. Sampled with `textureSampleLevel(t, s, x,
-    /// 0.0)`, it gives a 2D table of one row's values (the row's weight is zero there)
-    /// at half the texel reads, which on CPU adapters is half the lookup's cost.
-    pub fn create_table_1d(&self, label: &str, width: u32) -> GpuResource {
-        let texture = self.device.create_texture(&wgpu::TextureDescriptor {
-            label: Some(label),
-            size: wgpu::Extent3d {
-                width,
-                height: 1,
-                depth_or_array_layers: 1,
-            },
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D1,
+            dimension,
             format: self.lut_format(),
             usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
             view_formats: &[],
