@@ -694,6 +694,9 @@ fn in_order(uv: vec2<f32>, behind: bool) -> bool {
 
 fn fragment_proxy(in: VsOut, behind: bool) -> vec4<f32> {
     let uv = in.clip_pos.xy * frame.viewport.zw;
+    if (!in_order(uv, behind)) {
+        discard;
+    }
     run_setup(pixel_ray(uv), uv);
     let s = make_sample(in.world, ray_dir_to(in.world), uv, in.slice);
     return evaluate(s).c;
