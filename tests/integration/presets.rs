@@ -21,10 +21,23 @@ pub fn shipped_presets() -> Vec<std::path::PathBuf> {
     v
 }
 
+/// The benchmarks' own scenes (bench/presets): not shipped, but what the commands in
+/// docs/perf.md run, so they are held to the shipped presets' checks.
+fn bench_presets() -> Vec<std::path::PathBuf> {
+    let mut v: Vec<_> = std::fs::read_dir(repo().join("bench/presets"))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "ron"))
+        .collect();
+    v.sort();
+    assert!(!v.is_empty(), "bench/presets holds the benchmarks' scenes");
+    v
+}
+
 #[test]
 fn every_shipped_preset_loads_and_composes() {
     let reg = registry();
-    for path in shipped_presets() {
+    for path in shipped_presets().into_iter().chain(bench_presets()) {
         let loaded = Document::load(&path, &reg).unwrap_or_else(|e| panic!("{e}"));
         assert!(
             loaded.warnings.is_empty(),
