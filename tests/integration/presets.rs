@@ -10,13 +10,19 @@ use vwb_render::{Backend, Renderer};
 
 use crate::common::*;
 
-pub fn shipped_presets() -> Vec<std::path::PathBuf> {
-    let mut v: Vec<_> = std::fs::read_dir(repo().join("presets"))
+/// The `.ron` files of the repository folder `dir`, sorted.
+fn ron_files(dir: &str) -> Vec<std::path::PathBuf> {
+    let mut v: Vec<_> = std::fs::read_dir(repo().join(dir))
         .unwrap()
         .map(|e| e.unwrap().path())
         .filter(|p| p.extension().is_some_and(|e| e == "ron"))
         .collect();
     v.sort();
+    v
+}
+
+pub fn shipped_presets() -> Vec<std::path::PathBuf> {
+    let v = ron_files("presets");
     assert!(v.len() >= 5, "presets/ holds the shipped presets");
     v
 }
@@ -24,12 +30,7 @@ pub fn shipped_presets() -> Vec<std::path::PathBuf> {
 /// The benchmarks' own scenes (bench/presets): not shipped, but what the commands in
 /// docs/perf.md run, so they are held to the shipped presets' checks.
 fn bench_presets() -> Vec<std::path::PathBuf> {
-    let mut v: Vec<_> = std::fs::read_dir(repo().join("bench/presets"))
-        .unwrap()
-        .map(|e| e.unwrap().path())
-        .filter(|p| p.extension().is_some_and(|e| e == "ron"))
-        .collect();
-    v.sort();
+    let v = ron_files("bench/presets");
     assert!(!v.is_empty(), "bench/presets holds the benchmarks' scenes");
     v
 }
