@@ -122,7 +122,7 @@ def main():
         for size in SIZES:
             rs = [res[(name, preset, size, sp)] for sp in spacings]
             px = size * size
-            marg = [(f.get("ms") - c.get("ms")) * 1e6 / (px * (f["slices"] - c["slices"]))
+            marg = [(f["ms"] - c["ms"]) * 1e6 / (px * (f["slices"] - c["slices"]))
                     for f, c in zip(rs, rs[1:])]
             rows3.append(f"| {name} | {size}² | {rs[-1]['ms'] * 1e6 / px:.0f} ({rs[-1]['slices']} slices) | "
                          + " | ".join(f"{m:.2f}" for m in marg) + " |")

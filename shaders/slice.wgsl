@@ -393,9 +393,9 @@ fn slice_range(r: Ray) -> vec2<u32> {
 // in place of a zero one), so the ray's side of the exit costs no division (the
 // brick's faces still divide by the grid, as the brick's index does).
 fn brick_exit_slice(rs: RaySlices, inv_dtex: vec3<f32>, tex: vec3<f32>) -> u32 {
-    // the brick as `brick_visible` finds it, so that both name the same brick
+    // the brick `brick_visible` looks up
     let b = frame.settings.y;
-    let brick = floor(tex * frame.volume_dims.xyz / b);
+    let brick = brick_of(tex);
     let lo = brick * b / frame.volume_dims.xyz;
     let hi = min((brick + 1.0) * b / frame.volume_dims.xyz, vec3<f32>(1.0));
     let ka = (lo - rs.tex0) * inv_dtex;

@@ -168,16 +168,21 @@ fn cut_gradient(g: vec3<f32>) -> vec3<f32> {
     return g;
 }
 
+// The brick of side frame.settings.y voxels holding `tex` (while skipping is on), as
+// grid coordinates: the one index `brick_visible` and the march's brick exit share.
+fn brick_of(tex: vec3<f32>) -> vec3<f32> {
+    return floor(tex * frame.volume_dims.xyz / frame.settings.y);
+}
+
 // False where the brick holding `tex` cannot produce a visible sample (its hooks can
 // be skipped: the contribution would be exactly zero). Always true while skipping is
 // off (frame.settings.y = 0).
 fn brick_visible(tex: vec3<f32>) -> bool {
-    let b = frame.settings.y;
-    if (b <= 0.0) {
+    if (frame.settings.y <= 0.0) {
         return true;
     }
     let dims = vec3<i32>(textureDimensions(occupancy));
-    let brick = vec3<i32>(floor(tex * frame.volume_dims.xyz / b));
+    let brick = vec3<i32>(brick_of(tex));
     return textureLoad(occupancy, clamp(brick, vec3<i32>(0), dims - vec3<i32>(1)), 0).r > 0.5;
 }
 
@@ -887,9 +892,9 @@ fn slice_range(r: Ray) -> vec2<u32> {
 // in place of a zero one), so the ray's side of the exit costs no division (the
 // brick's faces still divide by the grid, as the brick's index does).
 fn brick_exit_slice(rs: RaySlices, inv_dtex: vec3<f32>, tex: vec3<f32>) -> u32 {
-    // the brick as `brick_visible` finds it, so that both name the same brick
+    // the brick `brick_visible` looks up
     let b = frame.settings.y;
-    let brick = floor(tex * frame.volume_dims.xyz / b);
+    let brick = brick_of(tex);
     let lo = brick * b / frame.volume_dims.xyz;
     let hi = min((brick + 1.0) * b / frame.volume_dims.xyz, vec3<f32>(1.0));
     let ka = (lo - rs.tex0) * inv_dtex;

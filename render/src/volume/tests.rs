@@ -1939,9 +1939,6 @@ fn ascii_bzip2_and_hex_encodings() {
     }
 }
 
-/// Cropping removes every voxel outside the box (the lowest scalar; a vector's zero),
-/// keeps the value range so that a TF maps both alike, counts the histogram over it,
-/// and refuses a box outside the volume naming the volume.
 /// A vector field of two voxels along x: (3, 4) and (1, 1).
 fn wind_pair() -> Volume {
     Volume::new(
@@ -1954,6 +1951,9 @@ fn wind_pair() -> Volume {
     .unwrap()
 }
 
+/// Cropping removes every voxel outside the box (the lowest scalar; a vector's zero),
+/// keeps the value range so that a TF maps both alike, counts the histogram over it,
+/// and refuses a box outside the volume naming the volume.
 #[test]
 fn cropping_removes_the_voxels_outside_and_keeps_the_range() {
     let data: Vec<i16> = (0..4 * 3 * 2).map(|i| 100 + i as i16).collect();
