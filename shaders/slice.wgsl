@@ -235,6 +235,74 @@ fn fs_exact(in: VsOut) -> @location(0) vec4<f32> {
     return fragment_exact(in, false);
 }
 
+// Early termination's tiles (raster backend; render/src/renderer/raster_et.rs). After
+// the first run of slices, a slice is drawn as one quad per screen tile of `size`
+// pixels that its polygon's footprint meets, and only where the tile still holds a
+// pixel below the opacity threshold (`tile_live`, written after each mask pass): a
+// tile whose rays have all stopped makes no fragment at all, where the depth mask
+// still rasterised and depth-tested every one. The quad's corners are where the
+// corner pixels' rays meet the slice plane (`ray_slices`, as the compute backend
+// takes its points); the fragment keeps the interpolated position, as on the
+// polygons, and drops what lies outside the visible box that the polygons were cut to.
+struct Tiles {
+    // opacity threshold (used by the tile pass), tile side in pixels, tiles per row and
+    // per column
+    threshold: f32,
+    size: u32,
+    per_row: u32,
+    rows: u32,
+    // the visible box the polygons are cut to (world)
+    vis_min: vec4<f32>,
+    vis_max: vec4<f32>,
+}
+
+@group(3) @binding(3) var<uniform> tiles: Tiles;
+// per tile: 1 where a pixel is still below the threshold
+@group(3) @binding(4) var<storage, read> tile_live: array<u32>;
+// per slice: the tiles its polygon's footprint meets, [lo, hi) packed as
+// (x | y << 16) in x and y
+@group(3) @binding(5) var<storage, read> slice_tiles: array<vec2<u32>>;
+
+// Vertex 6i + v is corner v, (0,0) (1,0) (0,1) (0,1) (1,0) (1,1), of quad i: tile
+// i % (per_row · rows) of slice i / (per_row · rows). (One instance, not one per quad:
+// llvmpipe pays a draw's set-up per instance.)
+@vertex
+fn vs_tile(@builtin(vertex_index) index: u32) -> VsOut {
+    var o: VsOut;
+    let i = index / 6u;
+    let v = index % 6u;
+    let per_slice = tiles.per_row * tiles.rows;
+    let k = i / per_slice;
+    let t = i % per_slice;
+    let tile = vec2<u32>(t % tiles.per_row, t / tiles.per_row);
+    let r = slice_tiles[k];
+    let lo = vec2<u32>(r.x & 0xFFFFu, r.x >> 16u);
+    let hi = vec2<u32>(r.y & 0xFFFFu, r.y >> 16u);
+    o.slice = k;
+    o.world = vec3<f32>(0.0);
+    if (tile_live[t] == 0u || any(tile < lo) || any(tile >= hi)) {
+        // beyond the clip volume's right face: the quad is culled before rasterising
+        o.clip_pos = vec4<f32>(2.0, 0.0, 0.5, 1.0);
+        return o;
+    }
+    let corner = vec2<u32>(u32(v == 1u || v >= 4u), u32(v == 2u || v == 3u || v == 5u));
+    let px = min((tile + corner) * tiles.size, vec2<u32>(frame.viewport.xy));
+    let rs = ray_slices(pixel_ray(vec2<f32>(px) * frame.viewport.zw));
+    let p = rs.p0 + f32(k) * rs.dp;
+    o.clip_pos = frame.view_proj * vec4<f32>(p, 1.0);
+    o.world = p;
+    return o;
+}
+
+@fragment
+fn fs_tile(in: VsOut) -> @location(0) vec4<f32> {
+    let p = in.world;
+    if (any(p < tiles.vis_min.xyz) || any(p > tiles.vis_max.xyz) || !in_own_box(p)) {
+        discard;
+    }
+    return fragment_proxy(in, false);
+}
+
 // half_angle: begin
 @fragment
 fn fs_main_behind(in: VsOut) -> @location(0) vec4<f32> {
