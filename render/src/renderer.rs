@@ -53,10 +53,7 @@ use bricks::{Region, Split, upload_or_split};
 use level::level_for;
 pub use level::{LevelInfo, halve};
 pub use lod::{BRICKS_PER_STEP, LOD_BRICK};
-pub use raster_et::{
-    RASTER_ET_INTERVAL, RASTER_ET_TILE, RASTER_MASK_WGSL, interval as raster_et_interval,
-    tile as raster_et_tile,
-};
+pub use raster_et::{RASTER_ET_INTERVAL, RASTER_MASK_WGSL, interval as raster_et_interval};
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
 pub enum Backend {
@@ -238,8 +235,7 @@ fn blend_target(format: TargetFormat, blend: wgpu::BlendComponent) -> wgpu::Colo
 }
 
 /// The raster slice pipeline with a fragment entry point (`fs_main`: the proxy's
-/// interpolated position; `fs_exact`: the pixel's ray–plane point; `fs_tile`: the
-/// termination tiles' quads, drawn by `vs_tile` without vertex buffers) and a depth test.
+/// interpolated position; `fs_exact`: the pixel's ray–plane point) and a depth test.
 fn raster_pipeline(
     device: &wgpu::Device,
     module: &wgpu::ShaderModule,
@@ -249,31 +245,29 @@ fn raster_pipeline(
     depth_stencil: Option<wgpu::DepthStencilState>,
     blend: wgpu::BlendComponent,
 ) -> wgpu::RenderPipeline {
-    let polygons = [Some(wgpu::VertexBufferLayout {
-        array_stride: 16,
-        step_mode: wgpu::VertexStepMode::Vertex,
-        attributes: &[
-            wgpu::VertexAttribute {
-                format: wgpu::VertexFormat::Float32x3,
-                offset: 0,
-                shader_location: 0,
-            },
-            wgpu::VertexAttribute {
-                format: wgpu::VertexFormat::Uint32,
-                offset: 12,
-                shader_location: 1,
-            },
-        ],
-    })];
-    let tiles = fragment == "fs_tile";
     device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
         label: Some("vwb raster slices"),
         layout: Some(layout),
         vertex: wgpu::VertexState {
             module,
-            entry_point: Some(if tiles { "vs_tile" } else { "vs_main" }),
+            entry_point: Some("vs_main"),
             compilation_options: Default::default(),
-            buffers: if tiles { &[] } else { &polygons },
+            buffers: &[Some(wgpu::VertexBufferLayout {
+                array_stride: 16,
+                step_mode: wgpu::VertexStepMode::Vertex,
+                attributes: &[
+                    wgpu::VertexAttribute {
+                        format: wgpu::VertexFormat::Float32x3,
+                        offset: 0,
+                        shader_location: 0,
+                    },
+                    wgpu::VertexAttribute {
+                        format: wgpu::VertexFormat::Uint32,
+                        offset: 12,
+                        shader_location: 1,
+                    },
+                ],
+            })],
         },
         primitive: wgpu::PrimitiveState {
             topology: wgpu::PrimitiveTopology::TriangleList,
@@ -517,9 +511,6 @@ struct CompiledStack {
     /// plain one built with the stack (so that the device validates it), the others on
     /// first use.
     raster: [std::sync::OnceLock<wgpu::RenderPipeline>; 8],
-    /// The raster pipeline of early termination's tiles (`vs_tile`, `fs_tile`, the
-    /// depth test), built on first use.
-    raster_tiles: std::sync::OnceLock<wgpu::RenderPipeline>,
     module: wgpu::ShaderModule,
     raster_layout: wgpu::PipelineLayout,
     compute_layout: wgpu::PipelineLayout,
@@ -565,37 +556,6 @@ impl CompiledStack {
                 },
                 et.then(raster_et::slice_depth_state),
                 if over { OVER } else { UNDER },
-            )
-        })
-    }
-
-    /// The raster pipeline of early termination's tiles, its group 3 `tile_layout`
-    /// ([`raster_et::RasterEt`]).
-    fn raster_tiles_for(
-        &self,
-        device: &wgpu::Device,
-        g0_layout: &wgpu::BindGroupLayout,
-        tile_layout: &wgpu::BindGroupLayout,
-    ) -> &wgpu::RenderPipeline {
-        self.raster_tiles.get_or_init(|| {
-            let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-                label: Some("vwb raster tiles"),
-                bind_group_layouts: &[
-                    Some(g0_layout),
-                    Some(&self.g1_layout),
-                    Some(&self.g2_layout),
-                    Some(tile_layout),
-                ],
-                immediate_size: 0,
-            });
-            raster_pipeline(
-                device,
-                &self.module,
-                &layout,
-                self.target,
-                "fs_tile",
-                Some(raster_et::slice_depth_state()),
-                UNDER,
             )
         })
     }
@@ -1047,9 +1007,6 @@ pub struct Renderer {
     raster_et: Option<raster_et::RasterEt>,
     /// Raster backend: proxy polygons cut to the occupied cells ([`Renderer::set_occupied_proxy`]).
     occupied_proxy: bool,
-    /// Raster backend with early termination: the runs after the first draw the live
-    /// tiles only ([`Renderer::set_raster_tiles`]).
-    raster_tiles: bool,
     /// Compute backend: the slice and the state updates in one dispatch per slice where
     /// every state has the eye buffer's resolution ([`Renderer::set_fused_slices`]).
     fused_slices: bool,
@@ -1275,7 +1232,6 @@ impl Renderer {
             target: None,
             raster_et: None,
             occupied_proxy: false,
-            raster_tiles: env_on("VWB_RASTER_TILES"),
             fused_slices: env_on("VWB_FUSED_SLICES"),
             state_tracking: env_on("VWB_STATE_TRACKING"),
             raw_samples: std::env::var("VWB_RAW_SAMPLES").is_ok_and(|v| v.trim() == "1"),
@@ -1573,18 +1529,6 @@ impl Renderer {
     /// float rounding of the sample positions; off by default.
     pub fn set_occupied_proxy(&mut self, on: bool) {
         self.occupied_proxy = on;
-    }
-
-    /// Raster backend with early termination: after each mask pass, mark the screen
-    /// tiles ([`raster_et_tile`] pixels a side) that still hold a pixel below the
-    /// threshold, and draw the next run's slices as quads on those tiles only, so that
-    /// tiles whose rays have all stopped cost no fragments (on by default;
-    /// `VWB_RASTER_TILES=0` starts renderers with it off). The image is the polygons'
-    /// up to the rounding of the interpolated sample positions. Applies to view-aligned
-    /// frames in one pass with the full proxy (not per-slice state, half-angle frames or
-    /// [`Renderer::set_occupied_proxy`]).
-    pub fn set_raster_tiles(&mut self, on: bool) {
-        self.raster_tiles = on;
     }
 
     /// Workgroup shape of the whole-frame compute passes
@@ -2382,7 +2326,6 @@ impl Renderer {
                 let _ = locks[0].set(raster);
                 locks
             },
-            raster_tiles: std::sync::OnceLock::new(),
             module,
             raster_layout,
             compute_layout,
@@ -3578,6 +3521,19 @@ impl Renderer {
             },
             _ => &[false],
         };
+        // the raster backend's early-termination mask: its bind group for this eye
+        // buffer; a ray composited "over" cannot terminate early
+        let mask_group = match (s.backend, s.early_termination) {
+            (Backend::Raster, Some(threshold)) if raster_orders == [false] => {
+                let et = self
+                    .raster_et
+                    .get_or_insert_with(|| raster_et::RasterEt::new(&self.gpu.device));
+                let eye = self.target.as_ref().expect("target exists");
+                Some(et.prepare(&self.gpu, eye, threshold))
+            }
+            _ => None,
+        };
+        let et_interval = raster_et::interval();
         // proxy polygons cut to the occupied cells, fragments at their exact points
         let cut_proxy =
             s.backend == Backend::Raster && self.occupied_proxy && self.occupancy_bytes.is_some();
@@ -3586,7 +3542,6 @@ impl Renderer {
         let mut slice_ranges = Vec::new();
         let mut proxy_share = None;
         let mut fused_run = false;
-        let mut tile_plan = None;
         if s.backend == Backend::Raster {
             let own = self.own_box().0;
             // the proxies cover only what can be visible: the occupied cells, or the
@@ -3630,38 +3585,7 @@ impl Renderer {
             {
                 self.gpu.queue.write_buffer(buf, 0, &data);
             }
-            // the runs after the first draw tiles where early termination can use them:
-            // view-aligned slices in one pass, polygons interpolated (not cut to cells)
-            if s.early_termination.is_some()
-                && self.raster_tiles
-                && raster_orders == [false]
-                && frame_plan.half.is_none()
-                && !per_slice
-                && !cut_proxy
-                && let Some(b) = boxes.first()
-            {
-                let tile = raster_et::tile();
-                let eye = self.target.as_ref().expect("target exists");
-                let size = [eye.width, eye.height];
-                let rects =
-                    raster_et::slice_tile_rects(&tris, plan.count, view.view_proj(), size, tile);
-                tile_plan = Some((tile, *b, rects));
-            }
         }
-        // the raster backend's early-termination mask: its bind groups for this eye
-        // buffer; a ray composited "over" cannot terminate early
-        let mask_group = match (s.backend, s.early_termination) {
-            (Backend::Raster, Some(threshold)) if raster_orders == [false] => {
-                let et = self
-                    .raster_et
-                    .get_or_insert_with(|| raster_et::RasterEt::new(&self.gpu.device));
-                let eye = self.target.as_ref().expect("target exists");
-                let tiles = tile_plan.as_ref().map(|(t, b, r)| (*t, b, r.as_slice()));
-                Some(et.prepare(&self.gpu, eye, threshold, tiles))
-            }
-            _ => None,
-        };
-        let et_interval = raster_et::interval();
 
         let start = Instant::now();
         let p = self.pipelines.as_ref().expect("pipeline exists");
@@ -3757,16 +3681,10 @@ impl Renderer {
                     .forget_lifetime()
                 };
                 let mask = |enc: &mut wgpu::CommandEncoder| {
-                    if let Some((frame, et)) = et {
-                        et.encode_mask(enc, frame);
+                    if let Some((group, et)) = et {
+                        et.encode_mask(enc, group);
                     }
                 };
-                // early termination's tiles: (pipeline, group 3, tiles per slice)
-                let tiles = et.and_then(|(frame, et)| {
-                    let (group, grid) = frame.tiles.as_ref()?;
-                    let pipeline = p.raster_tiles_for(device, &self.g0_layout, &et.tile_layout);
-                    Some((pipeline, group, grid[0] * grid[1]))
-                });
                 if per_slice {
                     // clear once, then one pass per slice followed by the updates (and,
                     // with early termination, a mask at the end of every run of slices)
@@ -3813,21 +3731,11 @@ impl Renderer {
                         pass.set_bind_group(1, &g1, &[]);
                         pass.set_bind_group(2, &g2[0], &[]);
                         pass.set_vertex_buffer(0, vbuf.slice(..));
-                        match (a.zip(b), tiles) {
-                            // after a mask: the run's slices as quads on the live tiles
-                            (Some(_), Some((pipeline, group, per_slice))) if r > 0 => {
+                        if let (Some(a), Some(b)) = (a, b) {
+                            for pipeline in &raster {
                                 pass.set_pipeline(pipeline);
-                                pass.set_bind_group(3, group, &[]);
-                                let k1 = k1.min(plan.count);
-                                pass.draw(6 * k0 * per_slice..6 * k1 * per_slice, 0..1);
+                                pass.draw(a..b, 0..1);
                             }
-                            (Some((a, b)), _) => {
-                                for pipeline in &raster {
-                                    pass.set_pipeline(pipeline);
-                                    pass.draw(a..b, 0..1);
-                                }
-                            }
-                            (None, _) => {}
                         }
                         drop(pass);
                         if r + 1 < runs {
