@@ -483,6 +483,144 @@ fn raster_early_termination_stops_rays_at_the_end_of_a_run() {
     }
 }
 
+/// Where raster early termination could cull whole screen tiles (issue 23, item 2;
+/// docs/perf.md, "Early termination and skipping in the raster backend"). Per preset
+/// at 512²: the eye buffer's opacity at the start of every run of
+/// `raster_et_interval()` slices (a compute render of the slices before it, through
+/// clip.shapes' camera slab), and per pixel the slices whose plane its ray meets inside
+/// the box. A fragment is dead where its pixel had reached 0.99 before its run (the
+/// depth mask drops it, at a cost); it could be culled whole where every pixel of its
+/// tile had. Prints the share of pixels that reach 0.99 by the last slice, of
+/// fragments that are dead, and of dead fragments that tiles of 16, 32 and 64 pixels
+/// could cull: the most a tile-culling raster backend can leave out. Run:
+/// `bash bench/ignored_test.sh raster_termination_tile_liveness`.
+#[test]
+#[ignore = "benchmark: bash bench/ignored_test.sh raster_termination_tile_liveness"]
+fn raster_termination_tile_liveness() {
+    use glam::DVec4;
+    let (threshold, size, run) = (0.99, 512u32, vwb_render::renderer::raster_et_interval());
+    let tiles = [16u32, 32, 64];
+    println!(
+        "| preset | slices | pixels reaching {threshold} | dead fragments | of them in stopped tiles: 16 px | 32 px | 64 px |"
+    );
+    println!("|---|---:|---:|---:|---:|---:|---:|");
+    for preset in [
+        "presets/ct_shade_none.ron",
+        "presets/demo.ron",
+        "presets/nuclei_shade_phong.ron",
+    ] {
+        let (doc, volume) = preset_scene(preset);
+        let s = FrameSettings {
+            width: size,
+            height: size,
+            backend: Backend::Compute,
+            early_termination: None,
+            ..doc.frame_settings()
+        };
+        let mut r = Renderer::new(gpu(), volume).unwrap();
+        r.set_inputs(vwb_lab::headless::inputs_for(&doc).unwrap());
+        let vbox = *r.volume_box();
+        let view = s.camera.view(1.0);
+        let plan = vwb_render::slicing::SlicePlan::new(&view, &vbox, s.slice_spacing).unwrap();
+        // per pixel, the slices [lo, hi] whose plane its ray meets inside the box
+        let inv = view.view_proj().as_dmat4().inverse();
+        let eye = view.eye.as_dvec3();
+        let fwd = view.forward.as_dvec3();
+        let (bmin, bmax) = (vbox.min.as_dvec3(), vbox.max.as_dvec3());
+        let spans: Vec<Option<(u32, u32)>> = (0..size * size)
+            .map(|i| {
+                let ndc = [
+                    ((i % size) as f64 + 0.5) / size as f64 * 2.0 - 1.0,
+                    1.0 - ((i / size) as f64 + 0.5) / size as f64 * 2.0,
+                ];
+                let q = inv * DVec4::new(ndc[0], ndc[1], 0.5, 1.0);
+                let q = q.truncate() / q.w;
+                let (o, d) = if view.perspective {
+                    (eye, q - eye)
+                } else {
+                    (q - fwd * (q - eye).dot(fwd), fwd)
+                };
+                // parametrised by eye depth: o + d·t has depth t
+                let d = d / d.dot(fwd);
+                let o = o - d * (o - eye).dot(fwd);
+                let ta = (bmin - o) / d;
+                let tb = (bmax - o) / d;
+                let t_in = ta.min(tb).max_element();
+                let t_out = ta.max(tb).min_element();
+                let (d0, ds) = (plan.d0 as f64, plan.spacing as f64);
+                let lo = ((t_in - d0) / ds).ceil().max(0.0);
+                let hi = ((t_out - d0) / ds).floor().min(plan.count as f64 - 1.0);
+                (t_in <= t_out && lo <= hi).then_some((lo as u32, hi as u32))
+            })
+            .collect();
+        let in_run = |span: Option<(u32, u32)>, k0: u32| {
+            span.map_or(0, |(lo, hi)| {
+                (hi.min(k0 + run - 1) + 1).saturating_sub(lo.max(k0)) as u64
+            })
+        };
+        let mut slab = instance("clip.shapes");
+        slab.params
+            .set("shape0_kind", ParamValue::Enum("off".into()));
+        slab.params.set("follow_camera", ParamValue::Bool(true));
+        slab.params.set("camera_near", ParamValue::Float(0.0));
+        let (mut total, mut dead) = (0u64, 0u64);
+        let mut culled = [0u64; 3];
+        let mut alpha = vec![0.0f32; (size * size) as usize];
+        for k0 in (0..plan.count).step_by(run as usize) {
+            if k0 > 0 {
+                // the eye buffer after the slices before k0
+                let mut stack = vec![slab.clone()];
+                stack[0].params.set(
+                    "camera_thickness",
+                    ParamValue::Float(plan.depth(k0) - 0.5 * plan.spacing),
+                );
+                stack.extend(doc.stack.iter().cloned());
+                r.update_stack(&stack, TargetFormat::Rgba32Float).unwrap();
+                r.render(&s).unwrap();
+                alpha = r.read_pixels().unwrap().2.iter().map(|p| p[3]).collect();
+            }
+            let stopped = |i: u32| alpha[i as usize] >= threshold;
+            for i in 0..size * size {
+                let n = in_run(spans[i as usize], k0);
+                total += n;
+                if stopped(i) {
+                    dead += n;
+                }
+            }
+            for (j, &t) in tiles.iter().enumerate() {
+                let g = size.div_ceil(t);
+                for tile in 0..g * g {
+                    let (x0, y0) = (tile % g * t, tile / g * t);
+                    let pixels = || {
+                        (y0..(y0 + t).min(size))
+                            .flat_map(move |y| (x0..(x0 + t).min(size)).map(move |x| y * size + x))
+                    };
+                    if pixels().all(stopped) {
+                        culled[j] += pixels().map(|i| in_run(spans[i as usize], k0)).sum::<u64>();
+                    }
+                }
+            }
+        }
+        // the whole frame: how many pixels stop by the last slice
+        r.update_stack(&doc.stack, TargetFormat::Rgba32Float)
+            .unwrap();
+        r.render(&s).unwrap();
+        let px = r.read_pixels().unwrap().2;
+        let reaching = px.iter().filter(|p| p[3] >= threshold).count() as f64 / px.len() as f64;
+        let share = |n: u64, of: u64| n as f64 / of.max(1) as f64;
+        println!(
+            "| `{}` | {} | {reaching:.3} | {:.3} | {:.3} | {:.3} | {:.3} |",
+            Path::new(preset).file_stem().unwrap().to_string_lossy(),
+            plan.count,
+            share(dead, total),
+            share(culled[0], dead),
+            share(culled[1], dead),
+            share(culled[2], dead),
+        );
+        assert!(total > 0 && culled[0] >= culled[1] && culled[1] >= culled[2] && dead >= culled[0]);
+    }
+}
+
 /// The occupied proxy (issue 23, item 2): the raster backend's polygons cut to the
 /// cells of bricks that can be visible cover less of the box, on presets with empty
 /// space, clipping, per-slice state and a 2D transfer function, and the image stays the
