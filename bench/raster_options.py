@@ -7,7 +7,10 @@ backend and each image's difference from the plain raster image (8-bit RGB RMS a
 largest channel difference) to the `raster-options` block of docs/perf.md. Variants:
 
 - raster: the shipped default, no early termination; its proxy polygons cover the
-  visible box (the occupied bricks' bounding box) since session 46, the full box before;
+  visible box (the occupied bricks' bounding box) since session 46, the full box before,
+  each drawn under a scissor to its part inside the occupied bricks' hull since session
+  57 (the same image); "no hull" is the visible box alone (`VWB_HULL_PROXY=off`);
+- the polygons cut to that hull (`--hull-cut on`), alone and with early termination;
 - early termination 0.99 with a depth mask every N slices (`VWB_RASTER_ET_INTERVAL`);
 - the occupied proxy: polygons cut to cells of C bricks per axis around the bricks
   that can be visible (`--occupied-proxy on`, `VWB_RASTER_PROXY_CELL`), fragments at
@@ -33,9 +36,12 @@ from doclib import bench_parser, publish, round_order, vwb_env
 
 ET = ["--early-termination", "0.99"]
 PROXY = ["--occupied-proxy", "on"]
+CUT = ["--hull-cut", "on"]
 # (label, backend, extra arguments, extra environment)
 VARIANTS = [
     ("raster", "raster", [], {}),
+    ("raster, no hull", "raster", [], {"VWB_HULL_PROXY": "off"}),
+    ("hull cut", "raster", CUT, {}),
     ("ET 0.99, mask every 8", "raster", ET, {"VWB_RASTER_ET_INTERVAL": "8"}),
     ("ET 0.99, mask every 16", "raster", ET, {"VWB_RASTER_ET_INTERVAL": "16"}),
     ("ET 0.99, mask every 32", "raster", ET, {"VWB_RASTER_ET_INTERVAL": "32"}),
@@ -45,6 +51,9 @@ VARIANTS = [
     ("occupied proxy, one box", "raster", PROXY, {"VWB_RASTER_PROXY_CELL": "1000"}),
     ("occupied proxy (2) + ET 0.99 (32)", "raster", PROXY + ET,
      {"VWB_RASTER_PROXY_CELL": "2", "VWB_RASTER_ET_INTERVAL": "32"}),
+    ("ET 0.99 (32), no hull", "raster", ET,
+     {"VWB_RASTER_ET_INTERVAL": "32", "VWB_HULL_PROXY": "off"}),
+    ("hull cut + ET 0.99 (32)", "raster", CUT + ET, {"VWB_RASTER_ET_INTERVAL": "32"}),
     ("compute", "compute", [], {}),
     ("compute, ET 0.99", "compute", ET, {}),
 ]

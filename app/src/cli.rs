@@ -358,6 +358,12 @@ pub struct FrameArgs {
     /// skipping; the same image up to float rounding; default: the preset's, normally off).
     #[arg(long)]
     pub occupied_proxy: Option<OnOff>,
+    /// Raster backend: proxy polygons cut to the occupied bricks' hull (needs skipping;
+    /// faster where air surrounds the matter; the same image up to float rounding;
+    /// default: the preset's, normally off, when the polygons are drawn under a scissor
+    /// to that hull instead, with the image unchanged).
+    #[arg(long)]
+    pub hull_cut: Option<OnOff>,
     /// How the volume is stored on the GPU: auto (r32float where the adapter filters
     /// it), r32float, r16float or r16unorm (default: the preset's).
     #[arg(long, value_parser = vwb_render::renderer::VolumeFormat::parse)]
@@ -413,6 +419,9 @@ impl FrameArgs {
         }
         if let Some(on) = self.occupied_proxy {
             doc.render.occupied_proxy = on == OnOff::On;
+        }
+        if let Some(on) = self.hull_cut {
+            doc.render.hull_cut = on == OnOff::On;
         }
         if let Some(f) = self.volume_format {
             doc.render.volume_format = f;
@@ -661,6 +670,13 @@ pub fn run_render(preset: Option<&std::path::Path>, a: &RenderArgs) -> Result<()
         match r.empty_brick_share() {
             Some(share) => println!("empty_bricks {:.4}", share),
             None => println!("empty_bricks off"),
+        }
+        // how much of the frame the raster slices draw (the hull's scissor or cut)
+        if let Some(share) = t.scissor_share {
+            println!("scissor_pixels {share:.4}");
+        }
+        if let Some(share) = t.proxy_share {
+            println!("proxy_volume {share:.4}");
         }
     }
     Ok(())

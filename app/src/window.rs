@@ -337,6 +337,7 @@ impl Workbench {
         let mut renderer = Renderer::with_options(&gpu, volume, options)?;
         // progressive light passes refine one step per frame, the window redraws meanwhile
         renderer.set_refinement_budget(Some(1));
+        headless::apply_render_switches(&mut renderer, &doc);
         renderer.set_inputs(headless::inputs_for(&doc)?);
         let error = renderer
             .update_stack(&doc.stack, doc.render.target)
@@ -817,6 +818,7 @@ impl Workbench {
         for (file, source) in self.renderer.shader_overrides() {
             renderer.set_shader_override(file, Some(source.to_string()));
         }
+        headless::apply_render_switches(&mut renderer, doc);
         renderer.set_inputs(headless::inputs_for(doc)?);
         renderer.update_stack(&doc.stack, doc.render.target)?;
         Ok(renderer)
@@ -1647,6 +1649,7 @@ impl Workbench {
             vwb_render::plugin::carry_identities(&self.doc.stack, &mut doc.stack);
             let inputs = headless::inputs_for(&doc)?;
             self.renderer.set_volume_format(doc.render.volume_format)?;
+            headless::apply_render_switches(&mut self.renderer, &doc);
             let last = self.renderer.inputs().clone();
             self.renderer.set_inputs(inputs);
             if let Err(e) = self.renderer.update_stack(&doc.stack, doc.render.target) {

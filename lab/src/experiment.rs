@@ -159,7 +159,7 @@ pub struct Variant {
     /// `render.slices` (the spacing that gives about this many slices in the scene's
     /// frame), `render.backend` (raster, compute), `render.target`,
     /// `render.early_termination`, `render.skipping` (true, false),
-    /// `render.occupied_proxy` (true, false),
+    /// `render.occupied_proxy` (true, false), `render.hull_cut` (true, false),
     /// `render.volume_format` (auto, r32float, r16float, r16unorm), `camera.yaw_deg`,
     /// `camera.pitch_deg`, `camera.distance`, `camera.fov_y_deg` (a perspective
     /// camera's vertical field of view).
@@ -1657,6 +1657,10 @@ pub fn set_value(doc: &mut Document, key: &str, value: &SetValue) -> Result<()> 
         },
         "render.occupied_proxy" => match value {
             SetValue::Bool(on) => doc.render.occupied_proxy = *on,
+            _ => bail!("'{key}' needs true or false"),
+        },
+        "render.hull_cut" => match value {
+            SetValue::Bool(on) => doc.render.hull_cut = *on,
             _ => bail!("'{key}' needs true or false"),
         },
         "render.target" => doc.render.target = parse_target(text()?).map_err(|e| anyhow!(e))?,

@@ -140,6 +140,17 @@ pub fn load_volume_file_within(path: &Path, budget: Option<u64>) -> Result<Volum
     Ok(vwb_render::volume::load_for_budget(path, budget)?)
 }
 
+/// The document's render switches that live on the renderer rather than in each
+/// frame's settings: empty-space skipping, the occupied cells and the hull's fit
+/// (`render.empty_space_skipping`, `render.occupied_proxy`, `render.hull_cut`). Every
+/// renderer made for a document takes them (`vwb render`, galleries, Python, the
+/// window).
+pub fn apply_render_switches(r: &mut Renderer, doc: &Document) {
+    r.set_empty_space_skipping(doc.render.empty_space_skipping);
+    r.set_occupied_proxy(doc.render.occupied_proxy);
+    r.set_hull_proxy(doc.render.hull_proxy());
+}
+
 /// A renderer with a document's plugin stack applied.
 pub fn renderer_for(gpu: &GpuContext, doc: &Document, volume: Arc<Volume>) -> Result<Renderer> {
     let options = vwb_render::renderer::RendererOptions {
@@ -153,8 +164,7 @@ pub fn renderer_for(gpu: &GpuContext, doc: &Document, volume: Arc<Volume>) -> Re
     if let Some(notice) = r.storage_notice() {
         eprintln!("note: {notice}");
     }
-    r.set_empty_space_skipping(doc.render.empty_space_skipping);
-    r.set_occupied_proxy(doc.render.occupied_proxy);
+    apply_render_switches(&mut r, doc);
     r.set_inputs(inputs_for(doc)?);
     r.update_stack(&doc.stack, doc.render.target)?;
     Ok(r)

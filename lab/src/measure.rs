@@ -68,6 +68,10 @@ pub struct Timing {
     /// The adapter is a CPU (lavapipe): its "GPU" runs on the CPU the wall clock
     /// measures, so a true frame is most of its wall time.
     pub cpu_adapter: bool,
+    /// The last frame's raster proxy coverage (`FrameStats::proxy_share`,
+    /// `FrameStats::scissor_share`).
+    pub proxy_share: Option<f64>,
+    pub scissor_share: Option<f64>,
 }
 
 impl Timing {
@@ -110,9 +114,11 @@ pub fn time_frames(
     let (mut wall, mut gpu) = (Vec::new(), Vec::new());
     let mut passes: BTreeMap<String, Vec<f64>> = BTreeMap::new();
     let mut slices = 0;
+    let (mut proxy_share, mut scissor_share) = (None, None);
     for _ in 0..frames.max(1) {
         let st = r.render(s)?;
         slices = st.slices;
+        (proxy_share, scissor_share) = (st.proxy_share, st.scissor_share);
         wall.push(st.wall_ms);
         gpu.extend(st.gpu_ms);
         for (name, ms) in st.gpu_passes {
@@ -130,6 +136,8 @@ pub fn time_frames(
             .into_iter()
             .filter_map(|(n, v)| Some((n, Summary::of(&v)?)))
             .collect(),
+        proxy_share,
+        scissor_share,
     })
 }
 
@@ -1597,6 +1605,8 @@ mod tests {
             wall_ms: Summary::of(&[wall]).unwrap(),
             gpu_ms: Summary::of(&[gpu]),
             passes: Vec::new(),
+            proxy_share: None,
+            scissor_share: None,
         };
         // a GPU frame well below its submit-and-wait is the GPU's
         assert_eq!(timing(0.29, 2.0).frame_ms(), (0.29, "gpu"));

@@ -114,8 +114,7 @@ impl Scene {
         let r = self.renderer.as_mut().expect("just made");
         r.set_volume_format(d.render.volume_format)
             .map_err(|e| err(e.into()))?;
-        r.set_empty_space_skipping(d.render.empty_space_skipping);
-        r.set_occupied_proxy(d.render.occupied_proxy);
+        headless::apply_render_switches(r, d);
         r.update_stack(&d.stack, d.render.target)
             .map_err(|e| err(e.into()))?;
         Ok(r)
@@ -146,7 +145,7 @@ impl Scene {
     }
 
     /// Sets `<plugin id>.<key>` or `render.slice_spacing|backend|target|early_termination|
-    /// skipping|occupied_proxy|volume_format` (checked against the parameter's spec, as in experiment
+    /// skipping|occupied_proxy|hull_cut|volume_format` (checked against the parameter's spec, as in experiment
     /// files).
     fn set(&mut self, key: &str, value: Bound<'_, PyAny>) -> PyResult<()> {
         let v = if let Ok(b) = value.extract::<bool>() {

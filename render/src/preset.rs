@@ -96,10 +96,30 @@ pub struct RenderSection {
     /// Written only when on.
     #[serde(skip_serializing_if = "std::ops::Not::not")]
     pub occupied_proxy: bool,
+    /// Raster backend: proxy polygons cut to the occupied bricks' hull
+    /// ([`crate::renderer::HullProxy::Cut`]): faster where air surrounds the matter,
+    /// the image moved by the rounding of interpolated sample positions. Off, the
+    /// polygons are drawn under a scissor to that hull, which keeps the image bit for
+    /// bit. Written only when on.
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    pub hull_cut: bool,
     /// How the volume is stored on the GPU ([`crate::renderer::VolumeFormat`]);
     /// written only when not `Auto`.
     #[serde(skip_serializing_if = "crate::renderer::VolumeFormat::is_auto")]
     pub volume_format: crate::renderer::VolumeFormat,
+}
+
+impl RenderSection {
+    /// The raster backend's fit to the occupied bricks' hull this section asks for:
+    /// [`crate::renderer::HullProxy::Cut`] with `hull_cut`, else the renderer's default
+    /// (`Scissor`, or what the benchmark switch `VWB_HULL_PROXY` says).
+    pub fn hull_proxy(&self) -> crate::renderer::HullProxy {
+        if self.hull_cut {
+            crate::renderer::HullProxy::Cut
+        } else {
+            crate::renderer::HullProxy::from_env()
+        }
+    }
 }
 
 impl Default for RenderSection {
@@ -113,6 +133,7 @@ impl Default for RenderSection {
             size: [512, 512],
             empty_space_skipping: true,
             occupied_proxy: false,
+            hull_cut: false,
             volume_format: crate::renderer::VolumeFormat::Auto,
         }
     }

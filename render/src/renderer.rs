@@ -180,8 +180,13 @@ pub struct FrameStats {
     /// Raster backend: the share of the renderer's box that its proxy polygons cover
     /// (its visible box's: 1 without empty-space skipping, less where the occupied
     /// bricks' bounds are smaller than the box, and less again with
-    /// [`Renderer::set_occupied_proxy`]); `None` for compute.
+    /// [`Renderer::set_occupied_proxy`], or the hull's [`HullProxy::Cut`]); `None` for
+    /// compute.
     pub proxy_share: Option<f64>,
+    /// Raster backend under the hull's scissor ([`HullProxy::Scissor`]): the share of
+    /// the frame's pixels that the slices' scissors leave, averaged over the slices
+    /// that have polygons; `None` otherwise.
+    pub scissor_share: Option<f64>,
     /// Compute backend with per-slice state: the slice and the state updates ran in one
     /// dispatch per slice ([`Renderer::set_fused_slices`]).
     pub fused_slices: bool,
@@ -217,6 +222,64 @@ struct FrameUniform {
 }
 
 const SLICE_INFO_STRIDE: u64 = 256;
+
+/// How the raster backend fits its proxy polygons to the occupied bricks' hull, a
+/// polytope of 26 faces around the bricks that can be visible
+/// ([`crate::slicing::Dop`], widened by [`HULL_MARGIN`] voxels), beyond the visible
+/// box (their bounding box) that the polygons always stop at. Needs empty-space
+/// skipping; the occupied cells ([`Renderer::set_occupied_proxy`]) take precedence.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum HullProxy {
+    /// The visible box's polygons as they are.
+    Off,
+    /// Each slice's polygon drawn under a scissor to the bounds of its part inside the
+    /// hull: the same fragments are shaded the same way, so the image is the same bit
+    /// for bit; only pixels that no visible sample can reach are left out.
+    #[default]
+    Scissor,
+    /// The polygons cut to the hull: no fragment outside it, but the positions are
+    /// interpolated over other triangles, so the image moves by their rounding
+    /// ([`crate::preset::RenderSection::hull_cut`]).
+    Cut,
+}
+
+impl HullProxy {
+    /// `VWB_HULL_PROXY` (`off`, `scissor`, `cut`; a benchmark switch) or the default.
+    pub fn from_env() -> Self {
+        match std::env::var("VWB_HULL_PROXY").as_deref().map(str::trim) {
+            Ok("off") | Ok("0") => Self::Off,
+            Ok("cut") => Self::Cut,
+            _ => Self::Scissor,
+        }
+    }
+}
+
+/// Margin of the occupied bricks' hull ([`Renderer::set_hull_proxy`]) in voxels: wider
+/// than [`HULL_SLIVER`], so that dropping slivers never uncovers an occupied brick.
+pub const HULL_MARGIN: f32 = 0.5;
+
+/// The hull proxy's polygons lose vertices within this many voxels of the line through
+/// their neighbours ([`crate::slicing::drop_slivers`]).
+pub const HULL_SLIVER: f32 = 0.1;
+
+/// Grid in pixels that the hull's scissor rects are widened to, so that neighbouring
+/// slices share one rect and one draw (each draw costs llvmpipe its set-up: a draw per
+/// slice made a frame that no rect narrows 1.07–1.12× slower).
+pub const HULL_SCISSOR_GRID: u32 = 32;
+
+/// A rect [x, y, w, h] widened to [`HULL_SCISSOR_GRID`] within a `size` frame (an
+/// empty one stays empty).
+fn coarse_rect([x, y, w, h]: [u32; 4], size: [u32; 2]) -> [u32; 4] {
+    if w == 0 || h == 0 {
+        return [0, 0, 0, 0];
+    }
+    let g = HULL_SCISSOR_GRID;
+    let (x0, y0) = (x / g * g, y / g * g);
+    let x1 = (x + w).div_ceil(g).saturating_mul(g).min(size[0]);
+    let y1 = (y + h).div_ceil(g).saturating_mul(g).min(size[1]);
+    [x0, y0, x1 - x0, y1 - y0]
+}
+
 /// A colour target of `format` that blends [`UNDER`].
 fn under_target(format: TargetFormat) -> wgpu::ColorTargetState {
     blend_target(format, UNDER)
@@ -1007,6 +1070,11 @@ pub struct Renderer {
     raster_et: Option<raster_et::RasterEt>,
     /// Raster backend: proxy polygons cut to the occupied cells ([`Renderer::set_occupied_proxy`]).
     occupied_proxy: bool,
+    /// Raster backend: proxy polygons fitted to the occupied bricks' hull
+    /// ([`Renderer::set_hull_proxy`]).
+    hull_proxy: HullProxy,
+    /// The occupied bricks' bounding polytope (world), made with `occupancy_bytes`.
+    occupied_hull: Option<crate::slicing::Dop>,
     /// Compute backend: the slice and the state updates in one dispatch per slice where
     /// every state has the eye buffer's resolution ([`Renderer::set_fused_slices`]).
     fused_slices: bool,
@@ -1232,6 +1300,8 @@ impl Renderer {
             target: None,
             raster_et: None,
             occupied_proxy: false,
+            hull_proxy: HullProxy::from_env(),
+            occupied_hull: None,
             fused_slices: env_on("VWB_FUSED_SLICES"),
             state_tracking: env_on("VWB_STATE_TRACKING"),
             raw_samples: std::env::var("VWB_RAW_SAMPLES").is_ok_and(|v| v.trim() == "1"),
@@ -1435,6 +1505,7 @@ impl Renderer {
         self.lod = None;
         self.occupancy = upload_occupancy(&self.gpu, [1, 1, 1], &[255]);
         self.occupancy_bytes = None;
+        self.occupied_hull = None;
         self.volume = volume;
         self.rebuild_g0();
         Ok(())
@@ -1531,6 +1602,19 @@ impl Renderer {
         self.occupied_proxy = on;
     }
 
+    /// Raster backend with empty-space skipping: how the proxy polygons are fitted to
+    /// the occupied bricks' hull ([`HullProxy`]; `Scissor` by default, which keeps the
+    /// image bit for bit; `VWB_HULL_PROXY=off|scissor|cut` sets the default of new
+    /// renderers for benchmarks).
+    pub fn set_hull_proxy(&mut self, mode: HullProxy) {
+        self.hull_proxy = mode;
+    }
+
+    /// The raster backend's fit to the occupied bricks' hull.
+    pub fn hull_proxy(&self) -> HullProxy {
+        self.hull_proxy
+    }
+
     /// Workgroup shape of the whole-frame compute passes
     /// ([`crate::composer::main_workgroup`]).
     pub fn main_workgroup(&self) -> [u32; 2] {
@@ -1618,6 +1702,13 @@ impl Renderer {
             Some(b) => upload_occupancy(&self.gpu, self.bricks.dims, b),
             None => upload_occupancy(&self.gpu, [1, 1, 1], &[255]),
         };
+        self.occupied_hull = bytes.as_deref().and_then(|occ| {
+            crate::slicing::Dop::of_boxes(
+                crate::skipping::occupied_brick_voxels(occ, self.bricks.dims, self.volume.dims)
+                    .map(|r| bricks::sub_box(&self.vbox, self.volume.dims, r)),
+                HULL_MARGIN * self.vbox.voxel,
+            )
+        });
         self.occupancy_bytes = bytes;
         self.rebuild_g0();
     }
@@ -3540,6 +3631,9 @@ impl Renderer {
 
         // vertices for the raster backend
         let mut slice_ranges = Vec::new();
+        // per slice, the pixels [x, y, w, h] it can cover (empty: none), when known
+        let mut slice_rects: Vec<[u32; 4]> = Vec::new();
+        let mut scissor_share = None;
         let mut proxy_share = None;
         let mut fused_run = false;
         if s.backend == Backend::Raster {
@@ -3553,9 +3647,42 @@ impl Renderer {
                 self.visible_box().into_iter().collect()
             };
             let volume = |b: &VolumeBox| (b.max - b.min).as_dvec3().element_product();
-            proxy_share =
-                Some(boxes.iter().map(volume).sum::<f64>() / volume(&own).max(f64::MIN_POSITIVE));
-            let tris = plan.triangles_in(&boxes);
+            // the visible box's polygons fitted further to the occupied bricks' hull
+            let hull = match (&self.occupied_hull, boxes.first()) {
+                (Some(hull), Some(b)) if !cut_proxy && self.hull_proxy != HullProxy::Off => {
+                    Some((hull, b))
+                }
+                _ => None,
+            };
+            let cut_to_hull = hull.is_some() && self.hull_proxy == HullProxy::Cut;
+            let tris = match hull {
+                Some((hull, b)) if cut_to_hull => {
+                    plan.triangles_in_dop(b, hull, HULL_SLIVER * self.vbox.voxel)
+                }
+                _ => plan.triangles_in(&boxes),
+            };
+            // under the scissor: per slice, the pixels its part inside the hull can cover
+            if let (Some((hull, b)), false) = (hull, cut_to_hull) {
+                let t = self.target.as_ref().expect("target exists");
+                let vp = view.view_proj();
+                let size = [t.width, t.height];
+                slice_rects = (0..plan.count)
+                    .map(|k| {
+                        let poly = hull.clip(plan.polygon(b, k));
+                        coarse_rect(crate::slicing::screen_rect(&poly, vp, size), size)
+                    })
+                    .collect();
+            }
+            let covered = if cut_to_hull {
+                // the polygons' area times the slice spacing
+                let area = |t: &[(glam::Vec3, u32)]| {
+                    0.5 * (t[1].0 - t[0].0).cross(t[2].0 - t[0].0).length() as f64
+                };
+                tris.chunks_exact(3).map(area).sum::<f64>() * plan.spacing as f64
+            } else {
+                boxes.iter().map(volume).sum::<f64>()
+            };
+            proxy_share = Some(covered / volume(&own).max(f64::MIN_POSITIVE));
             let mut data = Vec::with_capacity(tris.len() * 16);
             let mut last = u32::MAX;
             for (i, (p, k)) in tris.iter().enumerate() {
@@ -3568,6 +3695,16 @@ impl Renderer {
                 }
                 data.extend_from_slice(bytemuck::cast_slice(&p.to_array()));
                 data.extend_from_slice(&k.to_le_bytes());
+            }
+            // the share of the frame the scissors leave, over the slices with polygons
+            if !slice_rects.is_empty() {
+                let t = self.target.as_ref().expect("target exists");
+                let frame = t.width as f64 * t.height as f64;
+                let drawn = slice_ranges.iter().map(|&(k, _, _)| {
+                    let [_, _, w, h] = slice_rects[k as usize];
+                    w as f64 * h as f64 / frame
+                });
+                scissor_share = Some(drawn.sum::<f64>() / slice_ranges.len().max(1) as f64);
             }
             let need = (data.len() as u64).max(16);
             if self.vertices.as_ref().is_none_or(|(_, cap)| *cap < need) {
@@ -3646,6 +3783,21 @@ impl Renderer {
         } else {
             Vec::new()
         };
+        // the scissor of slice k: the frame (a brick's footprint), cut to the slice's
+        // rect where known; `None` when the slice can cover no pixel
+        let slice_scissor = |k: u32| -> Option<[u32; 4]> {
+            let frame = scissor.unwrap_or([0, 0, t.width, t.height]);
+            let [x, y, w, h] = match slice_rects.get(k as usize) {
+                Some(&[x, y, w, h]) => {
+                    let (x0, y0) = (x.max(frame[0]), y.max(frame[1]));
+                    let x1 = (x + w).min(frame[0] + frame[2]);
+                    let y1 = (y + h).min(frame[1] + frame[3]);
+                    [x0, y0, x1.saturating_sub(x0), y1.saturating_sub(y0)]
+                }
+                None => frame,
+            };
+            (w > 0 && h > 0).then_some([x, y, w, h])
+        };
         let run_updates = |enc: &mut wgpu::CommandEncoder, k: u32| {
             let groups = [&self.g0, &g1, &g2[(k % 2) as usize], &g3];
             self.encode_state_updates(enc, p, &state_sizes, groups, k);
@@ -3690,11 +3842,11 @@ impl Renderer {
                     // with early termination, a mask at the end of every run of slices)
                     drop(begin(enc, true));
                     for k in 0..plan.count {
-                        if let Some(&(_, a, b)) = slice_ranges.iter().find(|r| r.0 == k) {
+                        if let Some(&(_, a, b)) = slice_ranges.iter().find(|r| r.0 == k)
+                            && let Some([x, y, w, h]) = slice_scissor(k)
+                        {
                             let mut pass = begin(enc, false);
-                            if let Some([x, y, w, h]) = scissor {
-                                pass.set_scissor_rect(x, y, w, h);
-                            }
+                            pass.set_scissor_rect(x, y, w, h);
                             pass.set_bind_group(0, &self.g0, &[0]);
                             pass.set_bind_group(1, &g1, &[]);
                             pass.set_bind_group(2, &g2[(k % 2) as usize], &[]);
@@ -3731,10 +3883,35 @@ impl Renderer {
                         pass.set_bind_group(1, &g1, &[]);
                         pass.set_bind_group(2, &g2[0], &[]);
                         pass.set_vertex_buffer(0, vbuf.slice(..));
-                        if let (Some(a), Some(b)) = (a, b) {
-                            for pipeline in &raster {
-                                pass.set_pipeline(pipeline);
-                                pass.draw(a..b, 0..1);
+                        if slice_rects.is_empty() {
+                            if let (Some(a), Some(b)) = (a, b) {
+                                for pipeline in &raster {
+                                    pass.set_pipeline(pipeline);
+                                    pass.draw(a..b, 0..1);
+                                }
+                            }
+                        } else {
+                            // each slice in the pixels it can cover: one draw per run
+                            // of neighbouring slices under the same scissor (the
+                            // rects are coarse so that neighbours share them; a draw
+                            // costs llvmpipe its set-up)
+                            let mut draws: Vec<([u32; 4], u32, u32)> = Vec::new();
+                            for &(k, a, b) in slice_ranges.iter().filter(|s| s.0 >= k0 && s.0 < k1)
+                            {
+                                let Some(rect) = slice_scissor(k) else {
+                                    continue;
+                                };
+                                match draws.last_mut() {
+                                    Some(d) if d.0 == rect && d.2 == a => d.2 = b,
+                                    _ => draws.push((rect, a, b)),
+                                }
+                            }
+                            for ([x, y, w, h], a, b) in draws {
+                                pass.set_scissor_rect(x, y, w, h);
+                                for pipeline in &raster {
+                                    pass.set_pipeline(pipeline);
+                                    pass.draw(a..b, 0..1);
+                                }
                             }
                         }
                         drop(pass);
@@ -3834,6 +4011,7 @@ impl Renderer {
                 volume_passes_run,
                 spacing_updates,
                 proxy_share,
+                scissor_share,
                 fused_slices: fused_run,
                 ..Default::default()
             },

@@ -199,6 +199,20 @@ pub fn occupied_bounds(occupancy: &[u8], bdims: [u32; 3], dims: [u32; 3]) -> Opt
     }))
 }
 
+/// The voxels ([start, end) per axis) of every occupied brick of a volume of `dims`
+/// voxels (`bdims` bricks, x fastest, a nonzero `occupancy` byte per brick that can be
+/// visible).
+pub fn occupied_brick_voxels(
+    occupancy: &[u8],
+    bdims: [u32; 3],
+    dims: [u32; 3],
+) -> impl Iterator<Item = [[u32; 2]; 3]> + '_ {
+    let b = brick();
+    occupied_bricks(occupancy, bdims).map(move |i| {
+        std::array::from_fn(|a| [(i[a] * b).min(dims[a]), ((i[a] + 1) * b).min(dims[a])])
+    })
+}
+
 /// The occupied parts of a volume of `dims` voxels, as boxes of whole voxels
 /// ([start, end) per axis). The bounding box of the occupied bricks (`bdims` bricks,
 /// x fastest, a nonzero `occupancy` byte per brick that can be visible) is cut into

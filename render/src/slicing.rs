@@ -221,6 +221,22 @@ impl SlicePlan {
         self.triangles_in(std::slice::from_ref(vbox))
     }
 
+    /// [`SlicePlan::triangles`] of the box cut to a polytope (the occupied bricks'
+    /// [`Dop`]): per slice, box ∩ plane ∩ polytope as a fan, its slivers no wider than
+    /// `tol` dropped ([`drop_slivers`]; the polytope's margin must cover them).
+    pub fn triangles_in_dop(&self, vbox: &VolumeBox, dop: &Dop, tol: f32) -> Vec<(Vec3, u32)> {
+        let mut out = Vec::with_capacity(self.count as usize * 24);
+        for k in 0..self.count {
+            let poly = drop_slivers(dop.clip(self.polygon(vbox, k)), tol);
+            for i in 1..poly.len().saturating_sub(1) {
+                out.push((poly[0], k));
+                out.push((poly[i], k));
+                out.push((poly[i + 1], k));
+            }
+        }
+        out
+    }
+
     /// [`SlicePlan::triangles`] over several disjoint boxes: each slice's polygons in
     /// every box (in the order given) before the next slice's.
     pub fn triangles_in(&self, boxes: &[VolumeBox]) -> Vec<(Vec3, u32)> {
@@ -395,6 +411,141 @@ impl HalfAngle {
             state_rays: state_rays.as_mat4(),
         }
     }
+}
+
+/// A discrete oriented polytope with 26 faces: per direction of [`Dop::DIRS`] (the
+/// axes, the face diagonals and the body diagonals, unit length), the least and the
+/// greatest `n · p` over a set of points. It bounds their convex hull from outside, and
+/// hugs rounded shapes far more closely than their bounding box: the raster backend's
+/// proxy polygons cut to the occupied bricks' hull ([`SlicePlan::triangles_in_dop`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Dop {
+    /// Per direction: [least, greatest] of `n · p`.
+    pub range: [[f32; 2]; 13],
+}
+
+impl Dop {
+    pub const DIRS: [Vec3; 13] = {
+        const A: f32 = std::f32::consts::FRAC_1_SQRT_2;
+        const B: f32 = 0.577_350_26;
+        [
+            Vec3::X,
+            Vec3::Y,
+            Vec3::Z,
+            Vec3::new(A, A, 0.0),
+            Vec3::new(A, -A, 0.0),
+            Vec3::new(A, 0.0, A),
+            Vec3::new(A, 0.0, -A),
+            Vec3::new(0.0, A, A),
+            Vec3::new(0.0, A, -A),
+            Vec3::new(B, B, B),
+            Vec3::new(B, B, -B),
+            Vec3::new(B, -B, B),
+            Vec3::new(B, -B, -B),
+        ]
+    };
+
+    /// The polytope of the boxes, widened by `margin` along every direction; `None`
+    /// without boxes.
+    pub fn of_boxes(boxes: impl IntoIterator<Item = VolumeBox>, margin: f32) -> Option<Self> {
+        let mut range = [[f32::INFINITY, f32::NEG_INFINITY]; 13];
+        let mut any = false;
+        for b in boxes {
+            any = true;
+            let (c, h) = ((b.min + b.max) * 0.5, (b.max - b.min) * 0.5);
+            for (r, n) in range.iter_mut().zip(Self::DIRS) {
+                // a box's support along n: its centre's projection ± the half extents'
+                let (mid, reach) = (n.dot(c), n.abs().dot(h));
+                r[0] = r[0].min(mid - reach);
+                r[1] = r[1].max(mid + reach);
+            }
+        }
+        any.then(|| Self {
+            range: range.map(|[lo, hi]| [lo - margin, hi + margin]),
+        })
+    }
+
+    /// A convex polygon (ordered) cut to the polytope by Sutherland–Hodgman against its
+    /// 26 half-spaces, in order; empty when nothing is left.
+    pub fn clip(&self, mut poly: Vec<Vec3>) -> Vec<Vec3> {
+        for (n, [lo, hi]) in Self::DIRS.iter().zip(self.range) {
+            for (sign, bound) in [(1.0, lo), (-1.0, -hi)] {
+                // keep sign · (n · p) ≥ bound
+                let dist = |p: Vec3| sign * n.dot(p) - bound;
+                if poly.iter().all(|&p| dist(p) >= 0.0) {
+                    continue;
+                }
+                let mut out = Vec::with_capacity(poly.len() + 1);
+                for (i, &a) in poly.iter().enumerate() {
+                    let b = poly[(i + 1) % poly.len()];
+                    let (da, db) = (dist(a), dist(b));
+                    if da >= 0.0 {
+                        out.push(a);
+                    }
+                    if (da >= 0.0) != (db >= 0.0) {
+                        out.push(a.lerp(b, da / (da - db)));
+                    }
+                }
+                poly = out;
+                if poly.len() < 3 {
+                    return Vec::new();
+                }
+            }
+        }
+        poly
+    }
+}
+
+/// The pixels [x, y, width, height] of a `size` frame that a polygon can cover: its
+/// projected vertices' bounds with a pixel of margin, clamped to the frame (width or
+/// height 0 when it covers none, or is empty); the whole frame when a vertex lies
+/// behind the eye or projects to no finite point.
+pub fn screen_rect(poly: &[Vec3], view_proj: glam::Mat4, size: [u32; 2]) -> [u32; 4] {
+    let (w, h) = (size[0] as f32, size[1] as f32);
+    let (mut lo, mut hi) = (glam::Vec2::INFINITY, glam::Vec2::NEG_INFINITY);
+    for p in poly {
+        let c = view_proj * p.extend(1.0);
+        let px = glam::Vec2::new((c.x / c.w + 1.0) * 0.5 * w, (1.0 - c.y / c.w) * 0.5 * h);
+        // behind the eye, or not finite: every pixel
+        if c.w <= 0.0 || !px.is_finite() {
+            return [0, 0, size[0], size[1]];
+        }
+        lo = lo.min(px);
+        hi = hi.max(px);
+    }
+    if !(lo.x <= hi.x && lo.y <= hi.y) {
+        return [0, 0, 0, 0];
+    }
+    let x0 = (lo.x - 1.0).floor().clamp(0.0, w) as u32;
+    let y0 = (lo.y - 1.0).floor().clamp(0.0, h) as u32;
+    let x1 = (hi.x + 1.0).ceil().clamp(0.0, w) as u32;
+    let y1 = (hi.y + 1.0).ceil().clamp(0.0, h) as u32;
+    [x0, y0, x1.saturating_sub(x0), y1.saturating_sub(y0)]
+}
+
+/// Drops the vertices of a convex polygon that lie within `tol` of the line through
+/// their neighbours (and so repeated ones), until none does: the polygon loses slivers
+/// no wider than `tol`, and a fan over it has no triangle thinner than that (a
+/// rasteriser interpolates across a near-degenerate triangle with large errors).
+pub fn drop_slivers(mut poly: Vec<Vec3>, tol: f32) -> Vec<Vec3> {
+    let mut i = 0;
+    while poly.len() >= 3 && i < poly.len() {
+        let n = poly.len();
+        let (a, v, b) = (poly[(i + n - 1) % n], poly[i], poly[(i + 1) % n]);
+        let ab = b - a;
+        let off = if ab.length_squared() > 0.0 {
+            (v - a).cross(ab).length() / ab.length()
+        } else {
+            (v - a).length()
+        };
+        if off < tol {
+            poly.remove(i);
+            i = i.saturating_sub(1);
+        } else {
+            i += 1;
+        }
+    }
+    if poly.len() < 3 { Vec::new() } else { poly }
 }
 
 /// Intersection of the box with the plane {p : (p − eye)·n = d}, ordered.
@@ -694,5 +845,131 @@ mod tests {
         // a spacing so fine that the count saturates says so, not 18446744073709551615
         let e = SlicePlan::new(&view, &vbox, 1e-30).unwrap_err().to_string();
         assert!(e.contains("more than 10^15 slices"), "{e}");
+    }
+
+    /// The 26-DOP of two boxes on a diagonal bounds both (every corner within each
+    /// direction's range, the margin included) and leaves out the empty corner of their
+    /// bounding box, which the box cannot: a plane through that corner keeps less of its
+    /// polygon, every vertex of the cut inside the polytope; a polygon inside is kept
+    /// as it is.
+    #[test]
+    fn dop_bounds_its_boxes_and_cuts_polygons_to_them() {
+        let b = |min: [f32; 3], max: [f32; 3]| VolumeBox {
+            min: Vec3::from(min),
+            max: Vec3::from(max),
+            voxel: 0.01,
+        };
+        let boxes = [b([0.0; 3], [0.4; 3]), b([0.6; 3], [1.0; 3])];
+        let margin = 0.005;
+        let dop = Dop::of_boxes(boxes, margin).unwrap();
+        assert!(Dop::of_boxes([], margin).is_none());
+        let inside = |p: Vec3, eps: f32| {
+            Dop::DIRS
+                .iter()
+                .zip(dop.range)
+                .all(|(n, [lo, hi])| n.dot(p) >= lo - eps && n.dot(p) <= hi + eps)
+        };
+        for c in boxes.iter().flat_map(|b| b.corners()) {
+            assert!(inside(c, -0.9 * margin), "{c}: within the margin");
+        }
+        // the bounding box's corner (1, 0, 0), nearest the eye below, lies far from both
+        assert!(!inside(Vec3::new(1.0, 0.0, 0.0), 0.0));
+        let whole = b([0.0; 3], [1.0; 3]);
+        let eye = Vec3::new(2.0, -1.0, -1.0);
+        let n = (Vec3::new(1.0, 0.0, 0.0) - eye).normalize();
+        let d = (Vec3::splat(0.5) - eye).dot(n);
+        let poly = plane_box_polygon(&whole, eye, n, d);
+        let cut = dop.clip(poly.clone());
+        assert!(cut.len() >= 3, "the plane meets the boxes' hull");
+        assert!(polygon_area(&cut) < 0.8 * polygon_area(&poly));
+        for p in &cut {
+            assert!(inside(*p, 1e-5), "{p}");
+            assert!(((*p - eye).dot(n) - d).abs() < 1e-5, "{p}: on the plane");
+        }
+        // a polygon inside the polytope is kept as it is
+        let small = plane_box_polygon(
+            &b([0.1; 3], [0.3; 3]),
+            eye,
+            n,
+            (Vec3::splat(0.2) - eye).dot(n),
+        );
+        assert_eq!(dop.clip(small.clone()), small);
+        // a plane through the box's corner nearest the eye, away from both boxes,
+        // keeps nothing
+        let far = plane_box_polygon(
+            &whole,
+            eye,
+            n,
+            (Vec3::new(1.0, 0.0, 0.0) - eye).dot(n) + 0.02,
+        );
+        assert!(!far.is_empty() && dop.clip(far).is_empty());
+    }
+
+    /// `drop_slivers` removes vertices on or within `tol` of their neighbours' line
+    /// (midpoints, repeats) and keeps real corners.
+    #[test]
+    fn drop_slivers_removes_flat_vertices_only() {
+        let v = |x: f32, y: f32| Vec3::new(x, y, 0.0);
+        let square = vec![v(0.0, 0.0), v(1.0, 0.0), v(1.0, 1.0), v(0.0, 1.0)];
+        assert_eq!(drop_slivers(square.clone(), 1e-3), square);
+        let noisy = vec![
+            v(0.0, 0.0),
+            v(0.5, 1e-5),
+            v(1.0, 0.0),
+            v(1.0, 0.0),
+            v(1.0, 1.0),
+            v(0.0, 1.0),
+        ];
+        assert_eq!(drop_slivers(noisy, 1e-3), square);
+        // a corner off the line by more than tol stays
+        let kite = vec![v(0.0, 0.0), v(0.5, -0.01), v(1.0, 0.0), v(0.5, 1.0)];
+        assert_eq!(drop_slivers(kite.clone(), 1e-3), kite);
+        // a polygon thinner than tol vanishes
+        assert!(drop_slivers(vec![v(0.0, 0.0), v(1.0, 1e-5), v(2.0, 0.0)], 1e-3).is_empty());
+    }
+
+    /// `screen_rect` bounds a polygon's projection with a pixel of margin within the
+    /// frame, gives the whole frame for a vertex behind the eye and nothing for an
+    /// empty polygon or one off the frame.
+    #[test]
+    fn screen_rects_bound_the_projection() {
+        let cam = Camera {
+            projection: Projection::Orthographic { height: 2.0 },
+            ..Default::default()
+        };
+        let view = cam.view(1.0);
+        let vp = view.view_proj();
+        let (r, u, c) = (view.right, view.up, view.eye + view.forward);
+        // a square of half the view's height, centred: pixels 25..75 of 100
+        let square = [
+            c - 0.5 * r - 0.5 * u,
+            c + 0.5 * r - 0.5 * u,
+            c + 0.5 * r + 0.5 * u,
+            c - 0.5 * r + 0.5 * u,
+        ];
+        // (bounds within rounding of 25 − 1 and 75 + 1)
+        let near = |v: u32, want: u32| v.abs_diff(want) <= 1;
+        let [x, y, w, h] = screen_rect(&square, vp, [100, 100]);
+        assert!(
+            near(x, 24) && near(y, 24) && near(x + w, 76) && near(y + h, 76),
+            "{x} {y} {w} {h}"
+        );
+        assert!(
+            x <= 24 && y <= 24 && x + w >= 76 && y + h >= 76,
+            "covers the square"
+        );
+        // off to the side: clamped to the frame
+        let shifted = square.map(|p| p + 1.0 * r);
+        let [x, _, w, _] = screen_rect(&shifted, vp, [100, 100]);
+        assert!(near(x, 74) && x + w == 100, "{x} {w}");
+        let gone = square.map(|p| p + 3.0 * r);
+        assert_eq!(screen_rect(&gone, vp, [100, 100])[2], 0);
+        assert_eq!(screen_rect(&[], vp, [100, 100]), [0, 0, 0, 0]);
+        let persp = Camera::default().view(1.0);
+        let behind = [persp.eye - persp.forward, persp.eye + persp.forward];
+        assert_eq!(
+            screen_rect(&behind, persp.view_proj(), [64, 32]),
+            [0, 0, 64, 32]
+        );
     }
 }

@@ -11,7 +11,7 @@ use vwb_render::TargetFormat;
 use vwb_render::params::ParamValue;
 use vwb_render::plugin::CpuContext;
 use vwb_render::preset::Document;
-use vwb_render::renderer::{Backend, FrameSettings};
+use vwb_render::renderer::{Backend, FrameSettings, HullProxy};
 use vwb_render::tf::{TfCurve, TfPoint};
 
 use crate::common::*;
@@ -621,12 +621,14 @@ fn raster_termination_tile_liveness() {
     }
 }
 
-/// The occupied proxy (issue 23, item 2): the raster backend's polygons cut to the
-/// cells of bricks that can be visible cover less of the box, on presets with empty
-/// space, clipping, per-slice state and a 2D transfer function, and the image stays the
-/// full proxy's up to the rounding of the sample positions.
+/// The raster backend's proxies cut to occupied space (issue 23, item 2): beyond the
+/// visible box (the occupied bricks' bounds), the polygons cut to the occupied bricks'
+/// hull (`HullProxy::Cut`, `render.hull_cut`) or to cells of bricks
+/// (`Renderer::set_occupied_proxy`) cover less of the box, on presets with empty
+/// space, clipping, per-slice state and a 2D transfer function, and the image stays
+/// the visible box's up to the rounding of the sample positions.
 #[test]
-fn occupied_proxy_covers_less_and_keeps_the_image() {
+fn proxies_cut_to_occupied_space_cover_less_and_keep_the_image() {
     let registry = registry();
     for preset in [
         "demo.ron",
@@ -646,33 +648,60 @@ fn occupied_proxy_covers_less_and_keeps_the_image() {
         };
         let mut images = Vec::new();
         let mut shares = Vec::new();
-        for on in [false, true] {
+        // the visible box, the hull, the cells
+        for (hull, cells) in [
+            (HullProxy::Off, false),
+            (HullProxy::Cut, false),
+            (HullProxy::Off, true),
+        ] {
             let mut r = Renderer::new(gpu(), volume.clone()).unwrap();
             r.set_inputs(vwb_lab::headless::inputs_for(&doc).unwrap());
-            r.set_occupied_proxy(on);
+            r.set_hull_proxy(hull);
+            r.set_occupied_proxy(cells);
             r.update_stack(&doc.stack, doc.render.target).unwrap();
             shares.push(r.render(&s).unwrap().proxy_share.unwrap());
             images.push(rgb(&r.read_pixels().unwrap().2));
         }
-        let (rms, max) = diff(&images[0], &images[1]);
+        assert!(shares[0] <= 1.0, "{preset}: {shares:?}");
+        assert!(mean_luma(&images[0]) > 0.02, "{preset}: something is drawn");
+        // a document's render.hull_cut reaches the renderers made for it
+        let mut cut = doc.clone();
+        cut.render.hull_cut = true;
+        let r = vwb_lab::headless::renderer_for(gpu(), &cut, volume.clone()).unwrap();
+        assert_eq!(r.hull_proxy(), HullProxy::Cut);
+        // the default, the hull's scissor, leaves out pixels and keeps the image
+        let mut r = Renderer::new(gpu(), volume.clone()).unwrap();
+        r.set_inputs(vwb_lab::headless::inputs_for(&doc).unwrap());
+        assert_eq!(r.hull_proxy(), HullProxy::Scissor);
+        r.update_stack(&doc.stack, doc.render.target).unwrap();
+        let pixels = r.render(&s).unwrap().scissor_share.unwrap();
         eprintln!(
-            "{preset}: proxy covers {:.0} % of the box; RMS {:.3} levels, max {:.1} levels",
-            shares[1] * 100.0,
-            rms / ONE_LEVEL,
-            max / ONE_LEVEL
+            "{preset}: the scissor leaves {:.0} % of the pixels",
+            pixels * 100.0
         );
-        // the polygons cover the visible box (the occupied bricks' bounds) or less
+        assert!(pixels < 0.9, "{preset}: scissor share {pixels}");
         assert!(
-            shares[0] <= 1.0 && shares[1] < shares[0],
-            "{preset}: {shares:?}"
+            rgb(&r.read_pixels().unwrap().2) == images[0],
+            "{preset}: scissor image"
         );
-        assert!(shares[1] < 0.7, "{preset}: {shares:?}");
-        assert!(mean_luma(&images[1]) > 0.02, "{preset}: something is drawn");
-        assert!(rms < 0.5 * ONE_LEVEL, "{preset}: RMS {rms}");
-        assert!(
-            max < adapter_bound(12.0, 32.0) * ONE_LEVEL,
-            "{preset}: max {max}"
-        );
+        for (i, what) in [(1, "hull"), (2, "cells")] {
+            let (rms, max) = diff(&images[0], &images[i]);
+            eprintln!(
+                "{preset}: {what} covers {:.0} % of the box (visible box {:.0} %); RMS {:.3} \
+                 levels, max {:.1} levels",
+                shares[i] * 100.0,
+                shares[0] * 100.0,
+                rms / ONE_LEVEL,
+                max / ONE_LEVEL
+            );
+            assert!(shares[i] < 0.9 * shares[0], "{preset} {what}: {shares:?}");
+            assert!(shares[i] < 0.7, "{preset} {what}: {shares:?}");
+            assert!(rms < 0.5 * ONE_LEVEL, "{preset} {what}: RMS {rms}");
+            assert!(
+                max < adapter_bound(12.0, 32.0) * ONE_LEVEL,
+                "{preset} {what}: max {max}"
+            );
+        }
     }
 }
 
@@ -816,6 +845,10 @@ fn empty_space_skipping_leaves_images_unchanged() {
             r.set_empty_space_skipping(on);
             r
         });
+        // skipping without the hull's scissor (the default's raster image, bit for bit)
+        let mut no_scissor = Renderer::new(gpu(), volume.clone()).unwrap();
+        no_scissor.set_inputs(inputs.clone());
+        no_scissor.set_hull_proxy(HullProxy::Off);
         for (backend, early_termination) in [
             (Backend::Raster, None),
             (Backend::Compute, None),
@@ -834,6 +867,11 @@ fn empty_space_skipping_leaves_images_unchanged() {
             let share = renderers[0].empty_brick_share();
             if backend == Backend::Raster {
                 assert_raster_skipping_keeps_the_image(&images, &name);
+                let plain = render(&mut no_scissor, &doc.stack, doc.render.target, &s);
+                assert!(
+                    images[0] == plain,
+                    "{name}: the hull's scissor changed the raster image"
+                );
             } else {
                 assert_eq!(images[0], images[1], "{name} {}", backend.name());
             }

@@ -305,6 +305,7 @@ pub(super) struct ChildSettings {
     overrides_generation: u64,
     skipping_enabled: bool,
     occupied_proxy: bool,
+    hull_proxy: super::HullProxy,
     fused_slices: bool,
     state_tracking: bool,
     refinement_budget: Option<u32>,
@@ -317,6 +318,7 @@ impl ChildSettings {
             overrides_generation: parent.overrides_generation,
             skipping_enabled: parent.skipping_enabled,
             occupied_proxy: parent.occupied_proxy,
+            hull_proxy: parent.hull_proxy,
             fused_slices: parent.fused_slices,
             state_tracking: parent.state_tracking,
             refinement_budget: parent.refinement_budget,
@@ -328,6 +330,7 @@ impl ChildSettings {
         r.overrides_generation = self.overrides_generation;
         r.skipping_enabled = self.skipping_enabled;
         r.occupied_proxy = self.occupied_proxy;
+        r.hull_proxy = self.hull_proxy;
         r.fused_slices = self.fused_slices;
         r.set_state_tracking(self.state_tracking);
         r.refinement_budget = self.refinement_budget;
