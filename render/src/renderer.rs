@@ -654,35 +654,8 @@ struct CompiledPass {
 /// projected corners with one pixel of margin, the whole frame when a corner lies
 /// behind the eye.
 fn box_footprint(b: &VolumeBox, view: &crate::camera::View, size: [u32; 2]) -> [u32; 4] {
-    let full = [0, 0, size[0], size[1]];
-    let vp = view.view_proj();
-    let (mut lo, mut hi) = (
-        glam::Vec2::splat(f32::INFINITY),
-        glam::Vec2::splat(f32::NEG_INFINITY),
-    );
-    for c in b.corners() {
-        let clip = vp * c.extend(1.0);
-        if clip.w.is_nan() || clip.w <= 1.0e-6 {
-            return full;
-        }
-        let ndc = glam::Vec2::new(clip.x, clip.y) / clip.w;
-        let px = glam::Vec2::new(
-            (ndc.x * 0.5 + 0.5) * size[0] as f32,
-            (0.5 - ndc.y * 0.5) * size[1] as f32,
-        );
-        lo = lo.min(px);
-        hi = hi.max(px);
-    }
-    if !(lo.is_finite() && hi.is_finite()) {
-        return full;
-    }
-    let clamp = |v: f32, n: u32| v.clamp(0.0, n as f32) as u32;
-    [
-        clamp(lo.x.floor() - 1.0, size[0]),
-        clamp(lo.y.floor() - 1.0, size[1]),
-        clamp(hi.x.ceil() + 1.0, size[0]),
-        clamp(hi.y.ceil() + 1.0, size[1]),
-    ]
+    let [x, y, w, h] = crate::slicing::screen_rect(&b.corners(), view.view_proj(), size);
+    [x, y, x + w, y + h]
 }
 
 /// `frame.ray_basis` (shaders/common.wgsl), in f64 and then rounded: columns 0 and 1

@@ -227,12 +227,11 @@ impl SlicePlan {
     pub fn triangles_in_dop(&self, vbox: &VolumeBox, dop: &Dop, tol: f32) -> Vec<(Vec3, u32)> {
         let mut out = Vec::with_capacity(self.count as usize * 24);
         for k in 0..self.count {
-            let poly = drop_slivers(dop.clip(self.polygon(vbox, k)), tol);
-            for i in 1..poly.len().saturating_sub(1) {
-                out.push((poly[0], k));
-                out.push((poly[i], k));
-                out.push((poly[i + 1], k));
-            }
+            push_fan(
+                &mut out,
+                &drop_slivers(dop.clip(self.polygon(vbox, k)), tol),
+                k,
+            );
         }
         out
     }
@@ -243,15 +242,19 @@ impl SlicePlan {
         let mut out = Vec::with_capacity(self.count as usize * 12 * boxes.len());
         for k in 0..self.count {
             for vbox in boxes {
-                let poly = self.polygon(vbox, k);
-                for i in 1..poly.len().saturating_sub(1) {
-                    out.push((poly[0], k));
-                    out.push((poly[i], k));
-                    out.push((poly[i + 1], k));
-                }
+                push_fan(&mut out, &self.polygon(vbox, k), k);
             }
         }
         out
+    }
+}
+
+/// A convex polygon of slice k as a fan of triangles from its first vertex.
+fn push_fan(out: &mut Vec<(Vec3, u32)>, poly: &[Vec3], k: u32) {
+    for i in 1..poly.len().saturating_sub(1) {
+        out.push((poly[0], k));
+        out.push((poly[i], k));
+        out.push((poly[i + 1], k));
     }
 }
 
@@ -496,18 +499,20 @@ impl Dop {
     }
 }
 
-/// The pixels [x, y, width, height] of a `size` frame that a polygon can cover: its
-/// projected vertices' bounds with a pixel of margin, clamped to the frame (width or
-/// height 0 when it covers none, or is empty); the whole frame when a vertex lies
-/// behind the eye or projects to no finite point.
+/// The pixels [x, y, width, height] of a `size` frame that a polygon (or a box's
+/// corners) can cover: its projected vertices' bounds with a pixel of margin, clamped
+/// to the frame (width or height 0 when it covers none, or is empty); the whole frame
+/// when a vertex lies behind the eye (or within 10⁻⁶ of its plane) or projects to no
+/// finite point.
 pub fn screen_rect(poly: &[Vec3], view_proj: glam::Mat4, size: [u32; 2]) -> [u32; 4] {
     let (w, h) = (size[0] as f32, size[1] as f32);
     let (mut lo, mut hi) = (glam::Vec2::INFINITY, glam::Vec2::NEG_INFINITY);
     for p in poly {
         let c = view_proj * p.extend(1.0);
-        let px = glam::Vec2::new((c.x / c.w + 1.0) * 0.5 * w, (1.0 - c.y / c.w) * 0.5 * h);
+        let ndc = glam::Vec2::new(c.x, c.y) / c.w;
+        let px = glam::Vec2::new((ndc.x * 0.5 + 0.5) * w, (0.5 - ndc.y * 0.5) * h);
         // behind the eye, or not finite: every pixel
-        if c.w <= 0.0 || !px.is_finite() {
+        if c.w.is_nan() || c.w <= 1.0e-6 || !px.is_finite() {
             return [0, 0, size[0], size[1]];
         }
         lo = lo.min(px);
@@ -516,10 +521,10 @@ pub fn screen_rect(poly: &[Vec3], view_proj: glam::Mat4, size: [u32; 2]) -> [u32
     if !(lo.x <= hi.x && lo.y <= hi.y) {
         return [0, 0, 0, 0];
     }
-    let x0 = (lo.x - 1.0).floor().clamp(0.0, w) as u32;
-    let y0 = (lo.y - 1.0).floor().clamp(0.0, h) as u32;
-    let x1 = (hi.x + 1.0).ceil().clamp(0.0, w) as u32;
-    let y1 = (hi.y + 1.0).ceil().clamp(0.0, h) as u32;
+    let x0 = (lo.x.floor() - 1.0).clamp(0.0, w) as u32;
+    let y0 = (lo.y.floor() - 1.0).clamp(0.0, h) as u32;
+    let x1 = (hi.x.ceil() + 1.0).clamp(0.0, w) as u32;
+    let y1 = (hi.y.ceil() + 1.0).clamp(0.0, h) as u32;
     [x0, y0, x1.saturating_sub(x0), y1.saturating_sub(y0)]
 }
 
