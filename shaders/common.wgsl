@@ -31,7 +31,8 @@ struct Frame {
     volume_dims: vec4<f32>,
     // data min, data max (raw units), 1/(max-min), 0
     value_range: vec4<f32>,
-    // x: slice count, y: 1 when the eye buffer is fp16, z: 1 when early termination is on
+    // x: slice count, y: 1 when the eye buffer is fp16, z: 1 when early termination is
+    // on, w: 1 when the compute backend's rays with skipping are cut to `hull`
     counts: vec4<u32>,
     // x: early-termination opacity threshold; y: brick size of empty-space skipping
     // (0: off); zw: first pixel of a compute dispatch (a brick's footprint)
@@ -53,6 +54,10 @@ struct Frame {
     state_rays: mat4x4<f32>,
     // xyz: 1 / (box_max − box_min), world to volume texture coordinates (`tex_of`)
     inv_extent: vec4<f32>,
+    // the occupied bricks' hull (render/src/slicing.rs `Dop`) along its ten diagonal
+    // directions (`Dop::DIRS[3..]`; its axis slabs are the own box): hull[m] holds the
+    // least and greatest n·p of direction 2m (xy) and of direction 2m + 1 (zw)
+    hull: array<vec4<f32>, 5>,
 }
 
 // A sweep pass's geometry (render/src/sweep.rs): the axis its planes are normal to,

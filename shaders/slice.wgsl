@@ -353,18 +353,57 @@ fn in_own_box(p: vec3<f32>) -> bool {
     return !(any(p < frame.own_min.xyz) || any(above));
 }
 
+// The ray's parameter interval `t` (x: entry, y: exit) narrowed to the slab
+// lo ≤ n·p ≤ hi; a ray parallel to the slab keeps `t` inside it and empties it outside.
+fn slab(t: vec2<f32>, r: Ray, n: vec3<f32>, lo: f32, hi: f32) -> vec2<f32> {
+    let dn = dot(r.dir, n);
+    let d = select(dn, 1.0e-20, abs(dn) < 1.0e-20);
+    let o = dot(r.origin, n);
+    let ta = (lo - o) / d;
+    let tb = (hi - o) / d;
+    return vec2<f32>(max(t.x, min(ta, tb)), min(t.y, max(ta, tb)));
+}
+
+// `t` narrowed to the occupied bricks' hull: its ten diagonal slabs (`frame.hull`, in
+// the order of `Dop::DIRS[3..]`).
+fn hull_slabs(r: Ray, t0: vec2<f32>) -> vec2<f32> {
+    let a = 0.70710677;
+    let b = 0.57735026;
+    let h = frame.hull;
+    var t = slab(t0, r, vec3<f32>(a, a, 0.0), h[0].x, h[0].y);
+    t = slab(t, r, vec3<f32>(a, -a, 0.0), h[0].z, h[0].w);
+    t = slab(t, r, vec3<f32>(a, 0.0, a), h[1].x, h[1].y);
+    t = slab(t, r, vec3<f32>(a, 0.0, -a), h[1].z, h[1].w);
+    t = slab(t, r, vec3<f32>(0.0, a, a), h[2].x, h[2].y);
+    t = slab(t, r, vec3<f32>(0.0, a, -a), h[2].z, h[2].w);
+    t = slab(t, r, vec3<f32>(b, b, b), h[3].x, h[3].y);
+    t = slab(t, r, vec3<f32>(b, b, -b), h[3].z, h[3].w);
+    t = slab(t, r, vec3<f32>(b, -b, b), h[4].x, h[4].y);
+    return slab(t, r, vec3<f32>(b, -b, -b), h[4].z, h[4].w);
+}
+
 // Slices [first, last) that can meet the box along the ray: the ray's slab interval
 // through the box mapped to slice indices, widened by two slices against rounding.
 // Every slice in the range is still tested exactly by slice_point_in, so the samples are
 // the same as looping over all slices; the range only skips planes the ray cannot hit
-// inside the box (pixels that miss the box loop over none).
-fn slice_range(r: Ray) -> vec2<u32> {
+// inside the box (pixels that miss the box loop over none). With `hull` (a constant at
+// each call site) and `frame.counts.w` set, the interval is also cut to the occupied
+// bricks' hull: every sample it leaves out lies in an empty brick, where skipping would
+// have jumped over it, so the samples evaluated are the same.
+fn slice_range(r: Ray, hull: bool) -> vec2<u32> {
     let tiny = vec3<f32>(1.0e-20);
     let d = select(r.dir, tiny, abs(r.dir) < tiny);
     let ta = (frame.own_min.xyz - r.origin) / d;
     let tb = (frame.own_max.xyz - r.origin) / d;
-    let t_in = max(max(min(ta.x, tb.x), min(ta.y, tb.y)), min(ta.z, tb.z));
-    let t_out = min(min(max(ta.x, tb.x), max(ta.y, tb.y)), max(ta.z, tb.z));
+    var t = vec2<f32>(
+        max(max(min(ta.x, tb.x), min(ta.y, tb.y)), min(ta.z, tb.z)),
+        min(min(max(ta.x, tb.x), max(ta.y, tb.y)), max(ta.z, tb.z)),
+    );
+    if (hull && frame.counts.w != 0u) {
+        t = hull_slabs(r, t);
+    }
+    let t_in = t.x;
+    let t_out = t.y;
     let count = frame.counts.x;
     if (t_out < t_in) {
         return vec2<u32>(0u, 0u);
@@ -423,7 +462,7 @@ fn brick_exit_slice(rs: RaySlices, inv_dtex: vec3<f32>, tex: vec3<f32>) -> u32 {
 fn march(r: Ray, uv: vec2<f32>, skipping: bool) -> vec4<f32> {
     var acc = vec4<f32>(0.0);
     let early = frame.counts.z != 0u;
-    let range = slice_range(r);
+    let range = slice_range(r, skipping);
     let rs = ray_slices(r);
     // the first slice whose brick is still to be looked up
     var lookup = 0u;
@@ -498,7 +537,7 @@ fn cs_main_raw(@builtin(global_invocation_id) gid: vec3<u32>) {
     }
     let uv = (vec2<f32>(px) + 0.5) * frame.viewport.zw;
     let r = pixel_ray(uv);
-    let range = slice_range(r);
+    let range = slice_range(r, false);
     let rs = ray_slices(r);
     var sum = 0.0;
     var n = 0.0;

@@ -678,6 +678,12 @@ pub fn run_render(preset: Option<&std::path::Path>, a: &RenderArgs) -> Result<()
         if let Some(share) = t.proxy_share {
             println!("proxy_volume {share:.4}");
         }
+        // the compute rays cut to the occupied bricks' hull, and its share of the
+        // visible box
+        if r.empty_brick_share().is_some() && settings.backend == Backend::Compute {
+            let (on, share) = r.hull_rays();
+            println!("hull_rays {} {share:.4}", if on { "on" } else { "off" });
+        }
     }
     Ok(())
 }

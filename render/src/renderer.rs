@@ -219,6 +219,7 @@ struct FrameUniform {
     light: [f32; 4],
     state_rays: [f32; 16],
     inv_extent: [f32; 4],
+    hull: [[f32; 4]; 5],
 }
 
 const SLICE_INFO_STRIDE: u64 = 256;
@@ -253,6 +254,58 @@ impl HullProxy {
         }
     }
 }
+
+/// Whether the compute backend cuts its rays to the occupied bricks' hull (with
+/// empty-space skipping; the march's 13 slab tests per ray, `hull_slabs` in
+/// shaders/slice.wgsl). Every sample it leaves out lies in an empty brick, so the image
+/// is the same bit for bit either way.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum HullRays {
+    /// Rays through the visible box.
+    Off,
+    /// Cut where the hull holds less than [`HULL_RAYS_SHARE`] of the visible box: where
+    /// it holds more, the slab tests would cut next to nothing.
+    #[default]
+    Auto,
+    /// Cut whatever the hull's share (for tests and benchmarks).
+    Always,
+}
+
+impl HullRays {
+    /// `VWB_HULL_RAYS` (`off`, `auto`, `always`; a benchmark switch) or the default.
+    pub fn from_env() -> Self {
+        match std::env::var("VWB_HULL_RAYS").as_deref().map(str::trim) {
+            Ok("off") | Ok("0") => Self::Off,
+            Ok("always") => Self::Always,
+            _ => Self::Auto,
+        }
+    }
+}
+
+/// [`HullRays::Auto`] cuts the compute backend's rays to the occupied bricks' hull where
+/// it holds less than this share of the visible box (the heads and the demo 0.72–0.77,
+/// the nuclei 0.99, the ocean 1.0; docs/perf.md, "The occupied bricks' hull").
+pub const HULL_RAYS_SHARE: f32 = 0.9;
+
+/// What empty-space skipping knows of the stack a frame draws: its occupancy grid, and
+/// the occupied bricks' hull with the hull's share of the visible box
+/// ([`Renderer::hull_of`]).
+#[derive(Clone, Copy)]
+struct Occupied<'a> {
+    bytes: &'a [u8],
+    hull: Option<(&'a crate::slicing::Dop, f32)>,
+}
+
+/// The hull's ten diagonal slabs as the frame uniform holds them (`Frame.hull` in
+/// shaders/common.wgsl): [least, greatest] of direction 2m, then of 2m + 1.
+fn hull_uniform(hull: &crate::slicing::Dop) -> [[f32; 4]; 5] {
+    let d = &hull.range[3..];
+    std::array::from_fn(|m| [d[2 * m][0], d[2 * m][1], d[2 * m + 1][0], d[2 * m + 1][1]])
+}
+
+/// Cells per axis of the grid over the visible box on which the hull's share is
+/// estimated ([`crate::slicing::Dop::share_of`]).
+const HULL_SHARE_GRID: u32 = 16;
 
 /// Margin of the occupied bricks' hull ([`Renderer::set_hull_proxy`]) in voxels: wider
 /// than [`HULL_SLIVER`], so that dropping slivers never uncovers an occupied brick.
@@ -1048,6 +1101,10 @@ pub struct Renderer {
     hull_proxy: HullProxy,
     /// The occupied bricks' bounding polytope (world), made with `occupancy_bytes`.
     occupied_hull: Option<crate::slicing::Dop>,
+    /// Compute backend with skipping: rays cut to the hull ([`Renderer::set_hull_rays`]).
+    hull_rays: HullRays,
+    /// The share of the visible box inside `occupied_hull` ([`crate::slicing::Dop::share_of`]).
+    hull_share: f32,
     /// Compute backend: the slice and the state updates in one dispatch per slice where
     /// every state has the eye buffer's resolution ([`Renderer::set_fused_slices`]).
     fused_slices: bool,
@@ -1275,6 +1332,8 @@ impl Renderer {
             occupied_proxy: false,
             hull_proxy: HullProxy::from_env(),
             occupied_hull: None,
+            hull_rays: HullRays::from_env(),
+            hull_share: 1.0,
             fused_slices: env_on("VWB_FUSED_SLICES"),
             state_tracking: env_on("VWB_STATE_TRACKING"),
             raw_samples: std::env::var("VWB_RAW_SAMPLES").is_ok_and(|v| v.trim() == "1"),
@@ -1479,6 +1538,7 @@ impl Renderer {
         self.occupancy = upload_occupancy(&self.gpu, [1, 1, 1], &[255]);
         self.occupancy_bytes = None;
         self.occupied_hull = None;
+        self.hull_share = 1.0;
         self.volume = volume;
         self.rebuild_g0();
         Ok(())
@@ -1588,6 +1648,47 @@ impl Renderer {
         self.hull_proxy
     }
 
+    /// Compute backend with empty-space skipping: whether the rays are cut to the
+    /// occupied bricks' hull ([`HullRays`]; `Auto` by default; the image is the same bit
+    /// for bit; `VWB_HULL_RAYS=off|auto|always` sets the default of new renderers for
+    /// benchmarks).
+    pub fn set_hull_rays(&mut self, mode: HullRays) {
+        self.hull_rays = mode;
+    }
+
+    /// Whether the compute backend's next frame (with skipping) cuts its rays to the
+    /// occupied bricks' hull, and the share of the visible box inside the hull (1
+    /// without one).
+    pub fn hull_rays(&self) -> (bool, f32) {
+        (self.cuts_rays(self.hull_share), self.hull_share)
+    }
+
+    /// Whether rays are cut to a hull that holds `share` of the visible box.
+    fn cuts_rays(&self, share: f32) -> bool {
+        match self.hull_rays {
+            HullRays::Off => false,
+            HullRays::Auto => share < HULL_RAYS_SHARE,
+            HullRays::Always => true,
+        }
+    }
+
+    /// The occupied bricks' hull of an occupancy grid ([`crate::slicing::Dop`], widened
+    /// by [`HULL_MARGIN`] voxels) and its share of the visible box (1 without one).
+    pub(super) fn hull_of(&self, occupancy: Option<&[u8]>) -> (Option<crate::slicing::Dop>, f32) {
+        let hull = occupancy.and_then(|occ| {
+            crate::slicing::Dop::of_boxes(
+                crate::skipping::occupied_brick_voxels(occ, self.bricks.dims, self.volume.dims)
+                    .map(|r| bricks::sub_box(&self.vbox, self.volume.dims, r)),
+                HULL_MARGIN * self.vbox.voxel,
+            )
+        });
+        let share = match (&hull, self.visible_box_in(occupancy)) {
+            (Some(hull), Some(visible)) => hull.share_of(&visible, HULL_SHARE_GRID),
+            _ => 1.0,
+        };
+        (hull, share)
+    }
+
     /// Workgroup shape of the whole-frame compute passes
     /// ([`crate::composer::main_workgroup`]).
     pub fn main_workgroup(&self) -> [u32; 2] {
@@ -1675,13 +1776,7 @@ impl Renderer {
             Some(b) => upload_occupancy(&self.gpu, self.bricks.dims, b),
             None => upload_occupancy(&self.gpu, [1, 1, 1], &[255]),
         };
-        self.occupied_hull = bytes.as_deref().and_then(|occ| {
-            crate::slicing::Dop::of_boxes(
-                crate::skipping::occupied_brick_voxels(occ, self.bricks.dims, self.volume.dims)
-                    .map(|r| bricks::sub_box(&self.vbox, self.volume.dims, r)),
-                HULL_MARGIN * self.vbox.voxel,
-            )
-        });
+        (self.occupied_hull, self.hull_share) = self.hull_of(bytes.as_deref());
         self.occupancy_bytes = bytes;
         self.rebuild_g0();
     }
@@ -2826,15 +2921,18 @@ impl Renderer {
 
     fn write_frame(&self, s: &FrameSettings, plan: &FramePlan, view: &crate::camera::View) {
         let t = self.target.as_ref().expect("target exists");
-        let occupancy = self.occupancy_bytes.as_deref();
-        let u = self.frame_uniform(s, plan, view, [t.width, t.height], t.format, occupancy);
+        let occupied = self.occupancy_bytes.as_deref().map(|bytes| Occupied {
+            bytes,
+            hull: self.occupied_hull.as_ref().map(|h| (h, self.hull_share)),
+        });
+        let u = self.frame_uniform(s, plan, view, [t.width, t.height], t.format, occupied);
         self.gpu
             .queue
             .write_buffer(&self.frame_buf, 0, bytemuck::bytes_of(&u));
     }
 
     /// The core uniform of a frame drawn into a `size` eye buffer of `format`, skipping
-    /// empty space by `occupancy` (the renderer's own stack's, or an atlas tile's; `None`
+    /// empty space by `occupied` (the renderer's own stack's, or an atlas tile's; `None`
     /// when skipping is off).
     fn frame_uniform(
         &self,
@@ -2843,14 +2941,22 @@ impl Renderer {
         view: &crate::camera::View,
         size: [u32; 2],
         format: TargetFormat,
-        occupancy: Option<&[u8]>,
+        occupied: Option<Occupied>,
     ) -> FrameUniform {
         let vp: Mat4 = view.view_proj();
+        let occupancy = occupied.map(|o| o.bytes);
         // the compute backend's rays take samples only in the part of the box that can
         // be visible (a brick's own box is cut the same way by its footprint)
         let (own, open) = match (&self.region, s.backend) {
             (None, Backend::Compute) => (self.visible_box_in(occupancy).unwrap_or(self.vbox), 0),
             _ => self.own_box(),
+        };
+        // and, with skipping, only where their rays cross the occupied bricks' hull
+        let hull = match (&self.region, s.backend, occupied.and_then(|o| o.hull)) {
+            (None, Backend::Compute, Some((dop, share))) if self.cuts_rays(share) => {
+                Some(hull_uniform(dop))
+            }
+            _ => None,
         };
         let rect = self.pixel_rect(view, size);
         let range = self.volume.range;
@@ -2896,7 +3002,7 @@ impl Renderer {
                 plan.count,
                 (format == TargetFormat::Rgba16Float) as u32,
                 (s.backend == Backend::Compute && s.early_termination.is_some()) as u32,
-                0,
+                hull.is_some() as u32,
             ],
             settings: [
                 s.early_termination.unwrap_or(1.0),
@@ -2917,6 +3023,7 @@ impl Renderer {
                 .recip()
                 .extend(0.0)
                 .to_array(),
+            hull: hull.unwrap_or_default(),
         }
     }
 

@@ -468,6 +468,31 @@ impl Dop {
         })
     }
 
+    /// Whether `p` lies inside the polytope (its faces included).
+    pub fn contains(&self, p: Vec3) -> bool {
+        Self::DIRS.iter().zip(self.range).all(|(n, [lo, hi])| {
+            let d = n.dot(p);
+            d >= lo && d <= hi
+        })
+    }
+
+    /// The share of `b`'s volume inside the polytope, estimated as the share of the
+    /// centres of an `n`³ grid of cells over `b` that it contains.
+    pub fn share_of(&self, b: &VolumeBox, n: u32) -> f32 {
+        let n = n.max(1);
+        let cell = (b.max - b.min) / n as f32;
+        let mut inside = 0u32;
+        for k in 0..n {
+            for j in 0..n {
+                for i in 0..n {
+                    let f = glam::UVec3::new(i, j, k).as_vec3() + 0.5;
+                    inside += self.contains(b.min + f * cell) as u32;
+                }
+            }
+        }
+        inside as f32 / (n * n * n) as f32
+    }
+
     /// A convex polygon (ordered) cut to the polytope by Sutherland–Hodgman against its
     /// 26 half-spaces, in order; empty when nothing is left.
     pub fn clip(&self, mut poly: Vec<Vec3>) -> Vec<Vec3> {
@@ -908,6 +933,16 @@ mod tests {
             (Vec3::new(1.0, 0.0, 0.0) - eye).dot(n) + 0.02,
         );
         assert!(!far.is_empty() && dop.clip(far).is_empty());
+        // `contains` and `share_of`: a box's own hull holds all of it; the two boxes'
+        // hull holds more than their volumes (0.128 of the whole box) and leaves out the
+        // corners far from the diagonal
+        assert!(dop.contains(Vec3::splat(0.5)) && !dop.contains(Vec3::new(1.0, 0.0, 0.0)));
+        assert_eq!(
+            Dop::of_boxes([whole], 0.0).unwrap().share_of(&whole, 8),
+            1.0
+        );
+        let share = dop.share_of(&whole, 16);
+        assert!(share > 0.128 && share < 0.8, "{share}");
     }
 
     /// `drop_slivers` removes vertices on or within `tol` of their neighbours' line

@@ -11,7 +11,7 @@ use vwb_render::TargetFormat;
 use vwb_render::params::ParamValue;
 use vwb_render::plugin::CpuContext;
 use vwb_render::preset::Document;
-use vwb_render::renderer::{Backend, FrameSettings, HullProxy};
+use vwb_render::renderer::{Backend, FrameSettings, HULL_RAYS_SHARE, HullProxy, HullRays};
 use vwb_render::tf::{TfCurve, TfPoint};
 
 use crate::common::*;
@@ -684,6 +684,7 @@ fn proxies_cut_to_occupied_space_cover_less_and_keep_the_image() {
             rgb(&r.read_pixels().unwrap().2) == images[0],
             "{preset}: scissor image"
         );
+        assert_compute_rays_cut_to_the_hull(&doc, &volume, &s, preset);
         for (i, what) in [(1, "hull"), (2, "cells")] {
             let (rms, max) = diff(&images[0], &images[i]);
             eprintln!(
@@ -703,6 +704,47 @@ fn proxies_cut_to_occupied_space_cover_less_and_keep_the_image() {
             );
         }
     }
+}
+
+/// The compute backend's rays cut to the occupied bricks' hull ([`HullRays`]): by
+/// default (`Auto`) where it leaves air around the matter, as on the demo (its hull
+/// holds less than [`HULL_RAYS_SHARE`] of the visible box), with the image the same bit
+/// for bit as rays through the visible box; not where everything is visible (a flat
+/// opaque transfer function: the hull is the box).
+fn assert_compute_rays_cut_to_the_hull(
+    doc: &Document,
+    volume: &std::sync::Arc<vwb_render::Volume>,
+    s: &FrameSettings,
+    preset: &str,
+) {
+    let s = FrameSettings {
+        backend: Backend::Compute,
+        ..*s
+    };
+    let run = |mode: HullRays, stack: &[vwb_render::PluginInstance]| {
+        let mut r = Renderer::new(gpu(), volume.clone()).unwrap();
+        r.set_inputs(vwb_lab::headless::inputs_for(doc).unwrap());
+        r.set_hull_rays(mode);
+        r.update_stack(stack, doc.render.target).unwrap();
+        r.render(&s).unwrap();
+        let image = rgb(&r.read_pixels().unwrap().2);
+        (r.hull_rays(), image)
+    };
+    let ((on, share), cut) = run(HullRays::Auto, &doc.stack);
+    let ((off, _), whole) = run(HullRays::Off, &doc.stack);
+    eprintln!(
+        "{preset}: the hull holds {:.0} % of the visible box",
+        share * 100.0
+    );
+    assert!(on && !off && share < HULL_RAYS_SHARE, "{preset}: {share}");
+    assert!(
+        cut == whole,
+        "{preset}: rays cut to the hull changed the image"
+    );
+    let mut opaque = instance("classify.tf1d");
+    opaque.params.set("tf", flat_tf(0.8, 0.05));
+    let ((on, share), _) = run(HullRays::Auto, &[opaque]);
+    assert!(!on && share >= HULL_RAYS_SHARE, "{preset}, opaque: {share}");
 }
 
 /// An orthographic camera of height h maps the volume box to its exact footprint:
@@ -843,6 +885,8 @@ fn empty_space_skipping_leaves_images_unchanged() {
             let mut r = Renderer::new(gpu(), volume.clone()).unwrap();
             r.set_inputs(inputs.clone());
             r.set_empty_space_skipping(on);
+            // the compute rays cut to the occupied bricks' hull whatever its share
+            r.set_hull_rays(HullRays::Always);
             r
         });
         // skipping without the hull's scissor (the default's raster image, bit for bit)
@@ -1383,6 +1427,9 @@ fn an_atlas_of_64_variants_matches_their_single_renders() {
     let s = settings(128, 128, Backend::Compute);
     let t = TargetFormat::Rgba32Float;
     let mut r = Renderer::new(gpu(), demo()).unwrap();
+    // rays cut to each tile's own hull, whatever its share (the balls' below hold 0.92
+    // and 0.76 of their boxes)
+    r.set_hull_rays(HullRays::Always);
     let tiles = atlas_tiles(&variants);
     let atlas = r.render_atlas(&tiles, &s, t, 8).unwrap();
     assert_eq!((atlas.cols, atlas.rows, atlas.tiles), (8, 8, 64));
@@ -1444,8 +1491,9 @@ fn an_atlas_of_64_variants_matches_their_single_renders() {
         }
     }
 
-    // each tile's rays cross the part its own stack can show: a ball of radius 0.1
-    // kept in tile 0 (whose stack the renderer takes), one of 0.45 in tile 1
+    // each tile's rays cross the part its own stack can show (its visible box and
+    // hull): a ball of radius 0.1 kept in tile 0 (whose stack the renderer takes), one
+    // of 0.45 in tile 1
     let balls: Vec<Vec<vwb_render::PluginInstance>> = [0.1, 0.45]
         .map(|radius| {
             let mut ball = instance("clip.shapes");

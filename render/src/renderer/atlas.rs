@@ -340,18 +340,25 @@ impl Renderer {
             let occupancy = occupancies.entry(uids.clone()).or_insert_with(|| {
                 self.occupancy_of(tiles[i].stack).map(|b| {
                     let texture = upload_occupancy(&self.gpu, self.bricks.dims, &b);
-                    (b, texture)
+                    let hull = self.hull_of(Some(&b));
+                    (b, texture, hull)
                 })
             });
-            let occupancy_texture = occupancy.as_ref().map(|(_, t)| t);
-            // skipping (and the rays' visible box) by this tile's own classification
+            let occupancy_texture = occupancy.as_ref().map(|(_, t, _)| t);
+            // skipping (and the rays' visible box and hull) by this tile's own
+            // classification
             let u = self.frame_uniform(
                 &settings,
                 plan,
                 view,
                 [tw, th],
                 target,
-                occupancy.as_ref().map(|(b, _)| b.as_slice()),
+                occupancy
+                    .as_ref()
+                    .map(|(bytes, _, (hull, share))| Occupied {
+                        bytes,
+                        hull: hull.as_ref().map(|h| (h, *share)),
+                    }),
             );
             let frame = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
                 label: Some("vwb atlas frame"),
