@@ -287,6 +287,19 @@ impl HullRays {
 /// the nuclei 0.99, the ocean 1.0; docs/perf.md, "The occupied bricks' hull").
 pub const HULL_RAYS_SHARE: f32 = 0.9;
 
+/// The compute backend's own box where nothing can be visible: a point far outside the
+/// volume's box (whose longest side is 1), so that every ray's interval through it is
+/// empty and the march takes no sample; a sample it could still take would lie in an
+/// empty brick and add nothing.
+fn nowhere(voxel: f32) -> VolumeBox {
+    let far = glam::Vec3::splat(1.0e6);
+    VolumeBox {
+        min: far,
+        max: far,
+        voxel,
+    }
+}
+
 /// What empty-space skipping knows of the stack a frame draws: its occupancy grid, and
 /// the occupied bricks' hull with the hull's share of the visible box
 /// ([`Renderer::hull_of`]).
@@ -2946,9 +2959,14 @@ impl Renderer {
         let vp: Mat4 = view.view_proj();
         let occupancy = occupied.map(|o| o.bytes);
         // the compute backend's rays take samples only in the part of the box that can
-        // be visible (a brick's own box is cut the same way by its footprint)
+        // be visible, none where nothing can be (a brick's own box is cut the same way by
+        // its footprint)
         let (own, open) = match (&self.region, s.backend) {
-            (None, Backend::Compute) => (self.visible_box_in(occupancy).unwrap_or(self.vbox), 0),
+            (None, Backend::Compute) => (
+                self.visible_box_in(occupancy)
+                    .unwrap_or_else(|| nowhere(self.vbox.voxel)),
+                0,
+            ),
             _ => self.own_box(),
         };
         // and, with skipping, only where their rays cross the occupied bricks' hull

@@ -747,6 +747,42 @@ fn assert_compute_rays_cut_to_the_hull(
     assert!(!on && share >= HULL_RAYS_SHARE, "{preset}, opaque: {share}");
 }
 
+/// A stack that shows nothing (a transparent transfer function) takes no sample on the
+/// compute backend with empty-space skipping: the raw-samples kernel, which takes the
+/// march's samples, counts none (the rays' own box is empty; without skipping every
+/// ray that meets the box samples it), and the images of the march and of the
+/// per-slice path (with shade.dos) are those without skipping, bit for bit.
+#[test]
+fn nothing_visible_takes_no_samples() {
+    let mut clear = instance("classify.tf1d");
+    clear.params.set("tf", flat_tf(0.8, 0.0));
+    let s = settings(48, 48, Backend::Compute);
+    let t = TargetFormat::Rgba16Float;
+    for stack in [
+        vec![clear.clone()],
+        vec![clear.clone(), instance("shade.dos")],
+    ] {
+        let mut renderers = [true, false].map(|on| {
+            let mut r = Renderer::new(gpu(), demo()).unwrap();
+            r.set_empty_space_skipping(on);
+            r
+        });
+        let images = renderers.each_mut().map(|r| render(r, &stack, t, &s));
+        assert_eq!(renderers[0].empty_brick_share(), Some(1.0));
+        assert!(images[0] == images[1], "{} plugins: images", stack.len());
+        if stack.len() > 1 {
+            continue;
+        }
+        let counts = renderers.each_mut().map(|r| {
+            r.set_raw_samples(true);
+            let raw = render(r, &stack, t, &s);
+            raw.iter().map(|p| p[1] as f64).sum::<f64>()
+        });
+        assert_eq!(counts[0], 0.0, "samples taken with nothing visible");
+        assert!(counts[1] > 1000.0, "{} samples without skipping", counts[1]);
+    }
+}
+
 /// An orthographic camera of height h maps the volume box to its exact footprint:
 /// seen along z with h = 1.2, the unit cube covers 40 of 48 rows and, at the 4:3
 /// aspect, 40 of 64 columns, centred, whatever the camera's distance. A perspective
