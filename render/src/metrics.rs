@@ -7,7 +7,7 @@
 //! * **Colour space.** The renderer's colours are display values: transfer functions
 //!   are specified in sRGB-encoded colours and slices are composited on those values,
 //!   exactly as a classic slice renderer blends into the framebuffer. So an image here
-//!   holds sRGB-encoded values in [0,1]; [`srgb_to_luv`] decodes them with the sRGB
+//!   holds sRGB-encoded values in \[0,1\]; [`srgb_to_luv`] decodes them with the sRGB
 //!   transfer curve, converts to CIE XYZ with the sRGB (D65) primaries and then to
 //!   CIELUV relative to the D65 white (Yn = 1).
 //! * **Alpha and background.** The eye buffer holds premultiplied RGBA. Before any
@@ -46,7 +46,7 @@ pub const DELTA_E_NOTICEABLE: f64 = 6.0;
 /// Default top of the heatmap scale (ΔE*uv); larger errors saturate.
 pub const HEATMAP_DEFAULT_MAX: f64 = 12.0;
 
-/// An opaque image of sRGB-encoded values in [0,1], row-major from the top.
+/// An opaque image of sRGB-encoded values in \[0,1\], row-major from the top.
 #[derive(Debug, Clone, PartialEq)]
 pub struct RgbImageF {
     pub width: u32,
@@ -135,7 +135,7 @@ pub fn srgb_decode(c: f64) -> f64 {
     }
 }
 
-/// sRGB-encoded colour in [0,1] → CIE XYZ (D65, Y of white = 1).
+/// sRGB-encoded colour in \[0,1\] → CIE XYZ (D65, Y of white = 1).
 pub fn srgb_to_xyz(rgb: [f64; 3]) -> [f64; 3] {
     let [r, g, b] = rgb.map(srgb_decode);
     [
@@ -154,7 +154,7 @@ fn uv_prime(xyz: [f64; 3]) -> (f64, f64) {
     }
 }
 
-/// sRGB-encoded colour in [0,1] → CIELUV (L*, u*, v*) relative to D65.
+/// sRGB-encoded colour in \[0,1\] → CIELUV (L*, u*, v*) relative to D65.
 pub fn srgb_to_luv(rgb: [f64; 3]) -> [f64; 3] {
     let xyz = srgb_to_xyz(rgb);
     let y = xyz[1] / WHITE_Y;

@@ -35,7 +35,7 @@ pub enum ParamKind {
         options: Vec<&'static str>,
         default: usize,
     },
-    /// Straight RGBA in [0,1].
+    /// Straight RGBA in \[0,1\].
     Color {
         default: [f32; 4],
     },

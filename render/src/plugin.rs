@@ -658,7 +658,7 @@ pub struct CpuRay {
     pub origin: DVec3,
     /// Unit direction.
     pub dir: DVec3,
-    /// Screen coordinate in [0,1]² (y down) of the pixel centre.
+    /// Screen coordinate in \[0,1\]² (y down) of the pixel centre.
     pub uv: DVec2,
     /// The image (or atlas tile) size in pixels (`frame.viewport.xy`).
     pub size: DVec2,
@@ -828,7 +828,7 @@ impl CpuView {
 #[derive(Clone, Copy)]
 pub struct CpuContext<'a> {
     pub volume: &'a Volume,
-    /// Normalised scalars in [0,1], x fastest (as uploaded to the GPU).
+    /// Normalised scalars in \[0,1\], x fastest (as uploaded to the GPU).
     pub scalars: &'a [f32],
     /// The plugin's state of the previous slice (`state_prev`), if it has one.
     pub state: Option<&'a StateImage>,

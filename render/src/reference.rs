@@ -179,7 +179,7 @@ pub fn render_reference(
 }
 
 /// Renders the stack with ever finer slice spacing until halving the spacing changes
-/// the image, composited over `background` (linear RGB in [0,1]), by less than
+/// the image, composited over `background` (linear RGB in \[0,1\]), by less than
 /// `tolerance_delta_e` RMS ΔE*uv ([`DEFAULT_TOLERANCE_DELTA_E`] is the usual choice).
 ///
 /// Starts at the smaller of the settings' spacing and [`CONVERGED_START_SPACING`] and

@@ -13,7 +13,7 @@
 //! | estimator | reads per sample | memory | what |
 //! |---|---|---|---|
 //! | `central` | 6 trilinear | none | (f(x+h) − f(x−h)) / 2h per axis, h one voxel, at the sample |
-//! | `sobel` | 26 trilinear | none | 3×3×3 Sobel (derivative ⊗ [1,2,1] ⊗ [1,2,1] / 32) at the sample |
+//! | `sobel` | 26 trilinear | none | 3×3×3 Sobel (derivative ⊗ \[1,2,1\] ⊗ \[1,2,1\] / 32) at the sample |
 //! | `precomputed_central` | 1 trilinear | 8 B/voxel | `central` at every voxel centre, rgba16float, interpolated |
 //! | `precomputed_sobel` | 1 trilinear | 8 B/voxel | `sobel` at every voxel centre, rgba16float, interpolated |
 //! | `quantized` | 1 nearest | 4 B/voxel | `central` at every voxel centre, direction in 16 bits, magnitude in 8, not interpolated |

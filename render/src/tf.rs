@@ -6,13 +6,13 @@
 //! every primitive are independent absorbers, so their opacities combine as
 //! α = 1 − (1 − α_curve)·Π(1 − α_i) and the colour is the opacity-weighted mean of
 //! their colours (the curve's colour where every opacity is 0). With `log_opacity`
-//! the combined opacity a ∈ [0,1] is read on a logarithmic axis of three decades,
+//! the combined opacity a ∈ \[0,1\] is read on a logarithmic axis of three decades,
 //! α = (10^(3a) − 1)/(10^3 − 1), so that the low opacities dense data needs get most
 //! of the editor's range. The global opacity scale is the plugins' `opacity`
 //! parameter.
 //!
-//! Control points live on the normalised value axis [0,1] (0 = the volume's finite
-//! minimum, 1 = its maximum). Colours are straight RGBA in [0,1]; alpha is the
+//! Control points live on the normalised value axis \[0,1\] (0 = the volume's finite
+//! minimum, 1 = its maximum). Colours are straight RGBA in \[0,1\]; alpha is the
 //! opacity for one reference step Δs0 (one voxel). Between points the curve is
 //! linear; outside the first/last point it is constant.
 //!
@@ -125,7 +125,7 @@ pub struct TfCurve {
 /// Decades of the logarithmic opacity axis.
 pub const LOG_OPACITY_DECADES: f64 = 3.0;
 
-/// The logarithmic opacity axis: a ∈ [0,1] → (10^(3a) − 1)/(10^3 − 1).
+/// The logarithmic opacity axis: a ∈ \[0,1\] → (10^(3a) − 1)/(10^3 − 1).
 pub fn log_opacity(a: f64) -> f64 {
     let top = 10f64.powf(LOG_OPACITY_DECADES) - 1.0;
     (10f64.powf(LOG_OPACITY_DECADES * a.clamp(0.0, 1.0)) - 1.0) / top
@@ -264,7 +264,7 @@ impl TfCurve {
     }
 }
 
-/// Linear interpolation of a baked table at x ∈ [0,1], as the GPU's filtered lookup does.
+/// Linear interpolation of a baked table at x ∈ \[0,1\], as the GPU's filtered lookup does.
 pub fn eval_lut(lut: &[[f32; 4]], x: f64) -> [f64; 4] {
     let n = lut.len();
     if n == 0 {
@@ -274,7 +274,7 @@ pub fn eval_lut(lut: &[[f32; 4]], x: f64) -> [f64; 4] {
     std::array::from_fn(|c| lut[i][c] as f64 * (1.0 - t) + lut[j][c] as f64 * t)
 }
 
-/// Where x ∈ [0,1] falls in a table of n ≥ 1 entries at i/(n − 1): the two entries
+/// Where x ∈ \[0,1\] falls in a table of n ≥ 1 entries at i/(n − 1): the two entries
 /// around it and the weight of the second, as the GPU's linear filter at
 /// (x·(n − 1) + 0.5)/n reads them.
 pub fn table_coord(x: f64, n: usize) -> (usize, usize, f64) {
@@ -283,7 +283,7 @@ pub fn table_coord(x: f64, n: usize) -> (usize, usize, f64) {
     (i, (i + 1).min(n - 1), f - i as f64)
 }
 
-/// Bilinear lookup of an n × n table (`at(x, y)`, x fastest) at (u, v) ∈ [0,1]², as
+/// Bilinear lookup of an n × n table (`at(x, y)`, x fastest) at (u, v) ∈ \[0,1\]², as
 /// `textureSampleLevel(…, linear_clamp, …)` at texel-centre coordinates.
 pub fn bilinear(n: usize, u: f64, v: f64, at: impl Fn(usize, usize) -> [f64; 4]) -> [f64; 4] {
     let (x0, x1, tx) = table_coord(u, n);

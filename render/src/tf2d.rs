@@ -1,5 +1,5 @@
 //! The 2D transfer-function model over (value, gradient magnitude), both normalised
-//! to [0,1] (Kniss, Kindlmann and Hansen 2001; Rezk-Salama 2001 §3): primitives
+//! to \[0,1\] (Kniss, Kindlmann and Hansen 2001; Rezk-Salama 2001 §3): primitives
 //! with a straight RGBA colour, combined like the 1D model's primitives (independent
 //! absorbers, opacity-weighted colour; `crate::tf`), baked into an n × n table.
 //!
@@ -188,7 +188,7 @@ pub fn voxel_gradient(scalars: &[f32], dims: [usize; 3], at: [usize; 3]) -> f32 
     0.5 * (gx * gx + gy * gy + gz * gz).sqrt()
 }
 
-/// Bilinear lookup of a baked n × n table at (v, g) ∈ [0,1]², as the GPU's filtered
+/// Bilinear lookup of a baked n × n table at (v, g) ∈ \[0,1\]², as the GPU's filtered
 /// read at ((v·(n−1) + 0.5)/n, (g·(n−1) + 0.5)/n).
 pub fn eval_table(table: &[[f32; 4]], n: usize, v: f64, g: f64) -> [f64; 4] {
     if n == 0 || table.len() < n * n {

@@ -56,7 +56,7 @@ pub struct RendererOptions {
     /// How the volume is stored on the GPU (the preset's `render.volume_format`).
     pub volume_format: VolumeFormat,
     /// Workgroup shape (x, y) of the whole-frame compute passes (`cs_main`,
-    /// `cs_main_skip`); `None`: [`crate::composer::main_workgroup_for`] the adapter.
+    /// `cs_main_skip`); `None`: [`crate::composer::main_workgroup`] for the adapter.
     pub workgroup: Option<[u32; 2]>,
     /// Beyond the GPU memory budget, refine the bricks in view from the full volume
     /// ([`super::lod`]) instead of showing one coarser level everywhere. Off in
