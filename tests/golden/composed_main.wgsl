@@ -1061,9 +1061,17 @@ fn cs_main_raw(@builtin(global_invocation_id) gid: vec3<u32>) {
 // fused entry point; `always` is a constant at both call sites.
 fn slice_step(px: vec2<u32>, size: vec2<u32>, always: bool) -> Evaluated {
     let idx = px.y * size.x + px.x;
-    var acc = accum[idx];
-    if (slice_info.index == 0u) {
-        acc = vec4<f32>(0.0);
+    // The eye buffer is read only where early termination needs it or the sample adds
+    // something, and written only where it changes (and at the first slice, which
+    // starts it at 0): a sample that adds exactly nothing leaves it as it is, since
+    // under(acc, 0) = over(acc, 0) = acc and round_like_target is idempotent.
+    let first = slice_info.index == 0u;
+    let et = frame.counts.z != 0u;
+    var acc = vec4<f32>(0.0);
+    var read = first;
+    if (et && !first) {
+        acc = accum[idx];
+        read = true;
     }
     let uv = (vec2<f32>(px) + 0.5) * frame.viewport.zw;
     let r = pixel_ray(uv);
@@ -1072,24 +1080,31 @@ fn slice_step(px: vec2<u32>, size: vec2<u32>, always: bool) -> Evaluated {
 
 
 
-    let early = ahead && frame.counts.z != 0u && acc.a >= frame.settings.x;
+    let early = ahead && et && acc.a >= frame.settings.x;
     let rs = ray_slices(r);
     let hit = slice_point_in(rs, slice_info.index);
     run_setup(r, uv);
     var e: Evaluated;
     e.s = make_sample(r.origin, r.dir, uv, slice_info.index);
     e.c = vec4<f32>(0.0);
+    var changed = first;
     if (hit && (always || !early)) {
         e = evaluate(slice_sample(r, rs, uv, slice_info.index));
-        if (!early) {
+        if (!early && any(e.c != vec4<f32>(0.0))) {
+            if (!read) {
+                acc = accum[idx];
+            }
             if (ahead) {
                 acc = round_like_target(under(acc, e.c));
             } else {
                 acc = round_like_target(over(acc, e.c));
             }
+            changed = true;
         }
     }
-    accum[idx] = acc;
+    if (changed) {
+        accum[idx] = acc;
+    }
     return e;
 }
 
