@@ -1114,12 +1114,11 @@ pub struct Renderer {
     /// Raster backend: proxy polygons fitted to the occupied bricks' hull
     /// ([`Renderer::set_hull_proxy`]).
     hull_proxy: HullProxy,
-    /// The occupied bricks' bounding polytope (world), made with `occupancy_bytes`.
-    occupied_hull: Option<crate::slicing::Dop>,
+    /// The occupied bricks' bounding polytope (world) and its share of the visible box,
+    /// made with `occupancy_bytes` ([`Renderer::hull_of`]).
+    occupied_hull: Option<(crate::slicing::Dop, f32)>,
     /// Compute backend with skipping: rays cut to the hull ([`Renderer::set_hull_rays`]).
     hull_rays: HullRays,
-    /// The share of the visible box inside `occupied_hull` ([`crate::slicing::Dop::share_of`]).
-    hull_share: f32,
     /// Compute backend: the slice and the state updates in one dispatch per slice where
     /// every state has the eye buffer's resolution ([`Renderer::set_fused_slices`]).
     fused_slices: bool,
@@ -1348,7 +1347,6 @@ impl Renderer {
             hull_proxy: HullProxy::from_env(),
             occupied_hull: None,
             hull_rays: HullRays::from_env(),
-            hull_share: 1.0,
             fused_slices: env_on("VWB_FUSED_SLICES"),
             state_tracking: env_on("VWB_STATE_TRACKING"),
             raw_samples: std::env::var("VWB_RAW_SAMPLES").is_ok_and(|v| v.trim() == "1"),
@@ -1553,7 +1551,6 @@ impl Renderer {
         self.occupancy = upload_occupancy(&self.gpu, [1, 1, 1], &[255]);
         self.occupancy_bytes = None;
         self.occupied_hull = None;
-        self.hull_share = 1.0;
         self.volume = volume;
         self.rebuild_g0();
         Ok(())
@@ -1675,7 +1672,10 @@ impl Renderer {
     /// occupied bricks' hull, and the share of the visible box inside the hull (1
     /// without one).
     pub fn hull_rays(&self) -> (bool, f32) {
-        (self.cuts_rays(self.hull_share), self.hull_share)
+        match &self.occupied_hull {
+            Some((_, share)) => (self.cuts_rays(*share), *share),
+            None => (false, 1.0),
+        }
     }
 
     /// Whether rays are cut to a hull that holds `share` of the visible box.
@@ -1688,20 +1688,18 @@ impl Renderer {
     }
 
     /// The occupied bricks' hull of an occupancy grid ([`crate::slicing::Dop`], widened
-    /// by [`HULL_MARGIN`] voxels) and its share of the visible box (1 without one).
-    pub(super) fn hull_of(&self, occupancy: Option<&[u8]>) -> (Option<crate::slicing::Dop>, f32) {
-        let hull = occupancy.and_then(|occ| {
-            crate::slicing::Dop::of_boxes(
-                crate::skipping::occupied_brick_voxels(occ, self.bricks.dims, self.volume.dims)
-                    .map(|r| bricks::sub_box(&self.vbox, self.volume.dims, r)),
-                HULL_MARGIN * self.vbox.voxel,
-            )
-        });
-        let share = match (&hull, self.visible_box_in(occupancy)) {
-            (Some(hull), Some(visible)) => hull.share_of(&visible, HULL_SHARE_GRID),
-            _ => 1.0,
-        };
-        (hull, share)
+    /// by [`HULL_MARGIN`] voxels) and its share of the visible box; `None` when no brick
+    /// can be visible.
+    pub(super) fn hull_of(&self, occupancy: &[u8]) -> Option<(crate::slicing::Dop, f32)> {
+        let hull = crate::slicing::Dop::of_boxes(
+            crate::skipping::occupied_brick_voxels(occupancy, self.bricks.dims, self.volume.dims)
+                .map(|r| bricks::sub_box(&self.vbox, self.volume.dims, r)),
+            HULL_MARGIN * self.vbox.voxel,
+        )?;
+        let share = self
+            .visible_box_in(Some(occupancy))
+            .map_or(1.0, |visible| hull.share_of(&visible, HULL_SHARE_GRID));
+        Some((hull, share))
     }
 
     /// Workgroup shape of the whole-frame compute passes
@@ -1791,7 +1789,7 @@ impl Renderer {
             Some(b) => upload_occupancy(&self.gpu, self.bricks.dims, b),
             None => upload_occupancy(&self.gpu, [1, 1, 1], &[255]),
         };
-        (self.occupied_hull, self.hull_share) = self.hull_of(bytes.as_deref());
+        self.occupied_hull = bytes.as_deref().and_then(|b| self.hull_of(b));
         self.occupancy_bytes = bytes;
         self.rebuild_g0();
     }
@@ -2938,7 +2936,7 @@ impl Renderer {
         let t = self.target.as_ref().expect("target exists");
         let occupied = self.occupancy_bytes.as_deref().map(|bytes| Occupied {
             bytes,
-            hull: self.occupied_hull.as_ref().map(|h| (h, self.hull_share)),
+            hull: self.occupied_hull.as_ref().map(|(h, share)| (h, *share)),
         });
         let u = self.frame_uniform(s, plan, view, [t.width, t.height], t.format, occupied);
         self.gpu
@@ -3748,7 +3746,7 @@ impl Renderer {
             };
             let volume = |b: &VolumeBox| (b.max - b.min).as_dvec3().element_product();
             // the visible box's polygons fitted further to the occupied bricks' hull
-            let hull = match (&self.occupied_hull, boxes.first()) {
+            let hull = match (self.occupied_hull.as_ref().map(|(h, _)| h), boxes.first()) {
                 (Some(hull), Some(b)) if !cut_proxy && self.hull_proxy != HullProxy::Off => {
                     Some((hull, b))
                 }

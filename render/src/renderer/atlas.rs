@@ -340,7 +340,7 @@ impl Renderer {
             let occupancy = occupancies.entry(uids.clone()).or_insert_with(|| {
                 self.occupancy_of(tiles[i].stack).map(|b| {
                     let texture = upload_occupancy(&self.gpu, self.bricks.dims, &b);
-                    let hull = self.hull_of(Some(&b));
+                    let hull = self.hull_of(&b);
                     (b, texture, hull)
                 })
             });
@@ -353,12 +353,10 @@ impl Renderer {
                 view,
                 [tw, th],
                 target,
-                occupancy
-                    .as_ref()
-                    .map(|(bytes, _, (hull, share))| Occupied {
-                        bytes,
-                        hull: hull.as_ref().map(|h| (h, *share)),
-                    }),
+                occupancy.as_ref().map(|(bytes, _, hull)| Occupied {
+                    bytes,
+                    hull: hull.as_ref().map(|(h, share)| (h, *share)),
+                }),
             );
             let frame = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
                 label: Some("vwb atlas frame"),
