@@ -103,11 +103,16 @@ fn sweep_sizes(sw: SweepInfo, dims: vec3<u32>) -> vec3<u32> {
     return vec3<u32>(dims.z, dims.x, dims.y);
 }
 
+// Per slice (bound with a dynamic offset): its index and, where `tile_row` is not 0,
+// the tiles of 8 × 8 pixels where anything that reaches the image can change at this
+// slice, `tile_count` of them from `tile_offset` in `slice_tile_list`, which the fused
+// per-slice entry point's dispatch covers in rows of `tile_row` workgroups
+// (render/src/renderer/slice_exit.rs).
 struct SliceInfo {
     index: u32,
-    pad0: u32,
-    pad1: u32,
-    pad2: u32,
+    tile_offset: u32,
+    tile_count: u32,
+    tile_row: u32,
 }
 
 @group(0) @binding(0) var<uniform> frame: Frame;
@@ -118,6 +123,8 @@ struct SliceInfo {
 // Empty-space skipping: per brick of frame.settings.y voxels, > 0.5 where a sample can
 // be visible (render/src/skipping.rs).
 @group(0) @binding(5) var occupancy: texture_3d<f32>;
+// The tiles of every slice that `slice_info` lists, x | y << 16.
+@group(0) @binding(6) var<storage, read> slice_tile_list: array<u32>;
 
 // A pixel's ray (`pixel_ray`): `origin` is the eye for a perspective camera, the
 // pixel's point on the plane through the eye for an orthographic one; `dir` is unit.

@@ -604,6 +604,21 @@ fn slice_step(px: vec2<u32>, size: vec2<u32>, always: bool) -> Evaluated {
     return e;
 }
 
+// The tile (of 8 × 8 pixels) of workgroup `wg` of the fused per-slice entry point:
+// where `slice_info` lists this slice's tiles, the listed one (beyond the list, one
+// outside every eye buffer), else `wg` itself.
+fn slice_tile(wg: vec2<u32>) -> vec2<u32> {
+    if (slice_info.tile_row == 0u) {
+        return wg;
+    }
+    let i = wg.y * slice_info.tile_row + wg.x;
+    if (i >= slice_info.tile_count) {
+        return vec2<u32>(0xffffu);
+    }
+    let t = slice_tile_list[slice_info.tile_offset + i];
+    return vec2<u32>(t & 0xffffu, t >> 16u);
+}
+
 // One slice per dispatch, accumulating in `accum` (used when a plugin has per-slice
 // state whose resolution differs from the eye buffer's; otherwise `cs_slice_fused`).
 @compute @workgroup_size(8, 8, 1)

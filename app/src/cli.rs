@@ -678,6 +678,10 @@ pub fn run_render(preset: Option<&std::path::Path>, a: &RenderArgs) -> Result<()
         if let Some(share) = t.proxy_share {
             println!("proxy_volume {share:.4}");
         }
+        // how many of the per-slice path's tiles had nothing to do
+        if let Some(share) = t.idle_tiles {
+            println!("idle_tiles {share:.4}");
+        }
         // the compute rays cut to the occupied bricks' hull, and its share of the
         // visible box
         if r.empty_brick_share().is_some() && settings.backend == Backend::Compute {

@@ -72,6 +72,9 @@ pub struct Timing {
     /// `FrameStats::scissor_share`).
     pub proxy_share: Option<f64>,
     pub scissor_share: Option<f64>,
+    /// The last frame's share of idle tiles in the fused per-slice dispatches
+    /// (`FrameStats::idle_tiles`).
+    pub idle_tiles: Option<f64>,
 }
 
 impl Timing {
@@ -114,11 +117,12 @@ pub fn time_frames(
     let (mut wall, mut gpu) = (Vec::new(), Vec::new());
     let mut passes: BTreeMap<String, Vec<f64>> = BTreeMap::new();
     let mut slices = 0;
-    let (mut proxy_share, mut scissor_share) = (None, None);
+    let (mut proxy_share, mut scissor_share, mut idle_tiles) = (None, None, None);
     for _ in 0..frames.max(1) {
         let st = r.render(s)?;
         slices = st.slices;
         (proxy_share, scissor_share) = (st.proxy_share, st.scissor_share);
+        idle_tiles = st.idle_tiles;
         wall.push(st.wall_ms);
         gpu.extend(st.gpu_ms);
         for (name, ms) in st.gpu_passes {
@@ -138,6 +142,7 @@ pub fn time_frames(
             .collect(),
         proxy_share,
         scissor_share,
+        idle_tiles,
     })
 }
 
@@ -1607,6 +1612,7 @@ mod tests {
             passes: Vec::new(),
             proxy_share: None,
             scissor_share: None,
+            idle_tiles: None,
         };
         // a GPU frame well below its submit-and-wait is the GPU's
         assert_eq!(timing(0.29, 2.0).frame_ms(), (0.29, "gpu"));

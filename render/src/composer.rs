@@ -1310,10 +1310,12 @@ pub fn compose_with(
             if !stores.is_empty() {
                 let code = format!(
                     "// The slice and every state update in one dispatch, each sample evaluated once\n\
-                     // (used when every per-slice state has the eye buffer's resolution).\n\
+                     // (used when every per-slice state has the eye buffer's resolution), over the\n\
+                     // slice's tiles (`slice_tile`).\n\
                      @compute @workgroup_size(8, 8, 1)\n\
-                     fn {FUSED_SLICE_ENTRY}(@builtin(global_invocation_id) gid: vec3<u32>) {{\n    \
+                     fn {FUSED_SLICE_ENTRY}(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid: vec3<u32>) {{\n    \
                      let size = vec2<u32>(frame.viewport.xy);\n    \
+                     let gid = vec3<u32>(slice_tile(wg.xy) * 8u + lid.xy, 0u);\n    \
                      if (gid.x >= size.x || gid.y >= size.y) {{\n        return;\n    }}\n    \
                      let e = slice_step(gid.xy, size, true);\n\
                      {stores}}}"

@@ -1186,6 +1186,19 @@ pub trait Plugin: Send + Sync + 'static {
     ) -> Option<glam::Vec3> {
         None
     }
+    /// How far one slice's state update reaches under `params`: the radius, in world
+    /// units per world unit of the slice spacing, on the slice's plane, within which an
+    /// update reads the previous slice's state (besides the bilinear footprint of the
+    /// reads). Stating it promises that where the slice's sample is transparent (α = 0,
+    /// no colour: clipped, skipped or classified away) and every texel of `state_prev`
+    /// within that reach holds the state's [`SliceStateDecl::clear`], the update writes
+    /// `clear` exactly. The compute backend then lets whole 8 × 8 tiles of a slice
+    /// that no visible sample and no marked state can reach return at once (exact;
+    /// [`crate::renderer::Renderer::set_slice_exit`]). `None` (the default): unknown,
+    /// every tile runs every slice.
+    fn slice_state_reach(&self, _params: &ParamValues) -> Option<f64> {
+        None
+    }
     fn prepass(&self) -> Option<PrepassDecl> {
         None
     }

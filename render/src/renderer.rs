@@ -47,6 +47,7 @@ mod bricks;
 mod level;
 mod lod;
 mod raster_et;
+mod slice_exit;
 pub use atlas::{Atlas, AtlasTile, EncodedAtlas};
 pub use bricks::{BRICK_GHOST, BrickInfo, MIN_BRICK_LIMIT, RendererOptions, over, split_axis};
 use bricks::{Region, Split, upload_or_split};
@@ -190,6 +191,10 @@ pub struct FrameStats {
     /// Compute backend with per-slice state: the slice and the state updates ran in one
     /// dispatch per slice ([`Renderer::set_fused_slices`]).
     pub fused_slices: bool,
+    /// Compute backend, fused per-slice dispatches: the share of the (slice, tile)
+    /// pairs whose tile returned at once ([`Renderer::set_slice_exit`]); `None` where
+    /// no tile could.
+    pub idle_tiles: Option<f64>,
 }
 
 impl FrameStats {
@@ -468,7 +473,8 @@ fn fullscreen_pipeline(
 
 /// Whether the benchmark switch `name` is on: unless it is set to `0` (the defaults of
 /// [`Renderer::set_fused_slices`], `VWB_FUSED_SLICES=0` restoring a dispatch per slice
-/// and per update, and [`Renderer::set_state_tracking`], `VWB_STATE_TRACKING`).
+/// and per update, [`Renderer::set_state_tracking`], `VWB_STATE_TRACKING`, and
+/// [`Renderer::set_slice_exit`], `VWB_SLICE_EXIT`).
 fn env_on(name: &str) -> bool {
     std::env::var(name).map_or(true, |v| v.trim() != "0")
 }
@@ -1041,6 +1047,8 @@ pub struct Renderer {
     frame_buf: wgpu::Buffer,
     slice_info: wgpu::Buffer,
     slice_info_slices: u32,
+    /// The slice tile list group 0 binds where no frame lists tiles (one unused word).
+    no_tile_list: wgpu::Buffer,
     g0_layout: wgpu::BindGroupLayout,
     g0: wgpu::BindGroup,
     /// Value range per brick of the volume (empty-space skipping).
@@ -1125,6 +1133,9 @@ pub struct Renderer {
     /// Per-slice state: track the tiles that still hold their clear value
     /// ([`Renderer::set_state_tracking`]).
     state_tracking: bool,
+    /// The fused per-slice entry point's idle tiles return at once
+    /// ([`Renderer::set_slice_exit`]).
+    slice_exit: bool,
     /// Compute backend: take the march's samples with one fetch each and nothing else
     /// ([`Renderer::set_raw_samples`]).
     raw_samples: bool,
@@ -1289,7 +1300,23 @@ impl Renderer {
                 sampler_entry(3, fc),
                 uniform_entry(4, fc, true),
                 texture3d_entry(5, fc),
+                wgpu::BindGroupLayoutEntry {
+                    binding: 6,
+                    visibility: wgpu::ShaderStages::COMPUTE,
+                    ty: wgpu::BindingType::Buffer {
+                        ty: wgpu::BufferBindingType::Storage { read_only: true },
+                        has_dynamic_offset: false,
+                        min_binding_size: None,
+                    },
+                    count: None,
+                },
             ],
+        });
+        let no_tile_list = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("vwb slice tiles (none)"),
+            size: 16,
+            usage: wgpu::BufferUsages::STORAGE,
+            mapped_at_creation: false,
         });
         let slice_info = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("vwb slice info"),
@@ -1305,7 +1332,7 @@ impl Renderer {
             &volume_view,
             &linear,
             &nearest,
-            &slice_info,
+            [&slice_info, &no_tile_list],
             &occupancy.1,
         );
         let mut r = Self {
@@ -1319,6 +1346,7 @@ impl Renderer {
             nearest,
             frame_buf,
             slice_info,
+            no_tile_list,
             slice_info_slices: 1,
             g0,
             g0_layout,
@@ -1349,6 +1377,7 @@ impl Renderer {
             hull_rays: HullRays::from_env(),
             fused_slices: env_on("VWB_FUSED_SLICES"),
             state_tracking: env_on("VWB_STATE_TRACKING"),
+            slice_exit: env_on("VWB_SLICE_EXIT"),
             raw_samples: std::env::var("VWB_RAW_SAMPLES").is_ok_and(|v| v.trim() == "1"),
             volume_bytes,
             gpu_budget: budget,
@@ -1621,6 +1650,19 @@ impl Renderer {
         self.raw_samples = on;
     }
 
+    /// Compute backend with per-slice state whose every plugin states its reach
+    /// ([`crate::plugin::Plugin::slice_state_reach`], `shade.dos`), in the fused
+    /// dispatch: the 8 × 8 tiles of a slice that no visible sample lies under and that
+    /// no state other than clear can reach return at once (on by default;
+    /// `VWB_SLICE_EXIT=0` starts renderers with it off). Per slice the renderer bounds,
+    /// on the screen, the occupied bricks' hull on the slice's plane, and the state
+    /// that can differ from clear: that bound of the slice before, widened by the reach,
+    /// with the slice's own (docs/perf.md, "Idle tiles of the per-slice path"). The
+    /// image is the same bit for bit.
+    pub fn set_slice_exit(&mut self, on: bool) {
+        self.slice_exit = on;
+    }
+
     /// Per-slice state whose plugin tracks its clear tiles
     /// ([`crate::plugin::SliceStateDecl::track_clear`], `shade.dos`): keep the marks of
     /// the tiles that left the clear value, so that updates under clear tiles skip
@@ -1802,7 +1844,7 @@ impl Renderer {
             &self.volume_view,
             &self.linear,
             &self.nearest,
-            &self.slice_info,
+            [&self.slice_info, &self.no_tile_list],
             &self.occupancy.1,
         );
     }
@@ -2791,7 +2833,9 @@ impl Renderer {
     /// resolve. `groups` are bind groups 0 (the frame, indexed by slice), 1 and 3, `g2`
     /// group 2 for even and odd slices ([`Renderer::group2_for`] of `uids`); `size`
     /// the eye buffer's; `view_aligned` false under half-angle slicing (no fused
-    /// pipeline). Whether the fused pipeline ran.
+    /// pipeline); `exit` the tiles the fused dispatches cover ([`slice_exit::SliceExit`],
+    /// whose buffers group 0 then binds), `None`: the eye buffer. Whether the fused
+    /// pipeline ran.
     #[allow(clippy::too_many_arguments)]
     fn encode_compute_slices(
         &self,
@@ -2803,6 +2847,7 @@ impl Renderer {
         count: u32,
         size: [u32; 2],
         view_aligned: bool,
+        exit: Option<&slice_exit::SliceExit>,
     ) -> bool {
         let sizes = self.state_sizes(p, uids);
         // the fused pipeline updates the state texel under each pixel: the state must
@@ -2817,14 +2862,21 @@ impl Renderer {
         let wg = (size[0].div_ceil(8), size[1].div_ceil(8));
         for k in 0..count {
             let parity = &g2[(k % 2) as usize];
-            {
+            // the fused dispatch covers the slice's tiles (none: the slice changes
+            // nothing, and the next state already holds clear wherever it is not
+            // written)
+            let n = match (fused, exit.and_then(|x| x.workgroups(k))) {
+                (Some(_), Some(n)) => n,
+                _ => wg,
+            };
+            if n.0 > 0 && n.1 > 0 {
                 let mut pass = enc.begin_compute_pass(&Default::default());
                 pass.set_pipeline(fused.unwrap_or(&p.cs_slice));
                 pass.set_bind_group(0, g0, &[(k as u64 * SLICE_INFO_STRIDE) as u32]);
                 pass.set_bind_group(1, g1, &[]);
                 pass.set_bind_group(2, parity, &[]);
                 pass.set_bind_group(3, g3, &[]);
-                pass.dispatch_workgroups(wg.0, wg.1, 1);
+                pass.dispatch_workgroups(n.0, n.1, 1);
             }
             if fused.is_none() {
                 self.encode_state_updates(enc, p, &sizes, [g0, g1, parity, g3], k);
@@ -2932,16 +2984,34 @@ impl Renderer {
         })
     }
 
-    fn write_frame(&self, s: &FrameSettings, plan: &FramePlan, view: &crate::camera::View) {
+    fn write_frame(
+        &self,
+        s: &FrameSettings,
+        plan: &FramePlan,
+        view: &crate::camera::View,
+    ) -> FrameUniform {
         let t = self.target.as_ref().expect("target exists");
-        let occupied = self.occupancy_bytes.as_deref().map(|bytes| Occupied {
-            bytes,
-            hull: self.occupied_hull.as_ref().map(|(h, share)| (h, *share)),
-        });
-        let u = self.frame_uniform(s, plan, view, [t.width, t.height], t.format, occupied);
+        let u = self.frame_uniform(
+            s,
+            plan,
+            view,
+            [t.width, t.height],
+            t.format,
+            self.occupied(),
+        );
         self.gpu
             .queue
             .write_buffer(&self.frame_buf, 0, bytemuck::bytes_of(&u));
+        u
+    }
+
+    /// What empty-space skipping knows of the renderer's own stack (`None` when
+    /// skipping is off).
+    fn occupied(&self) -> Option<Occupied<'_>> {
+        self.occupancy_bytes.as_deref().map(|bytes| Occupied {
+            bytes,
+            hull: self.occupied_hull.as_ref().map(|(h, share)| (h, *share)),
+        })
     }
 
     /// The core uniform of a frame drawn into a `size` eye buffer of `format`, skipping
@@ -3697,7 +3767,7 @@ impl Renderer {
             }
             _ => Vec::new(),
         };
-        self.write_frame(s, &frame_plan, &view);
+        let frame_u = self.write_frame(s, &frame_plan, &view);
         // the orders in which the raster backend blends the slices: "under" (front to
         // back), or for half-angle slices "over" where the eye meets them from behind,
         // and both (each pixel drawn by its own order's pipeline) where the view's rays
@@ -3734,6 +3804,7 @@ impl Renderer {
         let mut scissor_share = None;
         let mut proxy_share = None;
         let mut fused_run = false;
+        let mut idle_tiles = None;
         if s.backend == Backend::Raster {
             let own = self.own_box().0;
             // the proxies cover only what can be visible: the occupied cells, or the
@@ -4059,7 +4130,28 @@ impl Renderer {
             Backend::Compute => {
                 if per_slice {
                     let uids = p.uids();
-                    let groups = [&self.g0, &g1, &g3];
+                    // idle tiles return at once: the frame's own slice info
+                    let exit = self.slice_exit_info(
+                        &p.stack,
+                        &frame_plan,
+                        &view,
+                        &frame_u,
+                        [t.width, t.height],
+                        self.occupied(),
+                    );
+                    let g0_exit = exit.as_ref().map(|x| {
+                        make_g0(
+                            device,
+                            &self.g0_layout,
+                            &self.frame_buf,
+                            &self.volume_view,
+                            &self.linear,
+                            &self.nearest,
+                            [&x.info, &x.list],
+                            &self.occupancy.1,
+                        )
+                    });
+                    let groups = [g0_exit.as_ref().unwrap_or(&self.g0), &g1, &g3];
                     fused_run = self.encode_compute_slices(
                         enc,
                         p,
@@ -4069,7 +4161,9 @@ impl Renderer {
                         plan.count,
                         [t.width, t.height],
                         frame_plan.half.is_none(),
+                        exit.as_ref(),
                     );
+                    idle_tiles = exit.filter(|_| fused_run).map(|x| x.idle);
                 } else {
                     let mut pass = enc.begin_compute_pass(&Default::default());
                     pass.set_pipeline(if self.raw_samples {
@@ -4111,6 +4205,7 @@ impl Renderer {
                 proxy_share,
                 scissor_share,
                 fused_slices: fused_run,
+                idle_tiles,
                 ..Default::default()
             },
         })
@@ -4431,7 +4526,7 @@ fn make_g0(
     volume: &wgpu::TextureView,
     linear: &wgpu::Sampler,
     nearest: &wgpu::Sampler,
-    slice_info: &wgpu::Buffer,
+    [slice_info, tile_list]: [&wgpu::Buffer; 2],
     occupancy: &wgpu::TextureView,
 ) -> wgpu::BindGroup {
     device.create_bind_group(&wgpu::BindGroupDescriptor {
@@ -4465,6 +4560,10 @@ fn make_g0(
             wgpu::BindGroupEntry {
                 binding: 5,
                 resource: wgpu::BindingResource::TextureView(occupancy),
+            },
+            wgpu::BindGroupEntry {
+                binding: 6,
+                resource: tile_list.as_entire_binding(),
             },
         ],
     })

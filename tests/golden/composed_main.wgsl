@@ -103,11 +103,16 @@ fn sweep_sizes(sw: SweepInfo, dims: vec3<u32>) -> vec3<u32> {
     return vec3<u32>(dims.z, dims.x, dims.y);
 }
 
+// Per slice (bound with a dynamic offset): its index and, where `tile_row` is not 0,
+// the tiles of 8 × 8 pixels where anything that reaches the image can change at this
+// slice, `tile_count` of them from `tile_offset` in `slice_tile_list`, which the fused
+// per-slice entry point's dispatch covers in rows of `tile_row` workgroups
+// (render/src/renderer/slice_exit.rs).
 struct SliceInfo {
     index: u32,
-    pad0: u32,
-    pad1: u32,
-    pad2: u32,
+    tile_offset: u32,
+    tile_count: u32,
+    tile_row: u32,
 }
 
 @group(0) @binding(0) var<uniform> frame: Frame;
@@ -118,6 +123,8 @@ struct SliceInfo {
 // Empty-space skipping: per brick of frame.settings.y voxels, > 0.5 where a sample can
 // be visible (render/src/skipping.rs).
 @group(0) @binding(5) var occupancy: texture_3d<f32>;
+// The tiles of every slice that `slice_info` lists, x | y << 16.
+@group(0) @binding(6) var<storage, read> slice_tile_list: array<u32>;
 
 // A pixel's ray (`pixel_ray`): `origin` is the eye for a perspective camera, the
 // pixel's point on the plane through the eye for an orthographic one; `dir` is unit.
@@ -1108,6 +1115,21 @@ fn slice_step(px: vec2<u32>, size: vec2<u32>, always: bool) -> Evaluated {
     return e;
 }
 
+// The tile (of 8 × 8 pixels) of workgroup `wg` of the fused per-slice entry point:
+// where `slice_info` lists this slice's tiles, the listed one (beyond the list, one
+// outside every eye buffer), else `wg` itself.
+fn slice_tile(wg: vec2<u32>) -> vec2<u32> {
+    if (slice_info.tile_row == 0u) {
+        return wg;
+    }
+    let i = wg.y * slice_info.tile_row + wg.x;
+    if (i >= slice_info.tile_count) {
+        return vec2<u32>(0xffffu);
+    }
+    let t = slice_tile_list[slice_info.tile_offset + i];
+    return vec2<u32>(t & 0xffffu, t >> 16u);
+}
+
 // One slice per dispatch, accumulating in `accum` (used when a plugin has per-slice
 // state whose resolution differs from the eye buffer's; otherwise `cs_slice_fused`).
 @compute @workgroup_size(8, 8, 1)
@@ -1173,10 +1195,12 @@ fn cs_update_2(@builtin(global_invocation_id) gid: vec3<u32>) {
     textureStore(p2_slice_shadow_state_next, vec2<i32>(gid.xy), p2_slice_shadow_slice_update(e.s, e.c, e.s.uv));
 }
 // The slice and every state update in one dispatch, each sample evaluated once
-// (used when every per-slice state has the eye buffer's resolution).
+// (used when every per-slice state has the eye buffer's resolution), over the
+// slice's tiles (`slice_tile`).
 @compute @workgroup_size(8, 8, 1)
-fn cs_slice_fused(@builtin(global_invocation_id) gid: vec3<u32>) {
+fn cs_slice_fused(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid: vec3<u32>) {
     let size = vec2<u32>(frame.viewport.xy);
+    let gid = vec3<u32>(slice_tile(wg.xy) * 8u + lid.xy, 0u);
     if (gid.x >= size.x || gid.y >= size.y) {
         return;
     }

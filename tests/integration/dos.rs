@@ -655,3 +655,191 @@ fn a_wide_view_across_the_light_composites_each_pixel_in_its_own_order() {
     assert!(alpha > 0.05, "{alpha}");
     backends_match_the_twin_and_each_other_in(&stack, "wide view across the light", &s);
 }
+
+/// `stack` under `s` with the per-slice path's idle tiles left out of its dispatches
+/// ([`Renderer::set_slice_exit`]) and with every tile dispatched: the same pixels bit
+/// for bit. Returns the share of idle tiles.
+fn idle_tiles_keep_the_image(
+    r: &mut Renderer,
+    stack: &[PluginInstance],
+    s: &FrameSettings,
+    what: &str,
+) -> Option<f64> {
+    let mut images = Vec::new();
+    let mut idle = None;
+    for exit in [true, false] {
+        r.set_slice_exit(exit);
+        r.update_stack(stack, TargetFormat::Rgba32Float).unwrap();
+        let stats = r.render(s).unwrap();
+        assert!(stats.per_slice_mode && stats.slices > 0, "{what}");
+        if exit {
+            idle = stats.idle_tiles;
+        } else {
+            assert_eq!(stats.idle_tiles, None, "{what}: every tile runs");
+        }
+        images.push(r.read_pixels().unwrap().2);
+    }
+    r.set_slice_exit(true);
+    let same = images[0]
+        .iter()
+        .zip(&images[1])
+        .filter(|(a, b)| a.map(f32::to_bits) == b.map(f32::to_bits))
+        .count();
+    eprintln!(
+        "{what}: idle tiles {idle:?}, {same} of {} pixels the same",
+        images[0].len()
+    );
+    assert_eq!(
+        same,
+        images[0].len(),
+        "{what}: the image with idle tiles left out differs"
+    );
+    idle
+}
+
+/// The compute backend leaves out of each slice's dispatch the tiles where no sample
+/// can be visible and the occlusion buffer is either still clear or read by no later
+/// visible sample (`vwb_render::renderer` `slice_exit`): the image is the one with
+/// every tile dispatched, bit for bit, for both kernels and distances, chromatic
+/// extinction, apertures from 0° to 85°, perspective and orthographic views, a clip,
+/// skipping off, nothing visible, a block shadowing a second one behind it, and an
+/// atlas of variants. It leaves out tiles wherever it applies; a state that states no
+/// reach (`test.slice_shadow`), a half-resolution buffer, the raster backend and a
+/// directional light dispatch every tile.
+#[test]
+fn idle_tiles_are_left_out_and_keep_the_image() {
+    let mut r = Renderer::new(gpu(), demo()).unwrap();
+    let persp = settings(64, 64, Backend::Compute);
+    let mut ortho = ortho_axis(64, 64, Backend::Compute);
+    ortho.camera.yaw_deg += 30.0;
+    ortho.camera.pitch_deg += 20.0;
+    for (kernel, distance, extinction, theta) in [
+        ("grid", "slice", None, 60.0),
+        ("poisson", "exact", None, 30.0),
+        ("grid", "exact", Some([0.4, 1.0, 2.5]), 70.0),
+        ("grid", "slice", None, 0.0),
+        ("poisson", "slice", None, 85.0),
+    ] {
+        let mut d = dos(theta);
+        set_kernel(&mut d, kernel, distance, "1", extinction);
+        d.params
+            .set("buffer_format", ParamValue::Enum("fp32".into()));
+        let stack = [instance("classify.tf1d"), d];
+        for (view, s) in [("perspective", &persp), ("orthographic", &ortho)] {
+            let what = format!("{kernel} {distance} κ {extinction:?} θ {theta} {view}");
+            let idle = idle_tiles_keep_the_image(&mut r, &stack, s, &what);
+            assert!(idle.is_some_and(|i| i > 0.1), "{what}: {idle:?}");
+        }
+    }
+    let (tf, d) = (instance("classify.tf1d"), dos(60.0));
+    // a clip through the matter (the default: the plane x = 0)
+    let stack = [tf.clone(), instance("clip.shapes"), d.clone()];
+    let idle = idle_tiles_keep_the_image(&mut r, &stack, &persp, "clip");
+    assert!(idle.is_some_and(|i| i > 0.1), "clip: {idle:?}");
+    // without skipping every sample of the box can be visible: fewer tiles are idle
+    r.set_empty_space_skipping(false);
+    let stack = [tf.clone(), d.clone()];
+    let unskipped = idle_tiles_keep_the_image(&mut r, &stack, &persp, "skipping off");
+    r.set_empty_space_skipping(true);
+    let skipped = idle_tiles_keep_the_image(&mut r, &stack, &persp, "skipping on");
+    assert!(
+        unskipped.is_some() && unskipped < skipped,
+        "{unskipped:?} {skipped:?}"
+    );
+    // nothing visible: every tile after the first slice is idle
+    let mut clear = tf.clone();
+    clear.params.set(
+        "tf",
+        ParamValue::Tf(vwb_render::tf::TfCurve::ramp(
+            0.0,
+            1.0,
+            [1.0, 1.0, 1.0, 0.0],
+        )),
+    );
+    let idle = idle_tiles_keep_the_image(&mut r, &[clear, d.clone()], &persp, "nothing visible");
+    assert!(idle.is_some_and(|i| i > 0.95), "nothing visible: {idle:?}");
+    // what dispatches every tile
+    let mut half = d.clone();
+    half.params
+        .set("buffer_scale", ParamValue::Enum("0.5".into()));
+    for (stack, s, what) in [
+        (
+            vec![tf.clone(), instance("test.slice_shadow")],
+            persp,
+            "no reach",
+        ),
+        (vec![tf.clone(), half], persp, "half resolution"),
+        (
+            vec![tf.clone(), d.clone()],
+            settings(64, 64, Backend::Raster),
+            "raster",
+        ),
+        (
+            vec![tf.clone(), dos_lit(60.0, [0.6, 0.4, 1.0])],
+            persp,
+            "directional light",
+        ),
+    ] {
+        assert_eq!(
+            idle_tiles_keep_the_image(&mut r, &stack, &s, what),
+            None,
+            "{what}"
+        );
+    }
+
+    // a block whose shadow falls on part of a smaller block further back, seen from
+    // the side: between them the shadow is still needed on the way to the second block
+    // and stale elsewhere
+    let vol = synthetic([40; 3], |x, y, z| {
+        let front = (8..22).contains(&x) && (8..22).contains(&y) && (4..10).contains(&z);
+        let back = (16..26).contains(&x) && (14..30).contains(&y) && (28..34).contains(&z);
+        if front || back { 1.0 } else { 0.0 }
+    });
+    let mut r = Renderer::new(gpu(), vol).unwrap();
+    let mut tf = instance("classify.tf1d");
+    tf.params.set(
+        "tf",
+        ParamValue::Tf(vwb_render::tf::TfCurve::ramp(
+            0.4,
+            0.6,
+            [0.9, 0.9, 0.9, 0.9],
+        )),
+    );
+    let mut s = ortho_axis(96, 96, Backend::Compute);
+    s.camera.yaw_deg += 10.0;
+    s.camera.pitch_deg += 8.0;
+    for theta in [20.0, 60.0] {
+        let stack = [tf.clone(), dos(theta)];
+        let what = format!("two blocks θ {theta}");
+        let idle = idle_tiles_keep_the_image(&mut r, &stack, &s, &what);
+        assert!(idle.is_some_and(|i| i > 0.15), "{what}: {idle:?}");
+    }
+
+    // an atlas of variants (each tile's own occupancy, hull and reach)
+    let mut r = Renderer::new(gpu(), demo()).unwrap();
+    let stacks: Vec<Vec<PluginInstance>> = [20.0, 60.0, 80.0]
+        .iter()
+        .map(|&theta| vec![instance("classify.tf1d"), dos(theta)])
+        .collect();
+    let mut cams = [persp.camera; 3];
+    cams[1].yaw_deg += 40.0;
+    cams[2] = ortho.camera;
+    let tiles: Vec<vwb_render::renderer::AtlasTile> = stacks
+        .iter()
+        .zip(cams)
+        .map(|(stack, camera)| vwb_render::renderer::AtlasTile { camera, stack })
+        .collect();
+    let mut atlases = Vec::new();
+    for exit in [true, false] {
+        r.set_slice_exit(exit);
+        atlases.push(
+            r.render_atlas(&tiles, &persp, TargetFormat::Rgba32Float, 3)
+                .unwrap(),
+        );
+    }
+    assert!(
+        atlases[0].pixels == atlases[1].pixels,
+        "the atlas with idle tiles left out differs"
+    );
+    assert!(mean_luma(&rgb(&atlases[0].pixels)) > 0.01);
+}

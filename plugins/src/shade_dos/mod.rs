@@ -255,6 +255,11 @@ impl Plugin for Dos {
     fn slice_light(&self, params: &ParamValues, view: &vwb_render::camera::View) -> Option<glam::Vec3> {
         light_direction(params, view)
     }
+    /// The cone's base radius per slice distance, d·tan θ (eq 11): an empty sample
+    /// (σt = 0) under a cone of clear buffer (V = 1) averages taps of exactly 1.
+    fn slice_state_reach(&self, params: &ParamValues) -> Option<f64> {
+        Some((params.float("theta_deg") as f64).to_radians().tan())
+    }
     fn configure(&self, params: &ParamValues) -> Option<Arc<dyn Plugin>> {
         let scale = params
             .enumeration("buffer_scale")

@@ -347,17 +347,15 @@ impl Renderer {
             let occupancy_texture = occupancy.as_ref().map(|(_, t, _)| t);
             // skipping (and the rays' visible box and hull) by this tile's own
             // classification
-            let u = self.frame_uniform(
-                &settings,
-                plan,
-                view,
-                [tw, th],
-                target,
-                occupancy.as_ref().map(|(bytes, _, hull)| Occupied {
-                    bytes,
-                    hull: hull.as_ref().map(|(h, share)| (h, *share)),
-                }),
-            );
+            let occupied = occupancy.as_ref().map(|(bytes, _, hull)| Occupied {
+                bytes,
+                hull: hull.as_ref().map(|(h, share)| (h, *share)),
+            });
+            let u = self.frame_uniform(&settings, plan, view, [tw, th], target, occupied);
+            // with per-slice state, the idle tiles of this tile's slices return at once
+            let exit = per_slice
+                .then(|| self.slice_exit_info(stack, plan, view, &u, [tw, th], occupied))
+                .flatten();
             let frame = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
                 label: Some("vwb atlas frame"),
                 contents: bytemuck::bytes_of(&u),
@@ -370,7 +368,10 @@ impl Renderer {
                 &self.volume_view,
                 &self.linear,
                 &self.nearest,
-                &self.slice_info,
+                exit.as_ref()
+                    .map_or([&self.slice_info, &self.no_tile_list], |x| {
+                        [&x.info, &x.list]
+                    }),
                 occupancy_texture.map_or(&self.occupancy.1, |o| &o.1),
             );
             // this tile's passes, after the tiles before it were drawn: a view pass's
@@ -390,6 +391,7 @@ impl Renderer {
                     plans[i].slices.count,
                     [tw, th],
                     plans[i].half.is_none(),
+                    exit.as_ref(),
                 );
             } else {
                 let mut pass = enc.begin_compute_pass(&Default::default());

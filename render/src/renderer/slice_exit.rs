@@ -1,0 +1,468 @@
+//! The tiles that a frame's fused per-slice dispatches cover ([`Renderer::set_slice_exit`]).
+//!
+//! On the compute backend, a stack with per-slice state (`shade.dos`) runs one dispatch
+//! per slice, over every pixel: its sample, and every state texel's update. Most of
+//! those do nothing that reaches the image. The renderer lists, per slice, the tiles of
+//! [`STATE_TILE`] × [`STATE_TILE`] pixels (the fused entry point's workgroups) where
+//! something that matters can change, and dispatches those only. On llvmpipe a
+//! workgroup whose invocations all return at once still runs its code under a mask, so
+//! leaving tiles out of the dispatch is what saves the time.
+//!
+//! The tiles follow three regions per slice k, each bounded per tile by a lower bound
+//! of its distance to the region, in pixels (0: the tile may meet it):
+//!
+//! - V_k, where a sample of slice k can be visible: the slice's polygon in the visible
+//!   box, cut to the occupied bricks' hull, on the screen, rasterised per row of tiles
+//!   with a margin. Elsewhere the sample is transparent (empty-space skipping's promise).
+//! - F_k, where the state after slice k can differ from its clear value: V_k joined
+//!   with F_{k−1} widened by the updates' reach R_k (the plugins'
+//!   [`crate::plugin::Plugin::slice_state_reach`] times the slice spacing, mapped to
+//!   pixels at the slice's depth as `state_uv_per_world` in shaders/common.wgsl, plus
+//!   the bilinear footprint). Outside it both state textures still hold clear (slice 0
+//!   writes every texel), and an update there would write clear again.
+//! - D_k, where the state after slice k is read by anything that reaches the image:
+//!   the shading of slice k + 1's visible samples, and the updates of D_{k+1}, i.e.
+//!   V_{k+1} joined with D_{k+1} widened by R_{k+1}; empty after the last slice.
+//!   Outside it the state may keep a stale value: no later visible sample reads one
+//!   (the last frame's state, [`Renderer::read_state`], holds such values there).
+//!
+//! Slice k's tiles are those of V_k joined with those of F_k ∩ D_k; slice 0 covers the
+//! whole eye buffer (it starts the accumulation and the state). The image is the same
+//! bit for bit.
+
+use glam::{DVec2, Mat4};
+
+use super::{
+    FrameUniform, Occupied, Renderer, SLICE_INFO_STRIDE, STATE_TILE, SlicePlan, VolumeBox,
+};
+use crate::plugin::Plugin;
+use std::sync::Arc;
+
+/// Width of a row of workgroups of a listed dispatch: the fused entry point reads its
+/// tile at `slice_info.tile_offset + wg.y · row + wg.x` (`slice_info.tile_row`).
+pub(super) const LIST_ROW: u32 = 4096;
+
+/// Pixels of margin around every bound, for rounding.
+const MARGIN: f64 = 2.0;
+
+/// The tiles a frame's fused per-slice dispatches cover.
+pub(super) struct SliceExit {
+    /// Per slice (in its [`SLICE_INFO_STRIDE`] chunk): its index, and from slice 1 on
+    /// the offset and count of its tiles in `list` and [`LIST_ROW`]; as long as the
+    /// renderer's shared slice info (volume passes index that by step).
+    pub info: wgpu::Buffer,
+    /// Every slice's tiles, `x | y << 16`, slice after slice.
+    pub list: wgpu::Buffer,
+    /// Per slice, the number of its tiles (slice 0: the eye buffer's).
+    pub counts: Vec<u32>,
+    /// The share of the (slice, tile) pairs left out.
+    pub idle: f64,
+}
+
+impl SliceExit {
+    /// The workgroups of slice `k`'s dispatch, `None` where the eye buffer's (slice 0).
+    pub fn workgroups(&self, k: u32) -> Option<(u32, u32)> {
+        if k == 0 {
+            return None;
+        }
+        let n = self.counts.get(k as usize).copied().unwrap_or(0);
+        Some((n.min(LIST_ROW), n.div_ceil(LIST_ROW)))
+    }
+}
+
+/// A grid of tiles over the eye buffer.
+#[derive(Clone, Copy)]
+struct Grid {
+    w: usize,
+    h: usize,
+}
+
+impl Grid {
+    fn of(size: [u32; 2]) -> Self {
+        Self {
+            w: size[0].div_ceil(STATE_TILE) as usize,
+            h: size[1].div_ceil(STATE_TILE) as usize,
+        }
+    }
+
+    fn len(&self) -> usize {
+        self.w * self.h
+    }
+}
+
+/// The tiles that a convex polygon (`poly`, pixels; `None`: it reaches every pixel)
+/// can touch, widened by [`MARGIN`]: per row of tiles, the x extent of the polygon's
+/// part within the row's band.
+fn polygon_tiles(poly: Option<&[DVec2]>, grid: Grid) -> Vec<bool> {
+    let mut mask = vec![false; grid.len()];
+    let Some(poly) = poly else {
+        mask.fill(true);
+        return mask;
+    };
+    if poly.len() < 3 {
+        return mask;
+    }
+    let t = STATE_TILE as f64;
+    for row in 0..grid.h {
+        let band = [row as f64 * t - MARGIN, (row + 1) as f64 * t + MARGIN];
+        let part = clip_band(poly, band);
+        let (lo, hi) = part
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), p| {
+                (lo.min(p.x), hi.max(p.x))
+            });
+        // an empty part (both still infinite)
+        if lo > hi {
+            continue;
+        }
+        let x0 = ((lo - MARGIN) / t).floor().clamp(0.0, grid.w as f64) as usize;
+        let x1 = ((hi + MARGIN) / t).ceil().clamp(0.0, grid.w as f64) as usize;
+        mask[row * grid.w + x0..row * grid.w + x1.max(x0)].fill(true);
+    }
+    mask
+}
+
+/// The part of a convex polygon with `band[0] ≤ y ≤ band[1]` (Sutherland–Hodgman).
+fn clip_band(poly: &[DVec2], band: [f64; 2]) -> Vec<DVec2> {
+    let mut out = poly.to_vec();
+    for (sign, bound) in [(1.0, band[0]), (-1.0, -band[1])] {
+        // keep sign · y ≥ bound
+        let inside = |p: DVec2| sign * p.y - bound;
+        let src = std::mem::take(&mut out);
+        for (i, &a) in src.iter().enumerate() {
+            let b = src[(i + 1) % src.len()];
+            let (da, db) = (inside(a), inside(b));
+            if da >= 0.0 {
+                out.push(a);
+            }
+            if (da >= 0.0) != (db >= 0.0) {
+                out.push(a + (b - a) * (da / (da - db)));
+            }
+        }
+        if out.is_empty() {
+            break;
+        }
+    }
+    out
+}
+
+/// Per tile, a lower bound of the distance in pixels from its pixels to the tiles of
+/// `mask` (0 on them, infinite without any): the chessboard distance transform in tiles
+/// (two passes), less one, times the tile's side.
+fn distance_lower_bound(mask: &[bool], grid: Grid) -> Vec<f32> {
+    const FAR: u32 = u32::MAX / 2;
+    let (w, h) = (grid.w, grid.h);
+    let mut d: Vec<u32> = mask.iter().map(|&m| if m { 0 } else { FAR }).collect();
+    for y in 0..h {
+        for x in 0..w {
+            let mut v = d[y * w + x];
+            if x > 0 {
+                v = v.min(d[y * w + x - 1] + 1);
+            }
+            if y > 0 {
+                v = v.min(d[(y - 1) * w + x] + 1);
+                if x > 0 {
+                    v = v.min(d[(y - 1) * w + x - 1] + 1);
+                }
+                if x + 1 < w {
+                    v = v.min(d[(y - 1) * w + x + 1] + 1);
+                }
+            }
+            d[y * w + x] = v;
+        }
+    }
+    for y in (0..h).rev() {
+        for x in (0..w).rev() {
+            let mut v = d[y * w + x];
+            if x + 1 < w {
+                v = v.min(d[y * w + x + 1] + 1);
+            }
+            if y + 1 < h {
+                v = v.min(d[(y + 1) * w + x] + 1);
+                if x + 1 < w {
+                    v = v.min(d[(y + 1) * w + x + 1] + 1);
+                }
+                if x > 0 {
+                    v = v.min(d[(y + 1) * w + x - 1] + 1);
+                }
+            }
+            d[y * w + x] = v;
+        }
+    }
+    let t = STATE_TILE as f32;
+    d.into_iter()
+        .map(|c| match c {
+            FAR.. => f32::INFINITY,
+            0 => 0.0,
+            c => (c - 1) as f32 * t,
+        })
+        .collect()
+}
+
+/// `polygon` (world, on one plane) on the screen of `vp` in a `size` frame, in pixels;
+/// `None` where a vertex lies behind the eye (then it may reach any pixel).
+fn on_screen(polygon: &[glam::Vec3], vp: Mat4, size: [u32; 2]) -> Option<Vec<DVec2>> {
+    let (w, h) = (size[0] as f64, size[1] as f64);
+    polygon
+        .iter()
+        .map(|p| {
+            let c = (vp * p.extend(1.0)).as_dvec4();
+            let ndc = DVec2::new(c.x, c.y) / c.w;
+            let px = DVec2::new((ndc.x * 0.5 + 0.5) * w, (0.5 - ndc.y * 0.5) * h);
+            (c.w > 1.0e-6 && px.is_finite()).then_some(px)
+        })
+        .collect()
+}
+
+/// Per slice of a view-aligned frame with per-slice state (`plan`, drawn into a `size`
+/// eye buffer with the frame uniform `u` and view-projection `vp`), its tiles
+/// (`x | y << 16`, row by row) as the module's documentation defines them; slice 0's
+/// list is empty (it covers the eye buffer). `visible`: the box whose samples can be
+/// visible (`None`: nothing can be); `hull`: the occupied bricks' hull; `reach`: the
+/// largest of the stack's [`Plugin::slice_state_reach`].
+pub(super) fn slice_tiles(
+    plan: &SlicePlan,
+    u: &FrameUniform,
+    visible: Option<&VolumeBox>,
+    hull: Option<&crate::slicing::Dop>,
+    vp: Mat4,
+    size: [u32; 2],
+    reach: f64,
+) -> Vec<Vec<u32>> {
+    let grid = Grid::of(size);
+    let n = plan.count as usize;
+    let dims = [size[0] as f64, size[1] as f64];
+    let basis = [0, 1].map(|c| {
+        glam::Vec3::from_slice(&u.ray_basis[4 * c..4 * c + 3])
+            .as_dvec3()
+            .length()
+    });
+    let perspective = u.eye[3] > 0.5;
+    // R_k: the updates' reach at slice k, in pixels, with the bilinear footprint
+    let grow: Vec<f32> = (0..n)
+        .map(|k| {
+            let depth = if perspective {
+                (u.box_max[3] as f64 + k as f64 * u.forward[3] as f64).max(1.0e-9)
+            } else {
+                1.0
+            };
+            let px = (0..2)
+                .map(|i| reach * u.forward[3] as f64 * 0.5 / (basis[i] * depth) * dims[i])
+                .fold(0.0, f64::max);
+            if px.is_finite() {
+                (px.ceil() + 1.0 + MARGIN) as f32
+            } else {
+                f32::INFINITY
+            }
+        })
+        .collect();
+    // V_k, and the distances to it
+    let seen: Vec<Vec<bool>> = (0..n)
+        .map(|k| match visible {
+            Some(b) => {
+                let poly = plan.polygon(b, k as u32);
+                let poly = match hull {
+                    Some(h) => h.clip(poly),
+                    None => poly,
+                };
+                polygon_tiles(on_screen(&poly, vp, size).as_deref(), grid)
+            }
+            None => vec![false; grid.len()],
+        })
+        .collect();
+    let near: Vec<Vec<f32>> = seen.iter().map(|m| distance_lower_bound(m, grid)).collect();
+    // D_k, from the back: whether each tile may meet it
+    let mut read = vec![vec![false; grid.len()]; n];
+    let mut d = vec![f32::INFINITY; grid.len()];
+    for k in (0..n.saturating_sub(1)).rev() {
+        for (i, v) in d.iter_mut().enumerate() {
+            *v = near[k + 1][i].min((*v - grow[k + 1]).max(0.0));
+            read[k][i] = *v <= 0.0;
+        }
+    }
+    // F_k, from the front, and the tiles
+    let mut f = vec![f32::INFINITY; grid.len()];
+    (0..n)
+        .map(|k| {
+            let mut list = Vec::new();
+            for (i, v) in f.iter_mut().enumerate() {
+                *v = near[k][i].min((*v - grow[k]).max(0.0));
+                if k > 0 && (seen[k][i] || (*v <= 0.0 && read[k][i])) {
+                    list.push((i % grid.w) as u32 | ((i / grid.w) as u32) << 16);
+                }
+            }
+            list
+        })
+        .collect()
+}
+
+impl Renderer {
+    /// The tiles of a frame of `stack` that its fused per-slice dispatches cover
+    /// ([`Renderer::set_slice_exit`], [`slice_tiles`]), with group 0's buffers for
+    /// them. `None` where the exit is off, the slices are half-angle, or a plugin of
+    /// `stack` with per-slice state states no reach.
+    pub(super) fn slice_exit_info(
+        &self,
+        stack: &[(u64, Arc<dyn Plugin>)],
+        plan: &crate::slicing::FramePlan,
+        view: &crate::camera::View,
+        u: &FrameUniform,
+        size: [u32; 2],
+        occupied: Option<Occupied>,
+    ) -> Option<SliceExit> {
+        if !self.slice_exit || plan.half.is_some() {
+            return None;
+        }
+        let mut reach = 0.0_f64;
+        for (uid, plugin) in stack {
+            if plugin.slice_state().is_some() {
+                let r = plugin.slice_state_reach(&self.instances.get(uid)?.params)?;
+                reach = reach.max(r);
+            }
+        }
+        let visible = self.visible_box_in(occupied.map(|o| o.bytes));
+        let hull = occupied.and_then(|o| o.hull.map(|(h, _)| h));
+        let lists = slice_tiles(
+            &plan.slices,
+            u,
+            visible.as_ref(),
+            hull,
+            view.view_proj(),
+            size,
+            reach,
+        );
+        let all = Grid::of(size).len() as u32;
+        // as long as the shared slice info (volume passes index it by step)
+        let n = lists.len().max(self.slice_info_slices as usize).max(1);
+        let mut info = vec![0u8; n * SLICE_INFO_STRIDE as usize];
+        let mut flat: Vec<u32> = Vec::new();
+        let mut counts = Vec::with_capacity(lists.len());
+        for (k, chunk) in info
+            .chunks_exact_mut(SLICE_INFO_STRIDE as usize)
+            .enumerate()
+        {
+            let mut words = [k as u32, 0, 0, 0];
+            if let Some(list) = lists.get(k) {
+                if k > 0 {
+                    words = [k as u32, flat.len() as u32, list.len() as u32, LIST_ROW];
+                    flat.extend_from_slice(list);
+                    counts.push(list.len() as u32);
+                } else {
+                    counts.push(all);
+                }
+            }
+            chunk[..16].copy_from_slice(bytemuck::cast_slice(&words));
+        }
+        let idle = counts.iter().map(|&c| (all - c) as f64).sum::<f64>()
+            / (all as f64 * counts.len().max(1) as f64);
+        if flat.is_empty() {
+            flat.push(0);
+        }
+        let device = &self.gpu.device;
+        use wgpu::util::DeviceExt;
+        let info = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("vwb slice info (listed tiles)"),
+            contents: &info,
+            usage: wgpu::BufferUsages::UNIFORM,
+        });
+        let list = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("vwb slice tiles"),
+            contents: bytemuck::cast_slice(&flat),
+            usage: wgpu::BufferUsages::STORAGE,
+        });
+        Some(SliceExit {
+            info,
+            list,
+            counts,
+            idle,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn polygon_tiles_cover_the_polygon_per_row() {
+        let grid = Grid { w: 8, h: 8 };
+        // a triangle with its tip up
+        let poly = [
+            DVec2::new(4.0, 60.0),
+            DVec2::new(60.0, 60.0),
+            DVec2::new(32.0, 4.0),
+        ];
+        let m = polygon_tiles(Some(&poly), grid);
+        // every pixel centre inside the triangle lies in a listed tile
+        let inside = |p: DVec2| {
+            (0..3).all(|i| {
+                let (a, b) = (poly[i], poly[(i + 1) % 3]);
+                (b - a).perp_dot(p - a) >= 0.0
+            }) || (0..3).all(|i| {
+                let (a, b) = (poly[i], poly[(i + 1) % 3]);
+                (b - a).perp_dot(p - a) <= 0.0
+            })
+        };
+        for y in 0..64 {
+            for x in 0..64 {
+                let p = DVec2::new(x as f64 + 0.5, y as f64 + 0.5);
+                if inside(p) {
+                    assert!(m[(y / 8) * 8 + x / 8], "pixel ({x}, {y})");
+                }
+            }
+        }
+        // the tip's row is narrower than the base's, and the corners are left out
+        let row = |r: usize| m[r * 8..r * 8 + 8].iter().filter(|&&v| v).count();
+        assert!(row(0) < row(7), "{} {}", row(0), row(7));
+        assert!(!m[0] && !m[7]);
+        assert!(polygon_tiles(None, grid).iter().all(|&v| v));
+        assert!(!polygon_tiles(Some(&poly[..2]), grid).iter().any(|&v| v));
+    }
+
+    #[test]
+    fn distance_bounds_are_below_the_true_distances() {
+        let grid = Grid { w: 9, h: 7 };
+        let mut mask = vec![false; grid.len()];
+        mask[3 * 9 + 2] = true;
+        mask[9 + 7] = true;
+        let d = distance_lower_bound(&mask, grid);
+        let t = STATE_TILE as f64;
+        for (i, &v) in d.iter().enumerate() {
+            let (x, y) = ((i % 9) as f64, (i / 9) as f64);
+            // the true distance between the tiles' squares
+            let truth = mask
+                .iter()
+                .enumerate()
+                .filter(|(_, m)| **m)
+                .map(|(j, _)| {
+                    let (sx, sy) = ((j % 9) as f64, (j / 9) as f64);
+                    let gap = |a: f64, b: f64| ((a - b).abs() - 1.0).max(0.0) * t;
+                    gap(x, sx).hypot(gap(y, sy))
+                })
+                .fold(f64::INFINITY, f64::min);
+            assert!(v as f64 <= truth, "tile {i}: {v} > {truth}");
+            assert_eq!(v == 0.0, truth == 0.0, "tile {i}");
+        }
+        assert!(
+            distance_lower_bound(&vec![false; grid.len()], grid)
+                .iter()
+                .all(|v| v.is_infinite())
+        );
+    }
+
+    #[test]
+    fn a_band_clip_keeps_the_part_between_its_lines() {
+        let square = [
+            DVec2::new(0.0, 0.0),
+            DVec2::new(10.0, 0.0),
+            DVec2::new(10.0, 10.0),
+            DVec2::new(0.0, 10.0),
+        ];
+        let part = clip_band(&square, [2.0, 5.0]);
+        assert!(part.iter().all(|p| (2.0..=5.0).contains(&p.y)));
+        let xs: Vec<f64> = part.iter().map(|p| p.x).collect();
+        assert_eq!(xs.iter().cloned().fold(f64::INFINITY, f64::min), 0.0);
+        assert_eq!(xs.iter().cloned().fold(f64::NEG_INFINITY, f64::max), 10.0);
+        assert!(clip_band(&square, [11.0, 12.0]).is_empty());
+    }
+}
