@@ -249,8 +249,12 @@ pub(super) fn slice_tiles(
             let px = (0..2)
                 .map(|i| reach * u.forward[3] as f64 * 0.5 / (basis[i] * depth) * dims[i])
                 .fold(0.0, f64::max);
-            if px.is_finite() {
-                (px.ceil() + 1.0 + MARGIN) as f32
+            // the bilinear reads reach texels within one of a tap along each axis; a
+            // part in 10⁴ and a thousandth of a pixel cover the shader's f32 rounding
+            // (not more: the growth adds up over hundreds of slices)
+            let r = px * (1.0 + 1.0e-4) + std::f64::consts::SQRT_2 + 1.0e-3;
+            if r.is_finite() {
+                r as f32
             } else {
                 f32::INFINITY
             }
