@@ -1290,9 +1290,14 @@ pub fn compose_with(
                 if let Some(entry) = &inst.update_entry {
                     let store = state_store(inst);
                     let code = format!(
-                        "@compute @workgroup_size(8, 8, 1)\n\
-                         fn {entry}(@builtin(global_invocation_id) gid: vec3<u32>) {{\n    \
+                        "// The state update of one slice: over the slice's listed tiles where the\n\
+                         // state has the eye buffer's size (`slice_tile`), else over every texel.\n\
+                         @compute @workgroup_size(8, 8, 1)\n\
+                         fn {entry}(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid: vec3<u32>) {{\n    \
                          let size = textureDimensions({p}state_next);\n    \
+                         var tile = wg.xy;\n    \
+                         if (all(size == vec2<u32>(frame.viewport.xy))) {{\n        tile = slice_tile(wg.xy);\n    }}\n    \
+                         let gid = vec3<u32>(tile * 8u + lid.xy, 0u);\n    \
                          if (gid.x >= size.x || gid.y >= size.y) {{\n        return;\n    }}\n    \
                          let e = state_texel_sample(gid.xy, size);\n\
                          {store}\

@@ -2803,6 +2803,7 @@ impl Renderer {
     /// The state updates after slice `k`, one dispatch per state texel of each state
     /// (`sizes`: [`Renderer::state_sizes`]); `groups` are bind groups 0 (the frame,
     /// indexed by slice), 1, 2 (the slice's parity) and 3.
+    #[allow(clippy::too_many_arguments)]
     fn encode_state_updates(
         &self,
         enc: &mut wgpu::CommandEncoder,
@@ -2810,6 +2811,8 @@ impl Renderer {
         sizes: &[Option<wgpu::Extent3d>],
         [g0, g1, g2, g3]: [&wgpu::BindGroup; 4],
         k: u32,
+        eye: [u32; 2],
+        exit: Option<&slice_exit::SliceExit>,
     ) {
         let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
             label: Some("vwb state update"),
@@ -2821,8 +2824,15 @@ impl Renderer {
         pass.set_bind_group(3, g3, &[]);
         for ((_, pipeline), size) in p.updates.iter().zip(sizes) {
             let Some(e) = size else { continue };
-            pass.set_pipeline(pipeline);
-            pass.dispatch_workgroups(e.width.div_ceil(8), e.height.div_ceil(8), 1);
+            // a state of the eye buffer's size is updated over the slice's listed tiles
+            let n = match exit.and_then(|x| x.workgroups(k)) {
+                Some(n) if [e.width, e.height] == eye => n,
+                _ => (e.width.div_ceil(8), e.height.div_ceil(8)),
+            };
+            if n.0 > 0 && n.1 > 0 {
+                pass.set_pipeline(pipeline);
+                pass.dispatch_workgroups(n.0, n.1, 1);
+            }
         }
     }
 
@@ -2879,7 +2889,7 @@ impl Renderer {
                 pass.dispatch_workgroups(n.0, n.1, 1);
             }
             if fused.is_none() {
-                self.encode_state_updates(enc, p, &sizes, [g0, g1, parity, g3], k);
+                self.encode_state_updates(enc, p, &sizes, [g0, g1, parity, g3], k, size, exit);
             }
         }
         let mut pass = enc.begin_compute_pass(&Default::default());
@@ -3804,7 +3814,6 @@ impl Renderer {
         let mut scissor_share = None;
         let mut proxy_share = None;
         let mut fused_run = false;
-        let mut idle_tiles = None;
         if s.backend == Backend::Raster {
             let own = self.own_box().0;
             // the proxies cover only what can be visible: the occupied cells, or the
@@ -3967,9 +3976,31 @@ impl Renderer {
             };
             (w > 0 && h > 0).then_some([x, y, w, h])
         };
+        // per-slice state: the tiles each slice's dispatches cover, with the frame's own
+        // slice info to list them
+        let eye = [t.width, t.height];
+        let exit = per_slice
+            .then(|| {
+                let u = &frame_u;
+                self.slice_exit_info(&p.stack, &frame_plan, &view, u, eye, self.occupied())
+            })
+            .flatten();
+        let g0_exit = exit.as_ref().map(|x| {
+            make_g0(
+                device,
+                &self.g0_layout,
+                &self.frame_buf,
+                &self.volume_view,
+                &self.linear,
+                &self.nearest,
+                [&x.info, &x.list],
+                &self.occupancy.1,
+            )
+        });
         let run_updates = |enc: &mut wgpu::CommandEncoder, k: u32| {
-            let groups = [&self.g0, &g1, &g2[(k % 2) as usize], &g3];
-            self.encode_state_updates(enc, p, &state_sizes, groups, k);
+            let g0 = g0_exit.as_ref().unwrap_or(&self.g0);
+            let groups = [g0, &g1, &g2[(k % 2) as usize], &g3];
+            self.encode_state_updates(enc, p, &state_sizes, groups, k, eye, exit.as_ref());
         };
         match s.backend {
             Backend::Raster => {
@@ -4130,27 +4161,6 @@ impl Renderer {
             Backend::Compute => {
                 if per_slice {
                     let uids = p.uids();
-                    // idle tiles return at once: the frame's own slice info
-                    let exit = self.slice_exit_info(
-                        &p.stack,
-                        &frame_plan,
-                        &view,
-                        &frame_u,
-                        [t.width, t.height],
-                        self.occupied(),
-                    );
-                    let g0_exit = exit.as_ref().map(|x| {
-                        make_g0(
-                            device,
-                            &self.g0_layout,
-                            &self.frame_buf,
-                            &self.volume_view,
-                            &self.linear,
-                            &self.nearest,
-                            [&x.info, &x.list],
-                            &self.occupancy.1,
-                        )
-                    });
                     let groups = [g0_exit.as_ref().unwrap_or(&self.g0), &g1, &g3];
                     fused_run = self.encode_compute_slices(
                         enc,
@@ -4163,7 +4173,6 @@ impl Renderer {
                         frame_plan.half.is_none(),
                         exit.as_ref(),
                     );
-                    idle_tiles = exit.filter(|_| fused_run).map(|x| x.idle);
                 } else {
                     let mut pass = enc.begin_compute_pass(&Default::default());
                     pass.set_pipeline(if self.raw_samples {
@@ -4184,6 +4193,14 @@ impl Renderer {
             }
         }
         stamp(enc, None);
+        // the share of idle tiles, where the fused dispatch or an update of the eye
+        // buffer's size listed them
+        let listed = fused_run
+            || state_sizes
+                .iter()
+                .flatten()
+                .any(|e| [e.width, e.height] == eye);
+        let idle_tiles = exit.as_ref().filter(|_| listed).map(|x| x.idle);
         let n_stamps = ts_labels.len() as u32;
         if let Some((qs, resolve, read)) = ts
             && n_stamps > 0

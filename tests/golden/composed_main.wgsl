@@ -1185,9 +1185,16 @@ fn state_texel_sample(texel: vec2<u32>, state_size: vec2<u32>) -> Evaluated {
     return evaluate(slice_sample(r, rs, uv, k));
 }
 
+// The state update of one slice: over the slice's listed tiles where the
+// state has the eye buffer's size (`slice_tile`), else over every texel.
 @compute @workgroup_size(8, 8, 1)
-fn cs_update_2(@builtin(global_invocation_id) gid: vec3<u32>) {
+fn cs_update_2(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid: vec3<u32>) {
     let size = textureDimensions(p2_slice_shadow_state_next);
+    var tile = wg.xy;
+    if (all(size == vec2<u32>(frame.viewport.xy))) {
+        tile = slice_tile(wg.xy);
+    }
+    let gid = vec3<u32>(tile * 8u + lid.xy, 0u);
     if (gid.x >= size.x || gid.y >= size.y) {
         return;
     }

@@ -703,8 +703,9 @@ fn idle_tiles_keep_the_image(
 /// every tile dispatched, bit for bit, for both kernels and distances, chromatic
 /// extinction, apertures from 0° to 85°, perspective and orthographic views, a clip,
 /// skipping off, nothing visible, a block shadowing a second one behind it, and an
-/// atlas of variants. It leaves out tiles wherever it applies; a state that states no
-/// reach (`test.slice_shadow`), a half-resolution buffer, the raster backend and a
+/// atlas of variants; the raster backend's occlusion updates and the compute backend's
+/// updates in dispatches of their own too. It leaves out tiles wherever it applies; a
+/// state that states no reach (`test.slice_shadow`), a half-resolution buffer and a
 /// directional light dispatch every tile.
 #[test]
 fn idle_tiles_are_left_out_and_keep_the_image() {
@@ -758,6 +759,16 @@ fn idle_tiles_are_left_out_and_keep_the_image() {
     );
     let idle = idle_tiles_keep_the_image(&mut r, &[clear, d.clone()], &persp, "nothing visible");
     assert!(idle.is_some_and(|i| i > 0.95), "nothing visible: {idle:?}");
+    // the raster backend's state updates, and the compute backend's with the slice and
+    // the update in dispatches of their own, cover the listed tiles too
+    let stack = [tf.clone(), d.clone()];
+    let raster = settings(64, 64, Backend::Raster);
+    let idle = idle_tiles_keep_the_image(&mut r, &stack, &raster, "raster");
+    assert!(idle.is_some_and(|i| i > 0.1), "raster: {idle:?}");
+    r.set_fused_slices(false);
+    let idle = idle_tiles_keep_the_image(&mut r, &stack, &persp, "two dispatches");
+    r.set_fused_slices(true);
+    assert!(idle.is_some_and(|i| i > 0.1), "two dispatches: {idle:?}");
     // what dispatches every tile
     let mut half = d.clone();
     half.params
@@ -769,11 +780,6 @@ fn idle_tiles_are_left_out_and_keep_the_image() {
             "no reach",
         ),
         (vec![tf.clone(), half], persp, "half resolution"),
-        (
-            vec![tf.clone(), d.clone()],
-            settings(64, 64, Backend::Raster),
-            "raster",
-        ),
         (
             vec![tf.clone(), dos_lit(60.0, [0.6, 0.4, 1.0])],
             persp,
