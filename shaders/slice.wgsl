@@ -619,6 +619,19 @@ fn slice_tile(wg: vec2<u32>) -> vec2<u32> {
     return vec2<u32>(t & 0xffffu, t >> 16u);
 }
 
+// The sample of slice `slice_info.index` at pixel `px` where it is known to be
+// transparent (no visible sample lies under its tile): the ray's placeholder, colour 0,
+// as `slice_step` starts it, handed to the state updates unevaluated.
+fn slice_placeholder(px: vec2<u32>) -> Evaluated {
+    let uv = (vec2<f32>(px) + 0.5) * frame.viewport.zw;
+    let r = pixel_ray(uv);
+    run_setup(r, uv);
+    var e: Evaluated;
+    e.s = make_sample(r.origin, r.dir, uv, slice_info.index);
+    e.c = vec4<f32>(0.0);
+    return e;
+}
+
 // One slice per dispatch, accumulating in `accum` (used when a plugin has per-slice
 // state whose resolution differs from the eye buffer's; otherwise `cs_slice_fused`).
 @compute @workgroup_size(8, 8, 1)

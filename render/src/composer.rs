@@ -310,6 +310,9 @@ pub const PASS_BINDING_BASE: u32 = 2;
 /// Entry point of the fused slice step (the slice and every per-slice state update in
 /// one dispatch), generated when a plugin declares per-slice state.
 pub const FUSED_SLICE_ENTRY: &str = "cs_slice_fused";
+/// The entry point of the state updates alone over a slice's tiles where no sample can
+/// be visible ([`crate::renderer::Renderer::set_slice_exit`]).
+pub const STATE_ONLY_ENTRY: &str = "cs_slice_state_only";
 
 /// The functions a plugin's hook file may define besides its hooks to supply the scalar
 /// its `sample` hook gives (shading from it): `scalar(tex)`, and the grid it lives on,
@@ -1326,6 +1329,18 @@ pub fn compose_with(
                      {stores}}}"
                 );
                 m.push_generated("fused slice entry point", &code, None);
+                let code = format!(
+                    "// The state updates alone over the slice's tiles where no sample can be visible\n\
+                     // (`slice_tile`): every update gets the pixel's transparent placeholder sample.\n\
+                     @compute @workgroup_size(8, 8, 1)\n\
+                     fn {STATE_ONLY_ENTRY}(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid: vec3<u32>) {{\n    \
+                     let size = vec2<u32>(frame.viewport.xy);\n    \
+                     let gid = vec3<u32>(slice_tile(wg.xy) * 8u + lid.xy, 0u);\n    \
+                     if (gid.x >= size.x || gid.y >= size.y) {{\n        return;\n    }}\n    \
+                     let e = slice_placeholder(gid.xy);\n\
+                     {stores}}}"
+                );
+                m.push_generated("state-only slice entry point", &code, None);
             }
         } else {
             m.push_line(&line.replace("{{TARGET_FORMAT}}", target.wgsl()), origin);

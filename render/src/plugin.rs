@@ -1189,11 +1189,14 @@ pub trait Plugin: Send + Sync + 'static {
     /// How far one slice's state update reaches under `params`: the radius, in world
     /// units per world unit of the slice spacing, on the slice's plane, within which an
     /// update reads the previous slice's state (besides the bilinear footprint of the
-    /// reads). Stating it promises that where the slice's sample is transparent (α = 0,
-    /// no colour: clipped, skipped or classified away) and every texel of `state_prev`
-    /// within that reach holds the state's [`SliceStateDecl::clear`], the update writes
-    /// `clear` exactly. The compute backend then lets whole 8 × 8 tiles of a slice
-    /// that no visible sample and no marked state can reach return at once (exact;
+    /// reads). Stating it promises, for a slice's sample that is transparent (α = 0:
+    /// clipped, skipped or classified away), that the update reads of the sample only
+    /// its opacity, `slice` and `uv`, and that where every texel of `state_prev` within
+    /// that reach holds the state's [`SliceStateDecl::clear`], it writes `clear` exactly.
+    /// The renderer then dispatches, per slice, only the 8 × 8 tiles where a sample can
+    /// be visible or where the state can differ from clear and be read by a later
+    /// visible sample, and updates the tiles of the second kind from the pixel's
+    /// placeholder sample (colour 0) without evaluating it (exact;
     /// [`crate::renderer::Renderer::set_slice_exit`]). `None` (the default): unknown,
     /// every tile runs every slice.
     fn slice_state_reach(&self, _params: &ParamValues) -> Option<f64> {

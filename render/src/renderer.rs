@@ -660,6 +660,9 @@ struct CompiledStack {
     cs_slice: wgpu::ComputePipeline,
     /// The slice and every state update in one dispatch (with per-slice state).
     cs_slice_fused: Option<wgpu::ComputePipeline>,
+    /// The state updates alone, of a transparent slice ([`slice_exit`]); with
+    /// `cs_slice_fused`.
+    cs_slice_state_only: Option<wgpu::ComputePipeline>,
     cs_resolve: wgpu::ComputePipeline,
     /// (instance index, pipeline) per state update.
     updates: Vec<(usize, wgpu::ComputePipeline)>,
@@ -2463,6 +2466,9 @@ impl Renderer {
             .iter()
             .any(|i| i.update_entry.is_some())
             .then(|| compute(crate::composer::FUSED_SLICE_ENTRY, &compute_layout, &module));
+        let cs_slice_state_only = cs_slice_fused
+            .is_some()
+            .then(|| compute(crate::composer::STATE_ONLY_ENTRY, &compute_layout, &module));
         let mut updates = Vec::new();
         let mut prepasses = Vec::new();
         let mut volume_passes = Vec::new();
@@ -2550,6 +2556,7 @@ impl Renderer {
             cs_main_skip,
             cs_slice,
             cs_slice_fused,
+            cs_slice_state_only,
             cs_resolve,
             updates,
             prepasses,
@@ -2818,14 +2825,19 @@ impl Renderer {
             label: Some("vwb state update"),
             timestamp_writes: None,
         });
-        pass.set_bind_group(0, g0, &[(k as u64 * SLICE_INFO_STRIDE) as u32]);
+        // with listed tiles, the slice's chunk that lists them all
+        let (offset, listed) = match exit {
+            Some(x) => x.updates(k),
+            None => ((k as u64 * SLICE_INFO_STRIDE) as u32, None),
+        };
+        pass.set_bind_group(0, g0, &[offset]);
         pass.set_bind_group(1, g1, &[]);
         pass.set_bind_group(2, g2, &[]);
         pass.set_bind_group(3, g3, &[]);
         for ((_, pipeline), size) in p.updates.iter().zip(sizes) {
             let Some(e) = size else { continue };
             // a state of the eye buffer's size is updated over the slice's listed tiles
-            let n = match exit.and_then(|x| x.workgroups(k)) {
+            let n = match listed {
                 Some(n) if [e.width, e.height] == eye => n,
                 _ => (e.width.div_ceil(8), e.height.div_ceil(8)),
             };
@@ -2879,14 +2891,25 @@ impl Renderer {
                 (Some(_), Some(n)) => n,
                 _ => wg,
             };
-            if n.0 > 0 && n.1 > 0 {
+            // and the updates alone over its tiles where no sample can be visible
+            let state_only = fused
+                .and(p.cs_slice_state_only.as_ref())
+                .zip(exit.and_then(|x| x.state_only(k)));
+            if (n.0 > 0 && n.1 > 0) || state_only.is_some() {
                 let mut pass = enc.begin_compute_pass(&Default::default());
-                pass.set_pipeline(fused.unwrap_or(&p.cs_slice));
-                pass.set_bind_group(0, g0, &[(k as u64 * SLICE_INFO_STRIDE) as u32]);
                 pass.set_bind_group(1, g1, &[]);
                 pass.set_bind_group(2, parity, &[]);
                 pass.set_bind_group(3, g3, &[]);
-                pass.dispatch_workgroups(n.0, n.1, 1);
+                if n.0 > 0 && n.1 > 0 {
+                    pass.set_pipeline(fused.unwrap_or(&p.cs_slice));
+                    pass.set_bind_group(0, g0, &[(k as u64 * SLICE_INFO_STRIDE) as u32]);
+                    pass.dispatch_workgroups(n.0, n.1, 1);
+                }
+                if let Some((pipeline, (offset, m))) = state_only {
+                    pass.set_pipeline(pipeline);
+                    pass.set_bind_group(0, g0, &[offset]);
+                    pass.dispatch_workgroups(m.0, m.1, 1);
+                }
             }
             if fused.is_none() {
                 self.encode_state_updates(enc, p, &sizes, [g0, g1, parity, g3], k, size, exit);

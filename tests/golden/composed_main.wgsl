@@ -1130,6 +1130,19 @@ fn slice_tile(wg: vec2<u32>) -> vec2<u32> {
     return vec2<u32>(t & 0xffffu, t >> 16u);
 }
 
+// The sample of slice `slice_info.index` at pixel `px` where it is known to be
+// transparent (no visible sample lies under its tile): the ray's placeholder, colour 0,
+// as `slice_step` starts it, handed to the state updates unevaluated.
+fn slice_placeholder(px: vec2<u32>) -> Evaluated {
+    let uv = (vec2<f32>(px) + 0.5) * frame.viewport.zw;
+    let r = pixel_ray(uv);
+    run_setup(r, uv);
+    var e: Evaluated;
+    e.s = make_sample(r.origin, r.dir, uv, slice_info.index);
+    e.c = vec4<f32>(0.0);
+    return e;
+}
+
 // One slice per dispatch, accumulating in `accum` (used when a plugin has per-slice
 // state whose resolution differs from the eye buffer's; otherwise `cs_slice_fused`).
 @compute @workgroup_size(8, 8, 1)
@@ -1212,5 +1225,17 @@ fn cs_slice_fused(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocatio
         return;
     }
     let e = slice_step(gid.xy, size, true);
+    textureStore(p2_slice_shadow_state_next, vec2<i32>(gid.xy), p2_slice_shadow_slice_update(e.s, e.c, e.s.uv));
+}
+// The state updates alone over the slice's tiles where no sample can be visible
+// (`slice_tile`): every update gets the pixel's transparent placeholder sample.
+@compute @workgroup_size(8, 8, 1)
+fn cs_slice_state_only(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid: vec3<u32>) {
+    let size = vec2<u32>(frame.viewport.xy);
+    let gid = vec3<u32>(slice_tile(wg.xy) * 8u + lid.xy, 0u);
+    if (gid.x >= size.x || gid.y >= size.y) {
+        return;
+    }
+    let e = slice_placeholder(gid.xy);
     textureStore(p2_slice_shadow_state_next, vec2<i32>(gid.xy), p2_slice_shadow_slice_update(e.s, e.c, e.s.uv));
 }

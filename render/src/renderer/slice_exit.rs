@@ -27,8 +27,12 @@
 //!   (the last frame's state, [`Renderer::read_state`], holds such values there).
 //!
 //! Slice k's tiles are those of V_k joined with those of F_k ∩ D_k; slice 0 covers the
-//! whole eye buffer (it starts the accumulation and the state). The image is the same
-//! bit for bit.
+//! whole eye buffer (it starts the accumulation and the state). The fused entry point
+//! runs the tiles of V_k; the others need only the state updates, of a transparent
+//! sample, and run in a second dispatch (`cs_slice_state_only`) that updates from the
+//! pixel's placeholder sample without evaluating it ([`Plugin::slice_state_reach`]'s
+//! promise). Updates in dispatches of their own (the raster backend's) run both lists.
+//! The image is the same bit for bit.
 
 use glam::{DVec2, Mat4};
 
@@ -47,26 +51,54 @@ const MARGIN: f64 = 2.0;
 
 /// The tiles a frame's fused per-slice dispatches cover.
 pub(super) struct SliceExit {
-    /// Per slice (in its [`SLICE_INFO_STRIDE`] chunk): its index, and from slice 1 on
-    /// the offset and count of its tiles in `list` and [`LIST_ROW`]; as long as the
-    /// renderer's shared slice info (volume passes index that by step).
+    /// Three [`SLICE_INFO_STRIDE`] chunks per slice k, each with the slice's index and,
+    /// from slice 1 on, an offset and count in `list` and [`LIST_ROW`]: chunk k lists
+    /// the tiles where a sample can be visible (the fused dispatch), chunk `n` + k the
+    /// others (the state-only dispatch), chunk 2`n` + k both (updates in dispatches of
+    /// their own). `n` is at least the renderer's shared slice info's length (volume
+    /// passes index that by step).
     pub info: wgpu::Buffer,
-    /// Every slice's tiles, `x | y << 16`, slice after slice.
+    /// Every slice's tiles, `x | y << 16`: its visible ones, then its others.
     pub list: wgpu::Buffer,
-    /// Per slice, the number of its tiles (slice 0: the eye buffer's).
-    pub counts: Vec<u32>,
+    /// Chunks per part of `info`.
+    n: u32,
+    /// Per slice, the number of its visible and of its other tiles.
+    counts: Vec<[u32; 2]>,
     /// The share of the (slice, tile) pairs left out.
     pub idle: f64,
 }
 
+/// Workgroups of a listed dispatch of `n` tiles.
+fn listed(n: u32) -> (u32, u32) {
+    (n.min(LIST_ROW), n.div_ceil(LIST_ROW))
+}
+
 impl SliceExit {
-    /// The workgroups of slice `k`'s dispatch, `None` where the eye buffer's (slice 0).
+    /// The workgroups of slice `k`'s fused dispatch (its tiles where a sample can be
+    /// visible; `info` chunk k), `None` where the eye buffer's (slice 0).
     pub fn workgroups(&self, k: u32) -> Option<(u32, u32)> {
-        if k == 0 {
-            return None;
-        }
-        let n = self.counts.get(k as usize).copied().unwrap_or(0);
-        Some((n.min(LIST_ROW), n.div_ceil(LIST_ROW)))
+        let [v, _] = *self.counts.get(k as usize).filter(|_| k > 0)?;
+        Some(listed(v))
+    }
+
+    /// The dynamic offset and workgroups of slice `k`'s state-only dispatch (its other
+    /// tiles; `info` chunk `n` + k), `None` where it has none.
+    pub fn state_only(&self, k: u32) -> Option<(u32, (u32, u32))> {
+        let [_, o] = *self.counts.get(k as usize).filter(|_| k > 0)?;
+        (o > 0).then(|| ((self.n + k) * SLICE_INFO_STRIDE as u32, listed(o)))
+    }
+
+    /// The dynamic offset of slice `k`'s updates in dispatches of their own, and their
+    /// workgroups where the state has the eye buffer's size (all its tiles; `info`
+    /// chunk 2`n` + k), `None` where the eye buffer's (slice 0).
+    pub fn updates(&self, k: u32) -> (u32, Option<(u32, u32)>) {
+        let offset = (2 * self.n + k) * SLICE_INFO_STRIDE as u32;
+        let n = self
+            .counts
+            .get(k as usize)
+            .filter(|_| k > 0)
+            .map(|[v, o]| listed(v + o));
+        (offset, n)
     }
 }
 
@@ -216,8 +248,8 @@ fn on_screen(polygon: &[glam::Vec3], vp: Mat4, size: [u32; 2]) -> Option<Vec<DVe
 
 /// Per slice of a view-aligned frame with per-slice state (`plan`, drawn into a `size`
 /// eye buffer with the frame uniform `u` and view-projection `vp`), its tiles
-/// (`x | y << 16`, row by row) as the module's documentation defines them; slice 0's
-/// list is empty (it covers the eye buffer). `visible`: the box whose samples can be
+/// (`x | y << 16`, row by row) as the module's documentation defines them: those of
+/// V_k, and the others; slice 0's lists are empty (it covers the eye buffer). `visible`: the box whose samples can be
 /// visible (`None`: nothing can be); `hull`: the occupied bricks' hull; `reach`: the
 /// largest of the stack's [`Plugin::slice_state_reach`].
 pub(super) fn slice_tiles(
@@ -228,7 +260,7 @@ pub(super) fn slice_tiles(
     vp: Mat4,
     size: [u32; 2],
     reach: f64,
-) -> Vec<Vec<u32>> {
+) -> Vec<[Vec<u32>; 2]> {
     let grid = Grid::of(size);
     let n = plan.count as usize;
     let dims = [size[0] as f64, size[1] as f64];
@@ -288,14 +320,20 @@ pub(super) fn slice_tiles(
     let mut f = vec![f32::INFINITY; grid.len()];
     (0..n)
         .map(|k| {
-            let mut list = Vec::new();
+            let [mut visible, mut other] = [Vec::new(), Vec::new()];
             for (i, v) in f.iter_mut().enumerate() {
                 *v = near[k][i].min((*v - grow[k]).max(0.0));
-                if k > 0 && (seen[k][i] || (*v <= 0.0 && read[k][i])) {
-                    list.push((i % grid.w) as u32 | ((i / grid.w) as u32) << 16);
+                let tile = (i % grid.w) as u32 | ((i / grid.w) as u32) << 16;
+                if k == 0 {
+                    continue;
+                }
+                if seen[k][i] {
+                    visible.push(tile);
+                } else if *v <= 0.0 && read[k][i] {
+                    other.push(tile);
                 }
             }
-            list
+            [visible, other]
         })
         .collect()
 }
@@ -338,26 +376,39 @@ impl Renderer {
         let all = Grid::of(size).len() as u32;
         // as long as the shared slice info (volume passes index it by step)
         let n = lists.len().max(self.slice_info_slices as usize).max(1);
-        let mut info = vec![0u8; n * SLICE_INFO_STRIDE as usize];
+        let stride = SLICE_INFO_STRIDE as usize;
+        let mut info = vec![0u8; 3 * n * stride];
         let mut flat: Vec<u32> = Vec::new();
         let mut counts = Vec::with_capacity(lists.len());
-        for (k, chunk) in info
-            .chunks_exact_mut(SLICE_INFO_STRIDE as usize)
-            .enumerate()
-        {
-            let mut words = [k as u32, 0, 0, 0];
-            if let Some(list) = lists.get(k) {
-                if k > 0 {
-                    words = [k as u32, flat.len() as u32, list.len() as u32, LIST_ROW];
-                    flat.extend_from_slice(list);
-                    counts.push(list.len() as u32);
-                } else {
-                    counts.push(all);
+        let mut put = |chunk: usize, words: [u32; 4]| {
+            info[chunk * stride..chunk * stride + 16].copy_from_slice(bytemuck::cast_slice(&words));
+        };
+        for k in 0..n {
+            let index = k as u32;
+            let mut words = [[index, 0, 0, 0]; 3];
+            match lists.get(k) {
+                Some([visible, other]) if k > 0 => {
+                    let (v, o, at) = (visible.len() as u32, other.len() as u32, flat.len() as u32);
+                    words = [
+                        [index, at, v, LIST_ROW],
+                        [index, at + v, o, LIST_ROW],
+                        [index, at, v + o, LIST_ROW],
+                    ];
+                    flat.extend_from_slice(visible);
+                    flat.extend_from_slice(other);
+                    counts.push([v, o]);
                 }
+                Some(_) => counts.push([all, 0]),
+                None => {}
             }
-            chunk[..16].copy_from_slice(bytemuck::cast_slice(&words));
+            for (part, w) in words.into_iter().enumerate() {
+                put(part * n + k, w);
+            }
         }
-        let idle = counts.iter().map(|&c| (all - c) as f64).sum::<f64>()
+        let idle = counts
+            .iter()
+            .map(|&[v, o]| (all - v - o) as f64)
+            .sum::<f64>()
             / (all as f64 * counts.len().max(1) as f64);
         if flat.is_empty() {
             flat.push(0);
@@ -377,6 +428,7 @@ impl Renderer {
         Some(SliceExit {
             info,
             list,
+            n: n as u32,
             counts,
             idle,
         })
