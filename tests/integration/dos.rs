@@ -802,15 +802,7 @@ fn idle_tiles_are_left_out_and_keep_the_image() {
         if front || back { 1.0 } else { 0.0 }
     });
     let mut r = Renderer::new(gpu(), vol).unwrap();
-    let mut tf = instance("classify.tf1d");
-    tf.params.set(
-        "tf",
-        ParamValue::Tf(vwb_render::tf::TfCurve::ramp(
-            0.4,
-            0.6,
-            [0.9, 0.9, 0.9, 0.9],
-        )),
-    );
+    let (tf, _) = crate::clipping::dos_stack();
     let mut s = ortho_axis(96, 96, Backend::Compute);
     s.camera.yaw_deg += 10.0;
     s.camera.pitch_deg += 8.0;
