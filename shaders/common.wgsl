@@ -105,9 +105,9 @@ fn sweep_sizes(sw: SweepInfo, dims: vec3<u32>) -> vec3<u32> {
 
 // Per slice (bound with a dynamic offset): its index and, where `tile_row` is not 0,
 // the tiles of 8 × 8 pixels where anything that reaches the image can change at this
-// slice, `tile_count` of them from `tile_offset` in `slice_tile_list`, which the fused
-// per-slice entry point's dispatch covers in rows of `tile_row` workgroups
-// (render/src/renderer/slice_exit.rs).
+// slice, `tile_count` of them from `tile_offset` in `slice_tile_list`, which the
+// per-slice entry points' dispatches cover in rows of `tile_row` workgroups
+// (`slice_tile`; render/src/renderer/slice_exit.rs).
 struct SliceInfo {
     index: u32,
     tile_offset: u32,

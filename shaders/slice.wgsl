@@ -604,7 +604,7 @@ fn slice_step(px: vec2<u32>, size: vec2<u32>, always: bool) -> Evaluated {
     return e;
 }
 
-// The tile (of 8 × 8 pixels) of workgroup `wg` of the fused per-slice entry point:
+// The tile (of 8 × 8 pixels) of workgroup `wg` of a per-slice entry point:
 // where `slice_info` lists this slice's tiles, the listed one (beyond the list, one
 // outside every eye buffer), else `wg` itself.
 fn slice_tile(wg: vec2<u32>) -> vec2<u32> {

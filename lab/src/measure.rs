@@ -72,7 +72,7 @@ pub struct Timing {
     /// `FrameStats::scissor_share`).
     pub proxy_share: Option<f64>,
     pub scissor_share: Option<f64>,
-    /// The last frame's share of idle tiles in the fused per-slice dispatches
+    /// The last frame's share of tiles left out of the per-slice dispatches
     /// (`FrameStats::idle_tiles`).
     pub idle_tiles: Option<f64>,
 }

@@ -191,9 +191,9 @@ pub struct FrameStats {
     /// Compute backend with per-slice state: the slice and the state updates ran in one
     /// dispatch per slice ([`Renderer::set_fused_slices`]).
     pub fused_slices: bool,
-    /// Compute backend, fused per-slice dispatches: the share of the (slice, tile)
-    /// pairs whose tile returned at once ([`Renderer::set_slice_exit`]); `None` where
-    /// no tile could.
+    /// Per-slice state: the share of the (slice, tile) pairs left out of the slices'
+    /// dispatches ([`Renderer::set_slice_exit`]); `None` where no dispatch lists its
+    /// tiles.
     pub idle_tiles: Option<f64>,
 }
 
@@ -1136,7 +1136,7 @@ pub struct Renderer {
     /// Per-slice state: track the tiles that still hold their clear value
     /// ([`Renderer::set_state_tracking`]).
     state_tracking: bool,
-    /// The fused per-slice entry point's idle tiles return at once
+    /// Per-slice state: each slice's dispatches cover only its listed tiles
     /// ([`Renderer::set_slice_exit`]).
     slice_exit: bool,
     /// Compute backend: take the march's samples with one fetch each and nothing else
@@ -1155,6 +1155,20 @@ fn uniform_entry(
         ty: wgpu::BindingType::Buffer {
             ty: wgpu::BufferBindingType::Uniform,
             has_dynamic_offset: dynamic,
+            min_binding_size: None,
+        },
+        count: None,
+    }
+}
+
+/// A storage buffer binding of compute shaders.
+fn storage_buffer_entry(binding: u32, read_only: bool) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::COMPUTE,
+        ty: wgpu::BindingType::Buffer {
+            ty: wgpu::BufferBindingType::Storage { read_only },
+            has_dynamic_offset: false,
             min_binding_size: None,
         },
         count: None,
@@ -1303,16 +1317,7 @@ impl Renderer {
                 sampler_entry(3, fc),
                 uniform_entry(4, fc, true),
                 texture3d_entry(5, fc),
-                wgpu::BindGroupLayoutEntry {
-                    binding: 6,
-                    visibility: wgpu::ShaderStages::COMPUTE,
-                    ty: wgpu::BindingType::Buffer {
-                        ty: wgpu::BufferBindingType::Storage { read_only: true },
-                        has_dynamic_offset: false,
-                        min_binding_size: None,
-                    },
-                    count: None,
-                },
+                storage_buffer_entry(6, true),
             ],
         });
         let no_tile_list = device.create_buffer(&wgpu::BufferDescriptor {
@@ -1653,15 +1658,14 @@ impl Renderer {
         self.raw_samples = on;
     }
 
-    /// Compute backend with per-slice state whose every plugin states its reach
-    /// ([`crate::plugin::Plugin::slice_state_reach`], `shade.dos`), in the fused
-    /// dispatch: the 8 × 8 tiles of a slice that no visible sample lies under and that
-    /// no state other than clear can reach return at once (on by default;
-    /// `VWB_SLICE_EXIT=0` starts renderers with it off). Per slice the renderer bounds,
-    /// on the screen, the occupied bricks' hull on the slice's plane, and the state
-    /// that can differ from clear: that bound of the slice before, widened by the reach,
-    /// with the slice's own (docs/perf.md, "Idle tiles of the per-slice path"). The
-    /// image is the same bit for bit.
+    /// Per-slice state whose every plugin states its reach
+    /// ([`crate::plugin::Plugin::slice_state_reach`], `shade.dos`), view-aligned slices,
+    /// state of the eye buffer's size: each slice's dispatches cover only the 8 × 8
+    /// tiles where a sample can be visible, or where the state can differ from clear and
+    /// a later visible sample reads it; the second kind updates the state alone (on by
+    /// default; `VWB_SLICE_EXIT=0` starts renderers with it off; `slice_exit.rs`,
+    /// docs/perf.md, "Idle tiles of the per-slice path"). The image is the same bit for
+    /// bit.
     pub fn set_slice_exit(&mut self, on: bool) {
         self.slice_exit = on;
     }
@@ -1840,16 +1844,31 @@ impl Renderer {
     }
 
     fn rebuild_g0(&mut self) {
-        self.g0 = make_g0(
-            &self.gpu.device,
-            &self.g0_layout,
+        self.g0 = self.g0_with(
             &self.frame_buf,
-            &self.volume_view,
-            &self.linear,
-            &self.nearest,
             [&self.slice_info, &self.no_tile_list],
             &self.occupancy.1,
         );
+    }
+
+    /// Bind group 0 over the renderer's volume and samplers with a `frame` uniform,
+    /// slice info and tile list (`slices`) and `occupancy` grid of its own.
+    fn g0_with(
+        &self,
+        frame: &wgpu::Buffer,
+        slices: [&wgpu::Buffer; 2],
+        occupancy: &wgpu::TextureView,
+    ) -> wgpu::BindGroup {
+        make_g0(
+            &self.gpu.device,
+            &self.g0_layout,
+            frame,
+            &self.volume_view,
+            &self.linear,
+            &self.nearest,
+            slices,
+            occupancy,
+        )
     }
 
     /// The composed WGSL of the current pipeline.
@@ -2358,16 +2377,7 @@ impl Renderer {
                     },
                     count: None,
                 },
-                wgpu::BindGroupLayoutEntry {
-                    binding: 1,
-                    visibility: wgpu::ShaderStages::COMPUTE,
-                    ty: wgpu::BindingType::Buffer {
-                        ty: wgpu::BufferBindingType::Storage { read_only: false },
-                        has_dynamic_offset: false,
-                        min_binding_size: None,
-                    },
-                    count: None,
-                },
+                storage_buffer_entry(1, false),
             ],
         });
         let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
@@ -2855,9 +2865,9 @@ impl Renderer {
     /// resolve. `groups` are bind groups 0 (the frame, indexed by slice), 1 and 3, `g2`
     /// group 2 for even and odd slices ([`Renderer::group2_for`] of `uids`); `size`
     /// the eye buffer's; `view_aligned` false under half-angle slicing (no fused
-    /// pipeline); `exit` the tiles the fused dispatches cover ([`slice_exit::SliceExit`],
-    /// whose buffers group 0 then binds), `None`: the eye buffer. Whether the fused
-    /// pipeline ran.
+    /// pipeline); `exit` the tiles the slices' dispatches cover
+    /// ([`slice_exit::SliceExit`], whose buffers `g0` then binds), `None`: the eye
+    /// buffer. Whether the fused pipeline ran.
     #[allow(clippy::too_many_arguments)]
     fn encode_compute_slices(
         &self,
@@ -2884,9 +2894,8 @@ impl Renderer {
         let wg = (size[0].div_ceil(8), size[1].div_ceil(8));
         for k in 0..count {
             let parity = &g2[(k % 2) as usize];
-            // the fused dispatch covers the slice's tiles (none: the slice changes
-            // nothing, and the next state already holds clear wherever it is not
-            // written)
+            // the fused dispatch covers the slice's tiles where a sample can be visible
+            // (elsewhere the slice changes nothing that is read again)
             let n = match (fused, exit.and_then(|x| x.workgroups(k))) {
                 (Some(_), Some(n)) => n,
                 _ => wg,
@@ -4008,18 +4017,9 @@ impl Renderer {
                 self.slice_exit_info(&p.stack, &frame_plan, &view, u, eye, self.occupied())
             })
             .flatten();
-        let g0_exit = exit.as_ref().map(|x| {
-            make_g0(
-                device,
-                &self.g0_layout,
-                &self.frame_buf,
-                &self.volume_view,
-                &self.linear,
-                &self.nearest,
-                [&x.info, &x.list],
-                &self.occupancy.1,
-            )
-        });
+        let g0_exit = exit
+            .as_ref()
+            .map(|x| self.g0_with(&self.frame_buf, [&x.info, &x.list], &self.occupancy.1));
         let run_updates = |enc: &mut wgpu::CommandEncoder, k: u32| {
             let g0 = g0_exit.as_ref().unwrap_or(&self.g0);
             let groups = [g0, &g1, &g2[(k % 2) as usize], &g3];
@@ -4216,13 +4216,12 @@ impl Renderer {
             }
         }
         stamp(enc, None);
-        // the share of idle tiles, where the fused dispatch or an update of the eye
-        // buffer's size listed them
-        let listed = fused_run
-            || state_sizes
-                .iter()
-                .flatten()
-                .any(|e| [e.width, e.height] == eye);
+        // the share of idle tiles, where a state of the eye buffer's size listed them
+        // (the fused dispatch needs every state at that size)
+        let listed = state_sizes
+            .iter()
+            .flatten()
+            .any(|e| [e.width, e.height] == eye);
         let idle_tiles = exit.as_ref().filter(|_| listed).map(|x| x.idle);
         let n_stamps = ts_labels.len() as u32;
         if let Some((qs, resolve, read)) = ts

@@ -105,9 +105,9 @@ fn sweep_sizes(sw: SweepInfo, dims: vec3<u32>) -> vec3<u32> {
 
 // Per slice (bound with a dynamic offset): its index and, where `tile_row` is not 0,
 // the tiles of 8 × 8 pixels where anything that reaches the image can change at this
-// slice, `tile_count` of them from `tile_offset` in `slice_tile_list`, which the fused
-// per-slice entry point's dispatch covers in rows of `tile_row` workgroups
-// (render/src/renderer/slice_exit.rs).
+// slice, `tile_count` of them from `tile_offset` in `slice_tile_list`, which the
+// per-slice entry points' dispatches cover in rows of `tile_row` workgroups
+// (`slice_tile`; render/src/renderer/slice_exit.rs).
 struct SliceInfo {
     index: u32,
     tile_offset: u32,
@@ -1115,7 +1115,7 @@ fn slice_step(px: vec2<u32>, size: vec2<u32>, always: bool) -> Evaluated {
     return e;
 }
 
-// The tile (of 8 × 8 pixels) of workgroup `wg` of the fused per-slice entry point:
+// The tile (of 8 × 8 pixels) of workgroup `wg` of a per-slice entry point:
 // where `slice_info` lists this slice's tiles, the listed one (beyond the list, one
 // outside every eye buffer), else `wg` itself.
 fn slice_tile(wg: vec2<u32>) -> vec2<u32> {

@@ -352,7 +352,7 @@ impl Renderer {
                 hull: hull.as_ref().map(|(h, share)| (h, *share)),
             });
             let u = self.frame_uniform(&settings, plan, view, [tw, th], target, occupied);
-            // with per-slice state, the idle tiles of this tile's slices return at once
+            // with per-slice state, the tiles this tile's slices' dispatches cover
             let exit = per_slice
                 .then(|| self.slice_exit_info(stack, plan, view, &u, [tw, th], occupied))
                 .flatten();
@@ -361,13 +361,8 @@ impl Renderer {
                 contents: bytemuck::bytes_of(&u),
                 usage: wgpu::BufferUsages::UNIFORM,
             });
-            let g0 = make_g0(
-                device,
-                &self.g0_layout,
+            let g0 = self.g0_with(
                 &frame,
-                &self.volume_view,
-                &self.linear,
-                &self.nearest,
                 exit.as_ref()
                     .map_or([&self.slice_info, &self.no_tile_list], |x| {
                         [&x.info, &x.list]

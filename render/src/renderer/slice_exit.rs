@@ -1,4 +1,4 @@
-//! The tiles that a frame's fused per-slice dispatches cover ([`Renderer::set_slice_exit`]).
+//! The tiles that a frame's per-slice dispatches cover ([`Renderer::set_slice_exit`]).
 //!
 //! On the compute backend, a stack with per-slice state (`shade.dos`) runs one dispatch
 //! per slice, over every pixel: its sample, and every state texel's update. Most of
@@ -42,14 +42,14 @@ use super::{
 use crate::plugin::Plugin;
 use std::sync::Arc;
 
-/// Width of a row of workgroups of a listed dispatch: the fused entry point reads its
+/// Width of a row of workgroups of a listed dispatch: a per-slice entry point reads its
 /// tile at `slice_info.tile_offset + wg.y · row + wg.x` (`slice_info.tile_row`).
 pub(super) const LIST_ROW: u32 = 4096;
 
 /// Pixels of margin around every bound, for rounding.
 const MARGIN: f64 = 2.0;
 
-/// The tiles a frame's fused per-slice dispatches cover.
+/// The tiles a frame's per-slice dispatches cover.
 pub(super) struct SliceExit {
     /// Three [`SLICE_INFO_STRIDE`] chunks per slice k, each with the slice's index and,
     /// from slice 1 on, an offset and count in `list` and [`LIST_ROW`]: chunk k lists
@@ -249,9 +249,10 @@ fn on_screen(polygon: &[glam::Vec3], vp: Mat4, size: [u32; 2]) -> Option<Vec<DVe
 /// Per slice of a view-aligned frame with per-slice state (`plan`, drawn into a `size`
 /// eye buffer with the frame uniform `u` and view-projection `vp`), its tiles
 /// (`x | y << 16`, row by row) as the module's documentation defines them: those of
-/// V_k, and the others; slice 0's lists are empty (it covers the eye buffer). `visible`: the box whose samples can be
-/// visible (`None`: nothing can be); `hull`: the occupied bricks' hull; `reach`: the
-/// largest of the stack's [`Plugin::slice_state_reach`].
+/// V_k, and the others; slice 0's lists are empty (it covers the eye buffer).
+/// `visible`: the box whose samples can be visible (`None`: nothing can be); `hull`: the
+/// occupied bricks' hull; `reach`: the largest of the stack's
+/// [`Plugin::slice_state_reach`].
 pub(super) fn slice_tiles(
     plan: &SlicePlan,
     u: &FrameUniform,
@@ -339,7 +340,7 @@ pub(super) fn slice_tiles(
 }
 
 impl Renderer {
-    /// The tiles of a frame of `stack` that its fused per-slice dispatches cover
+    /// The tiles of a frame of `stack` that its per-slice dispatches cover
     /// ([`Renderer::set_slice_exit`], [`slice_tiles`]), with group 0's buffers for
     /// them. `None` where the exit is off, the slices are half-angle, or a plugin of
     /// `stack` with per-slice state states no reach.
