@@ -1316,29 +1316,21 @@ pub fn compose_with(
                 .map(state_store)
                 .collect();
             if !stores.is_empty() {
-                let code = format!(
+                let code = tile_entry(
                     "// The slice and every state update in one dispatch, each sample evaluated once\n\
                      // (used when every per-slice state has the eye buffer's resolution), over the\n\
-                     // slice's tiles (`slice_tile`).\n\
-                     @compute @workgroup_size(8, 8, 1)\n\
-                     fn {FUSED_SLICE_ENTRY}(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid: vec3<u32>) {{\n    \
-                     let size = vec2<u32>(frame.viewport.xy);\n    \
-                     let gid = vec3<u32>(slice_tile(wg.xy) * 8u + lid.xy, 0u);\n    \
-                     if (gid.x >= size.x || gid.y >= size.y) {{\n        return;\n    }}\n    \
-                     let e = slice_step(gid.xy, size, true);\n\
-                     {stores}}}"
+                     // slice's tiles (`slice_tile`).",
+                    FUSED_SLICE_ENTRY,
+                    "slice_step(gid.xy, size, true)",
+                    &stores,
                 );
                 m.push_generated("fused slice entry point", &code, None);
-                let code = format!(
+                let code = tile_entry(
                     "// The state updates alone over the slice's tiles where no sample can be visible\n\
-                     // (`slice_tile`): every update gets the pixel's transparent placeholder sample.\n\
-                     @compute @workgroup_size(8, 8, 1)\n\
-                     fn {STATE_ONLY_ENTRY}(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid: vec3<u32>) {{\n    \
-                     let size = vec2<u32>(frame.viewport.xy);\n    \
-                     let gid = vec3<u32>(slice_tile(wg.xy) * 8u + lid.xy, 0u);\n    \
-                     if (gid.x >= size.x || gid.y >= size.y) {{\n        return;\n    }}\n    \
-                     let e = slice_placeholder(gid.xy);\n\
-                     {stores}}}"
+                     // (`slice_tile`): every update gets the pixel's transparent placeholder sample.",
+                    STATE_ONLY_ENTRY,
+                    "slice_placeholder(gid.xy)",
+                    &stores,
                 );
                 m.push_generated("state-only slice entry point", &code, None);
             }
@@ -1357,6 +1349,22 @@ pub fn compose_with(
         bindings,
         instances,
     })
+}
+
+/// A per-slice entry point over the slice's listed tiles (`slice_tile`), after the
+/// comment `doc`: the sample `e` of each pixel from the expression `sample`, then the
+/// state updates `stores` ([`state_store`]).
+fn tile_entry(doc: &str, name: &str, sample: &str, stores: &str) -> String {
+    format!(
+        "{doc}\n\
+         @compute @workgroup_size(8, 8, 1)\n\
+         fn {name}(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid: vec3<u32>) {{\n    \
+         let size = vec2<u32>(frame.viewport.xy);\n    \
+         let gid = vec3<u32>(slice_tile(wg.xy) * 8u + lid.xy, 0u);\n    \
+         if (gid.x >= size.x || gid.y >= size.y) {{\n        return;\n    }}\n    \
+         let e = {sample};\n\
+         {stores}}}"
+    )
 }
 
 /// The statements of an update entry point that store instance `inst`'s next state

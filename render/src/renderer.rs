@@ -2835,15 +2835,42 @@ impl Renderer {
             label: Some("vwb state update"),
             timestamp_writes: None,
         });
+        pass.set_bind_group(1, g1, &[]);
+        pass.set_bind_group(2, g2, &[]);
+        pass.set_bind_group(3, g3, &[]);
+        // Where every state has the eye buffer's size, the updates evaluate the slice's
+        // samples over its listed tiles where one can be visible (chunk k), and the
+        // state-only entry point updates every state over its other listed tiles from
+        // the pixels' placeholder samples, as the fused path does.
+        let split = exit.zip(p.cs_slice_state_only.as_ref()).filter(|_| {
+            sizes
+                .iter()
+                .all(|st| st.is_some_and(|e| [e.width, e.height] == eye))
+        });
+        if let Some((x, state_only)) = split {
+            let n = x
+                .workgroups(k)
+                .unwrap_or((eye[0].div_ceil(8), eye[1].div_ceil(8)));
+            pass.set_bind_group(0, g0, &[(k as u64 * SLICE_INFO_STRIDE) as u32]);
+            if n.0 > 0 && n.1 > 0 {
+                for (_, pipeline) in &p.updates {
+                    pass.set_pipeline(pipeline);
+                    pass.dispatch_workgroups(n.0, n.1, 1);
+                }
+            }
+            if let Some((offset, m)) = x.state_only(k) {
+                pass.set_pipeline(state_only);
+                pass.set_bind_group(0, g0, &[offset]);
+                pass.dispatch_workgroups(m.0, m.1, 1);
+            }
+            return;
+        }
         // with listed tiles, the slice's chunk that lists them all
         let (offset, listed) = match exit {
             Some(x) => x.updates(k),
             None => ((k as u64 * SLICE_INFO_STRIDE) as u32, None),
         };
         pass.set_bind_group(0, g0, &[offset]);
-        pass.set_bind_group(1, g1, &[]);
-        pass.set_bind_group(2, g2, &[]);
-        pass.set_bind_group(3, g3, &[]);
         for ((_, pipeline), size) in p.updates.iter().zip(sizes) {
             let Some(e) = size else { continue };
             // a state of the eye buffer's size is updated over the slice's listed tiles

@@ -530,16 +530,13 @@ impl Dop {
 /// when a vertex lies behind the eye (or within 10⁻⁶ of its plane) or projects to no
 /// finite point.
 pub fn screen_rect(poly: &[Vec3], view_proj: glam::Mat4, size: [u32; 2]) -> [u32; 4] {
-    let (w, h) = (size[0] as f32, size[1] as f32);
-    let (mut lo, mut hi) = (glam::Vec2::INFINITY, glam::Vec2::NEG_INFINITY);
+    let (w, h) = (size[0] as f64, size[1] as f64);
+    let (mut lo, mut hi) = (glam::DVec2::INFINITY, glam::DVec2::NEG_INFINITY);
     for p in poly {
-        let c = view_proj * p.extend(1.0);
-        let ndc = glam::Vec2::new(c.x, c.y) / c.w;
-        let px = glam::Vec2::new((ndc.x * 0.5 + 0.5) * w, (0.5 - ndc.y * 0.5) * h);
         // behind the eye, or not finite: every pixel
-        if c.w.is_nan() || c.w <= 1.0e-6 || !px.is_finite() {
+        let Some(px) = pixel_of(*p, view_proj, size) else {
             return [0, 0, size[0], size[1]];
-        }
+        };
         lo = lo.min(px);
         hi = hi.max(px);
     }
@@ -551,6 +548,18 @@ pub fn screen_rect(poly: &[Vec3], view_proj: glam::Mat4, size: [u32; 2]) -> [u32
     let x1 = (hi.x.ceil() + 1.0).clamp(0.0, w) as u32;
     let y1 = (hi.y.ceil() + 1.0).clamp(0.0, h) as u32;
     [x0, y0, x1.saturating_sub(x0), y1.saturating_sub(y0)]
+}
+
+/// World point `p` under `view_proj` in a `size` frame, in pixels (y down); `None`
+/// where it lies behind the eye or does not project to a finite point.
+pub fn pixel_of(p: Vec3, view_proj: glam::Mat4, size: [u32; 2]) -> Option<glam::DVec2> {
+    let c = (view_proj * p.extend(1.0)).as_dvec4();
+    let ndc = glam::DVec2::new(c.x, c.y) / c.w;
+    let px = glam::DVec2::new(
+        (ndc.x * 0.5 + 0.5) * size[0] as f64,
+        (0.5 - ndc.y * 0.5) * size[1] as f64,
+    );
+    (c.w > 1.0e-6 && px.is_finite()).then_some(px)
 }
 
 /// Drops the vertices of a convex polygon that lie within `tol` of the line through

@@ -761,14 +761,25 @@ fn idle_tiles_are_left_out_and_keep_the_image() {
     assert!(idle.is_some_and(|i| i > 0.95), "nothing visible: {idle:?}");
     // the raster backend's state updates, and the compute backend's with the slice and
     // the update in dispatches of their own, cover the listed tiles too
-    let stack = [tf.clone(), d.clone()];
+    // (where every state has the eye buffer's size, the tiles without a visible sample
+    // by the state-only entry point), also for a wide Poisson cone with chromatic
+    // extinction
+    let mut wide = dos(85.0);
+    set_kernel(&mut wide, "poisson", "exact", "1", Some([0.4, 1.0, 2.5]));
     let raster = settings(64, 64, Backend::Raster);
-    let idle = idle_tiles_keep_the_image(&mut r, &stack, &raster, "raster");
-    assert!(idle.is_some_and(|i| i > 0.1), "raster: {idle:?}");
-    r.set_fused_slices(false);
-    let idle = idle_tiles_keep_the_image(&mut r, &stack, &persp, "two dispatches");
-    r.set_fused_slices(true);
-    assert!(idle.is_some_and(|i| i > 0.1), "two dispatches: {idle:?}");
+    for (stack, what) in [
+        ([tf.clone(), d.clone()], "θ 60"),
+        ([tf.clone(), wide], "Poisson, exact, chromatic, θ 85"),
+    ] {
+        let what = format!("raster, {what}");
+        let idle = idle_tiles_keep_the_image(&mut r, &stack, &raster, &what);
+        assert!(idle.is_some_and(|i| i > 0.1), "{what}: {idle:?}");
+        r.set_fused_slices(false);
+        let what = format!("two dispatches, {what}");
+        let idle = idle_tiles_keep_the_image(&mut r, &stack, &persp, &what);
+        r.set_fused_slices(true);
+        assert!(idle.is_some_and(|i| i > 0.1), "{what}: {idle:?}");
+    }
     // what dispatches every tile
     let mut half = d.clone();
     half.params

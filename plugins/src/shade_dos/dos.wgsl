@@ -8,6 +8,12 @@
 // the paper's scalar one (the RGB path costs lavapipe 6–10 % per frame even when
 // its branches are not taken). CPU twin: mod.rs.
 
+// The Poisson table's width (MAX_POISSON in mod.rs; a test keeps the two equal). A
+// constant rather than `textureDimensions(poisson)`: lavapipe (Mesa 22.3.6) crashed
+// running the Poisson kernel with the size query once the loop was no longer inside
+// a branch.
+const DOS_POISSON_MAX: i32 = 64;
+
 // Eye pass (Algorithm 1): σs·(L_a·V + ambient), α unchanged (α = 1 − e^(−σt·d) is
 // applied by the core's opacity correction of the TF's α per Δs0).
 fn shade(s: Sample) -> Sample {
@@ -31,9 +37,9 @@ fn kernel_tap(q: vec2<f32>, uv: vec2<f32>, scale: vec2<f32>, extent: f32, d: f32
     let p = q * extent;
     let pt = uv + vec2<f32>(p.x, -p.y) * scale;
     var dist = d;
-    if (params.distance == 1u) {
-        dist = sqrt(d * d + dot(p, p));
-    }
+    // exact_distance: begin
+    dist = sqrt(d * d + dot(p, p));
+    // exact_distance: end
     return textureSampleLevel(state_prev, linear_clamp, pt, 0.0).r * exp(-sigma_t * dist);
 }
 
@@ -41,27 +47,29 @@ fn kernel_tap(q: vec2<f32>, uv: vec2<f32>, scale: vec2<f32>, extent: f32, d: f32
 // Chromatic extinction: the kernel's taps with σt·κ per channel, averaged. The points
 // are the same as the achromatic loops' (grid or Poisson, in the same order).
 fn chromatic_taps(uv: vec2<f32>, scale: vec2<f32>, extent: f32, d: f32, sigma_t: f32) -> vec3<f32> {
-    let poisson_kernel = params.kernel == 1u;
     let g = params.grid;
     var count = g * g;
-    if (poisson_kernel) {
-        count = min(params.poisson_count, i32(textureDimensions(poisson).x));
-    }
+    // poisson: begin
+    count = min(params.poisson_count, DOS_POISSON_MAX);
+    // poisson: end
     var sum = vec3<f32>(0.0);
     var n = 0.0;
     for (var i = 0; i < count; i = i + 1) {
         var q = (vec2<f32>(f32(i % g), f32(i / g)) + 0.5) / f32(g) * 2.0 - 1.0;
-        if (poisson_kernel) {
-            q = textureLoad(poisson, vec2<i32>(i, 0), 0).xy;
-        } else if (dot(q, q) > 1.0) {
+        // poisson: begin
+        q = textureLoad(poisson, vec2<i32>(i, 0), 0).xy;
+        // poisson: end
+        // grid: begin
+        if (dot(q, q) > 1.0) {
             continue;
         }
+        // grid: end
         let p = q * extent;
         let pt = uv + vec2<f32>(p.x, -p.y) * scale;
         var dist = d;
-        if (params.distance == 1u) {
-            dist = sqrt(d * d + dot(p, p));
-        }
+        // exact_distance: begin
+        dist = sqrt(d * d + dot(p, p));
+        // exact_distance: end
         let prev = textureSampleLevel(state_prev, linear_clamp, pt, 0.0).rgb;
         sum = sum + prev * exp(-(sigma_t * params.extinction_rgb) * dist);
         n = n + 1.0;
@@ -103,24 +111,30 @@ fn slice_update(s: Sample, c: vec4<f32>, uv: vec2<f32>) -> vec4<f32> {
     // chromatic: end
     var sum = 0.0;
     var n = 0.0;
-    if (params.kernel == 1u) {
-        let count = i32(textureDimensions(poisson).x);
-        for (var i = 0; i < min(params.poisson_count, count); i = i + 1) {
-            let q = textureLoad(poisson, vec2<i32>(i, 0), 0).xy;
-            sum = sum + kernel_tap(q, uv, scale, extent, d, sigma_t);
-            n = n + 1.0;
-        }
-    } else {
-        let g = params.grid;
-        for (var j = 0; j < g; j = j + 1) {
-            for (var i = 0; i < g; i = i + 1) {
-                let q = (vec2<f32>(f32(i), f32(j)) + 0.5) / f32(g) * 2.0 - 1.0;
-                if (dot(q, q) <= 1.0) {
-                    sum = sum + kernel_tap(q, uv, scale, extent, d, sigma_t);
-                    n = n + 1.0;
-                }
+    // poisson: begin
+    for (var i = 0; i < min(params.poisson_count, DOS_POISSON_MAX); i = i + 1) {
+        let q = textureLoad(poisson, vec2<i32>(i, 0), 0).xy;
+        sum = sum + kernel_tap(q, uv, scale, extent, d, sigma_t);
+        n = n + 1.0;
+    }
+    // poisson: end
+    // grid: begin
+    let g = params.grid;
+    for (var j = 0; j < g; j = j + 1) {
+        // Only the row's columns that can lie in the disk, i0 ≤ i < g − i0 (widened by
+        // 10⁻³ so that rounding never drops a point; the test below keeps exactly the
+        // disk's points). The masked corners would cost as much as taps.
+        let qy = (f32(j) + 0.5) / f32(g) * 2.0 - 1.0;
+        let half_width = sqrt(max(1.0 - qy * qy, 0.0));
+        let i0 = max(0, i32(ceil((1.0 - half_width) * f32(g) * 0.5 - 0.5 - 1.0e-3)));
+        for (var i = i0; i < g - i0; i = i + 1) {
+            let q = (vec2<f32>(f32(i), f32(j)) + 0.5) / f32(g) * 2.0 - 1.0;
+            if (dot(q, q) <= 1.0) {
+                sum = sum + kernel_tap(q, uv, scale, extent, d, sigma_t);
+                n = n + 1.0;
             }
         }
     }
+    // grid: end
     return vec4<f32>(sum / max(n, 1.0), 0.0, 0.0, 1.0);
 }

@@ -16,6 +16,11 @@
 //!   64 points).
 //! - `distance`: `slice` (Algorithm 3, the paper's choice: d) or `exact` (Algorithm 2:
 //!   √(d² + |p|²)).
+//! - `kernel` and `distance` are structural: the shader keeps only the chosen loop and
+//!   distance (regions `grid`, `poisson`, `exact_distance` of dos.wgsl), because
+//!   lavapipe runs the code of a uniform branch not taken under a mask (the Poisson
+//!   loop once, the exact distance at every tap): `ct_dos` 0.83× on lavapipe, the
+//!   images bit for bit (docs/perf.md, "Idle tiles of the per-slice path").
 //! - σt at the cone's tip: −ln(1 − α)/Δs0 from the classified opacity per Δs0 of the
 //!   current slice's sample, as the paper reads σt at the fragment. Opacity
 //!   α = 1 − e^(−σt·d) is the core's opacity correction of that α.
@@ -105,6 +110,10 @@ pub struct Dos {
     /// `light: directional`: the buffer travels with a directional light (half-angle
     /// slicing).
     pub directional: bool,
+    /// `kernel: poisson` (else the grid).
+    pub poisson: bool,
+    /// `distance: exact` (Algorithm 2; else the slice distance, Algorithm 3).
+    pub exact_distance: bool,
 }
 
 impl Default for Dos {
@@ -114,6 +123,8 @@ impl Default for Dos {
             format: StorageFormat::R32Float,
             chromatic: false,
             directional: false,
+            poisson: false,
+            exact_distance: false,
         }
     }
 }
@@ -180,10 +191,11 @@ impl Plugin for Dos {
         vec![
             ParamSpec::float("theta_deg", "Cone aperture θ (°)", 0.0, 89.9, 60.0)
                 .with_doc("occlusion extent d·tan θ per slice distance d (eq 11)"),
-            ParamSpec::enumeration("kernel", "Kernel", &["grid", "poisson"], 0),
+            ParamSpec::enumeration("kernel", "Kernel", &["grid", "poisson"], 0).structural(),
             ParamSpec::int("grid", "Grid n × n", 2, 13, 4),
             ParamSpec::int("poisson_count", "Poisson points", 4, MAX_POISSON as i32, 16),
             ParamSpec::enumeration("distance", "Attenuation distance", &["slice", "exact"], 0)
+                .structural()
                 .with_doc(
                     "slice: e^(−σt·d) (Algorithm 3); exact: e^(−σt·√(d²+|p|²)) (Algorithm 2)",
                 ),
@@ -221,11 +233,17 @@ impl Plugin for Dos {
     fn shader(&self) -> ShaderSource {
         const FILE: &str = "plugins/src/shade_dos/dos.wgsl";
         const SOURCE: &str = include_str!("dos.wgsl");
-        if self.chromatic {
-            ShaderSource::new_static(FILE, SOURCE)
-        } else {
-            ShaderSource::without_region(FILE, SOURCE, "chromatic", "")
+        // Structural parameters choose the code: uniform branches cost lavapipe both
+        // paths (docs/perf.md, "Idle tiles of the per-slice path").
+        let mut left_out = Vec::new();
+        if !self.chromatic {
+            left_out.push(("chromatic", ""));
         }
+        left_out.push(if self.poisson { ("grid", "") } else { ("poisson", "") });
+        if !self.exact_distance {
+            left_out.push(("exact_distance", ""));
+        }
+        ShaderSource::without_regions(FILE, SOURCE, &left_out)
     }
     fn resources(&self) -> Vec<ResourceDecl> {
         vec![ResourceDecl {
@@ -276,6 +294,8 @@ impl Plugin for Dos {
             format,
             chromatic,
             directional: params.enumeration("light") == "directional",
+            poisson: params.enumeration("kernel") == "poisson",
+            exact_distance: params.enumeration("distance") == "exact",
         };
         (c != *self).then(|| Arc::new(c) as Arc<dyn Plugin>)
     }

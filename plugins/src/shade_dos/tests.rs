@@ -84,6 +84,31 @@ fn structural_parameters_choose_the_buffer() {
     assert!(!viewer.contains("light_uv(pos)"));
 }
 
+/// The kernel and the attenuation distance are structural: the shader keeps only the
+/// chosen loop and distance, line for line.
+#[test]
+fn structural_kernel_and_distance_choose_the_code() {
+    let base = Dos::default();
+    let grid = base.shader().source;
+    assert!(grid.contains("let g = params.grid;") && grid.contains("for (var i = i0; i < g - i0;"));
+    assert!(!grid.contains("textureLoad(poisson") && !grid.contains("sqrt(d * d"));
+    let mut p = ParamValues::defaults(&base.params());
+    p.set("kernel", ParamValue::Enum("poisson".into()));
+    p.set("distance", ParamValue::Enum("exact".into()));
+    let c = base.configure(&p).unwrap();
+    assert!(c.configure(&p).is_none(), "configured once");
+    let poisson = c.shader().source;
+    assert_eq!(poisson.lines().count(), grid.lines().count());
+    assert!(poisson.contains("textureLoad(poisson") && poisson.contains("sqrt(d * d"));
+    assert!(!poisson.contains("g - i0"));
+    assert!(grid.contains(&format!("const DOS_POISSON_MAX: i32 = {MAX_POISSON};")));
+    // chromatic: the per-channel taps follow the same choice
+    p.set("extinction", ParamValue::Enum("chromatic".into()));
+    let chromatic = base.configure(&p).unwrap().shader().source;
+    assert!(chromatic.contains("fn chromatic_taps") && chromatic.contains("q = textureLoad(poisson"));
+    assert!(!chromatic.contains("continue;"));
+}
+
 /// Homogeneous slab seen head on, θ = 0: V(s) is the transmittance back to the front
 /// face, so L = ∫₀ᴸ c·σ·e^(−2σs) ds = c·(1 − e^(−2σL))/2 (L_a = 1, no ambient).
 #[test]

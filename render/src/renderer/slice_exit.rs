@@ -31,8 +31,11 @@
 //! runs the tiles of V_k; the others need only the state updates, of a transparent
 //! sample, and run in a second dispatch (`cs_slice_state_only`) that updates from the
 //! pixel's placeholder sample without evaluating it ([`Plugin::slice_state_reach`]'s
-//! promise). Updates in dispatches of their own (the raster backend's) run both lists.
-//! The image is the same bit for bit.
+//! promise). Updates in dispatches of their own (the raster backend's, and the
+//! compute backend's without the fused entry point) split the same way where every
+//! state has the eye buffer's size: the update entry points, which evaluate the
+//! texel's sample, over V_k's tiles, and `cs_slice_state_only` over the others; else
+//! they run both lists. The image is the same bit for bit.
 
 use glam::{DVec2, Mat4};
 
@@ -88,9 +91,10 @@ impl SliceExit {
         (o > 0).then(|| ((self.n + k) * SLICE_INFO_STRIDE as u32, listed(o)))
     }
 
-    /// The dynamic offset of slice `k`'s updates in dispatches of their own, and their
-    /// workgroups where the state has the eye buffer's size (all its tiles; `info`
-    /// chunk 2`n` + k), `None` where the eye buffer's (slice 0).
+    /// The dynamic offset of slice `k`'s updates in dispatches of their own that cover
+    /// all its tiles (where not every state has the eye buffer's size), and their
+    /// workgroups where the state has it (`info` chunk 2`n` + k), `None` where the eye
+    /// buffer's (slice 0).
     pub fn updates(&self, k: u32) -> (u32, Option<(u32, u32)>) {
         let offset = (2 * self.n + k) * SLICE_INFO_STRIDE as u32;
         let n = self
@@ -234,15 +238,9 @@ fn distance_lower_bound(mask: &[bool], grid: Grid) -> Vec<f32> {
 /// `polygon` (world, on one plane) on the screen of `vp` in a `size` frame, in pixels;
 /// `None` where a vertex lies behind the eye (then it may reach any pixel).
 fn on_screen(polygon: &[glam::Vec3], vp: Mat4, size: [u32; 2]) -> Option<Vec<DVec2>> {
-    let (w, h) = (size[0] as f64, size[1] as f64);
     polygon
         .iter()
-        .map(|p| {
-            let c = (vp * p.extend(1.0)).as_dvec4();
-            let ndc = DVec2::new(c.x, c.y) / c.w;
-            let px = DVec2::new((ndc.x * 0.5 + 0.5) * w, (0.5 - ndc.y * 0.5) * h);
-            (c.w > 1.0e-6 && px.is_finite()).then_some(px)
-        })
+        .map(|p| crate::slicing::pixel_of(*p, vp, size))
         .collect()
 }
 
