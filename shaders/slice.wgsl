@@ -579,10 +579,7 @@ fn slice_step(px: vec2<u32>, size: vec2<u32>, always: bool) -> Evaluated {
     let early = ahead && et && acc.a >= frame.settings.x;
     let rs = ray_slices(r);
     let hit = slice_point_in(rs, slice_info.index);
-    run_setup(r, uv);
-    var e: Evaluated;
-    e.s = make_sample(r.origin, r.dir, uv, slice_info.index);
-    e.c = vec4<f32>(0.0);
+    var e = placeholder(r, uv);
     var changed = first;
     if (hit && (always || !early)) {
         e = evaluate(slice_sample(r, rs, uv, slice_info.index));
@@ -624,7 +621,12 @@ fn slice_tile(wg: vec2<u32>) -> vec2<u32> {
 // as `slice_step` starts it, handed to the state updates unevaluated.
 fn slice_placeholder(px: vec2<u32>) -> Evaluated {
     let uv = (vec2<f32>(px) + 0.5) * frame.viewport.zw;
-    let r = pixel_ray(uv);
+    return placeholder(pixel_ray(uv), uv);
+}
+
+// The placeholder sample of slice `slice_info.index` on ray `r` (pixel `uv`), after
+// the ray's setup hooks: the ray's `make_sample`, colour 0.
+fn placeholder(r: Ray, uv: vec2<f32>) -> Evaluated {
     run_setup(r, uv);
     var e: Evaluated;
     e.s = make_sample(r.origin, r.dir, uv, slice_info.index);

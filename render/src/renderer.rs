@@ -1161,6 +1161,14 @@ fn uniform_entry(
     }
 }
 
+/// Whether every per-slice state (`sizes`: [`Renderer::state_sizes`]) is allocated
+/// with the eye buffer's size `eye`, so that a state texel is a pixel.
+fn all_eye_sized(sizes: &[Option<wgpu::Extent3d>], eye: [u32; 2]) -> bool {
+    sizes
+        .iter()
+        .all(|st| st.is_some_and(|e| [e.width, e.height] == eye))
+}
+
 /// A storage buffer binding of compute shaders.
 fn storage_buffer_entry(binding: u32, read_only: bool) -> wgpu::BindGroupLayoutEntry {
     wgpu::BindGroupLayoutEntry {
@@ -2842,11 +2850,9 @@ impl Renderer {
         // samples over its listed tiles where one can be visible (chunk k), and the
         // state-only entry point updates every state over its other listed tiles from
         // the pixels' placeholder samples, as the fused path does.
-        let split = exit.zip(p.cs_slice_state_only.as_ref()).filter(|_| {
-            sizes
-                .iter()
-                .all(|st| st.is_some_and(|e| [e.width, e.height] == eye))
-        });
+        let split = exit
+            .zip(p.cs_slice_state_only.as_ref())
+            .filter(|_| all_eye_sized(sizes, eye));
         if let Some((x, state_only)) = split {
             let n = x
                 .workgroups(k)
@@ -2858,11 +2864,7 @@ impl Renderer {
                     pass.dispatch_workgroups(n.0, n.1, 1);
                 }
             }
-            if let Some((offset, m)) = x.state_only(k) {
-                pass.set_pipeline(state_only);
-                pass.set_bind_group(0, g0, &[offset]);
-                pass.dispatch_workgroups(m.0, m.1, 1);
-            }
+            x.encode_state_only(&mut pass, state_only, g0, k);
             return;
         }
         // with listed tiles, the slice's chunk that lists them all
@@ -2911,13 +2913,10 @@ impl Renderer {
         let sizes = self.state_sizes(p, uids);
         // the fused pipeline updates the state texel under each pixel: the state must
         // be in eye-buffer space (not a half-angle frame's light space)
-        let fused = p.cs_slice_fused.as_ref().filter(|_| {
-            self.fused_slices
-                && view_aligned
-                && sizes
-                    .iter()
-                    .all(|st| st.is_some_and(|e| [e.width, e.height] == size))
-        });
+        let fused = p
+            .cs_slice_fused
+            .as_ref()
+            .filter(|_| self.fused_slices && view_aligned && all_eye_sized(&sizes, size));
         let wg = (size[0].div_ceil(8), size[1].div_ceil(8));
         for k in 0..count {
             let parity = &g2[(k % 2) as usize];
@@ -2930,7 +2929,7 @@ impl Renderer {
             // and the updates alone over its tiles where no sample can be visible
             let state_only = fused
                 .and(p.cs_slice_state_only.as_ref())
-                .zip(exit.and_then(|x| x.state_only(k)));
+                .zip(exit.filter(|x| x.state_only(k).is_some()));
             if (n.0 > 0 && n.1 > 0) || state_only.is_some() {
                 let mut pass = enc.begin_compute_pass(&Default::default());
                 pass.set_bind_group(1, g1, &[]);
@@ -2941,10 +2940,8 @@ impl Renderer {
                     pass.set_bind_group(0, g0, &[(k as u64 * SLICE_INFO_STRIDE) as u32]);
                     pass.dispatch_workgroups(n.0, n.1, 1);
                 }
-                if let Some((pipeline, (offset, m))) = state_only {
-                    pass.set_pipeline(pipeline);
-                    pass.set_bind_group(0, g0, &[offset]);
-                    pass.dispatch_workgroups(m.0, m.1, 1);
+                if let Some((pipeline, x)) = state_only {
+                    x.encode_state_only(&mut pass, pipeline, g0, k);
                 }
             }
             if fused.is_none() {

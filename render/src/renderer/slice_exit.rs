@@ -91,6 +91,23 @@ impl SliceExit {
         (o > 0).then(|| ((self.n + k) * SLICE_INFO_STRIDE as u32, listed(o)))
     }
 
+    /// Slice `k`'s state-only dispatch of `pipeline` (`cs_slice_state_only`) over its
+    /// tiles where no sample can be visible, with `g0` at their chunk; none where it has
+    /// no such tiles.
+    pub fn encode_state_only(
+        &self,
+        pass: &mut wgpu::ComputePass<'_>,
+        pipeline: &wgpu::ComputePipeline,
+        g0: &wgpu::BindGroup,
+        k: u32,
+    ) {
+        if let Some((offset, m)) = self.state_only(k) {
+            pass.set_pipeline(pipeline);
+            pass.set_bind_group(0, g0, &[offset]);
+            pass.dispatch_workgroups(m.0, m.1, 1);
+        }
+    }
+
     /// The dynamic offset of slice `k`'s updates in dispatches of their own that cover
     /// all its tiles (where not every state has the eye buffer's size), and their
     /// workgroups where the state has it (`info` chunk 2`n` + k), `None` where the eye
