@@ -4,10 +4,14 @@
 # x86-64 Linux), each step under a time limit, and copies what they write to OUT.
 #
 #   bash bench/gpu.sh VWB INTEGRATION DATA_DIR OUT
+#   GPU_STEPS="perf scaling presets suite" bash bench/gpu.sh ...   # some steps only
 #
 # VWB: target/release/vwb; INTEGRATION: the binary `cargo test --locked --test
 # integration --no-run` prints; DATA_DIR: the sample data (VWB_DATA_DIR). Writes to OUT:
 #   perf.md            docs/perf.md with its `foundation-gpu` block (bench/perf.py --gpu)
+#   gpu-perf.md        docs/gpu/perf.md: the `foundation-gpu-1024` block (the same at
+#                      1024²) and the `scaling` block (bench/scaling.py --gpu)
+#   presets.log        DOS and shaded presets, both backends, 512² (`vwb render --timings`)
 #   gpu-docs.tar       docs/gpu/: flow.md and hernell.md (the blocks of the
 #                      experiment files hernell_512,
 #                      flow_precompute_256, flow_arrival_prepass_large,
@@ -34,9 +38,28 @@ step() { # name limit_s command...
     timeout "$limit" "$@" >"$out/$name.log" 2>&1
     echo "$name: rc=$? in $((SECONDS - t0)) s" | tee -a "$out/steps.txt"
 }
-step perf 90 python3 bench/perf.py --vwb "$vwb" --gpu --block foundation-gpu --frames 20
-cp docs/perf.md "$out/perf.md"
-step experiments 540 "$vwb" run experiments/volume_format.ron experiments/flow_modes.ron \
+steps=" ${GPU_STEPS:-perf scaling presets experiments suite} "
+want() { [[ $steps == *" $1 "* ]]; }
+presets() {
+    for p in ct_head ct_shade_phong ct_dos ct_dos_chromatic demo_dos nuclei_dos; do
+        for b in compute raster; do
+            echo "== $p $b"
+            "$vwb" render --preset "presets/$p.ron" --size 512x512 --backend $b --timings \
+                --frames 10 -o "/tmp/vwb-gpu-$p-$b.png" 2>&1 | grep -E "adapter|gpu_ms|wall_ms"
+        done
+    done
+}
+if want perf; then
+    step perf 90 python3 bench/perf.py --vwb "$vwb" --gpu --block foundation-gpu --frames 20
+    step perf1024 90 python3 bench/perf.py --vwb "$vwb" --gpu --size 1024x1024 \
+        --block foundation-gpu-1024 --frames 20 --doc docs/gpu/perf.md
+    cp docs/perf.md "$out/perf.md"
+fi
+want scaling && step scaling 200 python3 bench/scaling.py --vwb "$vwb" --gpu --doc docs/gpu/perf.md
+want perf || want scaling && cp docs/gpu/perf.md "$out/gpu-perf.md"
+export -f presets; export vwb
+want presets && step presets 120 bash -c presets
+want experiments && step experiments 540 "$vwb" run experiments/volume_format.ron experiments/flow_modes.ron \
     experiments/flow_precompute_256.ron experiments/flow_arrival_prepass_large.ron \
     experiments/search_gallery.ron experiments/search_gallery_large.ron \
     experiments/flow_output_sensitivity_large.ron experiments/hernell_512.ron \
@@ -44,6 +67,8 @@ step experiments 540 "$vwb" run experiments/volume_format.ron experiments/flow_m
     experiments/hernell_scattering.ron experiments/hernell_extremes.ron \
     experiments/hernell_blocking.ron experiments/clip_planes.ron \
     experiments/clip_skipping.ron experiments/clip_mesh_cost.ron
-tar cf "$out/gpu-docs.tar" docs/gpu 2>/dev/null
-step suite 120 "$integration" --test-threads=8
-grep -E "^test result|FAILED|panicked" "$out/suite.log" | head -40 >>"$out/steps.txt"
+want experiments && tar cf "$out/gpu-docs.tar" docs/gpu 2>/dev/null
+if want suite; then
+    step suite 150 "$integration" --test-threads=8
+    grep -E "^test result|FAILED|panicked" "$out/suite.log" | head -40 >>"$out/steps.txt"
+fi

@@ -106,6 +106,10 @@ def main():
     commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=REPO,
                             capture_output=True, text=True).stdout.strip() or "?"
     cmd = "python3 bench/perf.py" + (" --gpu --block " + a.block if a.gpu else "")
+    if a.size != "512x512":
+        cmd += f" --size {a.size}"
+    if Path(a.doc).resolve() != (REPO / "docs/perf.md").resolve():
+        cmd += f" --doc {Path(a.doc).resolve().relative_to(REPO.resolve())}"
     lines = [
         f"Command: `{cmd}` ({build} build of vwb, {commit}; `vwb render --timings`, median of {a.frames} frames after 2 warm-up frames).",
         "",

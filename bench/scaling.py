@@ -25,6 +25,7 @@ table gives the least of the rounds' medians. Rewrites the block between
 """
 
 import argparse
+import math
 import re
 import statistics
 import subprocess
@@ -40,6 +41,14 @@ SPACINGS = [0.5, 1.0, 2.0]
 # the decomposition's further spacings (not part of the target's table)
 COARSE = [4.0, 8.0, 64.0]
 THRESHOLDS = [0.05, 0.2, 0.3, 0.4, 0.6]
+
+
+def num(x: float, decimals: int, sig: int = 3) -> str:
+    """`x` with at least `decimals` decimals and at least `sig` significant digits (a
+    GPU's frames take fractions of a millisecond, its samples thousandths of a ns)."""
+    if x == 0 or not math.isfinite(x):
+        return f"{x:.{decimals}f}"
+    return f"{x:.{max(decimals, sig - 1 - math.floor(math.log10(abs(x))))}f}"
 
 
 def render(vwb, preset, size, spacing, skipping, frames, env):
@@ -109,11 +118,11 @@ def main():
         ns = {c: r["ms"] * 1e6 / (c[2] * c[2] * r["slices"]) for c, r in mine}
         med = statistics.median(ns.values())
         for c, r in mine:
-            rows.append(f"| {name} | {c[2]}² | {c[3]} | {r['slices']} | {r['ms']:.1f} | "
-                        f"{ns[c]:.3f} | {ns[c] / med:.2f} |")
+            rows.append(f"| {name} | {c[2]}² | {c[3]} | {r['slices']} | {num(r['ms'], 1)} | "
+                        f"{num(ns[c], 3)} | {ns[c] / med:.2f} |")
         lo, hi = min(ns.values()) / med, max(ns.values()) / med
         met = "met" if lo >= 0.8 and hi <= 1.2 else "not met"
-        verdicts.append(f"{name}: {lo:.2f}–{hi:.2f} of the median {med:.3f} ns ({met})")
+        verdicts.append(f"{name}: {lo:.2f}–{hi:.2f} of the median {num(med, 3)} ns ({met})")
 
     # where the time per sample goes: per pixel, and the marginal cost per sample
     rows3 = []
@@ -124,8 +133,8 @@ def main():
             px = size * size
             marg = [(f["ms"] - c["ms"]) * 1e6 / (px * (f["slices"] - c["slices"]))
                     for f, c in zip(rs, rs[1:])]
-            rows3.append(f"| {name} | {size}² | {rs[-1]['ms'] * 1e6 / px:.0f} ({rs[-1]['slices']} slices) | "
-                         + " | ".join(f"{m:.2f}" for m in marg) + " |")
+            rows3.append(f"| {name} | {size}² | {num(rs[-1]['ms'] * 1e6 / px, 0)} ({rs[-1]['slices']} slices) | "
+                         + " | ".join(num(m, 2) for m in marg) + " |")
     pairs = " | ".join(f"{f:g} → {c:g}" for f, c in zip(spacings, spacings[1:]))
 
     thr = [(t, s) for t in THRESHOLDS for s in ("on", "off")]
@@ -135,7 +144,7 @@ def main():
     rows2 = []
     for t in THRESHOLDS:
         on, off = res2[(t, "on")], res2[(t, "off")]
-        rows2.append(f"| {t} | {on['empty'] * 100:.1f} % | {on['ms']:.1f} | {off['ms']:.1f} | "
+        rows2.append(f"| {t} | {on['empty'] * 100:.1f} % | {num(on['ms'], 1)} | {num(off['ms'], 1)} | "
                      f"{on['ms'] / off['ms']:.2f} |")
 
     cmd = "python3 bench/scaling.py" + (" --gpu --doc " + a.doc if a.gpu else "")

@@ -76,6 +76,8 @@ fn bricked_volumes_render_the_unbricked_image() {
             continue;
         }
         split_presets += 1;
+        // one unbricked renderer draws both backends (its volume passes run once)
+        let mut one = Renderer::new(gpu(), volume.clone()).unwrap();
         for backend in [Backend::Raster, Backend::Compute] {
             let s = FrameSettings {
                 width: 64,
@@ -84,7 +86,6 @@ fn bricked_volumes_render_the_unbricked_image() {
                 early_termination: None,
                 ..doc.frame_settings()
             };
-            let mut one = Renderer::new(gpu(), volume.clone()).unwrap();
             let a = image(&render(&mut one, &doc.stack, target, &s), 64, 64);
             let b = image(&render(&mut split, &doc.stack, target, &s), 64, 64);
             let m = compare(&a, &b);

@@ -576,6 +576,14 @@ fn a_named_vector_input_on_its_own_grid_drives_the_lic() {
     r.render(&s).expect("the last good pipeline draws");
 }
 
+/// The bound on a pass volume resampled from the 25×14×8 storm onto another grid,
+/// relative to its largest value: a GPU's 8-bit trilinear weights (NVIDIA) move a
+/// value by up to 1/512 of a voxel difference (the H200: 1.25e-3 of 0.94 in `speed`,
+/// 3.1e-4 of 0.20 in `facing`).
+fn resampled_bound() -> f64 {
+    adapter_bound(1e-4, 3e-3)
+}
+
 /// The plugin contract's chain of volume passes over a named 3-component input: the
 /// storm's wind (25×14×8, u, v, w) beside a scalar 20×16×12 volume. `test.vector_passes`
 /// runs three passes on the volume's grid, each reading the one before (speed sampled
@@ -629,7 +637,7 @@ fn three_chained_volume_passes_over_a_named_vector_input() {
             .fold(0.0f64, f64::max);
         eprintln!("test.vector_passes {name}: max |GPU − twin| {worst:.2e} (max {top:.3})");
         assert!(
-            top > 0.0 && worst <= 1e-4 * top.max(1.0),
+            top > 0.0 && worst <= resampled_bound() * top.max(1.0),
             "{name}: {worst} of {top}"
         );
     }
@@ -697,7 +705,7 @@ fn three_chained_volume_passes_over_a_named_vector_input() {
             .fold(0.0f64, f64::max);
         let top = twin.data.iter().cloned().fold(0.0f64, f64::max);
         assert!(
-            top > 0.0 && worst <= 1e-4 * top.max(1.0),
+            top > 0.0 && worst <= resampled_bound() * top.max(1.0),
             "frame {k}: {worst} of {top}"
         );
         seen.push(gpu_t);
