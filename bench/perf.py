@@ -108,8 +108,9 @@ def main():
     cmd = "python3 bench/perf.py" + (" --gpu --block " + a.block if a.gpu else "")
     if a.size != "512x512":
         cmd += f" --size {a.size}"
-    if Path(a.doc).resolve() != (REPO / "docs/perf.md").resolve():
-        cmd += f" --doc {Path(a.doc).resolve().relative_to(REPO.resolve())}"
+    doc = Path(a.doc).resolve()
+    if doc != (REPO / "docs/perf.md").resolve():
+        cmd += f" --doc {doc.relative_to(REPO.resolve()) if doc.is_relative_to(REPO.resolve()) else doc}"
     lines = [
         f"Command: `{cmd}` ({build} build of vwb, {commit}; `vwb render --timings`, median of {a.frames} frames after 2 warm-up frames).",
         "",
