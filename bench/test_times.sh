@@ -9,8 +9,7 @@
 # --report-time`; nothing is compiled with it.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-export VK_DRIVER_FILES="${VK_DRIVER_FILES:-$(ls /usr/share/vulkan/icd.d/lvp_icd.*.json | head -n 1)}"
-export LP_NUM_THREADS="${LP_NUM_THREADS:-2}" XDG_RUNTIME_DIR="${XDG_RUNTIME_DIR:-/tmp}"
+source bench/lavapipe.sh
 export VWB_DATA_DIR="${VWB_DATA_DIR:-$PWD/../shared/data}"
 bin=$(cargo test --locked --test integration --no-run --message-format=json 2>/dev/null |
     python3 -c 'import json,sys

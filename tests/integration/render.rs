@@ -140,10 +140,11 @@ fn every_shipped_preset_matches_its_golden_images() {
     let mut names = Vec::new();
     for preset in &presets {
         let stem = preset.file_stem().unwrap().to_string_lossy().to_string();
-        let goldens = [(Backend::Raster, "raster"), (Backend::Compute, "compute")]
-            .map(|(backend, tag)| (backend, dir.join(format!("{stem}_{tag}.png"))));
+        let files = [(Backend::Raster, "raster"), (Backend::Compute, "compute")]
+            .map(|(backend, tag)| (backend, format!("{stem}_{tag}.png")));
+        let goldens = files.each_ref().map(|(backend, f)| (*backend, dir.join(f)));
         check_golden(preset, &goldens, 64, adapter_bound(1.0, 2.0));
-        names.extend(["raster", "compute"].map(|tag| format!("{stem}_{tag}.png")));
+        names.extend(files.map(|(_, f)| f));
     }
     // no golden without its preset (a removed or renamed preset takes its images along)
     for e in std::fs::read_dir(&dir).unwrap() {
