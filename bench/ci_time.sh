@@ -4,13 +4,17 @@
 # the crates from Cargo's cache), and prints the phase times that scripts/test reports
 # and the total, with the machine. About 45 minutes on 2 cores. docs/perf.md, "The test
 # suite's time", quotes it.
+#
+#   bash bench/ci_time.sh [REV]    # REV: the commit to time (default HEAD)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 export VWB_DATA_DIR="${VWB_DATA_DIR:-$PWD/../shared/data}"
 dir="$(cd .. && pwd)/vwb-ci-time"
 rm -rf "$dir"
+rev=$(git rev-parse --verify "${1:-HEAD}^{commit}")
 git clone -q . "$dir"
 cd "$dir"
+git checkout -q "$rev"
 echo "commit $(git rev-parse --short HEAD), $(nproc) cores, $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | xargs)"
 start=$SECONDS
 set +e

@@ -31,6 +31,9 @@ use vwb_render::reference::ReferenceOptions;
 use vwb_render::slicing::VolumeBox;
 use vwb_render::{GpuContext, Renderer, Volume};
 
+/// A named volume's dims (x, y, z) and component count, as `Session.volumes` returns it.
+type VolumeShape = ((u32, u32, u32), u32);
+
 fn err(e: anyhow::Error) -> PyErr {
     PyRuntimeError::new_err(format!("{e:#}"))
 }
@@ -221,13 +224,16 @@ impl Scene {
     }
 
     /// The named volumes: name → (dims (x, y, z), components).
-    fn volumes(&self) -> PyResult<std::collections::BTreeMap<String, ((u32, u32, u32), u32)>> {
+    fn volumes(&self) -> PyResult<std::collections::BTreeMap<String, VolumeShape>> {
         let inputs = headless::inputs_for(&self.doc).map_err(err)?;
         Ok(inputs
             .names()
             .filter_map(|n| {
                 let v = inputs.get(n)?;
-                Some((n.to_string(), ((v.dims[0], v.dims[1], v.dims[2]), v.components)))
+                Some((
+                    n.to_string(),
+                    ((v.dims[0], v.dims[1], v.dims[2]), v.components),
+                ))
             })
             .collect())
     }
