@@ -2,7 +2,7 @@
 # How long a cold CI run takes, per phase: clones the repository's HEAD beside it (into
 # ../vwb-ci-time, so ../shared is the same), runs `.ci/run` there as CI does (no target/,
 # the crates from Cargo's cache), and prints the phase times that scripts/test reports
-# and the total, with the machine. About 45 minutes on 2 cores. docs/perf.md, "The test
+# and the total, with the machine. 20–45 minutes on 2 cores. docs/perf.md, "The test
 # suite's time", quotes it.
 #
 #   bash bench/ci_time.sh [REV]    # REV: the commit to time (default HEAD)
