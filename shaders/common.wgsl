@@ -104,15 +104,22 @@ fn sweep_sizes(sw: SweepInfo, dims: vec3<u32>) -> vec3<u32> {
 }
 
 // Per slice (bound with a dynamic offset): its index and, where `tile_row` is not 0,
-// the tiles of 8 × 8 pixels where anything that reaches the image can change at this
+// the tiles of 8 × 8 texels where anything that reaches the image can change at this
 // slice, `tile_count` of them from `tile_offset` in `slice_tile_list`, which the
 // per-slice entry points' dispatches cover in rows of `tile_row` workgroups
-// (`slice_tile`; render/src/renderer/slice_exit.rs).
+// (`slice_tile`; render/src/renderer/slice_exit.rs). The tiles are those of a grid of
+// `list_size` texels (width | height << 16): the eye buffer's, or the per-slice
+// state's where every state has one smaller size (a state update uses the list where
+// its state has that size).
 struct SliceInfo {
     index: u32,
     tile_offset: u32,
     tile_count: u32,
     tile_row: u32,
+    list_size: u32,
+    pad0: u32,
+    pad1: u32,
+    pad2: u32,
 }
 
 @group(0) @binding(0) var<uniform> frame: Frame;

@@ -635,14 +635,17 @@ fn placeholder(r: Ray, uv: vec2<f32>) -> Evaluated {
 }
 
 // One slice per dispatch, accumulating in `accum` (used when a plugin has per-slice
-// state whose resolution differs from the eye buffer's; otherwise `cs_slice_fused`).
+// state whose resolution differs from the eye buffer's; otherwise `cs_slice_fused`),
+// over the slice's tiles (`slice_tile`; where `slice_info` lists them, those where its
+// sample can be visible: elsewhere it adds nothing).
 @compute @workgroup_size(8, 8, 1)
-fn cs_slice(@builtin(global_invocation_id) gid: vec3<u32>) {
+fn cs_slice(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid: vec3<u32>) {
     let size = vec2<u32>(frame.viewport.xy);
+    let gid = slice_tile(wg.xy) * 8u + lid.xy;
     if (gid.x >= size.x || gid.y >= size.y) {
         return;
     }
-    slice_step(gid.xy, size, false);
+    slice_step(gid, size, false);
 }
 
 // Copy the accumulation buffer into the eye buffer.

@@ -365,7 +365,7 @@ pub struct FrameArgs {
     #[arg(long)]
     pub hull_cut: Option<OnOff>,
     /// How the volume is stored on the GPU: auto (r32float where the adapter filters
-    /// it), r32float, r16float or r16unorm (default: the preset's).
+    /// it), r32float, r16float, r16unorm or r8unorm (default: the preset's).
     #[arg(long, value_parser = vwb_render::renderer::VolumeFormat::parse)]
     pub volume_format: Option<vwb_render::renderer::VolumeFormat>,
 }

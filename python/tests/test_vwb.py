@@ -56,8 +56,11 @@ def test_volume_format_is_a_render_setting():
     assert 0.0 < vwb.compare(full, half)["rms_delta_e"] < 0.5, "11-bit values, nearly the image"
     s.set("render.volume_format", "auto")
     assert vwb.compare(full, s.render(size=(40, 40)))["rms_delta_e"] == 0.0
-    with pytest.raises(ValueError, match="r8unorm"):
-        s.set("render.volume_format", "r8unorm")
+    s.set("render.volume_format", "r8unorm")
+    byte = s.render(size=(40, 40))
+    assert 0.0 < vwb.compare(full, byte)["rms_delta_e"] < 1.0, "1/255 steps, nearly the image"
+    with pytest.raises(ValueError, match="r4unorm"):
+        s.set("render.volume_format", "r4unorm")
 
 
 def test_vector_parameters_are_set_from_sequences():

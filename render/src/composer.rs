@@ -1294,12 +1294,13 @@ pub fn compose_with(
                     let store = state_store(inst);
                     let code = format!(
                         "// The state update of one slice: over the slice's listed tiles where the\n\
-                         // state has the eye buffer's size (`slice_tile`), else over every texel.\n\
+                         // state has the size of the list's grid (`slice_tile`), else over every texel.\n\
                          @compute @workgroup_size(8, 8, 1)\n\
                          fn {entry}(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid: vec3<u32>) {{\n    \
                          let size = textureDimensions({p}state_next);\n    \
                          var tile = wg.xy;\n    \
-                         if (all(size == vec2<u32>(frame.viewport.xy))) {{\n        tile = slice_tile(wg.xy);\n    }}\n    \
+                         let grid = vec2<u32>(slice_info.list_size & 0xffffu, slice_info.list_size >> 16u);\n    \
+                         if (all(size == grid)) {{\n        tile = slice_tile(wg.xy);\n    }}\n    \
                          let gid = vec3<u32>(tile * 8u + lid.xy, 0u);\n    \
                          if (gid.x >= size.x || gid.y >= size.y) {{\n        return;\n    }}\n    \
                          let e = state_texel_sample(gid.xy, size);\n\

@@ -928,7 +928,8 @@ fn texel_bytes(format: wgpu::TextureFormat) -> u64 {
 /// sampler; they differ in bytes per voxel and in what sampling costs on an adapter
 /// (issue 23, item 4: docs/perf.md measures them). The CPU twins read the f64 values:
 /// r32float is the exact one, r16unorm keeps 1/65535 steps (within half a data step of
-/// 16-bit data), r16float keeps 11 significant bits.
+/// 16-bit data), r16float keeps 11 significant bits, r8unorm 1/255 steps (an 8-bit
+/// volume's own resolution; a quarter of r32float's bytes).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 pub enum VolumeFormat {
     /// r32float where the adapter filters it, else r16float.
@@ -937,14 +938,16 @@ pub enum VolumeFormat {
     R32Float,
     R16Float,
     R16Unorm,
+    R8Unorm,
 }
 
 impl VolumeFormat {
-    pub const ALL: [VolumeFormat; 4] = [
+    pub const ALL: [VolumeFormat; 5] = [
         VolumeFormat::Auto,
         VolumeFormat::R32Float,
         VolumeFormat::R16Float,
         VolumeFormat::R16Unorm,
+        VolumeFormat::R8Unorm,
     ];
 
     pub fn name(self) -> &'static str {
@@ -953,6 +956,7 @@ impl VolumeFormat {
             VolumeFormat::R32Float => "r32float",
             VolumeFormat::R16Float => "r16float",
             VolumeFormat::R16Unorm => "r16unorm",
+            VolumeFormat::R8Unorm => "r8unorm",
         }
     }
 
@@ -961,7 +965,9 @@ impl VolumeFormat {
             .into_iter()
             .find(|f| f.name() == s)
             .ok_or_else(|| {
-                format!("unknown volume format '{s}' (auto, r32float, r16float or r16unorm)")
+                format!(
+                    "unknown volume format '{s}' (auto, r32float, r16float, r16unorm or r8unorm)"
+                )
             })
     }
 
@@ -1020,6 +1026,7 @@ impl VolumeFormat {
                 Ok(wgpu::TextureFormat::R16Unorm)
             }
             VolumeFormat::R16Unorm => lacks("TEXTURE_FORMAT_16BIT_NORM"),
+            VolumeFormat::R8Unorm => Ok(wgpu::TextureFormat::R8Unorm),
             VolumeFormat::R16Float | VolumeFormat::Auto => Ok(wgpu::TextureFormat::R16Float),
         }
     }
@@ -1159,6 +1166,12 @@ fn uniform_entry(
         },
         count: None,
     }
+}
+
+/// The size of a per-slice state of `scale` ([`crate::plugin::SliceStateDecl::scale`])
+/// for a `size` eye buffer.
+fn state_extent(size: [u32; 2], scale: f32) -> [u32; 2] {
+    size.map(|s| ((s as f32 * scale).round() as u32).max(1))
 }
 
 /// Whether every per-slice state (`sizes`: [`Renderer::state_sizes`]) is allocated
@@ -2735,8 +2748,7 @@ impl Renderer {
             if g.state.is_some() {
                 continue;
             }
-            let w = ((t.width as f32 * decl.scale).round() as u32).max(1);
-            let h = ((t.height as f32 * decl.scale).round() as u32).max(1);
+            let [w, h] = state_extent([t.width, t.height], decl.scale);
             let make = || {
                 let tex = self.gpu.device.create_texture(&wgpu::TextureDescriptor {
                     label: Some("vwb slice state"),
@@ -2873,11 +2885,12 @@ impl Renderer {
             None => ((k as u64 * SLICE_INFO_STRIDE) as u32, None),
         };
         pass.set_bind_group(0, g0, &[offset]);
+        let grid = exit.map(|x| x.size);
         for ((_, pipeline), size) in p.updates.iter().zip(sizes) {
             let Some(e) = size else { continue };
-            // a state of the eye buffer's size is updated over the slice's listed tiles
+            // a state of the lists' grid size is updated over the slice's listed tiles
             let n = match listed {
-                Some(n) if [e.width, e.height] == eye => n,
+                Some(n) if Some([e.width, e.height]) == grid => n,
                 _ => (e.width.div_ceil(8), e.height.div_ceil(8)),
             };
             if n.0 > 0 && n.1 > 0 {
@@ -2920,12 +2933,9 @@ impl Renderer {
         let wg = (size[0].div_ceil(8), size[1].div_ceil(8));
         for k in 0..count {
             let parity = &g2[(k % 2) as usize];
-            // the fused dispatch covers the slice's tiles where a sample can be visible
-            // (elsewhere the slice changes nothing that is read again)
-            let n = match (fused, exit.and_then(|x| x.workgroups(k))) {
-                (Some(_), Some(n)) => n,
-                _ => wg,
-            };
+            // the slice's dispatch (fused or not) covers its tiles where a sample can be
+            // visible (elsewhere the slice changes nothing that is read again)
+            let n = exit.and_then(|x| x.workgroups(k)).unwrap_or(wg);
             // and the updates alone over its tiles where no sample can be visible
             let state_only = fused
                 .and(p.cs_slice_state_only.as_ref())
@@ -4240,13 +4250,16 @@ impl Renderer {
             }
         }
         stamp(enc, None);
-        // the share of idle tiles, where a state of the eye buffer's size listed them
-        // (the fused dispatch needs every state at that size)
-        let listed = state_sizes
-            .iter()
-            .flatten()
-            .any(|e| [e.width, e.height] == eye);
-        let idle_tiles = exit.as_ref().filter(|_| listed).map(|x| x.idle);
+        // the share of idle tiles, where a state of the lists' grid size used them
+        let idle_tiles = exit
+            .as_ref()
+            .filter(|x| {
+                state_sizes
+                    .iter()
+                    .flatten()
+                    .any(|e| [e.width, e.height] == x.size)
+            })
+            .map(|x| x.idle);
         let n_stamps = ts_labels.len() as u32;
         if let Some((qs, resolve, read)) = ts
             && n_stamps > 0
@@ -4617,7 +4630,7 @@ fn make_g0(
                 resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
                     buffer: slice_info,
                     offset: 0,
-                    size: wgpu::BufferSize::new(16),
+                    size: wgpu::BufferSize::new(32),
                 }),
             },
             wgpu::BindGroupEntry {
@@ -4656,6 +4669,10 @@ fn upload_volume(
         wgpu::TextureFormat::R16Unorm => scalars
             .iter()
             .flat_map(|v| ((v.clamp(0.0, 1.0) * 65535.0).round() as u16).to_le_bytes())
+            .collect(),
+        wgpu::TextureFormat::R8Unorm => scalars
+            .iter()
+            .map(|v| (v.clamp(0.0, 1.0) * 255.0).round() as u8)
             .collect(),
         _ => bytemuck::cast_slice(&scalars).to_vec(),
     };

@@ -104,15 +104,22 @@ fn sweep_sizes(sw: SweepInfo, dims: vec3<u32>) -> vec3<u32> {
 }
 
 // Per slice (bound with a dynamic offset): its index and, where `tile_row` is not 0,
-// the tiles of 8 × 8 pixels where anything that reaches the image can change at this
+// the tiles of 8 × 8 texels where anything that reaches the image can change at this
 // slice, `tile_count` of them from `tile_offset` in `slice_tile_list`, which the
 // per-slice entry points' dispatches cover in rows of `tile_row` workgroups
-// (`slice_tile`; render/src/renderer/slice_exit.rs).
+// (`slice_tile`; render/src/renderer/slice_exit.rs). The tiles are those of a grid of
+// `list_size` texels (width | height << 16): the eye buffer's, or the per-slice
+// state's where every state has one smaller size (a state update uses the list where
+// its state has that size).
 struct SliceInfo {
     index: u32,
     tile_offset: u32,
     tile_count: u32,
     tile_row: u32,
+    list_size: u32,
+    pad0: u32,
+    pad1: u32,
+    pad2: u32,
 }
 
 @group(0) @binding(0) var<uniform> frame: Frame;
@@ -1146,14 +1153,17 @@ fn placeholder(r: Ray, uv: vec2<f32>) -> Evaluated {
 }
 
 // One slice per dispatch, accumulating in `accum` (used when a plugin has per-slice
-// state whose resolution differs from the eye buffer's; otherwise `cs_slice_fused`).
+// state whose resolution differs from the eye buffer's; otherwise `cs_slice_fused`),
+// over the slice's tiles (`slice_tile`; where `slice_info` lists them, those where its
+// sample can be visible: elsewhere it adds nothing).
 @compute @workgroup_size(8, 8, 1)
-fn cs_slice(@builtin(global_invocation_id) gid: vec3<u32>) {
+fn cs_slice(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid: vec3<u32>) {
     let size = vec2<u32>(frame.viewport.xy);
+    let gid = slice_tile(wg.xy) * 8u + lid.xy;
     if (gid.x >= size.x || gid.y >= size.y) {
         return;
     }
-    slice_step(gid.xy, size, false);
+    slice_step(gid, size, false);
 }
 
 // Copy the accumulation buffer into the eye buffer.
@@ -1201,12 +1211,13 @@ fn state_texel_sample(texel: vec2<u32>, state_size: vec2<u32>) -> Evaluated {
 }
 
 // The state update of one slice: over the slice's listed tiles where the
-// state has the eye buffer's size (`slice_tile`), else over every texel.
+// state has the size of the list's grid (`slice_tile`), else over every texel.
 @compute @workgroup_size(8, 8, 1)
 fn cs_update_2(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid: vec3<u32>) {
     let size = textureDimensions(p2_slice_shadow_state_next);
     var tile = wg.xy;
-    if (all(size == vec2<u32>(frame.viewport.xy))) {
+    let grid = vec2<u32>(slice_info.list_size & 0xffffu, slice_info.list_size >> 16u);
+    if (all(size == grid)) {
         tile = slice_tile(wg.xy);
     }
     let gid = vec3<u32>(tile * 8u + lid.xy, 0u);

@@ -35,7 +35,12 @@
 //! compute backend's without the fused entry point) split the same way where every
 //! state has the eye buffer's size: the update entry points, which evaluate the
 //! texel's sample, over V_k's tiles, and `cs_slice_state_only` over the others; else
-//! they run both lists. The image is the same bit for bit.
+//! they run both lists. Where every state has one size smaller than the eye buffer's
+//! (`shade.dos`'s `buffer_scale` 0.5 or 0.25), the three regions are taken on the
+//! state's grid of tiles for its updates (a state texel's sample is the pixel's at the
+//! same point of the screen; the margins and the bilinear footprint are in its texels)
+//! and the slice's own dispatch (`cs_slice`) covers V_k's tiles of the eye buffer. The
+//! image is the same bit for bit.
 
 use glam::{DVec2, Mat4};
 
@@ -65,8 +70,12 @@ pub(super) struct SliceExit {
     pub list: wgpu::Buffer,
     /// Chunks per part of `info`.
     n: u32,
-    /// Per slice, the number of its visible and of its other tiles.
-    counts: Vec<[u32; 2]>,
+    /// Per slice, the number of its tiles of its slice dispatch (on the eye buffer's
+    /// grid), of its state-only dispatch, and of its updates (on [`SliceExit::size`]).
+    counts: Vec<[u32; 3]>,
+    /// The grid the tiles are of, in texels: the eye buffer's, or that of every
+    /// per-slice state where all have one smaller size ([`list_size`]).
+    pub size: [u32; 2],
     /// The share of the (slice, tile) pairs left out.
     pub idle: f64,
 }
@@ -77,17 +86,18 @@ fn listed(n: u32) -> (u32, u32) {
 }
 
 impl SliceExit {
-    /// The workgroups of slice `k`'s fused dispatch (its tiles where a sample can be
-    /// visible; `info` chunk k), `None` where the eye buffer's (slice 0).
+    /// The workgroups of slice `k`'s dispatch, fused or `cs_slice` (its tiles of the eye
+    /// buffer where a sample can be visible; `info` chunk k), `None` where the eye
+    /// buffer's (slice 0).
     pub fn workgroups(&self, k: u32) -> Option<(u32, u32)> {
-        let [v, _] = *self.counts.get(k as usize).filter(|_| k > 0)?;
+        let [v, _, _] = *self.counts.get(k as usize).filter(|_| k > 0)?;
         Some(listed(v))
     }
 
     /// The dynamic offset and workgroups of slice `k`'s state-only dispatch (its other
     /// tiles; `info` chunk `n` + k), `None` where it has none.
     pub fn state_only(&self, k: u32) -> Option<(u32, (u32, u32))> {
-        let [_, o] = *self.counts.get(k as usize).filter(|_| k > 0)?;
+        let [_, o, _] = *self.counts.get(k as usize).filter(|_| k > 0)?;
         (o > 0).then(|| ((self.n + k) * SLICE_INFO_STRIDE as u32, listed(o)))
     }
 
@@ -109,16 +119,16 @@ impl SliceExit {
     }
 
     /// The dynamic offset of slice `k`'s updates in dispatches of their own that cover
-    /// all its tiles (where not every state has the eye buffer's size), and their
-    /// workgroups where the state has it (`info` chunk 2`n` + k), `None` where the eye
-    /// buffer's (slice 0).
+    /// all its tiles on the grid of [`SliceExit::size`] (`info` chunk 2`n` + k), and
+    /// their workgroups for a state of that size, `None` where the whole grid's (slice
+    /// 0).
     pub fn updates(&self, k: u32) -> (u32, Option<(u32, u32)>) {
         let offset = (2 * self.n + k) * SLICE_INFO_STRIDE as u32;
         let n = self
             .counts
             .get(k as usize)
             .filter(|_| k > 0)
-            .map(|[v, o]| listed(v + o));
+            .map(|&[_, _, u]| listed(u));
         (offset, n)
     }
 }
@@ -354,11 +364,30 @@ pub(super) fn slice_tiles(
         .collect()
 }
 
+/// The grid of a frame's tile lists for the per-slice states of `scales` (each
+/// [`crate::plugin::SliceStateDecl::scale`]) in a `size` eye buffer: the states' size
+/// where they all have one other than the eye buffer's (a smaller occlusion buffer: the
+/// lists then cover the state updates only, the slices' dispatches cover the eye
+/// buffer), else the eye buffer's.
+fn list_size(scales: &[f32], size: [u32; 2]) -> [u32; 2] {
+    let sizes: Vec<[u32; 2]> = scales
+        .iter()
+        .map(|&s| super::state_extent(size, s))
+        .collect();
+    match sizes.first() {
+        Some(&first) if sizes.iter().all(|&s| s == first) => first,
+        _ => size,
+    }
+}
+
 impl Renderer {
     /// The tiles of a frame of `stack` that its per-slice dispatches cover
     /// ([`Renderer::set_slice_exit`], [`slice_tiles`]), with group 0's buffers for
     /// them. `None` where the exit is off, the slices are half-angle, or a plugin of
-    /// `stack` with per-slice state states no reach.
+    /// `stack` with per-slice state states no reach. The tiles are in the grid of
+    /// [`list_size`]: where every state is smaller than the eye buffer (by one
+    /// `buffer_scale`), the regions are taken on the state's grid, the texel's sample
+    /// being the pixel's at the same screen point.
     pub(super) fn slice_exit_info(
         &self,
         stack: &[(u64, Arc<dyn Plugin>)],
@@ -372,50 +401,73 @@ impl Renderer {
             return None;
         }
         let mut reach = 0.0_f64;
+        let mut scales = Vec::new();
         for (uid, plugin) in stack {
-            if plugin.slice_state().is_some() {
+            if let Some(decl) = plugin.slice_state() {
                 let r = plugin.slice_state_reach(&self.instances.get(uid)?.params)?;
                 reach = reach.max(r);
+                scales.push(decl.scale);
             }
         }
+        let grid = list_size(&scales, size);
         let visible = self.visible_box_in(occupied.map(|o| o.bytes));
         let hull = occupied.and_then(|o| o.hull.map(|(h, _)| h));
-        let lists = slice_tiles(
-            &plan.slices,
-            u,
-            visible.as_ref(),
-            hull,
-            view.view_proj(),
-            size,
-            reach,
-        );
-        let all = Grid::of(size).len() as u32;
+        let tiles = |size| {
+            slice_tiles(
+                &plan.slices,
+                u,
+                visible.as_ref(),
+                hull,
+                view.view_proj(),
+                size,
+                reach,
+            )
+        };
+        let lists = tiles(size);
+        // a smaller state: its updates' tiles on its own grid
+        let state_lists = (grid != size).then(|| tiles(grid));
+        let all = Grid::of(grid).len() as u32;
+        let [eye, packed] = [size, grid].map(|s| s[0] | s[1] << 16);
         // as long as the shared slice info (volume passes index it by step)
         let n = lists.len().max(self.slice_info_slices as usize).max(1);
         let stride = SLICE_INFO_STRIDE as usize;
         let mut info = vec![0u8; 3 * n * stride];
         let mut flat: Vec<u32> = Vec::new();
         let mut counts = Vec::with_capacity(lists.len());
-        let mut put = |chunk: usize, words: [u32; 4]| {
-            info[chunk * stride..chunk * stride + 16].copy_from_slice(bytemuck::cast_slice(&words));
+        let mut put = |chunk: usize, words: [u32; 5]| {
+            info[chunk * stride..chunk * stride + 20].copy_from_slice(bytemuck::cast_slice(&words));
         };
         for k in 0..n {
             let index = k as u32;
-            let mut words = [[index, 0, 0, 0]; 3];
-            match lists.get(k) {
-                Some([visible, other]) if k > 0 => {
+            let mut words = [[index, 0, 0, 0, 0]; 3];
+            match (lists.get(k), &state_lists) {
+                (Some([visible, other]), None) if k > 0 => {
                     let (v, o, at) = (visible.len() as u32, other.len() as u32, flat.len() as u32);
                     words = [
-                        [index, at, v, LIST_ROW],
-                        [index, at + v, o, LIST_ROW],
-                        [index, at, v + o, LIST_ROW],
+                        [index, at, v, LIST_ROW, eye],
+                        [index, at + v, o, LIST_ROW, eye],
+                        [index, at, v + o, LIST_ROW, eye],
                     ];
                     flat.extend_from_slice(visible);
                     flat.extend_from_slice(other);
-                    counts.push([v, o]);
+                    counts.push([v, o, v + o]);
                 }
-                Some(_) => counts.push([all, 0]),
-                None => {}
+                // the slice's dispatch over its eye tiles where a sample can be visible,
+                // the updates over the state's tiles (no state-only dispatch: that
+                // entry point works in pixels)
+                (Some([visible, _]), Some(state)) if k > 0 => {
+                    let [sv, so] = &state[k];
+                    let (v, at) = (visible.len() as u32, flat.len() as u32);
+                    let updates = (sv.len() + so.len()) as u32;
+                    words[0] = [index, at, v, LIST_ROW, eye];
+                    words[2] = [index, at + v, updates, LIST_ROW, packed];
+                    flat.extend_from_slice(visible);
+                    flat.extend_from_slice(sv);
+                    flat.extend_from_slice(so);
+                    counts.push([v, 0, updates]);
+                }
+                (Some(_), _) => counts.push([Grid::of(size).len() as u32, 0, all]),
+                (None, _) => {}
             }
             for (part, w) in words.into_iter().enumerate() {
                 put(part * n + k, w);
@@ -423,7 +475,7 @@ impl Renderer {
         }
         let idle = counts
             .iter()
-            .map(|&[v, o]| (all - v - o) as f64)
+            .map(|&[_, _, updates]| (all - updates) as f64)
             .sum::<f64>()
             / (all as f64 * counts.len().max(1) as f64);
         if flat.is_empty() {
@@ -446,6 +498,7 @@ impl Renderer {
             list,
             n: n as u32,
             counts,
+            size: grid,
             idle,
         })
     }
