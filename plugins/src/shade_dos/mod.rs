@@ -222,7 +222,10 @@ impl Plugin for Dos {
                 .shown_when("extinction", "chromatic")
                 .with_doc("σt per channel = κ·σt along the occlusion cone; (1, 1, 1) is achromatic"),
             ParamSpec::enumeration("buffer_scale", "Occlusion buffer scale", &SCALES, 0)
-                .structural(),
+                .structural()
+                .with_doc(
+                    "the occlusion buffer's resolution per axis: 0.5 takes about half the frame, 0.25 a third or less, for softer shadows (docs/perf.md, \"A smaller occlusion buffer\")",
+                ),
             ParamSpec::enumeration("buffer_format", "Occlusion buffer precision", &FORMATS, 1)
                 .structural()
                 .with_doc(
