@@ -702,12 +702,12 @@ fn idle_tiles_keep_the_image(
 /// visible sample (`vwb_render::renderer` `slice_exit`): the image is the one with
 /// every tile dispatched, bit for bit, for both kernels and distances, chromatic
 /// extinction, apertures from 0° to 85°, perspective and orthographic views, a clip,
-/// skipping off, nothing visible, a block shadowing a second one behind it, and an
-/// atlas of variants; the raster backend's occlusion updates and the compute backend's
-/// updates in dispatches of their own too, and the updates of a half- and a
-/// quarter-resolution buffer over tiles of its own grid. It leaves out tiles wherever it
-/// applies; a state that states no reach (`test.slice_shadow`) and a directional light
-/// dispatch every tile.
+/// skipping off, nothing visible, a block shadowing a second one behind it, and
+/// atlases of variants (also with a half-resolution buffer); the raster backend's
+/// occlusion updates and the compute backend's updates in dispatches of their own too,
+/// and the updates of a half- and a quarter-resolution buffer over tiles of its own
+/// grid. It leaves out tiles wherever it applies; a state that states no reach
+/// (`test.slice_shadow`) and a directional light dispatch every tile.
 #[test]
 fn idle_tiles_are_left_out_and_keep_the_image() {
     let mut r = Renderer::new(gpu(), demo()).unwrap();
@@ -844,31 +844,39 @@ fn idle_tiles_are_left_out_and_keep_the_image() {
         assert!(idle.is_some_and(|i| i > 0.1), "{what}: {idle:?}");
     }
 
-    // an atlas of variants (each tile's own occupancy, hull and reach)
+    // atlases of variants (each tile's own occupancy, hull and reach), with the full
+    // buffer and with a half-resolution one of the tile's size (the buffer's scale is
+    // structural: one per atlas)
     let mut r = Renderer::new(gpu(), demo()).unwrap();
-    let stacks: Vec<Vec<PluginInstance>> = [20.0, 60.0, 80.0]
-        .iter()
-        .map(|&theta| vec![instance("classify.tf1d"), dos(theta)])
-        .collect();
     let mut cams = [persp.camera; 3];
     cams[1].yaw_deg += 40.0;
     cams[2] = ortho.camera;
-    let tiles: Vec<vwb_render::renderer::AtlasTile> = stacks
-        .iter()
-        .zip(cams)
-        .map(|(stack, camera)| vwb_render::renderer::AtlasTile { camera, stack })
-        .collect();
-    let mut atlases = Vec::new();
-    for exit in [true, false] {
-        r.set_slice_exit(exit);
-        atlases.push(
-            r.render_atlas(&tiles, &persp, TargetFormat::Rgba32Float, 3)
-                .unwrap(),
+    for scale in ["1", "0.5"] {
+        let stacks: Vec<Vec<PluginInstance>> = [20.0, 60.0, 80.0]
+            .iter()
+            .map(|&theta| {
+                let mut d = dos(theta);
+                d.params.set("buffer_scale", ParamValue::Enum(scale.into()));
+                vec![instance("classify.tf1d"), d]
+            })
+            .collect();
+        let tiles: Vec<vwb_render::renderer::AtlasTile> = stacks
+            .iter()
+            .zip(cams)
+            .map(|(stack, camera)| vwb_render::renderer::AtlasTile { camera, stack })
+            .collect();
+        let mut atlases = Vec::new();
+        for exit in [true, false] {
+            r.set_slice_exit(exit);
+            atlases.push(
+                r.render_atlas(&tiles, &persp, TargetFormat::Rgba32Float, 3)
+                    .unwrap(),
+            );
+        }
+        assert!(
+            atlases[0].pixels == atlases[1].pixels,
+            "buffer scale {scale}: the atlas with idle tiles left out differs"
         );
+        assert!(mean_luma(&rgb(&atlases[0].pixels)) > 0.01);
     }
-    assert!(
-        atlases[0].pixels == atlases[1].pixels,
-        "the atlas with idle tiles left out differs"
-    );
-    assert!(mean_luma(&rgb(&atlases[0].pixels)) > 0.01);
 }
