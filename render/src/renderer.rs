@@ -2863,6 +2863,7 @@ impl Renderer {
         // state-only entry point updates every state over its other listed tiles from
         // the pixels' placeholder samples, as the fused path does.
         let split = exit
+            .filter(|x| x.eye_space)
             .zip(p.cs_slice_state_only.as_ref())
             .filter(|_| all_eye_sized(sizes, eye));
         if let Some((x, state_only)) = split {

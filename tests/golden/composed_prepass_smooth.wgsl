@@ -109,8 +109,8 @@ fn sweep_sizes(sw: SweepInfo, dims: vec3<u32>) -> vec3<u32> {
 // per-slice entry points' dispatches cover in rows of `tile_row` workgroups
 // (`slice_tile`; render/src/renderer/slice_exit.rs). The tiles are those of a grid of
 // `list_size` texels (width | height << 16): the eye buffer's, or the per-slice
-// state's where every state has one smaller size (a state update uses the list where
-// its state has that size).
+// state's where every state has one size and it is smaller or lies across the light
+// (a state update uses the list where its state has that size).
 struct SliceInfo {
     index: u32,
     tile_offset: u32,

@@ -706,8 +706,9 @@ fn idle_tiles_keep_the_image(
 /// atlases of variants (also with a half-resolution buffer); the raster backend's
 /// occlusion updates and the compute backend's updates in dispatches of their own too,
 /// and the updates of a half- and a quarter-resolution buffer over tiles of its own
-/// grid. It leaves out tiles wherever it applies; a state that states no reach
-/// (`test.slice_shadow`) and a directional light dispatch every tile.
+/// grid, and under a directional light (half-angle slicing) the updates over tiles of
+/// the buffer across the light. It leaves out tiles wherever it applies; a state that
+/// states no reach (`test.slice_shadow`) dispatches every tile.
 #[test]
 fn idle_tiles_are_left_out_and_keep_the_image() {
     let mut r = Renderer::new(gpu(), demo()).unwrap();
@@ -802,25 +803,38 @@ fn idle_tiles_are_left_out_and_keep_the_image() {
             assert!(idle.is_some_and(|i| i > 0.1), "{what}: {idle:?}");
         }
     }
-    // what dispatches every tile
-    for (stack, s, what) in [
-        (
-            vec![tf.clone(), instance("test.slice_shadow")],
-            persp,
-            "no reach",
-        ),
-        (
-            vec![tf.clone(), dos_lit(60.0, [0.6, 0.4, 1.0])],
-            persp,
-            "directional light",
-        ),
+    // a directional light (half-angle slicing): the updates over the tiles of the
+    // buffer across the light, the slices' dispatches over their visible eye tiles; a
+    // light on the viewer's side, one from behind (the eye meets the slices back to
+    // front), a wide cone, a half-resolution buffer, on both backends
+    for (towards, theta, scale) in [
+        ([0.6, 0.4, 1.0], 60.0, "1"),
+        ([0.3, -0.5, -1.0], 60.0, "1"),
+        ([0.6, 0.4, 1.0], 85.0, "1"),
+        ([0.6, 0.4, 1.0], 60.0, "0.5"),
     ] {
-        assert_eq!(
-            idle_tiles_keep_the_image(&mut r, &stack, &s, what),
-            None,
-            "{what}"
-        );
+        let mut lit = dos_lit(theta, towards);
+        lit.params
+            .set("buffer_scale", ParamValue::Enum(scale.into()));
+        let stack = [tf.clone(), lit];
+        for (view, s) in [
+            ("perspective", &persp),
+            ("orthographic", &ortho),
+            ("raster", &raster),
+        ] {
+            let what =
+                format!("light towards {towards:?}, θ {theta}, buffer scale {scale}, {view}");
+            let idle = idle_tiles_keep_the_image(&mut r, &stack, s, &what);
+            assert!(idle.is_some_and(|i| i > 0.05), "{what}: {idle:?}");
+        }
     }
+    // what dispatches every tile
+    let stack = [tf.clone(), instance("test.slice_shadow")];
+    assert_eq!(
+        idle_tiles_keep_the_image(&mut r, &stack, &persp, "no reach"),
+        None,
+        "no reach"
+    );
 
     // a block whose shadow falls on part of a smaller block further back, seen from
     // the side: between them the shadow is still needed on the way to the second block
@@ -840,6 +854,14 @@ fn idle_tiles_are_left_out_and_keep_the_image() {
         d.params.set("buffer_scale", ParamValue::Enum(scale.into()));
         let stack = [tf.clone(), d];
         let what = format!("two blocks θ {theta}, buffer scale {scale}");
+        let idle = idle_tiles_keep_the_image(&mut r, &stack, &s, &what);
+        assert!(idle.is_some_and(|i| i > 0.1), "{what}: {idle:?}");
+    }
+    // and lit from the side by a directional light, the front block's shadow crossing
+    // empty space onto the back one
+    for (towards, theta) in [([0.5, 0.3, 1.0], 20.0), ([-0.4, -0.6, 1.0], 45.0)] {
+        let stack = [tf.clone(), dos_lit(theta, towards)];
+        let what = format!("two blocks, light towards {towards:?}, θ {theta}");
         let idle = idle_tiles_keep_the_image(&mut r, &stack, &s, &what);
         assert!(idle.is_some_and(|i| i > 0.1), "{what}: {idle:?}");
     }

@@ -36,11 +36,13 @@
 //! state has the eye buffer's size: the update entry points, which evaluate the
 //! texel's sample, over V_k's tiles, and `cs_slice_state_only` over the others; else
 //! they run both lists. Where every state has one size smaller than the eye buffer's
-//! (`shade.dos`'s `buffer_scale` 0.5 or 0.25), the three regions are taken on the
-//! state's grid of tiles for its updates (a state texel's sample is the pixel's at the
-//! same point of the screen; the margins and the bilinear footprint are in its texels)
-//! and the slice's own dispatch (`cs_slice`) covers V_k's tiles of the eye buffer. The
-//! image is the same bit for bit.
+//! (`shade.dos`'s `buffer_scale` 0.5 or 0.25), or lies across the light (half-angle
+//! slicing: `light: directional`), the three regions are taken on the state's grid of
+//! tiles for its updates (a state texel's sample is the pixel's at the same point of the
+//! screen, or the one on the light's ray through the texel, the slice's polygon then
+//! projected along the light as the shader's `state_coord` does; the margins, R_k and
+//! the bilinear footprint are in its texels) and the slice's own dispatch (`cs_slice`)
+//! covers V_k's tiles of the eye buffer. The image is the same bit for bit.
 
 use glam::{DVec2, Mat4};
 
@@ -73,9 +75,13 @@ pub(super) struct SliceExit {
     /// Per slice, the number of its tiles of its slice dispatch (on the eye buffer's
     /// grid), of its state-only dispatch, and of its updates (on [`SliceExit::size`]).
     counts: Vec<[u32; 3]>,
-    /// The grid the tiles are of, in texels: the eye buffer's, or that of every
-    /// per-slice state where all have one smaller size ([`list_size`]).
+    /// The grid the updates' tiles are of, in texels: the eye buffer's, or that of every
+    /// per-slice state where all have one size and it is smaller or lies across the
+    /// light ([`SliceExit::eye_space`] false).
     pub size: [u32; 2],
+    /// Whether a state texel is the eye buffer's pixel (the fused and state-only entry
+    /// points' lists); false for a smaller buffer or under half-angle slicing.
+    pub eye_space: bool,
     /// The share of the (slice, tile) pairs left out.
     pub idle: f64,
 }
@@ -271,24 +277,23 @@ fn on_screen(polygon: &[glam::Vec3], vp: Mat4, size: [u32; 2]) -> Option<Vec<DVe
         .collect()
 }
 
-/// Per slice of a view-aligned frame with per-slice state (`plan`, drawn into a `size`
-/// eye buffer with the frame uniform `u` and view-projection `vp`), its tiles
-/// (`x | y << 16`, row by row) as the module's documentation defines them: those of
-/// V_k, and the others; slice 0's lists are empty (it covers the eye buffer).
-/// `visible`: the box whose samples can be visible (`None`: nothing can be); `hull`: the
-/// occupied bricks' hull; `reach`: the largest of the stack's
-/// [`Plugin::slice_state_reach`].
-pub(super) fn slice_tiles(
-    plan: &SlicePlan,
-    u: &FrameUniform,
-    visible: Option<&VolumeBox>,
-    hull: Option<&crate::slicing::Dop>,
-    vp: Mat4,
-    size: [u32; 2],
-    reach: f64,
-) -> Vec<[Vec<u32>; 2]> {
-    let grid = Grid::of(size);
-    let n = plan.count as usize;
+/// A reach of `px` texels per slice with the bilinear reads' footprint: the reads reach
+/// texels within one of a tap along each axis; a part in 10⁴ and a thousandth of a
+/// texel cover the shader's f32 rounding (not more: the growth adds up over hundreds of
+/// slices).
+fn with_footprint(px: f64) -> f32 {
+    let r = px * (1.0 + 1.0e-4) + std::f64::consts::SQRT_2 + 1.0e-3;
+    if r.is_finite() {
+        r as f32
+    } else {
+        f32::INFINITY
+    }
+}
+
+/// R_k of a view-aligned frame (frame uniform `u`, `n` slices) in a `size` grid over
+/// the screen: the updates' `reach` at slice k in texels of that grid, at the slice's
+/// depth, with the footprint ([`with_footprint`]).
+fn screen_grow(u: &FrameUniform, size: [u32; 2], reach: f64, n: usize) -> Vec<f32> {
     let dims = [size[0] as f64, size[1] as f64];
     let basis = [0, 1].map(|c| {
         glam::Vec3::from_slice(&u.ray_basis[4 * c..4 * c + 3])
@@ -296,8 +301,7 @@ pub(super) fn slice_tiles(
             .length()
     });
     let perspective = u.eye[3] > 0.5;
-    // R_k: the updates' reach at slice k, in pixels, with the bilinear footprint
-    let grow: Vec<f32> = (0..n)
+    (0..n)
         .map(|k| {
             let depth = if perspective {
                 (u.box_max[3] as f64 + k as f64 * u.forward[3] as f64).max(1.0e-9)
@@ -307,17 +311,51 @@ pub(super) fn slice_tiles(
             let px = (0..2)
                 .map(|i| reach * u.forward[3] as f64 * 0.5 / (basis[i] * depth) * dims[i])
                 .fold(0.0, f64::max);
-            // the bilinear reads reach texels within one of a tap along each axis; a
-            // part in 10⁴ and a thousandth of a pixel cover the shader's f32 rounding
-            // (not more: the growth adds up over hundreds of slices)
-            let r = px * (1.0 + 1.0e-4) + std::f64::consts::SQRT_2 + 1.0e-3;
-            if r.is_finite() {
-                r as f32
-            } else {
-                f32::INFINITY
-            }
+            with_footprint(px)
         })
-        .collect();
+        .collect()
+}
+
+/// A half-angle frame's state grid (`size` texels across the light, `h`): where a
+/// world point lies in it, as the shader's `state_coord` maps it, in texels.
+fn light_texel(h: &crate::slicing::HalfAngle, size: [u32; 2], p: glam::Vec3) -> DVec2 {
+    let col = |i: usize| h.state_rays.col(i).truncate().as_dvec3();
+    let (a, b, q) = (col(0), col(1), p.as_dvec3() - col(3));
+    let ndc = DVec2::new(q.dot(a) / a.dot(a), q.dot(b) / b.dot(b));
+    DVec2::new(
+        (ndc.x * 0.5 + 0.5) * size[0] as f64,
+        (0.5 - ndc.y * 0.5) * size[1] as f64,
+    )
+}
+
+/// R_k of a half-angle frame (`h`) in its `size` state grid: the cone's `reach` over the
+/// light's step, in texels (the same at every slice), with the footprint.
+fn light_grow(h: &crate::slicing::HalfAngle, size: [u32; 2], reach: f64, n: usize) -> Vec<f32> {
+    let px = (0..2)
+        .map(|i| {
+            let axis = h.state_rays.col(i).truncate().as_dvec3().length();
+            reach * h.light_step as f64 * 0.5 / axis * size[i] as f64
+        })
+        .fold(0.0, f64::max);
+    vec![with_footprint(px); n]
+}
+
+/// Per slice of a frame with per-slice state (`plan`), its tiles in a `size` grid
+/// (`x | y << 16`, row by row) as the module's documentation defines them: those of
+/// V_k, and the others; slice 0's lists are empty (it covers the grid). `project` maps
+/// a slice's polygon (world) into the grid's texels (`None`: it may reach any);
+/// `grow`: R_k per slice, in texels. `visible`: the box whose samples can be visible
+/// (`None`: nothing can be); `hull`: the occupied bricks' hull.
+pub(super) fn slice_tiles(
+    plan: &SlicePlan,
+    visible: Option<&VolumeBox>,
+    hull: Option<&crate::slicing::Dop>,
+    project: &dyn Fn(&[glam::Vec3]) -> Option<Vec<DVec2>>,
+    size: [u32; 2],
+    grow: &[f32],
+) -> Vec<[Vec<u32>; 2]> {
+    let grid = Grid::of(size);
+    let n = plan.count as usize;
     // V_k, and the distances to it
     let seen: Vec<Vec<bool>> = (0..n)
         .map(|k| match visible {
@@ -327,7 +365,7 @@ pub(super) fn slice_tiles(
                     Some(h) => h.clip(poly),
                     None => poly,
                 };
-                polygon_tiles(on_screen(&poly, vp, size).as_deref(), grid)
+                polygon_tiles(project(&poly).as_deref(), grid)
             }
             None => vec![false; grid.len()],
         })
@@ -364,30 +402,27 @@ pub(super) fn slice_tiles(
         .collect()
 }
 
-/// The grid of a frame's tile lists for the per-slice states of `scales` (each
-/// [`crate::plugin::SliceStateDecl::scale`]) in a `size` eye buffer: the states' size
-/// where they all have one other than the eye buffer's (a smaller occlusion buffer: the
-/// lists then cover the state updates only, the slices' dispatches cover the eye
-/// buffer), else the eye buffer's.
-fn list_size(scales: &[f32], size: [u32; 2]) -> [u32; 2] {
+/// The size every per-slice state of `scales` (each
+/// [`crate::plugin::SliceStateDecl::scale`]) has in a `size` eye buffer, `None` where
+/// they differ.
+fn common_size(scales: &[f32], size: [u32; 2]) -> Option<[u32; 2]> {
     let sizes: Vec<[u32; 2]> = scales
         .iter()
         .map(|&s| super::state_extent(size, s))
         .collect();
-    match sizes.first() {
-        Some(&first) if sizes.iter().all(|&s| s == first) => first,
-        _ => size,
-    }
+    let first = *sizes.first()?;
+    sizes.iter().all(|&s| s == first).then_some(first)
 }
 
 impl Renderer {
     /// The tiles of a frame of `stack` that its per-slice dispatches cover
     /// ([`Renderer::set_slice_exit`], [`slice_tiles`]), with group 0's buffers for
-    /// them. `None` where the exit is off, the slices are half-angle, or a plugin of
-    /// `stack` with per-slice state states no reach. The tiles are in the grid of
-    /// [`list_size`]: where every state is smaller than the eye buffer (by one
-    /// `buffer_scale`), the regions are taken on the state's grid, the texel's sample
-    /// being the pixel's at the same screen point.
+    /// them. `None` where the exit is off, a plugin of `stack` with per-slice state
+    /// states no reach, or, under half-angle slicing, the states differ in size. The
+    /// updates' tiles are on the states' own grid where it is not the eye buffer's
+    /// ([`SliceExit::eye_space`]): a smaller buffer's, the texel's sample being the
+    /// pixel's at the same screen point, or under half-angle slicing the buffer across
+    /// the light, the texel's sample on the light's ray through it.
     pub(super) fn slice_exit_info(
         &self,
         stack: &[(u64, Arc<dyn Plugin>)],
@@ -397,7 +432,7 @@ impl Renderer {
         size: [u32; 2],
         occupied: Option<Occupied>,
     ) -> Option<SliceExit> {
-        if !self.slice_exit || plan.half.is_some() {
+        if !self.slice_exit {
             return None;
         }
         let mut reach = 0.0_f64;
@@ -409,23 +444,46 @@ impl Renderer {
                 scales.push(decl.scale);
             }
         }
-        let grid = list_size(&scales, size);
-        let visible = self.visible_box_in(occupied.map(|o| o.bytes));
-        let hull = occupied.and_then(|o| o.hull.map(|(h, _)| h));
-        let tiles = |size| {
-            slice_tiles(
-                &plan.slices,
-                u,
-                visible.as_ref(),
-                hull,
-                view.view_proj(),
-                size,
-                reach,
-            )
+        // The updates' tiles are those of the states' own grid where every state has
+        // one size and it is not the eye buffer's pixels: a smaller buffer, or any
+        // buffer under half-angle slicing (it lies across the light).
+        let half = plan.half.as_ref();
+        let grid = match (half, common_size(&scales, size)) {
+            (_, Some(common)) => common,
+            (None, None) => size,
+            (Some(_), None) => return None,
         };
-        let lists = tiles(size);
-        // a smaller state: its updates' tiles on its own grid
-        let state_lists = (grid != size).then(|| tiles(grid));
+        let own = half.is_some() || grid != size;
+        let visible = self.visible_box_in(occupied.map(|o| o.bytes));
+        let visible = visible.as_ref();
+        let hull = occupied.and_then(|o| o.hull.map(|(h, _)| h));
+        let slices = &plan.slices;
+        let n = slices.count as usize;
+        let vp = view.view_proj();
+        let screen = |grid: [u32; 2]| move |poly: &[glam::Vec3]| on_screen(poly, vp, grid);
+        // the eye buffer's (under half-angle slicing only its V_k is used: the slices'
+        // own dispatch)
+        let lists = slice_tiles(
+            slices,
+            visible,
+            hull,
+            &screen(size),
+            size,
+            &screen_grow(u, size, reach, n),
+        );
+        let state_lists = own.then(|| match half {
+            Some(h) => {
+                let light = |poly: &[glam::Vec3]| {
+                    Some(poly.iter().map(|&p| light_texel(h, grid, p)).collect())
+                };
+                let grow = light_grow(h, grid, reach, n);
+                slice_tiles(slices, visible, hull, &light, grid, &grow)
+            }
+            None => {
+                let grow = screen_grow(u, grid, reach, n);
+                slice_tiles(slices, visible, hull, &screen(grid), grid, &grow)
+            }
+        });
         let all = Grid::of(grid).len() as u32;
         let [eye, packed] = [size, grid].map(|s| s[0] | s[1] << 16);
         // as long as the shared slice info (volume passes index it by step)
@@ -499,6 +557,7 @@ impl Renderer {
             n: n as u32,
             counts,
             size: grid,
+            eye_space: !own,
             idle,
         })
     }
