@@ -828,6 +828,12 @@ fn idle_tiles_are_left_out_and_keep_the_image() {
             assert!(idle.is_some_and(|i| i > 0.05), "{what}: {idle:?}");
         }
     }
+    // a wide cone in a larger buffer, where the cone's reach exceeds the tiles' margins
+    let stack = [tf.clone(), dos_lit(85.0, [0.6, 0.4, 1.0])];
+    let large = settings(160, 160, Backend::Compute);
+    let what = "light, θ 85, 160²";
+    let idle = idle_tiles_keep_the_image(&mut r, &stack, &large, what);
+    assert!(idle.is_some_and(|i| i > 0.05), "{what}: {idle:?}");
     // what dispatches every tile
     let stack = [tf.clone(), instance("test.slice_shadow")];
     assert_eq!(
