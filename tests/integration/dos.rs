@@ -60,6 +60,12 @@ fn both_backends_match_the_twin_and_each_other() {
     }
 }
 
+/// Sets `d`'s (shade.dos) occlusion buffer scale (`buffer_scale`: "1", "0.5" or
+/// "0.25").
+fn set_buffer_scale(d: &mut PluginInstance, scale: &str) {
+    d.params.set("buffer_scale", ParamValue::Enum(scale.into()));
+}
+
 /// Sets `d`'s (shade.dos) kernel, distance, buffer scale and, where `extinction` is
 /// given, chromatic extinction with that κ.
 fn set_kernel(
@@ -76,7 +82,7 @@ fn set_kernel(
     }
     d.params.set("kernel", ParamValue::Enum(kernel.into()));
     d.params.set("distance", ParamValue::Enum(distance.into()));
-    d.params.set("buffer_scale", ParamValue::Enum(scale.into()));
+    set_buffer_scale(d, scale);
 }
 
 /// The demo under `stack` at 48² on both backends: each within 0.5 ΔE*uv RMS of the
@@ -120,7 +126,7 @@ fn one_dispatch_per_slice_keeps_the_image() {
         ("1", Backend::Raster, false),
     ] {
         let mut d = dos(60.0);
-        d.params.set("buffer_scale", ParamValue::Enum(scale.into()));
+        set_buffer_scale(&mut d, scale);
         let stack = [instance("classify.tf1d"), d];
         let mut s = settings(48, 48, backend);
         s.early_termination = Some(0.9);
@@ -533,7 +539,7 @@ fn a_directional_light_slices_half_angle_and_both_backends_match_the_twin() {
         let mut d = dos_lit(60.0, towards);
         d.params.set("light_space", ParamValue::Enum(space.into()));
         d.params.set("kernel", ParamValue::Enum(kernel.into()));
-        d.params.set("buffer_scale", ParamValue::Enum(scale.into()));
+        set_buffer_scale(&mut d, scale);
         let stack = vec![instance("classify.tf1d"), d];
         backends_match_the_twin_and_each_other(
             &stack,
@@ -786,9 +792,7 @@ fn idle_tiles_are_left_out_and_keep_the_image() {
     // (the slices' dispatches the whole eye buffer), on both backends
     for scale in ["0.5", "0.25"] {
         let mut small = d.clone();
-        small
-            .params
-            .set("buffer_scale", ParamValue::Enum(scale.into()));
+        set_buffer_scale(&mut small, scale);
         let stack = [tf.clone(), small];
         // at 160², a grid of 10 × 10 or 5 × 5 tiles of the buffer
         let large = settings(160, 160, Backend::Compute);
@@ -814,8 +818,7 @@ fn idle_tiles_are_left_out_and_keep_the_image() {
         ([0.6, 0.4, 1.0], 60.0, "0.5"),
     ] {
         let mut lit = dos_lit(theta, towards);
-        lit.params
-            .set("buffer_scale", ParamValue::Enum(scale.into()));
+        set_buffer_scale(&mut lit, scale);
         let stack = [tf.clone(), lit];
         for (view, s) in [
             ("perspective", &persp),
@@ -857,7 +860,7 @@ fn idle_tiles_are_left_out_and_keep_the_image() {
     s.camera.pitch_deg += 8.0;
     for (theta, scale) in [(20.0, "1"), (60.0, "1"), (60.0, "0.5")] {
         let mut d = dos(theta);
-        d.params.set("buffer_scale", ParamValue::Enum(scale.into()));
+        set_buffer_scale(&mut d, scale);
         let stack = [tf.clone(), d];
         let what = format!("two blocks θ {theta}, buffer scale {scale}");
         let idle = idle_tiles_keep_the_image(&mut r, &stack, &s, &what);
@@ -884,7 +887,7 @@ fn idle_tiles_are_left_out_and_keep_the_image() {
             .iter()
             .map(|&theta| {
                 let mut d = dos(theta);
-                d.params.set("buffer_scale", ParamValue::Enum(scale.into()));
+                set_buffer_scale(&mut d, scale);
                 vec![instance("classify.tf1d"), d]
             })
             .collect();

@@ -340,12 +340,42 @@ fn light_grow(h: &crate::slicing::HalfAngle, size: [u32; 2], reach: f64, n: usiz
     vec![with_footprint(px); n]
 }
 
+/// A tile of `grid` by its row-major index, `x | y << 16`.
+fn tile_word(i: usize, grid: Grid) -> u32 {
+    (i % grid.w) as u32 | ((i / grid.w) as u32) << 16
+}
+
+/// Per slice of `plan`, the tiles of V_k in a `size` grid, as a mask: `project` maps a
+/// slice's polygon (world) into the grid's texels (`None`: it may reach any);
+/// `visible`: the box whose samples can be visible (`None`: nothing can be); `hull`: the
+/// occupied bricks' hull.
+fn seen_tiles(
+    plan: &SlicePlan,
+    visible: Option<&VolumeBox>,
+    hull: Option<&crate::slicing::Dop>,
+    project: &dyn Fn(&[glam::Vec3]) -> Option<Vec<DVec2>>,
+    size: [u32; 2],
+) -> Vec<Vec<bool>> {
+    let grid = Grid::of(size);
+    (0..plan.count)
+        .map(|k| match visible {
+            Some(b) => {
+                let poly = plan.polygon(b, k);
+                let poly = match hull {
+                    Some(h) => h.clip(poly),
+                    None => poly,
+                };
+                polygon_tiles(project(&poly).as_deref(), grid)
+            }
+            None => vec![false; grid.len()],
+        })
+        .collect()
+}
+
 /// Per slice of a frame with per-slice state (`plan`), its tiles in a `size` grid
 /// (`x | y << 16`, row by row) as the module's documentation defines them: those of
-/// V_k, and the others; slice 0's lists are empty (it covers the grid). `project` maps
-/// a slice's polygon (world) into the grid's texels (`None`: it may reach any);
-/// `grow`: R_k per slice, in texels. `visible`: the box whose samples can be visible
-/// (`None`: nothing can be); `hull`: the occupied bricks' hull.
+/// V_k, and the others; slice 0's lists are empty (it covers the grid). `grow`: R_k per
+/// slice, in texels; the others as [`seen_tiles`] takes them.
 pub(super) fn slice_tiles(
     plan: &SlicePlan,
     visible: Option<&VolumeBox>,
@@ -357,19 +387,7 @@ pub(super) fn slice_tiles(
     let grid = Grid::of(size);
     let n = plan.count as usize;
     // V_k, and the distances to it
-    let seen: Vec<Vec<bool>> = (0..n)
-        .map(|k| match visible {
-            Some(b) => {
-                let poly = plan.polygon(b, k as u32);
-                let poly = match hull {
-                    Some(h) => h.clip(poly),
-                    None => poly,
-                };
-                polygon_tiles(project(&poly).as_deref(), grid)
-            }
-            None => vec![false; grid.len()],
-        })
-        .collect();
+    let seen = seen_tiles(plan, visible, hull, project, size);
     let near: Vec<Vec<f32>> = seen.iter().map(|m| distance_lower_bound(m, grid)).collect();
     // D_k, from the back: whether each tile may meet it
     let mut read = vec![vec![false; grid.len()]; n];
@@ -387,7 +405,7 @@ pub(super) fn slice_tiles(
             let [mut visible, mut other] = [Vec::new(), Vec::new()];
             for (i, v) in f.iter_mut().enumerate() {
                 *v = near[k][i].min((*v - grow[k]).max(0.0));
-                let tile = (i % grid.w) as u32 | ((i / grid.w) as u32) << 16;
+                let tile = tile_word(i, grid);
                 if k == 0 {
                     continue;
                 }
@@ -461,16 +479,21 @@ impl Renderer {
         let n = slices.count as usize;
         let vp = view.view_proj();
         let screen = |grid: [u32; 2]| move |poly: &[glam::Vec3]| on_screen(poly, vp, grid);
-        // the eye buffer's (under half-angle slicing only its V_k is used: the slices'
-        // own dispatch)
-        let lists = slice_tiles(
-            slices,
-            visible,
-            hull,
-            &screen(size),
-            size,
-            &screen_grow(u, size, reach, n),
-        );
+        // the eye buffer's; where the updates have their own grid, only V_k (the
+        // slices' own dispatch)
+        let lists = if own {
+            let eye = Grid::of(size);
+            seen_tiles(slices, visible, hull, &screen(size), size)
+                .iter()
+                .map(|mask| {
+                    let tiles = (0..eye.len()).filter(|&i| mask[i]);
+                    [tiles.map(|i| tile_word(i, eye)).collect(), Vec::new()]
+                })
+                .collect()
+        } else {
+            let grow = screen_grow(u, size, reach, n);
+            slice_tiles(slices, visible, hull, &screen(size), size, &grow)
+        };
         let state_lists = own.then(|| match half {
             Some(h) => {
                 let light = |poly: &[glam::Vec3]| {
