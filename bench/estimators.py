@@ -1,6 +1,8 @@
 #!/usr/bin/env python3
 """Where the precomputed gradient estimators pay (issue 23, item 3): shade.blinn_phong's
-`gradient` estimators timed against `central` (the default) at several image sizes.
+`gradient` estimators timed against `central` at several image sizes (the default,
+`auto`, takes `precomputed_central` on CPU adapters and `central` on GPUs since
+session 64).
 
 The issue asks to make the precomputed estimators the default "where they pay". Two
 measurements disagreed: `bench/shading.py` (512²) found `precomputed_central` at 0.73×

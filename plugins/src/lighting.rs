@@ -63,7 +63,8 @@ pub fn light_params() -> Vec<ParamSpec> {
                 "Light type",
                 &["directional", "point"],
                 0,
-            ),
+            )
+            .structural(),
             ParamSpec::enumeration(k("light{}_space"), "Light space", &["view", "world"], 0)
                 .with_doc("view: x right, y up, z towards the viewer (points relative to the eye)"),
             ParamSpec::vec3(
@@ -88,19 +89,59 @@ const LIGHT_REGIONS: [&str; 4] = ["light0", "light1", "light2", "light3"];
 /// save its cost on a CPU device, which runs the code of both sides of a branch when
 /// its lanes may differ (measured on lavapipe: docs/perf.md, "Cheap shading"), so a
 /// light that is off is compiled out; switching it on recomposes the pipeline.
-pub fn with_lights(file: &'static str, source: &'static str, compiled: [bool; 4]) -> ShaderSource {
+///
+/// A compiled light's kind is fixed in the code (`params.light{i}_type` becomes a
+/// literal, so only its kind's branch of `light_dir` is left), and its vector is read in
+/// world space from `light_world[i]` (`params.light{i}_space` becomes world), which an
+/// appended `setup` hook fills once per ray with `light_world_vector`: the same
+/// operations as per sample, so the image is the same, but out of the sample loop.
+pub fn with_lights(
+    file: &'static str,
+    source: &'static str,
+    compiled: [Option<LightKind>; 4],
+) -> ShaderSource {
     let off: Vec<(&str, &str)> = LIGHT_REGIONS
         .iter()
         .zip(compiled)
-        .filter(|(_, on)| !on)
+        .filter(|(_, kind)| kind.is_none())
         .map(|(r, _)| (*r, ""))
         .collect();
-    ShaderSource::without_regions(file, source, &off)
+    let mut shader = ShaderSource::without_regions(file, source, &off);
+    if compiled.iter().all(Option::is_none) {
+        return shader;
+    }
+    let src = shader.source.to_mut();
+    let mut setup = String::from(
+        "\n// appended by plugins/src/lighting.rs (`with_lights`): each light's vector in \
+         world space, once per ray\nvar<private> light_world: array<vec3<f32>, 4>;\n\n\
+         fn setup(r: Ray, uv: vec2<f32>) -> vec4<f32> {\n",
+    );
+    for (i, kind) in compiled.iter().enumerate() {
+        let Some(kind) = kind else { continue };
+        let k = match kind {
+            LightKind::Directional => "0u",
+            LightKind::Point => "1u",
+        };
+        *src = src
+            .replace(&format!("params.light{i}_type"), k)
+            .replace(&format!("params.light{i}_space"), "1u")
+            .replace(
+                &format!("params.light{i}_vector"),
+                &format!("light_world[{i}]"),
+            );
+        setup.push_str(&format!(
+            "    light_world[{i}] = light_world_vector({k}, params.light{i}_space, params.light{i}_vector);\n"
+        ));
+    }
+    setup.push_str("    return vec4<f32>(0.0);\n}\n");
+    src.push_str(&setup);
+    shader
 }
 
-/// Which of the four lights are on.
-pub fn lights_on(p: &ParamValues) -> [bool; 4] {
-    std::array::from_fn(|i| p.boolean(LIGHTS.key("light{}_on", i)))
+/// What each light slot compiles to: its kind where it is on, `None` where it is off.
+pub fn compiled_lights(p: &ParamValues) -> [Option<LightKind>; 4] {
+    let slots = light_slots(p);
+    std::array::from_fn(|i| slots[i].map(|l| l.kind))
 }
 
 /// The lights that are on, for the CPU twin.
@@ -196,17 +237,17 @@ pub trait LitColour: Send + Sync + 'static {
 /// model's parameters, `two_sided`, `gradient_floor` and four lights; opacity is kept.
 pub struct Lit<M> {
     pub gradient: GradientEstimator,
-    /// The lights compiled in (those that are on: [`with_lights`]).
-    pub lights: [bool; 4],
+    /// The lights compiled in (those that are on, by kind: [`with_lights`]).
+    pub lights: [Option<LightKind>; 4],
     model: PhantomData<fn() -> M>,
 }
 
 impl<M> Lit<M> {
     /// The model with light 0 on (the default parameters).
     pub fn new(gradient: GradientEstimator) -> Self {
-        Self::with(gradient, [true, false, false, false])
+        Self::with(gradient, [Some(LightKind::Directional), None, None, None])
     }
-    pub fn with(gradient: GradientEstimator, lights: [bool; 4]) -> Self {
+    pub fn with(gradient: GradientEstimator, lights: [Option<LightKind>; 4]) -> Self {
         Self {
             gradient,
             lights,
@@ -251,7 +292,7 @@ impl<M: LightingModel> Plugin for Lit<M> {
     }
     fn configure(&self, params: &ParamValues) -> Option<Arc<dyn Plugin>> {
         let gradient = GradientEstimator::from_params(params);
-        let on = lights_on(params);
+        let on = compiled_lights(params);
         (gradient != self.gradient || on != self.lights)
             .then(|| Arc::new(Self::with(gradient, on)) as Arc<dyn Plugin>)
     }

@@ -2083,6 +2083,41 @@ impl Renderer {
         }
     }
 
+    /// `stack` with `gradient: auto` resolved for this adapter and volume
+    /// ([`Renderer::auto_gradient`]) and each plugin configured by its structural
+    /// parameters (`Plugin::configure`).
+    pub(crate) fn configure_stack(&self, stack: &[PluginInstance]) -> Vec<PluginInstance> {
+        let auto = self.auto_gradient(stack);
+        stack
+            .iter()
+            .map(|i| {
+                PluginInstance {
+                    params: crate::shading::resolve_auto(&i.params, auto),
+                    ..i.clone()
+                }
+                .with_configured_plugin()
+            })
+            .collect()
+    }
+
+    /// What `gradient: auto` resolves to for `stack` here
+    /// ([`crate::shading::auto_estimator`]).
+    pub fn auto_gradient(&self, stack: &[PluginInstance]) -> crate::shading::GradientEstimator {
+        let cpu = self.gpu.info.device_type == wgpu::DeviceType::Cpu;
+        let any_auto = stack
+            .iter()
+            .any(|i| i.enabled && crate::shading::GradientEstimator::is_auto(&i.params));
+        if !(cpu && any_auto) {
+            // nothing to resolve, or `central` whatever the stack (this runs at every
+            // update: the stack's shaders are looked at only where it matters)
+            return crate::shading::GradientEstimator::Central;
+        }
+        let scalar_replaced = stack.iter().any(|i| {
+            i.enabled && crate::composer::defines_fn(&i.configured().shader().source, "scalar")
+        });
+        crate::shading::auto_estimator(cpu, self.volume.dims, self.gpu_budget, scalar_replaced)
+    }
+
     /// [`Renderer::update_stack`] on the volume's present form (one texture or bricks).
     fn apply_stack(
         &mut self,
@@ -2092,11 +2127,7 @@ impl Renderer {
         if self.split.is_some() {
             return self.update_split_stack(stack, target);
         }
-        // structural parameters pick the plugin's configuration (Plugin::configure)
-        let stack: Vec<PluginInstance> = stack
-            .iter()
-            .map(PluginInstance::with_configured_plugin)
-            .collect();
+        let stack = self.configure_stack(stack);
         let stack = &stack[..];
         let enabled: Vec<&PluginInstance> = stack.iter().filter(|i| i.enabled).collect();
         let key = StructureKey {

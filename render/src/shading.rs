@@ -12,6 +12,7 @@
 //!
 //! | estimator | reads per sample | memory | what |
 //! |---|---|---|---|
+//! | `auto` (default) | | | `precomputed_central` on CPU adapters where its volume fits ([`auto_estimator`]), else `central`: the same gradients up to fp16 rounding |
 //! | `central` | 6 trilinear | none | (f(x+h) − f(x−h)) / 2h per axis, h one voxel, at the sample |
 //! | `sobel` | 26 trilinear | none | 3×3×3 Sobel (derivative ⊗ \[1,2,1\] ⊗ \[1,2,1\] / 32) at the sample |
 //! | `precomputed_central` | 1 trilinear | 8 B/voxel | `central` at every voxel centre, rgba16float, interpolated |
@@ -22,6 +23,16 @@
 //! voxel centres, where trilinear interpolation returns the voxel itself, and stores
 //! (g, |g|) as rgba16float; it reruns only when the volume changes. The CPU twin rounds
 //! the stored values to fp16 like the GPU.
+//!
+//! `precomputed_central` is `central` computed in another order. Central differences
+//! one texel apart are linear in the reads, and a read one texel off has the same
+//! trilinear weights, so the interpolated voxels' differences equal the differences of
+//! the interpolated reads; within half a texel of a face, where `central`'s read beyond
+//! the face clamps to the edge texel, [`central_edge_factor`] scales the component
+//! across that face as the clamp does. The two differ by rounding and the stored
+//! values' fp16 rounding (0.03 ΔE*uv RMS on the CT head, docs/perf.md). That is what
+//! lets `auto` pick either: on lavapipe the pre-pass volume's one fetch costs less
+//! than `central`'s six, from 512² up, for 8 bytes per voxel (issue 23, item 3).
 //!
 //! `quantized` is the cheap estimator of CPU ray casters such as VTK's fixed-point
 //! caster (issue 23, item 3): the pre-pass stores the direction of `central`'s gradient
@@ -91,7 +102,8 @@ impl GradientEstimator {
     pub fn from_name(s: &str) -> Option<Self> {
         Self::ALL.into_iter().find(|e| e.name() == s)
     }
-    /// The estimator the `gradient` parameter selects (`central` when absent).
+    /// The estimator the `gradient` parameter selects (`central` when absent, and for
+    /// `auto` where no renderer resolved it, e.g. in a CPU twin: the same gradients).
     pub fn from_params(params: &ParamValues) -> Self {
         Self::from_name(params.enumeration("gradient")).unwrap_or_default()
     }
@@ -107,16 +119,34 @@ impl GradientEstimator {
         matches!(self, Self::Sobel | Self::PrecomputedSobel)
     }
 
-    /// The structural parameter that selects it.
+    /// The `gradient` parameter's options: `auto`, then the estimators.
+    pub const PARAM_NAMES: [&'static str; 6] = [
+        "auto",
+        "central",
+        "sobel",
+        "precomputed_central",
+        "precomputed_sobel",
+        "quantized",
+    ];
+
+    /// The structural parameter that selects it (default `auto`, which the renderer
+    /// resolves: [`auto_estimator`]).
     pub fn param() -> ParamSpec {
-        ParamSpec::enumeration("gradient", "Gradient estimator", &Self::NAMES, 0)
+        ParamSpec::enumeration("gradient", "Gradient estimator", &Self::PARAM_NAMES, 0)
             .structural()
             .with_doc(
-                "central: 6 reads per sample; sobel: 26 reads; precomputed_*: a pre-pass \
-                 volume (rgba16float, 8 bytes per voxel), 1 interpolated read; quantized: \
-                 central's direction in 16 bits and magnitude in 8 (4 bytes per voxel), \
-                 1 read of the nearest voxel",
+                "auto: precomputed_central on CPU adapters where its volume fits, else \
+                 central (the same gradients up to fp16 rounding); central: 6 reads per \
+                 sample; sobel: 26 reads; precomputed_*: a pre-pass volume (rgba16float, \
+                 8 bytes per voxel), 1 interpolated read; quantized: central's direction \
+                 in 16 bits and magnitude in 8 (4 bytes per voxel), 1 read of the nearest \
+                 voxel",
             )
+    }
+
+    /// Whether `params` leave the estimator to the renderer (`gradient: auto`).
+    pub fn is_auto(params: &ParamValues) -> bool {
+        matches!(params.get("gradient"), Some(crate::params::ParamValue::Enum(s)) if s == "auto")
     }
 
     /// The plugin's hook file with `fn gradient_at(tex: vec3<f32>) -> vec3<f32>` appended
@@ -132,7 +162,11 @@ impl GradientEstimator {
         let body = match self {
             Self::Central => "return cut_gradient(gradient_central(tex));",
             Self::Sobel => "return cut_gradient(gradient_sobel(tex));",
-            Self::PrecomputedCentral | Self::PrecomputedSobel => {
+            Self::PrecomputedCentral => {
+                "let g = textureSampleLevel(gradient, linear_clamp, tex, 0.0).xyz;\n    \
+                 return cut_gradient(g * central_edge_factor(tex, vec3<f32>(textureDimensions(gradient))));"
+            }
+            Self::PrecomputedSobel => {
                 "return cut_gradient(textureSampleLevel(gradient, linear_clamp, tex, 0.0).xyz);"
             }
             Self::Quantized => {
@@ -180,6 +214,46 @@ impl GradientEstimator {
             depends_on: vec![],
         })
     }
+}
+
+/// The largest pre-pass volume `auto` precomputes: 1 GiB (512³ voxels).
+pub const AUTO_PRECOMPUTE_MAX_BYTES: u64 = 1 << 30;
+
+/// What the `gradient` parameter's `auto` resolves to: `precomputed_central` where it
+/// pays, else `central` (the same gradients up to rounding). It pays on CPU adapters
+/// (lavapipe: 0.78–0.84× `central`'s shaded frame from 512² up, 0.68× with early
+/// termination, 0.91–1.00× at 256²; docs/perf.md, "Cheap shading"), where its
+/// rgba16float volume (8 bytes per voxel) takes at most a quarter of the renderer's GPU
+/// memory budget and [`AUTO_PRECOMPUTE_MAX_BYTES`]. On GPU adapters `central` stays
+/// until a GPU measurement says otherwise. Not where a plugin replaces the shading
+/// scalar (`scalar`, e.g. flow.lic3d): the pre-pass grid is the volume's, not that
+/// scalar's. The rule does not depend on what the renderer holds at the moment, so
+/// that the choice is stable from frame to frame.
+pub fn auto_estimator(
+    cpu_adapter: bool,
+    dims: [u32; 3],
+    budget: Option<u64>,
+    scalar_replaced: bool,
+) -> GradientEstimator {
+    let bytes = gradient_volume_bytes(dims);
+    let fits = bytes <= AUTO_PRECOMPUTE_MAX_BYTES && budget.is_none_or(|b| bytes <= b / 4);
+    if cpu_adapter && fits && !scalar_replaced {
+        GradientEstimator::PrecomputedCentral
+    } else {
+        GradientEstimator::Central
+    }
+}
+
+/// `params` with `gradient: auto` replaced by `estimator` (other values unchanged).
+pub fn resolve_auto(params: &ParamValues, estimator: GradientEstimator) -> ParamValues {
+    let mut p = params.clone();
+    if GradientEstimator::is_auto(params) {
+        p.set(
+            "gradient",
+            crate::params::ParamValue::Enum(estimator.name().to_string()),
+        );
+    }
+    p
 }
 
 /// Bytes of the gradient pre-pass volume for `dims` (rgba16float).
@@ -246,6 +320,17 @@ pub fn gradient_decode(code: [u8; 3]) -> DVec3 {
 fn texel_world(ctx: &CpuContext, grid: [u32; 3]) -> DVec3 {
     let (lo, hi) = ctx.volume_box();
     (hi - lo) / DVec3::from(grid.map(|n| n.max(1) as f64))
+}
+
+/// `central_edge_factor` (shaders/common.wgsl): per component, 1 inside the volume's
+/// texel centres, falling to ½ at a face, so that the trilinear interpolation of the
+/// voxels' central differences (`precomputed_central`) equals the central difference of
+/// the interpolated reads (`central`), whose read beyond a face clamps to the edge
+/// texel.
+pub fn central_edge_factor(tex: DVec3, dims: [u32; 3]) -> DVec3 {
+    let n = DVec3::from(dims.map(|d| d.max(1) as f64));
+    let beyond = (tex * n - 0.5 * n).abs() - 0.5 * (n - DVec3::ONE);
+    DVec3::ONE - beyond.clamp(DVec3::ZERO, DVec3::ONE)
 }
 
 /// `gradient_central`: central differences one texel of the shading scalar's grid apart
@@ -391,9 +476,16 @@ impl Gradients {
                 let c = v[i[0] + d[0] as usize * (i[1] + d[1] as usize * i[2])];
                 DVec3::new(c[0] as f64, c[1] as f64, c[2] as f64)
             }
-            (_, Some(v)) => ctx
-                .trilinear(tex, |i| DVec4::from(v[i].map(f64::from)))
-                .truncate(),
+            (e, Some(v)) => {
+                let g = ctx
+                    .trilinear(tex, |i| DVec4::from(v[i].map(f64::from)))
+                    .truncate();
+                if e == GradientEstimator::PrecomputedCentral {
+                    g * central_edge_factor(tex, ctx.volume.dims)
+                } else {
+                    g
+                }
+            }
             (e, None) => {
                 if e.is_sobel() {
                     gradient_sobel(ctx, tex)
@@ -591,6 +683,39 @@ mod tests {
                 e.name()
             );
         }
+    }
+
+    /// The twins of `precomputed_central` and `central` agree everywhere in the box,
+    /// also within half a voxel of its faces and corners (where `central`'s reads
+    /// clamp), up to the stored values' fp16 rounding; without the faces' factor they
+    /// do not.
+    #[test]
+    fn precomputed_central_matches_central_up_to_the_faces() {
+        let vol = ramp([8, 6, 5], [1.0, 1.5, 2.0], |x, y, z| {
+            x * x + 3.0 * y - (z * 1.3).sin() * 4.0
+        });
+        let scalars = vol.normalized_scalars();
+        let ctx = CpuContext::new(&vol, &scalars);
+        let central = Gradients::new(GradientEstimator::Central);
+        let mut pre = Gradients::new(GradientEstimator::PrecomputedCentral);
+        pre.prepare(&ctx);
+        let mut worst_without = 0.0f64;
+        for (i, t) in [0.0, 0.01, 0.05, 0.09, 0.3, 0.5, 0.77, 0.93, 0.97, 1.0]
+            .iter()
+            .enumerate()
+        {
+            for u in [0.0, 0.04, 0.5, 0.96, 1.0] {
+                let tex = DVec3::new(*t, u, [0.02, 0.5, 0.99][i % 3]);
+                let (a, b) = (central.at(&ctx, tex), pre.at(&ctx, tex));
+                assert!(
+                    (a - b).length() <= 2e-3 * a.length().max(1e-3),
+                    "at {tex}: central {a}, precomputed {b}"
+                );
+                let raw = b / central_edge_factor(tex, vol.dims);
+                worst_without = worst_without.max((a - raw).length() / a.length().max(1e-3));
+            }
+        }
+        assert!(worst_without > 0.1, "the factor matters: {worst_without}");
     }
 
     /// On white noise the Sobel operator's averaging over the 3×3 neighbourhood gives

@@ -245,6 +245,18 @@ fn voxel_size_world() -> vec3<f32> {
 // volume's value on the volume's grid, unless a plugin that replaces the value supplies
 // its own through `scalar(tex)` and `scalar_grid()` (flow.lic3d: shading from LIC).
 
+// precomputed_central's correction at the volume's faces (shading.rs,
+// `central_edge_factor`). Central differences one texel apart are linear in the reads,
+// so away from the faces the trilinear interpolation of the voxels' differences
+// equals the difference of the interpolated reads. Within half a texel of a face the
+// read beyond it clamps to the edge texel, so the difference across that face falls
+// linearly to half at the face; the interpolated voxels' differences clamp to the edge
+// voxel's instead. Scaling each component by this factor makes the two equal.
+fn central_edge_factor(tex: vec3<f32>, n: vec3<f32>) -> vec3<f32> {
+    let beyond = abs(tex * n - 0.5 * n) - 0.5 * (n - vec3<f32>(1.0));
+    return vec3<f32>(1.0) - clamp(beyond, vec3<f32>(0.0), vec3<f32>(1.0));
+}
+
 // ∇f·Δs0 by central differences one texel apart (6 reads of the scalar).
 fn gradient_central(tex: vec3<f32>) -> vec3<f32> {
     let n = shading_grid();
@@ -354,17 +366,27 @@ fn view_up() -> vec3<f32> {
 // towards the light), 1 point (vector = position); space: 0 view (x right, y up, z
 // towards the viewer; points relative to the eye), 1 world.
 fn light_dir(kind: u32, space: u32, vector: vec3<f32>, pos: vec3<f32>) -> vec3<f32> {
-    var w = vector;
-    if (space == 0u) {
-        w = view_right() * vector.x + view_up() * vector.y - frame.forward.xyz * vector.z;
-    }
+    let w = light_world_vector(kind, space, vector);
     if (kind == 1u) {
-        if (space == 0u) {
-            w = w + frame.eye.xyz;
-        }
         return safe_normalize(w - pos);
     }
     return safe_normalize(w);
+}
+
+// What `light_dir` normalises: the light's direction (directional) or position (point)
+// in world space. It reads only uniforms, so the lighting plugins compute it once per
+// ray (`with_lights` in plugins/src/lighting.rs) and pass it to `light_dir` as a
+// world-space vector: the same operations, out of the sample loop, which a CPU device
+// does not hoist by itself (docs/perf.md, "Cheap shading").
+fn light_world_vector(kind: u32, space: u32, vector: vec3<f32>) -> vec3<f32> {
+    var w = vector;
+    if (space == 0u) {
+        w = view_right() * vector.x + view_up() * vector.y - frame.forward.xyz * vector.z;
+        if (kind == 1u) {
+            w = w + frame.eye.xyz;
+        }
+    }
+    return w;
 }
 
 // (diffuse, specular) Blinn–Phong factors: max(n·l, 0) and max(n·h, 0)^shininess

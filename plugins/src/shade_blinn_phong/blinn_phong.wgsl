@@ -3,7 +3,9 @@
 // and optional gradient-magnitude opacity (eq 5.12). Conventions and CPU twin:
 // render/src/shading.rs. `gradient_at` is appended by the estimator, `light_table_terms`
 // by the lighting mode (table.rs). Only the lights evaluated per sample are compiled
-// in: a light that is off (or tabulated) has its region left out (mod.rs).
+// in: a light that is off (or tabulated) has its region left out (mod.rs), and a light
+// that is in has its kind fixed and its world-space vector computed once per ray
+// (`with_lights` in plugins/src/lighting.rs).
 
 struct LightTerms {
     diffuse: vec3<f32>,

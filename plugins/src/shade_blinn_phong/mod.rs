@@ -17,7 +17,7 @@ use vwb_render::plugin::{
     CpuContext, CpuSample, CpuTwin, GpuInit, GpuResource, Plugin, PluginError, PrepassDecl,
     ResourceDecl, ResourceKind, ShaderSource, Transparency, Volumes,
 };
-use vwb_render::shading::{GradientEstimator, Gradients, Light, Material};
+use vwb_render::shading::{GradientEstimator, Gradients, Light, LightKind, Material};
 
 use crate::lighting;
 
@@ -30,9 +30,9 @@ pub struct BlinnPhong {
     pub gradient: GradientEstimator,
     /// `lighting: table`: the view-space directional lights come from the lighting table.
     pub table: bool,
-    /// The lights evaluated per sample (on, and not tabulated): only those are
+    /// The lights evaluated per sample (on, and not tabulated), by kind: only those are
     /// compiled in, since a CPU device runs a branch's code whether it is taken or not.
-    pub per_sample: [bool; 4],
+    pub per_sample: [Option<LightKind>; 4],
 }
 
 impl Default for BlinnPhong {
@@ -41,7 +41,7 @@ impl Default for BlinnPhong {
         Self {
             gradient: GradientEstimator::default(),
             table: false,
-            per_sample: [true, false, false, false],
+            per_sample: [Some(LightKind::Directional), None, None, None],
         }
     }
 }
@@ -139,7 +139,9 @@ impl Plugin for BlinnPhong {
             gradient: GradientEstimator::from_params(params),
             table,
             per_sample: std::array::from_fn(|i| {
-                lights[i].is_some_and(|l| !(table && table::tabulated(&l)))
+                lights[i]
+                    .filter(|l| !(table && table::tabulated(l)))
+                    .map(|l| l.kind)
             }),
         };
         (c != *self).then(|| Arc::new(c) as Arc<dyn Plugin>)

@@ -131,6 +131,19 @@ fn only_the_lights_in_use_are_compiled_in() {
     assert_eq!(calls(&p), [2]);
     p.set("light0_type", ParamValue::Enum("point".into()));
     assert_eq!(calls(&p), [0, 2]);
+    // each compiled light's kind is fixed in the code and its world-space vector comes
+    // from the per-ray `setup` hook; its space stays a uniform there
+    let src = configured(&p).shader().source;
+    assert!(src.contains("add_light(t, params.light0_on, 1u, 1u, light_world[0]"), "{src}");
+    assert!(src.contains("add_light(t, params.light2_on, 0u, 1u, light_world[2]"));
+    assert!(src.contains(
+        "light_world[0] = light_world_vector(1u, params.light0_space, params.light0_vector);"
+    ));
+    assert!(!src.contains("light_world[1]") && !src.contains("light_world[3] ="));
+    // a light's kind is structural: switching it recomposes
+    let before = configured(&p);
+    p.set("light2_type", ParamValue::Enum("point".into()));
+    assert!(before.configure(&p).is_some());
     // the compiled shader keeps the file's line numbers (regions are blanked)
     let c = configured(&p);
     let lines = c.shader().source.lines().count();

@@ -46,9 +46,19 @@ fn shade(s: Sample) -> Sample {
     let n = nw.xyz;
     let base = s.color.rgb;
     let env = base * (params.ka + params.kd_env * latlong(irradiance, n)) + params.ks_env * latlong(radiance, reflect(-v, n));
-    let f = blinn_phong_factors(n, v, light_dir(0u, 0u, params.light_vector, s.pos), params.shininess);
+    let f = blinn_phong_factors(n, v, light_dir(0u, 1u, head_light, s.pos), params.shininess);
     let bp = base * (params.ka + params.kd * f.x) + vec3<f32>(params.ks * f.y);
     o.color = vec4<f32>(mix(base, mix(env, bp, params.phong_weight), nw.w), s.color.a);
     o.normal = n;
     return o;
+}
+
+// The head light's world-space direction, once per ray: `light_world_vector` reads only
+// uniforms, and a CPU device would evaluate it at every sample (docs/perf.md, "Light
+// vectors once per ray"); `light_dir` then reads it as a world-space vector.
+var<private> head_light: vec3<f32>;
+
+fn setup(r: Ray, uv: vec2<f32>) -> vec4<f32> {
+    head_light = light_world_vector(0u, 0u, params.light_vector);
+    return vec4<f32>(0.0);
 }

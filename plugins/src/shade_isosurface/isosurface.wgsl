@@ -24,7 +24,7 @@ fn iso_color(i: u32) -> vec4<f32> {
 // Blinn–Phong colour of a surface of colour `c` at `tex`/`pos` (two-sided).
 fn surface_rgb(c: vec3<f32>, tex: vec3<f32>, pos: vec3<f32>, v: vec3<f32>) -> vec3<f32> {
     let nw = shading_normal(gradient_at(tex), params.gradient_floor, v, true);
-    let f = blinn_phong_factors(nw.xyz, v, light_dir(0u, 0u, params.light_vector, pos), params.shininess);
+    let f = blinn_phong_factors(nw.xyz, v, light_dir(0u, 1u, head_light, pos), params.shininess);
     let lit = c * (params.ka + params.kd * f.x) + vec3<f32>(params.ks * f.y);
     return mix(c, lit, nw.w);
 }
@@ -95,4 +95,14 @@ fn shade(s: Sample) -> Sample {
         o.color = vec4<f32>(acc.rgb / acc.a, 1.0 - exp2(log2(1.0 - acc.a) / ratio));
     }
     return o;
+}
+
+// The head light's world-space direction, once per ray: `light_world_vector` reads only
+// uniforms, and a CPU device would evaluate it at every sample (docs/perf.md, "Light
+// vectors once per ray"); `light_dir` then reads it as a world-space vector.
+var<private> head_light: vec3<f32>;
+
+fn setup(r: Ray, uv: vec2<f32>) -> vec4<f32> {
+    head_light = light_world_vector(0u, 0u, params.light_vector);
+    return vec4<f32>(0.0);
 }

@@ -167,11 +167,10 @@ impl Renderer {
         // every tile's enabled instances, configured, with their GPU data
         let mut stacks: Vec<Vec<(u64, Arc<dyn Plugin>)>> = Vec::with_capacity(tiles.len());
         for (t, tile) in tiles.iter().enumerate() {
-            let enabled: Vec<PluginInstance> = tile
-                .stack
-                .iter()
+            let enabled: Vec<PluginInstance> = self
+                .configure_stack(tile.stack)
+                .into_iter()
                 .filter(|i| i.enabled)
-                .map(PluginInstance::with_configured_plugin)
                 .collect();
             let mine: Vec<(&'static str, u64)> = enabled
                 .iter()
