@@ -154,7 +154,10 @@ fn param_widget(
         (ParamKind::Bool { .. }, ParamValue::Bool(b)) => Some(ui.checkbox(b, spec.label)),
         (ParamKind::Enum { options, .. }, ParamValue::Enum(s)) => Some(
             egui::ComboBox::new((salt, spec.key), spec.label)
-                .selected_text(s.as_str())
+                .selected_text(match (spec.key, s.as_str(), cx.auto_gradient) {
+                    ("gradient", "auto", Some(resolved)) => format!("auto ({resolved})"),
+                    _ => s.clone(),
+                })
                 .show_ui(ui, |ui| {
                     for o in options.iter() {
                         ui.selectable_value(s, o.to_string(), *o);
@@ -345,6 +348,10 @@ pub struct StackUi<'a> {
     /// The named volumes as loaded (plugins' own widgets read their inputs: a label
     /// plugin lists its labels).
     pub named: &'a vwb_render::inputs::VolumeInputs,
+    /// What a shading plugin's `gradient: auto` resolves to on this renderer
+    /// (`Renderer::auto_gradient`), shown beside `auto`; None where no renderer is at
+    /// hand.
+    pub auto_gradient: Option<&'static str>,
 }
 
 impl StackUi<'_> {
@@ -614,6 +621,7 @@ mod tests {
                     volume: None,
                     inputs: &[],
                     named: vwb_render::inputs::VolumeInputs::empty(),
+                    auto_gradient: None,
                 };
                 param_widgets(ui, 7, &specs, &mut i.params, &cx);
             });
@@ -652,6 +660,7 @@ mod tests {
                             volume: None,
                             inputs: &[],
                             named: vwb_render::inputs::VolumeInputs::empty(),
+                            auto_gradient: Some("precomputed_central"),
                         };
                         changed |= stack_editor(ui, &cx, &mut all).changed;
                     });
@@ -706,6 +715,7 @@ mod kittest_tests {
                         volume: Some(&volume),
                         inputs: &inputs,
                         named: &named,
+                        auto_gradient: Some("precomputed_central"),
                     };
                     egui::ScrollArea::vertical().show(ui, |ui| {
                         stack_editor(ui, &cx, stack);
@@ -769,6 +779,13 @@ mod kittest_tests {
         // shows only its switch
         assert!(has(&h, "Light colour"));
         assert_eq!(h.query_all_by_label("Light colour").count(), 1);
+        // `gradient: auto` shows what the renderer resolves it to (Blinn–Phong's and
+        // the isosurfaces' estimator)
+        assert_eq!(
+            h.query_all_by_value("auto (precomputed_central)").count(),
+            2,
+            "the estimator auto resolves to is shown"
+        );
         h.get_by_label("Light 1 · off").click();
         h.run();
         assert_eq!(h.query_all_by_label("Light colour").count(), 1);
