@@ -1054,7 +1054,7 @@ impl Workbench {
             volume: Some(&volume),
             inputs: &inputs,
             named: self.renderer.inputs(),
-            auto_gradient: Some(self.renderer.auto_gradient(&self.doc.stack).name()),
+            auto_gradient: Some(self.renderer.resolved_gradient().name()),
         };
         let response = crate::stack_ui::stack_editor(ui, &cx, &mut self.doc.stack);
         changed |= response.changed;

@@ -1146,6 +1146,8 @@ pub struct Renderer {
     /// Per-slice state: each slice's dispatches cover only its listed tiles
     /// ([`Renderer::set_slice_exit`]).
     slice_exit: bool,
+    /// What `gradient: auto` resolved to for the last stack ([`Renderer::resolved_gradient`]).
+    resolved_gradient: crate::shading::GradientEstimator,
     /// Compute backend: take the march's samples with one fetch each and nothing else
     /// ([`Renderer::set_raw_samples`]).
     raw_samples: bool,
@@ -1166,6 +1168,20 @@ fn uniform_entry(
         },
         count: None,
     }
+}
+
+/// `stack` with `gradient: auto` replaced by `auto` (what it resolves to).
+fn with_gradient(
+    stack: &[PluginInstance],
+    auto: crate::shading::GradientEstimator,
+) -> Vec<PluginInstance> {
+    stack
+        .iter()
+        .map(|i| PluginInstance {
+            params: crate::shading::resolve_auto(&i.params, auto),
+            ..i.clone()
+        })
+        .collect()
 }
 
 /// The size of a per-slice state of `scale` ([`crate::plugin::SliceStateDecl::scale`])
@@ -1407,6 +1423,7 @@ impl Renderer {
             fused_slices: env_on("VWB_FUSED_SLICES"),
             state_tracking: env_on("VWB_STATE_TRACKING"),
             slice_exit: env_on("VWB_SLICE_EXIT"),
+            resolved_gradient: crate::shading::GradientEstimator::Central,
             raw_samples: std::env::var("VWB_RAW_SAMPLES").is_ok_and(|v| v.trim() == "1"),
             volume_bytes,
             gpu_budget: budget,
@@ -2083,21 +2100,20 @@ impl Renderer {
         }
     }
 
-    /// `stack` with `gradient: auto` resolved for this adapter and volume
-    /// ([`Renderer::auto_gradient`]) and each plugin configured by its structural
-    /// parameters (`Plugin::configure`).
+    /// `stack` with `gradient: auto` resolved ([`Renderer::auto_gradient`]) and each
+    /// plugin configured by its structural parameters (`Plugin::configure`).
     pub(crate) fn configure_stack(&self, stack: &[PluginInstance]) -> Vec<PluginInstance> {
-        let auto = self.auto_gradient(stack);
-        stack
+        with_gradient(stack, self.auto_gradient(stack))
             .iter()
-            .map(|i| {
-                PluginInstance {
-                    params: crate::shading::resolve_auto(&i.params, auto),
-                    ..i.clone()
-                }
-                .with_configured_plugin()
-            })
+            .map(PluginInstance::with_configured_plugin)
             .collect()
+    }
+
+    /// What `gradient: auto` resolved to for the stack last applied
+    /// ([`Renderer::update_stack`]): what the window shows beside `auto`, without
+    /// looking at the stack again every frame.
+    pub fn resolved_gradient(&self) -> crate::shading::GradientEstimator {
+        self.resolved_gradient
     }
 
     /// What `gradient: auto` resolves to for `stack` here
@@ -2124,10 +2140,18 @@ impl Renderer {
         stack: &[PluginInstance],
         target: TargetFormat,
     ) -> Result<StackChange, RenderError> {
+        // `auto` resolved here, once for the whole volume: a split volume's bricks are
+        // handed the resolved stack (the memory cap is the whole volume's, not a brick's)
+        self.resolved_gradient = self.auto_gradient(stack);
+        let stack = with_gradient(stack, self.resolved_gradient);
         if self.split.is_some() {
-            return self.update_split_stack(stack, target);
+            return self.update_split_stack(&stack, target);
         }
-        let stack = self.configure_stack(stack);
+        // structural parameters pick the plugin's configuration (Plugin::configure)
+        let stack: Vec<PluginInstance> = stack
+            .iter()
+            .map(PluginInstance::with_configured_plugin)
+            .collect();
         let stack = &stack[..];
         let enabled: Vec<&PluginInstance> = stack.iter().filter(|i| i.enabled).collect();
         let key = StructureKey {

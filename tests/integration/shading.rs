@@ -196,11 +196,30 @@ fn auto_gradient_precomputes_where_it_pays() {
         GradientEstimator::PrecomputedCentral
     };
     assert_eq!(r.auto_gradient(&st), expect);
+    assert_eq!(r.resolved_gradient(), expect, "what the window shows");
     // a budget whose quarter the gradient volume would pass: on the fly
     let bytes = gradient_volume_bytes(demo().dims);
     r.set_gpu_memory_budget(Some(4 * bytes - 1));
     assert_eq!(r.auto_gradient(&st), GradientEstimator::Central);
     r.set_gpu_memory_budget(None);
+    // a volume split into bricks resolves `auto` for the whole volume, not per brick:
+    // under that budget no brick precomputes, though a brick's volume would fit
+    let split = |budget: Option<u64>| {
+        let options = vwb_render::renderer::RendererOptions {
+            brick_limit: Some(64),
+            gpu_memory_budget: budget,
+            ..Default::default()
+        };
+        let mut r = Renderer::with_options(gpu(), demo(), options).unwrap();
+        assert!(r.bricks().len() > 1, "the demo splits at 64 voxels");
+        r.update_stack(&st, TargetFormat::Rgba16Float).unwrap();
+        r.render(&s).unwrap();
+        (r.resolved_gradient(), r.counters().prepass_runs)
+    };
+    let (whole, runs) = split(None);
+    assert_eq!(whole, expect);
+    assert_eq!(runs > 0, !on_gpu(), "{runs} pre-passes");
+    assert_eq!(split(Some(4 * bytes - 1)), (GradientEstimator::Central, 0));
     // the rule itself
     let d = [256, 256, 108];
     assert_eq!(
