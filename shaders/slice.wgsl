@@ -23,7 +23,7 @@ fn run_clip(s: Sample) -> bool {
 
 fn run_sample(s_in: Sample) -> Sample {
     var s = s_in;
-    s.value = volume_value(s.tex);
+    s.value = sample_value(s.tex);
 //!HOOK sample
     return s;
 }

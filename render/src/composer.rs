@@ -342,6 +342,19 @@ fn shading_scalar_wgsl(provider: Option<(&str, bool)>) -> String {
     )
 }
 
+/// `sample_value(tex)`, the value the slice template gives each sample before its
+/// `sample` hooks: the volume's (`volume_value`), or the w component of `holder`, a
+/// pre-pass target that holds the volume's value at every voxel
+/// ([`crate::plugin::PrepassDecl::holds_value`]): the same trilinear interpolation of
+/// the same f32 voxels, read with what its plugin reads there.
+fn sample_value_wgsl(holder: Option<String>) -> String {
+    let read = match holder {
+        None => "volume_value(tex)".to_string(),
+        Some(t) => format!("textureSampleLevel({t}, linear_clamp, tex, 0.0).w"),
+    };
+    format!("fn sample_value(tex: vec3<f32>) -> f32 {{\n    return {read};\n}}\n")
+}
+
 /// Whether a pre-pass shader reads the gradient estimators or the shading scalar (its
 /// module has the volume's value as the shading scalar whatever the stack holds).
 fn differentiates_the_shading_scalar(source: &str) -> bool {
@@ -1250,6 +1263,22 @@ pub fn compose_with(
                 .map(|(p, grid, _)| (p.as_str(), *grid)),
         ),
         scalar_provider.as_ref().map(|(_, _, i)| *i),
+    );
+    // a sample's value: the volume's, or where an instance's pre-pass target holds it
+    // exactly beside what that instance reads at the sample (a gradient), from there,
+    // so that the two are one fetch (issue 23)
+    let value_holder = instances.iter().find(|inst| {
+        plugins[inst.input_index]
+            .prepass()
+            .is_some_and(|pp| pp.holds_value)
+    });
+    m.push_generated(
+        "sample value",
+        &sample_value_wgsl(value_holder.map(|inst| {
+            let target = plugins[inst.input_index].prepass().map(|pp| pp.target);
+            format!("{}{}", inst.prefix, target.unwrap_or_default())
+        })),
+        value_holder.map(|inst| inst.input_index),
     );
     let template = half_angle_code(TEMPLATE_FILE, TEMPLATE_WGSL, half_angle);
     for (i, line) in template.lines().enumerate() {

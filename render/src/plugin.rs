@@ -279,6 +279,12 @@ pub struct PrepassDecl {
     pub scale: f32,
     pub shader: ShaderSource,
     pub depends_on: Vec<&'static str>,
+    /// The target's w component holds the volume's value at each voxel, exactly (an
+    /// rgba32float target the size of the volume whose pre-pass stores
+    /// `volume_voxel(voxel)` there). The main module then reads every sample's value
+    /// from it (`sample_value`), so that a sample's value and what the plugin reads
+    /// beside it at the same point (a gradient) come from one fetch.
+    pub holds_value: bool,
 }
 
 /// A volume pass: a compute pass over a 3D texture `target` (read by the plugin's hooks

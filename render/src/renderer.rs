@@ -2119,7 +2119,9 @@ impl Renderer {
     /// What `gradient: auto` resolves to for `stack` here
     /// ([`crate::shading::auto_estimator`]).
     pub fn auto_gradient(&self, stack: &[PluginInstance]) -> crate::shading::GradientEstimator {
-        let cpu = self.gpu.info.device_type == wgpu::DeviceType::Cpu;
+        // the pre-pass volume is rgba32float, filtered: FLOAT32_FILTERABLE (lavapipe has it)
+        let cpu =
+            self.gpu.info.device_type == wgpu::DeviceType::Cpu && self.gpu.float32_filterable();
         let any_auto = stack
             .iter()
             .any(|i| i.enabled && crate::shading::GradientEstimator::is_auto(&i.params));

@@ -12,27 +12,31 @@
 //!
 //! | estimator | reads per sample | memory | what |
 //! |---|---|---|---|
-//! | `auto` (default) | | | `precomputed_central` on CPU adapters where its volume fits ([`auto_estimator`]), else `central`: the same gradients up to fp16 rounding |
+//! | `auto` (default) | | | `precomputed_central` on CPU adapters where its volume fits ([`auto_estimator`]), else `central`: the same gradients up to rounding |
 //! | `central` | 6 trilinear | none | (f(x+h) − f(x−h)) / 2h per axis, h one voxel, at the sample |
 //! | `sobel` | 26 trilinear | none | 3×3×3 Sobel (derivative ⊗ \[1,2,1\] ⊗ \[1,2,1\] / 32) at the sample |
-//! | `precomputed_central` | 1 trilinear | 8 B/voxel | `central` at every voxel centre, rgba16float, interpolated |
-//! | `precomputed_sobel` | 1 trilinear | 8 B/voxel | `sobel` at every voxel centre, rgba16float, interpolated |
+//! | `precomputed_central` | 1 trilinear, shared with the sample's value | 16 B/voxel | `central` at every voxel centre, rgba32float, interpolated |
+//! | `precomputed_sobel` | 1 trilinear, shared with the sample's value | 16 B/voxel | `sobel` at every voxel centre, rgba32float, interpolated |
 //! | `quantized` | 1 nearest | 4 B/voxel | `central` at every voxel centre, direction in 16 bits, magnitude in 8, not interpolated |
 //!
 //! The pre-pass (`shaders/gradient_prepass.wgsl`) evaluates the on-the-fly estimator at
 //! voxel centres, where trilinear interpolation returns the voxel itself, and stores
-//! (g, |g|) as rgba16float; it reruns only when the volume changes. The CPU twin rounds
-//! the stored values to fp16 like the GPU.
+//! (g, value) as rgba32float; it reruns only when the volume changes. The voxel's value
+//! in w lets the main module read a sample's value from the same texel as its gradient
+//! (`sample_value`, [`crate::plugin::PrepassDecl::holds_value`]): one trilinear fetch
+//! gives both, where the on-the-fly estimators add theirs to the volume's.
+//! Until session 65 it stored (g, |g|) as rgba16float (8 B/voxel) and each sample
+//! fetched the volume as well (docs/perf.md, "One fetch for the value and the gradient").
 //!
 //! `precomputed_central` is `central` computed in another order. Central differences
 //! one texel apart are linear in the reads, and a read one texel off has the same
 //! trilinear weights, so the interpolated voxels' differences equal the differences of
 //! the interpolated reads; within half a texel of a face, where `central`'s read beyond
 //! the face clamps to the edge texel, [`central_edge_factor`] scales the component
-//! across that face as the clamp does. The two differ by rounding and the stored
-//! values' fp16 rounding (0.03 ΔE*uv RMS on the CT head, docs/perf.md). That is what
-//! lets `auto` pick either: on lavapipe the pre-pass volume's one fetch costs less
-//! than `central`'s six, from 512² up, for 8 bytes per voxel (issue 23, item 3).
+//! across that face as the clamp does. The two differ by rounding only (0.03 ΔE*uv RMS
+//! on the CT head with fp16 storage, docs/perf.md). That is what lets `auto` pick either:
+//! on lavapipe the pre-pass volume's one fetch costs less than `central`'s six, from
+//! 512² up, for 16 bytes per voxel (issue 23, item 3).
 //!
 //! `quantized` is the cheap estimator of CPU ray casters such as VTK's fixed-point
 //! caster (issue 23, item 3): the pre-pass stores the direction of `central`'s gradient
@@ -136,9 +140,10 @@ impl GradientEstimator {
             .structural()
             .with_doc(
                 "auto: precomputed_central on CPU adapters where its volume fits, else \
-                 central (the same gradients up to fp16 rounding); central: 6 reads per \
-                 sample; sobel: 26 reads; precomputed_*: a pre-pass volume (rgba16float, \
-                 8 bytes per voxel), 1 interpolated read; quantized: central's direction \
+                 central (the same gradients up to rounding); central: 6 reads per \
+                 sample; sobel: 26 reads; precomputed_*: a pre-pass volume (rgba32float, \
+                 16 bytes per voxel), 1 interpolated read that also gives the sample's \
+                 value; quantized: central's direction \
                  in 16 bits and magnitude in 8 (4 bytes per voxel), 1 read of the nearest \
                  voxel",
             )
@@ -186,19 +191,21 @@ impl GradientEstimator {
         }
     }
 
-    /// The gradient pre-pass (target `gradient`: rgba16float g and |g|, or for
-    /// `quantized` the rgba8unorm code of [`gradient_code`]) of the precomputed
-    /// estimators.
+    /// The gradient pre-pass (target `gradient`: rgba32float g and the voxel's value, or
+    /// for `quantized` the rgba8unorm code of [`gradient_code`]) of the precomputed
+    /// estimators. The value in w lets the main module read a sample's value and its
+    /// gradient with one fetch ([`PrepassDecl::holds_value`]).
     pub fn prepass(self) -> Option<PrepassDecl> {
+        let quantized = self == Self::Quantized;
         let (format, estimator) = match self {
             Self::Quantized => (StorageFormat::Rgba8Unorm, "gradient_central"),
-            Self::PrecomputedSobel => (StorageFormat::Rgba16Float, "gradient_sobel"),
-            _ => (StorageFormat::Rgba16Float, "gradient_central"),
+            Self::PrecomputedSobel => (StorageFormat::Rgba32Float, "gradient_sobel"),
+            _ => (StorageFormat::Rgba32Float, "gradient_central"),
         };
-        let store = if self == Self::Quantized {
+        let store = if quantized {
             "gradient_encode(g)"
         } else {
-            "vec4<f32>(g, length(g))"
+            "vec4<f32>(g, volume_voxel(vec3<i32>(voxel)))"
         };
         self.is_precomputed().then(|| PrepassDecl {
             target: "gradient",
@@ -212,18 +219,19 @@ impl GradientEstimator {
                     .into(),
             },
             depends_on: vec![],
+            holds_value: !quantized,
         })
     }
 }
 
-/// The largest pre-pass volume `auto` precomputes: 1 GiB (512³ voxels).
-pub const AUTO_PRECOMPUTE_MAX_BYTES: u64 = 1 << 30;
+/// The largest pre-pass volume `auto` precomputes: 2 GiB (512³ voxels).
+pub const AUTO_PRECOMPUTE_MAX_BYTES: u64 = 2 << 30;
 
 /// What the `gradient` parameter's `auto` resolves to: `precomputed_central` where it
 /// pays, else `central` (the same gradients up to rounding). It pays on CPU adapters
 /// (lavapipe: 0.78–0.84× `central`'s shaded frame from 512² up, 0.68× with early
 /// termination, 0.91–1.00× at 256²; docs/perf.md, "Cheap shading"), where its
-/// rgba16float volume (8 bytes per voxel) takes at most a quarter of the renderer's GPU
+/// rgba32float volume (16 bytes per voxel) takes at most a quarter of the renderer's GPU
 /// memory budget and [`AUTO_PRECOMPUTE_MAX_BYTES`]. On GPU adapters `central` stays
 /// until a GPU measurement says otherwise. Not where a plugin replaces the shading
 /// scalar (`scalar`, e.g. flow.lic3d): the pre-pass grid is the volume's, not that
@@ -256,9 +264,9 @@ pub fn resolve_auto(params: &ParamValues, estimator: GradientEstimator) -> Param
     p
 }
 
-/// Bytes of the gradient pre-pass volume for `dims` (rgba16float).
+/// Bytes of the gradient pre-pass volume for `dims` (rgba32float).
 pub fn gradient_volume_bytes(dims: [u32; 3]) -> u64 {
-    dims.iter().map(|&d| d.max(1) as u64).product::<u64>() * 8
+    dims.iter().map(|&d| d.max(1) as u64).product::<u64>() * 16
 }
 
 /// `oct_encode`: the octahedral map of a unit vector onto [−1, 1]² (the upper
@@ -391,14 +399,15 @@ fn voxel_gradients(ctx: &CpuContext, sobel: bool) -> Vec<DVec3> {
         .collect()
 }
 
-/// The per-voxel gradient volume of the pre-pass: (g, |g|) at every voxel centre,
-/// rounded to fp16 as the rgba16float target stores it. x fastest.
+/// The per-voxel gradient volume of the pre-pass: (g, value) at every voxel centre,
+/// in f32 as the rgba32float target stores it. x fastest.
 pub fn gradient_volume(ctx: &CpuContext, sobel: bool) -> Vec<[f32; 4]> {
     voxel_gradients(ctx, sobel)
         .into_iter()
-        .map(|g| {
+        .zip(ctx.scalars.iter())
+        .map(|(g, &value)| {
             let g32 = g.as_vec3();
-            [g32.x, g32.y, g32.z, g32.length()].map(|c| half::f16::from_f32(c).to_f32())
+            [g32.x, g32.y, g32.z, value]
         })
         .collect()
 }
@@ -671,10 +680,10 @@ mod tests {
             let mut g = Gradients::new(e);
             g.prepare(&ctx);
             let got = g.at(&ctx, tex);
-            // f32 scalars; fp16 storage for the pre-pass volume; 8-bit codes (1°)
+            // f32 scalars and pre-pass volume; 8-bit codes (1°)
             let tol = match e {
                 GradientEstimator::Quantized => 2e-2,
-                e if e.is_precomputed() => 2e-3,
+                e if e.is_precomputed() => 1e-5,
                 _ => 1e-6,
             };
             assert!(
@@ -687,7 +696,7 @@ mod tests {
 
     /// The twins of `precomputed_central` and `central` agree everywhere in the box,
     /// also within half a voxel of its faces and corners (where `central`'s reads
-    /// clamp), up to the stored values' fp16 rounding; without the faces' factor they
+    /// clamp), up to the stored values' f32 rounding; without the faces' factor they
     /// do not.
     #[test]
     fn precomputed_central_matches_central_up_to_the_faces() {
@@ -708,7 +717,7 @@ mod tests {
                 let tex = DVec3::new(*t, u, [0.02, 0.5, 0.99][i % 3]);
                 let (a, b) = (central.at(&ctx, tex), pre.at(&ctx, tex));
                 assert!(
-                    (a - b).length() <= 2e-3 * a.length().max(1e-3),
+                    (a - b).length() <= 1e-5 * a.length().max(1e-3),
                     "at {tex}: central {a}, precomputed {b}"
                 );
                 let raw = b / central_edge_factor(tex, vol.dims);

@@ -464,6 +464,9 @@ fn shading_value(tex: vec3<f32>) -> f32 {
 fn shading_grid() -> vec3<f32> {
     return frame.volume_dims.xyz;
 }
+fn sample_value(tex: vec3<f32>) -> f32 {
+    return volume_value(tex);
+}
 // vwb slice template: the hook runners and the entry points of both backends.
 // The composer inserts generated declarations at `//!DECLS`, plugin code at `//!PLUGINS`
 // and generated hook calls at each `//!HOOK name` marker, in the order of the user's
@@ -564,7 +567,7 @@ fn run_clip(s: Sample) -> bool {
 
 fn run_sample(s_in: Sample) -> Sample {
     var s = s_in;
-    s.value = volume_value(s.tex);
+    s.value = sample_value(s.tex);
     s = p0_smooth_sample(s);
     return s;
 }

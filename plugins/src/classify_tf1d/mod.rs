@@ -68,6 +68,11 @@ pub const SHADE_AT: [&str; 2] = ["front", "centroid"];
 #[derive(Debug, Clone, Copy, Default)]
 pub struct Tf1d {
     pub mode: Mode,
+    /// `shade_at: centroid` (structural: at `front` the code that moves the shading
+    /// point is left out, so that a shading plugin reads its gradient at the sample's
+    /// own point, in the fetch that gives the sample its value where the gradients are
+    /// precomputed; docs/perf.md, "One fetch for the value and the gradient").
+    pub centroid: bool,
 }
 
 /// The default curve: soft tissue faint, dense matter bright.
@@ -121,6 +126,7 @@ impl Plugin for Tf1d {
             ParamSpec::float_log("opacity", "Opacity scale", 0.01, 100.0, 1.0)
                 .with_doc("multiplies every opacity (per reference step, clamped to 1)"),
             ParamSpec::enumeration("shade_at", "Shade at", &SHADE_AT, 0)
+                .structural()
                 .shown_when("mode", "preintegrated")
                 .with_doc("preintegrated mode only: where a shading plugin reads the gradient. front: at the slice sample (Engel et al. 2001). centroid: inside the slab, where its opacity is taken up (fewer rings on lit surfaces at coarse spacing)"),
         ]
@@ -135,9 +141,15 @@ impl Plugin for Tf1d {
                 "plugins/src/classify_tf1d/tf1d_pre.wgsl",
                 include_str!("tf1d_pre.wgsl"),
             ),
-            Mode::Preintegrated => ShaderSource::new_static(
+            Mode::Preintegrated if self.centroid => ShaderSource::new_static(
                 "plugins/src/classify_tf1d/tf1d_preint.wgsl",
                 include_str!("tf1d_preint.wgsl"),
+            ),
+            Mode::Preintegrated => ShaderSource::without_region(
+                "plugins/src/classify_tf1d/tf1d_preint.wgsl",
+                include_str!("tf1d_preint.wgsl"),
+                "centroid",
+                "",
             ),
         }
     }
@@ -172,11 +184,14 @@ impl Plugin for Tf1d {
                 include_str!("tf1d_prepass.wgsl"),
             ),
             depends_on: vec!["tf"],
+            holds_value: false,
         })
     }
     fn configure(&self, params: &ParamValues) -> Option<Arc<dyn Plugin>> {
         let mode = Mode::from_name(params.enumeration("mode")).unwrap_or_default();
-        (mode != self.mode).then(|| Arc::new(Tf1d { mode }) as Arc<dyn Plugin>)
+        let centroid = params.enumeration("shade_at") == SHADE_AT[1];
+        (mode != self.mode || centroid != self.centroid)
+            .then(|| Arc::new(Tf1d { mode, centroid }) as Arc<dyn Plugin>)
     }
     fn uses_slice_spacing(&self) -> bool {
         self.mode == Mode::Preintegrated

@@ -145,7 +145,10 @@ fn pre_classification_weights_colours_by_opacity() {
         },
     ]);
     let params = params_for(Mode::Pre, curve.clone());
-    let twin = Tf1d { mode: Mode::Pre }.cpu_twin(&params).unwrap();
+    let twin = Tf1d {
+        mode: Mode::Pre,
+        centroid: false,
+    }.cpu_twin(&params).unwrap();
     // between voxel x = 0 (value 0) and x = 1 (value 1/3): tex.x = 1/4 of a 4-wide grid
     let mut s = CpuSample {
         tex: DVec3::new(0.25, 0.5, 0.5),
@@ -305,6 +308,7 @@ fn classify_across_the_shell(shade_at: &str) -> (CpuSample, (f64, f64), DVec3) {
     params.set("shade_at", ParamValue::Enum(shade_at.into()));
     let mut twin = Tf1d {
         mode: Mode::Preintegrated,
+        centroid: shade_at == "centroid",
     }
     .cpu_twin(&params)
     .unwrap();

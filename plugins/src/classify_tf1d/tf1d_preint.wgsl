@@ -16,8 +16,9 @@ fn classify(s: Sample) -> Sample {
     let uv = (fb * (n - 1.0) + 0.5) / n;
     o.color = textureSampleLevel(preint, linear_clamp, uv, 0.0);
     // shade_at: centroid — shading reads the gradient at the slab's opacity centroid
-    if (params.shade_at == 1u) {
-        o.shade_at = textureSampleLevel(preint_depth, linear_clamp, uv, 0.0).r;
-    }
+    // (left out at `front`: the structural parameter's other value, mod.rs)
+    // centroid: begin
+    o.shade_at = textureSampleLevel(preint_depth, linear_clamp, uv, 0.0).r;
+    // centroid: end
     return o;
 }

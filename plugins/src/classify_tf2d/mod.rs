@@ -189,6 +189,7 @@ impl Plugin for Tf2dPlugin {
                 include_str!("tf2d_prepass.wgsl"),
             ),
             depends_on: vec![],
+            holds_value: false,
         })
     }
     fn configure(&self, params: &ParamValues) -> Option<Arc<dyn Plugin>> {

@@ -262,6 +262,7 @@ impl Plugin for Arrival {
                 regions
             }),
             depends_on: vec!["seed_min", "seed_max", "step", "max_length", "integrator"],
+            holds_value: false,
         })
     }
     fn configure(&self, params: &ParamValues) -> Option<Arc<dyn Plugin>> {

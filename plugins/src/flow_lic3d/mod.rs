@@ -420,6 +420,7 @@ impl Plugin for Lic3d {
                 "step",
                 "integrator",
             ],
+            holds_value: false,
         })
     }
     /// The twin's streamline drift on the rotation and its LIC's time against error

@@ -39,6 +39,7 @@ impl Plugin for Smooth {
                 include_str!("prepass.wgsl"),
             ),
             depends_on: vec!["radius"],
+            holds_value: false,
         })
     }
     fn cpu_twin(&self, params: &ParamValues) -> Option<Box<dyn CpuTwin>> {
