@@ -21,6 +21,7 @@ the test set-up). Usage:
 
     python3 bench/vtk_peer.py                        # demo + CT head, 512², CPU drivers
     python3 bench/vtk_peer.py --preset presets/demo.ron --frames 5 -o /tmp/peer
+    python3 bench/vtk_peer.py --mapper fixed --rounds 5  # ratios robust to a drifting host load
     python3 bench/vtk_peer.py --scene-json demo.json # scene from a file, not `vwb scene`
     python3 bench/vtk_peer.py --mapper smart         # vtkSmartVolumeMapper (or: fixed)
     python3 bench/vtk_peer.py --gl x                 # GLX (re-runs under xvfb-run -a)
@@ -65,6 +66,13 @@ WARMUP = 2  # untimed frames before the timed ones (as `vwb render --timings`)
 def stats(ms):
     """(median, min, max) of a list of milliseconds."""
     return statistics.median(ms), min(ms), max(ms)
+
+
+def pooled(turns):
+    """Several rounds' (median, min, max) as one: the median of the medians, the least
+    min, the largest max."""
+    return (statistics.median(t[0] for t in turns), min(t[1] for t in turns),
+            max(t[2] for t in turns))
 
 
 def fmt(t):
@@ -395,6 +403,11 @@ def main():
     ap.add_argument("--size", default="512x512")
     ap.add_argument("--spacing", type=float, help="slice spacing in voxels (default: the preset's)")
     ap.add_argument("--frames", type=int, default=10)
+    ap.add_argument("--rounds", type=int, default=1,
+                    help="time VTK and every vwb variant this many times, alternately; the "
+                         "ratio is the median of the rounds' ratios (a shared host's load "
+                         "drifts between the two renderers' turns within one round less than "
+                         "across a run)")
     ap.add_argument("--mapper", choices=("gpu", "smart", "fixed"), default="gpu",
                     help="vtkGPUVolumeRayCastMapper, vtkSmartVolumeMapper or "
                          "vtkFixedPointVolumeRayCastMapper")
@@ -434,27 +447,40 @@ def main():
         stem = Path(scene["preset"]).stem
         img = scene["image"]
         size = f"{img['width']}x{img['height']}"
-        rw, camera, mapper = build_vtk(scene, a.mapper, shadows)
-        vtk_rgb, vtk_ms = time_vtk(rw, camera, a.frames)
-        gl, mapper_used = gl_renderer(rw), mapper_name(mapper)
-        vtk_png = out / f"{stem}_vtk.png"
-        Image.fromarray(vtk_rgb).save(vtk_png)
-        v = stats(vtk_ms)
-        print(f"{label}: VTK {mapper_used} median {v[0]:.1f} ms (min {v[1]:.1f} max {v[2]:.1f}) "
-              f"→ {vtk_png}", flush=True)
-        del rw, camera, mapper  # release the GL context before vwb runs
+        vtk_turns, vwb_turns = [], [[] for _ in VWB_VARIANTS]
+        for turn in range(a.rounds):
+            rw, camera, mapper = build_vtk(scene, a.mapper, shadows)
+            vtk_rgb, vtk_ms = time_vtk(rw, camera, a.frames)
+            gl, mapper_used = gl_renderer(rw), mapper_name(mapper)
+            vtk_png = out / f"{stem}_vtk.png"
+            Image.fromarray(vtk_rgb).save(vtk_png)
+            vtk_turns.append(stats(vtk_ms))
+            v = vtk_turns[-1]
+            print(f"{label}: VTK {mapper_used} median {v[0]:.1f} ms (min {v[1]:.1f} max "
+                  f"{v[2]:.1f}) → {vtk_png}", flush=True)
+            del rw, camera, mapper  # release the GL context before vwb runs
+            for n, (backend, kind, extra) in enumerate(VWB_VARIANTS):
+                png = out / f"{stem}_vwb_{n}_{kind}.png"
+                r = vwb_render(a.vwb, scene, kind, a.frames, png, env, extra)
+                vwb_turns[n].append(r)
+                print(f"{label}: vwb {backend} wall {r['wall'][0]:.1f} ms (round {turn + 1} of "
+                      f"{a.rounds}) → {png}", flush=True)
+        v = pooled(vtk_turns)
         vtk_self = rms(vtk_rgb, vtk_reference(scene, a.mapper, shadows)) if a.self_error else None
         if vtk_self is not None:
             print(f"{label}: VTK self-error {vtk_self:.2f}/255", flush=True)
         for n, (backend, kind, extra) in enumerate(VWB_VARIANTS):
             png = out / f"{stem}_vwb_{n}_{kind}.png"
-            r = vwb_render(a.vwb, scene, kind, a.frames, png, env, extra)
+            turns = vwb_turns[n]
+            r = turns[-1]
             adapter = r["adapter"]
+            ratios = [t["wall"][0] / w[0] for t, w in zip(turns, vtk_turns)]
             diff = compare(png, vtk_rgb, out / f"{stem}_vwb_{n}_{kind}_vs_vtk.png")
-            rows.append((label, size, r["slices"], backend, r["wall"], r["gpu"], v, diff))
+            rows.append((label, size, r["slices"], backend, pooled([t["wall"] for t in turns]),
+                         pooled([t["gpu"] for t in turns]), v, stats(ratios), diff))
             shown = "n/a (sizes differ)" if diff is None else f"{diff:.2f}/255"
-            print(f"{label}: vwb {backend} wall {r['wall'][0]:.1f} ms → {png}; RMS vs VTK {shown}",
-                  flush=True)
+            print(f"{label}: vwb {backend} vwb/VTK {statistics.median(ratios):.2f}; RMS vs VTK "
+                  f"{shown}", flush=True)
             if vtk_self is not None:
                 e = vwb_equal_error(a, scene, n, kind, extra, png, vtk_self, out, env)
                 e["wall"] = e["wall"] or r["wall"]
@@ -466,10 +492,11 @@ def main():
         "| scene | size | vwb slices | vwb backend | vwb wall ms | vwb GPU ms | VTK ms | vwb/VTK (wall) | RMS vs VTK (8-bit) |",
         "|---|---|---|---|---|---|---|---|---|",
     ]
-    for label, size, slices, backend, wall, gpu, v, diff in rows:
+    for label, size, slices, backend, wall, gpu, v, ratio, diff in rows:
+        shown = f"{ratio[0]:.2f}" if a.rounds == 1 else f"{ratio[0]:.2f} ({ratio[1]:.2f}–{ratio[2]:.2f})"
         table.append(
             f"| {label} | {size} | {slices} | {backend} | {fmt(wall)} | {fmt(gpu)} | {fmt(v)} "
-            f"| {wall[0] / v[0]:.2f} | {'n/a' if diff is None else f'{diff:.1f}'} |"
+            f"| {shown} | {'n/a' if diff is None else f'{diff:.1f}'} |"
         )
     if equal:
         table += [
@@ -493,7 +520,11 @@ def main():
     lp = os.environ.get("LP_NUM_THREADS")
     lines = [
         f"Command: `{shlex.join(['python3', 'bench/vtk_peer.py', *sys.argv[1:]])}`"
-        f" — median (min–max) of {a.frames} frames after {WARMUP} warm-up frames, both in one run.",
+        f" — median (min–max) of {a.frames} frames after {WARMUP} warm-up frames, both in one run"
+        + ("." if a.rounds == 1 else
+           f"; {a.rounds} rounds, VTK and then each vwb variant in each: the times are the median "
+           "of the rounds' medians (min–max over every frame), vwb/VTK the median of the rounds' "
+           "ratios (min–max over the rounds)."),
         "",
         f"- Machine: {machine_line()}",
         f"- vwb adapter: {adapter}" + (f" (LP_NUM_THREADS={lp})" if not a.gpu else ""),
