@@ -135,7 +135,7 @@ def with_spacing(scene, spacing):
 
 
 # Refinements of vwb's slice spacing tried, in order, to reach VTK's self-error.
-REFINE = (1.5, 2.0, 3.0, 4.0)
+REFINE = (1.25, 1.5, 2.0, 3.0, 4.0)
 REFERENCE_DIVISOR = 8  # self-error reference: 1/8 of the default step
 
 
@@ -335,12 +335,16 @@ def vtk_reference(scene, mapper_kind, shadows=None):
     return rgb
 
 
-def vwb_equal_error(a, scene, n, kind, extra, png, vtk_self, out, env):
+def vwb_equal_error(a, scene, n, kind, extra, png, vtk_self, vtk_level, out, env):
     """vwb's self-error for one variant and, when it exceeds VTK's, the coarsest
-    refined spacing whose self-error is at most VTK's, timed there.
+    refined spacing whose self-error is at most VTK's, timed there; likewise for the
+    relative self-error (the self-error over the image's mean 8-bit level), which
+    compares renderers whose images differ in brightness (different shading models).
 
     Returns a dict: self (error at the default spacing), spacing, error and wall at the
-    equal-error spacing (the default one when it already qualifies)."""
+    equal-error spacing (the default one when it already qualifies; wall None there),
+    level (the mean 8-bit level of vwb's image) and rel, the same for the relative
+    self-error (spacing, error, wall)."""
     stem = Path(scene["preset"]).stem
     s0 = scene["slice_spacing_voxels"]
     ref_png = out / f"{stem}_vwb_{n}_{kind}_ref.png"
@@ -349,19 +353,29 @@ def vwb_equal_error(a, scene, n, kind, extra, png, vtk_self, out, env):
     vwb_render(a.vwb, with_spacing(scene, s0 / REFERENCE_DIVISOR), kind, 1, ref_png, env,
                [*extra, "--target", "rgba32float"])
     ref = read_png(ref_png)
-    own = rms(read_png(png), ref)
-    found = {"self": own, "spacing": s0, "error": own, "wall": None}
-    if own <= vtk_self:
-        return found
+    own_img = read_png(png)
+    own = rms(own_img, ref)
+    level = float(own_img.mean())
+    # VTK's relative self-error in vwb's 8-bit units
+    rel_bound = vtk_self / max(vtk_level, 1e-9) * level
+    found = {"self": own, "spacing": s0, "error": own, "wall": None, "level": level,
+             "rel": {"spacing": s0, "error": own, "wall": None}}
+    abs_done, rel_done = own <= vtk_self, own <= rel_bound
     for f in REFINE:
+        if abs_done and rel_done:
+            break
         trial = out / f"{stem}_vwb_{n}_{kind}_refined_{f:g}.png"
         r = vwb_render(a.vwb, with_spacing(scene, s0 / f), kind, a.frames, trial, env, extra)
         err = rms(read_png(trial), ref)
         print(f"  vwb {kind} {' '.join(extra)} spacing {s0 / f:.3g}: self-error {err:.2f}, "
               f"wall {r['wall'][0]:.1f} ms", flush=True)
-        found.update(spacing=s0 / f, error=err, wall=r["wall"])
-        if err <= vtk_self:
-            break
+        if not abs_done:
+            found.update(spacing=s0 / f, error=err, wall=r["wall"])
+            abs_done = err <= vtk_self
+        if not rel_done:
+            found["rel"] = {"spacing": s0 / f, "error": err, "wall": r["wall"]}
+            rel_done = err <= rel_bound
+    found["rel"]["reached"] = found["rel"]["error"] <= rel_bound
     return found
 
 
@@ -482,9 +496,11 @@ def main():
             print(f"{label}: vwb {backend} vwb/VTK {statistics.median(ratios):.2f}; RMS vs VTK "
                   f"{shown}", flush=True)
             if vtk_self is not None:
-                e = vwb_equal_error(a, scene, n, kind, extra, png, vtk_self, out, env)
-                e["wall"] = e["wall"] or r["wall"]
-                equal.append((label, size, backend, e, vtk_self, v))
+                e = vwb_equal_error(a, scene, n, kind, extra, png, vtk_self,
+                                    float(vtk_rgb.mean()), out, env)
+                e["wall"] = e["wall"] or rows[-1][4]
+                e["rel"]["wall"] = e["rel"]["wall"] or rows[-1][4]
+                equal.append((label, size, backend, e, vtk_self, float(vtk_rgb.mean()), v))
                 print(f"{label}: vwb {backend} self-error {e['self']:.2f}/255; at spacing "
                       f"{e['spacing']:.3g} {e['error']:.2f}/255, {e['wall'][0]:.1f} ms", flush=True)
 
@@ -510,12 +526,31 @@ def main():
             "| scene | size | vwb backend | vwb self-error | VTK self-error | vwb spacing at ≤ VTK's self-error (voxels) | vwb self-error there | vwb wall ms there | vwb/VTK at equal self-error |",
             "|---|---|---|---|---|---|---|---|---|",
         ]
-        for label, size, backend, e, vtk_self, v in equal:
+        for label, size, backend, e, vtk_self, _, v in equal:
             reached = "" if e["error"] <= vtk_self else " (not reached)"
             table.append(
                 f"| {label} | {size} | {backend} | {e['self']:.2f} | {vtk_self:.2f} "
                 f"| {e['spacing']:.3g}{reached} | {e['error']:.2f} | {fmt(e['wall'])} "
                 f"| {e['wall'][0] / v[0]:.2f} |"
+            )
+        table += [
+            "",
+            "Relative self-convergence error: the self-error over the image's mean 8-bit level "
+            "(RGB). Where the two renderers' images differ in brightness (their shading models "
+            "differ: the RMS vs VTK column above), equal absolute errors are not equal "
+            "accuracy; vwb's slice spacing is refined as above until its relative self-error "
+            "is at most VTK's.",
+            "",
+            "| scene | size | vwb backend | vwb mean level | VTK mean level | vwb relative self-error | VTK relative self-error | vwb spacing at ≤ VTK's relative self-error (voxels) | vwb wall ms there | vwb/VTK at equal relative self-error |",
+            "|---|---|---|---|---|---|---|---|---|---|",
+        ]
+        for label, size, backend, e, vtk_self, vtk_level, v in equal:
+            rel = e["rel"]
+            reached = "" if rel["reached"] else " (not reached)"
+            table.append(
+                f"| {label} | {size} | {backend} | {e['level']:.1f} | {vtk_level:.1f} "
+                f"| {e['self'] / max(e['level'], 1e-9):.4f} | {vtk_self / max(vtk_level, 1e-9):.4f} "
+                f"| {rel['spacing']:.3g}{reached} | {fmt(rel['wall'])} | {rel['wall'][0] / v[0]:.2f} |"
             )
     lp = os.environ.get("LP_NUM_THREADS")
     lines = [
