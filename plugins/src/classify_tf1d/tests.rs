@@ -148,7 +148,9 @@ fn pre_classification_weights_colours_by_opacity() {
     let twin = Tf1d {
         mode: Mode::Pre,
         centroid: false,
-    }.cpu_twin(&params).unwrap();
+    }
+    .cpu_twin(&params)
+    .unwrap();
     // between voxel x = 0 (value 0) and x = 1 (value 1/3): tex.x = 1/4 of a 4-wide grid
     let mut s = CpuSample {
         tex: DVec3::new(0.25, 0.5, 0.5),
