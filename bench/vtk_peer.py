@@ -75,6 +75,11 @@ def pooled(turns):
             max(t[2] for t in turns))
 
 
+def relative(err, level):
+    """A self-error over its image's mean 8-bit level."""
+    return err / max(level, 1e-9)
+
+
 def fmt(t):
     """A (median, min, max) triple as 'median (min–max)'."""
     return f"{t[0]:.1f} ({t[1]:.1f}–{t[2]:.1f})" if t else "n/a"
@@ -357,7 +362,7 @@ def vwb_equal_error(a, scene, n, kind, extra, png, vtk_self, vtk_level, out, env
     own = rms(own_img, ref)
     level = float(own_img.mean())
     # VTK's relative self-error in vwb's 8-bit units
-    rel_bound = vtk_self / max(vtk_level, 1e-9) * level
+    rel_bound = relative(vtk_self, vtk_level) * level
     found = {"self": own, "spacing": s0, "error": own, "wall": None, "level": level,
              "rel": {"spacing": s0, "error": own, "wall": None}}
     abs_done, rel_done = own <= vtk_self, own <= rel_bound
@@ -481,6 +486,7 @@ def main():
                       f"{a.rounds}) → {png}", flush=True)
         v = pooled(vtk_turns)
         vtk_self = rms(vtk_rgb, vtk_reference(scene, a.mapper, shadows)) if a.self_error else None
+        vtk_level = float(vtk_rgb.mean())
         if vtk_self is not None:
             print(f"{label}: VTK self-error {vtk_self:.2f}/255", flush=True)
         for n, (backend, kind, extra) in enumerate(VWB_VARIANTS):
@@ -489,18 +495,18 @@ def main():
             r = turns[-1]
             adapter = r["adapter"]
             ratios = [t["wall"][0] / w[0] for t, w in zip(turns, vtk_turns)]
+            wall = pooled([t["wall"] for t in turns])
             diff = compare(png, vtk_rgb, out / f"{stem}_vwb_{n}_{kind}_vs_vtk.png")
-            rows.append((label, size, r["slices"], backend, pooled([t["wall"] for t in turns]),
+            rows.append((label, size, r["slices"], backend, wall,
                          pooled([t["gpu"] for t in turns]), v, stats(ratios), diff))
             shown = "n/a (sizes differ)" if diff is None else f"{diff:.2f}/255"
             print(f"{label}: vwb {backend} vwb/VTK {statistics.median(ratios):.2f}; RMS vs VTK "
                   f"{shown}", flush=True)
             if vtk_self is not None:
-                e = vwb_equal_error(a, scene, n, kind, extra, png, vtk_self,
-                                    float(vtk_rgb.mean()), out, env)
-                e["wall"] = e["wall"] or rows[-1][4]
-                e["rel"]["wall"] = e["rel"]["wall"] or rows[-1][4]
-                equal.append((label, size, backend, e, vtk_self, float(vtk_rgb.mean()), v))
+                e = vwb_equal_error(a, scene, n, kind, extra, png, vtk_self, vtk_level, out, env)
+                e["wall"] = e["wall"] or wall
+                e["rel"]["wall"] = e["rel"]["wall"] or wall
+                equal.append((label, size, backend, e, vtk_self, vtk_level, v))
                 print(f"{label}: vwb {backend} self-error {e['self']:.2f}/255; at spacing "
                       f"{e['spacing']:.3g} {e['error']:.2f}/255, {e['wall'][0]:.1f} ms", flush=True)
 
@@ -549,7 +555,7 @@ def main():
             reached = "" if rel["reached"] else " (not reached)"
             table.append(
                 f"| {label} | {size} | {backend} | {e['level']:.1f} | {vtk_level:.1f} "
-                f"| {e['self'] / max(e['level'], 1e-9):.4f} | {vtk_self / max(vtk_level, 1e-9):.4f} "
+                f"| {relative(e['self'], e['level']):.4f} | {relative(vtk_self, vtk_level):.4f} "
                 f"| {rel['spacing']:.3g}{reached} | {fmt(rel['wall'])} | {rel['wall'][0] / v[0]:.2f} |"
             )
     lp = os.environ.get("LP_NUM_THREADS")

@@ -347,7 +347,7 @@ fn shading_scalar_wgsl(provider: Option<(&str, bool)>) -> String {
 /// pre-pass target that holds the volume's value at every voxel
 /// ([`crate::plugin::PrepassDecl::holds_value`]): the same trilinear interpolation of
 /// the same f32 voxels, read with what its plugin reads there.
-fn sample_value_wgsl(holder: Option<String>) -> String {
+fn sample_value_wgsl(holder: Option<&str>) -> String {
     let read = match holder {
         None => "volume_value(tex)".to_string(),
         Some(t) => format!("textureSampleLevel({t}, linear_clamp, tex, 0.0).w"),
@@ -1034,6 +1034,9 @@ pub fn compose_with(
     let mut scalar_provider: Option<(String, bool, usize)> = None;
     // instances whose pre-pass differentiates the shading scalar (a gradient volume)
     let mut gradient_prepasses: Vec<&'static str> = Vec::new();
+    // the first instance whose pre-pass target holds the volume's value: (its target's
+    // name in the main module, the instance)
+    let mut value_holder: Option<(String, usize)> = None;
 
     for (index, plugin) in plugins.iter().enumerate() {
         let plugin = *plugin;
@@ -1153,6 +1156,9 @@ pub fn compose_with(
                 if differentiates_the_shading_scalar(&pp.shader.source) {
                     gradient_prepasses.push(plugin.id());
                 }
+                if pp.holds_value && value_holder.is_none() {
+                    value_holder = Some((format!("{prefix}{}", pp.target), index));
+                }
                 Some(compose_prepass(plugin, index, &prefix, &uniform, &pp)?)
             }
             None => None,
@@ -1267,18 +1273,10 @@ pub fn compose_with(
     // a sample's value: the volume's, or where an instance's pre-pass target holds it
     // exactly beside what that instance reads at the sample (a gradient), from there,
     // so that the two are one fetch (issue 23)
-    let value_holder = instances.iter().find(|inst| {
-        plugins[inst.input_index]
-            .prepass()
-            .is_some_and(|pp| pp.holds_value)
-    });
     m.push_generated(
         "sample value",
-        &sample_value_wgsl(value_holder.map(|inst| {
-            let target = plugins[inst.input_index].prepass().map(|pp| pp.target);
-            format!("{}{}", inst.prefix, target.unwrap_or_default())
-        })),
-        value_holder.map(|inst| inst.input_index),
+        &sample_value_wgsl(value_holder.as_ref().map(|(target, _)| target.as_str())),
+        value_holder.as_ref().map(|(_, index)| *index),
     );
     let template = half_angle_code(TEMPLATE_FILE, TEMPLATE_WGSL, half_angle);
     for (i, line) in template.lines().enumerate() {

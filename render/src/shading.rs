@@ -196,16 +196,15 @@ impl GradientEstimator {
     /// estimators. The value in w lets the main module read a sample's value and its
     /// gradient with one fetch ([`PrepassDecl::holds_value`]).
     pub fn prepass(self) -> Option<PrepassDecl> {
-        let quantized = self == Self::Quantized;
-        let (format, estimator) = match self {
-            Self::Quantized => (StorageFormat::Rgba8Unorm, "gradient_central"),
-            Self::PrecomputedSobel => (StorageFormat::Rgba32Float, "gradient_sobel"),
-            _ => (StorageFormat::Rgba32Float, "gradient_central"),
-        };
-        let store = if quantized {
-            "gradient_encode(g)"
-        } else {
-            "vec4<f32>(g, volume_voxel(vec3<i32>(voxel)))"
+        let with_value = "vec4<f32>(g, volume_voxel(vec3<i32>(voxel)))";
+        let (format, estimator, store) = match self {
+            Self::Quantized => (
+                StorageFormat::Rgba8Unorm,
+                "gradient_central",
+                "gradient_encode(g)",
+            ),
+            Self::PrecomputedSobel => (StorageFormat::Rgba32Float, "gradient_sobel", with_value),
+            _ => (StorageFormat::Rgba32Float, "gradient_central", with_value),
         };
         self.is_precomputed().then(|| PrepassDecl {
             target: "gradient",
@@ -219,7 +218,7 @@ impl GradientEstimator {
                     .into(),
             },
             depends_on: vec![],
-            holds_value: !quantized,
+            holds_value: store == with_value,
         })
     }
 }
