@@ -429,14 +429,14 @@ fn slice_range(r: Ray, hull: bool) -> vec2<u32> {
 // space, where the ray's samples lie at tex0 + k·dtex (`RaySlices`): the slice k at
 // which the ray leaves the brick's box is the least over the axes of the larger of
 // the two faces' (face − tex0) / dtex; `inv_dtex` is the ray's 1 / dtex (a tiny step
-// in place of a zero one), so the ray's side of the exit costs no division (the
-// brick's faces still divide by the grid, as the brick's index does).
+// in place of a zero one), so the exit costs no division: the brick's side in texture
+// units is a quotient of uniforms, computed once per ray like `brick_of`'s scale.
 fn brick_exit_slice(rs: RaySlices, inv_dtex: vec3<f32>, tex: vec3<f32>) -> u32 {
     // the brick `brick_visible` looks up
-    let b = frame.settings.y;
+    let side = frame.settings.y / frame.volume_dims.xyz;
     let brick = brick_of(tex);
-    let lo = brick * b / frame.volume_dims.xyz;
-    let hi = min((brick + 1.0) * b / frame.volume_dims.xyz, vec3<f32>(1.0));
+    let lo = brick * side;
+    let hi = min((brick + 1.0) * side, vec3<f32>(1.0));
     let ka = (lo - rs.tex0) * inv_dtex;
     let kb = (hi - rs.tex0) * inv_dtex;
     let k = floor(min(min(max(ka.x, kb.x), max(ka.y, kb.y)), max(ka.z, kb.z)) - 0.01);
@@ -499,11 +499,34 @@ fn dispatch_offset() -> vec2<u32> {
     return vec2<u32>(frame.settings.zw);
 }
 
+// The whole-frame entry points' workgroup shape (`composer::with_main_workgroup`
+// rewrites it with their `@workgroup_size`).
+const MAIN_WG: vec2<u32> = vec2<u32>(8u, 8u);
+
+// The pixel of invocation `li` of workgroup `wg` in the whole-frame entry points. A CPU
+// device runs a workgroup's invocations in SIMD vectors of consecutive `li` (8 on
+// llvmpipe with AVX2) until the vector's last ray ends, so a vector costs its longest
+// ray's iterations. Rows of 8 pixels make such vectors; here every 8 consecutive
+// invocations cover a block of 4 × 2 pixels instead (every 32 an 8 × 4 block, a GPU
+// warp's footprint as in rows), whose rays end more alike: early termination and the
+// hull end them at the matter's silhouette, which a compact block crosses less often.
+// The pixels and their rays are the same, and so is the image (docs/perf.md, "Pixel
+// blocks per SIMD vector"). Shapes that 4 × 2 does not divide keep rows.
+fn main_pixel(wg: vec3<u32>, li: u32) -> vec2<u32> {
+    var l = vec2<u32>(li % MAIN_WG.x, li / MAIN_WG.x);
+    if (MAIN_WG.x % 4u == 0u && MAIN_WG.y % 2u == 0u) {
+        let block = li / 8u;
+        let row = MAIN_WG.x / 4u;
+        l = vec2<u32>((block % row) * 4u + (li & 3u), (block / row) * 2u + ((li >> 2u) & 1u));
+    }
+    return wg.xy * MAIN_WG + l + dispatch_offset();
+}
+
 // Whole frame in one dispatch (no plugin needs per-slice passes).
 @compute @workgroup_size(8, 8, 1)
-fn cs_main(@builtin(global_invocation_id) gid: vec3<u32>) {
+fn cs_main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) li: u32) {
     let size = vec2<u32>(frame.viewport.xy);
-    let px = gid.xy + dispatch_offset();
+    let px = main_pixel(wg, li);
     if (px.x >= size.x || px.y >= size.y) {
         return;
     }
@@ -513,9 +536,9 @@ fn cs_main(@builtin(global_invocation_id) gid: vec3<u32>) {
 
 // `cs_main` with empty-space skipping (used while the occupancy grid is active).
 @compute @workgroup_size(8, 8, 1)
-fn cs_main_skip(@builtin(global_invocation_id) gid: vec3<u32>) {
+fn cs_main_skip(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) li: u32) {
     let size = vec2<u32>(frame.viewport.xy);
-    let px = gid.xy + dispatch_offset();
+    let px = main_pixel(wg, li);
     if (px.x >= size.x || px.y >= size.y) {
         return;
     }
@@ -529,9 +552,9 @@ fn cs_main_skip(@builtin(global_invocation_id) gid: vec3<u32>) {
 // `VWB_RAW_SAMPLES=1` (`Renderer::set_raw_samples`); stores (Σ value, sample count, 0,
 // 1), so a test can check that it takes exactly the march's samples.
 @compute @workgroup_size(8, 8, 1)
-fn cs_main_raw(@builtin(global_invocation_id) gid: vec3<u32>) {
+fn cs_main_raw(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) li: u32) {
     let size = vec2<u32>(frame.viewport.xy);
-    let px = gid.xy + dispatch_offset();
+    let px = main_pixel(wg, li);
     if (px.x >= size.x || px.y >= size.y) {
         return;
     }

@@ -978,20 +978,24 @@ pub const CPU_WORKGROUP: [u32; 2] = [8, 8];
 
 /// The composed module with `cs_main`, `cs_main_skip` and `cs_main_raw` (every entry
 /// point whose name begins with `cs_main`) in workgroups of `wg` (the template declares
-/// [`MAIN_WORKGROUP`]); the other entry points keep theirs.
+/// [`MAIN_WORKGROUP`]), and the template's `MAIN_WG`, from which those entry points
+/// place their pixels, set to the same shape; the other entry points keep theirs.
 pub fn with_main_workgroup(source: &str, wg: [u32; 2]) -> std::borrow::Cow<'_, str> {
     if wg == MAIN_WORKGROUP {
         return source.into();
     }
-    let from = format!(
-        "@compute @workgroup_size({}, {}, 1)\nfn cs_main",
-        MAIN_WORKGROUP[0], MAIN_WORKGROUP[1]
-    );
-    let to = format!(
-        "@compute @workgroup_size({}, {}, 1)\nfn cs_main",
-        wg[0], wg[1]
-    );
-    source.replace(&from, &to).into()
+    let [x0, y0] = MAIN_WORKGROUP;
+    let [x, y] = wg;
+    source
+        .replace(
+            &format!("@compute @workgroup_size({x0}, {y0}, 1)\nfn cs_main"),
+            &format!("@compute @workgroup_size({x}, {y}, 1)\nfn cs_main"),
+        )
+        .replace(
+            &format!("const MAIN_WG: vec2<u32> = vec2<u32>({x0}u, {y0}u);"),
+            &format!("const MAIN_WG: vec2<u32> = vec2<u32>({x}u, {y}u);"),
+        )
+        .into()
 }
 
 /// A core shader file with its `half_angle` regions (the half-angle slicing paths,

@@ -1706,7 +1706,9 @@ fn atlas_benchmark() {
 
 /// The workgroup shape of the whole-frame compute passes (issue 23, item 4) changes
 /// how pixels are grouped, never a pixel: every shape gives the 8×8 image bit for bit,
-/// with and without empty-space skipping, at a size no shape divides, and in an atlas.
+/// with and without empty-space skipping, at a size no shape divides, and in an atlas,
+/// whether its invocations cover blocks of 4 × 2 pixels (`main_pixel`) or rows (6×6,
+/// 1×1).
 /// A shape the device cannot run falls back to the adapter's default.
 #[test]
 fn workgroup_shapes_render_the_same_pixels() {
@@ -1738,7 +1740,7 @@ fn workgroup_shapes_render_the_same_pixels() {
     let base = run([8, 8]);
     assert_eq!(base.0, [8, 8]);
     assert!(base.1.iter().any(|p| p[3] > 0.1), "the demo is visible");
-    for wg in [[16, 16], [16, 4], [4, 16], [32, 2], [1, 1]] {
+    for wg in [[16, 16], [16, 4], [4, 16], [32, 2], [6, 6], [1, 1]] {
         let other = run(wg);
         assert_eq!(other.0, wg);
         assert!(other.1 == base.1, "{wg:?} with skipping");
