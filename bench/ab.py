@@ -7,7 +7,14 @@ must not regress speed.
 
 Each round runs `vwb bench` of every preset with A, then with B (B first in odd
 rounds); the figure per build is the median over rounds of the frame's GPU median
-(wall time where the adapter has no timestamps). Prints a Markdown table.
+(wall time where the adapter has no timestamps). Prints a Markdown table, with the
+median of the rounds' own B / A ratios beside the ratio of the medians.
+
+    python3 bench/ab.py ... --clock cpu [--bench-arg=--early-termination --bench-arg=0.99]
+
+compares the process's CPU time per frame instead (all threads, user + system: on a
+CPU adapter the frame's work itself, which a shared host's steal does not inflate as it
+does the clocks; not a frame time), and passes further options on to `vwb bench`.
 
     python3 bench/ab.py --a OLD/vwb --b NEW/vwb --gallery presets/demo_tf2d.ron ...
         [--rounds 4] [--pool 512] [--tile 16]
@@ -43,17 +50,18 @@ import tempfile
 from doclib import machine_line, round_order
 
 
-def frame_ms(binary, preset, frames, size, backend):
+def frame_ms(binary, preset, frames, size, backend, clock="frame", extra=()):
     with tempfile.TemporaryDirectory() as d:
         out = os.path.join(d, "b.csv")
         cmd = [binary, "bench", "--preset", preset, "--frames", str(frames),
                "--warmup", "2", "--size", size, "-o", out]
         if backend:
             cmd += ["--backend", backend]
+        cmd += list(extra)
         subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
         with open(out) as f:
             for row in csv.DictReader(f):
-                if row["kind"] == "frame":
+                if row["kind"] == "frame" and (clock == "frame" or row["clock"] == clock):
                     return float(row["median_ms"]), row["clock"]
     raise RuntimeError(f"{binary}: no frame row for {preset}")
 
@@ -125,6 +133,12 @@ def main():
     ap.add_argument("--pool", type=int, default=512)
     ap.add_argument("--tile", type=int, default=16)
     ap.add_argument("--images", metavar="WxH", help="also compare the builds' images at this size")
+    ap.add_argument("--clock", choices=["frame", "cpu"], default="frame",
+                    help="frame: the frame's GPU median (wall without timestamps); cpu: the process's "
+                         "CPU time per frame, all threads (steadier on a shared CPU host, not a frame time)")
+    ap.add_argument("--bench-arg", action="append", default=[], metavar="ARG",
+                    help="passed on to `vwb bench` (repeat per word, e.g. --bench-arg=--early-termination "
+                         "--bench-arg=0.99)")
     a = ap.parse_args()
     if a.gallery:
         galleries(a)
@@ -137,17 +151,20 @@ def main():
         for p in presets:
             for be in backends:
                 for name, binary in order:
-                    ms, clock = frame_ms(binary, p, a.frames, a.size, be)
+                    ms, clock = frame_ms(binary, p, a.frames, a.size, be, a.clock, a.bench_arg)
                     times.setdefault((p, be, name), []).append(ms)
     rows = []
     images = f" | image B vs A at {a.images}: RMS, max (levels), pixels differing" if a.images else ""
-    print(f"| preset | backend | A ms | B ms | B / A{images} |")
-    print("|---|---|---:|---:|---:" + ("|---:" if a.images else "") + "|")
+    unit = "CPU ms" if a.clock == "cpu" else "ms"
+    print(f"| preset | backend | A {unit} | B {unit} | B / A | B / A per round (median){images} |")
+    print("|---|---|---:|---:|---:|---:" + ("|---:" if a.images else "") + "|")
     for p in presets:
         for be in backends:
             ta = statistics.median(times[(p, be, "a")])
             tb = statistics.median(times[(p, be, "b")])
+            per_round = statistics.median(y / x for x, y in zip(times[(p, be, "a")], times[(p, be, "b")]))
             row = {"preset": p, "backend": be, "a_ms": ta, "b_ms": tb, "ratio": tb / ta,
+                   "ratio_of_rounds": per_round,
                    "a_rounds": times[(p, be, "a")], "b_rounds": times[(p, be, "b")]}
             cell = ""
             if a.images:
@@ -156,10 +173,11 @@ def main():
                             "image_pixels_differing": n})
                 cell = f" | {rms:.3f}, {mx:.0f}, {n}"
             rows.append(row)
-            print(f"| {p} | {be} | {ta:.1f} | {tb:.1f} | {tb / ta:.3f}{cell} |")
+            print(f"| {p} | {be} | {ta:.1f} | {tb:.1f} | {tb / ta:.3f} | {per_round:.3f}{cell} |")
     if a.o:
         with open(a.o, "w") as f:
-            json.dump({"a": a.a, "b": a.b, "size": a.size, "frames": a.frames,
+            json.dump({"a": a.a, "b": a.b, "size": a.size, "frames": a.frames, "clock": a.clock,
+                       "bench_args": a.bench_arg,
                        "rounds": a.rounds, "machine": machine_line(),
                        "adapter": adapter_of(a.b, presets[0]),
                        "lp_num_threads": os.environ.get("LP_NUM_THREADS"), "rows": rows}, f, indent=2)

@@ -63,6 +63,14 @@ pub struct Timing {
     pub wall_ms: Summary,
     /// First to last timestamp of the frame; `None` without timestamp queries.
     pub gpu_ms: Option<Summary>,
+    /// The process's CPU time over the frame, all threads (user + system;
+    /// [`process_cpu_ms`]); `None` where the platform does not report it. On a CPU
+    /// adapter the frame's work runs in this process's threads, so this is the work
+    /// itself, which time the host gives other tenants (steal) does not inflate as it
+    /// does the wall clock: the steadier figure for comparing two builds on a shared
+    /// machine (`bench/ab.py --clock cpu`). Not a frame time: two threads working
+    /// for 100 ms count 200 ms.
+    pub cpu_ms: Option<Summary>,
     /// Per pass (see `FrameStats::gpu_passes`).
     pub passes: Vec<(String, Summary)>,
     /// The adapter is a CPU (lavapipe): its "GPU" runs on the CPU the wall clock
@@ -114,12 +122,16 @@ pub fn time_frames(
     for _ in 0..warmup {
         r.render(s)?;
     }
-    let (mut wall, mut gpu) = (Vec::new(), Vec::new());
+    let (mut wall, mut gpu, mut cpu) = (Vec::new(), Vec::new(), Vec::new());
     let mut passes: BTreeMap<String, Vec<f64>> = BTreeMap::new();
     let mut slices = 0;
     let (mut proxy_share, mut scissor_share, mut idle_tiles) = (None, None, None);
     for _ in 0..frames.max(1) {
+        let before = process_cpu_ms();
         let st = r.render(s)?;
+        if let (Some(a), Some(b)) = (before, process_cpu_ms()) {
+            cpu.push(b - a);
+        }
         slices = st.slices;
         (proxy_share, scissor_share) = (st.proxy_share, st.scissor_share);
         idle_tiles = st.idle_tiles;
@@ -136,6 +148,7 @@ pub fn time_frames(
         slices,
         wall_ms: Summary::of(&wall).ok_or_else(|| anyhow!("no finite frame time"))?,
         gpu_ms: Summary::of(&gpu),
+        cpu_ms: Summary::of(&cpu),
         passes: passes
             .into_iter()
             .filter_map(|(n, v)| Some((n, Summary::of(&v)?)))
@@ -144,6 +157,25 @@ pub fn time_frames(
         scissor_share,
         idle_tiles,
     })
+}
+
+/// CPU time used so far by this process, all its threads (user + system), in
+/// milliseconds (`CLOCK_PROCESS_CPUTIME_ID`); `None` where the platform lacks it.
+pub fn process_cpu_ms() -> Option<f64> {
+    #[cfg(unix)]
+    {
+        let mut ts = libc::timespec {
+            tv_sec: 0,
+            tv_nsec: 0,
+        };
+        // SAFETY: `ts` is a valid, writable timespec for the call's duration.
+        let rc = unsafe { libc::clock_gettime(libc::CLOCK_PROCESS_CPUTIME_ID, &mut ts) };
+        (rc == 0).then_some(ts.tv_sec as f64 * 1.0e3 + ts.tv_nsec as f64 * 1.0e-6)
+    }
+    #[cfg(not(unix))]
+    {
+        None
+    }
 }
 
 /// Prints a timing in the format `bench/perf.py` and `bench/vtk_peer.py` parse.
@@ -163,6 +195,9 @@ pub fn print_timing(t: &Timing) {
                 line(&format!("pass {name}"), s);
             }
         }
+    }
+    if let Some(c) = &t.cpu_ms {
+        line("cpu_ms", c);
     }
 }
 
@@ -721,6 +756,16 @@ pub fn bench_document(
             clock: "wall",
             frames: full.frames,
             ms: Some(full.wall_ms),
+            bytes: None,
+        });
+    }
+    if let Some(cpu) = full.cpu_ms {
+        rows.push(BenchRow {
+            kind: "frame",
+            name: "frame".into(),
+            clock: "cpu",
+            frames: full.frames,
+            ms: Some(cpu),
             bytes: None,
         });
     }
@@ -1609,6 +1654,7 @@ mod tests {
             slices: 10,
             wall_ms: Summary::of(&[wall]).unwrap(),
             gpu_ms: Summary::of(&[gpu]),
+            cpu_ms: None,
             passes: Vec::new(),
             proxy_share: None,
             scissor_share: None,
@@ -1626,6 +1672,28 @@ mod tests {
         };
         assert_eq!(cpu(0.29, 2.0).frame_ms(), (2.0, "wall"));
         assert_eq!(cpu(1.8, 2.0).frame_ms(), (1.8, "gpu"));
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn the_process_cpu_clock_counts_work() {
+        let start = process_cpu_ms().expect("CLOCK_PROCESS_CPUTIME_ID");
+        let wall = std::time::Instant::now();
+        let mut x = 0u64;
+        // work until the clock has counted 20 ms (or 10 s of wall time have passed)
+        while process_cpu_ms().unwrap() - start < 20.0 && wall.elapsed().as_secs() < 10 {
+            x = std::hint::black_box(x.wrapping_mul(6364136223846793005).wrapping_add(1));
+        }
+        let used = process_cpu_ms().unwrap() - start;
+        assert!(
+            used >= 20.0,
+            "{used} ms of CPU time after {:?}",
+            wall.elapsed()
+        );
+        // and it is CPU time, not wall time: a sleeping process adds (almost) none
+        let before = process_cpu_ms().unwrap();
+        std::thread::sleep(std::time::Duration::from_millis(50));
+        assert!(process_cpu_ms().unwrap() - before < 25.0);
     }
 
     #[test]
