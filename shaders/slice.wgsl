@@ -516,7 +516,8 @@ fn main_pixel(wg: vec3<u32>, li: u32) -> vec2<u32> {
     var l = vec2<u32>(li % MAIN_WG.x, li / MAIN_WG.x);
     if (MAIN_WG.x % 4u == 0u && MAIN_WG.y % 2u == 0u) {
         let block = li / 8u;
-        let row = MAIN_WG.x / 4u;
+        // (at least 1: a shape this branch never runs for must still not divide by 0)
+        let row = max(MAIN_WG.x / 4u, 1u);
         l = vec2<u32>((block % row) * 4u + (li & 3u), (block / row) * 2u + ((li >> 2u) & 1u));
     }
     return wg.xy * MAIN_WG + l + dispatch_offset();
