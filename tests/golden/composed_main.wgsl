@@ -1060,7 +1060,7 @@ const MAIN_WG: vec2<u32> = vec2<u32>(8u, 8u);
 // hull end them at the matter's silhouette, which a compact block crosses less often.
 // The pixels and their rays are the same, and so is the image (docs/perf.md, "Pixel
 // blocks per SIMD vector"). Shapes that 4 × 2 does not divide keep rows.
-fn main_pixel(wg: vec3<u32>, li: u32) -> vec2<u32> {
+fn main_pixel(wg: vec3<u32>, groups: vec3<u32>, li: u32) -> vec2<u32> {
     var l = vec2<u32>(li % MAIN_WG.x, li / MAIN_WG.x);
     if (MAIN_WG.x % 4u == 0u && MAIN_WG.y % 2u == 0u) {
         let block = li / 8u;
@@ -1068,14 +1068,46 @@ fn main_pixel(wg: vec3<u32>, li: u32) -> vec2<u32> {
         let row = max(MAIN_WG.x / 4u, 1u);
         l = vec2<u32>((block % row) * 4u + (li & 3u), (block / row) * 2u + ((li >> 2u) & 1u));
     }
-    return wg.xy * MAIN_WG + l + dispatch_offset();
+    let tile = vec2<u32>(wg.x, spread_row(wg.y, groups.y));
+    return tile * MAIN_WG + l + dispatch_offset();
+}
+
+// The tile row that the dispatch's workgroup row `q` of `rows` renders: (q · s) mod
+// rows, with s the integer nearest rows · (√5 − 1)/2 that is coprime to `rows` (so a
+// permutation of the rows). A CPU device splits a dispatch's workgroups, in order (x
+// fastest), into one contiguous run per thread (llvmpipe's compute thread pool), so in
+// plain order each thread renders a band of the image, and the thread whose band holds
+// more of the matter works on after the others have finished. Rows spread by the
+// golden ratio give every contiguous run, whatever the number of threads, rows from all
+// over the image. The pixels are the same, and so is the image (docs/perf.md, "Pixel
+// blocks per SIMD vector").
+fn spread_row(q: u32, rows: u32) -> u32 {
+    var s = max(u32(f32(rows) * 0.618034), 1u);
+    loop {
+        var a = s;
+        var b = rows;
+        while (b != 0u) {
+            let t = a % b;
+            a = b;
+            b = t;
+        }
+        if (a <= 1u) {
+            break;
+        }
+        s = s + 1u;
+    }
+    return (q * s) % max(rows, 1u);
 }
 
 // Whole frame in one dispatch (no plugin needs per-slice passes).
 @compute @workgroup_size(8, 8, 1)
-fn cs_main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) li: u32) {
+fn cs_main(
+    @builtin(workgroup_id) wg: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+    @builtin(local_invocation_index) li: u32,
+) {
     let size = vec2<u32>(frame.viewport.xy);
-    let px = main_pixel(wg, li);
+    let px = main_pixel(wg, groups, li);
     if (px.x >= size.x || px.y >= size.y) {
         return;
     }
@@ -1085,9 +1117,13 @@ fn cs_main(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index
 
 // `cs_main` with empty-space skipping (used while the occupancy grid is active).
 @compute @workgroup_size(8, 8, 1)
-fn cs_main_skip(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) li: u32) {
+fn cs_main_skip(
+    @builtin(workgroup_id) wg: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+    @builtin(local_invocation_index) li: u32,
+) {
     let size = vec2<u32>(frame.viewport.xy);
-    let px = main_pixel(wg, li);
+    let px = main_pixel(wg, groups, li);
     if (px.x >= size.x || px.y >= size.y) {
         return;
     }
@@ -1101,9 +1137,13 @@ fn cs_main_skip(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_
 // `VWB_RAW_SAMPLES=1` (`Renderer::set_raw_samples`); stores (Σ value, sample count, 0,
 // 1), so a test can check that it takes exactly the march's samples.
 @compute @workgroup_size(8, 8, 1)
-fn cs_main_raw(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) li: u32) {
+fn cs_main_raw(
+    @builtin(workgroup_id) wg: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+    @builtin(local_invocation_index) li: u32,
+) {
     let size = vec2<u32>(frame.viewport.xy);
-    let px = main_pixel(wg, li);
+    let px = main_pixel(wg, groups, li);
     if (px.x >= size.x || px.y >= size.y) {
         return;
     }

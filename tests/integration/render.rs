@@ -1753,6 +1753,111 @@ fn workgroup_shapes_render_the_same_pixels() {
     assert!(fallback.1 == base.1);
 }
 
+/// `spread_row` (shaders/slice.wgsl), which orders a whole-frame dispatch's workgroup
+/// rows so that every thread of a CPU device gets rows from all over the image, is a
+/// permutation of the rows for every row count up to 600 (a row rendered twice would
+/// leave another unrendered), and it spreads: the first half of the dispatch's rows
+/// holds between a third and two thirds of the image's top half.
+#[test]
+fn spread_rows_are_a_permutation() {
+    use wgpu::util::DeviceExt;
+    const MAX_ROWS: u32 = 600;
+    let template = include_str!("../../shaders/slice.wgsl");
+    let start = template
+        .find("fn spread_row(")
+        .expect("spread_row in slice.wgsl");
+    let len = template[start..].find("\n}\n").expect("its end") + 3;
+    let source = format!(
+        "{}
+@group(0) @binding(0) var<storage, read_write> out: array<u32>;
+@compute @workgroup_size(64)
+fn main(@builtin(global_invocation_id) id: vec3<u32>) {{
+    // rows r = 1..=MAX, q < r, at offset r·(r−1)/2
+    let rows = id.y + 1u;
+    if (id.x < rows) {{
+        out[rows * (rows - 1u) / 2u + id.x] = spread_row(id.x, rows);
+    }}
+}}",
+        &template[start..start + len]
+    );
+    let g = gpu();
+    let module = g.device.create_shader_module(wgpu::ShaderModuleDescriptor {
+        label: Some("spread_row"),
+        source: wgpu::ShaderSource::Wgsl(source.into()),
+    });
+    let pipeline = g
+        .device
+        .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some("spread_row"),
+            layout: None,
+            module: &module,
+            entry_point: Some("main"),
+            compilation_options: Default::default(),
+            cache: None,
+        });
+    let count = (MAX_ROWS * (MAX_ROWS + 1) / 2) as usize;
+    let bytes = (count * 4) as u64;
+    let out = g
+        .device
+        .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("spread_row out"),
+            contents: &vec![0xffu8; count * 4],
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+        });
+    let read = g.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("spread_row read"),
+        size: bytes,
+        usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    let bind = g.device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: None,
+        layout: &pipeline.get_bind_group_layout(0),
+        entries: &[wgpu::BindGroupEntry {
+            binding: 0,
+            resource: out.as_entire_binding(),
+        }],
+    });
+    let mut enc = g.device.create_command_encoder(&Default::default());
+    {
+        let mut pass = enc.begin_compute_pass(&Default::default());
+        pass.set_pipeline(&pipeline);
+        pass.set_bind_group(0, &bind, &[]);
+        pass.dispatch_workgroups(MAX_ROWS.div_ceil(64), MAX_ROWS, 1);
+    }
+    enc.copy_buffer_to_buffer(&out, 0, &read, 0, bytes);
+    g.queue.submit([enc.finish()]);
+    let slice = read.slice(..);
+    slice.map_async(wgpu::MapMode::Read, |r| r.expect("map"));
+    g.wait();
+    let values: Vec<u32> = slice
+        .get_mapped_range()
+        .expect("mapped")
+        .chunks_exact(4)
+        .map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+        .collect();
+    for rows in 1..=MAX_ROWS {
+        let at = (rows * (rows - 1) / 2) as usize;
+        let order = &values[at..at + rows as usize];
+        let mut seen = vec![false; rows as usize];
+        for &t in order {
+            assert!(t < rows && !seen[t as usize], "{rows} rows: {order:?}");
+            seen[t as usize] = true;
+        }
+        if rows >= 8 {
+            let top = order[..rows as usize / 2]
+                .iter()
+                .filter(|&&t| t < rows / 2)
+                .count() as f64;
+            let half = (rows / 2) as f64;
+            assert!(
+                (half / 3.0..=half * 2.0 / 3.0 + 1.0).contains(&top),
+                "{rows} rows: {top} of the first half's rows in the top half"
+            );
+        }
+    }
+}
+
 /// The `post` hook runs once per pixel on the accumulated colour on every path: the
 /// compute backend's single dispatch and its per-slice resolve, the raster backend's
 /// full-screen pass after the slices (also after per-slice state), in rgba16float and
