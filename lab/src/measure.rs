@@ -1690,10 +1690,10 @@ mod tests {
             "{used} ms of CPU time after {:?}",
             wall.elapsed()
         );
-        // and it is CPU time, not wall time: a sleeping process adds (almost) none
-        let before = process_cpu_ms().unwrap();
-        std::thread::sleep(std::time::Duration::from_millis(50));
-        assert!(process_cpu_ms().unwrap() - before < 25.0);
+        // (whether a sleeping thread adds none cannot be asserted here: the clock counts
+        // every thread of the process, and the harness runs other tests beside this one)
+        let (a, b) = (process_cpu_ms().unwrap(), process_cpu_ms().unwrap());
+        assert!(b >= a, "monotonic: {a} then {b}");
     }
 
     #[test]
