@@ -190,10 +190,12 @@ fn cut_gradient(g: vec3<f32>) -> vec3<f32> {
 // The brick of side frame.settings.y voxels holding `tex` (while skipping is on), as
 // grid coordinates: the one index `brick_visible` and the march's brick exit share.
 // The scale is a quotient of uniforms, which the compiler computes once per ray, not
-// per lookup (a division per lookup was about 10 % of an unshaded frame on lavapipe,
-// docs/perf.md "Brick lookups without divisions"). Rounding may put a sample on a
-// brick's face into its neighbour, which is exact: a brick's range includes a
-// one-voxel apron (render/src/skipping.rs).
+// per lookup (on lavapipe the lookup runs in most iterations for some lane of a SIMD
+// vector, and its divisions were part of the 11 % of an unshaded frame it cost:
+// docs/perf.md, "Pixel blocks per SIMD vector, rows spread over the threads, and brick
+// lookups without divisions"). Rounding may put a sample on a brick's face into its
+// neighbour, which is exact: a brick's range includes a one-voxel apron
+// (render/src/skipping.rs).
 fn brick_of(tex: vec3<f32>) -> vec3<f32> {
     return floor(tex * (frame.volume_dims.xyz / frame.settings.y));
 }

@@ -525,8 +525,8 @@ fn main_pixel(wg: vec3<u32>, groups: vec3<u32>, li: u32) -> vec2<u32> {
 }
 
 // The tile row that the dispatch's workgroup row `q` of `rows` renders: (q · s) mod
-// rows, with s the integer nearest rows · (√5 − 1)/2 that is coprime to `rows` (so a
-// permutation of the rows). A CPU device splits a dispatch's workgroups, in order (x
+// rows, with s the first integer from ⌊rows · (√5 − 1)/2⌋ up that is coprime to `rows`
+// (so a permutation of the rows). A CPU device splits a dispatch's workgroups, in order (x
 // fastest), into one contiguous run per thread (llvmpipe's compute thread pool), so in
 // plain order each thread renders a band of the image, and the thread whose band holds
 // more of the matter works on after the others have finished. Rows spread by the

@@ -190,10 +190,12 @@ fn cut_gradient(g: vec3<f32>) -> vec3<f32> {
 // The brick of side frame.settings.y voxels holding `tex` (while skipping is on), as
 // grid coordinates: the one index `brick_visible` and the march's brick exit share.
 // The scale is a quotient of uniforms, which the compiler computes once per ray, not
-// per lookup (a division per lookup was about 10 % of an unshaded frame on lavapipe,
-// docs/perf.md "Brick lookups without divisions"). Rounding may put a sample on a
-// brick's face into its neighbour, which is exact: a brick's range includes a
-// one-voxel apron (render/src/skipping.rs).
+// per lookup (on lavapipe the lookup runs in most iterations for some lane of a SIMD
+// vector, and its divisions were part of the 11 % of an unshaded frame it cost:
+// docs/perf.md, "Pixel blocks per SIMD vector, rows spread over the threads, and brick
+// lookups without divisions"). Rounding may put a sample on a brick's face into its
+// neighbour, which is exact: a brick's range includes a one-voxel apron
+// (render/src/skipping.rs).
 fn brick_of(tex: vec3<f32>) -> vec3<f32> {
     return floor(tex * (frame.volume_dims.xyz / frame.settings.y));
 }
@@ -1073,8 +1075,8 @@ fn main_pixel(wg: vec3<u32>, groups: vec3<u32>, li: u32) -> vec2<u32> {
 }
 
 // The tile row that the dispatch's workgroup row `q` of `rows` renders: (q · s) mod
-// rows, with s the integer nearest rows · (√5 − 1)/2 that is coprime to `rows` (so a
-// permutation of the rows). A CPU device splits a dispatch's workgroups, in order (x
+// rows, with s the first integer from ⌊rows · (√5 − 1)/2⌋ up that is coprime to `rows`
+// (so a permutation of the rows). A CPU device splits a dispatch's workgroups, in order (x
 // fastest), into one contiguous run per thread (llvmpipe's compute thread pool), so in
 // plain order each thread renders a band of the image, and the thread whose band holds
 // more of the matter works on after the others have finished. Rows spread by the
