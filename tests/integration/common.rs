@@ -222,6 +222,22 @@ pub fn tf_constant(color: [f32; 4]) -> PluginInstance {
     tf
 }
 
+/// A mappable buffer's contents (after the copies into it have been submitted), read
+/// as 4-byte little-endian words by `word` (e.g. `f32::from_le_bytes`); left unmapped.
+pub fn read_back<T>(g: &GpuContext, buffer: &wgpu::Buffer, word: fn([u8; 4]) -> T) -> Vec<T> {
+    let slice = buffer.slice(..);
+    slice.map_async(wgpu::MapMode::Read, |r| r.expect("map"));
+    g.wait();
+    let words = slice
+        .get_mapped_range()
+        .expect("mapped")
+        .chunks_exact(4)
+        .map(|b| word([b[0], b[1], b[2], b[3]]))
+        .collect();
+    buffer.unmap();
+    words
+}
+
 /// Renders and returns premultiplied pixels.
 pub fn render(
     r: &mut Renderer,

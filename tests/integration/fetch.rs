@@ -4,7 +4,7 @@
 
 use std::time::Instant;
 
-use crate::common::{bench_doc, gpu};
+use crate::common::{bench_doc, gpu, read_back};
 
 const DIMS: [u32; 3] = [256, 256, 108];
 const SIDE: u32 = 512;
@@ -425,17 +425,7 @@ fn fetch_benchmark() {
         if !readback {
             return (ms, Vec::new());
         }
-        let slice = read.slice(..);
-        slice.map_async(wgpu::MapMode::Read, |r| r.expect("map"));
-        g.wait();
-        let image = slice
-            .get_mapped_range()
-            .expect("mapped")
-            .chunks_exact(4)
-            .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
-            .collect();
-        read.unmap();
-        (ms, image)
+        (ms, read_back(g, &read, f32::from_le_bytes))
     };
     let images: Vec<Vec<f32>> = (0..variants.len()).map(|i| run(i, true).1).collect();
     let mut times = vec![Vec::new(); variants.len()];

@@ -1827,15 +1827,7 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {{
     }
     enc.copy_buffer_to_buffer(&out, 0, &read, 0, bytes);
     g.queue.submit([enc.finish()]);
-    let slice = read.slice(..);
-    slice.map_async(wgpu::MapMode::Read, |r| r.expect("map"));
-    g.wait();
-    let values: Vec<u32> = slice
-        .get_mapped_range()
-        .expect("mapped")
-        .chunks_exact(4)
-        .map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
-        .collect();
+    let values = read_back(g, &read, u32::from_le_bytes);
     for rows in 1..=MAX_ROWS {
         let at = (rows * (rows - 1) / 2) as usize;
         let order = &values[at..at + rows as usize];
