@@ -10,6 +10,9 @@ largest channel difference) to the `raster-options` block of docs/perf.md. Varia
   visible box (the occupied bricks' bounding box) since session 46, the full box before,
   each drawn under a scissor to its part inside the occupied bricks' hull since session
   57 (the same image); "no hull" is the visible box alone (`VWB_HULL_PROXY=off`);
+  since session 67 it skips the slices before each pixel's next visible brick by a
+  depth mask every 16 slices (the same image): "no skipping" is the renderer without it
+  (`VWB_RASTER_SKIP=0`), "skip every N" other run lengths (`VWB_RASTER_SKIP_INTERVAL`);
 - the polygons cut to that hull (`--hull-cut on`), alone and with early termination;
 - early termination 0.99 with a depth mask every N slices (`VWB_RASTER_ET_INTERVAL`);
 - the occupied proxy: polygons cut to cells of C bricks per axis around the bricks
@@ -40,6 +43,9 @@ CUT = ["--hull-cut", "on"]
 # (label, backend, extra arguments, extra environment)
 VARIANTS = [
     ("raster", "raster", [], {}),
+    ("raster, no skipping", "raster", [], {"VWB_RASTER_SKIP": "0"}),
+    ("raster, skip every 8", "raster", [], {"VWB_RASTER_SKIP_INTERVAL": "8"}),
+    ("raster, skip every 32", "raster", [], {"VWB_RASTER_SKIP_INTERVAL": "32"}),
     ("raster, no hull", "raster", [], {"VWB_HULL_PROXY": "off"}),
     ("hull cut", "raster", CUT, {}),
     ("ET 0.99, mask every 8", "raster", ET, {"VWB_RASTER_ET_INTERVAL": "8"}),
@@ -51,6 +57,8 @@ VARIANTS = [
     ("occupied proxy, one box", "raster", PROXY, {"VWB_RASTER_PROXY_CELL": "1000"}),
     ("occupied proxy (2) + ET 0.99 (32)", "raster", PROXY + ET,
      {"VWB_RASTER_PROXY_CELL": "2", "VWB_RASTER_ET_INTERVAL": "32"}),
+    ("ET 0.99 (32), no skipping", "raster", ET,
+     {"VWB_RASTER_ET_INTERVAL": "32", "VWB_RASTER_SKIP": "0"}),
     ("ET 0.99 (32), no hull", "raster", ET,
      {"VWB_RASTER_ET_INTERVAL": "32", "VWB_HULL_PROXY": "off"}),
     ("hull cut + ET 0.99 (32)", "raster", CUT + ET, {"VWB_RASTER_ET_INTERVAL": "32"}),

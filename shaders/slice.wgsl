@@ -174,9 +174,27 @@ struct VsOut {
 fn vs_main(@location(0) pos: vec3<f32>, @location(1) slice: u32) -> VsOut {
     var o: VsOut;
     o.clip_pos = frame.view_proj * vec4<f32>(pos, 1.0);
+    o.clip_pos.z = slice_depth(o.clip_pos, slice);
     o.world = pos;
     o.slice = slice;
     return o;
+}
+
+// The depth of slice k's fragments: (k + ½) / count, not the camera's, so that the
+// raster backend's depth tests compare slice indices (`renderer/raster_et.rs`: a pixel
+// stops taking slices where its ray has terminated, and skips those before its next
+// slice that can be visible). A view-aligned slice lies at one eye depth, so its
+// vertices are all inside the near and far planes or all outside; those outside keep
+// the camera's depth and are clipped as before. Half-angle slices are not view aligned
+// and keep the camera's depth (their frames skip no slices).
+fn slice_depth(c: vec4<f32>, k: u32) -> f32 {
+    var z = select(c.z, (f32(k) + 0.5) / f32(frame.counts.x) * c.w, c.z >= 0.0 && c.z <= c.w);
+    // half_angle: begin
+    if (half_angle()) {
+        z = c.z;
+    }
+    // half_angle: end
+    return z;
 }
 
 fn ray_dir_to(pos: vec3<f32>) -> vec3<f32> {
@@ -246,6 +264,61 @@ fn fs_exact_behind(in: VsOut) -> @location(0) vec4<f32> {
     return fragment_exact(in, true);
 }
 // half_angle: end
+
+// Empty-space skipping on the raster backend. Fragments cannot skip work by branching
+// (llvmpipe runs both sides of a branch under a mask), only by failing the depth test
+// before they are shaded. So a full-screen pass first marks, per pixel, the chunks of
+// slices where its ray may meet a visible sample: bit j of the 64 is set where one of
+// slices j·c … j·c + c − 1 (c = ⌈count / 64⌉, `chunk_slices`) may. The ray walks the
+// bricks as the compute backend's march does (a lookup per brick, a jump past its exit
+// slice) and marks each visible brick's slices with one more on either side, for the
+// fragments' interpolated positions. `renderer/raster_et.rs` turns the bits into a
+// depth before every run of slices. Samples outside the box take their face's brick.
+fn chunk_slices() -> u32 {
+    return max((frame.counts.x + 63u) / 64u, 1u);
+}
+
+// `bits` with the chunks of slices a..=b (c slices per chunk) set: per 32-bit word,
+// the ones from its first chunk in the range to its last (no dynamic indexing, which a
+// SIMD vector of pixels pays per lane).
+fn mark_slices(bits: vec2<u32>, a: u32, b: u32, c: u32) -> vec2<u32> {
+    let base = vec2<u32>(0u, 32u);
+    let lo = max(vec2<u32>(a / c), base);
+    let hi = min(vec2<u32>(min(b / c, 63u)), base + vec2<u32>(31u));
+    // ones from bit lo − base up to bit hi − base of each word (none where lo > hi)
+    let from_lo = vec2<u32>(0xFFFFFFFFu) << ((lo - base) & vec2<u32>(31u));
+    let to_hi = vec2<u32>(0xFFFFFFFFu) >> ((base + vec2<u32>(31u) - hi) & vec2<u32>(31u));
+    return bits | select(vec2<u32>(0u), from_lo & to_hi, lo <= hi);
+}
+
+@fragment
+fn fs_raster_chunks(@builtin(position) pos: vec4<f32>) -> @location(0) vec2<u32> {
+    let r = pixel_ray(pos.xy * frame.viewport.zw);
+    let range = slice_range(r, true);
+    let rs = ray_slices(r);
+    let c = chunk_slices();
+    let tiny = vec3<f32>(1.0e-20);
+    let inv_dtex = 1.0 / select(rs.dtex, tiny, abs(rs.dtex) < tiny);
+    var bits = vec2<u32>(0u);
+    var k = range.x;
+    loop {
+        if (k >= range.y) {
+            break;
+        }
+        let tex = rs.tex0 + f32(k) * rs.dtex;
+        // the brick's samples end at its exit slice (`brick_exit_slice`'s margin keeps
+        // that one inside it); outside the box, one slice at a time
+        var next = k + 1u;
+        if (in_own_box(rs.p0 + f32(k) * rs.dp)) {
+            next = max(brick_exit_slice(rs, inv_dtex, tex) + 1u, next);
+        }
+        if (brick_visible(clamp(tex, vec3<f32>(0.0), vec3<f32>(1.0)))) {
+            bits = mark_slices(bits, max(k, 1u) - 1u, next, c);
+        }
+        k = next;
+    }
+    return bits;
+}
 
 // The post hooks on the raster backend: a full-screen triangle over the eye buffer,
 // reading a copy of it (`post_src`), after the last slice.

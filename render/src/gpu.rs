@@ -255,7 +255,14 @@ pub fn upload_r8_3d(
 /// (pipeline creation runs inside error scopes and reports its own errors).
 pub fn install_error_handler(device: &wgpu::Device) {
     device.on_uncaptured_error(std::sync::Arc::new(|e| {
-        log::error!("wgpu: {e}");
+        // the error and its causes (its Display is the first line only)
+        let mut message = e.to_string();
+        let mut cause = std::error::Error::source(&e);
+        while let Some(c) = cause {
+            message.push_str(&format!(": {c}"));
+            cause = c.source();
+        }
+        log::error!("wgpu: {message}");
     }));
 }
 

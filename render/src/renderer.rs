@@ -648,6 +648,9 @@ struct CompiledStack {
     /// plain one built with the stack (so that the device validates it), the others on
     /// first use.
     raster: [std::sync::OnceLock<wgpu::RenderPipeline>; 8],
+    /// The raster backend's chunk bits for empty-space skipping (`fs_raster_chunks`,
+    /// [`raster_et`]), built on first use.
+    raster_chunks: std::sync::OnceLock<wgpu::RenderPipeline>,
     module: wgpu::ShaderModule,
     raster_layout: wgpu::PipelineLayout,
     compute_layout: wgpu::PipelineLayout,
@@ -700,6 +703,12 @@ impl CompiledStack {
         })
     }
 
+    /// The raster backend's chunk-bits pipeline, built on first use.
+    fn chunks_pipeline(&self, device: &wgpu::Device) -> &wgpu::RenderPipeline {
+        self.raster_chunks
+            .get_or_init(|| raster_et::chunks_pipeline(device, &self.module, &self.raster_layout))
+    }
+
     /// `cs_main_raw`, built on first use.
     fn raw_pipeline(&self, device: &wgpu::Device) -> &wgpu::ComputePipeline {
         self.cs_main_raw.get_or_init(|| {
@@ -725,6 +734,17 @@ struct CompiledPass {
     binding: u32,
     /// A sweep pass: the binding of its `SweepInfo` uniform.
     sweep_binding: Option<u32>,
+}
+
+/// The smallest scissor [x, y, w, h] holding those of `draws` (none without draws).
+fn rect_union(draws: &[([u32; 4], u32, u32)]) -> Option<[u32; 4]> {
+    let (x0, y0) = draws
+        .iter()
+        .map(|d| (d.0[0], d.0[1]))
+        .reduce(|a, b| (a.0.min(b.0), a.1.min(b.1)))?;
+    let x1 = draws.iter().map(|d| d.0[0] + d.0[2]).max()?;
+    let y1 = draws.iter().map(|d| d.0[1] + d.0[3]).max()?;
+    Some([x0, y0, x1 - x0, y1 - y0])
 }
 
 /// The pixels [x0, y0, x1, y1) of a `size` frame that the box `b` can cover: its
@@ -1125,8 +1145,12 @@ pub struct Renderer {
     split: Option<Split>,
     /// Set when a volume beyond the budget refines its bricks in view ([`lod`]).
     lod: Option<lod::Lod>,
-    /// The raster backend's early-termination mask, made on first use.
+    /// The raster backend's depth mask (early termination, empty-space skipping), made
+    /// on first use.
     raster_et: Option<raster_et::RasterEt>,
+    /// Raster backend: skip the slices in empty bricks by the depth mask
+    /// ([`Renderer::set_raster_skipping`]).
+    raster_skipping: bool,
     /// Raster backend: proxy polygons cut to the occupied cells ([`Renderer::set_occupied_proxy`]).
     occupied_proxy: bool,
     /// Raster backend: proxy polygons fitted to the occupied bricks' hull
@@ -1417,6 +1441,7 @@ impl Renderer {
             target: None,
             raster_et: None,
             occupied_proxy: false,
+            raster_skipping: env_on("VWB_RASTER_SKIP"),
             hull_proxy: HullProxy::from_env(),
             occupied_hull: None,
             hull_rays: HullRays::from_env(),
@@ -1722,6 +1747,14 @@ impl Renderer {
                 g.state_tiles = None;
             }
         }
+    }
+
+    /// Raster backend with empty-space skipping: fragments in front of a pixel's next
+    /// visible brick fail the depth test before they are shaded ([`raster_et`]; on by
+    /// default where slices are view aligned and the proxies are not cut to the occupied
+    /// cells; `VWB_RASTER_SKIP=0` starts renderers with it off). The image is the same.
+    pub fn set_raster_skipping(&mut self, on: bool) {
+        self.raster_skipping = on;
     }
 
     /// Raster backend: cut the proxy polygons to the cells of bricks that can be
@@ -2634,6 +2667,7 @@ impl Renderer {
                 let _ = locks[0].set(raster);
                 locks
             },
+            raster_chunks: std::sync::OnceLock::new(),
             module,
             raster_layout,
             compute_layout,
@@ -3173,11 +3207,10 @@ impl Renderer {
             ),
             _ => self.own_box(),
         };
-        // and, with skipping, only where their rays cross the occupied bricks' hull
-        let hull = match (&self.region, s.backend, occupied.and_then(|o| o.hull)) {
-            (None, Backend::Compute, Some((dop, share))) if self.cuts_rays(share) => {
-                Some(hull_uniform(dop))
-            }
+        // and, with skipping, only where their rays cross the occupied bricks' hull (the
+        // raster backend's rays walk its bricks there for empty-space skipping)
+        let hull = match (&self.region, occupied.and_then(|o| o.hull)) {
+            (None, Some((dop, share))) if self.cuts_rays(share) => Some(hull_uniform(dop)),
             _ => None,
         };
         let rect = self.pixel_rect(view, size);
@@ -3914,22 +3947,55 @@ impl Renderer {
             },
             _ => &[false],
         };
-        // the raster backend's early-termination mask: its bind group for this eye
-        // buffer; a ray composited "over" cannot terminate early
-        let mask_group = match (s.backend, s.early_termination) {
-            (Backend::Raster, Some(threshold)) if raster_orders == [false] => {
-                let et = self
-                    .raster_et
-                    .get_or_insert_with(|| raster_et::RasterEt::new(&self.gpu.device));
-                let eye = self.target.as_ref().expect("target exists");
-                Some(et.prepare(&self.gpu, eye, threshold))
-            }
-            _ => None,
-        };
         let et_interval = raster_et::interval();
         // proxy polygons cut to the occupied cells, fragments at their exact points
         let cut_proxy =
             s.backend == Backend::Raster && self.occupied_proxy && self.occupancy_bytes.is_some();
+        // the raster backend's empty-space skipping by the depth mask: view-aligned
+        // slices (their depth is their index) on proxies not cut to the occupied cells,
+        // a whole volume (the bricks of a split one would each hold a depth buffer and
+        // chunk bits of the eye buffer's size)
+        let raster_skip = s.backend == Backend::Raster
+            && self.raster_skipping
+            && self.region.is_none()
+            && self.occupancy_bytes.is_some()
+            && !cut_proxy
+            && frame_plan.half.is_none()
+            && {
+                // its depth and chunk bits within the GPU memory budget, or no skipping
+                let eye = self.target.as_ref().expect("target exists");
+                let held = self
+                    .raster_et
+                    .as_ref()
+                    .map_or(0, raster_et::RasterEt::bytes);
+                let need = raster_et::RasterEt::bytes_for([eye.width, eye.height], true);
+                self.check_budget("raster skipping", need, held).is_ok()
+            };
+        // the raster backend's depth mask (early termination, skipping): its bind group
+        // for this eye buffer; a ray composited "over" cannot terminate early
+        let mask_group = match s.backend {
+            Backend::Raster
+                if raster_orders == [false] && (raster_skip || s.early_termination.is_some()) =>
+            {
+                let et = self
+                    .raster_et
+                    .get_or_insert_with(|| raster_et::RasterEt::new(&self.gpu.device));
+                let eye = self.target.as_ref().expect("target exists");
+                let plan = raster_et::MaskPlan {
+                    count: plan.count,
+                    et: s.early_termination.map(|t| (t, et_interval)),
+                    skip: raster_skip,
+                };
+                Some(et.prepare(&self.gpu, eye, plan))
+            }
+            _ => {
+                // a frame without the mask holds none of its buffers
+                if let Some(et) = self.raster_et.as_mut() {
+                    et.release();
+                }
+                None
+            }
+        };
 
         // vertices for the raster backend
         let mut slice_ranges = Vec::new();
@@ -4147,16 +4213,39 @@ impl Renderer {
                     })
                     .forget_lifetime()
                 };
-                let mask = |enc: &mut wgpu::CommandEncoder| {
+                // the first slices of the runs between masks: with skipping, the first
+                // run's too
+                let starts = raster_et::run_starts(
+                    plan.count,
+                    raster_skip.then(raster_et::skip_interval),
+                    s.early_termination.and(et).map(|_| et_interval),
+                );
+                let masked = |k: u32| (k > 0 || raster_skip) && starts.binary_search(&k).is_ok();
+                let mask = |enc: &mut wgpu::CommandEncoder, first: u32| {
                     if let Some((group, et)) = et {
-                        et.encode_mask(enc, group);
+                        et.encode_mask(enc, group, first);
                     }
                 };
+                // per slice: clear first (the first run's mask raises a cleared depth)
                 if per_slice {
-                    // clear once, then one pass per slice followed by the updates (and,
-                    // with early termination, a mask at the end of every run of slices)
                     drop(begin(enc, true));
+                }
+                // the chunk bits, in the pixels a slice can cover
+                let drawn = (0..plan.count).filter_map(|k| Some((slice_scissor(k)?, 0, 0)));
+                if raster_skip
+                    && let (Some((_, et)), Some(rect)) =
+                        (et, rect_union(&drawn.collect::<Vec<_>>()))
+                {
+                    let groups = [&self.g0, &g1, &g2[0]];
+                    et.encode_chunks(enc, p.chunks_pipeline(device), groups, rect);
+                }
+                if per_slice {
+                    // one pass per slice followed by the updates (and a mask before every
+                    // run of slices)
                     for k in 0..plan.count {
+                        if masked(k) {
+                            mask(enc, k);
+                        }
                         if let Some(&(_, a, b)) = slice_ranges.iter().find(|r| r.0 == k)
                             && let Some([x, y, w, h]) = slice_scissor(k)
                         {
@@ -4172,47 +4261,35 @@ impl Renderer {
                             }
                         }
                         run_updates(enc, k);
-                        if (k + 1) % et_interval == 0 && k + 1 < plan.count {
-                            mask(enc);
-                        }
                     }
                 } else {
-                    // one pass, or with early termination one per run of slices, each
-                    // followed by the mask
-                    let run_len = if et.is_some() {
-                        et_interval
-                    } else {
-                        plan.count.max(1)
+                    // one pass; with termination, a new one at every run whose mask
+                    // reads the eye buffer (a pass of its own); a mask that only skips
+                    // is drawn inside the pass, where the run's slices can be drawn
+                    let frame_rect = scissor.unwrap_or([0, 0, t.width, t.height]);
+                    let terminates = |k: u32| {
+                        s.early_termination.is_some()
+                            && et.is_some()
+                            && k > 0
+                            && k.is_multiple_of(et_interval)
                     };
-                    let runs = plan.count.div_ceil(run_len).max(1);
-                    for r in 0..runs {
-                        let (k0, k1) = (r * run_len, (r + 1) * run_len);
+                    let mut open: Option<wgpu::RenderPass<'static>> = None;
+                    for (r, &k0) in starts.iter().enumerate() {
+                        let k1 = starts.get(r + 1).copied().unwrap_or(plan.count);
                         let in_run = slice_ranges.iter().filter(|s| s.0 >= k0 && s.0 < k1);
-                        let a = in_run.clone().map(|s| s.1).min();
-                        let b = in_run.map(|s| s.2).max();
-                        let mut pass = begin(enc, r == 0);
-                        if let Some([x, y, w, h]) = scissor {
-                            pass.set_scissor_rect(x, y, w, h);
-                        }
-                        pass.set_bind_group(0, &self.g0, &[0]);
-                        pass.set_bind_group(1, &g1, &[]);
-                        pass.set_bind_group(2, &g2[0], &[]);
-                        pass.set_vertex_buffer(0, vbuf.slice(..));
+                        // the run's draws: each slice in the pixels it can cover, one draw
+                        // per run of neighbouring slices under the same scissor (the
+                        // rects are coarse so that neighbours share them; a draw costs
+                        // llvmpipe its set-up)
+                        let mut draws: Vec<([u32; 4], u32, u32)> = Vec::new();
                         if slice_rects.is_empty() {
+                            let a = in_run.clone().map(|s| s.1).min();
+                            let b = in_run.map(|s| s.2).max();
                             if let (Some(a), Some(b)) = (a, b) {
-                                for pipeline in &raster {
-                                    pass.set_pipeline(pipeline);
-                                    pass.draw(a..b, 0..1);
-                                }
+                                draws.push((frame_rect, a, b));
                             }
                         } else {
-                            // each slice in the pixels it can cover: one draw per run
-                            // of neighbouring slices under the same scissor (the
-                            // rects are coarse so that neighbours share them; a draw
-                            // costs llvmpipe its set-up)
-                            let mut draws: Vec<([u32; 4], u32, u32)> = Vec::new();
-                            for &(k, a, b) in slice_ranges.iter().filter(|s| s.0 >= k0 && s.0 < k1)
-                            {
+                            for &(k, a, b) in in_run {
                                 let Some(rect) = slice_scissor(k) else {
                                     continue;
                                 };
@@ -4221,19 +4298,36 @@ impl Renderer {
                                     _ => draws.push((rect, a, b)),
                                 }
                             }
-                            for ([x, y, w, h], a, b) in draws {
-                                pass.set_scissor_rect(x, y, w, h);
-                                for pipeline in &raster {
-                                    pass.set_pipeline(pipeline);
-                                    pass.draw(a..b, 0..1);
-                                }
+                        }
+                        let ends_pass = terminates(k0);
+                        if ends_pass || open.is_none() {
+                            drop(open.take());
+                            if ends_pass {
+                                mask(enc, k0);
+                            }
+                            open = Some(begin(enc, r == 0));
+                        }
+                        let pass = open.as_mut().expect("a slice pass is open");
+                        if raster_skip
+                            && !ends_pass
+                            && let (Some((groups, et)), Some(rect)) = (et, rect_union(&draws))
+                        {
+                            pass.set_scissor_rect(rect[0], rect[1], rect[2], rect[3]);
+                            et.draw_mask(pass, groups, k0);
+                        }
+                        pass.set_bind_group(0, &self.g0, &[0]);
+                        pass.set_bind_group(1, &g1, &[]);
+                        pass.set_bind_group(2, &g2[0], &[]);
+                        pass.set_vertex_buffer(0, vbuf.slice(..));
+                        for ([x, y, w, h], a, b) in draws {
+                            pass.set_scissor_rect(x, y, w, h);
+                            for pipeline in &raster {
+                                pass.set_pipeline(pipeline);
+                                pass.draw(a..b, 0..1);
                             }
                         }
-                        drop(pass);
-                        if r + 1 < runs {
-                            mask(enc);
-                        }
                     }
+                    drop(open);
                 }
                 // the post hooks: once per pixel on the accumulated colour
                 if let (Some((pipeline, layout)), Some((src, src_view))) =
@@ -4367,6 +4461,15 @@ impl Renderer {
             t.height,
             decode_rgba(&bytes, t.width, t.height, bpp),
         ))
+    }
+
+    /// The raster backend's chunk bits of the last frame that skipped empty space
+    /// ([`Renderer::set_raster_skipping`]): per pixel, row by row, bit j set where the
+    /// pixel's ray may meet a visible sample in slices j·c … j·c + c − 1, c = ⌈slices /
+    /// 64⌉ (`fs_raster_chunks` in shaders/slice.wgsl); `None` before such a frame. For
+    /// tests and diagnostics (a readback).
+    pub fn raster_chunk_bits(&self) -> Option<(u32, u32, Vec<u64>)> {
+        self.raster_et.as_ref()?.chunk_bits(&self.gpu)
     }
 
     /// Composites the eye buffer over `background` into an 8-bit RGBA texture (for

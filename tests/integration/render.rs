@@ -713,6 +713,188 @@ fn proxies_cut_to_occupied_space_cover_less_and_keep_the_image() {
     }
 }
 
+/// The raster backend's empty-space skipping (issue 23, item 2;
+/// `Renderer::set_raster_skipping`, on by default): the slices in front of a pixel's
+/// next visible brick fail the depth test, and the image stays the same bit for bit, in
+/// one pass and per slice (per-slice state), with a 2D transfer function, clipping and
+/// early termination. The chunk bits it skips by are neither empty nor full: most drawn
+/// pixels skip some chunks of slices.
+#[test]
+fn raster_skipping_keeps_the_image() {
+    let registry = registry();
+    for (preset, et) in [
+        ("demo.ron", None),
+        ("demo.ron", Some(0.99)),
+        ("demo_clip_labels.ron", None),
+        ("demo_dos.ron", Some(0.99)),
+        ("demo_tf2d.ron", None),
+    ] {
+        let doc = Document::load(&repo().join("presets").join(preset), &registry)
+            .unwrap()
+            .document;
+        let volume = vwb_lab::headless::load_volume(&doc.volume).unwrap();
+        let s = FrameSettings {
+            width: 96,
+            height: 96,
+            backend: Backend::Raster,
+            early_termination: et,
+            ..doc.frame_settings()
+        };
+        let mut images = Vec::new();
+        let mut bits = None;
+        for skip in [false, true] {
+            let mut r = Renderer::new(gpu(), volume.clone()).unwrap();
+            r.set_inputs(vwb_lab::headless::inputs_for(&doc).unwrap());
+            r.set_raster_skipping(skip);
+            r.update_stack(&doc.stack, doc.render.target).unwrap();
+            r.render(&s).unwrap();
+            images.push(r.read_pixels().unwrap().2);
+            bits = r.raster_chunk_bits();
+            assert_eq!(
+                bits.is_some(),
+                skip,
+                "{preset}: chunk bits only when skipping"
+            );
+        }
+        assert!(
+            mean_luma(&rgb(&images[1])) > 0.02,
+            "{preset} {et:?}: something is drawn"
+        );
+        let same = images[0]
+            .iter()
+            .zip(&images[1])
+            .filter(|(a, b)| a.map(f32::to_bits) == b.map(f32::to_bits))
+            .count();
+        assert_eq!(same, images[0].len(), "{preset} {et:?}: pixels the same");
+        let (w, h, bits) = bits.unwrap();
+        assert_eq!((w, h, bits.len()), (96, 96, 96 * 96));
+        // the pixels whose rays can meet something, and those that skip a chunk in their
+        // span of chunks (between their first and last set bit)
+        let drawn: Vec<u64> = bits.into_iter().filter(|&b| b != 0).collect();
+        let gaps = drawn
+            .iter()
+            .filter(|&&b| {
+                let span = 64 - b.leading_zeros() - b.trailing_zeros();
+                b.count_ones() < span || b.trailing_zeros() > 0
+            })
+            .count();
+        eprintln!(
+            "{preset} {et:?}: {} pixels' rays meet visible bricks, {gaps} skip chunks",
+            drawn.len()
+        );
+        assert!(
+            drawn.len() > 96 * 96 / 10,
+            "{preset}: {} pixels",
+            drawn.len()
+        );
+        assert!(
+            gaps * 2 > drawn.len(),
+            "{preset}: {gaps} of {}",
+            drawn.len()
+        );
+    }
+}
+
+/// The chunk bits of the raster backend's skipping: `mark_slices` (shaders/slice.wgsl)
+/// sets the chunks of a range of slices and `first_bit_from` (shaders/raster_mask.wgsl)
+/// finds the first set chunk from a slice's, as their 64-bit models say, for every
+/// range of slices up to 140 and 1–3 slices per chunk.
+#[test]
+fn raster_chunk_bits_mark_and_find_slices() {
+    use wgpu::util::DeviceExt;
+    const N: u32 = 140;
+    let function = |file: &str, name: &str| {
+        let start = file.find(&format!("fn {name}(")).expect("the function");
+        let len = file[start..].find("\n}\n").expect("its end") + 3;
+        file[start..start + len].to_string()
+    };
+    let source = format!(
+        "{}{}
+@group(0) @binding(0) var<storage, read_write> out: array<u32>;
+@compute @workgroup_size(64)
+fn main(@builtin(global_invocation_id) id: vec3<u32>) {{
+    let a = id.x;
+    let b = id.y;
+    let c = id.z + 1u;
+    if (a >= {N}u) {{
+        return;
+    }}
+    let bits = mark_slices(vec2<u32>(0u), a, b, c);
+    let i = ((id.z * {N}u + b) * {N}u + a) * 3u;
+    out[i] = bits.x;
+    out[i + 1u] = bits.y;
+    out[i + 2u] = first_bit_from(bits, (a * 7u + b) % 64u);
+}}",
+        function(include_str!("../../shaders/slice.wgsl"), "mark_slices"),
+        function(
+            include_str!("../../shaders/raster_mask.wgsl"),
+            "first_bit_from"
+        ),
+    );
+    let g = gpu();
+    let module = g.device.create_shader_module(wgpu::ShaderModuleDescriptor {
+        label: Some("chunk bits"),
+        source: wgpu::ShaderSource::Wgsl(source.into()),
+    });
+    let pipeline = g
+        .device
+        .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some("chunk bits"),
+            layout: None,
+            module: &module,
+            entry_point: Some("main"),
+            compilation_options: Default::default(),
+            cache: None,
+        });
+    let count = (3 * N * N * 3) as usize;
+    let bytes = (count * 4) as u64;
+    let out = g
+        .device
+        .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("chunk bits out"),
+            contents: &vec![0xffu8; count * 4],
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+        });
+    let read = g.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("chunk bits read"),
+        size: bytes,
+        usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    let bind = g.device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: None,
+        layout: &pipeline.get_bind_group_layout(0),
+        entries: &[wgpu::BindGroupEntry {
+            binding: 0,
+            resource: out.as_entire_binding(),
+        }],
+    });
+    let mut enc = g.device.create_command_encoder(&Default::default());
+    {
+        let mut pass = enc.begin_compute_pass(&Default::default());
+        pass.set_pipeline(&pipeline);
+        pass.set_bind_group(0, &bind, &[]);
+        pass.dispatch_workgroups(N.div_ceil(64), N, 3);
+    }
+    enc.copy_buffer_to_buffer(&out, 0, &read, 0, bytes);
+    g.queue.submit([enc.finish()]);
+    let values = read_back(g, &read, u32::from_le_bytes);
+    for c in 1..=3u32 {
+        for b in 0..N {
+            for a in 0..N {
+                let i = (((c - 1) * N + b) * N + a) as usize * 3;
+                let got = values[i] as u64 | (values[i + 1] as u64) << 32;
+                let (lo, hi) = (a / c, (b / c).min(63));
+                let want: u64 = (lo..=hi).filter(|&j| j < 64).map(|j| 1u64 << j).sum();
+                assert_eq!(got, want, "mark_slices({a}, {b}, {c})");
+                let j = (a * 7 + b) % 64;
+                let first = (j..64).find(|&k| want >> k & 1 == 1).unwrap_or(64);
+                assert_eq!(values[i + 2], first, "first_bit_from({want:#x}, {j})");
+            }
+        }
+    }
+}
+
 /// The compute backend's rays cut to the occupied bricks' hull ([`HullRays`]): by
 /// default (`Auto`) where it leaves air around the matter, as on the demo (its hull
 /// holds less than [`HULL_RAYS_SHARE`] of the visible box), with the image the same bit
