@@ -238,6 +238,59 @@ pub fn read_back<T>(g: &GpuContext, buffer: &wgpu::Buffer, word: fn([u8; 4]) -> 
     words
 }
 
+/// Runs the compute shader `source` (entry point `main`, its one binding
+/// `@group(0) @binding(0)` a storage array of `count` u32 words, all set to
+/// 0xFFFFFFFF first) over `groups` workgroups and returns the words it leaves.
+pub fn run_compute_words(g: &GpuContext, source: &str, count: usize, groups: [u32; 3]) -> Vec<u32> {
+    use wgpu::util::DeviceExt;
+    let module = g.device.create_shader_module(wgpu::ShaderModuleDescriptor {
+        label: Some("test kernel"),
+        source: wgpu::ShaderSource::Wgsl(source.into()),
+    });
+    let pipeline = g
+        .device
+        .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some("test kernel"),
+            layout: None,
+            module: &module,
+            entry_point: Some("main"),
+            compilation_options: Default::default(),
+            cache: None,
+        });
+    let bytes = (count * 4) as u64;
+    let out = g
+        .device
+        .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("test kernel out"),
+            contents: &vec![0xffu8; count * 4],
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+        });
+    let read = g.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("test kernel read"),
+        size: bytes,
+        usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    let bind = g.device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: None,
+        layout: &pipeline.get_bind_group_layout(0),
+        entries: &[wgpu::BindGroupEntry {
+            binding: 0,
+            resource: out.as_entire_binding(),
+        }],
+    });
+    let mut enc = g.device.create_command_encoder(&Default::default());
+    {
+        let mut pass = enc.begin_compute_pass(&Default::default());
+        pass.set_pipeline(&pipeline);
+        pass.set_bind_group(0, &bind, &[]);
+        pass.dispatch_workgroups(groups[0], groups[1], groups[2]);
+    }
+    enc.copy_buffer_to_buffer(&out, 0, &read, 0, bytes);
+    g.queue.submit([enc.finish()]);
+    read_back(g, &read, u32::from_le_bytes)
+}
+
 /// Renders and returns premultiplied pixels.
 pub fn render(
     r: &mut Renderer,

@@ -801,7 +801,6 @@ fn raster_skipping_keeps_the_image() {
 /// range of slices up to 140 and 1–3 slices per chunk.
 #[test]
 fn raster_chunk_bits_mark_and_find_slices() {
-    use wgpu::util::DeviceExt;
     const N: u32 = 140;
     let function = |file: &str, name: &str| {
         let start = file.find(&format!("fn {name}(")).expect("the function");
@@ -831,54 +830,8 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {{
             "first_bit_from"
         ),
     );
-    let g = gpu();
-    let module = g.device.create_shader_module(wgpu::ShaderModuleDescriptor {
-        label: Some("chunk bits"),
-        source: wgpu::ShaderSource::Wgsl(source.into()),
-    });
-    let pipeline = g
-        .device
-        .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-            label: Some("chunk bits"),
-            layout: None,
-            module: &module,
-            entry_point: Some("main"),
-            compilation_options: Default::default(),
-            cache: None,
-        });
     let count = (3 * N * N * 3) as usize;
-    let bytes = (count * 4) as u64;
-    let out = g
-        .device
-        .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("chunk bits out"),
-            contents: &vec![0xffu8; count * 4],
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-        });
-    let read = g.device.create_buffer(&wgpu::BufferDescriptor {
-        label: Some("chunk bits read"),
-        size: bytes,
-        usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-        mapped_at_creation: false,
-    });
-    let bind = g.device.create_bind_group(&wgpu::BindGroupDescriptor {
-        label: None,
-        layout: &pipeline.get_bind_group_layout(0),
-        entries: &[wgpu::BindGroupEntry {
-            binding: 0,
-            resource: out.as_entire_binding(),
-        }],
-    });
-    let mut enc = g.device.create_command_encoder(&Default::default());
-    {
-        let mut pass = enc.begin_compute_pass(&Default::default());
-        pass.set_pipeline(&pipeline);
-        pass.set_bind_group(0, &bind, &[]);
-        pass.dispatch_workgroups(N.div_ceil(64), N, 3);
-    }
-    enc.copy_buffer_to_buffer(&out, 0, &read, 0, bytes);
-    g.queue.submit([enc.finish()]);
-    let values = read_back(g, &read, u32::from_le_bytes);
+    let values = run_compute_words(gpu(), &source, count, [N.div_ceil(64), N, 3]);
     for c in 1..=3u32 {
         for b in 0..N {
             for a in 0..N {
@@ -1942,7 +1895,6 @@ fn workgroup_shapes_render_the_same_pixels() {
 /// holds between a third and two thirds of the image's top half.
 #[test]
 fn spread_rows_are_a_permutation() {
-    use wgpu::util::DeviceExt;
     const MAX_ROWS: u32 = 600;
     let template = include_str!("../../shaders/slice.wgsl");
     let start = template
@@ -1962,54 +1914,8 @@ fn main(@builtin(global_invocation_id) id: vec3<u32>) {{
 }}",
         &template[start..start + len]
     );
-    let g = gpu();
-    let module = g.device.create_shader_module(wgpu::ShaderModuleDescriptor {
-        label: Some("spread_row"),
-        source: wgpu::ShaderSource::Wgsl(source.into()),
-    });
-    let pipeline = g
-        .device
-        .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-            label: Some("spread_row"),
-            layout: None,
-            module: &module,
-            entry_point: Some("main"),
-            compilation_options: Default::default(),
-            cache: None,
-        });
     let count = (MAX_ROWS * (MAX_ROWS + 1) / 2) as usize;
-    let bytes = (count * 4) as u64;
-    let out = g
-        .device
-        .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("spread_row out"),
-            contents: &vec![0xffu8; count * 4],
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-        });
-    let read = g.device.create_buffer(&wgpu::BufferDescriptor {
-        label: Some("spread_row read"),
-        size: bytes,
-        usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-        mapped_at_creation: false,
-    });
-    let bind = g.device.create_bind_group(&wgpu::BindGroupDescriptor {
-        label: None,
-        layout: &pipeline.get_bind_group_layout(0),
-        entries: &[wgpu::BindGroupEntry {
-            binding: 0,
-            resource: out.as_entire_binding(),
-        }],
-    });
-    let mut enc = g.device.create_command_encoder(&Default::default());
-    {
-        let mut pass = enc.begin_compute_pass(&Default::default());
-        pass.set_pipeline(&pipeline);
-        pass.set_bind_group(0, &bind, &[]);
-        pass.dispatch_workgroups(MAX_ROWS.div_ceil(64), MAX_ROWS, 1);
-    }
-    enc.copy_buffer_to_buffer(&out, 0, &read, 0, bytes);
-    g.queue.submit([enc.finish()]);
-    let values = read_back(g, &read, u32::from_le_bytes);
+    let values = run_compute_words(gpu(), &source, count, [MAX_ROWS.div_ceil(64), MAX_ROWS, 1]);
     for rows in 1..=MAX_ROWS {
         let at = (rows * (rows - 1) / 2) as usize;
         let order = &values[at..at + rows as usize];
