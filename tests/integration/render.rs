@@ -622,6 +622,27 @@ fn raster_termination_tile_liveness() {
     }
 }
 
+/// A shipped preset, its volume and its frame at 96² on the raster backend, with early
+/// termination at `et`.
+fn raster_scene(
+    registry: &vwb_render::plugin::Registry,
+    preset: &str,
+    et: Option<f32>,
+) -> (Document, std::sync::Arc<vwb_render::Volume>, FrameSettings) {
+    let doc = Document::load(&repo().join("presets").join(preset), registry)
+        .unwrap()
+        .document;
+    let volume = vwb_lab::headless::load_volume(&doc.volume).unwrap();
+    let s = FrameSettings {
+        width: 96,
+        height: 96,
+        backend: Backend::Raster,
+        early_termination: et,
+        ..doc.frame_settings()
+    };
+    (doc, volume, s)
+}
+
 /// The raster backend's proxies cut to occupied space (issue 23, item 2): beyond the
 /// visible box (the occupied bricks' bounds), the polygons cut to the occupied bricks'
 /// hull (`HullProxy::Cut`, `render.hull_cut`) or to cells of bricks
@@ -637,16 +658,7 @@ fn proxies_cut_to_occupied_space_cover_less_and_keep_the_image() {
         "demo_dos.ron",
         "demo_tf2d.ron",
     ] {
-        let doc = Document::load(&repo().join("presets").join(preset), &registry)
-            .unwrap()
-            .document;
-        let volume = vwb_lab::headless::load_volume(&doc.volume).unwrap();
-        let s = FrameSettings {
-            width: 96,
-            height: 96,
-            backend: Backend::Raster,
-            ..doc.frame_settings()
-        };
+        let (doc, volume, s) = raster_scene(&registry, preset, None);
         let mut images = Vec::new();
         let mut shares = Vec::new();
         // the visible box, the hull, the cells
@@ -729,17 +741,7 @@ fn raster_skipping_keeps_the_image() {
         ("demo_dos.ron", Some(0.99)),
         ("demo_tf2d.ron", None),
     ] {
-        let doc = Document::load(&repo().join("presets").join(preset), &registry)
-            .unwrap()
-            .document;
-        let volume = vwb_lab::headless::load_volume(&doc.volume).unwrap();
-        let s = FrameSettings {
-            width: 96,
-            height: 96,
-            backend: Backend::Raster,
-            early_termination: et,
-            ..doc.frame_settings()
-        };
+        let (doc, volume, s) = raster_scene(&registry, preset, et);
         let mut images = Vec::new();
         let mut bits = None;
         for skip in [false, true] {
