@@ -424,7 +424,7 @@ fn raster_pipeline(
 }
 
 /// A full-screen pass (one triangle from `entries.0`, no vertex buffers, group 0 of
-/// `layout_entries`): the bricks' compositing and the raster backend's termination mask.
+/// `layout_entries`): the bricks' compositing.
 fn fullscreen_pipeline(
     device: &wgpu::Device,
     label: &str,
@@ -447,11 +447,32 @@ fn fullscreen_pipeline(
         bind_group_layouts: &[Some(&layout)],
         immediate_size: 0,
     });
-    let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+    let pipeline = fullscreen_render_pipeline(
+        device,
+        label,
+        (&module, &pl),
+        entries,
+        targets,
+        depth_stencil,
+    );
+    (pipeline, layout)
+}
+
+/// The render pipeline of a full-screen pass of `module` and `layout` (no vertex
+/// buffers; `entries` the vertex and fragment entry points).
+fn fullscreen_render_pipeline(
+    device: &wgpu::Device,
+    label: &str,
+    (module, layout): (&wgpu::ShaderModule, &wgpu::PipelineLayout),
+    entries: (&str, &str),
+    targets: &[Option<wgpu::ColorTargetState>],
+    depth_stencil: Option<wgpu::DepthStencilState>,
+) -> wgpu::RenderPipeline {
+    device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
         label: Some(label),
-        layout: Some(&pl),
+        layout: Some(layout),
         vertex: wgpu::VertexState {
-            module: &module,
+            module,
             entry_point: Some(entries.0),
             compilation_options: Default::default(),
             buffers: &[],
@@ -460,15 +481,14 @@ fn fullscreen_pipeline(
         depth_stencil,
         multisample: Default::default(),
         fragment: Some(wgpu::FragmentState {
-            module: &module,
+            module,
             entry_point: Some(entries.1),
             compilation_options: Default::default(),
             targets,
         }),
         multiview_mask: None,
         cache: None,
-    });
-    (pipeline, layout)
+    })
 }
 
 /// Whether the benchmark switch `name` is on: unless it is set to `0` (the defaults of
@@ -736,15 +756,20 @@ struct CompiledPass {
     sweep_binding: Option<u32>,
 }
 
-/// The smallest scissor [x, y, w, h] holding those of `draws` (none without draws).
-fn rect_union(draws: &[([u32; 4], u32, u32)]) -> Option<[u32; 4]> {
-    let (x0, y0) = draws
-        .iter()
-        .map(|d| (d.0[0], d.0[1]))
-        .reduce(|a, b| (a.0.min(b.0), a.1.min(b.1)))?;
-    let x1 = draws.iter().map(|d| d.0[0] + d.0[2]).max()?;
-    let y1 = draws.iter().map(|d| d.0[1] + d.0[3]).max()?;
-    Some([x0, y0, x1 - x0, y1 - y0])
+/// The smallest scissor [x, y, w, h] holding all of `rects` (none without rects).
+fn rect_union(rects: impl IntoIterator<Item = [u32; 4]>) -> Option<[u32; 4]> {
+    rects
+        .into_iter()
+        .map(|[x, y, w, h]| [x, y, x + w, y + h])
+        .reduce(|a, b| {
+            [
+                a[0].min(b[0]),
+                a[1].min(b[1]),
+                a[2].max(b[2]),
+                a[3].max(b[3]),
+            ]
+        })
+        .map(|[x0, y0, x1, y1]| [x0, y0, x1 - x0, y1 - y0])
 }
 
 /// The pixels [x0, y0, x1, y1) of a `size` frame that the box `b` can cover: its
@@ -4231,10 +4256,9 @@ impl Renderer {
                     drop(begin(enc, true));
                 }
                 // the chunk bits, in the pixels a slice can cover
-                let drawn = (0..plan.count).filter_map(|k| Some((slice_scissor(k)?, 0, 0)));
                 if raster_skip
                     && let (Some((_, et)), Some(rect)) =
-                        (et, rect_union(&drawn.collect::<Vec<_>>()))
+                        (et, rect_union((0..plan.count).filter_map(slice_scissor)))
                 {
                     let groups = [&self.g0, &g1, &g2[0]];
                     et.encode_chunks(enc, p.chunks_pipeline(device), groups, rect);
@@ -4310,7 +4334,8 @@ impl Renderer {
                         let pass = open.as_mut().expect("a slice pass is open");
                         if raster_skip
                             && !ends_pass
-                            && let (Some((groups, et)), Some(rect)) = (et, rect_union(&draws))
+                            && let (Some((groups, et)), Some(rect)) =
+                                (et, rect_union(draws.iter().map(|d| d.0)))
                         {
                             pass.set_scissor_rect(rect[0], rect[1], rect[2], rect[3]);
                             et.draw_mask(pass, groups, k0);

@@ -433,36 +433,24 @@ fn mask_pipeline(
     target: Option<wgpu::ColorTargetState>,
 ) -> wgpu::RenderPipeline {
     let target = target.map(Some);
-    device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-        label: Some("vwb raster mask"),
-        layout: Some(layout),
-        vertex: wgpu::VertexState {
-            module,
-            entry_point: Some("vs_mask"),
-            compilation_options: Default::default(),
-            buffers: &[],
+    let depth = wgpu::DepthStencilState {
+        format: DEPTH_FORMAT,
+        depth_write_enabled: Some(true),
+        depth_compare: Some(wgpu::CompareFunction::GreaterEqual),
+        stencil: Default::default(),
+        bias: Default::default(),
+    };
+    fullscreen_render_pipeline(
+        device,
+        "vwb raster mask",
+        (module, layout),
+        ("vs_mask", "fs_mask"),
+        match &target {
+            Some(t) => std::slice::from_ref(t),
+            None => &[],
         },
-        primitive: Default::default(),
-        depth_stencil: Some(wgpu::DepthStencilState {
-            format: DEPTH_FORMAT,
-            depth_write_enabled: Some(true),
-            depth_compare: Some(wgpu::CompareFunction::GreaterEqual),
-            stencil: Default::default(),
-            bias: Default::default(),
-        }),
-        multisample: Default::default(),
-        fragment: Some(wgpu::FragmentState {
-            module,
-            entry_point: Some("fs_mask"),
-            compilation_options: Default::default(),
-            targets: match &target {
-                Some(t) => std::slice::from_ref(t),
-                None => &[],
-            },
-        }),
-        multiview_mask: None,
-        cache: None,
-    })
+        Some(depth),
+    )
 }
 
 /// The pipeline of the chunk bits (`fs_raster_chunks` over a full-screen triangle).
@@ -471,27 +459,14 @@ pub(super) fn chunks_pipeline(
     module: &wgpu::ShaderModule,
     layout: &wgpu::PipelineLayout,
 ) -> wgpu::RenderPipeline {
-    device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-        label: Some("vwb raster chunk bits"),
-        layout: Some(layout),
-        vertex: wgpu::VertexState {
-            module,
-            entry_point: Some("vs_post"),
-            compilation_options: Default::default(),
-            buffers: &[],
-        },
-        primitive: Default::default(),
-        depth_stencil: None,
-        multisample: Default::default(),
-        fragment: Some(wgpu::FragmentState {
-            module,
-            entry_point: Some("fs_raster_chunks"),
-            compilation_options: Default::default(),
-            targets: &[Some(CHUNKS_FORMAT.into())],
-        }),
-        multiview_mask: None,
-        cache: None,
-    })
+    fullscreen_render_pipeline(
+        device,
+        "vwb raster chunk bits",
+        (module, layout),
+        ("vs_post", "fs_raster_chunks"),
+        &[Some(CHUNKS_FORMAT.into())],
+        None,
+    )
 }
 
 #[cfg(test)]
