@@ -127,9 +127,10 @@ struct SliceInfo {
 @group(0) @binding(2) var linear_clamp: sampler;
 @group(0) @binding(3) var nearest_clamp: sampler;
 @group(0) @binding(4) var<uniform> slice_info: SliceInfo;
-// Empty-space skipping: per brick of frame.settings.y voxels, > 0.5 where a sample can
-// be visible (render/src/skipping.rs).
-@group(0) @binding(5) var occupancy: texture_3d<f32>;
+// Empty-space skipping: per brick of frame.settings.y voxels, a bit set where a sample
+// can be visible (render/src/skipping.rs); the grid's dims in words 0–2, the bits from
+// word 4, x fastest (`upload_occupancy` in render/src/renderer.rs).
+@group(0) @binding(5) var<storage, read> occupancy: array<u32>;
 // The tiles of every slice that `slice_info` lists, x | y << 16.
 @group(0) @binding(6) var<storage, read> slice_tile_list: array<u32>;
 
@@ -187,29 +188,46 @@ fn cut_gradient(g: vec3<f32>) -> vec3<f32> {
     return g;
 }
 
-// The brick of side frame.settings.y voxels holding `tex` (while skipping is on), as
-// grid coordinates: the one index `brick_visible` and the march's brick exit share.
-// The scale is a quotient of uniforms, which the compiler computes once per ray, not
-// per lookup (on lavapipe the lookup runs in most iterations for some lane of a SIMD
-// vector, and its divisions were part of the 11 % of an unshaded frame it cost:
-// docs/perf.md, "Pixel blocks per SIMD vector, rows spread over the threads, and brick
-// lookups without divisions"). Rounding may put a sample on a brick's face into its
-// neighbour, which is exact: a brick's range includes a one-voxel apron
-// (render/src/skipping.rs).
-fn brick_of(tex: vec3<f32>) -> vec3<f32> {
-    return floor(tex * (frame.volume_dims.xyz / frame.settings.y));
+// The brick grid of empty-space skipping (bricks of side frame.settings.y voxels), as
+// values a ray computes once before its loop (`brick_grid`): written out per lookup,
+// its quotients of uniforms stayed in the loop as divisions on lavapipe (the lookup
+// runs in most iterations for some lane of a SIMD vector; docs/perf.md, "A ray's
+// samples as one run").
+struct BrickGrid {
+    // grid coordinates per texture unit (volume_dims / side)
+    scale: vec3<f32>,
+    // a brick's side in texture units (side / volume_dims)
+    side: vec3<f32>,
+    // the occupancy grid's size in bricks
+    dims: vec3<u32>,
+}
+
+fn brick_grid() -> BrickGrid {
+    var g: BrickGrid;
+    g.scale = frame.volume_dims.xyz / frame.settings.y;
+    g.side = frame.settings.y / frame.volume_dims.xyz;
+    g.dims = vec3<u32>(occupancy[0], occupancy[1], occupancy[2]);
+    return g;
+}
+
+// The brick holding `tex` (while skipping is on), as grid coordinates: the one index
+// `brick_visible` and the march's brick exit share. Rounding may put a sample on a
+// brick's face into its neighbour, which is exact: a brick's range includes a
+// one-voxel apron (render/src/skipping.rs).
+fn brick_of(g: BrickGrid, tex: vec3<f32>) -> vec3<f32> {
+    return floor(tex * g.scale);
 }
 
 // False where the brick holding `tex` cannot produce a visible sample (its hooks can
 // be skipped: the contribution would be exactly zero). Always true while skipping is
 // off (frame.settings.y = 0).
-fn brick_visible(tex: vec3<f32>) -> bool {
+fn brick_visible(g: BrickGrid, tex: vec3<f32>) -> bool {
     if (frame.settings.y <= 0.0) {
         return true;
     }
-    let dims = vec3<i32>(textureDimensions(occupancy));
-    let brick = vec3<i32>(brick_of(tex));
-    return textureLoad(occupancy, clamp(brick, vec3<i32>(0), dims - vec3<i32>(1)), 0).r > 0.5;
+    let b = vec3<u32>(clamp(brick_of(g, tex), vec3<f32>(0.0), vec3<f32>(g.dims - vec3<u32>(1u))));
+    let i = b.x + g.dims.x * (b.y + g.dims.y * b.z);
+    return (occupancy[4u + (i >> 5u)] & (1u << (i & 31u))) != 0u;
 }
 
 // Scalar at a texture coordinate (trilinear).

@@ -976,10 +976,11 @@ pub fn main_workgroup(gpu: &crate::gpu::GpuContext, requested: Option<[u32; 2]>)
 /// The shape chosen on CPU devices (lavapipe).
 pub const CPU_WORKGROUP: [u32; 2] = [8, 8];
 
-/// The composed module with `cs_main`, `cs_main_skip` and `cs_main_raw` (every entry
-/// point whose name begins with `cs_main`) in workgroups of `wg` (the template declares
-/// [`MAIN_WORKGROUP`]), and the template's `MAIN_WG`, from which those entry points
-/// place their pixels, set to the same shape; the other entry points keep theirs.
+/// The composed module with `cs_main`, `cs_main_skip`, `cs_main_skip_long` and
+/// `cs_main_raw` (every entry point whose name begins with `cs_main`) in workgroups of
+/// `wg` (the template declares [`MAIN_WORKGROUP`]), and the template's `MAIN_WG`, from
+/// which those entry points place their pixels, set to the same shape; the other entry
+/// points keep theirs.
 pub fn with_main_workgroup(source: &str, wg: [u32; 2]) -> std::borrow::Cow<'_, str> {
     if wg == MAIN_WORKGROUP {
         return source.into();

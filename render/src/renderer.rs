@@ -288,6 +288,13 @@ impl HullRays {
     }
 }
 
+/// Most slices a frame may have for the whole-frame march with empty-space skipping
+/// to cross runs of empty bricks in a loop nested in its loop (`cs_main_skip`); beyond,
+/// `cs_main_skip_long` jumps once per iteration. llvmpipe stops a shader invocation
+/// after 65 535 loop iterations over all its loops, and the nested loop costs one per
+/// iteration of the march (shaders/slice.wgsl, `march`).
+pub const NESTED_MARCH_MAX_SLICES: u32 = 30_000;
+
 /// [`HullRays::Auto`] cuts the compute backend's rays to the occupied bricks' hull where
 /// it holds less than this share of the visible box (the heads and the demo 0.72–0.77,
 /// the nuclei 0.99, the ocean 1.0; docs/perf.md, "The compute backend's rays cut to the
@@ -676,6 +683,9 @@ struct CompiledStack {
     compute_layout: wgpu::PipelineLayout,
     /// `cs_main_raw` ([`Renderer::set_raw_samples`]), built on first use.
     cs_main_raw: std::sync::OnceLock<wgpu::ComputePipeline>,
+    /// `cs_main_skip_long`, for frames of more than [`NESTED_MARCH_MAX_SLICES`], built
+    /// on first use.
+    cs_main_skip_long: std::sync::OnceLock<wgpu::ComputePipeline>,
     target: TargetFormat,
     cs_main: wgpu::ComputePipeline,
     /// `cs_main` with empty-space skipping.
@@ -731,15 +741,29 @@ impl CompiledStack {
 
     /// `cs_main_raw`, built on first use.
     fn raw_pipeline(&self, device: &wgpu::Device) -> &wgpu::ComputePipeline {
-        self.cs_main_raw.get_or_init(|| {
-            device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                label: Some("cs_main_raw"),
-                layout: Some(&self.compute_layout),
-                module: &self.module,
-                entry_point: Some("cs_main_raw"),
-                compilation_options: Default::default(),
-                cache: None,
-            })
+        self.cs_main_raw
+            .get_or_init(|| self.main_pipeline(device, "cs_main_raw"))
+    }
+
+    /// The whole-frame march with empty-space skipping for a frame of `count` slices:
+    /// `cs_main_skip`, or beyond [`NESTED_MARCH_MAX_SLICES`] `cs_main_skip_long`
+    /// (built on first use).
+    fn skip_pipeline(&self, device: &wgpu::Device, count: u32) -> &wgpu::ComputePipeline {
+        if count <= NESTED_MARCH_MAX_SLICES {
+            return &self.cs_main_skip;
+        }
+        self.cs_main_skip_long
+            .get_or_init(|| self.main_pipeline(device, "cs_main_skip_long"))
+    }
+
+    fn main_pipeline(&self, device: &wgpu::Device, entry: &str) -> wgpu::ComputePipeline {
+        device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some(entry),
+            layout: Some(&self.compute_layout),
+            module: &self.module,
+            entry_point: Some(entry),
+            compilation_options: Default::default(),
+            cache: None,
         })
     }
 }
@@ -1109,7 +1133,7 @@ pub struct Renderer {
     /// Value range per brick of the volume (empty-space skipping).
     bricks: BrickRanges,
     /// Occupancy per brick for the current stack (1×1×1 "visible" when skipping is off).
-    occupancy: (wgpu::Texture, wgpu::TextureView),
+    occupancy: wgpu::Buffer,
     /// The occupancy bytes uploaded, when skipping is active.
     occupancy_bytes: Option<Vec<u8>>,
     /// The stack the occupancy was made for, and the apron of the brick ranges it was
@@ -1402,7 +1426,10 @@ impl Renderer {
                 sampler_entry(2, fc),
                 sampler_entry(3, fc),
                 uniform_entry(4, fc, true),
-                texture3d_entry(5, fc),
+                wgpu::BindGroupLayoutEntry {
+                    visibility: fc,
+                    ..storage_buffer_entry(5, true)
+                },
                 storage_buffer_entry(6, true),
             ],
         });
@@ -1427,7 +1454,7 @@ impl Renderer {
             &linear,
             &nearest,
             [&slice_info, &no_tile_list],
-            &occupancy.1,
+            &occupancy,
         );
         let mut r = Self {
             gpu: gpu.clone(),
@@ -1485,7 +1512,7 @@ impl Renderer {
             dump_dir: std::env::var_os("VWB_SHADER_DUMP").map(Into::into),
             slice_spacing: 1.0,
             refinement_budget: None,
-            dummy_3d: upload_occupancy(gpu, [1, 1, 1], &[0]),
+            dummy_3d: crate::gpu::upload_r8_3d(device, &gpu.queue, "vwb dummy 3d", [1, 1, 1], &[0]),
             brick_limit,
             max_brick_bytes,
             level,
@@ -1943,7 +1970,7 @@ impl Renderer {
         self.g0 = self.g0_with(
             &self.frame_buf,
             [&self.slice_info, &self.no_tile_list],
-            &self.occupancy.1,
+            &self.occupancy,
         );
     }
 
@@ -1953,7 +1980,7 @@ impl Renderer {
         &self,
         frame: &wgpu::Buffer,
         slices: [&wgpu::Buffer; 2],
-        occupancy: &wgpu::TextureView,
+        occupancy: &wgpu::Buffer,
     ) -> wgpu::BindGroup {
         make_g0(
             &self.gpu.device,
@@ -2697,6 +2724,7 @@ impl Renderer {
             raster_layout,
             compute_layout,
             cs_main_raw: std::sync::OnceLock::new(),
+            cs_main_skip_long: std::sync::OnceLock::new(),
             post,
             target,
             cs_main,
@@ -4202,7 +4230,7 @@ impl Renderer {
             .flatten();
         let g0_exit = exit
             .as_ref()
-            .map(|x| self.g0_with(&self.frame_buf, [&x.info, &x.list], &self.occupancy.1));
+            .map(|x| self.g0_with(&self.frame_buf, [&x.info, &x.list], &self.occupancy));
         let run_updates = |enc: &mut wgpu::CommandEncoder, k: u32| {
             let g0 = g0_exit.as_ref().unwrap_or(&self.g0);
             let groups = [g0, &g1, &g2[(k % 2) as usize], &g3];
@@ -4412,7 +4440,7 @@ impl Renderer {
                     pass.set_pipeline(if self.raw_samples {
                         p.raw_pipeline(&self.gpu.device)
                     } else if self.occupancy_bytes.is_some() {
-                        &p.cs_main_skip
+                        p.skip_pipeline(&self.gpu.device, plan.count)
                     } else {
                         &p.cs_main
                     });
@@ -4789,7 +4817,7 @@ fn make_g0(
     linear: &wgpu::Sampler,
     nearest: &wgpu::Sampler,
     [slice_info, tile_list]: [&wgpu::Buffer; 2],
-    occupancy: &wgpu::TextureView,
+    occupancy: &wgpu::Buffer,
 ) -> wgpu::BindGroup {
     device.create_bind_group(&wgpu::BindGroupDescriptor {
         label: Some("vwb group 0"),
@@ -4821,7 +4849,7 @@ fn make_g0(
             },
             wgpu::BindGroupEntry {
                 binding: 5,
-                resource: wgpu::BindingResource::TextureView(occupancy),
+                resource: occupancy.as_entire_binding(),
             },
             wgpu::BindGroupEntry {
                 binding: 6,
@@ -4831,13 +4859,28 @@ fn make_g0(
     })
 }
 
-/// Uploads brick occupancy bytes (255 = may be visible) as an R8Unorm 3D texture.
-fn upload_occupancy(
-    gpu: &GpuContext,
-    dims: [u32; 3],
-    bytes: &[u8],
-) -> (wgpu::Texture, wgpu::TextureView) {
-    crate::gpu::upload_r8_3d(&gpu.device, &gpu.queue, "vwb brick occupancy", dims, bytes)
+/// Uploads brick occupancy bytes (255 = may be visible) as the storage buffer
+/// `occupancy` of shaders/common.wgsl: the grid's dims in words 0–2, then one bit per
+/// brick (x fastest) from word 4. A bit costs a load, a shift and a mask where the
+/// R8Unorm 3D texture it replaced cost a texel fetch that lavapipe runs with a level
+/// per lane, about 200 instructions (docs/perf.md, "A ray's samples as one run").
+fn upload_occupancy(gpu: &GpuContext, dims: [u32; 3], bytes: &[u8]) -> wgpu::Buffer {
+    gpu.device
+        .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("vwb brick occupancy"),
+            contents: bytemuck::cast_slice(&occupancy_words(dims, bytes)),
+            usage: wgpu::BufferUsages::STORAGE,
+        })
+}
+
+/// The words of [`upload_occupancy`]'s buffer: a byte above 127 sets its brick's bit.
+pub(crate) fn occupancy_words(dims: [u32; 3], bytes: &[u8]) -> Vec<u32> {
+    let mut words = vec![dims[0], dims[1], dims[2], 0];
+    words.resize(4 + bytes.len().div_ceil(32), 0);
+    for (i, _) in bytes.iter().enumerate().filter(|(_, b)| **b > 127) {
+        words[4 + i / 32] |= 1 << (i % 32);
+    }
+    words
 }
 
 /// Uploads the normalised scalar volume as `format` ([`VolumeFormat::texture_format`]).
@@ -4926,4 +4969,31 @@ fn read_buffer(gpu: &GpuContext, buf: &wgpu::Buffer, size: u64) -> Vec<u8> {
     };
     buf.unmap();
     data
+}
+
+#[cfg(test)]
+mod tests {
+    /// The occupancy buffer's words: the grid's dims, a pad word, then bit i of word
+    /// 4 + i / 32 set exactly where byte i is above 127 (the shader's `brick_visible`
+    /// reads bit i at brick x + dx·(y + dy·z)), with a partial last word.
+    #[test]
+    fn occupancy_words_hold_one_bit_per_brick() {
+        let dims = [5u32, 4, 3];
+        let bytes: Vec<u8> = (0..60u32)
+            .map(|i| match i % 7 {
+                0 => 255,
+                3 => 128,
+                5 => 127,
+                _ => 0,
+            })
+            .collect();
+        let words = super::occupancy_words(dims, &bytes);
+        assert_eq!(&words[..4], &[5, 4, 3, 0]);
+        assert_eq!(words.len(), 4 + 2);
+        for (i, b) in bytes.iter().enumerate() {
+            let bit = words[4 + i / 32] >> (i % 32) & 1;
+            assert_eq!(bit == 1, *b > 127, "brick {i}: byte {b}, bit {bit}");
+        }
+        assert_eq!(words[5] >> 28, 0, "bits past the last brick stay clear");
+    }
 }

@@ -127,9 +127,10 @@ struct SliceInfo {
 @group(0) @binding(2) var linear_clamp: sampler;
 @group(0) @binding(3) var nearest_clamp: sampler;
 @group(0) @binding(4) var<uniform> slice_info: SliceInfo;
-// Empty-space skipping: per brick of frame.settings.y voxels, > 0.5 where a sample can
-// be visible (render/src/skipping.rs).
-@group(0) @binding(5) var occupancy: texture_3d<f32>;
+// Empty-space skipping: per brick of frame.settings.y voxels, a bit set where a sample
+// can be visible (render/src/skipping.rs); the grid's dims in words 0–2, the bits from
+// word 4, x fastest (`upload_occupancy` in render/src/renderer.rs).
+@group(0) @binding(5) var<storage, read> occupancy: array<u32>;
 // The tiles of every slice that `slice_info` lists, x | y << 16.
 @group(0) @binding(6) var<storage, read> slice_tile_list: array<u32>;
 
@@ -187,29 +188,46 @@ fn cut_gradient(g: vec3<f32>) -> vec3<f32> {
     return g;
 }
 
-// The brick of side frame.settings.y voxels holding `tex` (while skipping is on), as
-// grid coordinates: the one index `brick_visible` and the march's brick exit share.
-// The scale is a quotient of uniforms, which the compiler computes once per ray, not
-// per lookup (on lavapipe the lookup runs in most iterations for some lane of a SIMD
-// vector, and its divisions were part of the 11 % of an unshaded frame it cost:
-// docs/perf.md, "Pixel blocks per SIMD vector, rows spread over the threads, and brick
-// lookups without divisions"). Rounding may put a sample on a brick's face into its
-// neighbour, which is exact: a brick's range includes a one-voxel apron
-// (render/src/skipping.rs).
-fn brick_of(tex: vec3<f32>) -> vec3<f32> {
-    return floor(tex * (frame.volume_dims.xyz / frame.settings.y));
+// The brick grid of empty-space skipping (bricks of side frame.settings.y voxels), as
+// values a ray computes once before its loop (`brick_grid`): written out per lookup,
+// its quotients of uniforms stayed in the loop as divisions on lavapipe (the lookup
+// runs in most iterations for some lane of a SIMD vector; docs/perf.md, "A ray's
+// samples as one run").
+struct BrickGrid {
+    // grid coordinates per texture unit (volume_dims / side)
+    scale: vec3<f32>,
+    // a brick's side in texture units (side / volume_dims)
+    side: vec3<f32>,
+    // the occupancy grid's size in bricks
+    dims: vec3<u32>,
+}
+
+fn brick_grid() -> BrickGrid {
+    var g: BrickGrid;
+    g.scale = frame.volume_dims.xyz / frame.settings.y;
+    g.side = frame.settings.y / frame.volume_dims.xyz;
+    g.dims = vec3<u32>(occupancy[0], occupancy[1], occupancy[2]);
+    return g;
+}
+
+// The brick holding `tex` (while skipping is on), as grid coordinates: the one index
+// `brick_visible` and the march's brick exit share. Rounding may put a sample on a
+// brick's face into its neighbour, which is exact: a brick's range includes a
+// one-voxel apron (render/src/skipping.rs).
+fn brick_of(g: BrickGrid, tex: vec3<f32>) -> vec3<f32> {
+    return floor(tex * g.scale);
 }
 
 // False where the brick holding `tex` cannot produce a visible sample (its hooks can
 // be skipped: the contribution would be exactly zero). Always true while skipping is
 // off (frame.settings.y = 0).
-fn brick_visible(tex: vec3<f32>) -> bool {
+fn brick_visible(g: BrickGrid, tex: vec3<f32>) -> bool {
     if (frame.settings.y <= 0.0) {
         return true;
     }
-    let dims = vec3<i32>(textureDimensions(occupancy));
-    let brick = vec3<i32>(brick_of(tex));
-    return textureLoad(occupancy, clamp(brick, vec3<i32>(0), dims - vec3<i32>(1)), 0).r > 0.5;
+    let b = vec3<u32>(clamp(brick_of(g, tex), vec3<f32>(0.0), vec3<f32>(g.dims - vec3<u32>(1u))));
+    let i = b.x + g.dims.x * (b.y + g.dims.y * b.z);
+    return (occupancy[4u + (i >> 5u)] & (1u << (i & 31u))) != 0u;
 }
 
 // Scalar at a texture coordinate (trilinear).
@@ -849,6 +867,7 @@ fn fs_raster_chunks(@builtin(position) pos: vec4<f32>) -> @location(0) vec2<u32>
     let c = chunk_slices();
     let tiny = vec3<f32>(1.0e-20);
     let inv_dtex = 1.0 / select(rs.dtex, tiny, abs(rs.dtex) < tiny);
+    let grid = brick_grid();
     var bits = vec2<u32>(0u);
     var k = range.x;
     loop {
@@ -860,9 +879,9 @@ fn fs_raster_chunks(@builtin(position) pos: vec4<f32>) -> @location(0) vec2<u32>
         // that one inside it); outside the box, one slice at a time
         var next = k + 1u;
         if (in_own_box(rs.p0 + f32(k) * rs.dp)) {
-            next = max(brick_exit_slice(rs, inv_dtex, tex) + 1u, next);
+            next = max(brick_exit_slice(rs, inv_dtex, grid, tex) + 1u, next);
         }
-        if (brick_visible(clamp(tex, vec3<f32>(0.0), vec3<f32>(1.0)))) {
+        if (brick_visible(grid, clamp(tex, vec3<f32>(0.0), vec3<f32>(1.0)))) {
             bits = mark_slices(bits, max(k, 1u) - 1u, next, c);
         }
         k = next;
@@ -959,6 +978,24 @@ fn slice_point_in(rs: RaySlices, k: u32) -> bool {
     return t >= 0.0 && in_own_box(rs.p0 + f32(k) * rs.dp);
 }
 
+// The slices of `range` that are samples (`slice_point_in`): [first, end). They are
+// one run: each of the test's conditions is monotone in k (t and the point's
+// coordinates are f32(k) times a constant plus a constant, and rounding keeps the
+// order), so the samples of a range lie between its first and its last. The loops
+// step over the range's rounding margins with the test alone, where the march would
+// pay a whole iteration per slice (a SIMD vector of rays runs its body under a mask).
+fn sample_run(rs: RaySlices, range: vec2<u32>) -> vec2<u32> {
+    var first = range.x;
+    while (first < range.y && !slice_point_in(rs, first)) {
+        first = first + 1u;
+    }
+    var end = range.y;
+    while (end > first && !slice_point_in(rs, end - 1u)) {
+        end = end - 1u;
+    }
+    return vec2<u32>(first, end);
+}
+
 // The sample of slice k on the ray (at a point `slice_point_in` accepted).
 fn slice_sample(r: Ray, rs: RaySlices, uv: vec2<f32>, k: u32) -> Sample {
     var s = make_sample(rs.p0 + f32(k) * rs.dp, r.dir, uv, k);
@@ -1052,14 +1089,13 @@ fn slice_range(r: Ray, hull: bool) -> vec2<u32> {
 // space, where the ray's samples lie at tex0 + k·dtex (`RaySlices`): the slice k at
 // which the ray leaves the brick's box is the least over the axes of the larger of
 // the two faces' (face − tex0) / dtex; `inv_dtex` is the ray's 1 / dtex (a tiny step
-// in place of a zero one), so the exit costs no division: the brick's side in texture
-// units is a quotient of uniforms, computed once per ray like `brick_of`'s scale.
-fn brick_exit_slice(rs: RaySlices, inv_dtex: vec3<f32>, tex: vec3<f32>) -> u32 {
+// in place of a zero one), so the exit costs no division (the brick's side in texture
+// units comes with the ray's `BrickGrid`).
+fn brick_exit_slice(rs: RaySlices, inv_dtex: vec3<f32>, g: BrickGrid, tex: vec3<f32>) -> u32 {
     // the brick `brick_visible` looks up
-    let side = frame.settings.y / frame.volume_dims.xyz;
-    let brick = brick_of(tex);
-    let lo = brick * side;
-    let hi = min((brick + 1.0) * side, vec3<f32>(1.0));
+    let brick = brick_of(g, tex);
+    let lo = brick * g.side;
+    let hi = min((brick + 1.0) * g.side, vec3<f32>(1.0));
     let ka = (lo - rs.tex0) * inv_dtex;
     let kb = (hi - rs.tex0) * inv_dtex;
     let k = floor(min(min(max(ka.x, kb.x), max(ka.y, kb.y)), max(ka.z, kb.z)) - 0.01);
@@ -1073,16 +1109,25 @@ fn brick_exit_slice(rs: RaySlices, inv_dtex: vec3<f32>, tex: vec3<f32>) -> u32 {
 @group(3) @binding(0) var out_tex: texture_storage_2d<rgba16float, write>;
 @group(3) @binding(1) var<storage, read_write> accum: array<vec4<f32>>;
 
-// Front to back over the slices the ray can meet. With `skipping`, a sample in an
+// Front to back over the ray's samples (`sample_run`). With `skipping`, a sample in an
 // empty brick jumps to the last slice that may still lie in that brick: the skipped
 // samples would each have added exactly nothing (and `round_like_target` is
 // idempotent), so the image is the same. The brick is looked up once per brick the
 // ray enters, not per sample: after a visible brick the samples up to its exit slice
 // are evaluated without a lookup. Should the exit be off by rounding, the extra sample
-// lies in an empty brick, adds exactly nothing and changes nothing either.
-// `skipping` is a constant at both call sites, so each entry point compiles only its
-// own loop.
-fn march(r: Ray, uv: vec2<f32>, skipping: bool) -> vec4<f32> {
+// lies in an empty brick, adds exactly nothing and changes nothing either. With
+// `nested`, runs of empty bricks are crossed in an inner loop of lookups and jumps, so
+// that a ray in empty space does not hold its SIMD vector's other rays in whole
+// iterations of sample work; without it, one jump per iteration of the one loop. The
+// nested march can take only half the slices: llvmpipe stops a shader invocation
+// after 65 535 loop iterations counted over all its loops (gallivm's loop limiter),
+// and an inner loop costs one per iteration of the loop around it even where no lane
+// enters it (its branches run under masks). So `cs_main_skip_long` marches without
+// it where a frame has more slices than the renderer's `NESTED_MARCH_MAX_SLICES`
+// (tests/integration/extremes.rs marches 60 001; docs/perf.md, "A ray's samples as
+// one run"). `skipping` and `nested` are constants at every call site, so each entry
+// point compiles only its own loop.
+fn march(r: Ray, uv: vec2<f32>, skipping: bool, nested: bool) -> vec4<f32> {
     var acc = vec4<f32>(0.0);
     let early = frame.counts.z != 0u;
     let range = slice_range(r, skipping);
@@ -1091,23 +1136,41 @@ fn march(r: Ray, uv: vec2<f32>, skipping: bool) -> vec4<f32> {
     var lookup = 0u;
     let tiny = vec3<f32>(1.0e-20);
     let inv_dtex = 1.0 / select(rs.dtex, tiny, abs(rs.dtex) < tiny);
+    let grid = brick_grid();
     run_setup(r, uv);
-    for (var k = range.x; k < range.y; k = k + 1u) {
-        if (!slice_point_in(rs, k)) {
-            continue;
-        }
-        let s = slice_sample(r, rs, uv, k);
+    let run = sample_run(rs, range);
+    for (var k = run.x; k < run.y; k = k + 1u) {
         if (skipping && k >= lookup) {
-            let exit = brick_exit_slice(rs, inv_dtex, s.tex);
-            if (!brick_visible(s.tex)) {
-                if (exit > k + 1u) {
-                    k = exit - 1u;
+            // over the empty bricks ahead: a lookup and a jump each, no sample work
+            var exit = 0u;
+            if (!nested) {
+                let tex = rs.tex0 + f32(k) * rs.dtex;
+                exit = brick_exit_slice(rs, inv_dtex, grid, tex);
+                if (!brick_visible(grid, tex)) {
+                    k = max(exit, k + 1u) - 1u;
+                    continue;
                 }
-                continue;
+            }
+            loop {
+                if (!nested) {
+                    break;
+                }
+                let tex = rs.tex0 + f32(k) * rs.dtex;
+                exit = brick_exit_slice(rs, inv_dtex, grid, tex);
+                if (brick_visible(grid, tex)) {
+                    break;
+                }
+                k = max(exit, k + 1u);
+                if (k >= run.y) {
+                    break;
+                }
+            }
+            if (k >= run.y) {
+                break;
             }
             lookup = exit + 1u;
         }
-        let e = evaluate(s);
+        let e = evaluate(slice_sample(r, rs, uv, k));
         acc = round_like_target(under(acc, e.c));
         if (early && acc.a >= frame.settings.x) {
             break;
@@ -1187,7 +1250,7 @@ fn cs_main(
         return;
     }
     let uv = (vec2<f32>(px) + 0.5) * frame.viewport.zw;
-    textureStore(out_tex, vec2<i32>(px), run_post(march(pixel_ray(uv), uv, false), uv));
+    textureStore(out_tex, vec2<i32>(px), run_post(march(pixel_ray(uv), uv, false, false), uv));
 }
 
 // `cs_main` with empty-space skipping (used while the occupancy grid is active).
@@ -1203,7 +1266,24 @@ fn cs_main_skip(
         return;
     }
     let uv = (vec2<f32>(px) + 0.5) * frame.viewport.zw;
-    textureStore(out_tex, vec2<i32>(px), run_post(march(pixel_ray(uv), uv, true), uv));
+    textureStore(out_tex, vec2<i32>(px), run_post(march(pixel_ray(uv), uv, true, true), uv));
+}
+
+// `cs_main_skip` with one jump over an empty brick per iteration, for frames of more
+// slices than the nested march can take on llvmpipe (see `march`).
+@compute @workgroup_size(8, 8, 1)
+fn cs_main_skip_long(
+    @builtin(workgroup_id) wg: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+    @builtin(local_invocation_index) li: u32,
+) {
+    let size = vec2<u32>(frame.viewport.xy);
+    let px = main_pixel(wg, groups, li);
+    if (px.x >= size.x || px.y >= size.y) {
+        return;
+    }
+    let uv = (vec2<f32>(px) + 0.5) * frame.viewport.zw;
+    textureStore(out_tex, vec2<i32>(px), run_post(march(pixel_ray(uv), uv, true, false), uv));
 }
 
 // The samples `cs_main` takes, with one trilinear fetch of the volume each and nothing
@@ -1228,10 +1308,8 @@ fn cs_main_raw(
     let rs = ray_slices(r);
     var sum = 0.0;
     var n = 0.0;
-    for (var k = range.x; k < range.y; k = k + 1u) {
-        if (!slice_point_in(rs, k)) {
-            continue;
-        }
+    let run = sample_run(rs, range);
+    for (var k = run.x; k < run.y; k = k + 1u) {
         sum = sum + volume_value(rs.tex0 + f32(k) * rs.dtex);
         n = n + 1.0;
     }

@@ -198,7 +198,10 @@ fn flat_tf(c: f32, a: f32) -> ParamValue {
 /// step is one slice spacing, so a constant opacity a composites to 1 − (1 − a)^n over a
 /// ray's n samples: n read back from that image must be the raw kernel's count, pixel
 /// for pixel. Its sum is of the values it fetched: n where the volume is 1, less where a
-/// ray passes the one voxel of 0.
+/// ray passes the one voxel of 0. Both loop over `sample_run`'s slices (the first to the
+/// last in the box, found by stepping over the range's margins), so the count is also
+/// held against the f64 reference's, which tests every slice of its range: equal but
+/// where a sample lies on a face within rounding.
 #[test]
 fn raw_samples_take_the_samples_of_the_march() {
     use vwb_render::{Camera, Projection};
@@ -232,6 +235,30 @@ fn raw_samples_take_the_samples_of_the_march() {
     r.set_raw_samples(true);
     r.render(&s).unwrap();
     let raw = r.read_pixels().unwrap().2;
+    let reference = vwb_render::reference::render_reference(
+        r.volume(),
+        &[tf_constant([1.0, 1.0, 1.0, a])],
+        &s,
+        &Default::default(),
+    )
+    .unwrap();
+    let count = |alpha: f64| ((1.0 - alpha).ln() / (1.0 - a as f64).ln()).round();
+    let mut off = 0;
+    for y in 0..48 {
+        for x in 0..48 {
+            let gpu = count(dvr[(y * 48 + x) as usize][3] as f64);
+            let cpu = count(reference.pixel(x, y)[3]);
+            assert!(
+                (gpu - cpu).abs() <= 1.0,
+                "pixel ({x}, {y}): {gpu} samples, reference {cpu}"
+            );
+            off += (gpu != cpu) as u32;
+        }
+    }
+    assert!(
+        off <= 48 * 48 / 100,
+        "{off} pixels' sample counts off the reference's"
+    );
     let (mut hit, mut short) = (0, 0.0);
     for (i, (d, w)) in dvr.iter().zip(&raw).enumerate() {
         let n = ((1.0 - d[3] as f64).ln() / (1.0 - a as f64).ln()).round();

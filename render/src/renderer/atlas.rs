@@ -338,12 +338,12 @@ impl Renderer {
             let uids: Vec<u64> = stack.iter().map(|(u, _)| *u).collect();
             let occupancy = occupancies.entry(uids.clone()).or_insert_with(|| {
                 self.occupancy_of(tiles[i].stack).map(|b| {
-                    let texture = upload_occupancy(&self.gpu, self.bricks.dims, &b);
+                    let buffer = upload_occupancy(&self.gpu, self.bricks.dims, &b);
                     let hull = self.hull_of(&b);
-                    (b, texture, hull)
+                    (b, buffer, hull)
                 })
             });
-            let occupancy_texture = occupancy.as_ref().map(|(_, t, _)| t);
+            let occupancy_buffer = occupancy.as_ref().map(|(_, b, _)| b);
             // skipping (and the rays' visible box and hull) by this tile's own
             // classification
             let occupied = occupancy.as_ref().map(|(bytes, _, hull)| Occupied {
@@ -366,7 +366,7 @@ impl Renderer {
                     .map_or([&self.slice_info, &self.no_tile_list], |x| {
                         [&x.info, &x.list]
                     }),
-                occupancy_texture.map_or(&self.occupancy.1, |o| &o.1),
+                occupancy_buffer.unwrap_or(&self.occupancy),
             );
             // this tile's passes, after the tiles before it were drawn: a view pass's
             // target then holds this tile's camera while the tile is drawn
@@ -389,8 +389,8 @@ impl Renderer {
                 );
             } else {
                 let mut pass = enc.begin_compute_pass(&Default::default());
-                pass.set_pipeline(if occupancy_texture.is_some() {
-                    &compiled.cs_main_skip
+                pass.set_pipeline(if occupancy_buffer.is_some() {
+                    compiled.skip_pipeline(&self.gpu.device, plans[i].slices.count)
                 } else {
                     &compiled.cs_main
                 });

@@ -224,7 +224,14 @@ impl Upload {
                 None,
             ),
             Upload::Split(split) => (
-                upload_occupancy(gpu, [1, 1, 1], &[0]).1,
+                crate::gpu::upload_r8_3d(
+                    &gpu.device,
+                    &gpu.queue,
+                    "vwb volume (split)",
+                    [1, 1, 1],
+                    &[0],
+                )
+                .1,
                 0,
                 BrickRanges::new([1, 1, 1], &[0.0]),
                 Some(split),
