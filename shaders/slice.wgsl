@@ -669,6 +669,18 @@ fn spread_row(q: u32, rows: u32) -> u32 {
     return (q * s) % max(rows, 1u);
 }
 
+// The whole-frame entry points' work: invocation `li`'s pixel, its ray marched and
+// stored (`skipping` and `nested` as in `march`: constants at every call site).
+fn march_pixel(wg: vec3<u32>, groups: vec3<u32>, li: u32, skipping: bool, nested: bool) {
+    let size = vec2<u32>(frame.viewport.xy);
+    let px = main_pixel(wg, groups, li);
+    if (px.x >= size.x || px.y >= size.y) {
+        return;
+    }
+    let uv = (vec2<f32>(px) + 0.5) * frame.viewport.zw;
+    textureStore(out_tex, vec2<i32>(px), run_post(march(pixel_ray(uv), uv, skipping, nested), uv));
+}
+
 // Whole frame in one dispatch (no plugin needs per-slice passes).
 @compute @workgroup_size(8, 8, 1)
 fn cs_main(
@@ -676,13 +688,7 @@ fn cs_main(
     @builtin(num_workgroups) groups: vec3<u32>,
     @builtin(local_invocation_index) li: u32,
 ) {
-    let size = vec2<u32>(frame.viewport.xy);
-    let px = main_pixel(wg, groups, li);
-    if (px.x >= size.x || px.y >= size.y) {
-        return;
-    }
-    let uv = (vec2<f32>(px) + 0.5) * frame.viewport.zw;
-    textureStore(out_tex, vec2<i32>(px), run_post(march(pixel_ray(uv), uv, false, false), uv));
+    march_pixel(wg, groups, li, false, false);
 }
 
 // `cs_main` with empty-space skipping (used while the occupancy grid is active).
@@ -692,13 +698,7 @@ fn cs_main_skip(
     @builtin(num_workgroups) groups: vec3<u32>,
     @builtin(local_invocation_index) li: u32,
 ) {
-    let size = vec2<u32>(frame.viewport.xy);
-    let px = main_pixel(wg, groups, li);
-    if (px.x >= size.x || px.y >= size.y) {
-        return;
-    }
-    let uv = (vec2<f32>(px) + 0.5) * frame.viewport.zw;
-    textureStore(out_tex, vec2<i32>(px), run_post(march(pixel_ray(uv), uv, true, true), uv));
+    march_pixel(wg, groups, li, true, true);
 }
 
 // `cs_main_skip` with one jump over an empty brick per iteration, for frames of more
@@ -709,13 +709,7 @@ fn cs_main_skip_long(
     @builtin(num_workgroups) groups: vec3<u32>,
     @builtin(local_invocation_index) li: u32,
 ) {
-    let size = vec2<u32>(frame.viewport.xy);
-    let px = main_pixel(wg, groups, li);
-    if (px.x >= size.x || px.y >= size.y) {
-        return;
-    }
-    let uv = (vec2<f32>(px) + 0.5) * frame.viewport.zw;
-    textureStore(out_tex, vec2<i32>(px), run_post(march(pixel_ray(uv), uv, true, false), uv));
+    march_pixel(wg, groups, li, true, false);
 }
 
 // The samples `cs_main` takes, with one trilinear fetch of the volume each and nothing
