@@ -538,6 +538,13 @@ fn brick_exit_slice(rs: RaySlices, inv_dtex: vec3<f32>, g: BrickGrid, tex: vec3<
     return u32(min(k, f32(frame.counts.x)));
 }
 
+// The brick of slice k's sample on the ray: (its exit slice, `brick_exit_slice`; 1 where
+// it may be visible, `brick_visible`, else 0), the one lookup both marches make.
+fn brick_lookup(rs: RaySlices, inv_dtex: vec3<f32>, g: BrickGrid, k: u32) -> vec2<u32> {
+    let tex = rs.tex0 + f32(k) * rs.dtex;
+    return vec2<u32>(brick_exit_slice(rs, inv_dtex, g, tex), u32(brick_visible(g, tex)));
+}
+
 @group(3) @binding(0) var out_tex: texture_storage_2d<{{TARGET_FORMAT}}, write>;
 @group(3) @binding(1) var<storage, read_write> accum: array<vec4<f32>>;
 
@@ -573,32 +580,31 @@ fn march(r: Ray, uv: vec2<f32>, skipping: bool, nested: bool) -> vec4<f32> {
     let run = sample_run(rs, range);
     for (var k = run.x; k < run.y; k = k + 1u) {
         if (skipping && k >= lookup) {
-            // over the empty bricks ahead: a lookup and a jump each, no sample work
             var exit = 0u;
-            if (!nested) {
-                let tex = rs.tex0 + f32(k) * rs.dtex;
-                exit = brick_exit_slice(rs, inv_dtex, grid, tex);
-                if (!brick_visible(grid, tex)) {
-                    k = max(exit, k + 1u) - 1u;
-                    continue;
+            if (nested) {
+                // over the empty bricks ahead: a lookup and a jump each, no sample work
+                loop {
+                    let b = brick_lookup(rs, inv_dtex, grid, k);
+                    exit = b.x;
+                    if (b.y != 0u) {
+                        break;
+                    }
+                    k = max(exit, k + 1u);
+                    if (k >= run.y) {
+                        break;
+                    }
                 }
-            }
-            loop {
-                if (!nested) {
-                    break;
-                }
-                let tex = rs.tex0 + f32(k) * rs.dtex;
-                exit = brick_exit_slice(rs, inv_dtex, grid, tex);
-                if (brick_visible(grid, tex)) {
-                    break;
-                }
-                k = max(exit, k + 1u);
                 if (k >= run.y) {
                     break;
                 }
-            }
-            if (k >= run.y) {
-                break;
+            } else {
+                let b = brick_lookup(rs, inv_dtex, grid, k);
+                exit = b.x;
+                if (b.y == 0u) {
+                    // to the brick's last slice; the loop's step takes it on
+                    k = max(exit, k + 1u) - 1u;
+                    continue;
+                }
             }
             lookup = exit + 1u;
         }
