@@ -548,26 +548,61 @@ fn brick_lookup(rs: RaySlices, inv_dtex: vec3<f32>, g: BrickGrid, k: u32) -> vec
 @group(3) @binding(0) var out_tex: texture_storage_2d<{{TARGET_FORMAT}}, write>;
 @group(3) @binding(1) var<storage, read_write> accum: array<vec4<f32>>;
 
-// Front to back over the ray's samples (`sample_run`). With `skipping`, a sample in an
+// The whole-frame march in parts (render/src/renderer/march_parts.rs). llvmpipe stops a
+// shader invocation after 65 535 loop iterations counted over all its loops (gallivm's
+// loop limiter: one counter per SIMD vector of 8 invocations; a loop ends silently
+// once it runs out, and after that every loop runs its body once). The march costs one
+// or two per slice (an inner loop costs one per iteration of the loop around it even
+// where no lane enters it: its branches run under masks), and a plugin's loops cost
+// theirs per sample (flow.lic3d on the fly: hundreds). So on such a device the renderer
+// dispatches a frame's slices in parts of a size its budget allows: part
+// [start, end) marches those slices of each ray from the colour the part before left in
+// `accum` (the first from 0), and the last (end 0: to the ray's end) stores the pixel.
+// A ray is stateless between samples but for that colour (the raster backend evaluates
+// every sample on its own), so the image is the whole march's bit for bit.
+struct MarchPart {
+    start: u32,
+    // 0: the last part (to the end of every ray)
+    end: u32,
+    // 2 (`note_loop_limit`; a uniform, so that no compiler folds its loop)
+    probe: u32,
+    pad: u32,
+}
+@group(3) @binding(2) var<uniform> march_part: MarchPart;
+// How many SIMD vectors' invocations ran out of loop iterations (`note_loop_limit`).
+@group(3) @binding(3) var<storage, read_write> loop_limit: array<atomic<u32>>;
+
+// Counts the invocation in `loop_limit` where the loop limiter has run out: a loop of
+// `march_part.probe` (2) iterations ends after one when it has (and never on a GPU).
+// The renderer then marches in smaller parts and renders again
+// (`Renderer::render`).
+fn note_loop_limit() {
+    var i = 0u;
+    loop {
+        i = i + 1u;
+        if (i >= march_part.probe) {
+            break;
+        }
+    }
+    if (i < march_part.probe) {
+        atomicAdd(&loop_limit[0], 1u);
+    }
+}
+
+// Front to back over the ray's samples (`sample_run`) within `part` (slices
+// [part.x, part.y)), from `acc_in`. With `skipping`, a sample in an
 // empty brick jumps to the last slice that may still lie in that brick: the skipped
-// samples would each have added exactly nothing (and `round_like_target` is
-// idempotent), so the image is the same. The brick is looked up once per brick the
-// ray enters, not per sample: after a visible brick the samples up to its exit slice
+// slices' samples would be transparent (render/src/skipping.rs). One brick lookup per
+// brick the ray enters, not per sample: after a visible brick the samples up to its exit slice
 // are evaluated without a lookup. Should the exit be off by rounding, the extra sample
-// lies in an empty brick, adds exactly nothing and changes nothing either. With
-// `nested`, runs of empty bricks are crossed in an inner loop of lookups and jumps, so
-// that a ray in empty space does not hold its SIMD vector's other rays in whole
-// iterations of sample work; without it, one jump per iteration of the one loop. The
-// nested march can take only half the slices: llvmpipe stops a shader invocation
-// after 65 535 loop iterations counted over all its loops (gallivm's loop limiter),
-// and an inner loop costs one per iteration of the loop around it even where no lane
-// enters it (its branches run under masks). So `cs_main_skip_long` marches without
-// it where a frame has more slices than the renderer's `NESTED_MARCH_MAX_SLICES`
-// (tests/integration/extremes.rs marches 60 001; docs/perf.md, "A ray's samples as
-// one run"). `skipping` and `nested` are constants at every call site, so each entry
-// point compiles only its own loop.
-fn march(r: Ray, uv: vec2<f32>, skipping: bool, nested: bool) -> vec4<f32> {
-    var acc = vec4<f32>(0.0);
+// lies in an empty brick, adds exactly nothing and changes nothing either. Runs of
+// empty bricks are crossed in an inner loop of lookups and jumps, so that a ray in
+// empty space does not hold its SIMD vector's other rays in whole iterations of sample
+// work (docs/perf.md, "A ray's samples as one run"); it costs llvmpipe's loop limiter
+// up to one more iteration per slice (`MarchPart`). `skipping` is a constant at every
+// call site, so each entry point compiles only its own loop.
+fn march(r: Ray, uv: vec2<f32>, skipping: bool, acc_in: vec4<f32>, part: vec2<u32>) -> vec4<f32> {
+    var acc = acc_in;
     let early = frame.counts.z != 0u;
     let range = slice_range(r, skipping);
     let rs = ray_slices(r);
@@ -577,34 +612,29 @@ fn march(r: Ray, uv: vec2<f32>, skipping: bool, nested: bool) -> vec4<f32> {
     let inv_dtex = 1.0 / select(rs.dtex, tiny, abs(rs.dtex) < tiny);
     let grid = brick_grid();
     run_setup(r, uv);
-    let run = sample_run(rs, range);
+    let whole = sample_run(rs, range);
+    var run = vec2<u32>(max(whole.x, part.x), min(whole.y, part.y));
+    // a ray that terminated in an earlier part takes no more samples
+    if (early && acc.a >= frame.settings.x) {
+        run.y = run.x;
+    }
     for (var k = run.x; k < run.y; k = k + 1u) {
         if (skipping && k >= lookup) {
+            // over the empty bricks ahead: a lookup and a jump each, no sample work
             var exit = 0u;
-            if (nested) {
-                // over the empty bricks ahead: a lookup and a jump each, no sample work
-                loop {
-                    let b = brick_lookup(rs, inv_dtex, grid, k);
-                    exit = b.x;
-                    if (b.y != 0u) {
-                        break;
-                    }
-                    k = max(exit, k + 1u);
-                    if (k >= run.y) {
-                        break;
-                    }
+            loop {
+                let b = brick_lookup(rs, inv_dtex, grid, k);
+                exit = b.x;
+                if (b.y != 0u) {
+                    break;
                 }
+                k = max(exit, k + 1u);
                 if (k >= run.y) {
                     break;
                 }
-            } else {
-                let b = brick_lookup(rs, inv_dtex, grid, k);
-                exit = b.x;
-                if (b.y == 0u) {
-                    // to the brick's last slice; the loop's step takes it on
-                    k = max(exit, k + 1u) - 1u;
-                    continue;
-                }
+            }
+            if (k >= run.y) {
+                break;
             }
             lookup = exit + 1u;
         }
@@ -675,16 +705,29 @@ fn spread_row(q: u32, rows: u32) -> u32 {
     return (q * s) % max(rows, 1u);
 }
 
-// The whole-frame entry points' work: invocation `li`'s pixel, its ray marched and
-// stored (`skipping` and `nested` as in `march`: constants at every call site).
-fn march_pixel(wg: vec3<u32>, groups: vec3<u32>, li: u32, skipping: bool, nested: bool) {
+// The whole-frame entry points' work: invocation `li`'s pixel, its ray marched over
+// `march_part` and stored (`skipping` as in `march`: a constant at every call site).
+fn march_pixel(wg: vec3<u32>, groups: vec3<u32>, li: u32, skipping: bool) {
     let size = vec2<u32>(frame.viewport.xy);
     let px = main_pixel(wg, groups, li);
     if (px.x >= size.x || px.y >= size.y) {
         return;
     }
     let uv = (vec2<f32>(px) + 0.5) * frame.viewport.zw;
-    textureStore(out_tex, vec2<i32>(px), run_post(march(pixel_ray(uv), uv, skipping, nested), uv));
+    let idx = px.y * size.x + px.x;
+    var acc = vec4<f32>(0.0);
+    if (march_part.start != 0u) {
+        acc = accum[idx];
+    }
+    let last = march_part.end == 0u;
+    let part = vec2<u32>(march_part.start, select(march_part.end, 0xffffffffu, last));
+    acc = march(pixel_ray(uv), uv, skipping, acc, part);
+    note_loop_limit();
+    if (last) {
+        textureStore(out_tex, vec2<i32>(px), run_post(acc, uv));
+    } else {
+        accum[idx] = acc;
+    }
 }
 
 // Whole frame in one dispatch (no plugin needs per-slice passes).
@@ -694,7 +737,7 @@ fn cs_main(
     @builtin(num_workgroups) groups: vec3<u32>,
     @builtin(local_invocation_index) li: u32,
 ) {
-    march_pixel(wg, groups, li, false, false);
+    march_pixel(wg, groups, li, false);
 }
 
 // `cs_main` with empty-space skipping (used while the occupancy grid is active).
@@ -704,18 +747,7 @@ fn cs_main_skip(
     @builtin(num_workgroups) groups: vec3<u32>,
     @builtin(local_invocation_index) li: u32,
 ) {
-    march_pixel(wg, groups, li, true, true);
-}
-
-// `cs_main_skip` with one jump over an empty brick per iteration, for frames of more
-// slices than the nested march can take on llvmpipe (see `march`).
-@compute @workgroup_size(8, 8, 1)
-fn cs_main_skip_long(
-    @builtin(workgroup_id) wg: vec3<u32>,
-    @builtin(num_workgroups) groups: vec3<u32>,
-    @builtin(local_invocation_index) li: u32,
-) {
-    march_pixel(wg, groups, li, true, false);
+    march_pixel(wg, groups, li, true);
 }
 
 // The samples `cs_main` takes, with one trilinear fetch of the volume each and nothing

@@ -216,6 +216,11 @@ pub trait LightingModel: Send + Sync + 'static {
     /// The model's own parameters.
     fn params() -> Vec<ParamSpec>;
     fn twin(params: &ParamValues) -> Self::Twin;
+    /// The loop iterations its lighting runs per lit light
+    /// ([`vwb_render::plugin::Plugin::loop_iterations`]); none by default.
+    fn loop_iterations_per_light(_params: &ParamValues) -> u32 {
+        0
+    }
 }
 
 /// The lit colour of a model's CPU twin.
@@ -265,6 +270,14 @@ impl<M> Default for Lit<M> {
 impl<M: LightingModel> Plugin for Lit<M> {
     fn id(&self) -> &'static str {
         M::ID
+    }
+    /// Those of the model per light compiled in.
+    fn loop_iterations(&self, params: &ParamValues) -> vwb_render::plugin::LoopIterations {
+        let lights = self.lights.iter().flatten().count() as u32;
+        vwb_render::plugin::LoopIterations {
+            sample: lights * M::loop_iterations_per_light(params),
+            scalar: 0,
+        }
     }
     fn display_name(&self) -> &'static str {
         M::NAME

@@ -883,13 +883,14 @@ fn check_plugin_file(
 /// Per-stage resource counts of a composition, checked against device limits.
 fn check_limits(bindings: &[Binding], limits: &wgpu::Limits) -> Result<(), ComposeError> {
     // group 0: frame + slice_info uniforms, volume texture, 2 samplers;
-    // group 3 (compute): output storage texture + accumulation storage buffer
+    // group 3 (compute): output storage texture, accumulation storage buffer, the
+    // march's part (uniform) and the loop limiter's counter (storage buffer)
     // (the bindings' storage buffers: per-slice state tile marks).
-    let mut uniforms = 2u32;
+    let mut uniforms = 3u32;
     let mut sampled = 1u32;
     let mut storage_tex = 1u32;
-    let mut storage_buf = 1u32;
-    let mut per_group = [5u32, 0, 0, 2];
+    let mut storage_buf = 2u32;
+    let mut per_group = [5u32, 0, 0, 4];
     let mut max_uniform = 0u32;
     for b in bindings {
         per_group[b.group as usize] += 1;
@@ -976,7 +977,7 @@ pub fn main_workgroup(gpu: &crate::gpu::GpuContext, requested: Option<[u32; 2]>)
 /// The shape chosen on CPU devices (lavapipe).
 pub const CPU_WORKGROUP: [u32; 2] = [8, 8];
 
-/// The composed module with `cs_main`, `cs_main_skip`, `cs_main_skip_long` and
+/// The composed module with `cs_main`, `cs_main_skip` and
 /// `cs_main_raw` (every entry point whose name begins with `cs_main`) in workgroups of
 /// `wg` (the template declares [`MAIN_WORKGROUP`]), and the template's `MAIN_WG`, from
 /// which those entry points place their pixels, set to the same shape; the other entry

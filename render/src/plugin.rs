@@ -1153,6 +1153,21 @@ pub struct SuppliedReference {
     pub notes: Vec<(&'static str, f64)>,
 }
 
+/// The most loop iterations a plugin's hooks run for one sample, counted as llvmpipe's
+/// loop limiter counts them (every pass of a loop's body, and one for every loop the
+/// code reaches even where it is not entered); constant loops the compiler unrolls cost
+/// nothing. The renderer marches a frame in parts small enough for them on a CPU device
+/// ([`crate::renderer::march_parts`]).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct LoopIterations {
+    /// Those of its hooks (clip, sample, classify, shade, composite) for one sample.
+    pub sample: u32,
+    /// Those of one call of its `scalar(tex)` (the value the stack's gradient
+    /// estimators differentiate: 6 reads a sample under central differences, 26 under
+    /// Sobel, none precomputed).
+    pub scalar: u32,
+}
+
 /// A plugin type. Instances (with their own parameter values) live in a stack.
 pub trait Plugin: Send + Sync + 'static {
     /// Stable id `category.name`, e.g. `classify.tf1d`.
@@ -1301,6 +1316,13 @@ pub trait Plugin: Send + Sync + 'static {
                 .params()
                 .iter()
                 .any(|s| matches!(s.kind, crate::params::ParamKind::Volume { .. }))
+    }
+    /// The most loop iterations its hooks run per sample under `params`
+    /// ([`LoopIterations`]); none by default. Declaring too few costs nothing but a
+    /// frame on a CPU device: the renderer finds the shortfall after the frame and
+    /// renders it again in smaller parts.
+    fn loop_iterations(&self, _params: &ParamValues) -> LoopIterations {
+        LoopIterations::default()
     }
     /// Whether [`Plugin::update_resources`] must run again when the slice spacing
     /// changes ([`GpuInit::slice_spacing`]), e.g. for a pre-integration table.

@@ -46,6 +46,7 @@ mod atlas;
 mod bricks;
 mod level;
 mod lod;
+pub mod march_parts;
 mod raster_et;
 mod slice_exit;
 pub use atlas::{Atlas, AtlasTile, EncodedAtlas};
@@ -195,6 +196,15 @@ pub struct FrameStats {
     /// dispatches ([`Renderer::set_slice_exit`]); `None` where no dispatch lists its
     /// tiles.
     pub idle_tiles: Option<f64>,
+    /// Compute backend without per-slice state: the dispatches its whole-frame march
+    /// took (1 on a GPU; on a CPU device more where its loop limiter needs them,
+    /// [`march_parts`]); 0 otherwise.
+    pub march_parts: u32,
+    /// On a CPU device: the SIMD vectors of invocations whose loops ran out of
+    /// llvmpipe's loop iterations in the frame returned, so that their rays may be cut
+    /// short ([`march_parts`]; [`Renderer::render`] renders again in smaller parts
+    /// first, so this stays 0 unless a single sample needs more than the limit).
+    pub loop_limited: u32,
 }
 
 impl FrameStats {
@@ -287,13 +297,6 @@ impl HullRays {
         }
     }
 }
-
-/// Most slices a frame may have for the whole-frame march with empty-space skipping
-/// to cross runs of empty bricks in a loop nested in its loop (`cs_main_skip`); beyond,
-/// `cs_main_skip_long` jumps once per iteration. llvmpipe stops a shader invocation
-/// after 65 535 loop iterations over all its loops, and the nested loop costs one per
-/// iteration of the march (shaders/slice.wgsl, `march`).
-pub const NESTED_MARCH_MAX_SLICES: u32 = 30_000;
 
 /// [`HullRays::Auto`] cuts the compute backend's rays to the occupied bricks' hull where
 /// it holds less than this share of the visible box (the heads and the demo 0.72–0.77,
@@ -683,9 +686,9 @@ struct CompiledStack {
     compute_layout: wgpu::PipelineLayout,
     /// `cs_main_raw` ([`Renderer::set_raw_samples`]), built on first use.
     cs_main_raw: std::sync::OnceLock<wgpu::ComputePipeline>,
-    /// `cs_main_skip_long`, for frames of more than [`NESTED_MARCH_MAX_SLICES`], built
-    /// on first use.
-    cs_main_skip_long: std::sync::OnceLock<wgpu::ComputePipeline>,
+    /// Reads of the shading scalar per sample in the main module
+    /// ([`march_parts::scalar_reads`]).
+    scalar_reads: u32,
     target: TargetFormat,
     cs_main: wgpu::ComputePipeline,
     /// `cs_main` with empty-space skipping.
@@ -745,15 +748,13 @@ impl CompiledStack {
             .get_or_init(|| self.main_pipeline(device, "cs_main_raw"))
     }
 
-    /// The whole-frame march with empty-space skipping for a frame of `count` slices:
-    /// `cs_main_skip`, or beyond [`NESTED_MARCH_MAX_SLICES`] `cs_main_skip_long`
-    /// (built on first use).
-    fn skip_pipeline(&self, device: &wgpu::Device, count: u32) -> &wgpu::ComputePipeline {
-        if count <= NESTED_MARCH_MAX_SLICES {
-            return &self.cs_main_skip;
+    /// The whole-frame march: `cs_main_skip` with empty-space skipping, else `cs_main`.
+    fn march_pipeline(&self, skipping: bool) -> &wgpu::ComputePipeline {
+        if skipping {
+            &self.cs_main_skip
+        } else {
+            &self.cs_main
         }
-        self.cs_main_skip_long
-            .get_or_init(|| self.main_pipeline(device, "cs_main_skip_long"))
     }
 
     fn main_pipeline(&self, device: &wgpu::Device, entry: &str) -> wgpu::ComputePipeline {
@@ -1165,6 +1166,9 @@ pub struct Renderer {
     volume_format: VolumeFormat,
     /// Workgroup shape of the whole-frame compute passes (`cs_main`, `cs_main_skip`).
     main_workgroup: [u32; 2],
+    /// The whole-frame march in parts on CPU devices, and the loop limiter's counter
+    /// ([`march_parts`]).
+    march: march_parts::MarchState,
     /// How it is stored ([`VolumeFormat::for_budget`]: never `Auto`).
     stored_format: VolumeFormat,
     /// GPU memory the renderer may hold (`VWB_GPU_MEMORY_LIMIT` bytes, or
@@ -1481,6 +1485,7 @@ impl Renderer {
             skipping_enabled: true,
             shader_overrides: Default::default(),
             main_workgroup,
+            march: march_parts::MarchState::new(device),
             overrides_generation: 0,
             pipelines: None,
             compiled: Vec::new(),
@@ -2541,6 +2546,18 @@ impl Renderer {
                     count: None,
                 },
                 storage_buffer_entry(1, false),
+                // the march's part (`MarchPart`) and the loop limiter's counter
+                wgpu::BindGroupLayoutEntry {
+                    binding: 2,
+                    visibility: wgpu::ShaderStages::COMPUTE,
+                    ty: wgpu::BindingType::Buffer {
+                        ty: wgpu::BufferBindingType::Uniform,
+                        has_dynamic_offset: false,
+                        min_binding_size: wgpu::BufferSize::new(16),
+                    },
+                    count: None,
+                },
+                storage_buffer_entry(3, false),
             ],
         });
         let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
@@ -2709,6 +2726,7 @@ impl Renderer {
                 message: format!("the device rejected the composed pipeline: {err}"),
             }));
         }
+        let scalar_reads = march_parts::scalar_reads(&composition.main.source);
         Ok(CompiledStack {
             composition,
             g1_layout,
@@ -2724,7 +2742,7 @@ impl Renderer {
             raster_layout,
             compute_layout,
             cs_main_raw: std::sync::OnceLock::new(),
-            cs_main_skip_long: std::sync::OnceLock::new(),
+            scalar_reads,
             post,
             target,
             cs_main,
@@ -3874,8 +3892,27 @@ impl Renderer {
         self.frame_plan(stack, view, self.lattice_box(), spacing)
     }
 
-    /// Renders one frame into the eye buffer with the current (last good) pipeline.
+    /// Renders one frame into the eye buffer with the current (last good) pipeline. On
+    /// a CPU device, a frame whose loops ran out of llvmpipe's loop iterations
+    /// ([`FrameStats::loop_limited`]) is rendered again in smaller parts
+    /// ([`march_parts`]) until none does, or one slice per part is reached.
     pub fn render(&mut self, s: &FrameSettings) -> Result<FrameStats, RenderError> {
+        loop {
+            let stats = self.render_once(s)?;
+            if stats.loop_limited == 0 || !self.shrink_march_parts(stats.slices) {
+                if stats.loop_limited > 0 {
+                    log::warn!(
+                        "{} SIMD vectors ran out of the device's loop iterations at one slice per part: their rays may be cut short (a plugin's loops exceed {} iterations a sample)",
+                        stats.loop_limited,
+                        march_parts::LOOP_LIMIT
+                    );
+                }
+                return Ok(stats);
+            }
+        }
+    }
+
+    fn render_once(&mut self, s: &FrameSettings) -> Result<FrameStats, RenderError> {
         if let Some(reason) = self.gpu.lost() {
             return Err(RenderError::DeviceLost(reason));
         }
@@ -3915,6 +3952,9 @@ impl Renderer {
             self.gpu.wait();
         }
         stats.wall_ms = start.elapsed().as_secs_f64() * 1e3;
+        if stats.march_parts > 0 && self.gpu.info.device_type == wgpu::DeviceType::Cpu {
+            stats.loop_limited = self.march.read(&self.gpu);
+        }
         Ok(stats)
     }
 
@@ -4169,20 +4209,16 @@ impl Renderer {
 
         let g1 = self.group1(p);
         let g2 = self.group2(p);
-        let g3 = device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("vwb group 3"),
-            layout: &p.g3_layout,
-            entries: &[
-                wgpu::BindGroupEntry {
-                    binding: 0,
-                    resource: wgpu::BindingResource::TextureView(&t.view),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 1,
-                    resource: t.accum.as_entire_binding(),
-                },
-            ],
-        });
+        // the whole-frame march in parts (on a CPU device, for its loop limiter)
+        let parts = if s.backend == Backend::Compute && !per_slice {
+            self.march_parts(&p.compiled, &p.stack, plan.count)
+        } else {
+            vec![[0, 0]]
+        };
+        let g3s = self
+            .march
+            .groups(device, &p.g3_layout, &t.view, &t.accum, &parts);
+        let g3 = &g3s[0];
 
         stamp(enc, Some("slices".to_string()));
         if per_slice {
@@ -4233,7 +4269,7 @@ impl Renderer {
             .map(|x| self.g0_with(&self.frame_buf, [&x.info, &x.list], &self.occupancy));
         let run_updates = |enc: &mut wgpu::CommandEncoder, k: u32| {
             let g0 = g0_exit.as_ref().unwrap_or(&self.g0);
-            let groups = [g0, &g1, &g2[(k % 2) as usize], &g3];
+            let groups = [g0, &g1, &g2[(k % 2) as usize], g3];
             self.encode_state_updates(enc, p, &state_sizes, groups, k, eye, exit.as_ref());
         };
         match s.backend {
@@ -4423,7 +4459,7 @@ impl Renderer {
             Backend::Compute => {
                 if per_slice {
                     let uids = p.uids();
-                    let groups = [g0_exit.as_ref().unwrap_or(&self.g0), &g1, &g3];
+                    let groups = [g0_exit.as_ref().unwrap_or(&self.g0), &g1, g3];
                     fused_run = self.encode_compute_slices(
                         enc,
                         p,
@@ -4436,21 +4472,20 @@ impl Renderer {
                         exit.as_ref(),
                     );
                 } else {
-                    let mut pass = enc.begin_compute_pass(&Default::default());
-                    pass.set_pipeline(if self.raw_samples {
+                    self.march.clear(enc);
+                    let pipeline = if self.raw_samples {
                         p.raw_pipeline(&self.gpu.device)
-                    } else if self.occupancy_bytes.is_some() {
-                        p.skip_pipeline(&self.gpu.device, plan.count)
                     } else {
-                        &p.cs_main
-                    });
-                    pass.set_bind_group(0, &self.g0, &[0]);
-                    pass.set_bind_group(1, &g1, &[]);
-                    pass.set_bind_group(2, &g2[0], &[]);
-                    pass.set_bind_group(3, &g3, &[]);
-                    if wg_own.0 > 0 && wg_own.1 > 0 {
-                        pass.dispatch_workgroups(wg_own.0, wg_own.1, 1);
-                    }
+                        p.march_pipeline(self.occupancy_bytes.is_some())
+                    };
+                    // (the raw kernel takes no part: it runs once)
+                    let g3s = if self.raw_samples {
+                        &g3s[..1]
+                    } else {
+                        &g3s[..]
+                    };
+                    encode_march(enc, pipeline, [&self.g0, &g1, &g2[0]], g3s, wg_own);
+                    self.march.copy_out(enc);
                 }
             }
         }
@@ -4487,9 +4522,100 @@ impl Renderer {
                 scissor_share,
                 fused_slices: fused_run,
                 idle_tiles,
+                march_parts: if s.backend == Backend::Compute && !per_slice {
+                    parts.len() as u32
+                } else {
+                    0
+                },
                 ..Default::default()
             },
         })
+    }
+
+    /// The parts in which the whole-frame march takes a frame of `count` slices of
+    /// `stack` (compiled as `compiled`): one on a GPU; on a CPU device as many as the
+    /// stack's loops need ([`march_parts`]), or of the size
+    /// [`Renderer::set_march_part_slices`] forces.
+    fn march_parts(
+        &self,
+        compiled: &Arc<CompiledStack>,
+        stack: &[(u64, Arc<dyn Plugin>)],
+        count: u32,
+    ) -> Vec<[u32; 2]> {
+        let part = match self.march.forced {
+            Some(n) => n,
+            None if self.gpu.info.device_type != wgpu::DeviceType::Cpu => return vec![[0, 0]],
+            None => {
+                let estimate = self.loop_estimate(compiled, stack);
+                let most = match self.march.shrink {
+                    Some((c, e, most)) if c == Arc::as_ptr(compiled) as usize && e == estimate => {
+                        most
+                    }
+                    _ => u32::MAX,
+                };
+                march_parts::part_slices(estimate).min(most)
+            }
+        };
+        march_parts::parts(count, part)
+    }
+
+    /// The loop iterations a sample of `stack` (compiled as `compiled`) costs, as its
+    /// plugins declare them ([`Plugin::loop_iterations`]) under their current
+    /// parameters.
+    fn loop_estimate(&self, compiled: &CompiledStack, stack: &[(u64, Arc<dyn Plugin>)]) -> u32 {
+        let loops: Vec<_> = stack
+            .iter()
+            .filter_map(|(uid, plugin)| {
+                let g = self.instances.get(uid)?;
+                Some(plugin.loop_iterations(&g.params))
+            })
+            .collect();
+        march_parts::per_sample(&loops, compiled.scalar_reads)
+    }
+
+    /// After a frame of `count` slices whose loops ran out
+    /// (`FrameStats::loop_limited`): marches the current stack in parts of at most a
+    /// quarter of that frame's longest from now on (while its loop estimate stays the
+    /// same). Whether they shrank (not below one slice).
+    fn shrink_march_parts(&mut self, count: u32) -> bool {
+        if let Some(split) = self.split.as_mut() {
+            // every brick's renderer (each marches its own part of the rays)
+            let mut any = false;
+            for c in &mut split.children {
+                any |= c.renderer.shrink_march_parts(count);
+            }
+            return any;
+        }
+        let Some(p) = self.pipelines.as_ref() else {
+            return false;
+        };
+        let now = self.march_parts(&p.compiled, &p.stack, count);
+        let longest = now
+            .iter()
+            .map(|[a, b]| {
+                if *b == 0 {
+                    count.saturating_sub(*a)
+                } else {
+                    b - a
+                }
+            })
+            .max()
+            .unwrap_or(0);
+        if longest <= 1 || self.march.forced.is_some() {
+            return false;
+        }
+        let estimate = self.loop_estimate(&p.compiled, &p.stack);
+        let key = Arc::as_ptr(&p.compiled) as usize;
+        self.march.shrink = Some((key, estimate, (longest / 4).max(1)));
+        true
+    }
+
+    /// Marches every frame in parts of at most `slices` slices, on any device (`None`:
+    /// as the device needs, [`march_parts`]). The image is the same; for tests and
+    /// benchmarks of the parts themselves (`VWB_MARCH_PART_SLICES=N` starts renderers
+    /// with it).
+    pub fn set_march_part_slices(&mut self, slices: Option<u32>) {
+        self.march.forced = slices.map(|n| n.max(1));
     }
 
     /// Books a recorded frame once its encoder was submitted: its pre-passes count as
@@ -4954,6 +5080,29 @@ fn read_texture(gpu: &GpuContext, tex: &wgpu::Texture, bpp: u32) -> Vec<u8> {
     );
     gpu.queue.submit([enc.finish()]);
     read_buffer(gpu, &buf, size)
+}
+
+/// The whole-frame march (`pipeline`: `cs_main`, `cs_main_skip` or `cs_main_raw`) over
+/// `n` workgroups, once per part of the frame (`g3s`, [`march_parts`]), in one pass.
+fn encode_march(
+    enc: &mut wgpu::CommandEncoder,
+    pipeline: &wgpu::ComputePipeline,
+    [g0, g1, g2]: [&wgpu::BindGroup; 3],
+    g3s: &[wgpu::BindGroup],
+    n: (u32, u32),
+) {
+    let mut pass = enc.begin_compute_pass(&Default::default());
+    pass.set_pipeline(pipeline);
+    pass.set_bind_group(0, g0, &[0]);
+    pass.set_bind_group(1, g1, &[]);
+    pass.set_bind_group(2, g2, &[]);
+    if n.0 == 0 || n.1 == 0 {
+        return;
+    }
+    for g3 in g3s {
+        pass.set_bind_group(3, g3, &[]);
+        pass.dispatch_workgroups(n.0, n.1, 1);
+    }
 }
 
 fn read_buffer(gpu: &GpuContext, buf: &wgpu::Buffer, size: u64) -> Vec<u8> {

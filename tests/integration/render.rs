@@ -2050,3 +2050,62 @@ fn setup_hooks_run_once_per_ray_on_every_path() {
         }
     }
 }
+
+/// The whole-frame march in parts (render/src/renderer/march_parts.rs, for llvmpipe's
+/// loop limiter) gives the image of the march in one dispatch bit for bit: each part
+/// marches its slices from the colour the part before left, rays that terminated early
+/// take no more samples, and the brick lookups start again in every part. Parts of 7
+/// slices (about 30 per frame here) with and without empty-space skipping and early
+/// termination, unshaded and Blinn–Phong.
+#[test]
+fn march_parts_render_the_whole_march() {
+    let mut r = Renderer::new(gpu(), demo()).unwrap();
+    let tf = instance("classify.tf1d");
+    let mut phong = instance("shade.blinn_phong");
+    phong
+        .params
+        .set("gradient", ParamValue::Enum("central".into()));
+    for stack in [vec![tf.clone()], vec![tf, phong]] {
+        for (skipping, et) in [
+            (true, None),
+            (false, None),
+            (true, Some(0.9)),
+            (false, Some(0.95)),
+        ] {
+            r.set_empty_space_skipping(skipping);
+            let s = FrameSettings {
+                early_termination: et,
+                ..settings(48, 40, Backend::Compute)
+            };
+            r.set_march_part_slices(None);
+            let whole = render(&mut r, &stack, TargetFormat::Rgba16Float, &s);
+            let stats = r.render(&s).unwrap();
+            assert!(stats.slices > 100, "{} slices", stats.slices);
+            let one = if on_gpu() {
+                1
+            } else {
+                stats.slices.div_ceil(30_000)
+            };
+            assert_eq!(
+                stats.march_parts, one,
+                "a frame that fits marches in one part"
+            );
+            assert_eq!(stats.loop_limited, 0);
+            r.set_march_part_slices(Some(7));
+            let parts = render(&mut r, &stack, TargetFormat::Rgba16Float, &s);
+            let stats = r.render(&s).unwrap();
+            assert_eq!(stats.march_parts, stats.slices.div_ceil(7));
+            let what = format!("{} plugins, skipping {skipping}, ET {et:?}", stack.len());
+            assert!(
+                whole.iter().any(|p| p[3] > 0.5),
+                "{what}: the frame shows something"
+            );
+            let differ = whole.iter().zip(&parts).filter(|(a, b)| a != b).count();
+            assert_eq!(
+                differ, 0,
+                "{what}: {differ} pixels differ from the whole march"
+            );
+        }
+    }
+    r.set_march_part_slices(None);
+}

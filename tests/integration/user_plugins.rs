@@ -564,3 +564,67 @@ fn an_atlas_refines_a_progressive_pass_once_per_variant() {
     // would defer it); then only the view pass, at both tiles
     assert_eq!(runs, [1, 1, 1, 2, 2]);
 }
+
+/// A user plugin's loops, which it does not declare
+/// ([`vwb_render::plugin::Plugin::loop_iterations`]): on a CPU device the shader notes
+/// where they ran out of llvmpipe's loop iterations, and `Renderer::render` renders the
+/// frame again in smaller parts until they do not; its image is then that of parts of
+/// one slice each (which cannot run out here). Marched in one part by force, the frame
+/// is cut short and says so (`FrameStats::loop_limited`). A GPU has no such limit.
+#[test]
+fn a_user_plugins_loops_are_found_and_marched_in_parts() {
+    let manifest = r#"UserPlugin(
+    id: "sample.loops",
+    name: "Loops",
+    description: "the sample's value as the mean of `steps` copies of itself",
+    shader: "loops.wgsl",
+    params: [Int(key: "steps", label: "Steps", min: 1, max: 100000, default: 1000)],
+)"#;
+    let source = "fn sample(s: Sample) -> Sample {
+    var o = s;
+    var v = 0.0;
+    for (var i = 0; i < params.steps; i++) {
+        v = v + s.value;
+    }
+    o.value = v / f32(max(params.steps, 1));
+    return o;
+}
+";
+    let dir = plugin_folder("loops", manifest, ("loops.wgsl", source));
+    let p: Arc<dyn Plugin> = Arc::new(user::load(&dir).unwrap_or_else(|e| panic!("{e}")));
+    let stack = [PluginInstance::new(p), instance("classify.tf1d")];
+    let s = settings(24, 24, Backend::Compute);
+    let mut r = Renderer::new(gpu(), demo()).unwrap();
+    let found = render(&mut r, &stack, TargetFormat::Rgba16Float, &s);
+    let stats = r.render(&s).unwrap();
+    assert_eq!(
+        stats.loop_limited, 0,
+        "the parts found leave no ray cut short"
+    );
+    r.set_march_part_slices(Some(1));
+    let single = render(&mut r, &stack, TargetFormat::Rgba16Float, &s);
+    let differ = found.iter().zip(&single).filter(|(a, b)| a != b).count();
+    assert_eq!(differ, 0, "{differ} pixels differ from parts of one slice");
+    assert!(
+        found.iter().any(|p| p[3] > 0.2),
+        "the frame shows something"
+    );
+    if crate::common::on_gpu() {
+        return;
+    }
+    // (~1 000 iterations a sample: 60 slices a part at most)
+    assert!(
+        stats.march_parts >= stats.slices.div_ceil(60),
+        "{} parts for {} slices",
+        stats.march_parts,
+        stats.slices
+    );
+    r.set_march_part_slices(Some(100_000));
+    let cut = render(&mut r, &stack, TargetFormat::Rgba16Float, &s);
+    assert!(
+        r.render(&s).unwrap().loop_limited > 0,
+        "the shortfall is noted"
+    );
+    let (rms, _) = crate::common::diff(&rgb(&cut), &rgb(&single));
+    assert!(rms > 0.01, "a frame cut short looks different (RMS {rms})");
+}

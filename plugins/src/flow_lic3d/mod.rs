@@ -31,8 +31,8 @@ use vwb_render::flow::{
 use vwb_render::params::{Components, ParamSpec, ParamValues};
 use vwb_render::plugin::{
     CpuContext, CpuSample, CpuTwin, GpuInit, GpuResource, PassOutputs, Plugin, PluginError,
-    PrepassDecl, Probe, ResourceDecl, ResourceKind, ScalarField, ShaderSource, Statistic,
-    StorageFormat,
+    LoopIterations, PrepassDecl, Probe, ResourceDecl, ResourceKind, ScalarField, ShaderSource,
+    Statistic, StorageFormat,
 };
 use vwb_render::volume::Volume;
 
@@ -329,6 +329,26 @@ impl Plugin for Lic3d {
     /// Its pre-pass follows streamlines through the whole vector volume.
     fn splits_into_bricks(&self) -> bool {
         false
+    }
+    /// On the fly, one integral per sample and per read of its scalar (`lic_integral`:
+    /// two directions of ⌊L/h⌋ steps, each loop with its end; the outer loop of two as
+    /// well, should the compiler not unroll it); precomputed, none (the pre-pass
+    /// integrates).
+    fn loop_iterations(&self, params: &ParamValues) -> LoopIterations {
+        if !self.on_the_fly {
+            return LoopIterations::default();
+        }
+        let (length, step) = (params.float("length"), params.float("step"));
+        let steps = if step > 0.0 && (length / step).is_finite() {
+            (length / step).floor().clamp(0.0, 1.0e6) as u32
+        } else {
+            0
+        };
+        let integral = 2 * (steps + 1) + 3;
+        LoopIterations {
+            sample: integral,
+            scalar: integral,
+        }
     }
     fn id(&self) -> &'static str {
         "flow.lic3d"

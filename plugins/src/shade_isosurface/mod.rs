@@ -97,6 +97,16 @@ impl Plugin for Isosurface {
         let gradient = GradientEstimator::from_params(params);
         (gradient != self.gradient).then(|| Arc::new(Isosurface { gradient }) as Arc<dyn Plugin>)
     }
+    /// Over its `count` isovalues: the crossing test (each crossing sorted in by an
+    /// insertion loop of at most `count` passes) and the surfaces found, each loop with
+    /// its end.
+    fn loop_iterations(&self, params: &ParamValues) -> vwb_render::plugin::LoopIterations {
+        let count = params.int("count").clamp(1, 4) as u32;
+        vwb_render::plugin::LoopIterations {
+            sample: (count + 1) * (count + 3),
+            scalar: 0,
+        }
+    }
     // Transparency: the default (Unknown): surfaces make opacity where the
     // classification gave none, so empty-space skipping stays off.
     fn cpu_twin(&self, params: &ParamValues) -> Option<Box<dyn CpuTwin>> {

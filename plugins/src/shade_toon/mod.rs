@@ -49,6 +49,10 @@ impl LightingModel for ToonModel {
     fn twin(params: &ParamValues) -> ToonStyle {
         ToonStyle::from_params(params)
     }
+    /// `toon_level`'s loop over the band thresholds: bands − 1 passes and its end.
+    fn loop_iterations_per_light(params: &ParamValues) -> u32 {
+        params.int("bands").max(2) as u32
+    }
 }
 
 /// WGSL's `smoothstep`.

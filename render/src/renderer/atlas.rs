@@ -308,20 +308,9 @@ impl Renderer {
             done.extend(dirty.iter().map(|i| stack[*i].0));
         }
         let mut volume_passes_run = 0;
-        let g3 = device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("vwb group 3"),
-            layout: &compiled.g3_layout,
-            entries: &[
-                wgpu::BindGroupEntry {
-                    binding: 0,
-                    resource: wgpu::BindingResource::TextureView(&t.view),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 1,
-                    resource: t.accum.as_entire_binding(),
-                },
-            ],
-        });
+        let whole = self
+            .march
+            .groups(device, &compiled.g3_layout, &t.view, &t.accum, &[[0, 0]]);
         // group 2 holds per-slice state only: the same for every tile of a stack
         // without it; a stack with it binds each tile's own below
         let uids0: Vec<u64> = stacks[0].iter().map(|(u, _)| *u).collect();
@@ -380,7 +369,7 @@ impl Renderer {
                     enc,
                     &compiled,
                     &uids,
-                    [&g0, &g1, &g3],
+                    [&g0, &g1, &whole[0]],
                     &self.group2_for(&compiled, &uids),
                     plans[i].slices.count,
                     [tw, th],
@@ -388,18 +377,15 @@ impl Renderer {
                     exit.as_ref(),
                 );
             } else {
-                let mut pass = enc.begin_compute_pass(&Default::default());
-                pass.set_pipeline(if occupancy_buffer.is_some() {
-                    compiled.skip_pipeline(&self.gpu.device, plans[i].slices.count)
-                } else {
-                    &compiled.cs_main
-                });
-                pass.set_bind_group(0, &g0, &[0]);
-                pass.set_bind_group(1, &g1, &[]);
-                pass.set_bind_group(2, &g2, &[]);
-                pass.set_bind_group(3, &g3, &[]);
+                // in parts as its single render would march (on a CPU device)
+                let parts = self.march_parts(&compiled, stack, plans[i].slices.count);
+                let g3s = self
+                    .march
+                    .groups(device, &compiled.g3_layout, &t.view, &t.accum, &parts);
+                let pipeline = compiled.march_pipeline(occupancy_buffer.is_some());
                 let [mx, my] = self.main_workgroup;
-                pass.dispatch_workgroups(tw.div_ceil(mx), th.div_ceil(my), 1);
+                let n = (tw.div_ceil(mx), th.div_ceil(my));
+                super::encode_march(enc, pipeline, [&g0, &g1, &g2], &g3s, n);
             }
             enc.copy_texture_to_texture(
                 t.texture.as_image_copy(),

@@ -868,8 +868,14 @@ impl Renderer {
             slices: plan.count,
             ..Default::default()
         };
+        // the bricks that marched whole frames (their loop limiter's counters)
+        let mut marched = Vec::new();
         for (i, rec) in recorded {
             let st = split.children[i].renderer.submitted(rec);
+            if st.march_parts > 0 {
+                marched.push(i);
+            }
+            stats.march_parts = stats.march_parts.max(st.march_parts);
             stats.per_slice_mode |= st.per_slice_mode;
             stats.fused_slices |= st.fused_slices;
             stats.prepasses.extend(st.prepasses);
@@ -888,6 +894,13 @@ impl Renderer {
             gpu.wait();
         }
         stats.wall_ms = start.elapsed().as_secs_f64() * 1e3;
+        // the bricks whose march ran out of the CPU device's loop iterations
+        if gpu.info.device_type == wgpu::DeviceType::Cpu {
+            for i in &marched {
+                let child = &split.children[*i].renderer;
+                stats.loop_limited += child.march.read(&child.gpu);
+            }
+        }
         // else a few bricks after it, while the window shows it
         if self.refinement_budget.is_some() {
             self.refine_bricks(s, false)?;
