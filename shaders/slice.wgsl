@@ -569,7 +569,7 @@ struct MarchPart {
     pad: u32,
 }
 @group(3) @binding(2) var<uniform> march_part: MarchPart;
-// How many SIMD vectors' invocations ran out of loop iterations (`note_loop_limit`).
+// How many invocations ran out of loop iterations (`note_loop_limit`).
 @group(3) @binding(3) var<storage, read_write> loop_limit: array<atomic<u32>>;
 
 // Counts the invocation in `loop_limit` where the loop limiter has run out: a loop of

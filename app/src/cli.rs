@@ -682,6 +682,14 @@ pub fn run_render(preset: Option<&std::path::Path>, a: &RenderArgs) -> Result<()
         if let Some(share) = t.idle_tiles {
             println!("idle_tiles {share:.4}");
         }
+        // the compute march's dispatches where llvmpipe's loop limiter needs several
+        // (render/src/renderer/march_parts.rs), and what still ran out
+        if t.march_parts > 1 {
+            println!("march_parts {}", t.march_parts);
+        }
+        if t.loop_limited > 0 {
+            println!("loop_limited {}", t.loop_limited);
+        }
         // the compute rays cut to the occupied bricks' hull, and its share of the
         // visible box
         if r.empty_brick_share().is_some() && settings.backend == Backend::Compute {

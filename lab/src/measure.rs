@@ -83,6 +83,11 @@ pub struct Timing {
     /// The last frame's share of tiles left out of the per-slice dispatches
     /// (`FrameStats::idle_tiles`).
     pub idle_tiles: Option<f64>,
+    /// The last frame's dispatches of the whole-frame march and the invocations that
+    /// ran out of the device's loop iterations (`FrameStats::march_parts`,
+    /// `FrameStats::loop_limited`).
+    pub march_parts: u32,
+    pub loop_limited: u32,
 }
 
 impl Timing {
@@ -126,6 +131,7 @@ pub fn time_frames(
     let mut passes: BTreeMap<String, Vec<f64>> = BTreeMap::new();
     let mut slices = 0;
     let (mut proxy_share, mut scissor_share, mut idle_tiles) = (None, None, None);
+    let (mut march_parts, mut loop_limited) = (0, 0);
     for _ in 0..frames.max(1) {
         let before = process_cpu_ms();
         let st = r.render(s)?;
@@ -135,6 +141,7 @@ pub fn time_frames(
         slices = st.slices;
         (proxy_share, scissor_share) = (st.proxy_share, st.scissor_share);
         idle_tiles = st.idle_tiles;
+        (march_parts, loop_limited) = (st.march_parts, st.loop_limited);
         wall.push(st.wall_ms);
         gpu.extend(st.gpu_ms);
         for (name, ms) in st.gpu_passes {
@@ -156,6 +163,8 @@ pub fn time_frames(
         proxy_share,
         scissor_share,
         idle_tiles,
+        march_parts,
+        loop_limited,
     })
 }
 
@@ -1659,6 +1668,8 @@ mod tests {
             proxy_share: None,
             scissor_share: None,
             idle_tiles: None,
+            march_parts: 1,
+            loop_limited: 0,
         };
         // a GPU frame well below its submit-and-wait is the GPU's
         assert_eq!(timing(0.29, 2.0).frame_ms(), (0.29, "gpu"));

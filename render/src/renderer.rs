@@ -200,9 +200,9 @@ pub struct FrameStats {
     /// took (1 on a GPU; on a CPU device more where its loop limiter needs them,
     /// [`march_parts`]); 0 otherwise.
     pub march_parts: u32,
-    /// On a CPU device: the SIMD vectors of invocations whose loops ran out of
-    /// llvmpipe's loop iterations in the frame returned, so that their rays may be cut
-    /// short ([`march_parts`]; [`Renderer::render`] renders again in smaller parts
+    /// On a CPU device: the invocations (pixels; a SIMD vector's 8 run out together)
+    /// whose loops ran out of llvmpipe's loop iterations in the frame returned, so
+    /// that their rays may be cut short ([`march_parts`]; [`Renderer::render`] renders again in smaller parts
     /// first, so this stays 0 unless a single sample needs more than the limit).
     pub loop_limited: u32,
 }
@@ -3902,7 +3902,7 @@ impl Renderer {
             if stats.loop_limited == 0 || !self.shrink_march_parts(stats.slices) {
                 if stats.loop_limited > 0 {
                     log::warn!(
-                        "{} SIMD vectors ran out of the device's loop iterations at one slice per part: their rays may be cut short (a plugin's loops exceed {} iterations a sample)",
+                        "{} invocations ran out of the device's loop iterations at one slice per part: their rays may be cut short (a plugin's loops exceed {} iterations a sample)",
                         stats.loop_limited,
                         march_parts::LOOP_LIMIT
                     );

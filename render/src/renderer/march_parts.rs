@@ -209,7 +209,7 @@ impl MarchState {
         enc.copy_buffer_to_buffer(&self.counter, 0, &self.read, 0, 16);
     }
 
-    /// The SIMD vectors of the last copied frame that ran out of loop iterations.
+    /// The invocations of the last copied frame that ran out of loop iterations.
     pub fn read(&self, gpu: &crate::gpu::GpuContext) -> u32 {
         let bytes = super::read_buffer(gpu, &self.read, 4);
         u32::from_le_bytes([bytes[0], bytes[1], bytes[2], bytes[3]])
