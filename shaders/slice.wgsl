@@ -539,7 +539,7 @@ fn brick_exit_slice(rs: RaySlices, inv_dtex: vec3<f32>, g: BrickGrid, tex: vec3<
 }
 
 // The brick of slice k's sample on the ray: (its exit slice, `brick_exit_slice`; 1 where
-// it may be visible, `brick_visible`, else 0), the one lookup both marches make.
+// it may be visible, `brick_visible`, else 0), the march's lookup.
 fn brick_lookup(rs: RaySlices, inv_dtex: vec3<f32>, g: BrickGrid, k: u32) -> vec2<u32> {
     let tex = rs.tex0 + f32(k) * rs.dtex;
     return vec2<u32>(brick_exit_slice(rs, inv_dtex, g, tex), u32(brick_visible(g, tex)));

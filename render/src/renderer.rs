@@ -4210,7 +4210,8 @@ impl Renderer {
         let g1 = self.group1(p);
         let g2 = self.group2(p);
         // the whole-frame march in parts (on a CPU device, for its loop limiter)
-        let parts = if s.backend == Backend::Compute && !per_slice {
+        let whole_march = s.backend == Backend::Compute && !per_slice;
+        let parts = if whole_march {
             self.march_parts(&p.compiled, &p.stack, plan.count)
         } else {
             vec![[0, 0]]
@@ -4522,11 +4523,7 @@ impl Renderer {
                 scissor_share,
                 fused_slices: fused_run,
                 idle_tiles,
-                march_parts: if s.backend == Backend::Compute && !per_slice {
-                    parts.len() as u32
-                } else {
-                    0
-                },
+                march_parts: if whole_march { parts.len() as u32 } else { 0 },
                 ..Default::default()
             },
         })

@@ -92,7 +92,7 @@ pub struct MarchState {
     /// The uniform of a frame marched in one part.
     whole: wgpu::Buffer,
     /// `loop_limit` of shaders/slice.wgsl (one counter), and its readback copy.
-    pub counter: wgpu::Buffer,
+    counter: wgpu::Buffer,
     read: wgpu::Buffer,
     /// Slices per part forced by [`crate::renderer::Renderer::set_march_part_slices`].
     pub forced: Option<u32>,
