@@ -364,6 +364,11 @@ pub struct FrameArgs {
     /// to that hull instead, with the image unchanged).
     #[arg(long)]
     pub hull_cut: Option<OnOff>,
+    /// Raster backend: slices per proxy polygon, 1, 2, 4, 8 or 16 (Rezk-Salama 2001,
+    /// §9.1: a fragment composites its group's samples and blends once; faster, the
+    /// image moved by rounding; default: the preset's, normally 1).
+    #[arg(long, value_parser = parse_slices_per_proxy)]
+    pub slices_per_proxy: Option<u32>,
     /// How the volume is stored on the GPU: auto (r32float where the adapter filters
     /// it), r32float, r16float, r16unorm or r8unorm (default: the preset's).
     #[arg(long, value_parser = vwb_render::renderer::VolumeFormat::parse)]
@@ -374,6 +379,15 @@ pub struct FrameArgs {
 pub enum OnOff {
     On,
     Off,
+}
+
+/// `--slices-per-proxy`: one of [`vwb_render::renderer::RASTER_GROUPS`].
+pub fn parse_slices_per_proxy(s: &str) -> Result<u32, String> {
+    let groups = vwb_render::renderer::RASTER_GROUPS;
+    s.parse::<u32>()
+        .ok()
+        .filter(|n| groups.contains(n))
+        .ok_or_else(|| format!("slices per proxy '{s}' is not one of {groups:?}"))
 }
 
 /// `--early-termination`: a threshold or off.
@@ -422,6 +436,9 @@ impl FrameArgs {
         }
         if let Some(on) = self.hull_cut {
             doc.render.hull_cut = on == OnOff::On;
+        }
+        if let Some(n) = self.slices_per_proxy {
+            doc.render.slices_per_proxy = n;
         }
         if let Some(f) = self.volume_format {
             doc.render.volume_format = f;
@@ -689,6 +706,10 @@ pub fn run_render(preset: Option<&std::path::Path>, a: &RenderArgs) -> Result<()
         }
         if t.loop_limited > 0 {
             println!("loop_limited {}", t.loop_limited);
+        }
+        // the raster backend's slices per proxy polygon, where more than one
+        if t.raster_group > 1 {
+            println!("slices_per_proxy {}", t.raster_group);
         }
         // the compute rays cut to the occupied bricks' hull, and its share of the
         // visible box

@@ -1105,6 +1105,26 @@ impl Workbench {
                 )
                 .changed();
         });
+        if r.backend == Backend::Raster {
+            let before = r.slices_per_proxy;
+            egui::ComboBox::from_label("slices per polygon")
+                .selected_text(before.to_string())
+                .show_ui(ui, |ui| {
+                    for n in vwb_render::renderer::RASTER_GROUPS {
+                        ui.selectable_value(&mut r.slices_per_proxy, n, n.to_string());
+                    }
+                })
+                .response
+                .on_hover_text(
+                    "raster: one polygon stands for this many slices, its fragments \
+                     composite their samples and blend once (Rezk-Salama 2001, §9.1): \
+                     faster on CPU devices, the image moved by rounding",
+                );
+            if r.slices_per_proxy != before {
+                self.renderer.set_raster_group(r.slices_per_proxy);
+                self.dirty = true;
+            }
+        }
         if changed {
             self.apply_stack();
         }

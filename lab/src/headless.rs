@@ -142,13 +142,15 @@ pub fn load_volume_file_within(path: &Path, budget: Option<u64>) -> Result<Volum
 
 /// The document's render switches that live on the renderer rather than in each
 /// frame's settings: empty-space skipping, the occupied cells and the hull's fit
-/// (`render.empty_space_skipping`, `render.occupied_proxy`, `render.hull_cut`). Every
+/// (`render.empty_space_skipping`, `render.occupied_proxy`, `render.hull_cut`,
+/// `render.slices_per_proxy`). Every
 /// renderer made for a document takes them (`vwb render`, galleries, Python, the
 /// window).
 pub fn apply_render_switches(r: &mut Renderer, doc: &Document) {
     r.set_empty_space_skipping(doc.render.empty_space_skipping);
     r.set_occupied_proxy(doc.render.occupied_proxy);
     r.set_hull_proxy(doc.render.hull_proxy());
+    r.set_raster_group(doc.render.slices_per_proxy);
 }
 
 /// A renderer with a document's plugin stack applied.

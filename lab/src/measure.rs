@@ -88,6 +88,8 @@ pub struct Timing {
     /// `FrameStats::loop_limited`).
     pub march_parts: u32,
     pub loop_limited: u32,
+    /// The last frame's slices per raster proxy polygon (`FrameStats::raster_group`).
+    pub raster_group: u32,
 }
 
 impl Timing {
@@ -131,7 +133,7 @@ pub fn time_frames(
     let mut passes: BTreeMap<String, Vec<f64>> = BTreeMap::new();
     let mut slices = 0;
     let (mut proxy_share, mut scissor_share, mut idle_tiles) = (None, None, None);
-    let (mut march_parts, mut loop_limited) = (0, 0);
+    let (mut march_parts, mut loop_limited, mut raster_group) = (0, 0, 0);
     for _ in 0..frames.max(1) {
         let before = process_cpu_ms();
         let st = r.render(s)?;
@@ -142,6 +144,7 @@ pub fn time_frames(
         (proxy_share, scissor_share) = (st.proxy_share, st.scissor_share);
         idle_tiles = st.idle_tiles;
         (march_parts, loop_limited) = (st.march_parts, st.loop_limited);
+        raster_group = st.raster_group;
         wall.push(st.wall_ms);
         gpu.extend(st.gpu_ms);
         for (name, ms) in st.gpu_passes {
@@ -165,6 +168,7 @@ pub fn time_frames(
         idle_tiles,
         march_parts,
         loop_limited,
+        raster_group,
     })
 }
 
@@ -1670,6 +1674,7 @@ mod tests {
             idle_tiles: None,
             march_parts: 1,
             loop_limited: 0,
+            raster_group: 0,
         };
         // a GPU frame well below its submit-and-wait is the GPU's
         assert_eq!(timing(0.29, 2.0).frame_ms(), (0.29, "gpu"));

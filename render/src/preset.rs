@@ -103,6 +103,12 @@ pub struct RenderSection {
     /// bit. Written only when on.
     #[serde(skip_serializing_if = "std::ops::Not::not")]
     pub hull_cut: bool,
+    /// Raster backend: slices per proxy polygon, 1, 2, 4, 8 or 16
+    /// ([`crate::Renderer::set_raster_group`], Rezk-Salama 2001 §9.1): fewer
+    /// polygons, depth tests and blends for the same samples, the image moved by the
+    /// rounding of the blends and sample positions. Written only when not 1.
+    #[serde(skip_serializing_if = "is_one")]
+    pub slices_per_proxy: u32,
     /// How the volume is stored on the GPU ([`crate::renderer::VolumeFormat`]);
     /// written only when not `Auto`.
     #[serde(skip_serializing_if = "crate::renderer::VolumeFormat::is_auto")]
@@ -134,6 +140,7 @@ impl Default for RenderSection {
             empty_space_skipping: true,
             occupied_proxy: false,
             hull_cut: false,
+            slices_per_proxy: 1,
             volume_format: crate::renderer::VolumeFormat::Auto,
         }
     }
@@ -146,6 +153,10 @@ pub struct PluginEntry {
     pub enabled: bool,
     #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
     pub params: BTreeMap<String, ron::Value>,
+}
+
+fn is_one(n: &u32) -> bool {
+    *n == 1
 }
 
 fn yes() -> bool {
@@ -295,6 +306,16 @@ impl Document {
             return Err(value_err(
                 "render.size".into(),
                 format!("{:?} must be within 1..=16384 per side", r.size),
+            ));
+        }
+        if !crate::renderer::RASTER_GROUPS.contains(&r.slices_per_proxy) {
+            return Err(value_err(
+                "render.slices_per_proxy".into(),
+                format!(
+                    "{} must be one of {:?}",
+                    r.slices_per_proxy,
+                    crate::renderer::RASTER_GROUPS
+                ),
             ));
         }
         if let Some(t) = r.early_termination

@@ -205,6 +205,10 @@ pub struct FrameStats {
     /// that their rays may be cut short ([`march_parts`]; [`Renderer::render`] renders again in smaller parts
     /// first, so this stays 0 unless a single sample needs more than the limit).
     pub loop_limited: u32,
+    /// Raster backend: the slices each proxy polygon stood for
+    /// ([`Renderer::set_raster_group`]; 1 where the frame drew a polygon per slice);
+    /// 0 for compute.
+    pub raster_group: u32,
 }
 
 impl FrameStats {
@@ -298,6 +302,26 @@ impl HullRays {
     }
 }
 
+/// The slices per proxy polygon the raster backend can draw ([`Renderer::set_raster_group`];
+/// Rezk-Salama 2001, §9.1): powers of two, so that a group never straddles the runs
+/// between the depth masks ([`raster_et::interval`], [`raster_et::skip_interval`]).
+pub const RASTER_GROUPS: [u32; 5] = [1, 2, 4, 8, 16];
+
+/// The largest of [`RASTER_GROUPS`] not above `n` (1 for 0).
+pub fn raster_group_of(n: u32) -> u32 {
+    RASTER_GROUPS
+        .iter()
+        .copied()
+        .filter(|&g| g <= n.max(1))
+        .max()
+        .unwrap_or(1)
+}
+
+/// `VWB_RASTER_GROUP` (a benchmark switch) or 1.
+fn raster_group_from_env() -> u32 {
+    raster_group_of(env_count("VWB_RASTER_GROUP", 1))
+}
+
 /// [`HullRays::Auto`] cuts the compute backend's rays to the occupied bricks' hull where
 /// it holds less than this share of the visible box (the heads and the demo 0.72–0.77,
 /// the nuclei 0.99, the ocean 1.0; docs/perf.md, "The compute backend's rays cut to the
@@ -387,17 +411,24 @@ fn raster_pipeline(
     module: &wgpu::ShaderModule,
     layout: &wgpu::PipelineLayout,
     target: TargetFormat,
-    fragment: &str,
+    (fragment, group): (&str, u32),
     depth_stencil: Option<wgpu::DepthStencilState>,
     blend: wgpu::BlendComponent,
 ) -> wgpu::RenderPipeline {
+    // the slices per proxy polygon (`RASTER_GROUP` in shaders/slice.wgsl); the
+    // module's default where 1, so that the default pipeline is the module as written
+    let constants = [("RASTER_GROUP", group as f64)];
+    let options = || wgpu::PipelineCompilationOptions {
+        constants: if group > 1 { &constants } else { &[] },
+        ..Default::default()
+    };
     device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
         label: Some("vwb raster slices"),
         layout: Some(layout),
         vertex: wgpu::VertexState {
             module,
             entry_point: Some("vs_main"),
-            compilation_options: Default::default(),
+            compilation_options: options(),
             buffers: &[Some(wgpu::VertexBufferLayout {
                 array_stride: 16,
                 step_mode: wgpu::VertexStepMode::Vertex,
@@ -425,7 +456,7 @@ fn raster_pipeline(
         fragment: Some(wgpu::FragmentState {
             module,
             entry_point: Some(fragment),
-            compilation_options: Default::default(),
+            compilation_options: options(),
             targets: &[Some(blend_target(target, blend))],
         }),
         multiview_mask: None,
@@ -677,7 +708,9 @@ struct CompiledStack {
     /// frames that meet the slices from behind), index `et + 2·exact + 4·over`: the
     /// plain one built with the stack (so that the device validates it), the others on
     /// first use.
-    raster: [std::sync::OnceLock<wgpu::RenderPipeline>; 8],
+    /// By early termination, exact position, order and slices per proxy polygon
+    /// ([`CompiledStack::raster_for`]).
+    raster: [std::sync::OnceLock<wgpu::RenderPipeline>; 8 * RASTER_GROUPS.len()],
     /// The raster backend's chunk bits for empty-space skipping (`fs_raster_chunks`,
     /// [`raster_et`]), built on first use.
     raster_chunks: std::sync::OnceLock<wgpu::RenderPipeline>,
@@ -709,27 +742,32 @@ struct CompiledStack {
 }
 
 impl CompiledStack {
-    /// The raster pipeline for early termination (depth test) and the exact fragment
-    /// position (proxy cut to the occupied cells).
+    /// The raster pipeline for early termination (depth test), the exact fragment
+    /// position (proxy cut to the occupied cells), the order ("over") and the slices
+    /// per proxy polygon (one of [`RASTER_GROUPS`]).
     fn raster_for(
         &self,
         device: &wgpu::Device,
         et: bool,
         exact: bool,
         over: bool,
+        group: u32,
     ) -> &wgpu::RenderPipeline {
-        self.raster[et as usize + 2 * exact as usize + 4 * over as usize].get_or_init(|| {
+        let g = RASTER_GROUPS.iter().position(|&n| n == group).unwrap_or(0);
+        let i = et as usize + 2 * exact as usize + 4 * over as usize + 8 * g;
+        self.raster[i].get_or_init(|| {
+            let entry = match (exact, over) {
+                (false, false) => "fs_main",
+                (true, false) => "fs_exact",
+                (false, true) => "fs_main_behind",
+                (true, true) => "fs_exact_behind",
+            };
             raster_pipeline(
                 device,
                 &self.module,
                 &self.raster_layout,
                 self.target,
-                match (exact, over) {
-                    (false, false) => "fs_main",
-                    (true, false) => "fs_exact",
-                    (false, true) => "fs_main_behind",
-                    (true, true) => "fs_exact_behind",
-                },
+                (entry, RASTER_GROUPS[g]),
                 et.then(raster_et::slice_depth_state),
                 if over { OVER } else { UNDER },
             )
@@ -1206,6 +1244,8 @@ pub struct Renderer {
     raster_skipping: bool,
     /// Raster backend: proxy polygons cut to the occupied cells ([`Renderer::set_occupied_proxy`]).
     occupied_proxy: bool,
+    /// Raster backend: slices per proxy polygon ([`Renderer::set_raster_group`]).
+    raster_group: u32,
     /// Raster backend: proxy polygons fitted to the occupied bricks' hull
     /// ([`Renderer::set_hull_proxy`]).
     hull_proxy: HullProxy,
@@ -1498,6 +1538,7 @@ impl Renderer {
             target: None,
             raster_et: None,
             occupied_proxy: false,
+            raster_group: raster_group_from_env(),
             raster_skipping: env_on("VWB_RASTER_SKIP"),
             hull_proxy: HullProxy::from_env(),
             occupied_hull: None,
@@ -1812,6 +1853,26 @@ impl Renderer {
     /// cells; `VWB_RASTER_SKIP=0` starts renderers with it off). The image is the same.
     pub fn set_raster_skipping(&mut self, on: bool) {
         self.raster_skipping = on;
+    }
+
+    /// Raster backend: draw one proxy polygon per group of `n` slices (Rezk-Salama 2001,
+    /// §9.1, "multi-texture speedup"): its fragments take the group's `n` samples along
+    /// their rays, composite them front to back and blend once, which cuts the
+    /// rasterisation, depth tests and blends per sample by `n` (docs/perf.md measures
+    /// it). `n` is rounded down to one of [`RASTER_GROUPS`]; 1 (the default) draws a
+    /// polygon per slice. The image moves by the rounding of the blends (the target
+    /// rounds once per group, not per slice) and of the sample positions (stepped
+    /// along the ray from the group's plane, not interpolated on each plane). Applies
+    /// to view-aligned frames without per-slice state whose proxies are not cut (to the
+    /// occupied cells or the hull); other frames draw a polygon per slice.
+    /// `VWB_RASTER_GROUP` sets the default of new renderers (a benchmark switch).
+    pub fn set_raster_group(&mut self, n: u32) {
+        self.raster_group = raster_group_of(n);
+    }
+
+    /// Slices per proxy polygon on the raster backend ([`Renderer::set_raster_group`]).
+    pub fn raster_group(&self) -> u32 {
+        self.raster_group
     }
 
     /// Raster backend: cut the proxy polygons to the cells of bricks that can be
@@ -2591,7 +2652,7 @@ impl Renderer {
             &module,
             &raster_layout,
             target,
-            "fs_main",
+            ("fs_main", 1),
             None,
             UNDER,
         );
@@ -2733,7 +2794,8 @@ impl Renderer {
             g2_layout,
             g3_layout,
             raster: {
-                let locks: [std::sync::OnceLock<wgpu::RenderPipeline>; 8] = Default::default();
+                let locks: [std::sync::OnceLock<wgpu::RenderPipeline>; 8 * RASTER_GROUPS.len()] =
+                    std::array::from_fn(|_| std::sync::OnceLock::new());
                 let _ = locks[0].set(raster);
                 locks
             },
@@ -4097,6 +4159,8 @@ impl Renderer {
         let mut scissor_share = None;
         let mut proxy_share = None;
         let mut fused_run = false;
+        // slices per proxy polygon this frame ([`Renderer::set_raster_group`])
+        let mut group = 1;
         if s.backend == Backend::Raster {
             let own = self.own_box().0;
             // the proxies cover only what can be visible: the occupied cells, or the
@@ -4116,10 +4180,30 @@ impl Renderer {
                 _ => None,
             };
             let cut_to_hull = hull.is_some() && self.hull_proxy == HullProxy::Cut;
+            // several slices per polygon (§9.1) on the whole proxies of view-aligned
+            // frames without per-slice state; a group within every run between masks
+            if self.raster_group > 1
+                && !per_slice
+                && !cut_proxy
+                && !cut_to_hull
+                && frame_plan.half.is_none()
+                && boxes.len() == 1
+            {
+                let mut n = self.raster_group;
+                let runs = [
+                    raster_skip.then(raster_et::skip_interval),
+                    s.early_termination.map(|_| et_interval),
+                ];
+                while n > 1 && runs.iter().flatten().any(|r| !r.is_multiple_of(n)) {
+                    n /= 2;
+                }
+                group = n;
+            }
             let tris = match hull {
                 Some((hull, b)) if cut_to_hull => {
                     plan.triangles_in_dop(b, hull, HULL_SLIVER * self.vbox.voxel)
                 }
+                _ if group > 1 => plan.group_triangles(&boxes[0], group, view.perspective),
                 _ => plan.triangles_in(&boxes),
             };
             // under the scissor: per slice, the pixels its part inside the hull can cover
@@ -4133,6 +4217,15 @@ impl Renderer {
                         coarse_rect(crate::slicing::screen_rect(&poly, vp, size), size)
                     })
                     .collect();
+                // a group's polygon (at its first slice) under its slices' rects
+                if group > 1 {
+                    for k0 in (0..plan.count).step_by(group as usize) {
+                        let k1 = (k0 + group).min(plan.count);
+                        let rects = slice_rects[k0 as usize..k1 as usize].iter();
+                        let drawn = rects.filter(|r| r[2] > 0 && r[3] > 0).copied();
+                        slice_rects[k0 as usize] = rect_union(drawn).unwrap_or([0; 4]);
+                    }
+                }
             }
             let covered = if cut_to_hull {
                 // the polygons' area times the slice spacing
@@ -4280,7 +4373,7 @@ impl Renderer {
                 let et = mask_group.as_ref().zip(self.raster_et.as_ref());
                 let raster: Vec<&wgpu::RenderPipeline> = raster_orders
                     .iter()
-                    .map(|&over| p.raster_for(device, et.is_some(), cut_proxy, over))
+                    .map(|&over| p.raster_for(device, et.is_some(), cut_proxy, over, group))
                     .collect();
                 let begin = |enc: &'_ mut wgpu::CommandEncoder, clear: bool| {
                     enc.begin_render_pass(&wgpu::RenderPassDescriptor {
@@ -4524,6 +4617,11 @@ impl Renderer {
                 fused_slices: fused_run,
                 idle_tiles,
                 march_parts: if whole_march { parts.len() as u32 } else { 0 },
+                raster_group: if s.backend == Backend::Raster {
+                    group
+                } else {
+                    0
+                },
                 ..Default::default()
             },
         })

@@ -236,6 +236,53 @@ impl SlicePlan {
         out
     }
 
+    /// The proxy polygon of the group of `n` slices from slice `k0` (Rezk-Salama 2001,
+    /// §9.1: several slices per proxy polygon): a polygon on plane `k0` that covers,
+    /// seen from the eye, every point of slices `k0 … k0 + n − 1` inside the box. Each
+    /// slice's polygon is projected onto plane `k0` along the rays (through the eye
+    /// when `perspective`, along `forward` otherwise) and the group's is the convex hull
+    /// of them, ordered around it. Empty if no slice of the group meets the box.
+    pub fn group_polygon(&self, vbox: &VolumeBox, k0: u32, n: u32, perspective: bool) -> Vec<Vec3> {
+        let d0 = self.depth(k0);
+        let u = self.forward.any_orthonormal_vector();
+        let v = self.forward.cross(u);
+        let mut pts: Vec<glam::DVec2> = Vec::with_capacity(6 * n as usize);
+        for k in k0..k0.saturating_add(n).min(self.count) {
+            let dk = self.depth(k);
+            for p in self.polygon(vbox, k) {
+                let q = if perspective {
+                    self.eye + (p - self.eye) * (d0 / dk)
+                } else {
+                    p - self.forward * (dk - d0)
+                };
+                let r = q - self.eye;
+                pts.push(glam::dvec2(r.dot(u) as f64, r.dot(v) as f64));
+            }
+        }
+        let hull = convex_hull(pts);
+        if hull.len() < 3 {
+            return Vec::new();
+        }
+        // the hull runs counter-clockwise in (u, v), which is clockwise seen from the
+        // eye (the order `plane_box_polygon` reverses); the fan does not mind
+        let origin = self.eye + self.forward * d0;
+        hull.iter()
+            .rev()
+            .map(|h| origin + u * h.x as f32 + v * h.y as f32)
+            .collect()
+    }
+
+    /// [`SlicePlan::triangles`] with a polygon per group of `n` slices
+    /// ([`SlicePlan::group_polygon`]), each tagged with its group's first slice.
+    pub fn group_triangles(&self, vbox: &VolumeBox, n: u32, perspective: bool) -> Vec<(Vec3, u32)> {
+        let n = n.max(1);
+        let mut out = Vec::with_capacity(self.count.div_ceil(n) as usize * 12);
+        for k0 in (0..self.count).step_by(n as usize) {
+            push_fan(&mut out, &self.group_polygon(vbox, k0, n, perspective), k0);
+        }
+        out
+    }
+
     /// [`SlicePlan::triangles`] over several disjoint boxes: each slice's polygons in
     /// every box (in the order given) before the next slice's.
     pub fn triangles_in(&self, boxes: &[VolumeBox]) -> Vec<(Vec3, u32)> {
@@ -247,6 +294,36 @@ impl SlicePlan {
         }
         out
     }
+}
+
+/// The convex hull of points in the plane, counter-clockwise, without collinear points
+/// (Andrew's monotone chain).
+fn convex_hull(mut pts: Vec<glam::DVec2>) -> Vec<glam::DVec2> {
+    pts.sort_by(|a, b| a.x.total_cmp(&b.x).then(a.y.total_cmp(&b.y)));
+    pts.dedup();
+    if pts.len() < 3 {
+        return pts;
+    }
+    let cross = |o: glam::DVec2, a: glam::DVec2, b: glam::DVec2| (a - o).perp_dot(b - o);
+    let mut hull: Vec<glam::DVec2> = Vec::with_capacity(2 * pts.len());
+    // the lower chain left to right, then the upper one right to left; each pops the
+    // points that do not turn left, down to the chain's own first point
+    for &p in &pts {
+        while hull.len() >= 2 && cross(hull[hull.len() - 2], hull[hull.len() - 1], p) <= 0.0 {
+            hull.pop();
+        }
+        hull.push(p);
+    }
+    let lower = hull.len();
+    for &p in pts.iter().rev().skip(1) {
+        while hull.len() > lower && cross(hull[hull.len() - 2], hull[hull.len() - 1], p) <= 0.0 {
+            hull.pop();
+        }
+        hull.push(p);
+    }
+    // the last point is the first again
+    hull.pop();
+    hull
 }
 
 /// A convex polygon of slice k as a fan of triangles from its first vertex.
@@ -637,6 +714,75 @@ mod tests {
             a += (poly[i] - poly[0]).cross(poly[i + 1] - poly[0]);
         }
         a.length() * 0.5
+    }
+
+    /// A group's polygon (§9.1) lies on its first plane and covers every slice of the
+    /// group as seen from the eye: each vertex of slices k0 … k0 + n − 1, carried along
+    /// its ray onto plane k0, lies inside it, and its own vertices are such points (a
+    /// hull, no larger than it must be); a group of one is the slice's polygon.
+    #[test]
+    fn group_polygons_cover_their_slices_along_the_rays() {
+        let vbox = VolumeBox::new([64, 48, 40], [1.0, 1.0, 1.5]);
+        let inside = |poly: &[Vec3], n: Vec3, q: Vec3| {
+            let m = poly.len();
+            let c = poly.iter().copied().sum::<Vec3>() / m as f32;
+            let turn = |i: usize| (poly[(i + 1) % m] - poly[i]).cross(q - poly[i]).dot(n);
+            let side = (poly[1] - poly[0]).cross(c - poly[0]).dot(n).signum();
+            (0..m).all(|i| turn(i) * side >= -1e-6)
+        };
+        for (yaw, pitch, perspective) in [
+            (30.0, 20.0, true),
+            (200.0, -50.0, true),
+            (75.0, 10.0, false),
+        ] {
+            let cam = Camera {
+                yaw_deg: yaw,
+                pitch_deg: pitch,
+                projection: if perspective {
+                    Projection::Perspective { fov_y_deg: 60.0 }
+                } else {
+                    Projection::Orthographic { height: 2.0 }
+                },
+                ..Default::default()
+            };
+            let view = cam.view(1.0);
+            assert_eq!(view.perspective, perspective);
+            let plan = SlicePlan::new(&view, &vbox, 2.0).unwrap();
+            let f = plan.forward;
+            for n in [1, 4, 16] {
+                let mut covered = 0;
+                for k0 in (0..plan.count).step_by(n as usize) {
+                    let g = plan.group_polygon(&vbox, k0, n, perspective);
+                    let d0 = plan.depth(k0);
+                    for v in &g {
+                        assert!(((*v - plan.eye).dot(f) - d0).abs() < 1e-5, "on plane k0");
+                    }
+                    if n == 1 && !g.is_empty() {
+                        let a = polygon_area(&plan.polygon(&vbox, k0));
+                        assert!((polygon_area(&g) - a).abs() < 1e-5 * a.max(1e-3));
+                    }
+                    let mut hull_points = 0;
+                    for k in k0..(k0 + n).min(plan.count) {
+                        let dk = plan.depth(k);
+                        for p in plan.polygon(&vbox, k) {
+                            let q = if perspective {
+                                plan.eye + (p - plan.eye) * (d0 / dk)
+                            } else {
+                                p - f * (dk - d0)
+                            };
+                            assert!(inside(&g, f, q), "n {n} k0 {k0} k {k}: {q} outside");
+                            covered += 1;
+                            hull_points += g.iter().any(|v| v.distance(q) < 1e-5) as usize;
+                        }
+                    }
+                    assert!(
+                        g.is_empty() || hull_points >= g.len(),
+                        "a vertex of no slice"
+                    );
+                }
+                assert!(covered > 0);
+            }
+        }
     }
 
     /// The half-angle axis bisects the view and the light (or the light and the

@@ -738,11 +738,19 @@ struct VsOut {
     @location(1) @interpolate(flat) slice: u32,
 }
 
+// Slices per proxy polygon on the raster backend (Rezk-Salama 2001, §9.1; a pipeline
+// constant, 1 unless the renderer is asked for more, `Renderer::set_raster_group`):
+// with n > 1 each polygon stands for the n slices from its own (`SlicePlan::
+// group_polygon`), a fragment takes their samples along its ray and composites them,
+// and the target blends once per n slices. Its depth is that of the group's last slice,
+// so that the depth masks kill it only where they would kill all n.
+override RASTER_GROUP: u32 = 1u;
+
 @vertex
 fn vs_main(@location(0) pos: vec3<f32>, @location(1) slice: u32) -> VsOut {
     var o: VsOut;
     o.clip_pos = frame.view_proj * vec4<f32>(pos, 1.0);
-    o.clip_pos.z = slice_depth(o.clip_pos, slice);
+    o.clip_pos.z = slice_depth(o.clip_pos, min(slice + RASTER_GROUP - 1u, max(frame.counts.x, 1u) - 1u));
     o.world = pos;
     o.slice = slice;
     return o;
@@ -790,8 +798,24 @@ fn fragment_proxy(in: VsOut, behind: bool) -> vec4<f32> {
         discard;
     }
     run_setup(pixel_ray(uv), uv);
-    let s = make_sample(in.world, ray_dir_to(in.world), uv, in.slice);
-    return evaluate(s).c;
+    let dir = ray_dir_to(in.world);
+    let s = make_sample(in.world, dir, uv, in.slice);
+    if (RASTER_GROUP == 1u) {
+        return evaluate(s).c;
+    }
+    // the group's slices front to back along the ray, composited as the blend would
+    // ("under"), those outside the box (the group's polygon covers all n) left out
+    var acc = vec4<f32>(0.0);
+    for (var i = 0u; i < RASTER_GROUP; i += 1u) {
+        var si = s;
+        si.pos = in.world + dir * (f32(i) * s.step);
+        si.tex = tex_of(si.pos);
+        si.slice = in.slice + i;
+        if (in_own_box(si.pos)) {
+            acc = under(acc, evaluate(si).c);
+        }
+    }
+    return acc;
 }
 
 @fragment

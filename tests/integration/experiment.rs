@@ -468,6 +468,10 @@ fn bad_experiments_are_refused_naming_the_file_and_cause() {
             "'camera.fov_y_deg': FovYDeg: 180 is outside the camera's range",
         ),
         (
+            "variants: [(name: \"a\", set: {\"render.slices_per_proxy\": 5})]",
+            "'render.slices_per_proxy' must be one of [1, 2, 4, 8, 16], got 5",
+        ),
+        (
             "grid: [(param: \"render.size\", values: [16.5])]",
             "render.size: an image side is a whole number of pixels in 1..=16384, got 16.5",
         ),

@@ -315,6 +315,10 @@ fn bad_values_fail_with_their_path() {
         ),
         (r#"(version: 1, render: (size: (0, 10)))"#, "render.size"),
         (
+            r#"(version: 1, render: (slices_per_proxy: 3))"#,
+            "render.slices_per_proxy",
+        ),
+        (
             r#"(version: 1, plugins: [(id: "test.smooth", params: {"radius": 1.5})])"#,
             "test.smooth.radius",
         ),

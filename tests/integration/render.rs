@@ -824,6 +824,74 @@ fn raster_skipping_keeps_the_image() {
     }
 }
 
+/// Several slices per proxy polygon on the raster backend (Rezk-Salama 2001, §9.1;
+/// `render.slices_per_proxy`): a polygon per group of 2, 4 or 16 slices, its fragments
+/// compositing the group's samples along their rays, renders the image of a polygon
+/// per slice up to rounding, and stays as close to the CPU twins (perspective and
+/// orthographic, with skipping, early termination, clipping and a 2D transfer
+/// function). Frames with per-slice state draw a polygon per slice, as before.
+#[test]
+fn raster_groups_of_slices_keep_the_image() {
+    use vwb_render::reference::{ReferenceOptions, render_reference};
+    let registry = registry();
+    let ortho = vwb_render::camera::Projection::Orthographic { height: 1.2 };
+    for (preset, et, projection) in [
+        ("demo.ron", None, None),
+        ("demo.ron", Some(0.99), None),
+        ("demo.ron", None, Some(ortho)),
+        ("demo_clip_labels.ron", None, None),
+        ("demo_tf2d.ron", Some(0.95), None),
+        ("demo_dos.ron", None, None),
+    ] {
+        let (doc, volume, mut s) = raster_scene(&registry, preset, et);
+        if let Some(p) = projection {
+            s.camera.projection = p;
+        }
+        let per_slice = doc.stack.iter().any(|i| i.plugin.slice_state().is_some());
+        let opts = ReferenceOptions {
+            emulate_fp16: doc.render.target == TargetFormat::Rgba16Float,
+            inputs: vwb_lab::headless::inputs_for(&doc).unwrap(),
+            ..Default::default()
+        };
+        let twin = render_reference(&volume, &doc.stack, &s, &opts)
+            .unwrap()
+            .pixels;
+        // a document's render.slices_per_proxy reaches the renderers made for it
+        let mut grouped = doc.clone();
+        grouped.render.slices_per_proxy = 8;
+        let mut r = vwb_lab::headless::renderer_for(gpu(), &grouped, volume.clone()).unwrap();
+        assert_eq!(r.raster_group(), 8);
+        let mut first = None;
+        for n in [1, 2, 4, 16] {
+            r.set_raster_group(n);
+            let st = r.render(&s).unwrap();
+            let px = r.read_pixels().unwrap().2;
+            let rms = delta_e_rms(&px, &twin, 96, 96);
+            let label = format!("{preset} {et:?} {projection:?} n {n}");
+            eprintln!("{label}: twins {rms:.4}");
+            assert_eq!(st.raster_group, if per_slice { 1 } else { n }, "{label}");
+            assert!(
+                rms < twin_bound(Backend::Raster, per_slice),
+                "{label}: {rms}"
+            );
+            let Some((one, one_rms)) = &first else {
+                assert!(mean_luma(&rgb(&px)) > 0.02, "{label}: something is drawn");
+                first = Some((px, rms));
+                continue;
+            };
+            if per_slice {
+                assert!(px == *one, "{label}: a polygon per slice, the same image");
+                continue;
+            }
+            // no further from the twins, and close to a polygon per slice
+            assert!(rms <= one_rms + 0.05, "{label}: {rms} against {one_rms}");
+            let apart = gpu_delta_e_rms(&px, one, 96, 96);
+            eprintln!("{label}: from a polygon per slice {apart:.4}");
+            assert!(apart < 0.5, "{label}: {apart}");
+        }
+    }
+}
+
 /// The chunk bits of the raster backend's skipping: `mark_slices` (shaders/slice.wgsl)
 /// sets the chunks of a range of slices and `first_bit_from` (shaders/raster_mask.wgsl)
 /// finds the first set chunk from a slice's, as their 64-bit models say, for every

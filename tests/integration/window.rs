@@ -243,6 +243,24 @@ fn window_edits_a_scene_like_a_user() {
     );
     assert!(rms(&lit, &shiny) > 0.2, "k_s changed nothing");
 
+    // eight slices per raster polygon (§9.1): the same image up to rounding
+    click(&mut h, "slices per polygon");
+    settle(&mut h);
+    h.get_by_role_and_label(egui::Role::Button, "8").click();
+    settle(&mut h);
+    assert_eq!(h.state().document().render.slices_per_proxy, 8);
+    assert_eq!(h.state().renderer().raster_group(), 8);
+    let grouped = image(&h);
+    let apart = rms(&shiny, &grouped);
+    assert!(apart > 0.0 && apart < 2.0, "8 per polygon: {apart}");
+    // and back to one: the image as it was
+    click(&mut h, "slices per polygon");
+    settle(&mut h);
+    h.get_by_role_and_label(egui::Role::Button, "1").click();
+    settle(&mut h);
+    assert_eq!(h.state().document().render.slices_per_proxy, 1);
+    assert!(rms(&shiny, &image(&h)) == 0.0, "one per polygon again");
+
     // per-plugin GPU time by ablation, in the background
     click(&mut h, "Measure per-plugin cost");
     step_until(&mut h, Duration::from_secs(300), |h| {
