@@ -307,6 +307,15 @@ impl HullRays {
 /// between the depth masks ([`raster_et::interval`], [`raster_et::skip_interval`]).
 pub const RASTER_GROUPS: [u32; 5] = [1, 2, 4, 8, 16];
 
+/// Logs that `n` invocations ran out of the device's loop iterations even in parts of
+/// one slice ([`march_parts`]).
+fn warn_loop_limited(n: u32) {
+    log::warn!(
+        "{n} invocations ran out of the device's loop iterations at one slice per part: their rays may be cut short (a plugin's loops exceed {} iterations a sample)",
+        march_parts::LOOP_LIMIT
+    );
+}
+
 /// The largest of [`RASTER_GROUPS`] not above `n` (1 for 0).
 pub fn raster_group_of(n: u32) -> u32 {
     RASTER_GROUPS
@@ -3963,11 +3972,7 @@ impl Renderer {
             let stats = self.render_once(s)?;
             if stats.loop_limited == 0 || !self.shrink_march_parts(stats.slices) {
                 if stats.loop_limited > 0 {
-                    log::warn!(
-                        "{} invocations ran out of the device's loop iterations at one slice per part: their rays may be cut short (a plugin's loops exceed {} iterations a sample)",
-                        stats.loop_limited,
-                        march_parts::LOOP_LIMIT
-                    );
+                    warn_loop_limited(stats.loop_limited);
                 }
                 return Ok(stats);
             }
@@ -4642,12 +4647,8 @@ impl Renderer {
             None if self.gpu.info.device_type != wgpu::DeviceType::Cpu => return vec![[0, 0]],
             None => {
                 let estimate = self.loop_estimate(compiled, stack);
-                let most = match self.march.shrink {
-                    Some((c, e, most)) if c == Arc::as_ptr(compiled) as usize && e == estimate => {
-                        most
-                    }
-                    _ => u32::MAX,
-                };
+                let key = Arc::as_ptr(compiled) as usize;
+                let most = self.march.shrunk(key, estimate).unwrap_or(u32::MAX);
                 march_parts::part_slices(estimate).min(most)
             }
         };
@@ -4684,7 +4685,19 @@ impl Renderer {
         let Some(p) = self.pipelines.as_ref() else {
             return false;
         };
-        let now = self.march_parts(&p.compiled, &p.stack, count);
+        let (compiled, stack) = (p.compiled.clone(), p.stack.clone());
+        self.shrink_parts_of(&compiled, &stack, count)
+    }
+
+    /// [`Renderer::shrink_march_parts`] for the march of `stack` (compiled as
+    /// `compiled`) over `count` slices: a frame's, or an atlas tile's.
+    fn shrink_parts_of(
+        &mut self,
+        compiled: &Arc<CompiledStack>,
+        stack: &[(u64, Arc<dyn Plugin>)],
+        count: u32,
+    ) -> bool {
+        let now = self.march_parts(compiled, stack, count);
         let longest = now
             .iter()
             .map(|[a, b]| {
@@ -4699,9 +4712,9 @@ impl Renderer {
         if longest <= 1 || self.march.forced.is_some() {
             return false;
         }
-        let estimate = self.loop_estimate(&p.compiled, &p.stack);
-        let key = Arc::as_ptr(&p.compiled) as usize;
-        self.march.shrink = Some((key, estimate, (longest / 4).max(1)));
+        let estimate = self.loop_estimate(compiled, stack);
+        let key = Arc::as_ptr(compiled) as usize;
+        self.march.set_shrunk(key, estimate, (longest / 4).max(1));
         true
     }
 

@@ -1549,6 +1549,7 @@ fn submitted(
         wall_ms: 0.0,
         prepasses_run: 0,
         volume_passes_run: 0,
+        loop_limited: 0,
     }
 }
 
@@ -1779,6 +1780,7 @@ fn an_atlas_of_64_variants_matches_their_single_renders() {
             wall_ms: 0.0,
             prepasses_run: 0,
             volume_passes_run: 0,
+            loop_limited: 0,
         };
         for j in 0..8 {
             let (d, _) = diff(

@@ -570,7 +570,9 @@ fn an_atlas_refines_a_progressive_pass_once_per_variant() {
 /// where they ran out of llvmpipe's loop iterations, and `Renderer::render` renders the
 /// frame again in smaller parts until they do not; its image is then that of parts of
 /// one slice each (which cannot run out here). Marched in one part by force, the frame
-/// is cut short and says so (`FrameStats::loop_limited`). A GPU has no such limit.
+/// is cut short and says so (`FrameStats::loop_limited`). An atlas of such tiles
+/// (galleries, genetic search) is rendered again in smaller parts likewise
+/// (`Renderer::render_atlas`, `Atlas::loop_limited`). A GPU has no such limit.
 #[test]
 fn a_user_plugins_loops_are_found_and_marched_in_parts() {
     let manifest = r#"UserPlugin(
@@ -609,9 +611,35 @@ fn a_user_plugins_loops_are_found_and_marched_in_parts() {
         found.iter().any(|p| p[3] > 0.2),
         "the frame shows something"
     );
+    // an atlas of two tiles of the stack: the first is the single render's
+    let turned = vwb_render::Camera {
+        yaw_deg: s.camera.yaw_deg + 40.0,
+        ..s.camera
+    };
+    let tiles = [s.camera, turned].map(|camera| vwb_render::renderer::AtlasTile {
+        camera,
+        stack: &stack,
+    });
+    let mut a = Renderer::new(gpu(), demo()).unwrap();
+    let atlas = a
+        .render_atlas(&tiles, &s, TargetFormat::Rgba16Float, 2)
+        .unwrap();
+    assert_eq!(
+        atlas.loop_limited, 0,
+        "the atlas's parts leave no ray cut short"
+    );
+    let (d, _) = diff(&rgb(&atlas.tile_pixels(0)), &rgb(&single));
+    assert!(d < 1e-6, "the atlas's first tile is the single render: {d}");
     if crate::common::on_gpu() {
         return;
     }
+    a.set_march_part_slices(Some(100_000));
+    let cut = a
+        .render_atlas(&tiles, &s, TargetFormat::Rgba16Float, 2)
+        .unwrap();
+    assert!(cut.loop_limited > 0, "the atlas's shortfall is noted");
+    let (d, _) = diff(&rgb(&cut.tile_pixels(0)), &rgb(&single));
+    assert!(d > 0.01, "an atlas cut short looks different (RMS {d})");
     // (~1 000 iterations a sample: 60 slices a part at most)
     assert!(
         stats.march_parts >= stats.slices.div_ceil(60),

@@ -36,6 +36,29 @@ pub struct Atlas {
     pub prepasses_run: usize,
     /// Volume-pass dispatches the atlas ran (each tile stack's out-of-date passes).
     pub volume_passes_run: usize,
+    /// On a CPU device: the invocations whose loops ran out of llvmpipe's loop
+    /// iterations in the atlas returned, so that their rays may be cut short
+    /// ([`Renderer::render_atlas`] renders again in smaller parts first, as
+    /// [`Renderer::render`] does; [`FrameStats::loop_limited`]).
+    pub loop_limited: u32,
+}
+
+/// An atlas's whole-frame marches, for the loop limiter's check: the compiled stack
+/// and each tile's enabled instances and slice count (none with per-slice state or on
+/// a GPU, where nothing is checked).
+#[derive(Clone, Default)]
+struct AtlasMarches {
+    compiled: Option<Arc<CompiledStack>>,
+    tiles: Vec<(Stack, u32)>,
+}
+
+/// A stack's enabled instances: (uid, plugin).
+type Stack = Vec<(u64, Arc<dyn Plugin>)>;
+
+impl std::fmt::Debug for AtlasMarches {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{} tiles' marches checked", self.tiles.len())
+    }
 }
 
 /// An atlas encoded into a caller's command encoder ([`Renderer::encode_atlas`]).
@@ -48,6 +71,8 @@ pub struct EncodedAtlas {
     pub tile: [u32; 2],
     pub prepasses_run: usize,
     pub volume_passes_run: usize,
+    /// What [`Renderer::atlas_loop_limited`] checks.
+    marches: AtlasMarches,
 }
 
 impl EncodedAtlas {
@@ -80,7 +105,9 @@ impl Renderer {
     /// order; their parameter values and instances differ. A stack with per-slice
     /// state (`shade.dos`) draws each tile's slices as its single render does, its
     /// state cleared per tile, in the same submission. Afterwards the renderer draws
-    /// the first tile's stack.
+    /// the first tile's stack. On a CPU device, an atlas whose loops ran out of
+    /// llvmpipe's loop iterations ([`Renderer::atlas_loop_limited`]) is rendered again
+    /// in smaller parts, as [`Renderer::render`] renders a frame again.
     pub fn render_atlas(
         &mut self,
         tiles: &[AtlasTile],
@@ -89,24 +116,77 @@ impl Renderer {
         cols: u32,
     ) -> Result<Atlas, RenderError> {
         let start = Instant::now();
-        let mut enc = self
-            .gpu
-            .device
-            .create_command_encoder(&wgpu::CommandEncoderDescriptor {
-                label: Some("vwb atlas"),
+        let (mut prepasses_run, mut volume_passes_run) = (0, 0);
+        loop {
+            let mut enc = self
+                .gpu
+                .device
+                .create_command_encoder(&wgpu::CommandEncoderDescriptor {
+                    label: Some("vwb atlas"),
+                });
+            let encoded = self.encode_atlas(&mut enc, tiles, s, target, cols)?;
+            self.gpu.queue.submit([enc.finish()]);
+            prepasses_run += encoded.prepasses_run;
+            volume_passes_run += encoded.volume_passes_run;
+            let pixels = self.read_atlas(&encoded);
+            let loop_limited = self.atlas_loop_limited(&encoded);
+            if loop_limited > 0 && self.shrink_atlas_parts(&encoded) {
+                continue;
+            }
+            if loop_limited > 0 {
+                warn_loop_limited(loop_limited);
+            }
+            return Ok(Atlas {
+                cols: encoded.cols,
+                rows: encoded.rows,
+                tile: encoded.tile,
+                tiles: tiles.len(),
+                pixels,
+                wall_ms: start.elapsed().as_secs_f64() * 1e3,
+                prepasses_run,
+                volume_passes_run,
+                loop_limited,
             });
-        let encoded = self.encode_atlas(&mut enc, tiles, s, target, cols)?;
-        self.gpu.queue.submit([enc.finish()]);
-        Ok(Atlas {
-            cols: encoded.cols,
-            rows: encoded.rows,
-            tile: encoded.tile,
-            tiles: tiles.len(),
-            pixels: self.read_atlas(&encoded),
-            wall_ms: start.elapsed().as_secs_f64() * 1e3,
-            prepasses_run: encoded.prepasses_run,
-            volume_passes_run: encoded.volume_passes_run,
-        })
+        }
+    }
+
+    /// The invocations of an encoded atlas's marches that ran out of the device's loop
+    /// iterations (llvmpipe's loop limiter, [`march_parts`]), so that their rays may be
+    /// cut short: read after its encoder was submitted and before the renderer encodes
+    /// again. 0 on a GPU and under per-slice state. A caller of
+    /// [`Renderer::encode_atlas`] that finds some renders the atlas again after
+    /// [`Renderer::shrink_atlas_parts`].
+    pub fn atlas_loop_limited(&self, a: &EncodedAtlas) -> u32 {
+        if a.marches.tiles.is_empty() {
+            0
+        } else {
+            self.march.read(&self.gpu)
+        }
+    }
+
+    /// After an atlas whose loops ran out ([`Renderer::atlas_loop_limited`]): marches
+    /// each of its tiles' stacks in parts of at most a quarter of the longest it took,
+    /// from now on, as [`Renderer::render`] does for a frame. Whether any shrank (not
+    /// below one slice).
+    pub fn shrink_atlas_parts(&mut self, a: &EncodedAtlas) -> bool {
+        let Some(compiled) = a.marches.compiled.clone() else {
+            return false;
+        };
+        // once per loop estimate (tiles of one estimate share their parts), by the
+        // tile of most slices
+        let mut by_estimate: std::collections::BTreeMap<u32, (&Stack, u32)> = Default::default();
+        for (stack, count) in &a.marches.tiles {
+            let estimate = self.loop_estimate(&compiled, stack);
+            let most = by_estimate.entry(estimate).or_insert((stack, *count));
+            if *count > most.1 {
+                *most = (stack, *count);
+            }
+        }
+        let mut any = false;
+        for (stack, count) in by_estimate.into_values() {
+            any |= self.shrink_parts_of(&compiled, stack, count);
+        }
+        any
     }
 
     /// Reads an encoded atlas back (after its encoder was submitted): premultiplied
@@ -311,6 +391,12 @@ impl Renderer {
         let whole = self
             .march
             .groups(device, &compiled.g3_layout, &t.view, &t.accum, &[[0, 0]]);
+        // the loop limiter's counter over every tile's march (on a CPU device)
+        let mut marches = AtlasMarches::default();
+        if !per_slice && self.gpu.info.device_type == wgpu::DeviceType::Cpu {
+            marches.compiled = Some(compiled.clone());
+            self.march.clear(enc);
+        }
         // group 2 holds per-slice state only: the same for every tile of a stack
         // without it; a stack with it binds each tile's own below
         let uids0: Vec<u64> = stacks[0].iter().map(|(u, _)| *u).collect();
@@ -386,6 +472,9 @@ impl Renderer {
                 let [mx, my] = self.main_workgroup;
                 let n = (tw.div_ceil(mx), th.div_ceil(my));
                 super::encode_march(enc, pipeline, [&g0, &g1, &g2], &g3s, n);
+                if marches.compiled.is_some() {
+                    marches.tiles.push((stack.clone(), plans[i].slices.count));
+                }
             }
             enc.copy_texture_to_texture(
                 t.texture.as_image_copy(),
@@ -406,6 +495,9 @@ impl Renderer {
                 },
             );
         }
+        if marches.compiled.is_some() {
+            self.march.copy_out(enc);
+        }
         self.mark_prepasses_done(done);
         self.counters.prepass_runs += prepasses_run as u64;
         self.counters.volume_pass_runs += volume_passes_run as u64;
@@ -416,6 +508,7 @@ impl Renderer {
             tile: [tw, th],
             prepasses_run,
             volume_passes_run,
+            marches,
         })
     }
 }

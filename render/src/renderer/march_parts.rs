@@ -97,9 +97,13 @@ pub struct MarchState {
     /// Slices per part forced by [`crate::renderer::Renderer::set_march_part_slices`].
     pub forced: Option<u32>,
     /// Parts shrunk after the limiter ran out: (compiled stack, per-sample estimate,
-    /// most slices a part); it applies while both stay the same.
-    pub shrink: Option<(usize, u32, u32)>,
+    /// most slices a part), each applying while both stay the same ([`MarchState::shrunk`];
+    /// an atlas's tiles may hold several estimates); the latest [`SHRINKS_KEPT`].
+    shrink: Vec<(usize, u32, u32)>,
 }
+
+/// How many shrunk parts [`MarchState`] remembers.
+const SHRINKS_KEPT: usize = 16;
 
 impl MarchState {
     pub fn new(device: &wgpu::Device) -> Self {
@@ -132,8 +136,26 @@ impl MarchState {
                 .ok()
                 .and_then(|v| v.trim().parse::<u32>().ok())
                 .map(|n| n.max(1)),
-            shrink: None,
+            shrink: Vec::new(),
         }
+    }
+
+    /// The most slices a part of a march of the compiled stack `key` with the per-sample
+    /// estimate `estimate`, where the limiter made it shrink.
+    pub fn shrunk(&self, key: usize, estimate: u32) -> Option<u32> {
+        self.shrink
+            .iter()
+            .find(|(k, e, _)| (*k, *e) == (key, estimate))
+            .map(|s| s.2)
+    }
+
+    /// Marches of `key` with `estimate` take parts of at most `most` slices from now on.
+    pub fn set_shrunk(&mut self, key: usize, estimate: u32, most: u32) {
+        self.shrink.retain(|(k, e, _)| (*k, *e) != (key, estimate));
+        if self.shrink.len() >= SHRINKS_KEPT {
+            self.shrink.remove(0);
+        }
+        self.shrink.push((key, estimate, most));
     }
 
     /// Group 3 of the compute entry points, once per part of `parts` (the eye buffer
