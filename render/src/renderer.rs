@@ -5230,6 +5230,22 @@ fn read_buffer(gpu: &GpuContext, buf: &wgpu::Buffer, size: u64) -> Vec<u8> {
 
 #[cfg(test)]
 mod tests {
+    /// Slices per proxy polygon round down to one of the groups, each dividing the
+    /// runs between the depth masks.
+    #[test]
+    fn raster_groups_round_down_to_a_power_of_two() {
+        let got: Vec<u32> = [0, 1, 2, 3, 5, 8, 15, 16, 17, 1000]
+            .into_iter()
+            .map(super::raster_group_of)
+            .collect();
+        assert_eq!(got, [1, 1, 2, 2, 4, 8, 8, 16, 16, 16]);
+        // every group divides the runs between the raster backend's depth masks
+        for g in super::RASTER_GROUPS {
+            assert!(super::raster_et::RASTER_SKIP_INTERVAL.is_multiple_of(g));
+            assert!(super::raster_et::RASTER_ET_INTERVAL.is_multiple_of(g));
+        }
+    }
+
     /// The occupancy buffer's words: the grid's dims, a pad word, then bit i of word
     /// 4 + i / 32 set exactly where byte i is above 127 (the shader's `brick_visible`
     /// reads bit i at brick x + dx·(y + dy·z)), with a partial last word.

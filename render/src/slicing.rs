@@ -716,6 +716,28 @@ mod tests {
         a.length() * 0.5
     }
 
+    /// The hull drops repeated, inner and collinear points and runs counter-clockwise.
+    #[test]
+    fn convex_hull_keeps_the_corners_only() {
+        let p = |x: f64, y: f64| glam::dvec2(x, y);
+        let pts = vec![
+            p(0.0, 0.0),
+            p(1.0, 0.0),
+            p(0.5, 0.0),
+            p(1.0, 1.0),
+            p(0.0, 1.0),
+            p(0.5, 0.5),
+            p(1.0, 1.0),
+            p(0.0, 0.5),
+        ];
+        let h = convex_hull(pts);
+        assert_eq!(h, vec![p(0.0, 0.0), p(1.0, 0.0), p(1.0, 1.0), p(0.0, 1.0)]);
+        assert_eq!(
+            convex_hull(vec![p(0.0, 0.0), p(1.0, 1.0), p(2.0, 2.0)]).len(),
+            2
+        );
+    }
+
     /// A group's polygon (§9.1) lies on its first plane and covers every slice of the
     /// group as seen from the eye: each vertex of slices k0 … k0 + n − 1, carried along
     /// its ray onto plane k0, lies inside it, and its own vertices are such points (a
