@@ -150,7 +150,7 @@ pub fn apply_render_switches(r: &mut Renderer, doc: &Document) {
     r.set_empty_space_skipping(doc.render.empty_space_skipping);
     r.set_occupied_proxy(doc.render.occupied_proxy);
     r.set_hull_proxy(doc.render.hull_proxy());
-    r.set_raster_group(doc.render.slices_per_proxy);
+    r.set_raster_group(doc.render.raster_group());
 }
 
 /// A renderer with a document's plugin stack applied.

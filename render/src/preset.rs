@@ -126,6 +126,17 @@ impl RenderSection {
             crate::renderer::HullProxy::from_env()
         }
     }
+
+    /// The raster backend's slices per proxy polygon this section asks for:
+    /// `slices_per_proxy` where it is not 1, else the renderer's default (1, or what
+    /// the benchmark switch `VWB_RASTER_GROUP` says).
+    pub fn raster_group(&self) -> u32 {
+        if self.slices_per_proxy != 1 {
+            self.slices_per_proxy
+        } else {
+            crate::renderer::raster_group_from_env()
+        }
+    }
 }
 
 impl Default for RenderSection {

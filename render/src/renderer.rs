@@ -327,7 +327,7 @@ pub fn raster_group_of(n: u32) -> u32 {
 }
 
 /// `VWB_RASTER_GROUP` (a benchmark switch) or 1.
-fn raster_group_from_env() -> u32 {
+pub fn raster_group_from_env() -> u32 {
     raster_group_of(env_count("VWB_RASTER_GROUP", 1))
 }
 
