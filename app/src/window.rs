@@ -1121,7 +1121,8 @@ impl Workbench {
                      faster on CPU devices, the image moved by rounding",
                 );
             if r.slices_per_proxy != before {
-                self.renderer.set_raster_group(r.slices_per_proxy);
+                // as a document's section reaches a renderer (`apply_render_switches`)
+                self.renderer.set_raster_group(r.raster_group());
                 self.dirty = true;
             }
         }
