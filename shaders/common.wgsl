@@ -129,7 +129,10 @@ struct SliceInfo {
 @group(0) @binding(4) var<uniform> slice_info: SliceInfo;
 // Empty-space skipping: per brick of frame.settings.y voxels, a bit set where a sample
 // can be visible (render/src/skipping.rs); the grid's dims in words 0–2, the bits from
-// word 4, x fastest (`upload_occupancy` in render/src/renderer.rs).
+// word 4, x fastest; from the word that word 3 names, eight bytes per brick (two
+// words), one per octant of ray directions: bit 7 the same bit, bits 0–6 how far its
+// pure box ahead reaches (`skipping::pure_boxes_ahead`; `upload_occupancy` in
+// render/src/renderer.rs).
 @group(0) @binding(5) var<storage, read> occupancy: array<u32>;
 // The tiles of every slice that `slice_info` lists, x | y << 16.
 @group(0) @binding(6) var<storage, read> slice_tile_list: array<u32>;
@@ -200,6 +203,8 @@ struct BrickGrid {
     side: vec3<f32>,
     // the occupancy grid's size in bricks
     dims: vec3<u32>,
+    // the word of `occupancy` where the bricks' bytes begin
+    cells: u32,
 }
 
 fn brick_grid() -> BrickGrid {
@@ -207,6 +212,7 @@ fn brick_grid() -> BrickGrid {
     g.scale = frame.volume_dims.xyz / frame.settings.y;
     g.side = frame.settings.y / frame.volume_dims.xyz;
     g.dims = vec3<u32>(occupancy[0], occupancy[1], occupancy[2]);
+    g.cells = occupancy[3];
     return g;
 }
 
@@ -225,9 +231,24 @@ fn brick_visible(g: BrickGrid, tex: vec3<f32>) -> bool {
     if (frame.settings.y <= 0.0) {
         return true;
     }
-    let b = vec3<u32>(clamp(brick_of(g, tex), vec3<f32>(0.0), vec3<f32>(g.dims - vec3<u32>(1u))));
-    let i = b.x + g.dims.x * (b.y + g.dims.y * b.z);
+    let i = brick_index(g, brick_of(g, tex));
     return (occupancy[4u + (i >> 5u)] & (1u << (i & 31u))) != 0u;
+}
+
+// The index of a brick of the grid (x fastest); bricks outside it (samples on the
+// box's faces, within rounding) take the nearest one's.
+fn brick_index(g: BrickGrid, brick: vec3<f32>) -> u32 {
+    let b = vec3<u32>(clamp(brick, vec3<f32>(0.0), vec3<f32>(g.dims - vec3<u32>(1u))));
+    return b.x + g.dims.x * (b.y + g.dims.y * b.z);
+}
+
+// A brick's byte for rays heading into `octant` (skipping on; bit 0: x decreasing,
+// bit 1: y, bit 2: z): bit 7 set where a sample in it can be visible (the bit
+// `brick_visible` reads), bits 0–6 the extent r of its pure box ahead, the (r + 1)³
+// bricks from it towards the octant, all of its kind.
+fn brick_cell(g: BrickGrid, brick: vec3<f32>, octant: u32) -> u32 {
+    let i = brick_index(g, brick);
+    return (occupancy[g.cells + 2u * i + (octant >> 2u)] >> ((octant & 3u) * 8u)) & 0xFFu;
 }
 
 // Scalar at a texture coordinate (trilinear).

@@ -294,9 +294,9 @@ fn fs_exact_behind(in: VsOut) -> @location(0) vec4<f32> {
 // before they are shaded. So a full-screen pass first marks, per pixel, the chunks of
 // slices where its ray may meet a visible sample: bit j of the 64 is set where one of
 // slices j·c … j·c + c − 1 (c = ⌈count / 64⌉, `chunk_slices`) may. The ray walks the
-// bricks as the compute backend's march does (a lookup per brick, a jump past its exit
-// slice) and marks each visible brick's slices with one more on either side, for the
-// fragments' interpolated positions. `renderer/raster_et.rs` turns the bits into a
+// bricks as the compute backend's march does (a lookup per pure box of bricks ahead, a
+// jump past its exit slice, `brick_lookup`) and marks each visible box's slices with
+// one more on either side, for the fragments' interpolated positions. `renderer/raster_et.rs` turns the bits into a
 // depth before every run of slices. Samples outside the box take their face's brick.
 fn chunk_slices() -> u32 {
     return max((frame.counts.x + 63u) / 64u, 1u);
@@ -330,14 +330,20 @@ fn fs_raster_chunks(@builtin(position) pos: vec4<f32>) -> @location(0) vec2<u32>
         if (k >= range.y) {
             break;
         }
-        let tex = rs.tex0 + f32(k) * rs.dtex;
-        // the brick's samples end at its exit slice (`brick_exit_slice`'s margin keeps
-        // that one inside it); outside the box, one slice at a time
+        // the samples of the brick's pure box ahead end at its exit slice
+        // (`brick_lookup`; the exit's margin keeps that one inside it), all of the
+        // brick's kind; outside the box, one slice at a time
         var next = k + 1u;
+        var visible: bool;
         if (in_own_box(rs.p0 + f32(k) * rs.dp)) {
-            next = max(brick_exit_slice(rs, inv_dtex, grid, tex) + 1u, next);
+            let b = brick_lookup(rs, inv_dtex, grid, k);
+            next = max(b.x + 1u, next);
+            visible = b.y != 0u;
+        } else {
+            let tex = rs.tex0 + f32(k) * rs.dtex;
+            visible = brick_visible(grid, clamp(tex, vec3<f32>(0.0), vec3<f32>(1.0)));
         }
-        if (brick_visible(grid, clamp(tex, vec3<f32>(0.0), vec3<f32>(1.0)))) {
+        if (visible) {
             bits = mark_slices(bits, max(k, 1u) - 1u, next, c);
         }
         k = next;
@@ -540,21 +546,19 @@ fn slice_range(r: Ray, hull: bool) -> vec2<u32> {
     return vec2<u32>(first, last);
 }
 
-// The last slice whose sample may still lie in the brick holding `tex` (rounded down
-// with a margin, so that no slice beyond the brick is ever skipped). Solved in texture
-// space, where the ray's samples lie at tex0 + k·dtex (`RaySlices`): the slice k at
-// which the ray leaves the brick's box is the least over the axes of the larger of
-// the two faces' (face − tex0) / dtex; `inv_dtex` is the ray's 1 / dtex (a tiny step
-// in place of a zero one), so the exit costs no division (the brick's side in texture
-// units comes with the ray's `BrickGrid`).
-fn brick_exit_slice(rs: RaySlices, inv_dtex: vec3<f32>, g: BrickGrid, tex: vec3<f32>) -> u32 {
-    // the brick `brick_visible` looks up
-    let brick = brick_of(g, tex);
-    let lo = brick * g.side;
-    let hi = min((brick + 1.0) * g.side, vec3<f32>(1.0));
-    let ka = (lo - rs.tex0) * inv_dtex;
-    let kb = (hi - rs.tex0) * inv_dtex;
-    let k = floor(min(min(max(ka.x, kb.x), max(ka.y, kb.y)), max(ka.z, kb.z)) - 0.01);
+// The last slice whose sample may still lie in a box of bricks that the ray leaves
+// through the faces `far` (texture coordinates; rounded down with a margin, so that no
+// slice beyond the box is ever skipped). The ray's samples lie at tex0 + k·dtex
+// (`RaySlices`), so it leaves at the least over the axes of (far − tex0) / dtex;
+// `inv_dtex` is the ray's 1 / dtex (a tiny step in place of a zero one), so the exit
+// costs no division. The far face is, per axis, the one ahead of the ray (its
+// `ahead`: inv_dtex > 0), which is where the larger of the two faces' quotients lies:
+// taking it alone gives that larger one to the bit, at half the work. All finite (no
+// NaN), so `select` stands for min.
+fn far_exit_slice(rs: RaySlices, inv_dtex: vec3<f32>, far: vec3<f32>) -> u32 {
+    let kf = (far - rs.tex0) * inv_dtex;
+    let kxy = select(kf.y, kf.x, kf.x < kf.y);
+    let k = floor(select(kf.z, kxy, kxy < kf.z) - 0.01);
     // not finite: no jump
     if (!(k >= 0.0)) {
         return 0u;
@@ -562,11 +566,31 @@ fn brick_exit_slice(rs: RaySlices, inv_dtex: vec3<f32>, g: BrickGrid, tex: vec3<
     return u32(min(k, f32(frame.counts.x)));
 }
 
-// The brick of slice k's sample on the ray: (its exit slice, `brick_exit_slice`; 1 where
-// it may be visible, `brick_visible`, else 0), the march's lookup.
+// The far faces (texture coordinates) of the box of bricks from `brick` reaching `r`
+// bricks further along the ray on each axis: beyond the brick's own far face by r
+// bricks; the faces ahead stop at the volume's (texture coordinate 1), and faces
+// beyond the grid are as good as any, since no sample lies there.
+fn far_faces(inv_dtex: vec3<f32>, g: BrickGrid, brick: vec3<f32>, r: f32) -> vec3<f32> {
+    let ahead = inv_dtex > vec3<f32>(0.0);
+    return select((brick - r) * g.side, min((brick + (r + 1.0)) * g.side, vec3<f32>(1.0)), ahead);
+}
+
+// The march's lookup at slice k's sample on the ray: (the last slice that may still lie
+// in its brick's pure box ahead, `far_exit_slice`; 1 where the brick may be visible,
+// else 0). Every brick of the box, the (r + 1)³ from it in the ray's direction
+// (`brick_cell`), is of that kind, so the march jumps over an empty one's whole box and
+// takes a visible one's samples up to the exit without looking up the bricks between
+// (docs/perf.md, "Pure boxes ahead of the ray").
 fn brick_lookup(rs: RaySlices, inv_dtex: vec3<f32>, g: BrickGrid, k: u32) -> vec2<u32> {
-    let tex = rs.tex0 + f32(k) * rs.dtex;
-    return vec2<u32>(brick_exit_slice(rs, inv_dtex, g, tex), u32(brick_visible(g, tex)));
+    if (frame.settings.y <= 0.0) {
+        return vec2<u32>(0u, 1u);
+    }
+    let brick = brick_of(g, rs.tex0 + f32(k) * rs.dtex);
+    let back = inv_dtex < vec3<f32>(0.0);
+    let octant = select(0u, 1u, back.x) | select(0u, 2u, back.y) | select(0u, 4u, back.z);
+    let cell = brick_cell(g, brick, octant);
+    let far = far_faces(inv_dtex, g, brick, f32(cell & 127u));
+    return vec2<u32>(far_exit_slice(rs, inv_dtex, far), cell >> 7u);
 }
 
 @group(3) @binding(0) var out_tex: texture_storage_2d<{{TARGET_FORMAT}}, write>;

@@ -5095,9 +5095,13 @@ fn make_g0(
 
 /// Uploads brick occupancy bytes (255 = may be visible) as the storage buffer
 /// `occupancy` of shaders/common.wgsl: the grid's dims in words 0–2, then one bit per
-/// brick (x fastest) from word 4. A bit costs a load, a shift and a mask where the
-/// R8Unorm 3D texture it replaced cost a texel fetch that lavapipe runs with a level
-/// per lane, about 200 instructions (docs/perf.md, "A ray's samples as one run").
+/// brick (x fastest) from word 4, then from the word that word 3 names eight bytes per
+/// brick (two words), one per octant of ray directions: the bit again (bit 7) and how
+/// many bricks beyond it the pure box ahead of it reaches (bits 0–6,
+/// [`crate::skipping::pure_boxes_ahead`], at most [`crate::skipping::run_bricks_cap`]).
+/// A bit costs a load, a shift and a mask where the R8Unorm 3D texture it replaced cost
+/// a texel fetch that lavapipe runs with a level per lane, about 200 instructions
+/// (docs/perf.md, "A ray's samples as one run").
 fn upload_occupancy(gpu: &GpuContext, dims: [u32; 3], bytes: &[u8]) -> wgpu::Buffer {
     gpu.device
         .create_buffer_init(&wgpu::util::BufferInitDescriptor {
@@ -5109,10 +5113,23 @@ fn upload_occupancy(gpu: &GpuContext, dims: [u32; 3], bytes: &[u8]) -> wgpu::Buf
 
 /// The words of [`upload_occupancy`]'s buffer: a byte above 127 sets its brick's bit.
 pub(crate) fn occupancy_words(dims: [u32; 3], bytes: &[u8]) -> Vec<u32> {
-    let mut words = vec![dims[0], dims[1], dims[2], 0];
-    words.resize(4 + bytes.len().div_ceil(32), 0);
+    occupancy_words_capped(dims, bytes, crate::skipping::run_bricks_cap())
+}
+
+/// [`occupancy_words`] with the pure boxes' extents capped at `cap`.
+fn occupancy_words_capped(dims: [u32; 3], bytes: &[u8], cap: u8) -> Vec<u32> {
+    let cells = 4 + bytes.len().div_ceil(32);
+    let mut words = vec![dims[0], dims[1], dims[2], cells as u32];
+    words.resize(cells + 2 * bytes.len(), 0);
     for (i, _) in bytes.iter().enumerate().filter(|(_, b)| **b > 127) {
         words[4 + i / 32] |= 1 << (i % 32);
+    }
+    let boxes = crate::skipping::pure_boxes_ahead(bytes, dims);
+    for (i, (b, extents)) in bytes.iter().zip(boxes).enumerate() {
+        for (octant, r) in extents.into_iter().enumerate() {
+            let cell = u32::from(*b > 127) << 7 | u32::from(r.min(cap));
+            words[cells + 2 * i + octant / 4] |= cell << (8 * (octant % 4));
+        }
     }
     words
 }
@@ -5246,9 +5263,11 @@ mod tests {
         }
     }
 
-    /// The occupancy buffer's words: the grid's dims, a pad word, then bit i of word
-    /// 4 + i / 32 set exactly where byte i is above 127 (the shader's `brick_visible`
-    /// reads bit i at brick x + dx·(y + dy·z)), with a partial last word.
+    /// The occupancy buffer's words: the grid's dims, the first word of the bricks'
+    /// bytes, then bit i of word 4 + i / 32 set exactly where byte i is above 127 (the
+    /// shader's `brick_visible` reads bit i at brick x + dx·(y + dy·z)), with a partial
+    /// last word; then brick i's eight bytes, one per octant: the same bit (bit 7) and
+    /// its pure box's extent, capped (`brick_cell`).
     #[test]
     fn occupancy_words_hold_one_bit_per_brick() {
         let dims = [5u32, 4, 3];
@@ -5260,13 +5279,25 @@ mod tests {
                 _ => 0,
             })
             .collect();
-        let words = super::occupancy_words(dims, &bytes);
-        assert_eq!(&words[..4], &[5, 4, 3, 0]);
-        assert_eq!(words.len(), 4 + 2);
-        for (i, b) in bytes.iter().enumerate() {
-            let bit = words[4 + i / 32] >> (i % 32) & 1;
-            assert_eq!(bit == 1, *b > 127, "brick {i}: byte {b}, bit {bit}");
+        let boxes = crate::skipping::pure_boxes_ahead(&bytes, dims);
+        for cap in [0, 1, 127] {
+            let words = super::occupancy_words_capped(dims, &bytes, cap);
+            assert_eq!(&words[..4], &[5, 4, 3, 6]);
+            assert_eq!(words.len(), 4 + 2 + 2 * 60);
+            for (i, b) in bytes.iter().enumerate() {
+                let bit = words[4 + i / 32] >> (i % 32) & 1;
+                assert_eq!(bit == 1, *b > 127, "brick {i}: byte {b}, bit {bit}");
+                for octant in 0..8 {
+                    let cell = words[6 + 2 * i + octant / 4] >> (8 * (octant % 4)) & 0xFF;
+                    assert_eq!(cell >> 7, bit, "brick {i}: the cell's bit");
+                    assert_eq!(
+                        cell & 127,
+                        u32::from(boxes[i][octant].min(cap)),
+                        "brick {i}"
+                    );
+                }
+            }
+            assert_eq!(words[5] >> 28, 0, "bits past the last brick stay clear");
         }
-        assert_eq!(words[5] >> 28, 0, "bits past the last brick stay clear");
     }
 }

@@ -185,6 +185,87 @@ fn occupied_brick_bounds(occupancy: &[u8], bdims: [u32; 3]) -> Option<[[u32; 3];
     (lo[0] != u32::MAX).then_some([lo, hi])
 }
 
+/// The longest pure run the march uses, in bricks beyond its own: `VWB_RUN_BRICKS` (0
+/// to [`RUN_BRICKS_MAX`]; a benchmark override, read once per process; 0 looks every
+/// brick up, as the march did before) or [`RUN_BRICKS_MAX`].
+pub fn run_bricks_cap() -> u8 {
+    static CAP: std::sync::OnceLock<u8> = std::sync::OnceLock::new();
+    *CAP.get_or_init(|| {
+        std::env::var("VWB_RUN_BRICKS")
+            .ok()
+            .and_then(|v| v.trim().parse::<u8>().ok())
+            .map_or(RUN_BRICKS_MAX, |r| r.min(RUN_BRICKS_MAX))
+    })
+}
+
+/// Largest extent [`pure_boxes_ahead`] stores (7 bits beside the visible bit).
+pub const RUN_BRICKS_MAX: u8 = 127;
+
+/// For each brick of an occupancy grid (`bdims` bricks, x fastest; a byte above 127 may
+/// be visible) and each octant of ray directions (bit 0: x decreasing, bit 1: y, bit 2:
+/// z), the largest r ≤ [`RUN_BRICKS_MAX`] such that the box of (r + 1)³ bricks from it
+/// towards that octant (b + s·δ, each δ in 0..=r, s the octant's signs) is all of the
+/// brick's own kind: all empty after an empty brick, all possibly visible after a
+/// visible one. Bricks outside the grid hold no samples and count as either kind.
+///
+/// A ray heading into that octant meets no brick of the other kind until it leaves the
+/// box, so the compute march looks a brick up once per box rather than once per brick:
+/// it jumps over an empty brick's whole box, and takes a visible brick's box's samples
+/// without looking up the bricks inside it (docs/perf.md, "Pure boxes ahead of the
+/// ray"). A box that reaches only forward is longer than a cube around the brick
+/// where the kind changes behind it: the first bricks inside the matter and the last
+/// ones before it. One pass per octant against its direction: the box of r + 1 from b
+/// is b's brick and the seven boxes of r from its forward neighbours.
+pub fn pure_boxes_ahead(occupancy: &[u8], bdims: [u32; 3]) -> Vec<[u8; 8]> {
+    let [nx, ny, nz] = bdims.map(|d| d as i64);
+    let count = (nx * ny * nz) as usize;
+    assert_eq!(occupancy.len(), count, "one occupancy byte per brick");
+    let index = |x: i64, y: i64, z: i64| ((z * ny + y) * nx + x) as usize;
+    let inside = |x: i64, y: i64, z: i64| {
+        (0..nx).contains(&x) && (0..ny).contains(&y) && (0..nz).contains(&z)
+    };
+    let mut per_octant: [Vec<u8>; 8] = std::array::from_fn(|_| vec![0u8; count]);
+    for (octant, out) in per_octant.iter_mut().enumerate() {
+        let s = [0, 1, 2].map(|a| if octant >> a & 1 == 1 { -1i64 } else { 1 });
+        // against the octant's direction, so that the forward neighbours come first
+        let order = |n: i64, sign: i64, i: i64| if sign > 0 { n - 1 - i } else { i };
+        for zi in 0..nz {
+            let z = order(nz, s[2], zi);
+            for yi in 0..ny {
+                let y = order(ny, s[1], yi);
+                for xi in 0..nx {
+                    let x = order(nx, s[0], xi);
+                    let kind = occupancy[index(x, y, z)] > 127;
+                    let mut r = RUN_BRICKS_MAX as u32;
+                    for d in 1..8i64 {
+                        let (a, b, c) = (
+                            x + (d & 1) * s[0],
+                            y + (d >> 1 & 1) * s[1],
+                            z + (d >> 2 & 1) * s[2],
+                        );
+                        if !inside(a, b, c) {
+                            continue;
+                        }
+                        let n = index(a, b, c);
+                        r = if (occupancy[n] > 127) == kind {
+                            r.min(u32::from(out[n]) + 1)
+                        } else {
+                            0
+                        };
+                        if r == 0 {
+                            break;
+                        }
+                    }
+                    out[index(x, y, z)] = r as u8;
+                }
+            }
+        }
+    }
+    (0..count)
+        .map(|i| std::array::from_fn(|octant| per_octant[octant][i]))
+        .collect()
+}
+
 /// The voxels ([start, end) per axis) of a volume of `dims` voxels where a sample can be
 /// visible: the bounding box of its occupied bricks (`bdims` bricks, x fastest), `None`
 /// when no brick is occupied. A brick renderer of a split volume draws and composites
@@ -330,9 +411,67 @@ pub fn move_apron(steps: f64, spacing: f32) -> u32 {
 
 #[cfg(test)]
 mod tests {
-    /// A wider apron holds the values a moved sample reads: at apron 1 + ⌈d⌉, every
-    /// trilinear sample at a voxel coordinate up to d outside a brick lies within that
-    /// brick's range; at apron 1 some do not.
+    /// Each brick's extent towards each octant is the largest r whose box of (r + 1)³
+    /// bricks from it that way (cut to the grid) holds only its own kind, by brute force
+    /// over random grids of a few sizes and densities; a grid of one kind reaches the cap.
+    #[test]
+    fn pure_boxes_ahead_are_the_largest_pure_boxes() {
+        let mut rng = crate::rng::Rng::at(11, 0);
+        let cases = [
+            ([1u32, 1, 1], 0.5),
+            ([7, 5, 3], 0.1),
+            ([6, 6, 6], 0.5),
+            ([9, 4, 8], 0.9),
+            ([12, 3, 1], 0.02),
+            ([9, 8, 7], 0.01),
+        ];
+        for (bdims, density) in cases {
+            let [nx, ny, nz] = bdims.map(|d| d as i64);
+            let count = bdims.iter().product::<u32>() as usize;
+            let occupancy: Vec<u8> = (0..count)
+                .map(|_| if rng.uniform() < density { 255 } else { 0 })
+                .collect();
+            let boxes = super::pure_boxes_ahead(&occupancy, bdims);
+            let at = |x: i64, y: i64, z: i64| occupancy[((z * ny + y) * nx + x) as usize] > 127;
+            let mut longer = 0;
+            for (i, extents) in boxes.iter().enumerate() {
+                let (x, y, z) = (i as i64 % nx, i as i64 / nx % ny, i as i64 / (nx * ny));
+                let kind = at(x, y, z);
+                for (octant, r) in extents.iter().enumerate() {
+                    let s = [0, 1, 2].map(|a| if octant >> a & 1 == 1 { -1i64 } else { 1 });
+                    // (no brick lies further than the grid's size away)
+                    let pure = |r: i64| {
+                        (0..=r.min(nz)).all(|c| {
+                            (0..=r.min(ny)).all(|b| {
+                                (0..=r.min(nx)).all(|a| {
+                                    let (p, q, w) = (x + a * s[0], y + b * s[1], z + c * s[2]);
+                                    !((0..nx).contains(&p)
+                                        && (0..ny).contains(&q)
+                                        && (0..nz).contains(&w))
+                                        || at(p, q, w) == kind
+                                })
+                            })
+                        })
+                    };
+                    let r = *r as i64;
+                    assert!(pure(r), "{bdims:?} brick {i} octant {octant}: {r} not pure");
+                    if r < super::RUN_BRICKS_MAX as i64 {
+                        assert!(
+                            !pure(r + 1),
+                            "{bdims:?} brick {i} octant {octant}: {r} not the largest"
+                        );
+                    }
+                    longer += usize::from(r > 0);
+                }
+            }
+            if bdims == [9, 8, 7] {
+                assert!(longer > count * 4, "sparse: boxes of several bricks");
+            }
+        }
+        let boxes = super::pure_boxes_ahead(&[0u8; 600], [300, 2, 1]);
+        assert!(boxes.iter().flatten().all(|r| *r == super::RUN_BRICKS_MAX));
+    }
+
     #[test]
     fn a_wider_apron_covers_moved_samples() {
         assert_eq!(super::move_apron(0.0, 4.0), 1);
