@@ -23,6 +23,10 @@
 #                      clip_mesh.md (clip_planes, clip_skipping, clip_mesh_cost: the
 #                      frame cost of planes and meshes, which the docs leave open)
 #   suite.log          the integration suite on the GPU (a check, not a figure)
+#   ab_tables16_*.json, accuracy_tables16.json
+#                      classification tables in rgba16float against rgba32float
+#                      (bench/table_formats.py; step `tables`, not in the default
+#                      steps: about 5 minutes)
 #   *.log              each step's output
 # The integration binary finds the repository through the path it was built in
 # (CARGO_MANIFEST_DIR); run this from a checkout at that path or link it there.
@@ -68,6 +72,7 @@ want experiments && step experiments 540 "$vwb" run experiments/volume_format.ro
     experiments/hernell_blocking.ron experiments/clip_planes.ron \
     experiments/clip_skipping.ron experiments/clip_mesh_cost.ron
 want experiments && tar cf "$out/gpu-docs.tar" docs/gpu 2>/dev/null
+want tables && step tables 420 python3 bench/table_formats.py --vwb "$vwb" --gpu -o "$out"
 if want suite; then
     step suite 150 "$integration" --test-threads=8
     grep -E "^test result|FAILED|panicked" "$out/suite.log" | head -40 >>"$out/steps.txt"

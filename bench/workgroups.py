@@ -4,7 +4,8 @@
 Renders each preset with every shape (`VWB_WORKGROUP=XxY`, the renderer option
 `RendererOptions::workgroup`) in interleaved rounds, checks that every shape gives the
 same image as 8×8 byte for byte, and writes the median frame times to the
-`workgroups` block of docs/perf.md (on a GPU, `--gpu --block workgroups-gpu`).
+`workgroups` block of docs/perf.md (on a GPU, `--gpu --block workgroups-gpu --doc
+docs/gpu/perf.md`).
 
     python3 bench/workgroups.py [--vwb target/debug/vwb] [--rounds 2] [--frames 3]
 """
@@ -32,6 +33,7 @@ def main():
     ap.add_argument("--rounds", type=int, default=2)
     ap.add_argument("--gpu", action="store_true")
     ap.add_argument("--block", default="workgroups")
+    ap.add_argument("--doc", default=str(REPO / "docs/perf.md"))
     a = ap.parse_args()
     times = {(p, s): [] for p in PRESETS for s in SHAPES}
     adapter = "?"
@@ -62,7 +64,10 @@ def main():
         rows.append(f"| `{p}` | " + " | ".join(cells) + f" | {'yes' if same[p] else 'NO'} |")
     threads = os.environ.get("LP_NUM_THREADS")
     block = (
-        f"Command: `python3 bench/workgroups.py{' --gpu --block ' + a.block if a.gpu else ''}` — "
+        f"Command: `python3 bench/workgroups.py{' --gpu' if a.gpu else ''}"
+        f"{' --block ' + a.block if a.block != 'workgroups' else ''}"
+        f"{' --doc ' + os.path.relpath(a.doc, REPO) if Path(a.doc).resolve() != (REPO / 'docs/perf.md').resolve() else ''}"
+        f" --rounds {a.rounds} --frames {a.frames}` — "
         f"{a.size}, compute backend, median over {a.rounds} interleaved rounds of each render's "
         f"median of {a.frames} frames (GPU ms; in brackets the ratio to 8×8).\n\n"
         f"- Machine: {machine_line()}\n"
@@ -72,7 +77,7 @@ def main():
     print(block)
     if not all(same.values()):
         sys.exit("a workgroup shape changed the image")
-    write_block(REPO / "docs/perf.md", a.block, block)
+    write_block(Path(a.doc), a.block, block)
 
 
 if __name__ == "__main__":

@@ -478,6 +478,9 @@ pub struct GpuInit<'a> {
     pub device: &'a wgpu::Device,
     pub queue: &'a wgpu::Queue,
     pub features: wgpu::Features,
+    /// The adapter's kind: CPU devices and GPUs keep some resources in different
+    /// formats ([`GpuInit::sample_table_format`]).
+    pub device_type: wgpu::DeviceType,
     pub volume: &'a Volume,
     /// The document's named volumes ([`crate::inputs`]).
     pub inputs: &'a VolumeInputs,
@@ -503,24 +506,38 @@ impl GpuInit<'_> {
     /// A `width` × `height` lookup-table texture in [`GpuInit::lut_format`], sampled by
     /// hooks with `linear_clamp`; fill it with [`GpuInit::write_table`].
     pub fn create_table(&self, label: &str, width: u32, height: u32) -> GpuResource {
-        self.table(label, width, height, wgpu::TextureDimension::D2)
+        self.table(
+            label,
+            [width, height],
+            wgpu::TextureDimension::D2,
+            self.lut_format(),
+        )
     }
 
-    /// A one-row lookup table as a 1D texture (`ResourceKind::Texture1d`), in the
-    /// format of [`GpuInit::create_table`]. `textureSampleLevel(t, s, x, 0.0)` gives
+    /// A `width` × `height` table that a classification reads at every sample, in
+    /// [`GpuInit::sample_table_format`]; otherwise as [`GpuInit::create_table`].
+    pub fn create_sample_table(&self, label: &str, width: u32, height: u32) -> GpuResource {
+        let format = self.sample_table_format();
+        self.table(label, [width, height], wgpu::TextureDimension::D2, format)
+    }
+
+    /// A one-row table that a classification reads at every sample, as a 1D texture
+    /// (`ResourceKind::Texture1d`), in the format of
+    /// [`GpuInit::create_sample_table`]. `textureSampleLevel(t, s, x, 0.0)` gives
     /// what a 256 × 1 2D table gives (its second row has weight zero) at half the texel
     /// reads; on lavapipe the lookup takes about three quarters of the 2D one's time
     /// (docs/perf.md, "Sample fetch").
     pub fn create_table_1d(&self, label: &str, width: u32) -> GpuResource {
-        self.table(label, width, 1, wgpu::TextureDimension::D1)
+        let format = self.sample_table_format();
+        self.table(label, [width, 1], wgpu::TextureDimension::D1, format)
     }
 
     fn table(
         &self,
         label: &str,
-        width: u32,
-        height: u32,
+        [width, height]: [u32; 2],
         dimension: wgpu::TextureDimension,
+        format: wgpu::TextureFormat,
     ) -> GpuResource {
         let texture = self.device.create_texture(&wgpu::TextureDescriptor {
             label: Some(label),
@@ -532,8 +549,11 @@ impl GpuInit<'_> {
             mip_level_count: 1,
             sample_count: 1,
             dimension,
-            format: self.lut_format(),
-            usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+            format,
+            // COPY_SRC: what a table holds can be read back (tests)
+            usage: wgpu::TextureUsages::TEXTURE_BINDING
+                | wgpu::TextureUsages::COPY_DST
+                | wgpu::TextureUsages::COPY_SRC,
             view_formats: &[],
         });
         GpuResource {
@@ -623,6 +643,26 @@ impl GpuInit<'_> {
     pub fn lut_format(&self) -> wgpu::TextureFormat {
         if self.features.contains(wgpu::Features::FLOAT32_FILTERABLE) {
             wgpu::TextureFormat::Rgba32Float
+        } else {
+            wgpu::TextureFormat::Rgba16Float
+        }
+    }
+
+    /// Format of the tables a classification reads at every sample (transfer
+    /// functions, pre-integration tables: [`GpuInit::create_sample_table`]):
+    /// rgba16float on GPUs, where the filtered read of a 128-bit texel is what plain DVR
+    /// waits on (an H200: 0.55–0.69× the CT head's frame without skipping; docs/perf.md,
+    /// "Classification tables in 16-bit floats on GPUs"); [`GpuInit::lut_format`] on
+    /// CPU devices, whose images stay those of 32-bit tables. `VWB_LUT_FORMAT`
+    /// (`rgba32float`, `rgba16float`) overrides it: a benchmark switch.
+    pub fn sample_table_format(&self) -> wgpu::TextureFormat {
+        match std::env::var("VWB_LUT_FORMAT").as_deref().map(str::trim) {
+            Ok("rgba16float") => return wgpu::TextureFormat::Rgba16Float,
+            Ok("rgba32float") => return self.lut_format(),
+            _ => {}
+        }
+        if self.device_type == wgpu::DeviceType::Cpu {
+            self.lut_format()
         } else {
             wgpu::TextureFormat::Rgba16Float
         }

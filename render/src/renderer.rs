@@ -2450,6 +2450,7 @@ impl Renderer {
             device: &self.gpu.device,
             queue: &self.gpu.queue,
             features: self.gpu.features,
+            device_type: self.gpu.info.device_type,
             volume: &self.volume,
             inputs: &self.inputs,
             slice_spacing: self.slice_spacing,

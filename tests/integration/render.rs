@@ -1234,6 +1234,105 @@ fn empty_space_skipping_leaves_images_unchanged() {
     assert!(failed.is_empty(), "{failed:#?}");
 }
 
+/// The tables a classification reads at every sample are rgba16float on GPUs (the
+/// filtered read of a 128-bit texel is what plain DVR waits on there; docs/perf.md,
+/// "Classification tables in 16-bit floats on GPUs") and keep 32-bit floats on CPU
+/// devices, whose images stay those of 32-bit tables; other tables (kernels,
+/// directions, environment maps) keep 32 bits everywhere. The values written to a
+/// 16-bit table are the 32-bit table's rounded to the nearest half float.
+#[test]
+fn classification_tables_are_half_floats_on_gpus() {
+    use wgpu::TextureFormat::{Rgba16Float, Rgba32Float};
+    let g = gpu();
+    let volume = demo();
+    let inputs = vwb_render::inputs::VolumeInputs::default();
+    assert!(g.features.contains(wgpu::Features::FLOAT32_FILTERABLE));
+    for (device_type, per_sample) in [
+        (wgpu::DeviceType::Cpu, Rgba32Float),
+        (wgpu::DeviceType::DiscreteGpu, Rgba16Float),
+        (wgpu::DeviceType::IntegratedGpu, Rgba16Float),
+    ] {
+        let init = vwb_render::plugin::GpuInit {
+            device: &g.device,
+            queue: &g.queue,
+            features: g.features,
+            device_type,
+            volume: &volume,
+            inputs: &inputs,
+            slice_spacing: 1.0,
+        };
+        let what = format!("{device_type:?}");
+        assert_eq!(init.sample_table_format(), per_sample, "{what}");
+        let lut = init.create_table_1d("lut", 256);
+        assert_eq!(lut.texture.format(), per_sample, "{what}");
+        let table = init.create_sample_table("table", 16, 8);
+        assert_eq!(table.texture.format(), per_sample, "{what}");
+        assert_eq!(table.texture.size().height, 8);
+        let kernel = init.create_table("kernel", 16, 1);
+        assert_eq!(kernel.texture.format(), Rgba32Float, "{what}");
+        // what a 16-bit table holds: each value rounded to the nearest half float
+        let texels: Vec<[f32; 4]> = (0..256)
+            .map(|i| {
+                let x = i as f32 / 255.0;
+                [x, x * x, 1.0 - x, 1.0e-4 * x]
+            })
+            .collect();
+        init.write_table(&lut, &texels);
+        let back = read_table_1d(g, &lut);
+        for (t, b) in texels.iter().zip(&back) {
+            for (x, y) in t.iter().zip(b) {
+                let tol = if per_sample == Rgba16Float {
+                    (x.abs() * 2f32.powi(-11)).max(2f32.powi(-25))
+                } else {
+                    0.0
+                };
+                assert!((x - y).abs() <= tol, "{what}: {x} read back as {y}");
+            }
+        }
+    }
+}
+
+/// The texels of a one-row table (rgba32float or rgba16float) as f32.
+fn read_table_1d(g: &vwb_render::GpuContext, t: &vwb_render::plugin::GpuResource) -> Vec<[f32; 4]> {
+    let size = t.texture.size();
+    let bpp = t.texture.format().block_copy_size(None).unwrap();
+    let row = (size.width * bpp).div_ceil(256) * 256;
+    let buffer = g.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("table read-back"),
+        size: row as u64,
+        usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+        mapped_at_creation: false,
+    });
+    let mut encoder = g.device.create_command_encoder(&Default::default());
+    encoder.copy_texture_to_buffer(
+        t.texture.as_image_copy(),
+        wgpu::TexelCopyBufferInfo {
+            buffer: &buffer,
+            layout: wgpu::TexelCopyBufferLayout {
+                offset: 0,
+                bytes_per_row: Some(row),
+                rows_per_image: Some(1),
+            },
+        },
+        size,
+    );
+    g.queue.submit([encoder.finish()]);
+    buffer
+        .slice(..)
+        .map_async(wgpu::MapMode::Read, |r| r.unwrap());
+    g.device.poll(wgpu::PollType::wait_indefinitely()).unwrap();
+    let bytes = buffer.slice(..).get_mapped_range().unwrap().to_vec();
+    let value = |b: &[u8]| match bpp {
+        16 => f32::from_le_bytes(b.try_into().unwrap()),
+        _ => half::f16::from_le_bytes(b.try_into().unwrap()).to_f32(),
+    };
+    let c = bpp as usize / 4;
+    bytes[..(size.width * bpp) as usize]
+        .chunks(bpp as usize)
+        .map(|t| [0, 1, 2, 3].map(|k| value(&t[k * c..(k + 1) * c])))
+        .collect()
+}
+
 /// The raster images with skipping on and off: with skipping the polygons stop at the
 /// visible box, so the samples are the same and only their positions, interpolated
 /// over other triangles, round differently. Prints the difference; returns what is

@@ -134,7 +134,7 @@ impl Plugin for Labels {
         );
         let res = [
             GpuResource { texture, view },
-            gpu.create_table("classify.labels lut", LUT_SIZE as u32, MAX_LABELS as u32),
+            gpu.create_sample_table("classify.labels lut", LUT_SIZE as u32, MAX_LABELS as u32),
         ];
         self.update_resources(gpu, params, &res)?;
         Ok(res.to_vec())

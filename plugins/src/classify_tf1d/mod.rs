@@ -205,8 +205,8 @@ impl Plugin for Tf1d {
         let res = match self.mode {
             Mode::Post | Mode::Pre => vec![gpu.create_table_1d("classify.tf1d lut", n)],
             Mode::Preintegrated => vec![
-                gpu.create_table("classify.tf1d pre-integration table", n, n),
-                gpu.create_table("classify.tf1d pre-integration centroids", n, n),
+                gpu.create_sample_table("classify.tf1d pre-integration table", n, n),
+                gpu.create_sample_table("classify.tf1d pre-integration centroids", n, n),
             ],
         };
         self.update_resources(gpu, params, &res)?;

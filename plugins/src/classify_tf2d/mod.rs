@@ -203,7 +203,7 @@ impl Plugin for Tf2dPlugin {
         gpu: &GpuInit,
         params: &ParamValues,
     ) -> Result<Vec<GpuResource>, PluginError> {
-        let res = gpu.create_table("classify.tf2d table", TABLE_SIZE as u32, TABLE_SIZE as u32);
+        let res = gpu.create_sample_table("classify.tf2d table", TABLE_SIZE as u32, TABLE_SIZE as u32);
         self.update_resources(gpu, params, std::slice::from_ref(&res))?;
         Ok(vec![res])
     }
