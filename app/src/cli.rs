@@ -373,6 +373,11 @@ pub struct FrameArgs {
     /// it), r32float, r16float, r16unorm or r8unorm (default: the preset's).
     #[arg(long, value_parser = vwb_render::renderer::VolumeFormat::parse)]
     pub volume_format: Option<vwb_render::renderer::VolumeFormat>,
+    /// How the classification tables (transfer functions, pre-integration and label
+    /// tables) are stored on the GPU: auto (rgba16float on GPUs, rgba32float on CPU
+    /// devices), rgba32float or rgba16float (default: the preset's).
+    #[arg(long, value_parser = vwb_render::renderer::TableFormat::parse)]
+    pub table_format: Option<vwb_render::renderer::TableFormat>,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -442,6 +447,9 @@ impl FrameArgs {
         }
         if let Some(f) = self.volume_format {
             doc.render.volume_format = f;
+        }
+        if let Some(f) = self.table_format {
+            doc.render.table_format = f;
         }
         Ok(())
     }

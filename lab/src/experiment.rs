@@ -160,7 +160,7 @@ pub struct Variant {
     /// frame), `render.backend` (raster, compute), `render.target`,
     /// `render.early_termination`, `render.skipping` (true, false),
     /// `render.occupied_proxy` (true, false), `render.hull_cut` (true, false),
-    /// `render.slices_per_proxy` (1, 2, 4, 8, 16), `render.volume_format` (auto, r32float, r16float, r16unorm, r8unorm), `camera.yaw_deg`,
+    /// `render.slices_per_proxy` (1, 2, 4, 8, 16), `render.volume_format` (auto, r32float, r16float, r16unorm, r8unorm), `render.table_format` (auto, rgba32float, rgba16float), `camera.yaw_deg`,
     /// `camera.pitch_deg`, `camera.distance`, `camera.fov_y_deg` (a perspective
     /// camera's vertical field of view).
     #[serde(default)]
@@ -1675,6 +1675,10 @@ pub fn set_value(doc: &mut Document, key: &str, value: &SetValue) -> Result<()> 
         "render.volume_format" => {
             doc.render.volume_format =
                 vwb_render::renderer::VolumeFormat::parse(text()?).map_err(|e| anyhow!(e))?
+        }
+        "render.table_format" => {
+            doc.render.table_format =
+                vwb_render::renderer::TableFormat::parse(text()?).map_err(|e| anyhow!(e))?
         }
         _ => {
             let (id, k) = key.rsplit_once('.').ok_or_else(|| {

@@ -143,7 +143,7 @@ pub fn load_volume_file_within(path: &Path, budget: Option<u64>) -> Result<Volum
 /// The document's render switches that live on the renderer rather than in each
 /// frame's settings: empty-space skipping, the occupied cells and the hull's fit
 /// (`render.empty_space_skipping`, `render.occupied_proxy`, `render.hull_cut`,
-/// `render.slices_per_proxy`). Every
+/// `render.slices_per_proxy`) and the classification tables' format (`render.table_format`). Every
 /// renderer made for a document takes them (`vwb render`, galleries, Python, the
 /// window).
 pub fn apply_render_switches(r: &mut Renderer, doc: &Document) {
@@ -151,6 +151,7 @@ pub fn apply_render_switches(r: &mut Renderer, doc: &Document) {
     r.set_occupied_proxy(doc.render.occupied_proxy);
     r.set_hull_proxy(doc.render.hull_proxy());
     r.set_raster_group(doc.render.raster_group());
+    r.set_table_format(doc.render.table_format);
 }
 
 /// A renderer with a document's plugin stack applied.

@@ -148,7 +148,7 @@ impl Scene {
     }
 
     /// Sets `<plugin id>.<key>` or `render.slice_spacing|backend|target|early_termination|
-    /// skipping|occupied_proxy|hull_cut|slices_per_proxy|volume_format` (checked against the parameter's spec, as in experiment
+    /// skipping|occupied_proxy|hull_cut|slices_per_proxy|volume_format|table_format` (checked against the parameter's spec, as in experiment
     /// files).
     fn set(&mut self, key: &str, value: Bound<'_, PyAny>) -> PyResult<()> {
         let v = if let Ok(b) = value.extract::<bool>() {

@@ -63,6 +63,18 @@ def test_volume_format_is_a_render_setting():
         s.set("render.volume_format", "r4unorm")
 
 
+def test_table_format_is_a_render_setting():
+    s = vwb.Scene(DEMO)
+    full = s.render(size=(40, 40))
+    s.set("render.table_format", "rgba16float")
+    half = s.render(size=(40, 40))
+    assert 0.0 < vwb.compare(full, half)["rms_delta_e"] < 0.2, "half-float tables, nearly the image"
+    s.set("render.table_format", "auto")
+    assert vwb.compare(full, s.render(size=(40, 40)))["rms_delta_e"] == 0.0
+    with pytest.raises(ValueError, match="rgba8unorm"):
+        s.set("render.table_format", "rgba8unorm")
+
+
 def test_vector_parameters_are_set_from_sequences():
     s = vwb.Scene(str(REPO / "presets" / "demo_dos.ron"))
     grey = s.render(size=(32, 32))

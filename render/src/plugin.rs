@@ -481,6 +481,9 @@ pub struct GpuInit<'a> {
     /// The adapter's kind: CPU devices and GPUs keep some resources in different
     /// formats ([`GpuInit::sample_table_format`]).
     pub device_type: wgpu::DeviceType,
+    /// How the classification tables are asked to be stored
+    /// ([`GpuInit::sample_table_format`]).
+    pub table_format: crate::renderer::TableFormat,
     pub volume: &'a Volume,
     /// The document's named volumes ([`crate::inputs`]).
     pub inputs: &'a VolumeInputs,
@@ -649,22 +652,28 @@ impl GpuInit<'_> {
     }
 
     /// Format of the tables a classification reads at every sample (transfer
-    /// functions, pre-integration tables: [`GpuInit::create_sample_table`]):
-    /// rgba16float on GPUs, where the filtered read of a 128-bit texel is what plain DVR
-    /// waits on (an H200: 0.55–0.69× the CT head's frame without skipping; docs/perf.md,
-    /// "Classification tables in 16-bit floats on GPUs"); [`GpuInit::lut_format`] on
+    /// functions, pre-integration tables: [`GpuInit::create_sample_table`]) as
+    /// `table_format` asks ([`crate::renderer::TableFormat`]); `auto`: rgba16float on
+    /// GPUs, where the filtered read of a 128-bit texel is what plain DVR waits on (an
+    /// H200: 0.55–0.69× the CT head's frame without skipping; docs/perf.md,
+    /// "Classification tables in 16-bit floats on GPUs"), [`GpuInit::lut_format`] on
     /// CPU devices, whose images stay those of 32-bit tables. `VWB_LUT_FORMAT`
-    /// (`rgba32float`, `rgba16float`) overrides it: a benchmark switch.
+    /// (`rgba32float`, `rgba16float`) overrides `auto`: a benchmark switch.
     pub fn sample_table_format(&self) -> wgpu::TextureFormat {
-        match std::env::var("VWB_LUT_FORMAT").as_deref().map(str::trim) {
-            Ok("rgba16float") => return wgpu::TextureFormat::Rgba16Float,
-            Ok("rgba32float") => return self.lut_format(),
-            _ => {}
+        use crate::renderer::TableFormat;
+        let mut asked = self.table_format;
+        if asked.is_auto() {
+            match std::env::var("VWB_LUT_FORMAT").as_deref().map(str::trim) {
+                Ok("rgba16float") => asked = TableFormat::Rgba16Float,
+                Ok("rgba32float") => asked = TableFormat::Rgba32Float,
+                _ => {}
+            }
         }
-        if self.device_type == wgpu::DeviceType::Cpu {
-            self.lut_format()
-        } else {
-            wgpu::TextureFormat::Rgba16Float
+        match asked {
+            TableFormat::Rgba16Float => wgpu::TextureFormat::Rgba16Float,
+            TableFormat::Rgba32Float => self.lut_format(),
+            TableFormat::Auto if self.device_type == wgpu::DeviceType::Cpu => self.lut_format(),
+            TableFormat::Auto => wgpu::TextureFormat::Rgba16Float,
         }
     }
 }

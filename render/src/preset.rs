@@ -113,6 +113,10 @@ pub struct RenderSection {
     /// written only when not `Auto`.
     #[serde(skip_serializing_if = "crate::renderer::VolumeFormat::is_auto")]
     pub volume_format: crate::renderer::VolumeFormat,
+    /// How the classification tables are stored on the GPU
+    /// ([`crate::renderer::TableFormat`]); written only when not `Auto`.
+    #[serde(skip_serializing_if = "crate::renderer::TableFormat::is_auto")]
+    pub table_format: crate::renderer::TableFormat,
 }
 
 impl RenderSection {
@@ -153,6 +157,7 @@ impl Default for RenderSection {
             hull_cut: false,
             slices_per_proxy: 1,
             volume_format: crate::renderer::VolumeFormat::Auto,
+            table_format: crate::renderer::TableFormat::Auto,
         }
     }
 }

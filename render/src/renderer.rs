@@ -1040,6 +1040,49 @@ fn texel_bytes(format: wgpu::TextureFormat) -> u64 {
     u64::from(format.block_copy_size(None).unwrap_or(4))
 }
 
+/// How the tables a classification reads at every sample (transfer functions,
+/// pre-integration and label tables: [`crate::plugin::GpuInit::create_sample_table`])
+/// are stored on the GPU (the preset's `render.table_format`, `--table-format`).
+/// `auto` is rgba16float on GPUs, where the filtered read of a 128-bit texel is what
+/// plain DVR waits on, and rgba32float on CPU devices (docs/perf.md, "Classification
+/// tables in 16-bit floats on GPUs"); `rgba32float` keeps a GPU's images those of
+/// 32-bit tables (they move by rounding, at most 0.14 levels RMS on the shipped
+/// presets), `rgba16float` gives a CPU device the GPU's tables.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+pub enum TableFormat {
+    #[default]
+    Auto,
+    Rgba32Float,
+    Rgba16Float,
+}
+
+impl TableFormat {
+    pub const ALL: [TableFormat; 3] = [
+        TableFormat::Auto,
+        TableFormat::Rgba32Float,
+        TableFormat::Rgba16Float,
+    ];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            TableFormat::Auto => "auto",
+            TableFormat::Rgba32Float => "rgba32float",
+            TableFormat::Rgba16Float => "rgba16float",
+        }
+    }
+
+    pub fn parse(s: &str) -> Result<Self, String> {
+        Self::ALL
+            .into_iter()
+            .find(|f| f.name() == s)
+            .ok_or_else(|| format!("unknown table format '{s}' (auto, rgba32float or rgba16float)"))
+    }
+
+    pub fn is_auto(&self) -> bool {
+        *self == TableFormat::Auto
+    }
+}
+
 /// How the normalised scalar volume is stored on the GPU (the preset's
 /// `render.volume_format`, `--volume-format`). Every format is filtered by the
 /// sampler; they differ in bytes per voxel and in what sampling costs on an adapter
@@ -1211,6 +1254,8 @@ pub struct Renderer {
     volume_bytes: u64,
     /// How the volume is asked to be stored ([`RendererOptions::volume_format`]).
     volume_format: VolumeFormat,
+    /// How the classification tables are stored ([`Renderer::set_table_format`]).
+    table_format: TableFormat,
     /// Workgroup shape of the whole-frame compute passes (`cs_main`, `cs_main_skip`).
     main_workgroup: [u32; 2],
     /// The whole-frame march in parts on CPU devices, and the loop limiter's counter
@@ -1560,6 +1605,7 @@ impl Renderer {
             volume_bytes,
             gpu_budget: budget,
             volume_format,
+            table_format: TableFormat::Auto,
             stored_format,
             vertices: None,
             timestamps: None,
@@ -1702,6 +1748,30 @@ impl Renderer {
                 self.gpu_budget.unwrap_or(0) >> 20
             )
         })
+    }
+
+    /// How the classification tables are stored ([`TableFormat`]).
+    pub fn table_format(&self) -> TableFormat {
+        self.table_format
+    }
+
+    /// Stores the classification tables as `format` from now on: where that changes
+    /// it, the plugins' resources are made again at the next stack update
+    /// ([`Renderer::update_stack`]; their passes run again), also in a split volume's
+    /// bricks.
+    pub fn set_table_format(&mut self, format: TableFormat) {
+        if format != self.table_format {
+            self.table_format = format;
+            // as a new volume does (`install`): the next stack update binds the
+            // cached pipeline to the new resources
+            self.instances.clear();
+            self.pipelines = None;
+        }
+        for sp in self.split.iter_mut() {
+            for c in &mut sp.children {
+                c.renderer.set_table_format(format);
+            }
+        }
     }
 
     /// Stores the volume as `format` from now on (uploading it again when that changes
@@ -2451,6 +2521,7 @@ impl Renderer {
             queue: &self.gpu.queue,
             features: self.gpu.features,
             device_type: self.gpu.info.device_type,
+            table_format: self.table_format,
             volume: &self.volume,
             inputs: &self.inputs,
             slice_spacing: self.slice_spacing,

@@ -1247,21 +1247,37 @@ fn classification_tables_are_half_floats_on_gpus() {
     let volume = demo();
     let inputs = vwb_render::inputs::VolumeInputs::default();
     assert!(g.features.contains(wgpu::Features::FLOAT32_FILTERABLE));
-    for (device_type, per_sample) in [
-        (wgpu::DeviceType::Cpu, Rgba32Float),
-        (wgpu::DeviceType::DiscreteGpu, Rgba16Float),
-        (wgpu::DeviceType::IntegratedGpu, Rgba16Float),
+    use vwb_render::renderer::TableFormat;
+    for (device_type, table_format, per_sample) in [
+        (wgpu::DeviceType::Cpu, TableFormat::Auto, Rgba32Float),
+        (
+            wgpu::DeviceType::DiscreteGpu,
+            TableFormat::Auto,
+            Rgba16Float,
+        ),
+        (
+            wgpu::DeviceType::IntegratedGpu,
+            TableFormat::Auto,
+            Rgba16Float,
+        ),
+        (
+            wgpu::DeviceType::DiscreteGpu,
+            TableFormat::Rgba32Float,
+            Rgba32Float,
+        ),
+        (wgpu::DeviceType::Cpu, TableFormat::Rgba16Float, Rgba16Float),
     ] {
         let init = vwb_render::plugin::GpuInit {
             device: &g.device,
             queue: &g.queue,
             features: g.features,
             device_type,
+            table_format,
             volume: &volume,
             inputs: &inputs,
             slice_spacing: 1.0,
         };
-        let what = format!("{device_type:?}");
+        let what = format!("{device_type:?} {}", table_format.name());
         assert_eq!(init.sample_table_format(), per_sample, "{what}");
         let lut = init.create_table_1d("lut", 256);
         assert_eq!(lut.texture.format(), per_sample, "{what}");
@@ -1290,6 +1306,68 @@ fn classification_tables_are_half_floats_on_gpus() {
             }
         }
     }
+}
+
+/// `render.table_format` on a renderer: 16-bit tables move the image by rounding (on
+/// lavapipe, whose `auto` is 32-bit), `auto` brings it back bit for bit, also in a split
+/// volume's bricks; the setting reads and writes in presets and is refused by name.
+#[test]
+fn the_table_format_is_a_render_setting() {
+    use vwb_render::renderer::{RendererOptions, TableFormat};
+    let registry = registry();
+    let doc = Document::load(&repo().join("presets/demo_preintegrated.ron"), &registry)
+        .unwrap()
+        .document;
+    let s = FrameSettings {
+        width: 48,
+        height: 48,
+        backend: Backend::Compute,
+        ..doc.frame_settings()
+    };
+    let split = RendererOptions {
+        brick_limit: Some(64),
+        ..Default::default()
+    };
+    for options in [RendererOptions::default(), split] {
+        let mut r = Renderer::with_options(gpu(), demo(), options).unwrap();
+        let what = if options.brick_limit.is_some() {
+            "split"
+        } else {
+            "whole"
+        };
+        let auto = render(&mut r, &doc.stack, doc.render.target, &s);
+        assert_eq!(r.table_format(), TableFormat::Auto);
+        r.set_table_format(TableFormat::Rgba16Float);
+        let half = render(&mut r, &doc.stack, doc.render.target, &s);
+        let d = gpu_delta_e_rms(&auto, &half, s.width, s.height);
+        assert!(
+            d > 0.0 && d < 0.2,
+            "{what}: 16-bit tables moved the image by {d}"
+        );
+        r.set_table_format(TableFormat::Rgba32Float);
+        let full = render(&mut r, &doc.stack, doc.render.target, &s);
+        assert_kept(&auto, &full, &format!("{what}: rgba32float tables"));
+        r.set_table_format(TableFormat::Auto);
+        let back = render(&mut r, &doc.stack, doc.render.target, &s);
+        assert_kept(&auto, &back, &format!("{what}: auto again"));
+    }
+    // in a preset: written only when not auto
+    let mut d = doc.clone();
+    d.render.table_format = TableFormat::Rgba16Float;
+    let text = d.to_ron();
+    assert!(text.contains("table_format: Rgba16Float"), "{text}");
+    let again = Document::parse(&text, "t.ron", &registry).unwrap().document;
+    assert_eq!(again.render.table_format, TableFormat::Rgba16Float);
+    assert!(!doc.to_ron().contains("table_format"));
+    assert_eq!(
+        TableFormat::parse("rgba32float"),
+        Ok(TableFormat::Rgba32Float)
+    );
+    assert!(
+        TableFormat::parse("rgba8unorm")
+            .unwrap_err()
+            .contains("rgba8unorm")
+    );
 }
 
 /// The texels of a one-row table (rgba32float or rgba16float) as f32.

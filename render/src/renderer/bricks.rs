@@ -316,6 +316,7 @@ pub(super) struct ChildSettings {
     fused_slices: bool,
     state_tracking: bool,
     refinement_budget: Option<u32>,
+    table_format: super::TableFormat,
 }
 
 impl ChildSettings {
@@ -329,6 +330,7 @@ impl ChildSettings {
             fused_slices: parent.fused_slices,
             state_tracking: parent.state_tracking,
             refinement_budget: parent.refinement_budget,
+            table_format: parent.table_format,
         }
     }
 
@@ -341,6 +343,7 @@ impl ChildSettings {
         r.fused_slices = self.fused_slices;
         r.set_state_tracking(self.state_tracking);
         r.refinement_budget = self.refinement_budget;
+        r.set_table_format(self.table_format);
     }
 }
 
