@@ -30,7 +30,7 @@ ACCURACY_PRESETS = ["ct_head", "ct_shade_phong", "demo", "nuclei", "demo_tf2d",
 
 def wrapper(folder: Path, vwb: str, fmt: str) -> str:
     p = folder / fmt
-    p.write_text(f'#!/bin/sh\nVWB_LUT_FORMAT={fmt} exec "{os.path.abspath(vwb)}" "$@"\n')
+    p.write_text(f'#!/bin/sh\nVWB_LUT_FORMAT={fmt} exec "{vwb}" "$@"\n')
     p.chmod(0o755)
     return str(p)
 
@@ -42,6 +42,7 @@ def main():
     ap.add_argument("--rounds", type=int, default=5)
     ap.add_argument("-o", "--out")
     a = ap.parse_args()
+    a.vwb = os.path.abspath(a.vwb)
     out = Path(a.out or (REPO / "docs/gpu" if a.gpu else "/tmp/vwb-tables"))
     out.mkdir(parents=True, exist_ok=True)
     env = vwb_env(a.gpu)
