@@ -48,14 +48,22 @@ def test_parameters_change_the_image_and_bad_ones_are_refused():
         vwb.Scene("nonexistent.ron")
 
 
-def test_volume_format_is_a_render_setting():
+def moved_and_back(key, value, bound, why):
+    """A scene whose render setting `key` set to `value` moves the image by less than
+    `bound` (RMS ΔE*uv) but not by nothing, and set back to auto gives the image again;
+    returns the scene and that image."""
     s = vwb.Scene(DEMO)
     full = s.render(size=(40, 40))
-    s.set("render.volume_format", "r16float")
-    half = s.render(size=(40, 40))
-    assert 0.0 < vwb.compare(full, half)["rms_delta_e"] < 0.5, "11-bit values, nearly the image"
-    s.set("render.volume_format", "auto")
+    s.set(key, value)
+    moved = s.render(size=(40, 40))
+    assert 0.0 < vwb.compare(full, moved)["rms_delta_e"] < bound, why
+    s.set(key, "auto")
     assert vwb.compare(full, s.render(size=(40, 40)))["rms_delta_e"] == 0.0
+    return s, full
+
+
+def test_volume_format_is_a_render_setting():
+    s, full = moved_and_back("render.volume_format", "r16float", 0.5, "11-bit values, nearly the image")
     s.set("render.volume_format", "r8unorm")
     byte = s.render(size=(40, 40))
     assert 0.0 < vwb.compare(full, byte)["rms_delta_e"] < 1.0, "1/255 steps, nearly the image"
@@ -64,13 +72,7 @@ def test_volume_format_is_a_render_setting():
 
 
 def test_table_format_is_a_render_setting():
-    s = vwb.Scene(DEMO)
-    full = s.render(size=(40, 40))
-    s.set("render.table_format", "rgba16float")
-    half = s.render(size=(40, 40))
-    assert 0.0 < vwb.compare(full, half)["rms_delta_e"] < 0.2, "half-float tables, nearly the image"
-    s.set("render.table_format", "auto")
-    assert vwb.compare(full, s.render(size=(40, 40)))["rms_delta_e"] == 0.0
+    s, _ = moved_and_back("render.table_format", "rgba16float", 0.2, "half-float tables, nearly the image")
     with pytest.raises(ValueError, match="rgba8unorm"):
         s.set("render.table_format", "rgba8unorm")
 
