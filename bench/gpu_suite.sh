@@ -60,7 +60,7 @@ run)
     rc=$?
     {
         echo "rc=$rc in $((SECONDS - t0)) s"
-        grep -E "^GPU tests on|^test result|^failures:|^    [a-z_]+::|panicked" "$out/suite.log" | head -80
+        grep -E "^test result|^failures:|^    [a-z_]+::|panicked" "$out/suite.log" | head -80
     } | tee "$out/summary.txt"
     ;;
 *)

@@ -1758,7 +1758,7 @@ impl Renderer {
     /// Stores the classification tables as `format` from now on: where that changes
     /// it, the plugins' resources are made again at the next stack update
     /// ([`Renderer::update_stack`]; their passes run again), also in a split volume's
-    /// bricks.
+    /// bricks (which take it with the parent's other settings, `ChildSettings`).
     pub fn set_table_format(&mut self, format: TableFormat) {
         if format != self.table_format {
             self.table_format = format;
@@ -1766,11 +1766,6 @@ impl Renderer {
             // cached pipeline to the new resources
             self.instances.clear();
             self.pipelines = None;
-        }
-        for sp in self.split.iter_mut() {
-            for c in &mut sp.children {
-                c.renderer.set_table_format(format);
-            }
         }
     }
 
