@@ -12,6 +12,9 @@
 #   gpu-perf.md        docs/gpu/perf.md: the `foundation-gpu-1024` block (the same at
 #                      1024²) and the `scaling` block (bench/scaling.py --gpu)
 #   presets.log        DOS and shaded presets, both backends, 512² (`vwb render --timings`)
+#   backends.log       step `backends` (not in the default steps): DOS on both backends
+#                      and at half buffer resolution, raster with 1 and 8 slices per
+#                      polygon against compute, with and without early termination
 #   gpu-docs.tar       docs/gpu/: flow.md and hernell.md (the blocks of the
 #                      experiment files hernell_512,
 #                      flow_precompute_256, flow_arrival_prepass_large,
@@ -53,6 +56,35 @@ presets() {
         done
     done
 }
+backends() { # GPU ms of the DOS presets on both backends (and a half-resolution occlusion
+    # buffer), and of four presets on compute against raster with a polygon per slice
+    # and with 8 slices per polygon, without and with early termination 0.99
+    r() {
+        local l=$1
+        shift
+        printf '%s\t' "$l"
+        "$vwb" render --size 512x512 --timings --frames 10 -o /tmp/vwb-gpu-b.png "$@" 2>&1 |
+            grep -E gpu_ms | tr '\n' ' '
+        echo
+    }
+    for p in ct_dos ct_dos_chromatic demo_dos nuclei_dos; do
+        for b in compute raster; do r "$p $b" --preset "presets/$p.ron" --backend $b; done
+    done
+    sed 's/"ambient": 0.15}/"ambient": 0.15, "buffer_scale": "0.5"}/' presets/ct_dos.ron \
+        >/tmp/vwb-gpu-ct_dos_half.ron
+    for b in compute raster; do r "ct_dos buffer 0.5 $b" --preset /tmp/vwb-gpu-ct_dos_half.ron --backend $b; done
+    for p in ct_shade_none ct_shade_phong demo nuclei; do
+        for et in none 0.99; do
+            local e=()
+            [ $et != none ] && e=(--early-termination $et)
+            r "$p compute et=$et" --preset "presets/$p.ron" --backend compute "${e[@]}"
+            for n in 1 8; do
+                r "$p raster$n et=$et" --preset "presets/$p.ron" --backend raster \
+                    --slices-per-proxy $n "${e[@]}"
+            done
+        done
+    done
+}
 if want perf; then
     step perf 90 python3 bench/perf.py --vwb "$vwb" --gpu --block foundation-gpu --frames 20
     step perf1024 90 python3 bench/perf.py --vwb "$vwb" --gpu --size 1024x1024 \
@@ -61,8 +93,9 @@ if want perf; then
 fi
 want scaling && step scaling 200 python3 bench/scaling.py --vwb "$vwb" --gpu --doc docs/gpu/perf.md
 want perf || want scaling && cp docs/gpu/perf.md "$out/gpu-perf.md"
-export -f presets; export vwb
+export -f presets backends; export vwb
 want presets && step presets 120 bash -c presets
+want backends && step backends 120 bash -c backends
 want experiments && step experiments 540 "$vwb" run experiments/volume_format.ron experiments/flow_modes.ron \
     experiments/flow_precompute_256.ron experiments/flow_arrival_prepass_large.ron \
     experiments/search_gallery.ron experiments/search_gallery_large.ron \

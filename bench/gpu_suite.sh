@@ -13,7 +13,7 @@
 # were built in. run: unpacks them, puts `vwb` where the CLI tests look for it
 # (target/debug/vwb under the build path, unless one is there; the build path is linked
 # to this checkout when it does not exist) and runs the suite with VWB_TEST_GPU=1 (the best adapter), 8 threads,
-# under a 400 s limit; OUT gets suite.log and summary.txt (the result lines and the
+# under a 400 s limit (SUITE_THREADS, SUITE_LIMIT override both); OUT gets suite.log and summary.txt (the result lines and the
 # failures). The test of the window under Xvfb needs a display and is skipped.
 set -uo pipefail
 cd "$(dirname "$0")/.."
@@ -55,7 +55,7 @@ run)
     export VWB_DATA_DIR=/tmp/vwb-suite/data VWB_TEST_GPU=1 XDG_RUNTIME_DIR=${XDG_RUNTIME_DIR:-/tmp}
     unset LP_NUM_THREADS
     t0=$SECONDS
-    (cd "$build" && timeout 400 /tmp/vwb-suite/integration --test-threads=8 --skip window_screenshot_under_xvfb "$@") \
+    (cd "$build" && timeout "${SUITE_LIMIT:-400}" /tmp/vwb-suite/integration --test-threads="${SUITE_THREADS:-8}" --skip window_screenshot_under_xvfb "$@") \
         >"$out/suite.log" 2>&1
     rc=$?
     {

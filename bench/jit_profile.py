@@ -4,7 +4,7 @@
 
 llvmpipe compiles shaders to machine code at run time, so `perf report` shows only
 "[JIT]". This samples the running benchmark's instruction pointers, copies the
-executable mapping that holds most of them out of /proc/PID/mem, disassembles it with
+executable mapping that holds most of them (`--mappings N`: the N hottest) out of /proc/PID/mem, disassembles it with
 objdump and prints each function of the code (split at `ret`) with its share of the
 samples, and writes the annotated disassembly (samples per instruction) to
 `--annotate`. The texture fetches show as their own functions (a trilinear 3D
@@ -35,6 +35,9 @@ def main():
     ap.add_argument("--seconds", type=float, default=6.0, help="seconds sampled")
     ap.add_argument("--bench-arg", action="append", default=[])
     ap.add_argument("--annotate", default="/tmp/vwb_jit.s")
+    ap.add_argument("--mappings", type=int, default=1,
+                    help="how many code mappings to read, hottest first (a frame of several "
+                         "shaders, e.g. DOS's slice and update passes, spreads over several)")
     a = ap.parse_args()
     env = dict(os.environ)
     env.setdefault("LP_NUM_THREADS", "2")
@@ -54,24 +57,37 @@ def main():
             ips = [int(l.split()[0], 16) for l in subprocess.run(
                 ["perf", "script", "-i", data, "-F", "ip"], check=True, capture_output=True,
                 text=True).stdout.splitlines() if l.strip()]
-            page = collections.Counter(ip >> 12 for ip in ips).most_common(1)[0][0] << 12
-            start = end = None
+            maps = []
             with open(f"/proc/{bench.pid}/maps") as f:
                 for line in f:
                     lo, hi = (int(x, 16) for x in line.split()[0].split("-"))
-                    if lo <= page < hi:
-                        start, end = lo, hi
+                    maps.append((lo, hi))
+            per_map = collections.Counter()
+            for ip in ips:
+                for lo, hi in maps:
+                    if lo <= ip < hi:
+                        per_map[(lo, hi)] += 1
+                        break
+            codes = []
             with open(f"/proc/{bench.pid}/mem", "rb") as f:
-                f.seek(start)
-                code = f.read(end - start)
+                for (lo, hi), _ in per_map.most_common(a.mappings):
+                    f.seek(lo)
+                    codes.append((lo, hi, f.read(hi - lo)))
         finally:
             bench.kill()
             bench.wait()
-        binfile = os.path.join(d, "jit.bin")
-        with open(binfile, "wb") as f:
-            f.write(code)
-        asm = subprocess.run(["objdump", "-D", "-b", "binary", "-mi386:x86-64", binfile],
-                             check=True, capture_output=True, text=True).stdout
+        for k, (start, end, code) in enumerate(codes):
+            annotate = a.annotate if k == 0 else f"{a.annotate}.{k}"
+            report(a, d, ips, start, end, code, annotate, k)
+
+
+def report(a, d, ips, start, end, code, annotate, k):
+    """Disassembles one code mapping and prints its functions' shares."""
+    binfile = os.path.join(d, "jit.bin")
+    with open(binfile, "wb") as f:
+        f.write(code)
+    asm = subprocess.run(["objdump", "-D", "-b", "binary", "-mi386:x86-64", binfile],
+                         check=True, capture_output=True, text=True).stdout
     hits = collections.Counter(ip - start for ip in ips if start <= ip < end)
     lines, funcs, cur = [], [], None
     for line in asm.splitlines():
@@ -88,18 +104,17 @@ def main():
             cur = None
     if cur:
         funcs.append(cur)
-    with open(a.annotate, "w") as f:
+    with open(annotate, "w") as f:
         f.write("\n".join(lines) + "\n")
     inside = sum(hits.values())
     print(f"{a.preset} ({a.backend}, {a.size}, {' '.join(a.bench_arg)}): {len(ips)} samples, "
-          f"{inside / max(len(ips), 1):.1%} in the hottest code mapping")
+          f"{inside / max(len(ips), 1):.1%} in code mapping {k} (hottest first)")
     print("| function (offsets) | instructions | gathers | share of the mapping's samples |")
     print("|---|---:|---:|---:|")
     for lo, hi, n, count, gathers in funcs:
         if n > inside * 0.01:
             print(f"| {lo:#x}–{hi:#x} | {count} | {gathers} | {n / inside:.1%} |")
-    print(f"annotated disassembly: {a.annotate}")
-
+    print(f"annotated disassembly: {annotate}")
 
 if __name__ == "__main__":
     main()

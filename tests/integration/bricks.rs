@@ -42,12 +42,14 @@ fn share_above(a: &RgbImageF, b: &RgbImageF, limit: f64) -> f64 {
 /// axis and as one texture, on both backends (rgba32float eye buffers, so that only
 /// the bricking differs): the compute backend gives the same image to 0.01 ΔE*uv RMS;
 /// the raster backend differs only at isolated pixels (vertex snapping of the brick
-/// polygons: mean ΔE ≤ 0.02, at most 0.25 % of the pixels above 1). A stack with a plugin that carries information across the volume is
+/// polygons: mean ΔE ≤ 0.02, at most 0.25 % of the pixels above 1). On a GPU the bounds
+/// are looser (`adapter_bound`). A stack with a plugin that carries information across the volume is
 /// refused with an error naming it.
 #[test]
 fn bricked_volumes_render_the_unbricked_image() {
     let registry = registry();
     let (mut split_presets, mut refused) = (0, 0);
+    let mut failed = Vec::new();
     for path in crate::presets::shipped_presets() {
         let name = path.file_name().unwrap().to_string_lossy().to_string();
         let doc = Document::load(&path, &registry).unwrap().document;
@@ -97,18 +99,27 @@ fn bricked_volumes_render_the_unbricked_image() {
                 m.max_delta_e,
                 rough * 100.0
             );
-            match backend {
-                Backend::Compute => assert!(
-                    m.rms_delta_e <= 0.01 && m.max_delta_e <= 0.5,
-                    "{name}: {m:?}"
-                ),
-                Backend::Raster => assert!(
-                    m.mean_delta_e <= 0.02 && rough <= 0.0025,
-                    "{name}: {m:?}, {rough}"
-                ),
+            // a GPU's 8-bit filter weights turn the bricks' texture coordinates (their own
+            // origin and scale) into value steps: the H200 measured compute up to 0.019
+            // RMS (max 0.99), raster a mean up to 0.095 with up to 1.4 % of the pixels
+            // above 1 (docs/gpu/README.md)
+            let kept = match backend {
+                Backend::Compute => {
+                    m.rms_delta_e <= adapter_bound(0.01, 0.03)
+                        && m.max_delta_e <= adapter_bound(0.5, 2.0)
+                }
+                Backend::Raster => {
+                    m.mean_delta_e <= adapter_bound(0.02, 0.15)
+                        && rough <= adapter_bound(0.0025, 0.02)
+                }
+            };
+            if !kept {
+                failed.push(format!("{name} {}: {m:?}, {rough}", backend.name()));
             }
         }
     }
+    // every preset measured before failing, so that one run shows them all
+    assert!(failed.is_empty(), "{failed:#?}");
     assert!(split_presets >= 20, "{split_presets} presets split");
     assert!(refused >= 5, "{refused} presets refused");
 }

@@ -376,6 +376,14 @@ fn updates_are_timed_again_and_the_lic_is_held_against_its_twin() {
     // the LIC's streaks follow the flow: neighbours along it are more alike than across
     assert!(stat("along_across") < 0.8, "{stats:?}");
 
+    // the update's cost grows with L: by the wall clock on a CPU device, by the GPU's
+    // own timestamps on a GPU, where the 64³ pre-pass takes well under a millisecond
+    // and the wall clock's noise decides (the H200 timed L 16 as 0 ms by the wall clock)
+    let time = if crate::common::on_gpu() {
+        "update_gpu_ms"
+    } else {
+        "update_ms"
+    };
     let file = tmp("repeats.ron");
     std::fs::write(
         &file,
@@ -390,7 +398,7 @@ fn updates_are_timed_again_and_the_lic_is_held_against_its_twin() {
         render: (size: (16, 16), target: "rgba32float"),
         frames: 3,
         update_repeats: 3,
-        assertions: ["flow.lic3d.twin_rms < 0.5", "update_ms(L 16) / update_ms(L 2) > 1.2"],
+        assertions: ["flow.lic3d.twin_rms < 0.5", "{time}(L 16) / {time}(L 2) > 1.2"],
     )"#,
             scene.display()
         ),
@@ -402,10 +410,12 @@ fn updates_are_timed_again_and_the_lic_is_held_against_its_twin() {
     assert!(o.failed().is_empty(), "{:#?}", o.assertions);
     for row in &o.rows {
         assert_eq!(row.update_passes, ["flow.lic3d/prepass"], "{row:?}");
-        assert!(row.update_ms.is_finite() && row.update_ms > 0.0, "{row:?}");
         let twin = row.statistics["flow.lic3d.twin_rms"];
         assert!((0.0..0.5).contains(&twin), "{row:?}");
-        if !crate::common::on_gpu() {
+        if crate::common::on_gpu() {
+            assert!(row.update_gpu_ms > 0.0, "{row:?}");
+        } else {
+            assert!(row.update_ms.is_finite() && row.update_ms > 0.0, "{row:?}");
             // lavapipe's compute stamps are near zero: not the update's
             assert!(row.update_gpu_ms.is_nan(), "{row:?}");
         }

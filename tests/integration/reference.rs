@@ -3,7 +3,7 @@
 //! eye buffer emulated.
 
 use vwb_render::inputs::VolumeInputs;
-use vwb_render::metrics::{RgbImageF, compare};
+use vwb_render::metrics::{RgbImageF, compare, delta_e_uv};
 use vwb_render::preset::Document;
 use vwb_render::reference::{ReferenceOptions, render_reference};
 use vwb_render::{Backend, FrameSettings, TargetFormat};
@@ -16,6 +16,32 @@ pub fn delta_e_rms(gpu_px: &[[f32; 4]], reference: &[[f64; 4]], w: u32, h: u32) 
     let a = RgbImageF::from_rgba_f32_premultiplied_over(gpu_px, w, h, [0.0; 3]);
     let b = RgbImageF::from_rgba_premultiplied_over(reference, w, h, [0.0; 3]);
     compare(&a, &b).rms_delta_e
+}
+
+/// RMS over the pixels of the least ΔE*uv between a GPU pixel and the twins' pixels in
+/// its 3 × 3 neighbourhood, both over black. Where a threshold of a filtered value (an
+/// iso value, an arrival time) decides a pixel, a GPU's 8-bit filter weights move the
+/// filtered value by up to 1/512 of a voxel step and flip pixels along the edge: the
+/// edge moves by a pixel. This forgives that and not a wrong colour over an area.
+pub fn delta_e_rms_near(gpu_px: &[[f32; 4]], reference: &[[f64; 4]], w: u32, h: u32) -> f64 {
+    let a = RgbImageF::from_rgba_f32_premultiplied_over(gpu_px, w, h, [0.0; 3]);
+    let b = RgbImageF::from_rgba_premultiplied_over(reference, w, h, [0.0; 3]);
+    let (w, h) = (w as i64, h as i64);
+    let mut sum = 0.0;
+    for y in 0..h {
+        for x in 0..w {
+            let p = a.pixels[(y * w + x) as usize];
+            let mut least = f64::INFINITY;
+            for (dx, dy) in (-1..=1).flat_map(|dy| (-1..=1).map(move |dx| (dx, dy))) {
+                let (u, v) = (x + dx, y + dy);
+                if (0..w).contains(&u) && (0..h).contains(&v) {
+                    least = least.min(delta_e_uv(p, b.pixels[(v * w + u) as usize]));
+                }
+            }
+            sum += least * least;
+        }
+    }
+    (sum / (w * h).max(1) as f64).sqrt()
 }
 
 /// RMS ΔE*uv between two GPU images (premultiplied RGBA over black).
@@ -124,12 +150,15 @@ fn every_shipped_preset_matches_its_cpu_twins() {
                 "{name}: the volume is visible in the reference"
             );
             let rms = delta_e_rms(&px, &reference, 64, 64);
+            let near = delta_e_rms_near(&px, &reference, 64, 64);
             eprintln!(
-                "{name} {}: GPU vs CPU twins RMS ΔE*uv {rms:.4}",
+                "{name} {}: GPU vs CPU twins RMS ΔE*uv {rms:.4} (near {near:.4})",
                 backend.name()
             );
             let per_slice = doc.stack.iter().any(|i| i.plugin.slice_state().is_some());
-            if rms >= twin_bound(backend, per_slice) {
+            // on a GPU an iso surface's edge may move by a pixel (`delta_e_rms_near`)
+            let measured = if on_gpu() { near } else { rms };
+            if measured >= twin_bound(backend, per_slice) {
                 failed.push(format!("{name} {}: RMS ΔE*uv {rms}", backend.name()));
             }
         }

@@ -883,8 +883,11 @@ fn raster_groups_of_slices_keep_the_image() {
                 assert!(px == *one, "{label}: a polygon per slice, the same image");
                 continue;
             }
-            // no further from the twins, and close to a polygon per slice
-            assert!(rms <= one_rms + 0.05, "{label}: {rms} against {one_rms}");
+            // no further from the twins, and close to a polygon per slice (on a GPU, whose
+            // 8-bit filter weights turn the samples' rounding into value steps, the H200
+            // measured up to +0.054: demo n 2, 0.159 against 0.105)
+            let margin = adapter_bound(0.05, 0.1);
+            assert!(rms <= one_rms + margin, "{label}: {rms} against {one_rms}");
             let apart = gpu_delta_e_rms(&px, one, 96, 96);
             eprintln!("{label}: from a polygon per slice {apart:.4}");
             assert!(apart < 0.5, "{label}: {apart}");
@@ -1308,8 +1311,9 @@ fn classification_tables_are_half_floats_on_gpus() {
     }
 }
 
-/// `render.table_format` on a renderer: 16-bit tables move the image by rounding (on
-/// lavapipe, whose `auto` is 32-bit), `auto` brings it back bit for bit, also in a split
+/// `render.table_format` on a renderer: the format `auto` does not pick (16-bit on
+/// lavapipe, 32-bit on a GPU) moves the image by rounding, the one it picks and `auto`
+/// again bring it back (bit for bit on lavapipe), also in a split
 /// volume's bricks; the setting reads and writes in presets and is refused by name.
 #[test]
 fn the_table_format_is_a_render_setting() {
@@ -1337,16 +1341,22 @@ fn the_table_format_is_a_render_setting() {
         };
         let auto = render(&mut r, &doc.stack, doc.render.target, &s);
         assert_eq!(r.table_format(), TableFormat::Auto);
-        r.set_table_format(TableFormat::Rgba16Float);
-        let half = render(&mut r, &doc.stack, doc.render.target, &s);
-        let d = gpu_delta_e_rms(&auto, &half, s.width, s.height);
+        // `auto` is rgba32float on a CPU device and rgba16float on a GPU
+        let (same, other) = if on_gpu() {
+            (TableFormat::Rgba16Float, TableFormat::Rgba32Float)
+        } else {
+            (TableFormat::Rgba32Float, TableFormat::Rgba16Float)
+        };
+        r.set_table_format(other);
+        let moved = render(&mut r, &doc.stack, doc.render.target, &s);
+        let d = gpu_delta_e_rms(&auto, &moved, s.width, s.height);
         assert!(
             d > 0.0 && d < 0.2,
-            "{what}: 16-bit tables moved the image by {d}"
+            "{what}: {other:?} tables moved the image by {d}"
         );
-        r.set_table_format(TableFormat::Rgba32Float);
-        let full = render(&mut r, &doc.stack, doc.render.target, &s);
-        assert_kept(&auto, &full, &format!("{what}: rgba32float tables"));
+        r.set_table_format(same);
+        let kept = render(&mut r, &doc.stack, doc.render.target, &s);
+        assert_kept(&auto, &kept, &format!("{what}: {same:?} tables"));
         r.set_table_format(TableFormat::Auto);
         let back = render(&mut r, &doc.stack, doc.render.target, &s);
         assert_kept(&auto, &back, &format!("{what}: auto again"));
