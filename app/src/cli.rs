@@ -378,6 +378,42 @@ pub struct FrameArgs {
     /// devices), rgba32float or rgba16float (default: the preset's).
     #[arg(long, value_parser = vwb_render::renderer::TableFormat::parse)]
     pub table_format: Option<vwb_render::renderer::TableFormat>,
+    /// Sets a plugin parameter or a render setting, as an experiment variant's `set`
+    /// does, after the options above: `--set classify.tf1d.mode=preintegrated`,
+    /// `--set shade.dos.buffer_scale=0.5`, `--set render.slice_spacing=0.5`,
+    /// `--set shade.blinn_phong.light_dir=(0,1,0)`; repeatable. VALUE is true/false, a
+    /// number, numbers in parentheses, or text.
+    #[arg(long = "set", value_name = "KEY=VALUE", value_parser = parse_set)]
+    pub set: Vec<(String, String)>,
+}
+
+/// `--set KEY=VALUE`.
+pub fn parse_set(s: &str) -> Result<(String, String), String> {
+    match s.split_once('=') {
+        Some((k, v)) if !k.trim().is_empty() => Ok((k.trim().to_string(), v.trim().to_string())),
+        _ => Err(format!("'{s}' is not KEY=VALUE")),
+    }
+}
+
+/// The value of `--set KEY=VALUE` as an experiment's `set` holds it: true/false, a
+/// number, numbers in parentheses (a vec3 or a colour), otherwise text.
+pub fn set_value_of(v: &str) -> vwb_lab::experiment::SetValue {
+    use vwb_lab::experiment::SetValue;
+    match v {
+        "true" => return SetValue::Bool(true),
+        "false" => return SetValue::Bool(false),
+        _ => {}
+    }
+    if let Ok(x) = v.parse::<f64>() {
+        return SetValue::Number(x);
+    }
+    if let Some(inner) = v.strip_prefix('(').and_then(|r| r.strip_suffix(')')) {
+        let xs: Result<Vec<f64>, _> = inner.split(',').map(|x| x.trim().parse::<f64>()).collect();
+        if let Ok(xs) = xs {
+            return SetValue::Numbers(xs);
+        }
+    }
+    SetValue::Text(v.to_string())
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -450,6 +486,25 @@ impl FrameArgs {
         }
         if let Some(f) = self.table_format {
             doc.render.table_format = f;
+        }
+        for (key, raw) in &self.set {
+            let value = set_value_of(raw);
+            let result = vwb_lab::experiment::set_value(doc, key, &value);
+            // an enumeration whose names are numbers (`buffer_scale`: "0.5") takes text
+            if let (Err(e), vwb_lab::experiment::SetValue::Number(_)) = (&result, &value) {
+                let text = vwb_lab::experiment::SetValue::Text(raw.clone());
+                vwb_lab::experiment::set_value(doc, key, &text).map_err(|t| {
+                    // the number's complaint where text does not fit either
+                    let why = if t.to_string().contains("does not fit") {
+                        e
+                    } else {
+                        &t
+                    };
+                    anyhow::anyhow!("--set {key}={raw}: {why}")
+                })?;
+                continue;
+            }
+            result.map_err(|e| anyhow::anyhow!("--set {key}={raw}: {e}"))?;
         }
         Ok(())
     }

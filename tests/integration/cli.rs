@@ -73,6 +73,58 @@ fn render_timings_and_backend_override() {
     assert!(stdout.contains("wall_ms median"), "{stdout}");
 }
 
+/// `--set KEY=VALUE` sets a plugin parameter or a render setting as an experiment's
+/// `set` does: an enumeration whose names are numbers, a number, a vec3; the preset's
+/// own value gives the preset's image; a wrong key or value is refused by name.
+#[test]
+fn render_sets_parameters_by_key() {
+    let png = |name: &str, set: &[&str]| -> Result<Vec<u8>, String> {
+        let out = tmp(name);
+        let mut c = vwb();
+        c.args([
+            "render",
+            "--preset",
+            "presets/demo_dos.ron",
+            "--size",
+            "48x40",
+            "-o",
+        ])
+        .arg(&out);
+        for s in set {
+            c.args(["--set", s]);
+        }
+        let o = c.output().unwrap();
+        if !o.status.success() {
+            return Err(String::from_utf8_lossy(&o.stderr).into_owned());
+        }
+        Ok(image::open(&out).unwrap().to_rgba8().into_raw())
+    };
+    let base = png("set_base.png", &[]).unwrap();
+    let same = png("set_same.png", &["shade.dos.buffer_scale=1"]).unwrap();
+    assert!(same == base, "the preset's own value, the preset's image");
+    let half = png("set_half.png", &["shade.dos.buffer_scale=0.5"]).unwrap();
+    assert!(
+        half != base,
+        "a half-resolution occlusion buffer changes the image"
+    );
+    let both = png(
+        "set_both.png",
+        &["shade.dos.theta_deg=30", "render.slice_spacing=2"],
+    )
+    .unwrap();
+    assert!(both != base && both != half);
+    for (bad, says) in [
+        ("shade.dos.buffer_scale=0.3", "not one of"),
+        ("shade.dos.theta_deg=600", "outside"),
+        ("shade.nothing.x=1", "shade.nothing"),
+        ("render.skipping=maybe", "render.skipping"),
+        ("no_equals_sign", "KEY=VALUE"),
+    ] {
+        let e = png("set_bad.png", &[bad]).unwrap_err();
+        assert!(e.contains(says), "{bad}: {e}");
+    }
+}
+
 #[test]
 fn failures_name_the_file_and_exit_non_zero() {
     let bad = tmp("bad.ron");
