@@ -1147,6 +1147,14 @@ pub enum Transparency {
     /// spacing ([`crate::skipping::move_apron`]), widens clip regions alike, and
     /// skipping stays exact.
     Moves(f64),
+    /// A classifier, as [`Transparency::ByValue`], whose colour at a sample also
+    /// depends on values up to this many slice steps ahead along its ray
+    /// (pre-integration's slab reads the value where the ray meets the next slice).
+    /// The function says whether some value in the range gets α > 0, over a slab
+    /// whose two ends lie in the range. The renderer widens the bricks' ranges by
+    /// that reach, as for [`Transparency::Moves`]: a sample is then skipped only when
+    /// every value its slab can read is transparent, and skipping stays exact.
+    ByValueAhead(Arc<VisibleFn>, f64),
 }
 
 /// Whether some point of a world box (min, max) can lie in a plugin's region.

@@ -1235,6 +1235,10 @@ pub struct Renderer {
     /// How far its plugins move samples (slice steps; [`stack_moves`]).
     occupancy_moves: f64,
     occupancy_apron: u32,
+    /// The longest step between two slices along a ray of the last frame (voxels;
+    /// [`crate::slicing::FramePlan::max_ray_step`]): what a move or a read ahead of one
+    /// step can reach, for the apron.
+    occupancy_ray_step: f32,
     /// Brick ranges with a wider apron, for stacks that move samples (by apron).
     moved_ranges: std::sync::Mutex<Option<(u32, Arc<BrickRanges>)>>,
     /// The user's switch (on by default).
@@ -1575,6 +1579,7 @@ impl Renderer {
             occupancy_stack: Vec::new(),
             occupancy_moves: 0.0,
             occupancy_apron: 1,
+            occupancy_ray_step: 1.0,
             moved_ranges: Default::default(),
             skipping_enabled: true,
             shader_overrides: Default::default(),
@@ -2050,7 +2055,7 @@ impl Renderer {
         let visible = stack_visibility(stack, &self.volumes())?;
         // a moved sample may read beyond its brick: ranges over a wider apron, and
         // regions widened by the move
-        let apron = move_apron(moves, self.slice_spacing);
+        let apron = move_apron(moves, self.occupancy_ray_step);
         let mut bytes = match self.ranges_with_apron(apron) {
             Some(ranges) => ranges.occupancy(&*visible),
             None => self.bricks.occupancy(&*visible),
@@ -2061,7 +2066,7 @@ impl Renderer {
             self.volume.dims,
             (self.vbox.min.as_dvec3(), self.vbox.max.as_dvec3()),
             &stack_regions(stack, &self.volumes()),
-            moves * self.slice_spacing as f64 * self.vbox.voxel as f64,
+            moves * self.occupancy_ray_step as f64 * self.vbox.voxel as f64,
         );
         Some(bytes)
     }
@@ -2092,7 +2097,7 @@ impl Renderer {
     fn update_occupancy(&mut self, stack: &[PluginInstance]) {
         self.occupancy_stack = stack.to_vec();
         self.occupancy_moves = stack_moves(stack, &self.volumes());
-        self.occupancy_apron = move_apron(self.occupancy_moves, self.slice_spacing);
+        self.occupancy_apron = move_apron(self.occupancy_moves, self.occupancy_ray_step);
         let bytes = self.occupancy_moving(stack, self.occupancy_moves);
         if bytes == self.occupancy_bytes {
             return;
@@ -4121,9 +4126,17 @@ impl Renderer {
         let frame_plan = self.current_frame_plan(&view, s.slice_spacing)?;
         let plan = frame_plan.slices;
         let spacing_updates = self.sync_spacing(frame_plan.ray_spacing() / self.vbox.voxel)?;
-        // the occupancy's apron for moved samples follows the slice spacing
+        // the occupancy's apron for moved samples and slabs follows the longest step
+        // between slices along the frame's rays (the spacing, the view's width and,
+        // under half-angle slicing, the light)
+        // (made again where the apron changes, or the clip regions' widening must grow)
+        let ray_step = frame_plan.max_ray_step(&view) / self.vbox.voxel;
         let moves = self.occupancy_moves;
-        if moves > 0.0 && move_apron(moves, self.slice_spacing) != self.occupancy_apron {
+        if moves > 0.0
+            && (move_apron(moves, ray_step) != self.occupancy_apron
+                || ray_step > self.occupancy_ray_step)
+        {
+            self.occupancy_ray_step = ray_step;
             let stack = std::mem::take(&mut self.occupancy_stack);
             self.update_occupancy(&stack);
         }

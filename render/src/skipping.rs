@@ -381,32 +381,40 @@ pub fn stack_visibility(stack: &[PluginInstance], volumes: &Volumes<'_>) -> Opti
         match inst.configured().transparency(&inst.params, volumes) {
             Transparency::Unknown => return None,
             Transparency::Keeps | Transparency::Region(_) | Transparency::Moves(_) => {}
-            Transparency::ByValue(f) => visible = f,
+            Transparency::ByValue(f) | Transparency::ByValueAhead(f, _) => visible = f,
         }
     }
     Some(visible)
 }
 
-/// How far the enabled instances move samples along their rays, in slice steps: the
-/// largest [`Transparency::Moves`] (0 when none does).
+/// How far the enabled instances move samples along their rays, or read ahead of
+/// them, in slice steps: the largest [`Transparency::Moves`] or
+/// [`Transparency::ByValueAhead`] (0 when none does). Moves and reads add up: a moved
+/// sample's slab reads ahead of where it was moved to.
 pub fn stack_moves(stack: &[PluginInstance], volumes: &Volumes<'_>) -> f64 {
-    stack
-        .iter()
-        .filter(|i| i.enabled)
-        .filter_map(|i| match i.configured().transparency(&i.params, volumes) {
-            Transparency::Moves(steps) => Some(steps.max(0.0)),
-            _ => None,
-        })
-        .fold(0.0, f64::max)
+    let (mut moves, mut ahead) = (0.0f64, 0.0f64);
+    for i in stack.iter().filter(|i| i.enabled) {
+        match i.configured().transparency(&i.params, volumes) {
+            Transparency::Moves(steps) => moves = moves.max(steps.max(0.0)),
+            Transparency::ByValueAhead(_, steps) => ahead = ahead.max(steps.max(0.0)),
+            _ => {}
+        }
+    }
+    moves + ahead
 }
 
 /// The apron (voxels) of the brick ranges that keeps skipping exact when samples move
-/// by up to `steps` slice steps of `spacing` voxels: a move of d voxels along the ray
-/// changes each voxel coordinate by at most d, so a sample tested in brick B reads
-/// voxels up to ⌈d⌉ beyond B's usual one-voxel apron.
-pub fn move_apron(steps: f64, spacing: f32) -> u32 {
-    let d = steps * spacing.max(0.0) as f64;
-    1 + if d > 0.0 { d.ceil() as u32 } else { 0 }
+/// (or read ahead) by up to `steps` slice steps of at most `step` voxels along a ray
+/// (the frame's longest step between two slices, [`crate::slicing::FramePlan::max_ray_step`]):
+/// a move of d voxels along the ray changes each voxel coordinate by at most d, so a
+/// sample tested in brick B reads voxels up to ⌈d⌉ beyond B's usual one-voxel apron.
+pub fn move_apron(steps: f64, step: f32) -> u32 {
+    let d = steps * step.max(0.0) as f64;
+    1 + if d > 0.0 {
+        d.ceil().min(1.0e6) as u32
+    } else {
+        0
+    }
 }
 
 #[cfg(test)]

@@ -377,6 +377,30 @@ impl FramePlan {
         }
     }
 
+    /// The longest world distance between two consecutive slices along a ray of
+    /// `view`: the planes' spacing over the least |cos| between a ray and the slice
+    /// normal, over the frustum's four edges (perspective; the extreme directions of
+    /// its rays) or the view direction (orthographic). A sample's slab or move of k
+    /// steps reaches at most k times this far (the skipping apron,
+    /// [`crate::skipping::move_apron`]).
+    pub fn max_ray_step(&self, view: &View) -> f32 {
+        let n = self.slices.forward;
+        let cos = if view.perspective {
+            let inv = view.view_proj().inverse();
+            [(-1.0, -1.0), (1.0, -1.0), (-1.0, 1.0), (1.0, 1.0)]
+                .map(|(x, y)| {
+                    let d = inv.project_point3(Vec3::new(x, y, 1.0))
+                        - inv.project_point3(Vec3::new(x, y, 0.0));
+                    d.normalize_or_zero().dot(n).abs()
+                })
+                .into_iter()
+                .fold(1.0f32, f32::min)
+        } else {
+            view.forward.normalize_or_zero().dot(n).abs()
+        };
+        self.slices.spacing / cos.max(1.0e-3)
+    }
+
     /// The order in which the rays of `view` that meet `vbox` cross the slices: `Some
     /// (false)` all front to back, `Some(true)` all back to front, `None` both (only
     /// under half-angle slicing, with a view wider than 90° across the slices, seen

@@ -1205,9 +1205,8 @@ fn empty_space_skipping_leaves_images_unchanged() {
                 );
             }
             // skipping is off exactly where an enabled plugin promises nothing about
-            // transparent samples (test.smooth and flow.lic3d replace the value, a
-            // pre-integrated slab reaches into the next brick, isosurfaces make opacity
-            // where the classification has none)
+            // transparent samples (test.smooth and flow.lic3d replace the value,
+            // isosurfaces make opacity where the classification has none)
             let no_promise = doc.stack.iter().filter(|i| i.enabled).any(|i| {
                 matches!(
                     i.configured().transparency(
@@ -1502,6 +1501,76 @@ fn jitter_skipping_case(stack: &[vwb_render::PluginInstance]) {
                 assert!(share < 0.3, "spacing {spacing}: {share}");
             }
             assert!(renderers[1].empty_brick_share().is_none());
+        }
+    }
+}
+
+/// Pre-integrated classification keeps empty-space skipping on and exact: its slab
+/// reads the value where the ray meets the next slice, so the bricks' ranges are taken
+/// over an apron widened by the frame's longest step between two slices (the spacing
+/// over the least cosine between a ray and the slice normal). A volume whose bright
+/// ends begin past brick faces that the dark bricks' usual ranges do not reach, TF
+/// opaque only at high values, seen along the step (orthographic) and in a
+/// wide perspective view (a ray's step up to 1.4× the spacing) at spacings 1, 2.5 and
+/// 6: the compute images with skipping on and off equal bit for bit, raster within its
+/// skipping bound, while bricks are skipped. With a one-voxel apron (a promise by
+/// value alone) the frame along the axis at spacing 2.5 loses the slabs that reach
+/// the bright ends, and this test fails.
+#[test]
+fn preintegration_keeps_skipping_exact() {
+    use vwb_render::camera::Projection;
+    use vwb_render::tf::TfCurve;
+    // bright below z = 7 and from z = 57: the dark bricks next to them (z 8–15 and
+    // 48–55) do not reach that far over a one-voxel apron, whichever way a ray runs
+    let volume = synthetic(
+        [32, 32, 64],
+        |_, _, z| {
+            if !(7..57).contains(&z) { 1.0 } else { 0.0 }
+        },
+    );
+    let mut tf = instance("classify.tf1d");
+    tf.params
+        .set("mode", ParamValue::Enum("preintegrated".into()));
+    tf.params.set(
+        "tf",
+        ParamValue::Tf(TfCurve::ramp(0.05, 1.0, [1.0, 0.8, 0.6, 0.1])),
+    );
+    let stack = vec![tf];
+    let mut renderers = [true, false].map(|on| {
+        let mut r = Renderer::new(gpu(), volume.clone()).unwrap();
+        r.set_empty_space_skipping(on);
+        r
+    });
+    let along = ortho_axis(48, 48, Backend::Compute).camera;
+    let mut wide = along;
+    wide.projection = Projection::Perspective { fov_y_deg: 90.0 };
+    wide.distance = 1.2;
+    for (view, camera) in [("along", along), ("wide", wide)] {
+        for spacing in [1.0f32, 2.5, 6.0] {
+            for backend in [Backend::Compute, Backend::Raster] {
+                let s = FrameSettings {
+                    camera,
+                    slice_spacing: spacing,
+                    ..settings(48, 48, backend)
+                };
+                let images = renderers
+                    .each_mut()
+                    .map(|r| render(r, &stack, TargetFormat::Rgba32Float, &s));
+                let what = format!("{view}, spacing {spacing}, {}", backend.name());
+                assert!(
+                    images[1].iter().any(|p| p[3] > 0.1),
+                    "{what}: something shows"
+                );
+                let share = renderers[0].empty_brick_share().expect("skipping is on");
+                eprintln!("{what}: {:.0} % of bricks skipped", share * 100.0);
+                assert!(share > 0.1, "{what}: {share}");
+                if backend == Backend::Raster {
+                    let change = raster_skipping_change(&images, &what);
+                    assert!(change.is_none(), "{change:?}");
+                } else {
+                    assert!(images[0] == images[1], "{what}: skipping changed the image");
+                }
+            }
         }
     }
 }

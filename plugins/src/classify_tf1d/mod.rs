@@ -245,19 +245,25 @@ impl Plugin for Tf1d {
     /// entry the GPU interpolates for it has α > 0 (the entries around both ends
     /// included). Pre: a sample interpolates classified voxels whose values lie in its
     /// brick's range (apron included), so the same test holds. Pre-integrated: the slab
-    /// reaches into the next slice's brick, so no promise.
+    /// runs from the sample to where the ray meets the next slice, one step ahead
+    /// ([`Transparency::ByValueAhead`]: the renderer widens the bricks' ranges by that
+    /// step). Its table entry (i, j) integrates the baked table's cells between nodes i
+    /// and j (opacity linear between nodes), and the filtered lookup of a slab whose
+    /// ends lie in a range mixes entries whose nodes lie within the nodes around that
+    /// range: the same test as post-classification's.
     fn transparency(&self, params: &ParamValues, _volumes: &Volumes<'_>) -> Transparency {
-        if self.mode == Mode::Preintegrated {
-            return Transparency::Unknown;
-        }
         let opacity = params.float("opacity");
-        vwb_render::skipping::visible_by_table(
+        let visible = vwb_render::skipping::visible_by_table(
             curve(params)
                 .bake(LUT_SIZE)
                 .iter()
                 .map(|c| c[3] * opacity > 0.0)
                 .collect(),
-        )
+        );
+        match (self.mode, visible) {
+            (Mode::Preintegrated, Transparency::ByValue(f)) => Transparency::ByValueAhead(f, 1.0),
+            (_, t) => t,
+        }
     }
     fn cpu_twin(&self, params: &ParamValues) -> Option<Box<dyn CpuTwin>> {
         let lut = curve(params).bake(LUT_SIZE);

@@ -114,7 +114,7 @@ fn mode_parameter_configures_the_plugin() {
         assert_eq!(p.uses_slice_spacing(), mode == Mode::Preintegrated);
         assert!(p.configure(&params_for(mode, default_curve())).is_none());
     }
-    // pre-integration makes no transparency promise (its slab reaches the next brick)
+    // pre-integration promises by value, reading one slice step ahead
     let pi = base
         .configure(&params_for(Mode::Preintegrated, default_curve()))
         .unwrap();
@@ -123,8 +123,66 @@ fn mode_parameter_configures_the_plugin() {
             &params_for(Mode::Preintegrated, default_curve()),
             &Volumes::of(&vwb_render::volume::demo())
         ),
-        Transparency::Unknown
+        Transparency::ByValueAhead(_, steps) if steps == 1.0
     ));
+}
+
+/// Pre-integration's promise holds for every slab: wherever the filtered table lookup
+/// of a (front, back) pair mixes an entry with α > 0, the promise calls the range
+/// between the two ends visible (narrow TF features, both slab directions, a small
+/// opacity scale).
+#[test]
+fn preintegrated_promise_holds_for_every_slab() {
+    let curves = [
+        TfCurve::ramp(0.3, 0.6, [1.0, 1.0, 1.0, 0.7]),
+        TfCurve::new(vec![
+            TfPoint { x: 0.0, color: [0.0; 4] },
+            TfPoint { x: 0.50, color: [1.0, 0.5, 0.2, 0.0] },
+            TfPoint { x: 0.502, color: [1.0, 0.5, 0.2, 0.9] },
+            TfPoint { x: 0.504, color: [1.0, 0.5, 0.2, 0.0] },
+            TfPoint { x: 1.0, color: [0.0; 4] },
+        ]),
+    ];
+    let base = Tf1d::default();
+    for (k, curve) in curves.into_iter().enumerate() {
+        for opacity in [1.0f32, 0.01] {
+            let mut params = params_for(Mode::Preintegrated, curve.clone());
+            params.set("opacity", ParamValue::Float(opacity));
+            let pi = base.configure(&params).unwrap();
+            let volume = vwb_render::volume::demo();
+            let Transparency::ByValueAhead(visible, _) =
+                pi.transparency(&params, &Volumes::of(&volume))
+            else {
+                panic!("pre-integration promises by value");
+            };
+            let lut = curve.bake(LUT_SIZE);
+            let table = preint::build(&lut, opacity as f64, 1.0);
+            let n = table.n;
+            let alpha = |i: usize, j: usize| table.entries[j * n + i][3];
+            let (mut opaque, mut checked) = (0, 0);
+            for a in 0..=300 {
+                for b in 0..=300 {
+                    let (f, bk) = (a as f64 / 300.0, b as f64 / 300.0);
+                    // the bilinear footprint of the lookup at (f, b)
+                    let at = |v: f64| ((v * (n - 1) as f64).floor() as usize).min(n - 2);
+                    let (i0, j0) = (at(f), at(bk));
+                    let mixed = [(0, 0), (1, 0), (0, 1), (1, 1)]
+                        .iter()
+                        .any(|&(di, dj)| alpha(i0 + di, j0 + dj) > 0.0);
+                    checked += 1;
+                    if mixed {
+                        opaque += 1;
+                        assert!(
+                            visible(f.min(bk), f.max(bk)),
+                            "curve {k}, opacity {opacity}: slab {f} → {bk} is visible"
+                        );
+                    }
+                }
+            }
+            // both kinds occur
+            assert!(opaque > 0 && opaque < checked, "curve {k}: {opaque} of {checked}");
+        }
+    }
 }
 
 /// Pre-classification interpolates opacity-weighted colours: halfway between an
