@@ -1155,6 +1155,13 @@ pub enum Transparency {
     /// that reach, as for [`Transparency::Moves`]: a sample is then skipped only when
     /// every value its slab can read is transparent, and skipping stays exact.
     ByValueAhead(Arc<VisibleFn>, f64),
+    /// A plugin after the classification that leaves transparent samples transparent
+    /// except where the function says a value range can make them visible, reading
+    /// values up to this many slice steps ahead along the ray (`shade.isosurface`: a
+    /// surface met between the sample and the next slice). The renderer joins the
+    /// function to the classification's promise (either may make a brick visible) and
+    /// widens the bricks' ranges by the reach, as for [`Transparency::ByValueAhead`].
+    Adds(Arc<VisibleFn>, f64),
 }
 
 /// Whether some point of a world box (min, max) can lie in a plugin's region.

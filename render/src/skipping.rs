@@ -374,29 +374,39 @@ pub fn clear_outside_regions(
 pub const REGION_MARGIN: f64 = 1.0e-4;
 
 /// What the enabled instances' classifications show ([`Transparency::ByValue`] of the
-/// last classifier), `None` when one promises nothing.
+/// last classifier, joined with every [`Transparency::Adds`]), `None` when one
+/// promises nothing.
 pub fn stack_visibility(stack: &[PluginInstance], volumes: &Volumes<'_>) -> Option<Arc<VisibleFn>> {
     let mut visible: Arc<VisibleFn> = Arc::new(|_lo: f64, hi: f64| hi > 0.0);
+    let mut adds: Vec<Arc<VisibleFn>> = Vec::new();
     for inst in stack.iter().filter(|i| i.enabled) {
         match inst.configured().transparency(&inst.params, volumes) {
             Transparency::Unknown => return None,
             Transparency::Keeps | Transparency::Region(_) | Transparency::Moves(_) => {}
             Transparency::ByValue(f) | Transparency::ByValueAhead(f, _) => visible = f,
+            Transparency::Adds(f, _) => adds.push(f),
         }
     }
-    Some(visible)
+    if adds.is_empty() {
+        return Some(visible);
+    }
+    Some(Arc::new(move |lo: f64, hi: f64| {
+        visible(lo, hi) || adds.iter().any(|f| f(lo, hi))
+    }))
 }
 
 /// How far the enabled instances move samples along their rays, or read ahead of
 /// them, in slice steps: the largest [`Transparency::Moves`] or
-/// [`Transparency::ByValueAhead`] (0 when none does). Moves and reads add up: a moved
+/// [`Transparency::ByValueAhead`] or [`Transparency::Adds`] (0 when none does). Moves and reads add up: a moved
 /// sample's slab reads ahead of where it was moved to.
 pub fn stack_moves(stack: &[PluginInstance], volumes: &Volumes<'_>) -> f64 {
     let (mut moves, mut ahead) = (0.0f64, 0.0f64);
     for i in stack.iter().filter(|i| i.enabled) {
         match i.configured().transparency(&i.params, volumes) {
             Transparency::Moves(steps) => moves = moves.max(steps.max(0.0)),
-            Transparency::ByValueAhead(_, steps) => ahead = ahead.max(steps.max(0.0)),
+            Transparency::ByValueAhead(_, steps) | Transparency::Adds(_, steps) => {
+                ahead = ahead.max(steps.max(0.0))
+            }
             _ => {}
         }
     }

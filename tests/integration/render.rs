@@ -1205,8 +1205,7 @@ fn empty_space_skipping_leaves_images_unchanged() {
                 );
             }
             // skipping is off exactly where an enabled plugin promises nothing about
-            // transparent samples (test.smooth and flow.lic3d replace the value,
-            // isosurfaces make opacity where the classification has none)
+            // transparent samples (e.g. test.smooth and flow.lic3d replace the value)
             let no_promise = doc.stack.iter().filter(|i| i.enabled).any(|i| {
                 matches!(
                     i.configured().transparency(
@@ -1515,10 +1514,11 @@ fn jitter_skipping_case(stack: &[vwb_render::PluginInstance]) {
 /// 6: the compute images with skipping on and off equal bit for bit, raster within its
 /// skipping bound, while bricks are skipped. With a one-voxel apron (a promise by
 /// value alone) the frame along the axis at spacing 2.5 loses the slabs that reach
-/// the bright ends, and this test fails.
+/// the bright ends, and this test fails. The same holds for `shade.isosurface`
+/// (`Transparency::Adds`: a surface crossed between a sample and the next slice) over
+/// a classification that shows nothing.
 #[test]
 fn preintegration_keeps_skipping_exact() {
-    use vwb_render::camera::Projection;
     use vwb_render::tf::TfCurve;
     // bright below z = 7 and from z = 57: the dark bricks next to them (z 8–15 and
     // 48–55) do not reach that far over a one-voxel apron, whichever way a ray runs
@@ -1535,7 +1535,23 @@ fn preintegration_keeps_skipping_exact() {
         "tf",
         ParamValue::Tf(TfCurve::ramp(0.05, 1.0, [1.0, 0.8, 0.6, 0.1])),
     );
-    let stack = vec![tf];
+    // the same for an isosurface met between a sample and the next slice (crossing),
+    // over a classification that shows nothing
+    let mut iso = instance("shade.isosurface");
+    iso.params.set("iso0", ParamValue::Float(0.5));
+    iso.params
+        .set("color0", ParamValue::Color([0.9, 0.8, 0.7, 0.5]));
+    for stack in [vec![tf], vec![tf_constant([0.0; 4]), iso]] {
+        read_ahead_skipping_case(&volume, &stack);
+    }
+}
+
+fn read_ahead_skipping_case(
+    volume: &std::sync::Arc<vwb_render::Volume>,
+    stack: &[vwb_render::PluginInstance],
+) {
+    use vwb_render::camera::Projection;
+    let name = stack.last().unwrap().plugin.id();
     let mut renderers = [true, false].map(|on| {
         let mut r = Renderer::new(gpu(), volume.clone()).unwrap();
         r.set_empty_space_skipping(on);
@@ -1555,8 +1571,8 @@ fn preintegration_keeps_skipping_exact() {
                 };
                 let images = renderers
                     .each_mut()
-                    .map(|r| render(r, &stack, TargetFormat::Rgba32Float, &s));
-                let what = format!("{view}, spacing {spacing}, {}", backend.name());
+                    .map(|r| render(r, stack, TargetFormat::Rgba32Float, &s));
+                let what = format!("{name}, {view}, spacing {spacing}, {}", backend.name());
                 assert!(
                     images[1].iter().any(|p| p[3] > 0.1),
                     "{what}: something shows"

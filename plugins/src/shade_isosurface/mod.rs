@@ -107,8 +107,34 @@ impl Plugin for Isosurface {
             scalar: 0,
         }
     }
-    // Transparency: the default (Unknown): surfaces make opacity where the
-    // classification gave none, so empty-space skipping stays off.
+    /// Surfaces make opacity where the classification gave none, only where a sample
+    /// meets one: `crossing` where the values at the sample and one slice step ahead
+    /// straddle an isovalue (lo < iso ≤ hi of a range holding both), `alpha_test` where
+    /// the sample's value reaches it (iso ≤ hi), for the surfaces in use whose opacity
+    /// is above 0. Filtered values can pass a range's ends by rounding: the test widens
+    /// it by [`ISO_MARGIN`].
+    fn transparency(
+        &self,
+        params: &ParamValues,
+        _volumes: &vwb_render::inputs::Volumes<'_>,
+    ) -> vwb_render::plugin::Transparency {
+        let count = params.int("count").clamp(1, 4) as usize;
+        let alpha_test = params.enumeration("method") == "alpha_test";
+        let isos: Vec<f64> = surfaces(params, count)
+            .into_iter()
+            .filter(|(_, c)| c.w.clamp(0.0, 1.0) > 0.0)
+            .map(|(iso, _)| iso)
+            .collect();
+        let meets = move |lo: f64, hi: f64| {
+            isos.iter().any(|&iso| {
+                iso <= hi + ISO_MARGIN && (alpha_test || lo - ISO_MARGIN < iso)
+            })
+        };
+        vwb_render::plugin::Transparency::Adds(
+            Arc::new(meets),
+            if alpha_test { 0.0 } else { 1.0 },
+        )
+    }
     fn cpu_twin(&self, params: &ParamValues) -> Option<Box<dyn CpuTwin>> {
         let count = params.int("count").clamp(1, 4) as usize;
         Some(Box::new(IsosurfaceTwin {
@@ -121,6 +147,10 @@ impl Plugin for Isosurface {
         }))
     }
 }
+
+/// How far a filtered value may pass its voxels' range by rounding, in normalised
+/// units, for the transparency promise (f32 weights sum to 1 within a few ulps).
+pub const ISO_MARGIN: f64 = 1.0e-5;
 
 /// The first `count` surfaces: (isovalue, colour with opacity).
 pub fn surfaces(params: &ParamValues, count: usize) -> Vec<(f64, DVec4)> {

@@ -113,3 +113,64 @@ fn a_half_transparent_surface_over_dvr_keeps_its_opacity_per_crossing() {
         );
     }
 }
+
+/// The transparency promise holds: a transparent sample that the twin makes visible
+/// (a surface met with opacity > 0) lies in a range the promise calls visible (the
+/// range of the sample's value and the value one step ahead, where the method reads
+/// it), for both methods, and surfaces of opacity 0 promise nothing. Over samples
+/// along a ramp at several steps, against the twin's `shade` itself.
+#[test]
+fn the_transparency_promise_holds_where_surfaces_are_met() {
+    use vwb_render::plugin::Transparency;
+    let n = 17;
+    let vol = ramp_x(n);
+    let scalars = vol.normalized_scalars();
+    let ctx = CpuContext::new(&vol, &scalars);
+    let volumes = vwb_render::inputs::Volumes::of(&vol);
+    let (lo_box, hi_box) = ctx.volume_box();
+    for method in ["crossing", "alpha_test"] {
+        for clear in [false, true] {
+            let mut p = ParamValues::defaults(&Isosurface::default().params());
+            p.set("method", ParamValue::Enum(method.into()));
+            p.set("count", ParamValue::Int(2));
+            p.set("iso0", ParamValue::Float(0.4));
+            p.set("iso1", ParamValue::Float(0.7));
+            if clear {
+                p.set("color1", ParamValue::Color([1.0, 0.0, 0.0, 0.0]));
+            }
+            let Transparency::Adds(meets, ahead) = Isosurface::default().transparency(&p, &volumes)
+            else {
+                panic!("isosurfaces add by value");
+            };
+            assert_eq!(ahead, if method == "crossing" { 1.0 } else { 0.0 });
+            let t = twin(&p);
+            let (mut shown, mut tested) = (0, 0);
+            for step in [0.5, 1.0, 2.5] {
+                for k in 0..=160 {
+                    let x = k as f64 / 10.0;
+                    let mut s = sample_at(x, n, &vol, &scalars, step);
+                    let f0 = s.value;
+                    let dir_tex = s.ray_dir * s.step / (hi_box - lo_box);
+                    let f1 = if ahead > 0.0 { ctx.value(s.tex + dir_tex) } else { f0 };
+                    t.shade(&ctx, &mut s);
+                    tested += 1;
+                    if s.color.w > 0.0 {
+                        shown += 1;
+                        assert!(
+                            meets(f0.min(f1), f0.max(f1)),
+                            "{method}, clear {clear}: {f0} → {f1} is shown"
+                        );
+                    }
+                }
+            }
+            assert!(shown > 0 && shown < tested, "{method}: {shown} of {tested}");
+        }
+    }
+    // a surface of opacity 0 alone promises nothing visible anywhere
+    let mut p = ParamValues::defaults(&Isosurface::default().params());
+    p.set("color0", ParamValue::Color([1.0, 1.0, 1.0, 0.0]));
+    let Transparency::Adds(meets, _) = Isosurface::default().transparency(&p, &volumes) else {
+        panic!()
+    };
+    assert!(!meets(0.0, 1.0));
+}
