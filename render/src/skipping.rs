@@ -64,8 +64,19 @@ impl BrickRanges {
     /// [`BrickRanges::with_side`] with each brick's range taken over `apron` voxels
     /// beyond it on every side (1: what a trilinear sample inside it reads; more for
     /// samples that plugins move, [`move_apron`]).
+    ///
+    /// An apron wider than a brick (a long move or read ahead at a coarse spacing, or
+    /// rays nearly along the slices) is not scanned voxel by voxel, which would cost
+    /// each brick up to the whole volume: the one-voxel ranges are widened over the
+    /// brick grid instead, by ⌈(apron − 1) / side⌉ bricks each way (a superset of the
+    /// voxels, so the ranges stay conservative).
     pub fn with_apron(dims: [u32; 3], scalars: &[f32], side: u32, apron: u32) -> Self {
         let side = side.max(1);
+        if apron > side {
+            let mut r = Self::with_apron(dims, scalars, side, 1);
+            r.widen((apron - 1).div_ceil(side));
+            return r;
+        }
         let bdims = dims.map(|d| d.div_ceil(side).max(1));
         let at = |x: u32, y: u32, z: u32| {
             scalars[((z as usize * dims[1] as usize) + y as usize) * dims[0] as usize + x as usize]
@@ -98,6 +109,28 @@ impl BrickRanges {
         Self {
             dims: bdims,
             ranges,
+        }
+    }
+
+    /// Each brick's range joined with its neighbours' within `r` bricks along every
+    /// axis (a separable min/max over the brick grid).
+    fn widen(&mut self, r: u32) {
+        let d = self.dims.map(|v| v as usize);
+        let r = r as usize;
+        for axis in 0..3 {
+            let stride = [1, d[0], d[0] * d[1]][axis];
+            let n = d[axis];
+            let before = self.ranges.clone();
+            for (i, out) in self.ranges.iter_mut().enumerate() {
+                let at = (i / stride) % n;
+                let base = i - at * stride;
+                let (a, b) = (at.saturating_sub(r), (at + r).min(n - 1));
+                for k in a..=b {
+                    let q = before[base + k * stride];
+                    out[0] = out[0].min(q[0]);
+                    out[1] = out[1].max(q[1]);
+                }
+            }
         }
     }
 
@@ -432,6 +465,59 @@ mod tests {
     /// Each brick's extent towards each octant is the largest r whose box of (r + 1)³
     /// bricks from it that way (cut to the grid) holds only its own kind, by brute force
     /// over random grids of a few sizes and densities; a grid of one kind reaches the cap.
+    /// Aprons wider than a brick widen the ranges over the brick grid: each range
+    /// holds the exact range over its apron (a superset), for aprons from one brick to
+    /// more than the volume; aprons up to a brick are exact.
+    #[test]
+    fn wide_aprons_hold_the_exact_ranges() {
+        let dims = [21u32, 13, 9];
+        let mut rng = crate::rng::Rng::at(5, 0);
+        let scalars: Vec<f32> = (0..dims.iter().product::<u32>())
+            .map(|_| rng.uniform() as f32)
+            .collect();
+        let side = 4;
+        let exact = |apron: u32| {
+            let bdims = dims.map(|d| d.div_ceil(side));
+            let mut out = Vec::new();
+            for bz in 0..bdims[2] {
+                for by in 0..bdims[1] {
+                    for bx in 0..bdims[0] {
+                        let span = |b: u32, a: usize| {
+                            (b * side).saturating_sub(apron)
+                                ..=((b + 1) * side + apron - 1).min(dims[a] - 1)
+                        };
+                        let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
+                        for z in span(bz, 2) {
+                            for y in span(by, 1) {
+                                for x in span(bx, 0) {
+                                    let v = scalars[((z * dims[1] + y) * dims[0] + x) as usize];
+                                    lo = lo.min(v);
+                                    hi = hi.max(v);
+                                }
+                            }
+                        }
+                        out.push([lo, hi]);
+                    }
+                }
+            }
+            out
+        };
+        for apron in [1, 3, 4, 5, 9, 30] {
+            let r = super::BrickRanges::with_apron(dims, &scalars, side, apron);
+            let e = exact(apron);
+            assert_eq!(r.ranges.len(), e.len());
+            for (got, want) in r.ranges.iter().zip(&e) {
+                assert!(
+                    got[0] <= want[0] && got[1] >= want[1],
+                    "apron {apron}: {got:?} ⊉ {want:?}"
+                );
+                if apron <= side {
+                    assert_eq!(got, want, "apron {apron}");
+                }
+            }
+        }
+    }
+
     #[test]
     fn pure_boxes_ahead_are_the_largest_pure_boxes() {
         let mut rng = crate::rng::Rng::at(11, 0);
