@@ -6,6 +6,7 @@
 #
 #   bash bench/gpu_suite.sh pack DIR          # here, after `cargo test --no-run`
 #   bash bench/gpu_suite.sh run DIR OUT [FILTER...]   # there, from the repo root
+#   GPU_STEPS="backends perf" bash bench/gpu_suite.sh bench DIR OUT   # bench/gpu.sh's steps
 #
 # pack: strips and gzips the newest integration-test binary and target/debug/vwb and
 # gzips the sample data (VWB_DATA_DIR, else ../shared/data) into DIR (an ignored
@@ -18,7 +19,7 @@
 set -uo pipefail
 cd "$(dirname "$0")/.."
 mode=${1:-}
-dir=${2:?usage: bash bench/gpu_suite.sh pack DIR | run DIR OUT [FILTER...]}
+dir=${2:?usage: bash bench/gpu_suite.sh pack DIR | run DIR OUT [FILTER...] | bench DIR OUT}
 case $mode in
 pack)
     mkdir -p "$dir"
@@ -35,6 +36,18 @@ pack)
     tar czf "$dir/data.tar.gz" -C "$data" .
     pwd >"$dir/build_path"
     du -sh "$dir"
+    ;;
+bench)
+    # the pack's debug vwb and test binary through bench/gpu.sh (the GPU's time does
+    # not depend on the build profile): GPU_STEPS as there, default "backends"
+    out=${3:?OUT}
+    mkdir -p "$out" /tmp/vwb-suite/data
+    gunzip -c "$dir/integration.gz" >/tmp/vwb-suite/integration
+    gunzip -c "$dir/vwb.gz" >/tmp/vwb-suite/vwb
+    chmod +x /tmp/vwb-suite/integration /tmp/vwb-suite/vwb
+    tar xzf "$dir/data.tar.gz" -C /tmp/vwb-suite/data
+    GPU_STEPS=${GPU_STEPS:-backends} bash bench/gpu.sh /tmp/vwb-suite/vwb \
+        /tmp/vwb-suite/integration /tmp/vwb-suite/data "$out"
     ;;
 run)
     out=${3:?OUT}
@@ -64,7 +77,7 @@ run)
     } | tee "$out/summary.txt"
     ;;
 *)
-    echo "usage: bash bench/gpu_suite.sh pack DIR | run DIR OUT [FILTER...]" >&2
+    echo "usage: bash bench/gpu_suite.sh pack DIR | run DIR OUT [FILTER...] | bench DIR OUT" >&2
     exit 2
     ;;
 esac
