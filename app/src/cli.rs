@@ -381,8 +381,8 @@ pub struct FrameArgs {
     /// Sets a plugin parameter or a render setting, as an experiment variant's `set`
     /// does, after the options above: `--set classify.tf1d.mode=preintegrated`,
     /// `--set shade.dos.buffer_scale=0.5`, `--set render.slice_spacing=0.5`,
-    /// `--set shade.blinn_phong.light_dir=(0,1,0)`; repeatable. VALUE is true/false, a
-    /// number, numbers in parentheses, or text.
+    /// `--set shade.blinn_phong.light0_vector=(0,1,0)`; repeatable. VALUE is written as in
+    /// an experiment file (true, 0.5, (0, 1, 0), "text"); a bare word is text.
     #[arg(long = "set", value_name = "KEY=VALUE", value_parser = parse_set)]
     pub set: Vec<(String, String)>,
 }
@@ -395,25 +395,10 @@ pub fn parse_set(s: &str) -> Result<(String, String), String> {
     }
 }
 
-/// The value of `--set KEY=VALUE` as an experiment's `set` holds it: true/false, a
-/// number, numbers in parentheses (a vec3 or a colour), otherwise text.
+/// The value of `--set KEY=VALUE` as an experiment file's `set` writes it (RON: true,
+/// 0.5, (0, 1, 0), "text"), and a bare word as text.
 pub fn set_value_of(v: &str) -> vwb_lab::experiment::SetValue {
-    use vwb_lab::experiment::SetValue;
-    match v {
-        "true" => return SetValue::Bool(true),
-        "false" => return SetValue::Bool(false),
-        _ => {}
-    }
-    if let Ok(x) = v.parse::<f64>() {
-        return SetValue::Number(x);
-    }
-    if let Some(inner) = v.strip_prefix('(').and_then(|r| r.strip_suffix(')')) {
-        let xs: Result<Vec<f64>, _> = inner.split(',').map(|x| x.trim().parse::<f64>()).collect();
-        if let Ok(xs) = xs {
-            return SetValue::Numbers(xs);
-        }
-    }
-    SetValue::Text(v.to_string())
+    ron::from_str(v).unwrap_or_else(|_| vwb_lab::experiment::SetValue::Text(v.to_string()))
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -488,23 +473,20 @@ impl FrameArgs {
             doc.render.table_format = f;
         }
         for (key, raw) in &self.set {
+            use vwb_lab::experiment::{SetValue, set_value};
             let value = set_value_of(raw);
-            let result = vwb_lab::experiment::set_value(doc, key, &value);
-            // an enumeration whose names are numbers (`buffer_scale`: "0.5") takes text
-            if let (Err(e), vwb_lab::experiment::SetValue::Number(_)) = (&result, &value) {
-                let text = vwb_lab::experiment::SetValue::Text(raw.clone());
-                vwb_lab::experiment::set_value(doc, key, &text).map_err(|t| {
-                    // the number's complaint where text does not fit either
-                    let why = if t.to_string().contains("does not fit") {
-                        e
-                    } else {
-                        &t
-                    };
-                    anyhow::anyhow!("--set {key}={raw}: {why}")
-                })?;
+            let Err(e) = set_value(doc, key, &value) else {
+                continue;
+            };
+            // an enumeration whose names are numbers (`buffer_scale`: "0.5") takes the
+            // number as text; where that fails too, both complaints
+            if matches!(value, SetValue::Number(_)) {
+                if let Err(t) = set_value(doc, key, &SetValue::Text(raw.clone())) {
+                    bail!("--set {key}={raw}: {e} (as text: {t})");
+                }
                 continue;
             }
-            result.map_err(|e| anyhow::anyhow!("--set {key}={raw}: {e}"))?;
+            bail!("--set {key}={raw}: {e}");
         }
         Ok(())
     }

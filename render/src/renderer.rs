@@ -4128,8 +4128,8 @@ impl Renderer {
         let spacing_updates = self.sync_spacing(frame_plan.ray_spacing() / self.vbox.voxel)?;
         // the occupancy's apron for moved samples and slabs follows the longest step
         // between slices along the frame's rays (the spacing, the view's width and,
-        // under half-angle slicing, the light)
-        // (made again where the apron changes, or the clip regions' widening must grow)
+        // under half-angle slicing, the light): made again where the apron changes, or
+        // where the clip regions' widening must grow
         let ray_step = frame_plan.max_ray_step(&view) / self.vbox.voxel;
         let moves = self.occupancy_moves;
         if moves > 0.0

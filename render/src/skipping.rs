@@ -156,14 +156,20 @@ impl BrickRanges {
 /// has α > 0 (for a table per label, in any row). A value range can be visible when
 /// any entry the GPU interpolates for it is, the entries around both ends included.
 pub fn visible_by_table(visible: Vec<bool>) -> Transparency {
-    Transparency::ByValue(Arc::new(move |lo: f64, hi: f64| {
+    Transparency::ByValue(table_visibility(visible))
+}
+
+/// The function of [`visible_by_table`], for promises that carry more than it
+/// ([`Transparency::ByValueAhead`]).
+pub fn table_visibility(visible: Vec<bool>) -> Arc<VisibleFn> {
+    Arc::new(move |lo: f64, hi: f64| {
         let Some(last) = visible.len().checked_sub(1) else {
             return false;
         };
         let index = |v: f64| v.clamp(0.0, 1.0) * last as f64;
         let (a, b) = (index(lo).floor() as usize, index(hi).ceil() as usize);
         a <= b && visible[a..=b.min(last)].iter().any(|&v| v)
-    }))
+    })
 }
 
 /// The regions of the enabled instances that drop samples outside them, over
@@ -429,9 +435,9 @@ pub fn stack_visibility(stack: &[PluginInstance], volumes: &Volumes<'_>) -> Opti
 }
 
 /// How far the enabled instances move samples along their rays, or read ahead of
-/// them, in slice steps: the largest [`Transparency::Moves`] or
-/// [`Transparency::ByValueAhead`] or [`Transparency::Adds`] (0 when none does). Moves and reads add up: a moved
-/// sample's slab reads ahead of where it was moved to.
+/// them, in slice steps: the largest [`Transparency::Moves`] plus the largest
+/// [`Transparency::ByValueAhead`] or [`Transparency::Adds`] (0 when none does). Moves
+/// and reads add up: a moved sample's slab reads ahead of where it was moved to.
 pub fn stack_moves(stack: &[PluginInstance], volumes: &Volumes<'_>) -> f64 {
     let (mut moves, mut ahead) = (0.0f64, 0.0f64);
     for i in stack.iter().filter(|i| i.enabled) {

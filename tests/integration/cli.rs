@@ -74,7 +74,8 @@ fn render_timings_and_backend_override() {
 }
 
 /// `--set KEY=VALUE` sets a plugin parameter or a render setting as an experiment's
-/// `set` does: an enumeration whose names are numbers, a number, a vec3; the preset's
+/// `set` does, the value written as there: an enumeration whose names are numbers, a
+/// number, a vec3, a quoted name; the preset's
 /// own value gives the preset's image; a wrong key or value is refused by name.
 #[test]
 fn render_sets_parameters_by_key() {
@@ -107,6 +108,18 @@ fn render_sets_parameters_by_key() {
         half != base,
         "a half-resolution occlusion buffer changes the image"
     );
+    // the value as an experiment file writes it: the name quoted, a vec3 in parentheses
+    let quoted = png("set_quoted.png", &["shade.dos.buffer_scale=\"0.5\""]).unwrap();
+    assert!(quoted == half, "a quoted name, the same setting");
+    let tinted = png(
+        "set_vec3.png",
+        &[
+            "shade.dos.extinction=chromatic",
+            "shade.dos.extinction_rgb=(1, 0.5, 0.25)",
+        ],
+    )
+    .unwrap();
+    assert!(tinted != base && tinted != half);
     let both = png(
         "set_both.png",
         &["shade.dos.theta_deg=30", "render.slice_spacing=2"],

@@ -137,15 +137,7 @@ fn the_cut_is_lit_by_its_own_normal() {
         // beyond it clamps), 1.96 ΔE*uv RMS over the whole image; the faces are not
         // what this test is about.
         if on_gpu() {
-            let inner = |img: &[[f64; 4]]| -> Vec<[f64; 4]> {
-                (8..40)
-                    .flat_map(|y| (8..40).map(move |x| y * 48 + x))
-                    .map(|i| img[i])
-                    .collect()
-            };
-            let g: Vec<[f64; 4]> = px.iter().map(|p| p.map(f64::from)).collect();
-            let (g, t) = (inner(&g), inner(&reference.pixels));
-            let g: Vec<[f32; 4]> = g.iter().map(|p| p.map(|c| c as f32)).collect();
+            let (g, t) = (inner_32(&px), inner_32(&reference.pixels));
             twin.push(delta_e_rms(&g, &t, 32, 32));
         } else {
             twin.push(delta_e_rms(&px, &reference.pixels, 48, 48));
@@ -161,6 +153,13 @@ fn the_cut_is_lit_by_its_own_normal() {
     }
     assert!(luma[1] > 1.2 * luma[0], "{luma:?}");
     assert!(luma[2] > 1.2 * luma[0], "{luma:?}");
+}
+
+/// The inner 32 × 32 pixels of a 48 × 48 image.
+fn inner_32<T: Copy>(img: &[T]) -> Vec<T> {
+    (8..40)
+        .flat_map(|y| (8..40).map(move |x| img[y * 48 + x]))
+        .collect()
 }
 
 /// A block floating in front of a wall along the view (+z), n = 32 (the phantom of

@@ -1466,28 +1466,17 @@ fn jitter_keeps_skipping_exact() {
 }
 
 fn jitter_skipping_case(stack: &[vwb_render::PluginInstance]) {
-    let mut renderers = [true, false].map(|on| {
-        let mut r = Renderer::new(gpu(), demo()).unwrap();
-        r.set_empty_space_skipping(on);
-        r
-    });
+    let mut renderers = skipping_pair(&demo());
     for spacing in [1.0f32, 3.0, 40.0, 1.0] {
         for backend in [Backend::Compute, Backend::Raster] {
             let s = FrameSettings {
                 slice_spacing: spacing,
                 ..settings(64, 64, backend)
             };
-            let images = renderers
-                .each_mut()
-                .map(|r| render(r, stack, TargetFormat::Rgba32Float, &s));
-            assert!(images[0].iter().any(|p| p[3] > 0.1), "something shows");
+            let share = skipping_kept(&mut renderers, stack, &s, &format!("spacing {spacing}"));
             if backend == Backend::Raster {
-                let change = raster_skipping_change(&images, &format!("spacing {spacing}"));
-                assert!(change.is_none(), "{change:?}");
                 continue;
             }
-            assert_eq!(images[0], images[1], "spacing {spacing}");
-            let share = renderers[0].empty_brick_share().expect("skipping is on");
             eprintln!(
                 "jitter at spacing {spacing}: {:.0} % of bricks skipped",
                 share * 100.0
@@ -1502,6 +1491,39 @@ fn jitter_skipping_case(stack: &[vwb_render::PluginInstance]) {
             assert!(renderers[1].empty_brick_share().is_none());
         }
     }
+}
+
+/// Two renderers of `volume`, empty-space skipping on and off.
+fn skipping_pair(volume: &std::sync::Arc<vwb_render::Volume>) -> [Renderer; 2] {
+    [true, false].map(|on| {
+        let mut r = Renderer::new(gpu(), volume.clone()).unwrap();
+        r.set_empty_space_skipping(on);
+        r
+    })
+}
+
+/// The frame `s` of `stack` with skipping on and off ([`skipping_pair`]): something
+/// shows, the compute images are equal bit for bit, the raster ones within the raster
+/// skipping bound. Returns the share of bricks skipped.
+fn skipping_kept(
+    renderers: &mut [Renderer; 2],
+    stack: &[vwb_render::PluginInstance],
+    s: &FrameSettings,
+    what: &str,
+) -> f64 {
+    let images = renderers
+        .each_mut()
+        .map(|r| render(r, stack, TargetFormat::Rgba32Float, s));
+    for image in &images {
+        assert!(image.iter().any(|p| p[3] > 0.1), "{what}: something shows");
+    }
+    if s.backend == Backend::Raster {
+        let change = raster_skipping_change(&images, what);
+        assert!(change.is_none(), "{change:?}");
+    } else {
+        assert!(images[0] == images[1], "{what}: skipping changed the image");
+    }
+    renderers[0].empty_brick_share().expect("skipping is on")
 }
 
 /// Pre-integrated classification keeps empty-space skipping on and exact: its slab
@@ -1552,11 +1574,7 @@ fn read_ahead_skipping_case(
 ) {
     use vwb_render::camera::Projection;
     let name = stack.last().unwrap().plugin.id();
-    let mut renderers = [true, false].map(|on| {
-        let mut r = Renderer::new(gpu(), volume.clone()).unwrap();
-        r.set_empty_space_skipping(on);
-        r
-    });
+    let mut renderers = skipping_pair(volume);
     let along = ortho_axis(48, 48, Backend::Compute).camera;
     let mut wide = along;
     wide.projection = Projection::Perspective { fov_y_deg: 90.0 };
@@ -1569,23 +1587,10 @@ fn read_ahead_skipping_case(
                     slice_spacing: spacing,
                     ..settings(48, 48, backend)
                 };
-                let images = renderers
-                    .each_mut()
-                    .map(|r| render(r, stack, TargetFormat::Rgba32Float, &s));
                 let what = format!("{name}, {view}, spacing {spacing}, {}", backend.name());
-                assert!(
-                    images[1].iter().any(|p| p[3] > 0.1),
-                    "{what}: something shows"
-                );
-                let share = renderers[0].empty_brick_share().expect("skipping is on");
+                let share = skipping_kept(&mut renderers, stack, &s, &what);
                 eprintln!("{what}: {:.0} % of bricks skipped", share * 100.0);
                 assert!(share > 0.1, "{what}: {share}");
-                if backend == Backend::Raster {
-                    let change = raster_skipping_change(&images, &what);
-                    assert!(change.is_none(), "{change:?}");
-                } else {
-                    assert!(images[0] == images[1], "{what}: skipping changed the image");
-                }
             }
         }
     }

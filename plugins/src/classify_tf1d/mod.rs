@@ -253,16 +253,16 @@ impl Plugin for Tf1d {
     /// range: the same test as post-classification's.
     fn transparency(&self, params: &ParamValues, _volumes: &Volumes<'_>) -> Transparency {
         let opacity = params.float("opacity");
-        let visible = vwb_render::skipping::visible_by_table(
+        let visible = vwb_render::skipping::table_visibility(
             curve(params)
                 .bake(LUT_SIZE)
                 .iter()
                 .map(|c| c[3] * opacity > 0.0)
                 .collect(),
         );
-        match (self.mode, visible) {
-            (Mode::Preintegrated, Transparency::ByValue(f)) => Transparency::ByValueAhead(f, 1.0),
-            (_, t) => t,
+        match self.mode {
+            Mode::Preintegrated => Transparency::ByValueAhead(visible, 1.0),
+            Mode::Post | Mode::Pre => Transparency::ByValue(visible),
         }
     }
     fn cpu_twin(&self, params: &ParamValues) -> Option<Box<dyn CpuTwin>> {
