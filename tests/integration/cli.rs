@@ -544,7 +544,11 @@ fn dos_compares_against_monte_carlo_and_its_cost_is_measured() {
 
     // per-plugin cost by ablation: DOS's per-slice passes are most of the frame, so its
     // cost is positive and below the frame time; the classifier's magnitude is bounded
-    // by the frame (it may be negative: it enables empty-space skipping)
+    // by the frame (it may be negative: it enables empty-space skipping). Measured
+    // 0.94-0.96 of the frame alone on lavapipe; a CI run on 2 cores shared with the
+    // other tests measured 0.46 (one frame of three took twice the median), so the bound
+    // is a third and the medians are over 5 frames: it still fails if the ablation does
+    // not charge DOS's passes to it (0 or the classifier's share)
     let csv = tmp("bench-dos.csv");
     let o = vwb()
         .args([
@@ -554,7 +558,7 @@ fn dos_compares_against_monte_carlo_and_its_cost_is_measured() {
             "--size",
             "32x32",
         ])
-        .args(["--frames", "3", "--warmup", "1", "-o"])
+        .args(["--frames", "5", "--warmup", "1", "-o"])
         .arg(&csv)
         .output()
         .unwrap();
@@ -572,7 +576,7 @@ fn dos_compares_against_monte_carlo_and_its_cost_is_measured() {
     let dos = median("plugin", "shade.dos#1");
     let tf = median("plugin", "classify.tf1d#0");
     assert!(
-        dos > 0.5 * frame && dos < 1.1 * frame,
+        dos > frame / 3.0 && dos < 1.1 * frame,
         "shade.dos costs {dos} ms of a {frame} ms frame\n{text}"
     );
     assert!(
