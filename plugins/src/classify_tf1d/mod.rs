@@ -120,7 +120,7 @@ impl Plugin for Tf1d {
         vec![
             ParamSpec::enumeration("mode", "Mode", &Mode::NAMES, 0)
                 .structural()
-                .with_doc("when the transfer function is applied. post: the data are interpolated between voxels, then coloured (sharp; the default). pre: each voxel is coloured, then the colours are interpolated (cheaper, blurs thin features). preintegrated: the colour and opacity of the whole slab between two slices is looked up (fewest slice rings at coarse spacing)"),
+                .with_doc("when the transfer function is applied. post: the data are interpolated between voxels, then coloured (sharp; the default). pre: each voxel is coloured, then the colours are interpolated (cheaper, blurs thin features). preintegrated: the colour and opacity of the whole slab between two slices is looked up (fewest slice rings at coarse spacing where boundaries are wider than the spacing; structures thinner than the spacing still band, and there it can be less accurate than post)"),
             ParamSpec::tf("tf", "Transfer function", default_curve())
                 .with_doc("control points over the normalised value [0,1]"),
             ParamSpec::float_log("opacity", "Opacity scale", 0.01, 100.0, 1.0)
