@@ -468,9 +468,6 @@ pub fn move_apron(steps: f64, step: f32) -> u32 {
 
 #[cfg(test)]
 mod tests {
-    /// Each brick's extent towards each octant is the largest r whose box of (r + 1)³
-    /// bricks from it that way (cut to the grid) holds only its own kind, by brute force
-    /// over random grids of a few sizes and densities; a grid of one kind reaches the cap.
     /// Aprons wider than a brick widen the ranges over the brick grid: each range
     /// holds the exact range over its apron (a superset), for aprons from one brick to
     /// more than the volume; aprons up to a brick are exact.
@@ -524,6 +521,9 @@ mod tests {
         }
     }
 
+    /// Each brick's extent towards each octant is the largest r whose box of (r + 1)³
+    /// bricks from it that way (cut to the grid) holds only its own kind, by brute force
+    /// over random grids of a few sizes and densities; a grid of one kind reaches the cap.
     #[test]
     fn pure_boxes_ahead_are_the_largest_pure_boxes() {
         let mut rng = crate::rng::Rng::at(11, 0);

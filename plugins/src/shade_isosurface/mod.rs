@@ -101,7 +101,7 @@ impl Plugin for Isosurface {
     /// insertion loop of at most `count` passes) and the surfaces found, each loop with
     /// its end.
     fn loop_iterations(&self, params: &ParamValues) -> vwb_render::plugin::LoopIterations {
-        let count = params.int("count").clamp(1, 4) as u32;
+        let count = surface_count(params) as u32;
         vwb_render::plugin::LoopIterations {
             sample: (count + 1) * (count + 3),
             scalar: 0,
@@ -118,7 +118,7 @@ impl Plugin for Isosurface {
         params: &ParamValues,
         _volumes: &vwb_render::inputs::Volumes<'_>,
     ) -> vwb_render::plugin::Transparency {
-        let count = params.int("count").clamp(1, 4) as usize;
+        let count = surface_count(params);
         let alpha_test = params.enumeration("method") == "alpha_test";
         let isos: Vec<f64> = surfaces(params, count)
             .into_iter()
@@ -136,7 +136,7 @@ impl Plugin for Isosurface {
         )
     }
     fn cpu_twin(&self, params: &ParamValues) -> Option<Box<dyn CpuTwin>> {
-        let count = params.int("count").clamp(1, 4) as usize;
+        let count = surface_count(params);
         Some(Box::new(IsosurfaceTwin {
             gradients: Gradients::new(self.gradient),
             alpha_test: params.enumeration("method") == "alpha_test",
@@ -151,6 +151,11 @@ impl Plugin for Isosurface {
 /// How far a filtered value may pass its voxels' range by rounding, in normalised
 /// units, for the transparency promise (f32 weights sum to 1 within a few ulps).
 pub const ISO_MARGIN: f64 = 1.0e-5;
+
+/// How many surfaces are in use: `count`, within the group's 1…4.
+fn surface_count(params: &ParamValues) -> usize {
+    params.int("count").clamp(1, 4) as usize
+}
 
 /// The first `count` surfaces: (isovalue, colour with opacity).
 pub fn surfaces(params: &ParamValues, count: usize) -> Vec<(f64, DVec4)> {
