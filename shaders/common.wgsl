@@ -123,7 +123,7 @@ struct SliceInfo {
 }
 
 @group(0) @binding(0) var<uniform> frame: Frame;
-@group(0) @binding(1) var volume_tex: texture_3d<f32>;
+// binding 1, the scalar volume `volume_tex`: with its reads below (`volume_value`)
 @group(0) @binding(2) var linear_clamp: sampler;
 @group(0) @binding(3) var nearest_clamp: sampler;
 @group(0) @binding(4) var<uniform> slice_info: SliceInfo;
@@ -251,16 +251,56 @@ fn brick_cell(g: BrickGrid, brick: vec3<f32>, octant: u32) -> u32 {
     return (occupancy[g.cells + 2u * i + (octant >> 2u)] >> ((octant & 3u) * 8u)) & 0xFFu;
 }
 
+// The scalar volume and its reads, in one of two layouts (the composer keeps one
+// region: `VolumeLayout`, render/src/composer.rs). A filtered 3D texture; or, the
+// `r32float_pairs` volume format (what CPU devices store), each voxel beside its +z
+// neighbour in an rg32float 2D array texture: the sampler's bilinear filter reads
+// both layers' values at once and a mix in z completes the trilinear value, one
+// bilinear fetch in place of a trilinear one (docs/perf.md, "Sample fetch").
+// volume_texture3d: begin
+@group(0) @binding(1) var volume_tex: texture_3d<f32>;
+
 // Scalar at a texture coordinate (trilinear).
 fn volume_value(tex: vec3<f32>) -> f32 {
     return textureSampleLevel(volume_tex, linear_clamp, tex, 0.0).r;
 }
 
+// The volume's size in voxels.
+fn volume_dims() -> vec3<u32> {
+    return textureDimensions(volume_tex);
+}
+
 // Scalar at an integer voxel (no filtering); clamps to the volume.
 fn volume_voxel(v: vec3<i32>) -> f32 {
-    let dims = vec3<i32>(textureDimensions(volume_tex));
-    return textureLoad(volume_tex, clamp(v, vec3<i32>(0), dims - vec3<i32>(1)), 0).r;
+    let c = clamp(v, vec3<i32>(0), vec3<i32>(volume_dims()) - vec3<i32>(1));
+    return textureLoad(volume_tex, c, 0).r;
 }
+// volume_texture3d: end
+// volume_z_pairs: begin
+@group(0) @binding(1) var volume_tex: texture_2d_array<f32>;
+
+// Scalar at a texture coordinate (trilinear): layer k holds (v(k), v(k + 1)), the
+// last its value twice; clamped to the edge as the 3D sampler is (below the first
+// layer's centre the weight in z is 0).
+fn volume_value(tex: vec3<f32>) -> f32 {
+    let n = f32(textureNumLayers(volume_tex));
+    let z = tex.z * n - 0.5;
+    let k = floor(z);
+    let pair = textureSampleLevel(volume_tex, linear_clamp, tex.xy, i32(clamp(k, 0.0, n - 1.0)), 0.0);
+    return mix(pair.x, pair.y, select(z - k, 0.0, k < 0.0));
+}
+
+// The volume's size in voxels.
+fn volume_dims() -> vec3<u32> {
+    return vec3<u32>(textureDimensions(volume_tex), textureNumLayers(volume_tex));
+}
+
+// Scalar at an integer voxel (no filtering); clamps to the volume.
+fn volume_voxel(v: vec3<i32>) -> f32 {
+    let c = clamp(v, vec3<i32>(0), vec3<i32>(volume_dims()) - vec3<i32>(1));
+    return textureLoad(volume_tex, c.xy, c.z, 0).r;
+}
+// volume_z_pairs: end
 
 // Raw data value for a normalised value.
 fn data_value(v: f32) -> f32 {

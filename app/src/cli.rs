@@ -369,8 +369,10 @@ pub struct FrameArgs {
     /// image moved by rounding; default: the preset's, normally 1).
     #[arg(long, value_parser = parse_slices_per_proxy)]
     pub slices_per_proxy: Option<u32>,
-    /// How the volume is stored on the GPU: auto (r32float where the adapter filters
-    /// it), r32float, r16float, r16unorm or r8unorm (default: the preset's).
+    /// How the volume is stored on the GPU: auto (r32float_pairs on CPU devices,
+    /// r32float on GPUs that filter it), r32float, r32float_pairs (each voxel beside its
+    /// +z neighbour: a bilinear fetch per read, twice the bytes), r16float, r16unorm
+    /// or r8unorm (default: the preset's).
     #[arg(long, value_parser = vwb_render::renderer::VolumeFormat::parse)]
     pub volume_format: Option<vwb_render::renderer::VolumeFormat>,
     /// How the classification tables (transfer functions, pre-integration and label

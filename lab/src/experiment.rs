@@ -160,7 +160,7 @@ pub struct Variant {
     /// frame), `render.backend` (raster, compute), `render.target`,
     /// `render.early_termination`, `render.skipping` (true, false),
     /// `render.occupied_proxy` (true, false), `render.hull_cut` (true, false),
-    /// `render.slices_per_proxy` (1, 2, 4, 8, 16), `render.volume_format` (auto, r32float, r16float, r16unorm, r8unorm), `render.table_format` (auto, rgba32float, rgba16float), `camera.yaw_deg`,
+    /// `render.slices_per_proxy` (1, 2, 4, 8, 16), `render.volume_format` (auto, r32float, r32float_pairs, r16float, r16unorm, r8unorm), `render.table_format` (auto, rgba32float, rgba16float), `camera.yaw_deg`,
     /// `camera.pitch_deg`, `camera.distance`, `camera.fov_y_deg` (a perspective
     /// camera's vertical field of view).
     #[serde(default)]

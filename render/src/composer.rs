@@ -28,6 +28,47 @@ pub const TEMPLATE_FILE: &str = "shaders/slice.wgsl";
 pub const COMMON_WGSL: &str = include_str!("../../shaders/common.wgsl");
 pub const TEMPLATE_WGSL: &str = include_str!("../../shaders/slice.wgsl");
 
+/// How the scalar volume (group 0, binding 1) is laid out, which decides the
+/// declaration and reads (`volume_value`, `volume_voxel`, `volume_dims`) that
+/// shaders/common.wgsl gives every module: its `volume_texture3d` or its
+/// `volume_z_pairs` region (the other blanked line for line).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
+pub enum VolumeLayout {
+    /// A filtered 3D texture (`texture_3d<f32>`).
+    #[default]
+    Texture3d,
+    /// Each voxel beside its +z neighbour in a 2D array texture
+    /// (`texture_2d_array<f32>`, layer k holding (v(k), v(k + 1))): a trilinear read is
+    /// one bilinear fetch and a mix (`VolumeFormat::R32FloatPairs`).
+    ZPairs,
+}
+
+impl VolumeLayout {
+    /// The view dimension of the volume's binding.
+    pub fn view_dimension(self) -> wgpu::TextureViewDimension {
+        match self {
+            VolumeLayout::Texture3d => wgpu::TextureViewDimension::D3,
+            VolumeLayout::ZPairs => wgpu::TextureViewDimension::D2Array,
+        }
+    }
+}
+
+/// shaders/common.wgsl with the regions `half_angle` (where `half_angle` is false)
+/// and the volume layout that `volume` does not use blanked line for line.
+fn common_code(half_angle: bool, volume: VolumeLayout) -> String {
+    let unused = match volume {
+        VolumeLayout::Texture3d => "volume_z_pairs",
+        VolumeLayout::ZPairs => "volume_texture3d",
+    };
+    let mut regions = vec![(unused, "")];
+    if !half_angle {
+        regions.push(("half_angle", ""));
+    }
+    crate::plugin::ShaderSource::without_regions(COMMON_FILE, COMMON_WGSL, &regions)
+        .source
+        .into_owned()
+}
+
 /// Precision of the eye buffer.
 #[derive(
     Debug, Clone, Copy, PartialEq, Eq, Hash, Default, serde::Serialize, serde::Deserialize,
@@ -783,7 +824,8 @@ fn check_plugin_file(
     allowed_hooks: &[&str],
 ) -> Result<Vec<Decl>, ComposeError> {
     let head = format!(
-        "{COMMON_WGSL}\n{}{decls_unprefixed}\n",
+        "{}\n{}{decls_unprefixed}\n",
+        common_code(true, VolumeLayout::Texture3d),
         shading_scalar_wgsl(None)
     );
     let head_lines = head.matches('\n').count() as u32;
@@ -1032,6 +1074,18 @@ pub fn compose_with(
     limits: &wgpu::Limits,
     overrides: &std::collections::BTreeMap<String, String>,
 ) -> Result<Composition, ComposeError> {
+    compose_for(plugins, target, limits, overrides, VolumeLayout::Texture3d)
+}
+
+/// [`compose_with`] for a volume stored in `volume`'s layout (every module reads it
+/// through that layout's declaration and functions).
+pub fn compose_for(
+    plugins: &[&dyn Plugin],
+    target: TargetFormat,
+    limits: &wgpu::Limits,
+    overrides: &std::collections::BTreeMap<String, String>,
+    volume: VolumeLayout,
+) -> Result<Composition, ComposeError> {
     let mut bindings = Vec::new();
     let mut instances = Vec::new();
     let mut segments = Vec::new();
@@ -1165,7 +1219,9 @@ pub fn compose_with(
                 if pp.holds_value && value_holder.is_none() {
                     value_holder = Some((format!("{prefix}{}", pp.target), index));
                 }
-                Some(compose_prepass(plugin, index, &prefix, &uniform, &pp)?)
+                Some(compose_prepass(
+                    plugin, index, &prefix, &uniform, &pp, volume,
+                )?)
             }
             None => None,
         };
@@ -1262,11 +1318,7 @@ pub fn compose_with(
         .iter()
         .any(|p| p.slice_state().is_some_and(|st| st.light));
     let mut m = ComposedModule::new();
-    m.push_file(
-        COMMON_FILE,
-        &half_angle_code(COMMON_FILE, COMMON_WGSL, half_angle),
-        None,
-    );
+    m.push_file(COMMON_FILE, &common_code(half_angle, volume), None);
     m.push_generated(
         "shading scalar",
         &shading_scalar_wgsl(
@@ -1466,6 +1518,7 @@ fn compose_prepass(
     prefix: &str,
     uniform: &UniformLayout,
     pp: &crate::plugin::PrepassDecl,
+    volume: VolumeLayout,
 ) -> Result<(ComposedModule, Vec<Binding>), ComposeError> {
     let (mut g1, mut g2) = (0, 0);
     let iso = instance_bindings(plugin, index, uniform, true, &mut g1, &mut g2);
@@ -1485,11 +1538,7 @@ fn compose_prepass(
     let mut names: HashSet<String> = decls.iter().map(|d| d.name.clone()).collect();
     names.extend(iso.iter().map(|b| b.local_name.clone()));
     let mut m = ComposedModule::new();
-    m.push_file(
-        COMMON_FILE,
-        &half_angle_code(COMMON_FILE, COMMON_WGSL, false),
-        None,
-    );
+    m.push_file(COMMON_FILE, &common_code(false, volume), None);
     m.push_generated("shading scalar", &shading_scalar_wgsl(None), None);
     m.push_generated("bindings", &decls_text(&iso, prefix, uniform), Some(index));
     m.push_file(
@@ -1607,6 +1656,44 @@ mod tests {
         naga_check(crate::renderer::DISPLAY_WGSL).expect("shaders/display.wgsl");
         naga_check(crate::renderer::COMPOSITE_WGSL).expect("shaders/composite.wgsl");
         naga_check(crate::renderer::RASTER_MASK_WGSL).expect("shaders/raster_mask.wgsl");
+    }
+
+    /// Each volume layout's module declares the volume once, in its own type, and the
+    /// two modules have the same lines (the other region blanked line for line), so
+    /// that errors map to the same lines of shaders/common.wgsl.
+    #[test]
+    fn volume_layouts_declare_their_own_volume_line_for_line() {
+        let none = Default::default();
+        let limits = wgpu::Limits::default();
+        let of = |layout| {
+            compose_for(&[], TargetFormat::Rgba16Float, &limits, &none, layout)
+                .unwrap()
+                .main
+                .source
+        };
+        let (three_d, pairs) = (of(VolumeLayout::Texture3d), of(VolumeLayout::ZPairs));
+        assert_eq!(three_d.lines().count(), pairs.lines().count());
+        for (src, own, other) in [
+            (&three_d, "texture_3d<f32>", "texture_2d_array<f32>"),
+            (&pairs, "texture_2d_array<f32>", "texture_3d<f32>"),
+        ] {
+            let decl = |ty: &str| format!("var volume_tex: {ty};");
+            assert_eq!(src.matches(&decl(own)).count(), 1);
+            assert_eq!(src.matches(&decl(other)).count(), 0);
+            assert_eq!(src.matches("fn volume_value(").count(), 1);
+        }
+        // the lines outside the two regions are the same
+        let differing = three_d
+            .lines()
+            .zip(pairs.lines())
+            .filter(|(a, b)| a != b)
+            .count();
+        let region = |name: &str| {
+            let begin = COMMON_WGSL.find(&format!("// {name}: begin")).unwrap();
+            let end = COMMON_WGSL.find(&format!("// {name}: end")).unwrap();
+            COMMON_WGSL[begin..end].lines().count() + 1
+        };
+        assert!(differing <= region("volume_texture3d") + region("volume_z_pairs"));
     }
 
     #[test]

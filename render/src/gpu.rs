@@ -281,6 +281,7 @@ pub fn wanted_limits(adapter: &wgpu::Limits) -> wgpu::Limits {
     wgpu::Limits {
         max_texture_dimension_2d: adapter.max_texture_dimension_2d,
         max_texture_dimension_3d: adapter.max_texture_dimension_3d,
+        max_texture_array_layers: adapter.max_texture_array_layers,
         max_bind_groups: adapter.max_bind_groups.max(base.max_bind_groups),
         max_bindings_per_bind_group: adapter.max_bindings_per_bind_group,
         max_sampled_textures_per_shader_stage: adapter.max_sampled_textures_per_shader_stage,

@@ -29,7 +29,8 @@ use wgpu::util::DeviceExt;
 
 use crate::camera::Camera;
 use crate::composer::{
-    Binding, BindingRole, ComposeError, Composition, STATE_TILE, TargetFormat, compose_with,
+    Binding, BindingRole, ComposeError, Composition, STATE_TILE, TargetFormat, VolumeLayout,
+    compose_for,
 };
 use crate::gpu::GpuContext;
 use crate::params::ParamValues;
@@ -1089,22 +1090,33 @@ impl TableFormat {
 /// (issue 23, item 4: docs/perf.md measures them). The CPU twins read the f64 values:
 /// r32float is the exact one, r16unorm keeps 1/65535 steps (within half a data step of
 /// 16-bit data), r16float keeps 11 significant bits, r8unorm 1/255 steps (an 8-bit
-/// volume's own resolution; a quarter of r32float's bytes).
+/// volume's own resolution; a quarter of r32float's bytes). `r32float_pairs` holds
+/// r32float's values in another layout (`VolumeLayout::ZPairs`: each voxel beside its
+/// +z neighbour in an rg32float 2D array, twice the bytes), in which a trilinear read
+/// is one bilinear fetch and a mix: 0.71–0.73× the sampler's time per read on lavapipe,
+/// the same values up to f32 rounding (docs/perf.md, "Sample fetch").
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 pub enum VolumeFormat {
-    /// r32float where the adapter filters it, else r16float.
+    /// On CPU devices r32float_pairs where the pair texture fits (1 GiB, the budget and
+    /// the adapter's array layers), else r32float where the adapter filters it, else
+    /// r16float.
     #[default]
     Auto,
     R32Float,
+    R32FloatPairs,
     R16Float,
     R16Unorm,
     R8Unorm,
 }
 
+/// The largest pair texture `auto` stores (a CPU device's memory is the host's).
+const PAIRS_AUTO_MAX_BYTES: u64 = 1 << 30;
+
 impl VolumeFormat {
-    pub const ALL: [VolumeFormat; 5] = [
+    pub const ALL: [VolumeFormat; 6] = [
         VolumeFormat::Auto,
         VolumeFormat::R32Float,
+        VolumeFormat::R32FloatPairs,
         VolumeFormat::R16Float,
         VolumeFormat::R16Unorm,
         VolumeFormat::R8Unorm,
@@ -1114,6 +1126,7 @@ impl VolumeFormat {
         match self {
             VolumeFormat::Auto => "auto",
             VolumeFormat::R32Float => "r32float",
+            VolumeFormat::R32FloatPairs => "r32float_pairs",
             VolumeFormat::R16Float => "r16float",
             VolumeFormat::R16Unorm => "r16unorm",
             VolumeFormat::R8Unorm => "r8unorm",
@@ -1126,7 +1139,7 @@ impl VolumeFormat {
             .find(|f| f.name() == s)
             .ok_or_else(|| {
                 format!(
-                    "unknown volume format '{s}' (auto, r32float, r16float, r16unorm or r8unorm)"
+                    "unknown volume format '{s}' (auto, r32float, r32float_pairs, r16float, r16unorm or r8unorm)"
                 )
             })
     }
@@ -1135,13 +1148,28 @@ impl VolumeFormat {
         *self == VolumeFormat::Auto
     }
 
-    /// What `auto` stands for on `gpu` (r32float where filterable, else r16float); the
-    /// other formats are themselves.
+    /// What `auto` stands for on `gpu` before a volume's size is known
+    /// (r32float_pairs on CPU devices and r32float on GPUs where the adapter filters
+    /// 32-bit floats, else r16float); the other formats are themselves.
     pub fn concrete(self, gpu: &GpuContext) -> VolumeFormat {
         match self {
+            VolumeFormat::Auto
+                if gpu.float32_filterable()
+                    && gpu.adapter.get_info().device_type == wgpu::DeviceType::Cpu =>
+            {
+                VolumeFormat::R32FloatPairs
+            }
             VolumeFormat::Auto if gpu.float32_filterable() => VolumeFormat::R32Float,
             VolumeFormat::Auto => VolumeFormat::R16Float,
             f => f,
+        }
+    }
+
+    /// The layout of the stored volume, which its shaders read it through.
+    pub fn layout(self) -> VolumeLayout {
+        match self {
+            VolumeFormat::R32FloatPairs => VolumeLayout::ZPairs,
+            _ => VolumeLayout::Texture3d,
         }
     }
 
@@ -1156,11 +1184,30 @@ impl VolumeFormat {
         volume: &Volume,
         budget: Option<u64>,
     ) -> Result<VolumeFormat, RenderError> {
-        let concrete = self.concrete(gpu);
-        let texture = concrete.texture_format(gpu)?;
+        let mut concrete = self.concrete(gpu);
         // a stored level read alone stands for its full volume
         let full = level::full_dims(volume);
-        let over = budget.is_some_and(|b| dims_texture_bytes(texture, full) > b);
+        let bytes = |format: VolumeFormat| -> Result<u64, RenderError> {
+            Ok(dims_texture_bytes(format.texture_format(gpu)?, full))
+        };
+        if concrete == VolumeFormat::R32FloatPairs {
+            // the array's layers and sides (a split volume's bricks are smaller)
+            let l = &gpu.limits;
+            let fits = volume.dims[2] <= l.max_texture_array_layers
+                && volume.dims[0].max(volume.dims[1]) <= l.max_texture_dimension_2d;
+            if self.is_auto() {
+                let b = bytes(concrete)?;
+                if !fits || b > PAIRS_AUTO_MAX_BYTES || budget.is_some_and(|budget| b > budget) {
+                    concrete = VolumeFormat::R32Float;
+                }
+            } else if !fits {
+                return Err(RenderError::VolumeFormatUnsupported(
+                    self.name(),
+                    "2D array textures of the volume's size (max_texture_array_layers for its depth, max_texture_dimension_2d for its sides)",
+                ));
+            }
+        }
+        let over = budget.is_some_and(|b| bytes(concrete).is_ok_and(|bytes| bytes > b));
         if self.is_auto() && concrete == VolumeFormat::R32Float && over {
             let unorm = VolumeFormat::R16Unorm.texture_format(gpu).is_ok();
             return Ok(if unorm {
@@ -1177,7 +1224,10 @@ impl VolumeFormat {
         let lacks = |feature| Err(RenderError::VolumeFormatUnsupported(self.name(), feature));
         match self.concrete(gpu) {
             VolumeFormat::R32Float if gpu.float32_filterable() => Ok(wgpu::TextureFormat::R32Float),
-            VolumeFormat::R32Float => lacks("FLOAT32_FILTERABLE"),
+            VolumeFormat::R32FloatPairs if gpu.float32_filterable() => {
+                Ok(wgpu::TextureFormat::Rg32Float)
+            }
+            VolumeFormat::R32Float | VolumeFormat::R32FloatPairs => lacks("FLOAT32_FILTERABLE"),
             VolumeFormat::R16Unorm
                 if gpu
                     .features
@@ -1267,6 +1317,9 @@ pub struct Renderer {
     march: march_parts::MarchState,
     /// How it is stored ([`VolumeFormat::for_budget`]: never `Auto`).
     stored_format: VolumeFormat,
+    /// The layout group 0 binds the volume in and the shaders read it through (the
+    /// stored format's; a split volume's placeholder is a 3D texture).
+    volume_layout: VolumeLayout,
     /// GPU memory the renderer may hold (`VWB_GPU_MEMORY_LIMIT` bytes, or
     /// [`Renderer::set_gpu_memory_budget`]); `None`: only the driver refuses.
     gpu_budget: Option<u64>,
@@ -1518,23 +1571,12 @@ impl Renderer {
             usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
-        let all = wgpu::ShaderStages::VERTEX_FRAGMENT | wgpu::ShaderStages::COMPUTE;
-        let fc = wgpu::ShaderStages::FRAGMENT | wgpu::ShaderStages::COMPUTE;
-        let g0_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("vwb group 0 (core)"),
-            entries: &[
-                uniform_entry(0, all, false),
-                texture3d_entry(1, fc),
-                sampler_entry(2, fc),
-                sampler_entry(3, fc),
-                uniform_entry(4, fc, true),
-                wgpu::BindGroupLayoutEntry {
-                    visibility: fc,
-                    ..storage_buffer_entry(5, true)
-                },
-                storage_buffer_entry(6, true),
-            ],
-        });
+        let volume_layout = if split.is_some() {
+            VolumeLayout::Texture3d
+        } else {
+            stored_format.layout()
+        };
+        let g0_layout = g0_layout(device, volume_layout);
         let no_tile_list = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("vwb slice tiles (none)"),
             size: 16,
@@ -1573,6 +1615,7 @@ impl Renderer {
             slice_info_slices: 1,
             g0,
             g0_layout,
+            volume_layout,
             bricks,
             occupancy,
             occupancy_bytes: None,
@@ -1735,9 +1778,10 @@ impl Renderer {
         self.volume_format
     }
 
-    /// How it is stored: the asked format, or for `auto` r32float (r16float without
-    /// float32 filtering) or, under a GPU memory budget the r32float texture would pass,
-    /// a 16-bit format ([`VolumeFormat::for_budget`]).
+    /// How it is stored: the asked format, or for `auto` r32float_pairs on CPU devices
+    /// where the pair texture fits, r32float (r16float without float32 filtering) or,
+    /// under a GPU memory budget the r32float texture would pass, a 16-bit format
+    /// ([`VolumeFormat::for_budget`]).
     pub fn stored_volume_format(&self) -> VolumeFormat {
         self.stored_format
     }
@@ -1745,8 +1789,12 @@ impl Renderer {
     /// What the user should know about how the volume is stored: that a GPU memory
     /// budget made `auto` keep it in 16 bits (`None` otherwise).
     pub fn storage_notice(&self) -> Option<String> {
+        let sixteen = !matches!(
+            self.stored_format,
+            VolumeFormat::R32Float | VolumeFormat::R32FloatPairs
+        );
         let usual = self.volume_format.concrete(&self.gpu);
-        (self.volume_format.is_auto() && self.stored_format != usual).then(|| {
+        (self.volume_format.is_auto() && self.stored_format != usual && sixteen).then(|| {
             format!(
                 "volume stored as {} (16 bits) to fit the GPU memory budget of {} MiB",
                 self.stored_format.name(),
@@ -1839,6 +1887,17 @@ impl Renderer {
     fn install(&mut self, upload: bricks::Upload, volume: &Volume) {
         (self.volume_view, self.volume_bytes, self.bricks, self.split) =
             upload.into_parts(&self.gpu, volume);
+        let layout = if self.split.is_some() {
+            VolumeLayout::Texture3d
+        } else {
+            self.stored_format.layout()
+        };
+        if layout != self.volume_layout {
+            // group 0 and every compiled module read the volume in its layout
+            self.volume_layout = layout;
+            self.g0_layout = g0_layout(&self.gpu.device, layout);
+            self.compiled.clear();
+        }
         if let Ok(mut cache) = self.moved_ranges.lock() {
             *cache = None;
         }
@@ -2407,8 +2466,13 @@ impl Renderer {
                 None => {
                     let plugins: Vec<&dyn Plugin> =
                         enabled.iter().map(|i| i.plugin.as_ref()).collect();
-                    let composition =
-                        compose_with(&plugins, target, &self.gpu.limits, &self.shader_overrides)?;
+                    let composition = compose_for(
+                        &plugins,
+                        target,
+                        &self.gpu.limits,
+                        &self.shader_overrides,
+                        self.volume_layout,
+                    )?;
                     self.dump(&composition);
                     let compiled = Arc::new(self.build_pipelines(composition, target)?);
                     self.counters.compiles += 1;
@@ -5122,6 +5186,35 @@ fn decode_rgba(bytes: &[u8], width: u32, height: u32, bpp: u32) -> Vec<[f32; 4]>
     out
 }
 
+/// Group 0's layout (the core bindings every module declares, shaders/common.wgsl),
+/// with the volume's binding in `volume`'s layout.
+fn g0_layout(device: &wgpu::Device, volume: VolumeLayout) -> wgpu::BindGroupLayout {
+    let all = wgpu::ShaderStages::VERTEX_FRAGMENT | wgpu::ShaderStages::COMPUTE;
+    let fc = wgpu::ShaderStages::FRAGMENT | wgpu::ShaderStages::COMPUTE;
+    device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+        label: Some("vwb group 0 (core)"),
+        entries: &[
+            uniform_entry(0, all, false),
+            wgpu::BindGroupLayoutEntry {
+                ty: wgpu::BindingType::Texture {
+                    sample_type: wgpu::TextureSampleType::Float { filterable: true },
+                    view_dimension: volume.view_dimension(),
+                    multisampled: false,
+                },
+                ..texture3d_entry(1, fc)
+            },
+            sampler_entry(2, fc),
+            sampler_entry(3, fc),
+            uniform_entry(4, fc, true),
+            wgpu::BindGroupLayoutEntry {
+                visibility: fc,
+                ..storage_buffer_entry(5, true)
+            },
+            storage_buffer_entry(6, true),
+        ],
+    })
+}
+
 #[allow(clippy::too_many_arguments)]
 fn make_g0(
     device: &wgpu::Device,
@@ -5214,14 +5307,31 @@ fn occupancy_words_capped(dims: [u32; 3], bytes: &[u8], cap: u8) -> Vec<u32> {
     words
 }
 
-/// Uploads the normalised scalar volume as `format` ([`VolumeFormat::texture_format`]).
+/// Uploads the normalised scalar volume as `format` ([`VolumeFormat::texture_format`]):
+/// rg32float is `r32float_pairs`' layout, a 2D array whose layer k holds each voxel
+/// of slice k beside its +z neighbour (the last slice's beside itself).
 fn upload_volume(
     gpu: &GpuContext,
     volume: &Volume,
     format: wgpu::TextureFormat,
 ) -> wgpu::TextureView {
     let scalars = volume.normalized_scalars();
+    let pairs = format == wgpu::TextureFormat::Rg32Float;
     let bytes: Vec<u8> = match format {
+        wgpu::TextureFormat::Rg32Float => {
+            let layer = volume.dims[0] as usize * volume.dims[1] as usize;
+            let next = |i: usize| {
+                if i + layer < scalars.len() {
+                    i + layer
+                } else {
+                    i
+                }
+            };
+            (0..scalars.len())
+                .flat_map(|i| [scalars[i], scalars[next(i)]])
+                .flat_map(f32::to_le_bytes)
+                .collect()
+        }
         wgpu::TextureFormat::R16Float => scalars
             .iter()
             .flat_map(|v| half::f16::from_f32(*v).to_le_bytes())
@@ -5248,7 +5358,11 @@ fn upload_volume(
             },
             mip_level_count: 1,
             sample_count: 1,
-            dimension: wgpu::TextureDimension::D3,
+            dimension: if pairs {
+                wgpu::TextureDimension::D2
+            } else {
+                wgpu::TextureDimension::D3
+            },
             format,
             usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
             view_formats: &[],
@@ -5256,7 +5370,10 @@ fn upload_volume(
         wgpu::util::TextureDataOrder::LayerMajor,
         &bytes,
     );
-    texture.create_view(&Default::default())
+    texture.create_view(&wgpu::TextureViewDescriptor {
+        dimension: pairs.then_some(wgpu::TextureViewDimension::D2Array),
+        ..Default::default()
+    })
 }
 
 /// Copies a texture (2D or 3D) to host memory; rows padded to 256 bytes.

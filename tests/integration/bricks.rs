@@ -674,12 +674,26 @@ fn auto_stores_16_bit_before_a_coarser_level() {
     let stack = vec![instance("classify.tf1d")];
     let t = TargetFormat::Rgba32Float;
     let mut one = Renderer::new(gpu(), demo()).unwrap();
-    assert_eq!(one.stored_volume_format(), VolumeFormat::R32Float);
+    assert_eq!(
+        one.stored_volume_format(),
+        VolumeFormat::Auto.concrete(gpu())
+    );
     assert_eq!(one.storage_notice(), None);
     let a = render(&mut one, &stack, t, &s);
     let b = render(&mut r, &stack, t, &s);
     let rms = crate::reference::gpu_delta_e_rms(&b, &a, 48, 48);
     assert!(rms < 0.05, "{rms}");
+    // a budget the r32float texture fits but its pairs pass: auto stores r32float,
+    // without a notice (nothing is lost)
+    if one.stored_volume_format() == VolumeFormat::R32FloatPairs {
+        let options = RendererOptions {
+            gpu_memory_budget: Some(full * 3 / 2),
+            ..Default::default()
+        };
+        let between = Renderer::with_options(gpu(), demo(), options).unwrap();
+        assert_eq!(between.stored_volume_format(), VolumeFormat::R32Float);
+        assert_eq!(between.storage_notice(), None);
+    }
     // a named r32float is what the user asked for: the budget then needs a level
     let mut named = with(VolumeFormat::R32Float);
     assert_eq!(named.stored_volume_format(), VolumeFormat::R32Float);

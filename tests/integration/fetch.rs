@@ -1,6 +1,8 @@
-//! Sample cost of the two ways a shader can read a volume (issue 23, item 4): a 3D
-//! texture sampled with the hardware's trilinear filter, against a storage buffer read
-//! with eight loads and a trilinear interpolation written out in the shader.
+//! Sample cost of the ways a shader can read a volume (issue 23, item 4): a 3D texture
+//! sampled with the hardware's trilinear filter, against a storage buffer read with
+//! eight loads and a trilinear interpolation written out in the shader, and against
+//! layouts that bring the eight values in fewer filtered calls (the z-pairs of
+//! `VolumeFormat::R32FloatPairs`: one bilinear sample and a mix in z).
 
 use std::time::Instant;
 
@@ -25,10 +27,35 @@ enum Fetch {
     /// Four loads of an `array<vec2<f32>>` holding each voxel with its +x neighbour
     /// (twice the memory), interpolated in the shader.
     Pairs,
+    /// One `textureSampleLevel` of an rg32float 2D array texture (layer z holds each
+    /// voxel with its +z neighbour, twice the memory) through the linear sampler: the
+    /// sampler's bilinear filter interpolates both layers at once, the shader mixes
+    /// them in z.
+    Layers,
+    /// Two nearest-filtered samples of an rgba32float 3D texture holding each voxel's
+    /// 2 × 2 block in x and y (four times the memory), at z and z + 1, interpolated in
+    /// the shader.
+    Quads,
+    /// Two bilinear samples of the same r32float data as a 2D array texture (layers z
+    /// and z + 1; the same memory), mixed in z in the shader.
+    Slices,
+    /// The trilinear sampler on an rgba32float 3D texture (the precomputed gradient
+    /// with the value in w, what shading reads on CPU devices).
+    Rgba,
+    /// Two bilinear samples of the same rgba32float texels as a 2D array texture.
+    RgbaSlices,
 }
 
 impl Fetch {
-    const ALL: [Fetch; 4] = [Fetch::Sampler, Fetch::Loads, Fetch::Buffer, Fetch::Pairs];
+    const ALL: [Fetch; 7] = [
+        Fetch::Sampler,
+        Fetch::Loads,
+        Fetch::Buffer,
+        Fetch::Pairs,
+        Fetch::Layers,
+        Fetch::Quads,
+        Fetch::Slices,
+    ];
 
     fn name(self) -> &'static str {
         match self {
@@ -36,6 +63,11 @@ impl Fetch {
             Fetch::Loads => "texture, 8 loads",
             Fetch::Buffer => "storage buffer, 8 loads",
             Fetch::Pairs => "storage buffer of x-pairs, 4 loads",
+            Fetch::Layers => "2D array of z-pairs, bilinear sampler",
+            Fetch::Quads => "texture of 2×2 blocks, 2 nearest samples",
+            Fetch::Slices => "2D array, 2 bilinear samples",
+            Fetch::Rgba => "rgba32float texture, sampler",
+            Fetch::RgbaSlices => "rgba32float 2D array, 2 bilinear samples",
         }
     }
 }
@@ -143,6 +175,52 @@ fn row(i: vec3<i32>, w: f32) -> f32 {{
     return mix(p.x, p.y, select(w, 0.0, i.x < 0));
 }}"
         ),
+        Fetch::Layers => "fn value(tex: vec3<f32>) -> f32 {
+    // Layer k holds (v[k], v[k + 1]); below the first layer's centre w = 0 reads v[0].
+    let z = tex.z * f32(DIMS.z) - 0.5;
+    let k = floor(z);
+    let layer = u32(clamp(k, 0.0, f32(DIMS.z - 1u)));
+    let b = textureSampleLevel(layers, lin, tex.xy, layer, 0.0);
+    return mix(b.x, b.y, select(z - k, 0.0, k < 0.0));
+}"
+        .to_string(),
+        Fetch::Quads => "fn value(tex: vec3<f32>) -> f32 {
+    let p = tex * vec3<f32>(DIMS) - vec3<f32>(0.5);
+    let f = floor(p);
+    let w = select(p - f, vec3<f32>(0.0), f < vec3<f32>(0.0));
+    let d = 1.0 / vec3<f32>(DIMS);
+    let c = (max(f, vec3<f32>(0.0)) + 0.5) * d;
+    let q0 = textureSampleLevel(quads, near, c, 0.0);
+    let q1 = textureSampleLevel(quads, near, c + vec3<f32>(0.0, 0.0, d.z), 0.0);
+    let a = mix(mix(q0.x, q0.y, w.x), mix(q0.z, q0.w, w.x), w.y);
+    let b = mix(mix(q1.x, q1.y, w.x), mix(q1.z, q1.w, w.x), w.y);
+    return mix(a, b, w.z);
+}"
+        .to_string(),
+        Fetch::Slices => "fn value(tex: vec3<f32>) -> f32 {
+    let z = tex.z * f32(DIMS.z) - 0.5;
+    let k = floor(z);
+    let l0 = u32(clamp(k, 0.0, f32(DIMS.z - 1u)));
+    let l1 = u32(clamp(k + 1.0, 0.0, f32(DIMS.z - 1u)));
+    let a = textureSampleLevel(slices, lin, tex.xy, l0, 0.0).r;
+    let b = textureSampleLevel(slices, lin, tex.xy, l1, 0.0).r;
+    return mix(a, b, z - k);
+}"
+        .to_string(),
+        Fetch::Rgba => "fn value(tex: vec3<f32>) -> f32 {
+    return dot(textureSampleLevel(rgba, lin, tex, 0.0), vec4<f32>(0.25));
+}"
+        .to_string(),
+        Fetch::RgbaSlices => "fn value(tex: vec3<f32>) -> f32 {
+    let z = tex.z * f32(DIMS.z) - 0.5;
+    let k = floor(z);
+    let l0 = u32(clamp(k, 0.0, f32(DIMS.z - 1u)));
+    let l1 = u32(clamp(k + 1.0, 0.0, f32(DIMS.z - 1u)));
+    let a = textureSampleLevel(rgba_slices, lin, tex.xy, l0, 0.0);
+    let b = textureSampleLevel(rgba_slices, lin, tex.xy, l1, 0.0);
+    return dot(mix(a, b, z - k), vec4<f32>(0.25));
+}"
+        .to_string(),
     };
     let sample = if gradient {
         "let d = 1.0 / vec3<f32>(DIMS);
@@ -187,6 +265,12 @@ const STEPS: u32 = {STEPS}u;
 @group(0) @binding(6) var<storage, read> lut_buf: array<vec4<f32>>;
 @group(0) @binding(7) var<uniform> lut_uni: array<vec4<f32>, 256>;
 @group(0) @binding(8) var lut_1d: texture_1d<f32>;
+@group(0) @binding(9) var layers: texture_2d_array<f32>;
+@group(0) @binding(10) var quads: texture_3d<f32>;
+@group(0) @binding(11) var near: sampler;
+@group(0) @binding(12) var slices: texture_2d_array<f32>;
+@group(0) @binding(13) var rgba: texture_3d<f32>;
+@group(0) @binding(14) var rgba_slices: texture_2d_array<f32>;
 {fetch}
 @compute @workgroup_size(8, 8)
 fn main(@builtin(global_invocation_id) id: vec3<u32>) {{
@@ -286,6 +370,87 @@ fn fetch_benchmark() {
         contents: &bytes_of(&paired),
         usage: wgpu::BufferUsages::STORAGE,
     });
+    let [nx3, ny3, nz3] = DIMS.map(|d| d as usize);
+    let at = |x: usize, y: usize, z: usize| {
+        data[x.min(nx3 - 1) + nx3 * (y.min(ny3 - 1) + ny3 * z.min(nz3 - 1))]
+    };
+    let texture_of = |label, dimension, format, texels: Vec<f32>| {
+        device
+            .create_texture_with_data(
+                queue,
+                &wgpu::TextureDescriptor {
+                    label: Some(label),
+                    size: wgpu::Extent3d {
+                        width: DIMS[0],
+                        height: DIMS[1],
+                        depth_or_array_layers: DIMS[2],
+                    },
+                    mip_level_count: 1,
+                    sample_count: 1,
+                    dimension: if dimension == wgpu::TextureViewDimension::D3 {
+                        wgpu::TextureDimension::D3
+                    } else {
+                        wgpu::TextureDimension::D2
+                    },
+                    format,
+                    usage: wgpu::TextureUsages::TEXTURE_BINDING,
+                    view_formats: &[],
+                },
+                wgpu::util::TextureDataOrder::LayerMajor,
+                &bytes_of(&texels),
+            )
+            .create_view(&wgpu::TextureViewDescriptor {
+                dimension: Some(dimension),
+                ..Default::default()
+            })
+    };
+    let mut layered = Vec::with_capacity(data.len() * 2);
+    let mut blocks = Vec::with_capacity(data.len() * 4);
+    for z in 0..nz3 {
+        for y in 0..ny3 {
+            for x in 0..nx3 {
+                layered.extend([at(x, y, z), at(x, y, z + 1)]);
+                blocks.extend([
+                    at(x, y, z),
+                    at(x + 1, y, z),
+                    at(x, y + 1, z),
+                    at(x + 1, y + 1, z),
+                ]);
+            }
+        }
+    }
+    let layers = texture_of(
+        "fetch z-pairs",
+        wgpu::TextureViewDimension::D2Array,
+        wgpu::TextureFormat::Rg32Float,
+        layered,
+    );
+    let quads = texture_of(
+        "fetch 2x2 blocks",
+        wgpu::TextureViewDimension::D3,
+        wgpu::TextureFormat::Rgba32Float,
+        blocks,
+    );
+    let near = device.create_sampler(&Default::default());
+    let slices = texture_of(
+        "fetch slices",
+        wgpu::TextureViewDimension::D2Array,
+        wgpu::TextureFormat::R32Float,
+        data.clone(),
+    );
+    let quadruple: Vec<f32> = data.iter().flat_map(|&v| [v; 4]).collect();
+    let rgba = texture_of(
+        "fetch rgba",
+        wgpu::TextureViewDimension::D3,
+        wgpu::TextureFormat::Rgba32Float,
+        quadruple.clone(),
+    );
+    let rgba_slices = texture_of(
+        "fetch rgba slices",
+        wgpu::TextureViewDimension::D2Array,
+        wgpu::TextureFormat::Rgba32Float,
+        quadruple,
+    );
     let bytes = (SIDE * SIDE * 4) as u64;
     let out = device.create_buffer(&wgpu::BufferDescriptor {
         label: Some("fetch out"),
@@ -347,6 +512,9 @@ fn fetch_benchmark() {
     let groups: Vec<Vec<Variant>> = vec![
         Fetch::ALL.map(|f| plain(f, false)).to_vec(),
         Fetch::ALL.map(|f| plain(f, true)).to_vec(),
+        [Fetch::Rgba, Fetch::RgbaSlices]
+            .map(|f| plain(f, false))
+            .to_vec(),
         [Lut::Texture, Lut::Texture1d, Lut::Storage, Lut::Uniform]
             .map(|lut| Variant {
                 fetch: Fetch::Sampler,
@@ -375,8 +543,10 @@ fn fetch_benchmark() {
             // Auto layouts keep only the bindings the shader uses.
             let entry = |binding, resource| wgpu::BindGroupEntry { binding, resource };
             let mut entries = vec![entry(3, out.as_entire_binding())];
-            let sampled =
-                v.fetch == Fetch::Sampler || matches!(v.lut, Lut::Texture | Lut::Texture1d);
+            let sampled = matches!(
+                v.fetch,
+                Fetch::Sampler | Fetch::Layers | Fetch::Slices | Fetch::Rgba | Fetch::RgbaSlices
+            ) || matches!(v.lut, Lut::Texture | Lut::Texture1d);
             if sampled {
                 entries.push(entry(1, wgpu::BindingResource::Sampler(&sampler)));
             }
@@ -386,7 +556,15 @@ fn fetch_benchmark() {
                 }
                 Fetch::Buffer => entry(2, vol.as_entire_binding()),
                 Fetch::Pairs => entry(4, pairs.as_entire_binding()),
+                Fetch::Layers => entry(9, wgpu::BindingResource::TextureView(&layers)),
+                Fetch::Quads => entry(10, wgpu::BindingResource::TextureView(&quads)),
+                Fetch::Slices => entry(12, wgpu::BindingResource::TextureView(&slices)),
+                Fetch::Rgba => entry(13, wgpu::BindingResource::TextureView(&rgba)),
+                Fetch::RgbaSlices => entry(14, wgpu::BindingResource::TextureView(&rgba_slices)),
             });
+            if v.fetch == Fetch::Quads {
+                entries.push(entry(11, wgpu::BindingResource::Sampler(&near)));
+            }
             match v.lut {
                 Lut::None => {}
                 Lut::Texture => {

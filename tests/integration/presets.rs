@@ -1,8 +1,9 @@
 //! Presets: every shipped preset loads without warnings and composes (naga-valid) for
-//! both eye-buffer formats; round trips; only non-default parameters are saved;
-//! unknown keys warn; bad values fail with the path; saves are atomic.
+//! both eye-buffer formats and both volume layouts; round trips; only non-default
+//! parameters are saved; unknown keys warn; bad values fail with the path; saves are
+//! atomic.
 
-use vwb_render::composer::{TargetFormat, compose};
+use vwb_render::composer::{TargetFormat, VolumeLayout, compose_for};
 use vwb_render::params::ParamValue;
 use vwb_render::plugin::Plugin;
 use vwb_render::preset::{Document, PresetError, VolumeSource, write_atomic};
@@ -85,9 +86,12 @@ fn every_shipped_preset_loads_and_composes() {
             .map(|i| i.configured())
             .collect();
         let enabled: Vec<&dyn Plugin> = configured.iter().map(|p| p.as_ref()).collect();
+        let none = Default::default();
         for target in [TargetFormat::Rgba16Float, TargetFormat::Rgba32Float] {
-            compose(&enabled, target, &gpu().limits)
-                .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+            for volume in [VolumeLayout::Texture3d, VolumeLayout::ZPairs] {
+                compose_for(&enabled, target, &gpu().limits, &none, volume)
+                    .unwrap_or_else(|e| panic!("{} ({volume:?}): {e}", path.display()));
+            }
         }
     }
 }

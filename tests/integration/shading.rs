@@ -187,7 +187,13 @@ fn the_sample_value_comes_with_the_gradient_and_is_the_volumes() {
         0.2 + 0.5 * x * x + 0.2 * y + 0.1 * (3.0 * z).sin() + 0.013 * (x * 40.0).sin()
     });
     let tf = instance("classify.tf1d");
-    let mut r = Renderer::new(gpu(), vol).unwrap();
+    // a 3D texture: the pre-pass's value is its trilinear read (r32float_pairs, CPU
+    // devices' default, reads the same value by another sequence of roundings)
+    let options = vwb_render::renderer::RendererOptions {
+        volume_format: vwb_render::renderer::VolumeFormat::R32Float,
+        ..Default::default()
+    };
+    let mut r = Renderer::with_options(gpu(), vol, options).unwrap();
     let alpha = |px: &[[f32; 4]]| px.iter().map(|p| p[3]).collect::<Vec<f32>>();
     for backend in [Backend::Compute, Backend::Raster] {
         let s = settings(48, 48, backend);

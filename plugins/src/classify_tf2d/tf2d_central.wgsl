@@ -3,7 +3,7 @@
 // `params.gradient_scale`, clamped to [0,1], it indexes the table's y axis.
 
 fn gradient_magnitude(tex: vec3<f32>) -> f32 {
-    let d = 1.0 / vec3<f32>(textureDimensions(volume_tex));
+    let d = 1.0 / vec3<f32>(volume_dims());
     let gx = volume_value(tex + vec3<f32>(d.x, 0.0, 0.0)) - volume_value(tex - vec3<f32>(d.x, 0.0, 0.0));
     let gy = volume_value(tex + vec3<f32>(0.0, d.y, 0.0)) - volume_value(tex - vec3<f32>(0.0, d.y, 0.0));
     let gz = volume_value(tex + vec3<f32>(0.0, 0.0, d.z)) - volume_value(tex - vec3<f32>(0.0, 0.0, d.z));
