@@ -332,6 +332,7 @@ impl Workbench {
         log::info!("window adapter: {}", gpu.describe());
         let options = vwb_render::renderer::RendererOptions {
             volume_format: doc.render.volume_format,
+            raster_group: Some(doc.render.raster_group()),
             ..vwb_render::renderer::RendererOptions::from_env()
         };
         let mut renderer = Renderer::with_options(&gpu, volume, options)?;
@@ -811,6 +812,7 @@ impl Workbench {
         let options = vwb_render::renderer::RendererOptions {
             gpu_memory_budget: self.renderer.gpu_memory_budget(),
             volume_format: doc.render.volume_format,
+            raster_group: Some(doc.render.raster_group()),
             ..vwb_render::renderer::RendererOptions::from_env()
         };
         let mut renderer = Renderer::with_options(self.renderer.gpu(), volume, options)?;

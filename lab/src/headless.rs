@@ -158,6 +158,7 @@ pub fn apply_render_switches(r: &mut Renderer, doc: &Document) {
 pub fn renderer_for(gpu: &GpuContext, doc: &Document, volume: Arc<Volume>) -> Result<Renderer> {
     let options = vwb_render::renderer::RendererOptions {
         volume_format: doc.render.volume_format,
+        raster_group: Some(doc.render.raster_group()),
         ..vwb_render::renderer::RendererOptions::from_env()
     };
     let mut r = Renderer::with_options(gpu, volume, options)?;

@@ -1242,6 +1242,26 @@ impl VolumeFormat {
     }
 }
 
+/// How `volume` is stored when `format` is asked for ([`VolumeFormat::for_budget`]),
+/// except that `auto` keeps r32float rather than its pairs for a renderer that draws
+/// several slices per raster polygon (`raster_group` > 1: [`Renderer::set_raster_group`]).
+pub fn stored_format_for(
+    format: VolumeFormat,
+    gpu: &GpuContext,
+    volume: &Volume,
+    budget: Option<u64>,
+    raster_group: u32,
+) -> Result<VolumeFormat, RenderError> {
+    let stored = format.for_budget(gpu, volume, budget)?;
+    Ok(
+        if format.is_auto() && stored == VolumeFormat::R32FloatPairs && raster_group > 1 {
+            VolumeFormat::R32Float
+        } else {
+            stored
+        },
+    )
+}
+
 /// Result of [`Renderer::update_stack`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum StackChange {
@@ -1507,7 +1527,11 @@ impl Renderer {
         // beyond the budget: 16-bit storage where `auto`, then a coarser level, in the
         // full volume's box and Δs0
         let vbox = level::full_box(&volume);
-        let stored_format = options.volume_format.for_budget(gpu, &volume, budget)?;
+        let raster_group = options
+            .raster_group
+            .map_or_else(raster_group_from_env, raster_group_of);
+        let stored_format =
+            stored_format_for(options.volume_format, gpu, &volume, budget, raster_group)?;
         let full = volume.clone();
         let (volume, level) = match level_for(&volume, budget, stored_format.texture_format(gpu)?)?
         {
@@ -1640,7 +1664,7 @@ impl Renderer {
             target: None,
             raster_et: None,
             occupied_proxy: false,
-            raster_group: raster_group_from_env(),
+            raster_group,
             raster_skipping: env_on("VWB_RASTER_SKIP"),
             hull_proxy: HullProxy::from_env(),
             occupied_hull: None,
@@ -1826,7 +1850,13 @@ impl Renderer {
     /// what is stored); an adapter that cannot filter the format is refused and the
     /// volume stays as it was.
     pub fn set_volume_format(&mut self, format: VolumeFormat) -> Result<(), RenderError> {
-        let stored = format.for_budget(&self.gpu, &self.volume, self.gpu_budget)?;
+        let stored = stored_format_for(
+            format,
+            &self.gpu,
+            &self.volume,
+            self.gpu_budget,
+            self.raster_group,
+        )?;
         self.volume_format = format;
         if stored != self.stored_format {
             self.upload(self.volume.clone())?;
@@ -1835,9 +1865,7 @@ impl Renderer {
     }
 
     fn upload(&mut self, volume: Arc<Volume>) -> Result<(), RenderError> {
-        let stored = self
-            .volume_format
-            .for_budget(&self.gpu, &volume, self.gpu_budget)?;
+        let stored = self.stored_for(&volume)?;
         let bytes = volume_texture_bytes(stored.texture_format(&self.gpu)?, &volume);
         let what = format!("volume {} ({:?})", volume.name, volume.dims);
         // the old volume (or its bricks) is freed
@@ -2004,8 +2032,27 @@ impl Renderer {
     /// to view-aligned frames without per-slice state whose proxies are not cut (to the
     /// occupied cells or the hull); other frames draw a polygon per slice.
     /// `VWB_RASTER_GROUP` sets the default of new renderers (a benchmark switch).
+    ///
+    /// `auto` storage is chosen for the raster group when the volume is uploaded
+    /// (`RendererOptions::raster_group`, [`Renderer::set_volume`],
+    /// [`Renderer::set_volume_format`]), not here: several slices per polygon read the
+    /// volume in a fragment's loop, where llvmpipe reads the z-pairs slower than the
+    /// 3D texture (1.03–1.18× the frame, docs/perf.md "The volume as z-pairs"), so a
+    /// renderer made for them stores r32float.
     pub fn set_raster_group(&mut self, n: u32) {
         self.raster_group = raster_group_of(n);
+    }
+
+    /// How `volume` is stored under the asked format, the budget and the raster group
+    /// ([`stored_format_for`]).
+    fn stored_for(&self, volume: &Volume) -> Result<VolumeFormat, RenderError> {
+        stored_format_for(
+            self.volume_format,
+            &self.gpu,
+            volume,
+            self.gpu_budget,
+            self.raster_group,
+        )
     }
 
     /// Slices per proxy polygon on the raster backend ([`Renderer::set_raster_group`]).

@@ -1602,8 +1602,9 @@ fn read_ahead_skipping_case(
 /// and r8unorm within small bounds (`auto` is r32float_pairs on CPU devices, r32float
 /// on GPUs that filter it); a format change uploads the volume again only when it
 /// changes what is stored, and a change of layout (pairs to a 3D texture and back)
-/// renders the layout's own image; a preset names the format, and `auto` is not
-/// written.
+/// renders the layout's own image; `auto` keeps the 3D texture for a renderer made
+/// for several slices per raster polygon; a preset names the format, and `auto` is
+/// not written.
 #[test]
 fn volume_formats_render_within_bounds_and_upload_only_on_change() {
     use vwb_render::renderer::{RendererOptions, VolumeFormat};
@@ -1693,6 +1694,32 @@ fn volume_formats_render_within_bounds_and_upload_only_on_change() {
     );
     r.set_volume_format(VolumeFormat::Auto).unwrap();
     assert_eq!(render(&mut r, &stack, t, &s), first);
+    // a renderer made for several slices per raster polygon: auto stores the 3D
+    // texture (llvmpipe reads the pairs slower in a fragment's loop); the group set
+    // later changes nothing stored, and an upload takes the group set by then
+    let grouped = |volume_format| {
+        let options = RendererOptions {
+            volume_format,
+            raster_group: Some(8),
+            ..Default::default()
+        };
+        Renderer::with_options(gpu(), demo(), options).unwrap()
+    };
+    let mut g = grouped(VolumeFormat::Auto);
+    assert_eq!(g.raster_group(), 8);
+    assert_eq!(g.stored_volume_format(), VolumeFormat::R32Float);
+    assert_eq!(g.storage_notice(), None);
+    g.set_raster_group(1);
+    assert_eq!(g.stored_volume_format(), VolumeFormat::R32Float);
+    g.set_volume_format(VolumeFormat::R16Float).unwrap();
+    g.set_volume_format(VolumeFormat::Auto).unwrap();
+    assert_eq!(g.stored_volume_format(), auto);
+    let named = grouped(VolumeFormat::R32FloatPairs);
+    assert_eq!(
+        named.stored_volume_format(),
+        VolumeFormat::R32FloatPairs,
+        "as asked"
+    );
     assert_eq!(
         gpu_delta_e_rms(&pairs, &image(VolumeFormat::R32FloatPairs), w, h),
         0.0
