@@ -87,6 +87,23 @@ fn clamped(v: vec3<i32>) -> vec3<u32> {
     return vec3<u32>(clamp(v, vec3<i32>(0), vec3<i32>(DIMS) - vec3<i32>(1)));
 }";
 
+/// `value` as two bilinear reads of a 2D array `texture`'s layers z and z + 1
+/// (`read`: the value at layer `l`), mixed in z.
+fn two_layers(texture: &str, read: &str) -> String {
+    format!(
+        "fn {texture}_at(tex: vec3<f32>, l: u32) -> f32 {{
+    return {read};
+}}
+fn value(tex: vec3<f32>) -> f32 {{
+    let z = tex.z * f32(DIMS.z) - 0.5;
+    let k = floor(z);
+    let a = {texture}_at(tex, u32(clamp(k, 0.0, f32(DIMS.z - 1u))));
+    let b = {texture}_at(tex, u32(clamp(k + 1.0, 0.0, f32(DIMS.z - 1u))));
+    return mix(a, b, z - k);
+}}"
+    )
+}
+
 /// How a sample's value becomes a colour.
 #[derive(Clone, Copy, PartialEq)]
 enum Lut {
@@ -197,30 +214,18 @@ fn row(i: vec3<i32>, w: f32) -> f32 {{
     return mix(a, b, w.z);
 }"
         .to_string(),
-        Fetch::Slices => "fn value(tex: vec3<f32>) -> f32 {
-    let z = tex.z * f32(DIMS.z) - 0.5;
-    let k = floor(z);
-    let l0 = u32(clamp(k, 0.0, f32(DIMS.z - 1u)));
-    let l1 = u32(clamp(k + 1.0, 0.0, f32(DIMS.z - 1u)));
-    let a = textureSampleLevel(slices, lin, tex.xy, l0, 0.0).r;
-    let b = textureSampleLevel(slices, lin, tex.xy, l1, 0.0).r;
-    return mix(a, b, z - k);
-}"
-        .to_string(),
+        Fetch::Slices => two_layers(
+            "slices",
+            "textureSampleLevel(slices, lin, tex.xy, l, 0.0).r",
+        ),
         Fetch::Rgba => "fn value(tex: vec3<f32>) -> f32 {
     return dot(textureSampleLevel(rgba, lin, tex, 0.0), vec4<f32>(0.25));
 }"
         .to_string(),
-        Fetch::RgbaSlices => "fn value(tex: vec3<f32>) -> f32 {
-    let z = tex.z * f32(DIMS.z) - 0.5;
-    let k = floor(z);
-    let l0 = u32(clamp(k, 0.0, f32(DIMS.z - 1u)));
-    let l1 = u32(clamp(k + 1.0, 0.0, f32(DIMS.z - 1u)));
-    let a = textureSampleLevel(rgba_slices, lin, tex.xy, l0, 0.0);
-    let b = textureSampleLevel(rgba_slices, lin, tex.xy, l1, 0.0);
-    return dot(mix(a, b, z - k), vec4<f32>(0.25));
-}"
-        .to_string(),
+        Fetch::RgbaSlices => two_layers(
+            "rgba_slices",
+            "dot(textureSampleLevel(rgba_slices, lin, tex.xy, l, 0.0), vec4<f32>(0.25))",
+        ),
     };
     let sample = if gradient {
         "let d = 1.0 / vec3<f32>(DIMS);
@@ -326,26 +331,6 @@ fn fetch_benchmark() {
     let g = gpu();
     let (device, queue) = (&g.device, &g.queue);
     let data = field();
-    let texture = device.create_texture_with_data(
-        queue,
-        &wgpu::TextureDescriptor {
-            label: Some("fetch volume"),
-            size: wgpu::Extent3d {
-                width: DIMS[0],
-                height: DIMS[1],
-                depth_or_array_layers: DIMS[2],
-            },
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D3,
-            format: wgpu::TextureFormat::R32Float,
-            usage: wgpu::TextureUsages::TEXTURE_BINDING,
-            view_formats: &[],
-        },
-        wgpu::util::TextureDataOrder::LayerMajor,
-        &bytes_of(&data),
-    );
-    let view = texture.create_view(&Default::default());
     let sampler = device.create_sampler(&wgpu::SamplerDescriptor {
         mag_filter: wgpu::FilterMode::Linear,
         min_filter: wgpu::FilterMode::Linear,
@@ -404,6 +389,12 @@ fn fetch_benchmark() {
                 ..Default::default()
             })
     };
+    let view = texture_of(
+        "fetch volume",
+        wgpu::TextureViewDimension::D3,
+        wgpu::TextureFormat::R32Float,
+        data.clone(),
+    );
     let mut layered = Vec::with_capacity(data.len() * 2);
     let mut blocks = Vec::with_capacity(data.len() * 4);
     for z in 0..nz3 {
