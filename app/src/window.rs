@@ -330,12 +330,7 @@ impl Workbench {
             rs.queue.clone(),
         )?;
         log::info!("window adapter: {}", gpu.describe());
-        let options = vwb_render::renderer::RendererOptions {
-            volume_format: doc.render.volume_format,
-            raster_group: Some(doc.render.raster_group()),
-            ..vwb_render::renderer::RendererOptions::from_env()
-        };
-        let mut renderer = Renderer::with_options(&gpu, volume, options)?;
+        let mut renderer = Renderer::with_options(&gpu, volume, headless::renderer_options(&doc))?;
         // progressive light passes refine one step per frame, the window redraws meanwhile
         renderer.set_refinement_budget(Some(1));
         headless::apply_render_switches(&mut renderer, &doc);
@@ -811,9 +806,7 @@ impl Workbench {
     fn fresh_renderer(&self, volume: Arc<vwb_render::Volume>, doc: &Document) -> Result<Renderer> {
         let options = vwb_render::renderer::RendererOptions {
             gpu_memory_budget: self.renderer.gpu_memory_budget(),
-            volume_format: doc.render.volume_format,
-            raster_group: Some(doc.render.raster_group()),
-            ..vwb_render::renderer::RendererOptions::from_env()
+            ..headless::renderer_options(doc)
         };
         let mut renderer = Renderer::with_options(self.renderer.gpu(), volume, options)?;
         renderer.set_refinement_budget(Some(1));

@@ -154,14 +154,20 @@ pub fn apply_render_switches(r: &mut Renderer, doc: &Document) {
     r.set_table_format(doc.render.table_format);
 }
 
-/// A renderer with a document's plugin stack applied.
-pub fn renderer_for(gpu: &GpuContext, doc: &Document, volume: Arc<Volume>) -> Result<Renderer> {
-    let options = vwb_render::renderer::RendererOptions {
+/// The options of a renderer made for a document: the environment's
+/// ([`vwb_render::renderer::RendererOptions::from_env`]) with the document's volume format and the slices
+/// per raster polygon, for which `auto` storage is chosen.
+pub fn renderer_options(doc: &Document) -> vwb_render::renderer::RendererOptions {
+    vwb_render::renderer::RendererOptions {
         volume_format: doc.render.volume_format,
         raster_group: Some(doc.render.raster_group()),
         ..vwb_render::renderer::RendererOptions::from_env()
-    };
-    let mut r = Renderer::with_options(gpu, volume, options)?;
+    }
+}
+
+/// A renderer with a document's plugin stack applied.
+pub fn renderer_for(gpu: &GpuContext, doc: &Document, volume: Arc<Volume>) -> Result<Renderer> {
+    let mut r = Renderer::with_options(gpu, volume, renderer_options(doc))?;
     if let Some(level) = r.level() {
         eprintln!("note: {}", level.notice());
     }

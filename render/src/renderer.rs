@@ -1207,7 +1207,9 @@ impl VolumeFormat {
                 ));
             }
         }
-        let over = budget.is_some_and(|b| bytes(concrete).is_ok_and(|bytes| bytes > b));
+        // also refuses a format the adapter cannot filter
+        let stored = bytes(concrete)?;
+        let over = budget.is_some_and(|b| stored > b);
         if self.is_auto() && concrete == VolumeFormat::R32Float && over {
             let unorm = VolumeFormat::R16Unorm.texture_format(gpu).is_ok();
             return Ok(if unorm {
@@ -1595,11 +1597,7 @@ impl Renderer {
             usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
-        let volume_layout = if split.is_some() {
-            VolumeLayout::Texture3d
-        } else {
-            stored_format.layout()
-        };
+        let volume_layout = bound_layout(stored_format, split.is_some());
         let g0_layout = g0_layout(device, volume_layout);
         let no_tile_list = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("vwb slice tiles (none)"),
@@ -1915,11 +1913,7 @@ impl Renderer {
     fn install(&mut self, upload: bricks::Upload, volume: &Volume) {
         (self.volume_view, self.volume_bytes, self.bricks, self.split) =
             upload.into_parts(&self.gpu, volume);
-        let layout = if self.split.is_some() {
-            VolumeLayout::Texture3d
-        } else {
-            self.stored_format.layout()
-        };
+        let layout = bound_layout(self.stored_format, self.split.is_some());
         if layout != self.volume_layout {
             // group 0 and every compiled module read the volume in its layout
             self.volume_layout = layout;
@@ -5231,6 +5225,16 @@ fn decode_rgba(bytes: &[u8], width: u32, height: u32, bpp: u32) -> Vec<[f32; 4]>
         }
     }
     out
+}
+
+/// The layout group 0 binds the volume in: the stored format's, or for a split
+/// volume (`split`) its placeholder's, a 3D texture (the bricks bind their own).
+fn bound_layout(stored: VolumeFormat, split: bool) -> VolumeLayout {
+    if split {
+        VolumeLayout::Texture3d
+    } else {
+        stored.layout()
+    }
 }
 
 /// Group 0's layout (the core bindings every module declares, shaders/common.wgsl),

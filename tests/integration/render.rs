@@ -1612,15 +1612,19 @@ fn volume_formats_render_within_bounds_and_upload_only_on_change() {
     let s = settings(w, h, Backend::Compute);
     let stack = vec![instance("classify.tf1d"), instance("shade.blinn_phong")];
     let t = TargetFormat::Rgba32Float;
-    let image = |volume_format| {
+    // a renderer of the demo asked for `volume_format`, made for `raster_group`
+    // slices per raster polygon
+    let made = |volume_format, raster_group| {
         let options = RendererOptions {
             volume_format,
+            raster_group,
             ..Default::default()
         };
-        let mut r = Renderer::with_options(gpu(), demo(), options).unwrap();
+        let r = Renderer::with_options(gpu(), demo(), options).unwrap();
         assert_eq!(r.volume_format(), volume_format);
-        render(&mut r, &stack, t, &s)
+        r
     };
+    let image = |volume_format| render(&mut made(volume_format, None), &stack, t, &s);
     let exact = image(VolumeFormat::R32Float);
     let auto = VolumeFormat::Auto.concrete(gpu());
     let cpu = gpu().adapter.get_info().device_type == wgpu::DeviceType::Cpu;
@@ -1634,14 +1638,7 @@ fn volume_formats_render_within_bounds_and_upload_only_on_change() {
     for backend in [Backend::Compute, Backend::Raster] {
         for stack in [vec![instance("classify.tf1d")], stack.clone()] {
             let s = settings(w, h, backend);
-            let of = |volume_format| {
-                let options = RendererOptions {
-                    volume_format,
-                    ..Default::default()
-                };
-                let mut r = Renderer::with_options(gpu(), demo(), options).unwrap();
-                render(&mut r, &stack, t, &s)
-            };
+            let of = |volume_format| render(&mut made(volume_format, None), &stack, t, &s);
             let (three_d, pairs) = (of(VolumeFormat::R32Float), of(VolumeFormat::R32FloatPairs));
             let worst = three_d
                 .iter()
@@ -1697,15 +1694,7 @@ fn volume_formats_render_within_bounds_and_upload_only_on_change() {
     // a renderer made for several slices per raster polygon: auto stores the 3D
     // texture (llvmpipe reads the pairs slower in a fragment's loop); the group set
     // later changes nothing stored, and an upload takes the group set by then
-    let grouped = |volume_format| {
-        let options = RendererOptions {
-            volume_format,
-            raster_group: Some(8),
-            ..Default::default()
-        };
-        Renderer::with_options(gpu(), demo(), options).unwrap()
-    };
-    let mut g = grouped(VolumeFormat::Auto);
+    let mut g = made(VolumeFormat::Auto, Some(8));
     assert_eq!(g.raster_group(), 8);
     assert_eq!(g.stored_volume_format(), VolumeFormat::R32Float);
     assert_eq!(g.storage_notice(), None);
@@ -1714,7 +1703,7 @@ fn volume_formats_render_within_bounds_and_upload_only_on_change() {
     g.set_volume_format(VolumeFormat::R16Float).unwrap();
     g.set_volume_format(VolumeFormat::Auto).unwrap();
     assert_eq!(g.stored_volume_format(), auto);
-    let named = grouped(VolumeFormat::R32FloatPairs);
+    let named = made(VolumeFormat::R32FloatPairs, Some(8));
     assert_eq!(
         named.stored_volume_format(),
         VolumeFormat::R32FloatPairs,
