@@ -155,12 +155,10 @@ pub fn apply_render_switches(r: &mut Renderer, doc: &Document) {
 }
 
 /// The options of a renderer made for a document: the environment's
-/// ([`vwb_render::renderer::RendererOptions::from_env`]) with the document's volume format and the slices
-/// per raster polygon, for which `auto` storage is chosen.
+/// ([`vwb_render::renderer::RendererOptions::from_env`]) with the document's volume format.
 pub fn renderer_options(doc: &Document) -> vwb_render::renderer::RendererOptions {
     vwb_render::renderer::RendererOptions {
         volume_format: doc.render.volume_format,
-        raster_group: Some(doc.render.raster_group()),
         ..vwb_render::renderer::RendererOptions::from_env()
     }
 }

@@ -307,6 +307,14 @@ impl HullRays {
 /// Rezk-Salama 2001, §9.1): powers of two, so that a group never straddles the runs
 /// between the depth masks ([`raster_et::interval`], [`raster_et::skip_interval`]).
 pub const RASTER_GROUPS: [u32; 5] = [1, 2, 4, 8, 16];
+// shaders/slice.wgsl (`fragment_proxy`) writes a group's steps out for exactly these.
+const _: () = assert!(
+    RASTER_GROUPS[0] == 1
+        && RASTER_GROUPS[1] == 2
+        && RASTER_GROUPS[2] == 4
+        && RASTER_GROUPS[3] == 8
+        && RASTER_GROUPS[4] == 16
+);
 
 /// Logs that `n` invocations ran out of the device's loop iterations even in parts of
 /// one slice ([`march_parts`]).
@@ -1244,26 +1252,6 @@ impl VolumeFormat {
     }
 }
 
-/// How `volume` is stored when `format` is asked for ([`VolumeFormat::for_budget`]),
-/// except that `auto` keeps r32float rather than its pairs for a renderer that draws
-/// several slices per raster polygon (`raster_group` > 1: [`Renderer::set_raster_group`]).
-pub fn stored_format_for(
-    format: VolumeFormat,
-    gpu: &GpuContext,
-    volume: &Volume,
-    budget: Option<u64>,
-    raster_group: u32,
-) -> Result<VolumeFormat, RenderError> {
-    let stored = format.for_budget(gpu, volume, budget)?;
-    Ok(
-        if format.is_auto() && stored == VolumeFormat::R32FloatPairs && raster_group > 1 {
-            VolumeFormat::R32Float
-        } else {
-            stored
-        },
-    )
-}
-
 /// Result of [`Renderer::update_stack`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum StackChange {
@@ -1529,11 +1517,7 @@ impl Renderer {
         // beyond the budget: 16-bit storage where `auto`, then a coarser level, in the
         // full volume's box and Δs0
         let vbox = level::full_box(&volume);
-        let raster_group = options
-            .raster_group
-            .map_or_else(raster_group_from_env, raster_group_of);
-        let stored_format =
-            stored_format_for(options.volume_format, gpu, &volume, budget, raster_group)?;
+        let stored_format = options.volume_format.for_budget(gpu, &volume, budget)?;
         let full = volume.clone();
         let (volume, level) = match level_for(&volume, budget, stored_format.texture_format(gpu)?)?
         {
@@ -1662,7 +1646,7 @@ impl Renderer {
             target: None,
             raster_et: None,
             occupied_proxy: false,
-            raster_group,
+            raster_group: raster_group_from_env(),
             raster_skipping: env_on("VWB_RASTER_SKIP"),
             hull_proxy: HullProxy::from_env(),
             occupied_hull: None,
@@ -1848,13 +1832,7 @@ impl Renderer {
     /// what is stored); an adapter that cannot filter the format is refused and the
     /// volume stays as it was.
     pub fn set_volume_format(&mut self, format: VolumeFormat) -> Result<(), RenderError> {
-        let stored = stored_format_for(
-            format,
-            &self.gpu,
-            &self.volume,
-            self.gpu_budget,
-            self.raster_group,
-        )?;
+        let stored = format.for_budget(&self.gpu, &self.volume, self.gpu_budget)?;
         self.volume_format = format;
         if stored != self.stored_format {
             self.upload(self.volume.clone())?;
@@ -1863,7 +1841,9 @@ impl Renderer {
     }
 
     fn upload(&mut self, volume: Arc<Volume>) -> Result<(), RenderError> {
-        let stored = self.stored_for(&volume)?;
+        let stored = self
+            .volume_format
+            .for_budget(&self.gpu, &volume, self.gpu_budget)?;
         let bytes = volume_texture_bytes(stored.texture_format(&self.gpu)?, &volume);
         let what = format!("volume {} ({:?})", volume.name, volume.dims);
         // the old volume (or its bricks) is freed
@@ -2026,27 +2006,8 @@ impl Renderer {
     /// to view-aligned frames without per-slice state whose proxies are not cut (to the
     /// occupied cells or the hull); other frames draw a polygon per slice.
     /// `VWB_RASTER_GROUP` sets the default of new renderers (a benchmark switch).
-    ///
-    /// `auto` storage is chosen for the raster group when the volume is uploaded
-    /// (`RendererOptions::raster_group`, [`Renderer::set_volume`],
-    /// [`Renderer::set_volume_format`]), not here: several slices per polygon read the
-    /// volume in a fragment's loop, where llvmpipe reads the z-pairs slower than the
-    /// 3D texture (1.03–1.18× the frame, docs/perf.md "The volume as z-pairs"), so a
-    /// renderer made for them stores r32float.
     pub fn set_raster_group(&mut self, n: u32) {
         self.raster_group = raster_group_of(n);
-    }
-
-    /// How `volume` is stored under the asked format, the budget and the raster group
-    /// ([`stored_format_for`]).
-    fn stored_for(&self, volume: &Volume) -> Result<VolumeFormat, RenderError> {
-        stored_format_for(
-            self.volume_format,
-            &self.gpu,
-            volume,
-            self.gpu_budget,
-            self.raster_group,
-        )
     }
 
     /// Slices per proxy polygon on the raster backend ([`Renderer::set_raster_group`]).

@@ -1598,13 +1598,13 @@ fn read_ahead_skipping_case(
 
 /// How the volume is stored (issue 23, item 4): r32float_pairs (each voxel beside its
 /// +z neighbour, a bilinear fetch and a mix per read) renders the demo as r32float does
-/// up to f32 rounding on both backends, with and without shading; r16unorm, r16float
+/// up to f32 rounding on both backends, with and without shading, and on the raster
+/// backend also with 8 slices per proxy polygon; r16unorm, r16float
 /// and r8unorm within small bounds (`auto` is r32float_pairs on CPU devices, r32float
 /// on GPUs that filter it); a format change uploads the volume again only when it
 /// changes what is stored, and a change of layout (pairs to a 3D texture and back)
-/// renders the layout's own image; `auto` keeps the 3D texture for a renderer made
-/// for several slices per raster polygon; a preset names the format, and `auto` is
-/// not written.
+/// renders the layout's own image; a preset names the format, and `auto` is not
+/// written.
 #[test]
 fn volume_formats_render_within_bounds_and_upload_only_on_change() {
     use vwb_render::renderer::{RendererOptions, VolumeFormat};
@@ -1612,19 +1612,17 @@ fn volume_formats_render_within_bounds_and_upload_only_on_change() {
     let s = settings(w, h, Backend::Compute);
     let stack = vec![instance("classify.tf1d"), instance("shade.blinn_phong")];
     let t = TargetFormat::Rgba32Float;
-    // a renderer of the demo asked for `volume_format`, made for `raster_group`
-    // slices per raster polygon
-    let made = |volume_format, raster_group| {
+    // a renderer of the demo asked for `volume_format`
+    let made = |volume_format| {
         let options = RendererOptions {
             volume_format,
-            raster_group,
             ..Default::default()
         };
         let r = Renderer::with_options(gpu(), demo(), options).unwrap();
         assert_eq!(r.volume_format(), volume_format);
         r
     };
-    let image = |volume_format| render(&mut made(volume_format, None), &stack, t, &s);
+    let image = |volume_format| render(&mut made(volume_format), &stack, t, &s);
     let exact = image(VolumeFormat::R32Float);
     let auto = VolumeFormat::Auto.concrete(gpu());
     let cpu = gpu().adapter.get_info().device_type == wgpu::DeviceType::Cpu;
@@ -1634,18 +1632,32 @@ fn volume_formats_render_within_bounds_and_upload_only_on_change() {
         0.0
     );
     // the pairs: the same trilinear values up to rounding, unshaded (the march's
-    // reads) and shaded (the gradient pre-pass's), on both backends
-    for backend in [Backend::Compute, Backend::Raster] {
+    // reads) and shaded (the gradient pre-pass's), on both backends, and in a raster
+    // group's fragments (8 slices per polygon: the steps written out in slice.wgsl)
+    for (backend, group) in [
+        (Backend::Compute, 1),
+        (Backend::Raster, 1),
+        (Backend::Raster, 8),
+    ] {
         for stack in [vec![instance("classify.tf1d")], stack.clone()] {
             let s = settings(w, h, backend);
-            let of = |volume_format| render(&mut made(volume_format, None), &stack, t, &s);
+            let of = |volume_format| {
+                let mut r = made(volume_format);
+                r.set_raster_group(group);
+                r.update_stack(&stack, t).unwrap();
+                let st = r.render(&s).unwrap();
+                if backend == Backend::Raster {
+                    assert_eq!(st.raster_group, group, "the frame drew {group} per polygon");
+                }
+                r.read_pixels().unwrap().2
+            };
             let (three_d, pairs) = (of(VolumeFormat::R32Float), of(VolumeFormat::R32FloatPairs));
             let worst = three_d
                 .iter()
                 .zip(&pairs)
                 .flat_map(|(a, b)| (0..4).map(move |c| (a[c] - b[c]).abs()))
                 .fold(0.0f32, f32::max);
-            let what = format!("{} plugins, {}", stack.len(), backend.name());
+            let what = format!("{} plugins, {}, group {group}", stack.len(), backend.name());
             eprintln!("r32float_pairs against r32float, {what}: max {worst:e}");
             assert!(
                 worst > 0.0 || !cpu,
@@ -1691,24 +1703,6 @@ fn volume_formats_render_within_bounds_and_upload_only_on_change() {
     );
     r.set_volume_format(VolumeFormat::Auto).unwrap();
     assert_eq!(render(&mut r, &stack, t, &s), first);
-    // a renderer made for several slices per raster polygon: auto stores the 3D
-    // texture (llvmpipe reads the pairs slower in a fragment's loop); the group set
-    // later changes nothing stored, and an upload takes the group set by then
-    let mut g = made(VolumeFormat::Auto, Some(8));
-    assert_eq!(g.raster_group(), 8);
-    assert_eq!(g.stored_volume_format(), VolumeFormat::R32Float);
-    assert_eq!(g.storage_notice(), None);
-    g.set_raster_group(1);
-    assert_eq!(g.stored_volume_format(), VolumeFormat::R32Float);
-    g.set_volume_format(VolumeFormat::R16Float).unwrap();
-    g.set_volume_format(VolumeFormat::Auto).unwrap();
-    assert_eq!(g.stored_volume_format(), auto);
-    let named = made(VolumeFormat::R32FloatPairs, Some(8));
-    assert_eq!(
-        named.stored_volume_format(),
-        VolumeFormat::R32FloatPairs,
-        "as asked"
-    );
     assert_eq!(
         gpu_delta_e_rms(&pairs, &image(VolumeFormat::R32FloatPairs), w, h),
         0.0

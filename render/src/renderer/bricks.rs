@@ -65,10 +65,6 @@ pub struct RendererOptions {
     /// Voxels of the full volume a refinable brick owns along an axis at most
     /// (`None`: [`super::lod::LOD_BRICK`]).
     pub lod_brick: Option<u32>,
-    /// Slices per raster proxy polygon the renderer starts with
-    /// ([`super::Renderer::set_raster_group`]; `None`: `VWB_RASTER_GROUP`, else 1).
-    /// `auto` storage is chosen for it ([`super::stored_format_for`]).
-    pub raster_group: Option<u32>,
 }
 
 impl RendererOptions {
@@ -88,7 +84,6 @@ impl RendererOptions {
             }),
             refine_in_view: var("VWB_LOD_REFINE").is_none_or(|v| v.trim() != "0"),
             lod_brick: var("VWB_LOD_BRICK").and_then(|v| v.trim().parse().ok()),
-            raster_group: None,
         }
     }
 
@@ -452,8 +447,6 @@ pub(super) fn child_of(
             workgroup: RendererOptions::from_env().workgroup,
             refine_in_view: false,
             lod_brick: None,
-            // a brick draws a polygon per slice
-            raster_group: Some(1),
         },
     )?;
     let own = info.own;
