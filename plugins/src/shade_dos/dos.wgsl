@@ -120,26 +120,14 @@ fn slice_update(s: Sample, c: vec4<f32>, uv: vec2<f32>) -> vec4<f32> {
     }
     // poisson: end
     // grid: begin
-    // The grid's points q = (index + ½)·(2/n) − 1: a product with the cell's width, not
-    // a division per point (CPU time 0.95–0.98× on four DOS presets, the images of six
-    // bit for bit; docs/perf.md, "Session 75").
-    let g = params.grid;
-    let cell = 2.0 / f32(g);
-    for (var j = 0; j < g; j = j + 1) {
-        // Only the row's columns that can lie in the disk, i0 ≤ i < g − i0 (widened by
-        // 10⁻³ so that rounding never drops a point; the test below keeps exactly the
-        // disk's points). The masked corners would cost as much as taps.
-        let qy = (f32(j) + 0.5) * cell - 1.0;
-        let half_width = sqrt(max(1.0 - qy * qy, 0.0));
-        let i0 = max(0, i32(ceil((1.0 - half_width) * f32(g) * 0.5 - 0.5 - 1.0e-3)));
-        for (var i = i0; i < g - i0; i = i + 1) {
-            let q = vec2<f32>((f32(i) + 0.5) * cell - 1.0, qy);
-            if (dot(q, q) <= 1.0) {
-                sum = sum + kernel_tap(q, uv, scale, extent, d, sigma_t);
-                n = n + 1.0;
-            }
-        }
-    }
+    // The n × n grid's points inside the disk, q = (index + ½)·(2/n) − 1, row by row,
+    // written out by the plugin for the chosen n on the next line (`grid` is structural;
+    // `grid_taps_wgsl` in mod.rs): one `sum = sum + kernel_tap(q, …)` per point, then
+    // `n = count`. No loop, no corner tests and no per-row bounds are left to run
+    // (CPU time 0.92–0.96× the loop's; docs/perf.md, "The grid kernel's taps written
+    // out").
+    // grid_taps: begin
+    // grid_taps: end
     // grid: end
     return vec4<f32>(sum / max(n, 1.0), 0.0, 0.0, 1.0);
 }

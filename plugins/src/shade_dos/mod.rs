@@ -112,6 +112,9 @@ pub struct Dos {
     pub directional: bool,
     /// `kernel: poisson` (else the grid).
     pub poisson: bool,
+    /// The grid kernel's n (0 under `kernel: poisson`): its taps are written out in the
+    /// shader ([`grid_taps_wgsl`]).
+    pub grid: u32,
     /// `distance: exact` (Algorithm 2; else the slice distance, Algorithm 3).
     pub exact_distance: bool,
 }
@@ -124,9 +127,40 @@ impl Default for Dos {
             chromatic: false,
             directional: false,
             poisson: false,
+            grid: 4,
             exact_distance: false,
         }
     }
+}
+
+/// The grid kernel's taps for an n × n grid, written out as WGSL on one line (so that
+/// the shader's lines keep their numbers): `sum = sum + kernel_tap(q, …);` for each
+/// point q inside the unit disk, row by row as a loop over the grid would take them,
+/// q = (index + ½)·(2/n) − 1 in f32 (the cell's width times the index, as the shader's
+/// loop computed it), then `n = count`. Written out rather than looped over: the loop's
+/// bounds, corner tests and counters cost llvmpipe 4–8 % of a DOS frame (docs/perf.md,
+/// "The grid kernel's taps written out"). The CPU twin takes the same points
+/// ([`kernel_points`]; they differ from these by an ulp at most).
+pub fn grid_taps_wgsl(n: u32) -> String {
+    use std::fmt::Write;
+    let cell = 2.0f32 / n as f32;
+    let mut out = String::new();
+    let mut count = 0;
+    for j in 0..n {
+        for i in 0..n {
+            let q = glam::Vec2::new(i as f32 + 0.5, j as f32 + 0.5) * cell - 1.0;
+            if q.dot(q) <= 1.0 {
+                let _ = write!(
+                    out,
+                    "sum = sum + kernel_tap(vec2<f32>({:?}f, {:?}f), uv, scale, extent, d, sigma_t); ",
+                    q.x, q.y
+                );
+                count += 1;
+            }
+        }
+    }
+    let _ = write!(out, "n = {count}.0;");
+    out
 }
 
 /// `count` points in the unit disk with a Poisson-disk spacing (dart throwing with a
@@ -192,7 +226,9 @@ impl Plugin for Dos {
             ParamSpec::float("theta_deg", "Cone aperture θ (°)", 0.0, 89.9, 60.0)
                 .with_doc("occlusion extent d·tan θ per slice distance d (eq 11)"),
             ParamSpec::enumeration("kernel", "Kernel", &["grid", "poisson"], 0).structural(),
-            ParamSpec::int("grid", "Grid n × n", 2, 13, 4),
+            ParamSpec::int("grid", "Grid n × n", 2, 13, 4)
+                .structural()
+                .with_doc("the grid's points inside the disk are written out in the shader"),
             ParamSpec::int("poisson_count", "Poisson points", 4, MAX_POISSON as i32, 16),
             ParamSpec::enumeration("distance", "Attenuation distance", &["slice", "exact"], 0)
                 .structural()
@@ -242,7 +278,13 @@ impl Plugin for Dos {
         if !self.chromatic {
             left_out.push(("chromatic", ""));
         }
-        left_out.push(if self.poisson { ("grid", "") } else { ("poisson", "") });
+        let taps = grid_taps_wgsl(self.grid);
+        if self.poisson {
+            left_out.push(("grid", ""));
+        } else {
+            left_out.push(("poisson", ""));
+            left_out.push(("grid_taps", taps.as_str()));
+        }
         if !self.exact_distance {
             left_out.push(("exact_distance", ""));
         }
@@ -298,6 +340,11 @@ impl Plugin for Dos {
             chromatic,
             directional: params.enumeration("light") == "directional",
             poisson: params.enumeration("kernel") == "poisson",
+            grid: if params.enumeration("kernel") == "poisson" {
+                0
+            } else {
+                params.int("grid").clamp(2, 13) as u32
+            },
             exact_distance: params.enumeration("distance") == "exact",
         };
         (c != *self).then(|| Arc::new(c) as Arc<dyn Plugin>)
