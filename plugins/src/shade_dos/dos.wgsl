@@ -44,37 +44,35 @@ fn kernel_tap(q: vec2<f32>, uv: vec2<f32>, scale: vec2<f32>, extent: f32, d: f32
 }
 
 // chromatic: begin
-// Chromatic extinction: the kernel's taps with σt·κ per channel, averaged. The points
-// are the same as the achromatic loops' (grid or Poisson, in the same order).
+// Chromatic extinction: one kernel point's tap with σt·κ per channel.
+fn chromatic_tap(q: vec2<f32>, uv: vec2<f32>, scale: vec2<f32>, extent: f32, d: f32, sigma_t: f32) -> vec3<f32> {
+    let p = q * extent;
+    let pt = uv + vec2<f32>(p.x, -p.y) * scale;
+    var dist = d;
+    // exact_distance: begin
+    dist = sqrt(d * d + dot(p, p));
+    // exact_distance: end
+    let prev = textureSampleLevel(state_prev, linear_clamp, pt, 0.0).rgb;
+    return prev * exp(-(sigma_t * params.extinction_rgb) * dist);
+}
+
+// The kernel's chromatic taps, averaged: the same points as the achromatic ones in
+// `slice_update` (grid or Poisson, in the same order).
 fn chromatic_taps(uv: vec2<f32>, scale: vec2<f32>, extent: f32, d: f32, sigma_t: f32) -> vec3<f32> {
-    let g = params.grid;
-    let cell = 2.0 / f32(g);
-    var count = g * g;
-    // poisson: begin
-    count = min(params.poisson_count, DOS_POISSON_MAX);
-    // poisson: end
     var sum = vec3<f32>(0.0);
     var n = 0.0;
-    for (var i = 0; i < count; i = i + 1) {
-        var q = (vec2<f32>(f32(i % g), f32(i / g)) + 0.5) * cell - 1.0;
-        // poisson: begin
-        q = textureLoad(poisson, vec2<i32>(i, 0), 0).xy;
-        // poisson: end
-        // grid: begin
-        if (dot(q, q) > 1.0) {
-            continue;
-        }
-        // grid: end
-        let p = q * extent;
-        let pt = uv + vec2<f32>(p.x, -p.y) * scale;
-        var dist = d;
-        // exact_distance: begin
-        dist = sqrt(d * d + dot(p, p));
-        // exact_distance: end
-        let prev = textureSampleLevel(state_prev, linear_clamp, pt, 0.0).rgb;
-        sum = sum + prev * exp(-(sigma_t * params.extinction_rgb) * dist);
+    // poisson: begin
+    for (var i = 0; i < min(params.poisson_count, DOS_POISSON_MAX); i = i + 1) {
+        let q = textureLoad(poisson, vec2<i32>(i, 0), 0).xy;
+        sum = sum + chromatic_tap(q, uv, scale, extent, d, sigma_t);
         n = n + 1.0;
     }
+    // poisson: end
+    // grid: begin
+    // the grid's points written out by the plugin, as in `slice_update`
+    // chromatic_grid_taps: begin
+    // chromatic_grid_taps: end
+    // grid: end
     return sum / max(n, 1.0);
 }
 // chromatic: end

@@ -137,14 +137,15 @@ impl Default for Dos {
 }
 
 /// The grid kernel's taps for an n × n grid, written out as WGSL on one line (so that
-/// the shader's lines keep their numbers): `sum = sum + kernel_tap(q, …);` for each
+/// the shader's lines keep their numbers): `sum = sum + TAP(q, …);` for each
 /// point q inside the unit disk, row by row as a loop over the grid would take them,
 /// q = (index + ½)·(2/n) − 1 in f32 (the cell's width times the index, as the shader's
 /// loop computed it), then `n = count`. Written out rather than looped over: the loop's
 /// bounds, corner tests and counters cost llvmpipe 4–8 % of a DOS frame (docs/perf.md,
 /// "The grid kernel's taps written out"). The CPU twin takes the same points
 /// ([`kernel_points`]; they differ from these by an ulp at most).
-pub fn grid_taps_wgsl(n: u32) -> String {
+/// `tap` is `kernel_tap`, or `chromatic_tap` for chromatic extinction.
+pub fn grid_taps_wgsl(n: u32, tap: &str) -> String {
     use std::fmt::Write;
     let cell = 2.0f32 / n as f32;
     let mut out = String::new();
@@ -155,7 +156,7 @@ pub fn grid_taps_wgsl(n: u32) -> String {
             if q.dot(q) <= 1.0 {
                 let _ = write!(
                     out,
-                    "sum = sum + kernel_tap(vec2<f32>({:?}f, {:?}f), uv, scale, extent, d, sigma_t); ",
+                    "sum = sum + {tap}(vec2<f32>({:?}f, {:?}f), uv, scale, extent, d, sigma_t); ",
                     q.x, q.y
                 );
                 count += 1;
@@ -281,12 +282,14 @@ impl Plugin for Dos {
         if !self.chromatic {
             left_out.push(("chromatic", ""));
         }
-        let taps = grid_taps_wgsl(self.grid);
+        let taps = grid_taps_wgsl(self.grid, "kernel_tap");
+        let chromatic_taps = grid_taps_wgsl(self.grid, "chromatic_tap");
         if self.poisson {
             left_out.push(("grid", ""));
         } else {
             left_out.push(("poisson", ""));
             left_out.push(("grid_taps", taps.as_str()));
+            left_out.push(("chromatic_grid_taps", chromatic_taps.as_str()));
         }
         if !self.exact_distance {
             left_out.push(("exact_distance", ""));

@@ -47,7 +47,7 @@ fn grid_taps_are_written_out_as_the_twin_takes_them() {
     for g in 2..=13 {
         p.set("grid", ParamValue::Int(g));
         let twin = kernel_points(&p);
-        let wgsl = grid_taps_wgsl(g as u32);
+        let wgsl = grid_taps_wgsl(g as u32, "kernel_tap");
         let taps: Vec<(f64, f64)> = wgsl
             .split("kernel_tap(vec2<f32>(")
             .skip(1)
@@ -147,8 +147,13 @@ fn structural_kernel_and_distance_choose_the_code() {
     // chromatic: the per-channel taps follow the same choice
     p.set("extinction", ParamValue::Enum("chromatic".into()));
     let chromatic = base.configure(&p).unwrap().shader().source;
-    assert!(chromatic.contains("fn chromatic_taps") && chromatic.contains("q = textureLoad(poisson"));
-    assert!(!chromatic.contains("continue;"));
+    assert!(chromatic.contains("fn chromatic_taps") && chromatic.contains("chromatic_tap(q, uv"));
+    assert!(!chromatic.contains("chromatic_tap(vec2<f32>("));
+    p.set("kernel", ParamValue::Enum("grid".into()));
+    let chromatic_grid = base.configure(&p).unwrap().shader().source;
+    assert!(chromatic_grid.contains(&grid_taps_wgsl(4, "chromatic_tap")));
+    assert!(!chromatic_grid.contains("textureLoad(poisson"));
+    assert_eq!(chromatic_grid.lines().count(), grid.lines().count());
 }
 
 /// Homogeneous slab seen head on, θ = 0: V(s) is the transmittance back to the front
