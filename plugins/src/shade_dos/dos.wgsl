@@ -122,8 +122,8 @@ fn slice_update(s: Sample, c: vec4<f32>, uv: vec2<f32>) -> vec4<f32> {
     // written out by the plugin for the chosen n on the next line (`grid` is structural;
     // `grid_taps_wgsl` in mod.rs): one `sum = sum + kernel_tap(q, …)` per point, then
     // `n = count`. No loop, no corner tests and no per-row bounds are left to run
-    // (CPU time 0.92–0.96× the loop's; docs/perf.md, "The grid kernel's taps written
-    // out").
+    // (CPU time 0.79–0.88× the loop's on lavapipe; docs/perf.md, "The grid kernel's
+    // taps written out").
     // grid_taps: begin
     // grid_taps: end
     // grid: end

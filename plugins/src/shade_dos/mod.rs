@@ -141,7 +141,7 @@ impl Default for Dos {
 /// point q inside the unit disk, row by row as a loop over the grid would take them,
 /// q = (index + ½)·(2/n) − 1 in f32 (the cell's width times the index, as the shader's
 /// loop computed it), then `n = count`. Written out rather than looped over: the loop's
-/// bounds, corner tests and counters cost llvmpipe 4–8 % of a DOS frame (docs/perf.md,
+/// bounds, corner tests and counters cost llvmpipe 12–21 % of a DOS frame (docs/perf.md,
 /// "The grid kernel's taps written out"). The CPU twin takes the same points
 /// ([`kernel_points`]; they differ from these by an ulp at most).
 /// `tap` is `kernel_tap`, or `chromatic_tap` for chromatic extinction.
