@@ -1162,8 +1162,7 @@ impl VolumeFormat {
     pub fn concrete(self, gpu: &GpuContext) -> VolumeFormat {
         match self {
             VolumeFormat::Auto
-                if gpu.float32_filterable()
-                    && gpu.adapter.get_info().device_type == wgpu::DeviceType::Cpu =>
+                if gpu.float32_filterable() && gpu.info.device_type == wgpu::DeviceType::Cpu =>
             {
                 VolumeFormat::R32FloatPairs
             }

@@ -136,34 +136,35 @@ impl Default for Dos {
     }
 }
 
+/// The n × n grid kernel's points inside the unit disk, row by row: q = (index + ½)·
+/// (2/n) − 1 in f32 (the cell's width times the index). The shader's taps
+/// ([`grid_taps_wgsl`]) and the CPU twin ([`kernel_points`]) both take these.
+pub fn grid_points(n: u32) -> Vec<glam::Vec2> {
+    let cell = 2.0f32 / n as f32;
+    (0..n)
+        .flat_map(|j| (0..n).map(move |i| glam::Vec2::new(i as f32 + 0.5, j as f32 + 0.5) * cell - 1.0))
+        .filter(|q| q.dot(*q) <= 1.0)
+        .collect()
+}
+
 /// The grid kernel's taps for an n × n grid, written out as WGSL on one line (so that
-/// the shader's lines keep their numbers): `sum = sum + TAP(q, …);` for each
-/// point q inside the unit disk, row by row as a loop over the grid would take them,
-/// q = (index + ½)·(2/n) − 1 in f32 (the cell's width times the index, as the shader's
-/// loop computed it), then `n = count`. Written out rather than looped over: the loop's
+/// the shader's lines keep their numbers): `sum = sum + TAP(q, …);` for each of
+/// [`grid_points`], then `n = count`. Written out rather than looped over: the loop's
 /// bounds, corner tests and counters cost llvmpipe 12–21 % of a DOS frame (docs/perf.md,
-/// "The grid kernel's taps written out"). The CPU twin takes the same points
-/// ([`kernel_points`]; they differ from these by an ulp at most).
-/// `tap` is `kernel_tap`, or `chromatic_tap` for chromatic extinction.
+/// "The grid kernel's taps written out"). `tap` is `kernel_tap`, or `chromatic_tap`
+/// for chromatic extinction.
 pub fn grid_taps_wgsl(n: u32, tap: &str) -> String {
     use std::fmt::Write;
-    let cell = 2.0f32 / n as f32;
+    let points = grid_points(n);
     let mut out = String::new();
-    let mut count = 0;
-    for j in 0..n {
-        for i in 0..n {
-            let q = glam::Vec2::new(i as f32 + 0.5, j as f32 + 0.5) * cell - 1.0;
-            if q.dot(q) <= 1.0 {
-                let _ = write!(
-                    out,
-                    "sum = sum + {tap}(vec2<f32>({:?}f, {:?}f), uv, scale, extent, d, sigma_t); ",
-                    q.x, q.y
-                );
-                count += 1;
-            }
-        }
+    for q in &points {
+        let _ = write!(
+            out,
+            "sum = sum + {tap}(vec2<f32>({:?}f, {:?}f), uv, scale, extent, d, sigma_t); ",
+            q.x, q.y
+        );
     }
-    let _ = write!(out, "n = {count}.0;");
+    let _ = write!(out, "n = {}.0;", points.len());
     out
 }
 
@@ -201,18 +202,11 @@ pub fn kernel_points(params: &ParamValues) -> Vec<DVec2> {
         let n = (params.int("poisson_count").max(1) as usize).min(MAX_POISSON);
         return poisson_disk(MAX_POISSON)[..n].to_vec();
     }
-    let g = params.int("grid").max(1);
-    let mut pts = Vec::new();
-    for j in 0..g {
-        for i in 0..g {
-            // f32 like the shader
-            let q = ((glam::Vec2::new(i as f32, j as f32) + 0.5) / g as f32 * 2.0 - 1.0).as_dvec2();
-            if q.length_squared() <= 1.0 {
-                pts.push(q);
-            }
-        }
-    }
-    pts
+    // the shader's f32 points
+    grid_points(params.int("grid").max(1) as u32)
+        .iter()
+        .map(|q| q.as_dvec2())
+        .collect()
 }
 
 impl Plugin for Dos {
@@ -282,14 +276,17 @@ impl Plugin for Dos {
         if !self.chromatic {
             left_out.push(("chromatic", ""));
         }
-        let taps = grid_taps_wgsl(self.grid, "kernel_tap");
-        let chromatic_taps = grid_taps_wgsl(self.grid, "chromatic_tap");
+        let taps;
         if self.poisson {
             left_out.push(("grid", ""));
         } else {
+            taps = [
+                grid_taps_wgsl(self.grid, "kernel_tap"),
+                grid_taps_wgsl(self.grid, "chromatic_tap"),
+            ];
             left_out.push(("poisson", ""));
-            left_out.push(("grid_taps", taps.as_str()));
-            left_out.push(("chromatic_grid_taps", chromatic_taps.as_str()));
+            left_out.push(("grid_taps", taps[0].as_str()));
+            left_out.push(("chromatic_grid_taps", taps[1].as_str()));
         }
         if !self.exact_distance {
             left_out.push(("exact_distance", ""));

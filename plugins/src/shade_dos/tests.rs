@@ -36,7 +36,7 @@ fn grid_kernels_keep_the_points_inside_the_disk() {
 }
 
 /// The shader's grid taps are written out per n (`grid` is structural): the twin's
-/// points, in its order, up to an ulp; the composed shader validates for every n and
+/// points, in its order; the composed shader validates for every n and
 /// keeps its line numbers.
 #[test]
 fn grid_taps_are_written_out_as_the_twin_takes_them() {
