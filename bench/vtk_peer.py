@@ -256,6 +256,15 @@ def build_vtk(scene, mapper_kind, shadows=None):
     ren = vtk.vtkRenderer()
     ren.SetBackground(*scene["background"][:3])
     ren.AddVolume(volume)
+    if shading:
+        # vwb's k_a scales a white ambient light; VTK's ambient term is k_a times the
+        # light's ambient colour, black by default, so without this VTK drops k_a
+        # (measured: k_a = 1, k_d = k_s = 0 gave VTK a black image, vwb the unshaded one).
+        # The headlight VTK would make by itself, with that one colour set.
+        light = vtk.vtkLight()
+        light.SetLightTypeToHeadlight()
+        light.SetAmbientColor(1.0, 1.0, 1.0)
+        ren.AddLight(light)
     rw = vtk.vtkRenderWindow()
     rw.SetOffScreenRendering(1)
     rw.SetSize(img["width"], img["height"])
@@ -574,7 +583,8 @@ def main():
         "- Same scene from `vwb scene`: volume, camera, 256-entry transfer-function table, "
         "background; VTK samples every slice spacing along each ray (linear interpolation, "
         "opacity unit distance = smallest voxel side; shading on with the preset's k_a, k_d, "
-        "k_s and shininess where it has shade.blinn_phong, else off)",
+        "k_s and shininess where it has shade.blinn_phong, under a white headlight whose ambient "
+        "colour is white too, as vwb's k_a assumes, else off)",
         *([f"- VTK with volumetric shadows: global illumination reach {shadows[0]:g}, volumetric "
            f"scattering blending {shadows[1]:g} (shading on, VTK's default material); vwb with its "
            "preset's shade.dos. Different algorithms: the RMS column is no check"] if shadows else []),
