@@ -63,6 +63,14 @@ struct Evaluated {
 }
 
 fn evaluate(s_in: Sample) -> Evaluated {
+    return evaluate_at(s_in, step_ratio(s_in.step));
+}
+
+// `evaluate` with the opacity correction's exponent Δs/Δs0 given (`step_ratio` of the
+// sample's step): the compute march takes it once per ray (`RaySlices`), since
+// llvmpipe hoists nothing out of a loop and would divide per sample (docs/perf.md,
+// "Divisions once per ray"). The same value, so the same bits.
+fn evaluate_at(s_in: Sample, ratio: f32) -> Evaluated {
     var e: Evaluated;
     e.s = s_in;
     e.c = vec4<f32>(0.0);
@@ -74,7 +82,7 @@ fn evaluate(s_in: Sample) -> Evaluated {
     var s = run_sample(s_in);
     s = run_classify(s);
     s = run_shade(s);
-    let a = correct_opacity(s.color.a, s.step);
+    let a = correct_opacity_ratio(s.color.a, ratio);
     let rgb = clamp(s.color.rgb, vec3<f32>(0.0), vec3<f32>(1.0e6));
     e.c = run_composite(s, vec4<f32>(rgb * a, a));
     e.s = s;
@@ -113,19 +121,29 @@ fn tex_of(pos: vec3<f32>) -> vec3<f32> {
     return (pos - frame.box_min.xyz) * frame.inv_extent.xyz;
 }
 
+// The distance along a ray between two slice planes (under half-angle slicing a ray
+// may advance against the planes' normal): `Sample.step`, the same for all of a
+// ray's samples.
+fn ray_step(ray_dir: vec3<f32>) -> f32 {
+    var step = frame.forward.w / max(dot(ray_dir, frame.forward.xyz), 1.0e-6);
+    // half_angle: begin
+    step = frame.forward.w / max(abs(dot(ray_dir, frame.slicing.xyz)), 1.0e-6);
+    // half_angle: end
+    return step;
+}
+
 fn make_sample(pos: vec3<f32>, ray_dir: vec3<f32>, uv: vec2<f32>, slice: u32) -> Sample {
+    return sample_with_step(pos, tex_of(pos), ray_dir, uv, slice, ray_step(ray_dir));
+}
+
+fn sample_with_step(pos: vec3<f32>, tex: vec3<f32>, ray_dir: vec3<f32>, uv: vec2<f32>, slice: u32, step: f32) -> Sample {
     var s: Sample;
     s.pos = pos;
-    s.tex = tex_of(pos);
+    s.tex = tex;
     s.ray_dir = ray_dir;
     s.uv = uv;
     s.value = 0.0;
-    // distance along this ray between two slice planes (under half-angle slicing a ray
-    // may advance against the planes' normal)
-    s.step = frame.forward.w / max(dot(ray_dir, frame.forward.xyz), 1.0e-6);
-    // half_angle: begin
-    s.step = frame.forward.w / max(abs(dot(ray_dir, frame.slicing.xyz)), 1.0e-6);
-    // half_angle: end
+    s.step = step;
     s.color = vec4<f32>(0.0);
     s.normal = vec3<f32>(0.0);
     s.shade_at = 0.0;
@@ -447,6 +465,9 @@ struct RaySlices {
     dp: vec3<f32>,
     tex0: vec3<f32>,
     dtex: vec3<f32>,
+    // the ray's `Sample.step` and its ratio to Δs0 (the opacity correction's exponent)
+    step: f32,
+    ratio: f32,
 }
 
 fn ray_slices(r: Ray) -> RaySlices {
@@ -459,6 +480,8 @@ fn ray_slices(r: Ray) -> RaySlices {
     rs.dp = r.dir * rs.b;
     rs.tex0 = tex_of(rs.p0);
     rs.dtex = rs.dp * frame.inv_extent.xyz;
+    rs.step = ray_step(r.dir);
+    rs.ratio = step_ratio(rs.step);
     return rs;
 }
 
@@ -490,9 +513,7 @@ fn sample_run(rs: RaySlices, range: vec2<u32>) -> vec2<u32> {
 
 // The sample of slice k on the ray (at a point `slice_point_in` accepted).
 fn slice_sample(r: Ray, rs: RaySlices, uv: vec2<f32>, k: u32) -> Sample {
-    var s = make_sample(rs.p0 + f32(k) * rs.dp, r.dir, uv, k);
-    s.tex = rs.tex0 + f32(k) * rs.dtex;
-    return s;
+    return sample_with_step(rs.p0 + f32(k) * rs.dp, rs.tex0 + f32(k) * rs.dtex, r.dir, uv, k, rs.step);
 }
 
 // Whether a world point is one of this renderer's samples: inside its own box, which
@@ -716,7 +737,7 @@ fn march(r: Ray, uv: vec2<f32>, skipping: bool, acc_in: vec4<f32>, part: vec2<u3
             }
             lookup = exit + 1u;
         }
-        let e = evaluate(slice_sample(r, rs, uv, k));
+        let e = evaluate_at(slice_sample(r, rs, uv, k), rs.ratio);
         acc = round_like_target(under(acc, e.c));
         if (early && acc.a >= frame.settings.x) {
             break;

@@ -155,7 +155,8 @@ struct Sample {
     uv: vec2<f32>,
     // normalised scalar value (set by the core sampler, may be replaced by `sample` hooks)
     value: f32,
-    // world distance along the ray to the next slice plane
+    // world distance along the ray to the next slice plane; read-only for hooks (the
+    // core's opacity correction takes the ray's value, computed once per ray)
     step: f32,
     // straight RGBA set by `classify` (alpha per reference step Δs0)
     color: vec4<f32>,
@@ -309,11 +310,21 @@ fn data_value(v: f32) -> f32 {
 
 // Opacity correction α' = 1 − (1 − α)^(Δs/Δs0), exact at α = 0 and α = 1.
 fn correct_opacity(alpha: f32, step: f32) -> f32 {
+    return correct_opacity_ratio(alpha, step_ratio(step));
+}
+
+// The opacity correction's exponent Δs/Δs0 for a step Δs.
+fn step_ratio(step: f32) -> f32 {
+    return step / frame.box_min.w;
+}
+
+// `correct_opacity` with its exponent Δs/Δs0 given, for callers that compute it once
+// for many samples (a ray's: `RaySlices.ratio`).
+fn correct_opacity_ratio(alpha: f32, ratio: f32) -> f32 {
     let a = clamp(alpha, 0.0, 1.0);
     if (a >= 1.0) {
         return 1.0;
     }
-    let ratio = step / frame.box_min.w;
     return 1.0 - exp2(ratio * log2(1.0 - a));
 }
 
@@ -600,10 +611,15 @@ fn p0_smooth_sample(s: Sample) -> Sample {
 // which is what it costs on CPU adapters; docs/perf.md).
 // Texel centres sit at (i + 0.5)/N, so x ∈ [0,1] maps to (x·(N−1) + 0.5)/N.
 
+// N: the table's entries, `vwb_render::tf::LUT_SIZE` (a test keeps the two equal). A
+// constant power of two, so the division is a multiplication by the exact 1/N: the
+// same bits as dividing by the table's size, without a division per sample, which
+// llvmpipe would not hoist out of the march (docs/perf.md, "Divisions once per ray").
+const p1_tf1d_LUT_N: f32 = 256.0;
+
 fn p1_tf1d_classify(s: Sample) -> Sample {
     var o = s;
-    let n = f32(textureDimensions(p1_tf1d_lut));
-    let x = (clamp(s.value, 0.0, 1.0) * (n - 1.0) + 0.5) / n;
+    let x = (clamp(s.value, 0.0, 1.0) * (p1_tf1d_LUT_N - 1.0) + 0.5) * (1.0 / p1_tf1d_LUT_N);
     let c = textureSampleLevel(p1_tf1d_lut, linear_clamp, x, 0.0);
     o.color = vec4<f32>(c.rgb, clamp(c.a * p1_tf1d_params.opacity, 0.0, 1.0));
     return o;
@@ -631,10 +647,15 @@ fn p2_slice_shadow_slice_update(s: Sample, c: vec4<f32>, uv: vec2<f32>) -> vec4<
 // which is what it costs on CPU adapters; docs/perf.md).
 // Texel centres sit at (i + 0.5)/N, so x ∈ [0,1] maps to (x·(N−1) + 0.5)/N.
 
+// N: the table's entries, `vwb_render::tf::LUT_SIZE` (a test keeps the two equal). A
+// constant power of two, so the division is a multiplication by the exact 1/N: the
+// same bits as dividing by the table's size, without a division per sample, which
+// llvmpipe would not hoist out of the march (docs/perf.md, "Divisions once per ray").
+const p3_tf1d_LUT_N: f32 = 256.0;
+
 fn p3_tf1d_classify(s: Sample) -> Sample {
     var o = s;
-    let n = f32(textureDimensions(p3_tf1d_lut));
-    let x = (clamp(s.value, 0.0, 1.0) * (n - 1.0) + 0.5) / n;
+    let x = (clamp(s.value, 0.0, 1.0) * (p3_tf1d_LUT_N - 1.0) + 0.5) * (1.0 / p3_tf1d_LUT_N);
     let c = textureSampleLevel(p3_tf1d_lut, linear_clamp, x, 0.0);
     o.color = vec4<f32>(c.rgb, clamp(c.a * p3_tf1d_params.opacity, 0.0, 1.0));
     return o;
@@ -692,6 +713,14 @@ struct Evaluated {
 }
 
 fn evaluate(s_in: Sample) -> Evaluated {
+    return evaluate_at(s_in, step_ratio(s_in.step));
+}
+
+// `evaluate` with the opacity correction's exponent Δs/Δs0 given (`step_ratio` of the
+// sample's step): the compute march takes it once per ray (`RaySlices`), since
+// llvmpipe hoists nothing out of a loop and would divide per sample (docs/perf.md,
+// "Divisions once per ray"). The same value, so the same bits.
+fn evaluate_at(s_in: Sample, ratio: f32) -> Evaluated {
     var e: Evaluated;
     e.s = s_in;
     e.c = vec4<f32>(0.0);
@@ -703,7 +732,7 @@ fn evaluate(s_in: Sample) -> Evaluated {
     var s = run_sample(s_in);
     s = run_classify(s);
     s = run_shade(s);
-    let a = correct_opacity(s.color.a, s.step);
+    let a = correct_opacity_ratio(s.color.a, ratio);
     let rgb = clamp(s.color.rgb, vec3<f32>(0.0), vec3<f32>(1.0e6));
     e.c = run_composite(s, vec4<f32>(rgb * a, a));
     e.s = s;
@@ -742,19 +771,29 @@ fn tex_of(pos: vec3<f32>) -> vec3<f32> {
     return (pos - frame.box_min.xyz) * frame.inv_extent.xyz;
 }
 
+// The distance along a ray between two slice planes (under half-angle slicing a ray
+// may advance against the planes' normal): `Sample.step`, the same for all of a
+// ray's samples.
+fn ray_step(ray_dir: vec3<f32>) -> f32 {
+    var step = frame.forward.w / max(dot(ray_dir, frame.forward.xyz), 1.0e-6);
+
+
+
+    return step;
+}
+
 fn make_sample(pos: vec3<f32>, ray_dir: vec3<f32>, uv: vec2<f32>, slice: u32) -> Sample {
+    return sample_with_step(pos, tex_of(pos), ray_dir, uv, slice, ray_step(ray_dir));
+}
+
+fn sample_with_step(pos: vec3<f32>, tex: vec3<f32>, ray_dir: vec3<f32>, uv: vec2<f32>, slice: u32, step: f32) -> Sample {
     var s: Sample;
     s.pos = pos;
-    s.tex = tex_of(pos);
+    s.tex = tex;
     s.ray_dir = ray_dir;
     s.uv = uv;
     s.value = 0.0;
-    // distance along this ray between two slice planes (under half-angle slicing a ray
-    // may advance against the planes' normal)
-    s.step = frame.forward.w / max(dot(ray_dir, frame.forward.xyz), 1.0e-6);
-
-
-
+    s.step = step;
     s.color = vec4<f32>(0.0);
     s.normal = vec3<f32>(0.0);
     s.shade_at = 0.0;
@@ -1076,6 +1115,9 @@ struct RaySlices {
     dp: vec3<f32>,
     tex0: vec3<f32>,
     dtex: vec3<f32>,
+    // the ray's `Sample.step` and its ratio to Δs0 (the opacity correction's exponent)
+    step: f32,
+    ratio: f32,
 }
 
 fn ray_slices(r: Ray) -> RaySlices {
@@ -1088,6 +1130,8 @@ fn ray_slices(r: Ray) -> RaySlices {
     rs.dp = r.dir * rs.b;
     rs.tex0 = tex_of(rs.p0);
     rs.dtex = rs.dp * frame.inv_extent.xyz;
+    rs.step = ray_step(r.dir);
+    rs.ratio = step_ratio(rs.step);
     return rs;
 }
 
@@ -1119,9 +1163,7 @@ fn sample_run(rs: RaySlices, range: vec2<u32>) -> vec2<u32> {
 
 // The sample of slice k on the ray (at a point `slice_point_in` accepted).
 fn slice_sample(r: Ray, rs: RaySlices, uv: vec2<f32>, k: u32) -> Sample {
-    var s = make_sample(rs.p0 + f32(k) * rs.dp, r.dir, uv, k);
-    s.tex = rs.tex0 + f32(k) * rs.dtex;
-    return s;
+    return sample_with_step(rs.p0 + f32(k) * rs.dp, rs.tex0 + f32(k) * rs.dtex, r.dir, uv, k, rs.step);
 }
 
 // Whether a world point is one of this renderer's samples: inside its own box, which
@@ -1345,7 +1387,7 @@ fn march(r: Ray, uv: vec2<f32>, skipping: bool, acc_in: vec4<f32>, part: vec2<u3
             }
             lookup = exit + 1u;
         }
-        let e = evaluate(slice_sample(r, rs, uv, k));
+        let e = evaluate_at(slice_sample(r, rs, uv, k), rs.ratio);
         acc = round_like_target(under(acc, e.c));
         if (early && acc.a >= frame.settings.x) {
             break;

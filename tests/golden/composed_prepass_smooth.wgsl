@@ -155,7 +155,8 @@ struct Sample {
     uv: vec2<f32>,
     // normalised scalar value (set by the core sampler, may be replaced by `sample` hooks)
     value: f32,
-    // world distance along the ray to the next slice plane
+    // world distance along the ray to the next slice plane; read-only for hooks (the
+    // core's opacity correction takes the ray's value, computed once per ray)
     step: f32,
     // straight RGBA set by `classify` (alpha per reference step Δs0)
     color: vec4<f32>,
@@ -309,11 +310,21 @@ fn data_value(v: f32) -> f32 {
 
 // Opacity correction α' = 1 − (1 − α)^(Δs/Δs0), exact at α = 0 and α = 1.
 fn correct_opacity(alpha: f32, step: f32) -> f32 {
+    return correct_opacity_ratio(alpha, step_ratio(step));
+}
+
+// The opacity correction's exponent Δs/Δs0 for a step Δs.
+fn step_ratio(step: f32) -> f32 {
+    return step / frame.box_min.w;
+}
+
+// `correct_opacity` with its exponent Δs/Δs0 given, for callers that compute it once
+// for many samples (a ray's: `RaySlices.ratio`).
+fn correct_opacity_ratio(alpha: f32, ratio: f32) -> f32 {
     let a = clamp(alpha, 0.0, 1.0);
     if (a >= 1.0) {
         return 1.0;
     }
-    let ratio = step / frame.box_min.w;
     return 1.0 - exp2(ratio * log2(1.0 - a));
 }
 

@@ -184,3 +184,16 @@ fn distinct_labels_are_listed_as_runs() {
     assert_eq!(label_input::label_runs(&[65535], 8), "65535");
     assert!(label_input::distinct_labels(&v(VoxelData::F32(vec![0.0; 6]))).is_none());
 }
+
+/// The shader's table size is a constant (powers of two, so its divisions are exact
+/// multiplications, none per sample on a CPU device): it must be the table's.
+#[test]
+fn the_shaders_table_size_is_the_tables() {
+    use vwb_render::tf::LUT_SIZE;
+    assert!(LUT_SIZE.is_power_of_two() && MAX_LABELS.is_power_of_two());
+    let src = include_str!("labels.wgsl");
+    assert!(src.contains(&format!(
+        "const LUT_SIZE: vec2<f32> = vec2<f32>({LUT_SIZE}.0, {MAX_LABELS}.0);"
+    )));
+    assert!(!src.contains("textureDimensions(lut)"));
+}

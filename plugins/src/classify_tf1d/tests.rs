@@ -416,3 +416,18 @@ fn centroid_shading_reads_the_gradient_at_the_shell() {
         );
     }
 }
+
+/// The post-classified and pre-integrated lookups divide by constant table sizes
+/// (powers of two, so exact multiplications, no division per sample on a CPU device):
+/// they must be the tables' `LUT_SIZE`.
+#[test]
+fn the_shaders_table_sizes_are_the_tables() {
+    assert!(LUT_SIZE.is_power_of_two());
+    let post = include_str!("tf1d.wgsl");
+    assert!(post.contains(&format!("const LUT_N: f32 = {LUT_SIZE}.0;")));
+    let preint = include_str!("tf1d_preint.wgsl");
+    assert!(preint.contains(&format!("const PREINT_N: f32 = {LUT_SIZE}.0;")));
+    for src in [post, preint] {
+        assert!(!src.contains("textureDimensions"));
+    }
+}

@@ -132,3 +132,19 @@ fn the_data_axis_reads_the_volume_not_the_gradient() {
         assert_eq!(sample.color.w > 0.5, visible, "y_data {y_data}: {:?}", sample.color);
     }
 }
+
+/// Each variant's table coordinate divides by its `TABLE_N`, a constant (a power of two,
+/// so the division is an exact multiplication and no division per sample is left on a
+/// CPU device): it must be the table's size.
+#[test]
+fn the_shaders_table_size_is_the_tables() {
+    assert!(TABLE_SIZE.is_power_of_two());
+    for src in [
+        include_str!("tf2d_data.wgsl"),
+        include_str!("tf2d_central.wgsl"),
+        include_str!("tf2d_precomputed.wgsl"),
+    ] {
+        assert!(src.contains(&format!("const TABLE_N: f32 = {TABLE_SIZE}.0;")));
+        assert!(!src.contains("textureDimensions(table)"));
+    }
+}
