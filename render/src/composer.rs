@@ -1009,9 +1009,7 @@ pub fn main_workgroup(gpu: &crate::gpu::GpuContext, requested: Option<[u32; 2]>)
     };
     match requested {
         Some(wg) if fits(wg) => wg,
-        _ if gpu.adapter.get_info().device_type == wgpu::DeviceType::Cpu && fits(CPU_WORKGROUP) => {
-            CPU_WORKGROUP
-        }
+        _ if gpu.info.device_type == wgpu::DeviceType::Cpu && fits(CPU_WORKGROUP) => CPU_WORKGROUP,
         _ => MAIN_WORKGROUP,
     }
 }
