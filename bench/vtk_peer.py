@@ -34,7 +34,7 @@ Self-convergence error (--self-error): each renderer's image at its default step
 against its own image at 1/8 of that step (RMS, 8-bit RGB), VTK's and every vwb
 variant's (vwb's fine image with an rgba32float eye buffer). A renderer that is fast because it samples coarsely shows it here. For each
 vwb variant whose self-error exceeds VTK's, the script refines vwb's slice spacing
-(÷1.1, ÷1.25, ÷1.5, ÷2, ÷3, ÷4) until its self-error is at most VTK's, times it there, and quotes
+(÷1.1, ÷1.2, ÷1.3, ÷1.4, ÷1.5, ÷1.75, ÷2, ÷3, ÷4) until its self-error is at most VTK's, times it there, and quotes
 the speed ratio at that spacing: the ratio at equal (or lower) self-error.
 """
 
@@ -140,7 +140,7 @@ def with_spacing(scene, spacing):
 
 
 # Refinements of vwb's slice spacing tried, in order, to reach VTK's self-error.
-REFINE = (1.1, 1.25, 1.5, 2.0, 3.0, 4.0)
+REFINE = (1.1, 1.2, 1.3, 1.4, 1.5, 1.75, 2.0, 3.0, 4.0)
 REFERENCE_DIVISOR = 8  # self-error reference: 1/8 of the default step
 
 
