@@ -712,15 +712,11 @@ struct Evaluated {
     c: vec4<f32>,
 }
 
-fn evaluate(s_in: Sample) -> Evaluated {
-    return evaluate_at(s_in, step_ratio(s_in.step));
-}
-
-// `evaluate` with the opacity correction's exponent Δs/Δs0 given (`step_ratio` of the
-// sample's step): the compute march takes it once per ray (`RaySlices`), since
-// llvmpipe hoists nothing out of a loop and would divide per sample (docs/perf.md,
-// "Divisions once per ray"). The same value, so the same bits.
-fn evaluate_at(s_in: Sample, ratio: f32) -> Evaluated {
+// `ratio` is the opacity correction's exponent Δs/Δs0, `step_ratio(s_in.step)`, which
+// callers take once per ray (`RaySlices.ratio`) or fragment: llvmpipe hoists nothing out
+// of a loop and would divide per sample (docs/perf.md, "Divisions once per ray"). CPU
+// twin: vwb_render::reference (`evaluate`, which takes the ratio likewise).
+fn evaluate(s_in: Sample, ratio: f32) -> Evaluated {
     var e: Evaluated;
     e.s = s_in;
     e.c = vec4<f32>(0.0);
@@ -900,8 +896,9 @@ fn fragment_proxy(in: VsOut, behind: bool) -> vec4<f32> {
     run_setup(pixel_ray(uv), uv);
     let dir = ray_dir_to(in.world);
     let s = make_sample(in.world, dir, uv, in.slice);
+    let ratio = step_ratio(s.step);
     if (RASTER_GROUP == 1u) {
-        return evaluate(s).c;
+        return evaluate(s, ratio).c;
     }
     // the group's slices front to back along the ray, composited as the blend would
     // ("under"). Written out rather than a loop over i < RASTER_GROUP: the driver
@@ -910,40 +907,40 @@ fn fragment_proxy(in: VsOut, behind: bool) -> vec4<f32> {
     // z-pairs', and the loop cost 1.03–1.18× the frame; docs/perf.md). The guards are
     // constants once the pipeline is made, so each group keeps its own n steps.
     // The steps written cover `renderer::RASTER_GROUPS` (1, 2, 4, 8, 16; asserted there).
-    var acc = group_step(vec4<f32>(0.0), s, in.world, dir, in.slice, 0u);
-    acc = group_step(acc, s, in.world, dir, in.slice, 1u);
+    var acc = group_step(vec4<f32>(0.0), s, ratio, in.world, dir, in.slice, 0u);
+    acc = group_step(acc, s, ratio, in.world, dir, in.slice, 1u);
     if (RASTER_GROUP > 2u) {
-        acc = group_step(acc, s, in.world, dir, in.slice, 2u);
-        acc = group_step(acc, s, in.world, dir, in.slice, 3u);
+        acc = group_step(acc, s, ratio, in.world, dir, in.slice, 2u);
+        acc = group_step(acc, s, ratio, in.world, dir, in.slice, 3u);
     }
     if (RASTER_GROUP > 4u) {
-        acc = group_step(acc, s, in.world, dir, in.slice, 4u);
-        acc = group_step(acc, s, in.world, dir, in.slice, 5u);
-        acc = group_step(acc, s, in.world, dir, in.slice, 6u);
-        acc = group_step(acc, s, in.world, dir, in.slice, 7u);
+        acc = group_step(acc, s, ratio, in.world, dir, in.slice, 4u);
+        acc = group_step(acc, s, ratio, in.world, dir, in.slice, 5u);
+        acc = group_step(acc, s, ratio, in.world, dir, in.slice, 6u);
+        acc = group_step(acc, s, ratio, in.world, dir, in.slice, 7u);
     }
     if (RASTER_GROUP > 8u) {
-        acc = group_step(acc, s, in.world, dir, in.slice, 8u);
-        acc = group_step(acc, s, in.world, dir, in.slice, 9u);
-        acc = group_step(acc, s, in.world, dir, in.slice, 10u);
-        acc = group_step(acc, s, in.world, dir, in.slice, 11u);
-        acc = group_step(acc, s, in.world, dir, in.slice, 12u);
-        acc = group_step(acc, s, in.world, dir, in.slice, 13u);
-        acc = group_step(acc, s, in.world, dir, in.slice, 14u);
-        acc = group_step(acc, s, in.world, dir, in.slice, 15u);
+        acc = group_step(acc, s, ratio, in.world, dir, in.slice, 8u);
+        acc = group_step(acc, s, ratio, in.world, dir, in.slice, 9u);
+        acc = group_step(acc, s, ratio, in.world, dir, in.slice, 10u);
+        acc = group_step(acc, s, ratio, in.world, dir, in.slice, 11u);
+        acc = group_step(acc, s, ratio, in.world, dir, in.slice, 12u);
+        acc = group_step(acc, s, ratio, in.world, dir, in.slice, 13u);
+        acc = group_step(acc, s, ratio, in.world, dir, in.slice, 14u);
+        acc = group_step(acc, s, ratio, in.world, dir, in.slice, 15u);
     }
     return acc;
 }
 
 // Slice i of a raster group: its sample on the fragment's ray composited under `acc`,
 // or nothing where it lies outside the box (the group's polygon covers all n).
-fn group_step(acc: vec4<f32>, s: Sample, world: vec3<f32>, dir: vec3<f32>, slice: u32, i: u32) -> vec4<f32> {
+fn group_step(acc: vec4<f32>, s: Sample, ratio: f32, world: vec3<f32>, dir: vec3<f32>, slice: u32, i: u32) -> vec4<f32> {
     var si = s;
     si.pos = world + dir * (f32(i) * s.step);
     si.tex = tex_of(si.pos);
     si.slice = slice + i;
     if (in_own_box(si.pos)) {
-        return under(acc, evaluate(si).c);
+        return under(acc, evaluate(si, ratio).c);
     }
     return acc;
 }
@@ -967,7 +964,7 @@ fn fragment_exact(in: VsOut, behind: bool) -> vec4<f32> {
         return vec4<f32>(0.0);
     }
     run_setup(r, uv);
-    return evaluate(slice_sample(r, rs, uv, in.slice)).c;
+    return evaluate(slice_sample(r, rs, uv, in.slice), rs.ratio).c;
 }
 
 @fragment
@@ -1387,7 +1384,7 @@ fn march(r: Ray, uv: vec2<f32>, skipping: bool, acc_in: vec4<f32>, part: vec2<u3
             }
             lookup = exit + 1u;
         }
-        let e = evaluate_at(slice_sample(r, rs, uv, k), rs.ratio);
+        let e = evaluate(slice_sample(r, rs, uv, k), rs.ratio);
         acc = round_like_target(under(acc, e.c));
         if (early && acc.a >= frame.settings.x) {
             break;
@@ -1560,7 +1557,7 @@ fn slice_step(px: vec2<u32>, size: vec2<u32>, always: bool) -> Evaluated {
     var e = placeholder(r, uv);
     var changed = first;
     if (hit && (always || !early)) {
-        e = evaluate(slice_sample(r, rs, uv, slice_info.index));
+        e = evaluate(slice_sample(r, rs, uv, slice_info.index), rs.ratio);
         if (!early && any(e.c != vec4<f32>(0.0))) {
             if (!read) {
                 acc = accum[idx];
@@ -1667,7 +1664,7 @@ fn state_texel_sample(texel: vec2<u32>, state_size: vec2<u32>) -> Evaluated {
         e.c = vec4<f32>(0.0);
         return e;
     }
-    return evaluate(slice_sample(r, rs, uv, k));
+    return evaluate(slice_sample(r, rs, uv, k), rs.ratio);
 }
 
 // The state update of one slice: over the slice's listed tiles where the
