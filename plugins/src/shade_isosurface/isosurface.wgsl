@@ -73,7 +73,8 @@ fn shade(s: Sample) -> Sample {
     }
     // front to back over this step: alpha test: surface then the sample's DVR colour;
     // crossing: the DVR colour (at the sample) then the surfaces
-    let a_d = correct_opacity(s.color.a, s.step);
+    let ratio = step_ratio(s.step);
+    let a_d = correct_opacity_ratio(s.color.a, ratio);
     var acc = vec4<f32>(0.0);
     if (params.method != 1u) {
         acc = vec4<f32>(s.color.rgb * a_d, a_d);
@@ -91,7 +92,6 @@ fn shade(s: Sample) -> Sample {
     if (acc.a >= 1.0) {
         o.color = vec4<f32>(acc.rgb / max(acc.a, 1.0e-30), 1.0);
     } else if (acc.a > 0.0) {
-        let ratio = s.step / frame.box_min.w;
         o.color = vec4<f32>(acc.rgb / acc.a, 1.0 - exp2(log2(1.0 - acc.a) / ratio));
     }
     return o;
