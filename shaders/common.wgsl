@@ -308,6 +308,21 @@ fn data_value(v: f32) -> f32 {
     return mix(frame.value_range.x, frame.value_range.y, v);
 }
 
+// Texture coordinate of a value x ∈ [0, 1] along a table axis of n entries, for a
+// linear lookup: texel centres sit at (i + ½)/n, so x maps to (x·(n − 1) + ½)/n. The
+// classification plugins pass their table's size as a constant power of two, so that
+// once inlined the division is a multiplication by the exact 1/n: the bits of dividing
+// by the size, without a division per sample, which llvmpipe would not hoist out of
+// the march (docs/perf.md, "Divisions once per ray"). CPU twin: vwb_render::tf::table_coord
+// (the texels and the weight this coordinate's linear filter reads).
+fn table_coord(x: f32, n: f32) -> f32 {
+    return (x * (n - 1.0) + 0.5) * (1.0 / n);
+}
+
+fn table_coord2(x: vec2<f32>, n: f32) -> vec2<f32> {
+    return (x * (n - 1.0) + 0.5) * (1.0 / n);
+}
+
 // Opacity correction α' = 1 − (1 − α)^(Δs/Δs0), exact at α = 0 and α = 1.
 fn correct_opacity(alpha: f32, step: f32) -> f32 {
     return correct_opacity_ratio(alpha, step_ratio(step));

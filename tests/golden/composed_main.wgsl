@@ -308,6 +308,21 @@ fn data_value(v: f32) -> f32 {
     return mix(frame.value_range.x, frame.value_range.y, v);
 }
 
+// Texture coordinate of a value x ∈ [0, 1] along a table axis of n entries, for a
+// linear lookup: texel centres sit at (i + ½)/n, so x maps to (x·(n − 1) + ½)/n. The
+// classification plugins pass their table's size as a constant power of two, so that
+// once inlined the division is a multiplication by the exact 1/n: the bits of dividing
+// by the size, without a division per sample, which llvmpipe would not hoist out of
+// the march (docs/perf.md, "Divisions once per ray"). CPU twin: vwb_render::tf::table_coord
+// (the texels and the weight this coordinate's linear filter reads).
+fn table_coord(x: f32, n: f32) -> f32 {
+    return (x * (n - 1.0) + 0.5) * (1.0 / n);
+}
+
+fn table_coord2(x: vec2<f32>, n: f32) -> vec2<f32> {
+    return (x * (n - 1.0) + 0.5) * (1.0 / n);
+}
+
 // Opacity correction α' = 1 − (1 − α)^(Δs/Δs0), exact at α = 0 and α = 1.
 fn correct_opacity(alpha: f32, step: f32) -> f32 {
     return correct_opacity_ratio(alpha, step_ratio(step));
@@ -609,17 +624,14 @@ fn p0_smooth_sample(s: Sample) -> Sample {
 // piecewise-linear RGBA transfer function baked into the 256-entry 1D texture `lut`
 // (a 1D texture, not a 256×1 2D one: the same linear lookup at half the texel reads,
 // which is what it costs on CPU adapters; docs/perf.md).
-// Texel centres sit at (i + 0.5)/N, so x ∈ [0,1] maps to (x·(N−1) + 0.5)/N.
 
-// N: the table's entries, `vwb_render::tf::LUT_SIZE` (a test keeps the two equal). A
-// constant power of two, so the division is a multiplication by the exact 1/N: the
-// same bits as dividing by the table's size, without a division per sample, which
-// llvmpipe would not hoist out of the march (docs/perf.md, "Divisions once per ray").
+// The table's entries, `vwb_render::tf::LUT_SIZE` (a test keeps the two equal): a
+// constant for `table_coord`.
 const p1_tf1d_LUT_N: f32 = 256.0;
 
 fn p1_tf1d_classify(s: Sample) -> Sample {
     var o = s;
-    let x = (clamp(s.value, 0.0, 1.0) * (p1_tf1d_LUT_N - 1.0) + 0.5) * (1.0 / p1_tf1d_LUT_N);
+    let x = table_coord(clamp(s.value, 0.0, 1.0), p1_tf1d_LUT_N);
     let c = textureSampleLevel(p1_tf1d_lut, linear_clamp, x, 0.0);
     o.color = vec4<f32>(c.rgb, clamp(c.a * p1_tf1d_params.opacity, 0.0, 1.0));
     return o;
@@ -645,17 +657,14 @@ fn p2_slice_shadow_slice_update(s: Sample, c: vec4<f32>, uv: vec2<f32>) -> vec4<
 // piecewise-linear RGBA transfer function baked into the 256-entry 1D texture `lut`
 // (a 1D texture, not a 256×1 2D one: the same linear lookup at half the texel reads,
 // which is what it costs on CPU adapters; docs/perf.md).
-// Texel centres sit at (i + 0.5)/N, so x ∈ [0,1] maps to (x·(N−1) + 0.5)/N.
 
-// N: the table's entries, `vwb_render::tf::LUT_SIZE` (a test keeps the two equal). A
-// constant power of two, so the division is a multiplication by the exact 1/N: the
-// same bits as dividing by the table's size, without a division per sample, which
-// llvmpipe would not hoist out of the march (docs/perf.md, "Divisions once per ray").
+// The table's entries, `vwb_render::tf::LUT_SIZE` (a test keeps the two equal): a
+// constant for `table_coord`.
 const p3_tf1d_LUT_N: f32 = 256.0;
 
 fn p3_tf1d_classify(s: Sample) -> Sample {
     var o = s;
-    let x = (clamp(s.value, 0.0, 1.0) * (p3_tf1d_LUT_N - 1.0) + 0.5) * (1.0 / p3_tf1d_LUT_N);
+    let x = table_coord(clamp(s.value, 0.0, 1.0), p3_tf1d_LUT_N);
     let c = textureSampleLevel(p3_tf1d_lut, linear_clamp, x, 0.0);
     o.color = vec4<f32>(c.rgb, clamp(c.a * p3_tf1d_params.opacity, 0.0, 1.0));
     return o;

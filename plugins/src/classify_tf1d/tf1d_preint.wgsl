@@ -6,9 +6,8 @@
 // which the core's opacity correction turns back into the slab opacity. The table
 // `preint_depth` holds where in the slab its opacity is taken up (`shade_at`).
 
-// N × N: the table's size, `vwb_render::tf::LUT_SIZE` (a test keeps the two equal).
-// A constant power of two, so the division is a multiplication by the exact 1/N
-// (docs/perf.md, "Divisions once per ray").
+// The table's size, `vwb_render::tf::LUT_SIZE` squared (a test keeps the two equal): a
+// constant for `table_coord2`.
 const PREINT_N: f32 = 256.0;
 
 fn classify(s: Sample) -> Sample {
@@ -17,7 +16,7 @@ fn classify(s: Sample) -> Sample {
     let back_tex = (back_pos - frame.box_min.xyz) / (frame.box_max.xyz - frame.box_min.xyz);
     let back = volume_value(back_tex);
     let fb = clamp(vec2<f32>(s.value, back), vec2<f32>(0.0), vec2<f32>(1.0));
-    let uv = (fb * (PREINT_N - 1.0) + 0.5) * (1.0 / PREINT_N);
+    let uv = table_coord2(fb, PREINT_N);
     o.color = textureSampleLevel(preint, linear_clamp, uv, 0.0);
     // shade_at: centroid — shading reads the gradient at the slab's opacity centroid
     // (left out at `front`: the structural parameter's other value, mod.rs)

@@ -4,8 +4,7 @@
 
 fn prepass(voxel: vec3<u32>, dims: vec3<u32>) -> vec4<f32> {
     let v = volume_voxel(vec3<i32>(voxel));
-    let n = f32(textureDimensions(lut));
-    let x = (clamp(v, 0.0, 1.0) * (n - 1.0) + 0.5) / n;
+    let x = table_coord(clamp(v, 0.0, 1.0), f32(textureDimensions(lut)));
     let c = textureSampleLevel(lut, linear_clamp, x, 0.0);
     return vec4<f32>(c.rgb * c.a, c.a);
 }
