@@ -10,9 +10,7 @@ use vwb_render::params::{Group, ParamSpec, ParamValues};
 use vwb_render::plugin::{
     CpuContext, CpuSample, CpuTwin, Plugin, PrepassDecl, ShaderSource, Transparency, Volumes,
 };
-use vwb_render::shading::{
-    GradientEstimator, Gradients, Light, LightKind, LightSpace, Material, shading_normal,
-};
+use vwb_render::shading::{GradientEstimator, Gradients, Light, LightKind, LightSpace, Material};
 
 /// The four lights, a parameter group: light i's keys are `light{i}_on`, `_type`,
 /// `_space`, `_vector` and `_color`, and `light{i}_on` switches it.
@@ -342,8 +340,9 @@ impl<T: LitColour> CpuTwin for LitTwin<T> {
             return;
         }
         let v = -s.ray_dir;
-        let g = self.gradients.at(ctx, s.shading_tex(ctx));
-        let (n, w) = shading_normal(g, self.floor, v, self.two_sided);
+        let (_, n, w) =
+            self.gradients
+                .normal(ctx, s.shading_tex(ctx), self.floor, v, self.two_sided);
         let base = s.color.truncate();
         let lit = self.model.lit(ctx, &self.lights, base, n, v, s.pos);
         s.color = DVec4::from((base.lerp(lit, w), s.color.w));

@@ -18,6 +18,8 @@
 //! | `precomputed_central` | 1 trilinear, shared with the sample's value | 16 B/voxel | `central` at every voxel centre, rgba32float, interpolated |
 //! | `precomputed_sobel` | 1 trilinear, shared with the sample's value | 16 B/voxel | `sobel` at every voxel centre, rgba32float, interpolated |
 //! | `quantized` | 1 nearest | 4 B/voxel | `central` at every voxel centre, direction in 16 bits, magnitude in 8, not interpolated |
+//! | `precomputed_normal` | 1 trilinear, beside the sample's value | 4 B/voxel | the thesis's normal texture (§7.2, eq 7.5): `central`'s unit direction scaled and biased into rgb, √magnitude in a, rgba8unorm, interpolated and renormalised |
+//! | `precomputed_normal_unnormalized` | as `precomputed_normal` | 4 B/voxel | the same texture, the interpolated normal not renormalised (§7.5: shorter between voxels whose normals differ) |
 //!
 //! The pre-pass (`shaders/gradient_prepass.wgsl`) evaluates the on-the-fly estimator at
 //! voxel centres, where trilinear interpolation returns the voxel itself, and stores
@@ -47,6 +49,26 @@
 //! direction error is below 1° ([`oct_decode`] of [`gradient_code`]); the nearest-voxel
 //! lookup facets the shading at the voxel scale, which the experiment
 //! `experiments/cheap_shading.ron` measures against the converged reference.
+//!
+//! `precomputed_normal` is the gradient texture of Rezk-Salama 2001, §7.2 (eq 7.5):
+//! the normalised gradient of `central` at every voxel, "scaled and biased" into
+//! unsigned 8-bit channels (rgb = 0.5·ĝ + 0.5, decoded as 2·rgb − 1), interpolated by
+//! the texture unit. The thesis's layout for semi-transparent shading is kept: the
+//! scalar stays in its own texture (the sample's value is the volume's, as for
+//! `central`), and a holds the gradient magnitude, here as √|g| in 1/255 steps like
+//! `quantized`'s (finest near the fade floor; the thesis stores |g|). A sample's
+//! gradient is the interpolated direction renormalised ("[IMPL] normalise in the
+//! shader"), with the interpolated code's magnitude a². A zero gradient stores the
+//! bias point, which decodes to (1/255, 1/255, 1/255), not zero; its magnitude 0 fades
+//! it to unlit. `precomputed_normal_unnormalized` shades with the interpolated vector
+//! as it comes from the texture, shorter than 1 between voxels whose normals differ:
+//! the thesis's hardware did so, and §7.5 calls the dimming "hardly visible" (its
+//! testable claim 9, measured by `experiments/normal_texture.ron`). The length (≤ 1)
+//! scales the normal that `shading_normal` returns: on the GPU through the private
+//! `shading_normal_scale` that every `gradient_at` sets, in the twin through
+//! [`Gradients::normal`]. The interpolation of 8-bit codes is the texture unit's:
+//! lavapipe's filter weights for unorm8 formats have 8 bits, as GPUs' do, so the twin
+//! (f64 weights) differs by up to 1/512 of neighbouring codes' difference.
 //!
 //! # Shading normal and the fade rule
 //!
@@ -82,22 +104,28 @@ pub enum GradientEstimator {
     PrecomputedCentral,
     PrecomputedSobel,
     Quantized,
+    PrecomputedNormal,
+    PrecomputedNormalUnnormalized,
 }
 
 impl GradientEstimator {
-    pub const ALL: [Self; 5] = [
+    pub const ALL: [Self; 7] = [
         Self::Central,
         Self::Sobel,
         Self::PrecomputedCentral,
         Self::PrecomputedSobel,
         Self::Quantized,
+        Self::PrecomputedNormal,
+        Self::PrecomputedNormalUnnormalized,
     ];
-    pub const NAMES: [&'static str; 5] = [
+    pub const NAMES: [&'static str; 7] = [
         "central",
         "sobel",
         "precomputed_central",
         "precomputed_sobel",
         "quantized",
+        "precomputed_normal",
+        "precomputed_normal_unnormalized",
     ];
 
     pub fn name(self) -> &'static str {
@@ -114,9 +142,13 @@ impl GradientEstimator {
     /// Whether a pre-pass volume holds the gradients (the `precomputed_*` ones and
     /// `quantized`).
     pub fn is_precomputed(self) -> bool {
+        !matches!(self, Self::Central | Self::Sobel)
+    }
+    /// Whether the pre-pass holds the thesis's normal texture (`precomputed_normal*`).
+    pub fn is_normal_texture(self) -> bool {
         matches!(
             self,
-            Self::PrecomputedCentral | Self::PrecomputedSobel | Self::Quantized
+            Self::PrecomputedNormal | Self::PrecomputedNormalUnnormalized
         )
     }
     pub fn is_sobel(self) -> bool {
@@ -124,13 +156,15 @@ impl GradientEstimator {
     }
 
     /// The `gradient` parameter's options: `auto`, then the estimators.
-    pub const PARAM_NAMES: [&'static str; 6] = [
+    pub const PARAM_NAMES: [&'static str; 8] = [
         "auto",
         "central",
         "sobel",
         "precomputed_central",
         "precomputed_sobel",
         "quantized",
+        "precomputed_normal",
+        "precomputed_normal_unnormalized",
     ];
 
     /// The structural parameter that selects it (default `auto`, which the renderer
@@ -145,7 +179,11 @@ impl GradientEstimator {
                  16 bytes per voxel), 1 interpolated read that also gives the sample's \
                  value; quantized: central's direction \
                  in 16 bits and magnitude in 8 (4 bytes per voxel), 1 read of the nearest \
-                 voxel",
+                 voxel; precomputed_normal: the thesis's normal texture (central's unit \
+                 direction scaled and biased into 8 bits per channel, √magnitude in \
+                 alpha; 4 bytes per voxel), 1 interpolated read besides the value's, \
+                 renormalised; precomputed_normal_unnormalized: the same, the \
+                 interpolated normal used as it is (shorter between voxels)",
             )
     }
 
@@ -179,10 +217,24 @@ impl GradientEstimator {
                  let v = clamp(vec3<i32>(floor(tex * vec3<f32>(dims))), vec3<i32>(0), dims - vec3<i32>(1));\n    \
                  return cut_gradient(gradient_decode(textureLoad(gradient, v, 0)));"
             }
+            Self::PrecomputedNormal => {
+                "return cut_gradient(normal_code_gradient(textureSampleLevel(gradient, linear_clamp, tex, 0.0)));"
+            }
+            Self::PrecomputedNormalUnnormalized => {
+                "let c = textureSampleLevel(gradient, linear_clamp, tex, 0.0);\n    \
+                 shading_normal_scale = select(min(length(c.xyz * 2.0 - vec3<f32>(1.0)), 1.0), 1.0, clip_cut_gradient.w > 0.5);\n    \
+                 return cut_gradient(normal_code_gradient(c));"
+            }
+        };
+        // every estimator sets the normal's scale, so that a stack of two shading
+        // plugins never reads the other's (module docs)
+        let scale = match self {
+            Self::PrecomputedNormalUnnormalized => "",
+            _ => "shading_normal_scale = 1.0;\n    ",
         };
         ShaderSource {
             source: format!(
-                "{}\n// appended by vwb_render::shading ({} gradient)\nfn gradient_at(tex: vec3<f32>) -> vec3<f32> {{\n    {body}\n}}\n",
+                "{}\n// appended by vwb_render::shading ({} gradient)\nfn gradient_at(tex: vec3<f32>) -> vec3<f32> {{\n    {scale}{body}\n}}\n",
                 shader.source,
                 self.name()
             )
@@ -192,8 +244,8 @@ impl GradientEstimator {
     }
 
     /// The gradient pre-pass (target `gradient`: rgba32float g and the voxel's value, or
-    /// for `quantized` the rgba8unorm code of [`gradient_code`]) of the precomputed
-    /// estimators. The value in w lets the main module read a sample's value and its
+    /// for `quantized` the rgba8unorm code of [`gradient_code`], for `precomputed_normal*`
+    /// that of [`normal_code`]) of the precomputed estimators. The value in w lets the main module read a sample's value and its
     /// gradient with one fetch ([`PrepassDecl::holds_value`]).
     pub fn prepass(self) -> Option<PrepassDecl> {
         let with_value = "vec4<f32>(g, volume_voxel(vec3<i32>(voxel)))";
@@ -204,6 +256,11 @@ impl GradientEstimator {
                 "gradient_encode(g)",
             ),
             Self::PrecomputedSobel => (StorageFormat::Rgba32Float, "gradient_sobel", with_value),
+            Self::PrecomputedNormal | Self::PrecomputedNormalUnnormalized => (
+                StorageFormat::Rgba8Unorm,
+                "gradient_central",
+                "normal_encode(g)",
+            ),
             _ => (StorageFormat::Rgba32Float, "gradient_central", with_value),
         };
         self.is_precomputed().then(|| PrepassDecl {
@@ -320,6 +377,49 @@ pub fn gradient_code(g: DVec3) -> [u8; 3] {
 pub fn gradient_decode(code: [u8; 3]) -> DVec3 {
     let f = code.map(|c| c as f64 / 255.0);
     oct_decode(DVec2::new(f[0], f[1]) * 2.0 - 1.0) * (f[2] * f[2])
+}
+
+/// `normal_encode`: the 8-bit codes of a gradient in the thesis's normal texture
+/// (Rezk-Salama 2001, eq 7.5): rgb = 0.5·ĝ + 0.5 and a = √|g| (|g| clamped to 1), each
+/// rounded to k/255 (module docs). A zero or non-finite gradient gives the bias point
+/// (128, 128, 128) and magnitude 0.
+pub fn normal_code(g: DVec3) -> [u8; 4] {
+    let m = g.length();
+    let (d, m) = if m > 0.0 && m.is_finite() {
+        (g / m, m.min(1.0))
+    } else {
+        (DVec3::ZERO, 0.0)
+    };
+    let q = |x: f64| (x.clamp(0.0, 1.0) * 255.0).round() as u8;
+    [
+        q(d.x * 0.5 + 0.5),
+        q(d.y * 0.5 + 0.5),
+        q(d.z * 0.5 + 0.5),
+        q(m.sqrt()),
+    ]
+}
+
+/// `normal_code_gradient`: the gradient of an interpolated code of [`normal_code`]
+/// (channels in [0, 1]): the decoded direction 2·rgb − 1 renormalised, times the
+/// magnitude a²; zero where the direction decodes to zero.
+pub fn normal_code_gradient(c: DVec4) -> DVec3 {
+    let d = c.truncate() * 2.0 - DVec3::ONE;
+    let l = d.length();
+    if l > 0.0 {
+        d * (c.w * c.w / l)
+    } else {
+        DVec3::ZERO
+    }
+}
+
+/// The `precomputed_normal*` estimators' pre-pass volume: `central`'s gradient at every
+/// voxel centre (in f32, as the GPU computes it) as the codes of [`normal_code`], in
+/// [0, 1] as the texture unit reads them. x fastest.
+pub fn normal_texture_volume(ctx: &CpuContext) -> Vec<[f32; 4]> {
+    voxel_gradients(ctx, false)
+        .into_iter()
+        .map(|g| normal_code(g.as_vec3().as_dvec3()).map(|c| c as f32 / 255.0))
+        .collect()
 }
 
 /// World size of a texel of the shading scalar's grid (`(box_max − box_min) / n` in
@@ -460,10 +560,37 @@ impl Gradients {
         if self.estimator.is_precomputed() && self.volume.is_none() {
             self.volume = Some(if self.estimator == GradientEstimator::Quantized {
                 quantized_gradient_volume(ctx)
+            } else if self.estimator.is_normal_texture() {
+                normal_texture_volume(ctx)
             } else {
                 gradient_volume(ctx, self.estimator.is_sobel())
             });
         }
+    }
+    /// `shading_normal(gradient_at(tex), floor, view, two_sided)` as the GPU evaluates it:
+    /// (g, n, w), with n scaled by `shading_normal_scale` (the interpolated normal's
+    /// length for `precomputed_normal_unnormalized` where no clip cut sets the gradient,
+    /// else 1).
+    pub fn normal(
+        &self,
+        ctx: &CpuContext,
+        tex: DVec3,
+        floor: f64,
+        view: DVec3,
+        two_sided: bool,
+    ) -> (DVec3, DVec3, f64) {
+        let g = self.at(ctx, tex);
+        let (n, w) = shading_normal(g, floor, view, two_sided);
+        let scale = match (self.estimator, &self.volume) {
+            (GradientEstimator::PrecomputedNormalUnnormalized, Some(v))
+                if cut_gradient().is_none() =>
+            {
+                let c = ctx.trilinear(tex, |i| DVec4::from(v[i].map(f64::from)));
+                (c.truncate() * 2.0 - DVec3::ONE).length().min(1.0)
+            }
+            _ => 1.0,
+        };
+        (g, n * scale, w)
     }
     /// `gradient_at(tex)`: the clip cut's gradient where a clip twin set one for the
     /// current sample ([`set_cut_gradient`]), else the estimator's.
@@ -483,6 +610,9 @@ impl Gradients {
                 });
                 let c = v[i[0] + d[0] as usize * (i[1] + d[1] as usize * i[2])];
                 DVec3::new(c[0] as f64, c[1] as f64, c[2] as f64)
+            }
+            (e, Some(v)) if e.is_normal_texture() => {
+                normal_code_gradient(ctx.trilinear(tex, |i| DVec4::from(v[i].map(f64::from))))
             }
             (e, Some(v)) => {
                 let g = ctx
@@ -681,7 +811,10 @@ mod tests {
             let got = g.at(&ctx, tex);
             // f32 scalars and pre-pass volume; 8-bit codes (1°)
             let tol = match e {
+                // 8-bit codes: quantized's direction within 1°, the normal texture's
+                // components within 1/255, both magnitudes as √|g| in 1/255 steps
                 GradientEstimator::Quantized => 2e-2,
+                e if e.is_normal_texture() => 2e-2,
                 e if e.is_precomputed() => 1e-5,
                 _ => 1e-6,
             };
@@ -691,6 +824,103 @@ mod tests {
                 e.name()
             );
         }
+    }
+
+    /// The thesis's normal encoding (Rezk-Salama 2001, eq 7.5; its testable claim 1):
+    /// rgb = 0.5·n + 0.5 round-trips within 1/255 per component at 8 bits, so the decoded
+    /// normal has length 1 within √3/255; the magnitude round-trips within its √ step; a
+    /// zero, NaN or infinite gradient stores magnitude 0 (the fade leaves it unlit).
+    #[test]
+    fn normal_codes_round_trip_within_one_step() {
+        let mut worst = 0.0f64;
+        for i in 0..2000 {
+            // a spiral over the sphere, and magnitudes from 10⁻⁴ to 1
+            let z = 1.0 - 2.0 * (i as f64 + 0.5) / 2000.0;
+            let phi = i as f64 * 2.399_963;
+            let r = (1.0 - z * z).sqrt();
+            let n = DVec3::new(r * phi.cos(), r * phi.sin(), z);
+            let m = 10f64.powf(-4.0 + 4.0 * (i % 97) as f64 / 96.0);
+            let c = normal_code(n * m);
+            let rgb = DVec3::new(c[0] as f64, c[1] as f64, c[2] as f64) / 255.0;
+            let d = rgb * 2.0 - DVec3::ONE;
+            let err = (d - n).abs().max_element();
+            worst = worst.max(err);
+            assert!(err <= 1.0 / 255.0 + 1e-12, "{n}: {d}");
+            assert!((d.length() - 1.0).abs() <= 3f64.sqrt() / 255.0, "{d}");
+            // √m in 1/255 steps
+            let a = c[3] as f64 / 255.0;
+            assert!((a - m.sqrt()).abs() <= 0.5 / 255.0 + 1e-12, "{m}: {a}");
+            // the decoded gradient points along n, with the decoded magnitude
+            let g = normal_code_gradient(rgb.extend(a));
+            assert!((g.length() - a * a).abs() <= 1e-12);
+            if a > 0.0 {
+                assert!(g.normalize().dot(n) > (2.0f64).to_radians().cos(), "{n}: {g}");
+            }
+        }
+        assert!(worst > 0.5 / 255.0, "the 8-bit steps show: {worst}");
+        for bad in [DVec3::ZERO, DVec3::splat(f64::NAN), DVec3::new(f64::INFINITY, 0.0, 0.0)] {
+            assert_eq!(normal_code(bad), [128, 128, 128, 0], "{bad}");
+        }
+        // the bias point decodes to (1/255, 1/255, 1/255), not zero; magnitude 0 keeps
+        // the gradient zero
+        let c = normal_code(DVec3::ZERO).map(|c| c as f64 / 255.0);
+        assert_eq!(normal_code_gradient(DVec4::from(c)), DVec3::ZERO);
+        // magnitudes above 1 clamp
+        assert_eq!(normal_code(DVec3::new(0.0, 7.0, 0.0))[3], 255);
+    }
+
+    /// Between voxels whose normals differ the interpolated normal is shorter than 1:
+    /// `precomputed_normal` renormalises it, `precomputed_normal_unnormalized` shades with
+    /// it as it is (§7.5). A ridge along x: the normals of its two flanks are opposite,
+    /// and the voxel on its crest has no gradient (the bias point, magnitude 0).
+    #[test]
+    fn unnormalized_normals_are_shorter_between_differing_voxels() {
+        let vol = ramp([5, 4, 4], [1.0; 3], |x, _, _| [0.0, 0.5, 1.0, 0.5, 0.0][x as usize]);
+        let scalars = vol.normalized_scalars();
+        let ctx = CpuContext::new(&vol, &scalars);
+        let v = DVec3::new(0.3, 0.2, 1.0).normalize();
+        let at = |e: GradientEstimator, x: f64| {
+            let mut g = Gradients::new(e);
+            g.prepare(&ctx);
+            g.normal(&ctx, DVec3::new(x / 5.0, 0.5, 0.5), 0.02, v, false)
+        };
+        for e in GradientEstimator::ALL {
+            // at a voxel centre of a flank every estimator gives a unit normal along ∓x
+            let (_, n, w) = at(e, 1.5);
+            assert!((n.length() - 1.0).abs() < 1e-2, "{}: {n}", e.name());
+            assert!(n.x < -0.99 && w == 1.0, "{}: {n} {w}", e.name());
+        }
+        // halfway between the flank and the crest: the crest stores the bias point, so
+        // the interpolated normal is half as long; its gradient (and fade) the same
+        let (g_unit, n_unit, _) = at(GradientEstimator::PrecomputedNormal, 2.0);
+        let (g_short, n_short, _) = at(GradientEstimator::PrecomputedNormalUnnormalized, 2.0);
+        assert!((n_unit.length() - 1.0).abs() < 1e-9, "{n_unit}");
+        assert!((n_short.length() - 0.5).abs() < 0.01, "{n_short}");
+        assert!((n_short.normalize() - n_unit).length() < 1e-9);
+        assert_eq!(g_unit, g_short);
+        // two neighbouring voxels with opposite normals (a ridge two voxels wide),
+        // halfway: the unnormalised normal cancels to (nearly) nothing, the renormalised
+        // one is a unit vector across both (the codes' bias, 1/255 in y and z), at the
+        // full fade weight: interpolated directions know no magnitude (`central`'s
+        // interpolated differences are zero there and fade to unlit)
+        let vol = ramp([6, 4, 4], [1.0; 3], |x, _, _| {
+            [0.0, 0.0, 1.0, 1.0, 0.0, 0.0][x as usize]
+        });
+        let scalars = vol.normalized_scalars();
+        let ctx = CpuContext::new(&vol, &scalars);
+        let tex = DVec3::new(3.0 / 6.0, 0.5, 0.5);
+        let normal = |e: GradientEstimator| {
+            let mut g = Gradients::new(e);
+            g.prepare(&ctx);
+            g.normal(&ctx, tex, 0.02, v, false)
+        };
+        let (_, n_cancel, _) = normal(GradientEstimator::PrecomputedNormalUnnormalized);
+        assert!(n_cancel.length() < 0.01, "{n_cancel}");
+        let (_, n_across, w) = normal(GradientEstimator::PrecomputedNormal);
+        assert!((n_across.length() - 1.0).abs() < 1e-9 && n_across.x.abs() < 1e-9);
+        assert_eq!(w, 1.0);
+        let (g, _, w) = normal(GradientEstimator::PrecomputedCentral);
+        assert!(g.length() < 1e-6 && w < 1e-4, "{g} {w}");
     }
 
     /// The twins of `precomputed_central` and `central` agree everywhere in the box,

@@ -186,13 +186,14 @@ impl CpuTwin for BlinnPhongTwin {
         self.gradients.prepare(ctx);
     }
     fn shade(&self, ctx: &CpuContext, s: &mut CpuSample) {
-        use vwb_render::shading::{blinn_phong_with, shading_normal};
+        use vwb_render::shading::blinn_phong_with;
         if s.color.w <= 0.0 {
             return;
         }
         let v = -s.ray_dir;
-        let g = self.gradients.at(ctx, s.shading_tex(ctx));
-        let (n, w) = shading_normal(g, self.floor, v, self.two_sided);
+        let (g, n, w) =
+            self.gradients
+                .normal(ctx, s.shading_tex(ctx), self.floor, v, self.two_sided);
         let lights: Vec<_> = self
             .lights
             .iter()

@@ -20,7 +20,7 @@ use vwb_render::plugin::{
     ResourceDecl, ResourceKind, ShaderSource, Transparency, Volumes,
 };
 use vwb_render::shading::{
-    GradientEstimator, Gradients, Light, Material, blinn_phong_factors, shading_normal,
+    GradientEstimator, Gradients, Light, Material, blinn_phong_factors,
 };
 
 use crate::lighting;
@@ -153,7 +153,7 @@ impl CpuTwin for EnvMapTwin {
             return;
         }
         let v = -s.ray_dir;
-        let (n, w) = shading_normal(self.gradients.at(ctx, s.shading_tex(ctx)), self.floor, v, true);
+        let (_, n, w) = self.gradients.normal(ctx, s.shading_tex(ctx), self.floor, v, true);
         if w <= 0.0 {
             return;
         }

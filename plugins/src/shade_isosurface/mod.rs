@@ -28,7 +28,7 @@ use glam::{DVec3, DVec4};
 use vwb_render::params::{Group, ParamSpec, ParamValues};
 use vwb_render::plugin::{CpuContext, CpuSample, CpuTwin, Plugin, PrepassDecl, ShaderSource};
 use vwb_render::shading::{
-    GradientEstimator, Gradients, Light, Material, blinn_phong_factors, shading_normal,
+    GradientEstimator, Gradients, Light, Material, blinn_phong_factors,
 };
 
 use vwb_render::reference::correct_opacity;
@@ -182,7 +182,7 @@ pub struct IsosurfaceTwin {
 
 impl IsosurfaceTwin {
     fn surface_rgb(&self, ctx: &CpuContext, c: DVec3, tex: DVec3, pos: DVec3, v: DVec3) -> DVec3 {
-        let (n, w) = shading_normal(self.gradients.at(ctx, tex), self.floor, v, true);
+        let (_, n, w) = self.gradients.normal(ctx, tex, self.floor, v, true);
         let (d, s) = blinn_phong_factors(n, v, self.light.dir(ctx, pos), self.material.shininess);
         let m = &self.material;
         let lit = c * (m.ka + m.kd * d) + DVec3::splat(m.ks * s);
