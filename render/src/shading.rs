@@ -66,9 +66,11 @@
 //! testable claim 9, measured by `experiments/normal_texture.ron`). The length (≤ 1)
 //! scales the normal that `shading_normal` returns: on the GPU through the private
 //! `shading_normal_scale` that every `gradient_at` sets, in the twin through
-//! [`Gradients::normal`]. The interpolation of 8-bit codes is the texture unit's:
-//! lavapipe's filter weights for unorm8 formats have 8 bits, as GPUs' do, so the twin
-//! (f64 weights) differs by up to 1/512 of neighbouring codes' difference.
+//! [`Gradients::normal`]. The interpolation of the 8-bit codes is the texture unit's,
+//! and the twin's is f64: lavapipe filters unorm8 textures in 8-bit fixed point (the
+//! same codes stored as rgba32float match the twin as closely as `precomputed_central`
+//! does), as GPUs' texture units filter with 8-bit weights, so the twin tests hold
+//! these two estimators to the bounds they hold on a GPU (`coverage.rs`).
 //!
 //! # Shading normal and the fade rule
 //!
@@ -422,6 +424,12 @@ pub fn normal_texture_volume(ctx: &CpuContext) -> Vec<[f32; 4]> {
         .collect()
 }
 
+/// The normal texture's interpolated code at `tex` (trilinear in f64; the texture unit
+/// filters the 8-bit codes at its own precision: module docs).
+fn normal_texel(ctx: &CpuContext, v: &[[f32; 4]], tex: DVec3) -> DVec4 {
+    ctx.trilinear(tex, |i| DVec4::from(v[i].map(f64::from)))
+}
+
 /// World size of a texel of the shading scalar's grid (`(box_max − box_min) / n` in
 /// the estimators; `voxel_size_world()` for the volume's grid).
 fn texel_world(ctx: &CpuContext, grid: [u32; 3]) -> DVec3 {
@@ -585,7 +593,7 @@ impl Gradients {
             (GradientEstimator::PrecomputedNormalUnnormalized, Some(v))
                 if cut_gradient().is_none() =>
             {
-                let c = ctx.trilinear(tex, |i| DVec4::from(v[i].map(f64::from)));
+                let c = normal_texel(ctx, v, tex);
                 (c.truncate() * 2.0 - DVec3::ONE).length().min(1.0)
             }
             _ => 1.0,
@@ -612,7 +620,7 @@ impl Gradients {
                 DVec3::new(c[0] as f64, c[1] as f64, c[2] as f64)
             }
             (e, Some(v)) if e.is_normal_texture() => {
-                normal_code_gradient(ctx.trilinear(tex, |i| DVec4::from(v[i].map(f64::from))))
+                normal_code_gradient(normal_texel(ctx, v, tex))
             }
             (e, Some(v)) => {
                 let g = ctx
@@ -854,11 +862,18 @@ mod tests {
             let g = normal_code_gradient(rgb.extend(a));
             assert!((g.length() - a * a).abs() <= 1e-12);
             if a > 0.0 {
-                assert!(g.normalize().dot(n) > (2.0f64).to_radians().cos(), "{n}: {g}");
+                assert!(
+                    g.normalize().dot(n) > (2.0f64).to_radians().cos(),
+                    "{n}: {g}"
+                );
             }
         }
         assert!(worst > 0.5 / 255.0, "the 8-bit steps show: {worst}");
-        for bad in [DVec3::ZERO, DVec3::splat(f64::NAN), DVec3::new(f64::INFINITY, 0.0, 0.0)] {
+        for bad in [
+            DVec3::ZERO,
+            DVec3::splat(f64::NAN),
+            DVec3::new(f64::INFINITY, 0.0, 0.0),
+        ] {
             assert_eq!(normal_code(bad), [128, 128, 128, 0], "{bad}");
         }
         // the bias point decodes to (1/255, 1/255, 1/255), not zero; magnitude 0 keeps
@@ -875,7 +890,9 @@ mod tests {
     /// and the voxel on its crest has no gradient (the bias point, magnitude 0).
     #[test]
     fn unnormalized_normals_are_shorter_between_differing_voxels() {
-        let vol = ramp([5, 4, 4], [1.0; 3], |x, _, _| [0.0, 0.5, 1.0, 0.5, 0.0][x as usize]);
+        let vol = ramp([5, 4, 4], [1.0; 3], |x, _, _| {
+            [0.0, 0.5, 1.0, 0.5, 0.0][x as usize]
+        });
         let scalars = vol.normalized_scalars();
         let ctx = CpuContext::new(&vol, &scalars);
         let v = DVec3::new(0.3, 0.2, 1.0).normalize();

@@ -419,7 +419,40 @@ fn shading_normal(g: vec3<f32>, fade: f32, v: vec3<f32>, two_sided: bool) -> vec
     if (two_sided && dot(n, v) < 0.0) {
         n = -n;
     }
-    return vec4<f32>(n, clamp(m / max(fade, 1.0e-12), 0.0, 1.0));
+    return vec4<f32>(n * shading_normal_scale, clamp(m / max(fade, 1.0e-12), 0.0, 1.0));
+}
+
+// The length of the normal `shading_normal` returns: 1, except after the
+// `precomputed_normal_unnormalized` estimator's `gradient_at`, which sets the length of
+// its interpolated normal (≤ 1; Rezk-Salama 2001, §7.5). Every estimator's `gradient_at`
+// sets it. Twin: shading::Gradients::normal.
+var<private> shading_normal_scale: f32 = 1.0;
+
+// The thesis's normal texture (Rezk-Salama 2001, §7.2, eq 7.5): the unit gradient
+// "scaled and biased" into [0, 1] (rgb = 0.5·ĝ + 0.5) and √|g| (clamped to |g| ≤ 1) in a,
+// rounded here to k/255 so that the rgba8unorm store's conversion is exact. Twin:
+// shading::normal_code.
+fn normal_encode(g: vec3<f32>) -> vec4<f32> {
+    let m = length(g);
+    var d = vec3<f32>(0.0);
+    var mm = 0.0;
+    if (m > 0.0 && m < 3.0e38) {
+        d = g / m;
+        mm = min(m, 1.0);
+    }
+    let c = vec4<f32>(d * 0.5 + vec3<f32>(0.5), sqrt(mm));
+    return round(clamp(c, vec4<f32>(0.0), vec4<f32>(1.0)) * 255.0) / 255.0;
+}
+
+// ∇f·Δs0 from an interpolated code of normal_encode: the decoded direction
+// (2·rgb − 1) renormalised, times the magnitude a². Twin: shading::normal_code_gradient.
+fn normal_code_gradient(c: vec4<f32>) -> vec3<f32> {
+    let d = c.xyz * 2.0 - vec3<f32>(1.0);
+    let l = length(d);
+    if (!(l > 0.0)) {
+        return vec3<f32>(0.0);
+    }
+    return d * (c.w * c.w / l);
 }
 
 // Octahedral map of a unit vector onto [-1, 1]² (Meyer et al. 2010); (0, 0) for the

@@ -104,10 +104,41 @@ pub fn assert_kept(a: &[[f32; 4]], b: &[[f32; 4]], what: &str) {
 /// to these bounds; the H200's worst was storm_lic_tf2d on compute, 0.63 (a LIC
 /// integral over a 2D lookup: a broad difference, not an edge).
 pub fn twin_bound(backend: vwb_render::Backend, per_slice: bool) -> f64 {
+    let (lavapipe, gpu) = twin_bounds(backend, per_slice);
+    adapter_bound(lavapipe, gpu)
+}
+
+/// [`twin_bound`]'s (lavapipe, GPU) pair.
+fn twin_bounds(backend: vwb_render::Backend, per_slice: bool) -> (f64, f64) {
     match (backend, per_slice) {
-        (vwb_render::Backend::Compute, _) => adapter_bound(0.15, 0.75),
-        (vwb_render::Backend::Raster, false) => adapter_bound(0.5, 1.0),
-        (vwb_render::Backend::Raster, true) => adapter_bound(1.0, 1.5),
+        (vwb_render::Backend::Compute, _) => (0.15, 0.75),
+        (vwb_render::Backend::Raster, false) => (0.5, 1.0),
+        (vwb_render::Backend::Raster, true) => (1.0, 1.5),
+    }
+}
+
+/// Whether a plugin mode has the texture unit filter 8-bit codes: the
+/// `precomputed_normal*` estimators' rgba8unorm normal texture (Rezk-Salama 2001, eq
+/// 7.5). lavapipe filters unorm8 textures in 8-bit fixed point, as GPUs' texture units
+/// do, where its twin interpolates in f64 (the same codes stored as rgba32float match
+/// the twin as `precomputed_central` does: 0.0001 ΔE*uv), so such a mode is measured as
+/// on a GPU on every adapter: [`twin_bound_of`].
+pub fn filters_unorm8(values: &vwb_render::params::ParamValues) -> bool {
+    use vwb_render::params::ParamValue;
+    use vwb_render::shading::GradientEstimator;
+    matches!(values.get("gradient"), Some(ParamValue::Enum(e))
+        if GradientEstimator::from_name(e).is_some_and(GradientEstimator::is_normal_texture))
+}
+
+/// The twin bound and measure of a plugin mode: [`twin_bound`] with `delta_e_rms` on
+/// lavapipe, the GPU's bound with `delta_e_rms_near` (an edge may move by a pixel) on a
+/// GPU and for modes that filter 8-bit codes ([`filters_unorm8`]). Returns (bound, whether
+/// to measure near).
+pub fn twin_bound_of(backend: vwb_render::Backend, per_slice: bool, unorm8: bool) -> (f64, bool) {
+    if unorm8 {
+        (twin_bounds(backend, per_slice).1, true)
+    } else {
+        (twin_bound(backend, per_slice), on_gpu())
     }
 }
 
