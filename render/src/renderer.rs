@@ -240,6 +240,7 @@ struct FrameUniform {
     state_rays: [f32; 16],
     inv_extent: [f32; 4],
     hull: [[f32; 4]; 5],
+    spread: [u32; 4],
 }
 
 const SLICE_INFO_STRIDE: u64 = 256;
@@ -3558,6 +3559,11 @@ impl Renderer {
                 .extend(0.0)
                 .to_array(),
             hull: hull.unwrap_or_default(),
+            spread: {
+                // the whole-frame dispatch's workgroup rows (`wg_own`, atlas tiles)
+                let rows = (rect[3] - rect[1]).div_ceil(self.main_workgroup[1].max(1));
+                [rows, spread_stride(rows), 0, 0]
+            },
         }
     }
 
@@ -5417,6 +5423,23 @@ fn read_texture(gpu: &GpuContext, tex: &wgpu::Texture, bpp: u32) -> Vec<u8> {
 
 /// The whole-frame march (`pipeline`: `cs_main`, `cs_main_skip` or `cs_main_raw`) over
 /// `n` workgroups, once per part of the frame (`g3s`, [`march_parts`]), in one pass.
+/// The stride by which `spread_row` (shaders/slice.wgsl) permutes `rows` workgroup rows:
+/// the first integer from ⌊rows · 0.618034⌋ (in f32, as the shader computes it; at least
+/// 1) that is coprime to `rows`.
+fn spread_stride(rows: u32) -> u32 {
+    fn gcd(mut a: u32, mut b: u32) -> u32 {
+        while b != 0 {
+            (a, b) = (b, a % b);
+        }
+        a
+    }
+    let mut s = ((rows as f32 * 0.618034f32) as u32).max(1);
+    while gcd(s, rows) > 1 {
+        s += 1;
+    }
+    s
+}
+
 fn encode_march(
     enc: &mut wgpu::CommandEncoder,
     pipeline: &wgpu::ComputePipeline,
@@ -5455,6 +5478,32 @@ fn read_buffer(gpu: &GpuContext, buf: &wgpu::Buffer, size: u64) -> Vec<u8> {
 
 #[cfg(test)]
 mod tests {
+    /// The rows' stride that the frame uniform hands `spread_row`: the shader's own
+    /// search (the first integer from ⌊rows · 0.618034⌋ coprime to rows), so q ↦ q·s mod
+    /// rows is a permutation of the rows; 64 rows (512² in 8 × 8 workgroups) take 39,
+    /// 66 rows take 41 (40 shares the factor 2 with 66).
+    #[test]
+    fn the_spread_stride_permutes_the_rows() {
+        assert_eq!(super::spread_stride(64), 39);
+        assert_eq!(super::spread_stride(66), 41);
+        assert_eq!(super::spread_stride(0), 1);
+        assert_eq!(super::spread_stride(1), 1);
+        for rows in 1..600u32 {
+            let s = super::spread_stride(rows);
+            let first = ((rows as f32 * 0.618034f32) as u32).max(1);
+            assert!(s >= first, "{rows}: {s}");
+            let mut seen = vec![false; rows as usize];
+            for q in 0..rows {
+                seen[((q * s) % rows) as usize] = true;
+            }
+            assert!(seen.iter().all(|&x| x), "{rows}: {s} is no permutation");
+            // the first such: every stride between shares a factor with rows
+            for t in first..s {
+                assert!((2..=t).any(|d| t % d == 0 && rows % d == 0), "{rows}: {t}");
+            }
+        }
+    }
+
     /// Slices per proxy polygon round down to one of the groups, each dividing the
     /// runs between the depth masks.
     #[test]

@@ -58,6 +58,10 @@ struct Frame {
     // directions (`Dop::DIRS[3..]`; its axis slabs are the own box): hull[m] holds the
     // least and greatest n·p of direction 2m (xy) and of direction 2m + 1 (zw)
     hull: array<vec4<f32>, 5>,
+    // x: the workgroup rows of the frame's whole-frame dispatch, y: the stride that
+    // `spread_row` spreads them by (computed once per frame on the CPU:
+    // `renderer::spread_stride`)
+    spread: vec4<u32>,
 }
 
 // A sweep pass's geometry (render/src/sweep.rs): the axis its planes are normal to,
@@ -1474,8 +1478,14 @@ fn main_pixel(wg: vec3<u32>, groups: vec3<u32>, li: u32) -> vec2<u32> {
 // more of the matter works on after the others have finished. Rows spread by the
 // golden ratio give every contiguous run, whatever the number of threads, rows from all
 // over the image. The pixels are the same, and so is the image (docs/perf.md, "Pixel
-// blocks per SIMD vector").
+// blocks per SIMD vector"). The frame's uniform holds s for its dispatch's rows (the
+// search below cost every invocation a dozen integer divisions, which a CPU device
+// runs one lane at a time: docs/perf.md, "The rows' stride once per frame"); it runs
+// only for another number of rows.
 fn spread_row(q: u32, rows: u32) -> u32 {
+    if (rows == frame.spread.x) {
+        return (q * frame.spread.y) % max(rows, 1u);
+    }
     var s = max(u32(f32(rows) * 0.618034), 1u);
     loop {
         var a = s;

@@ -58,6 +58,10 @@ struct Frame {
     // directions (`Dop::DIRS[3..]`; its axis slabs are the own box): hull[m] holds the
     // least and greatest n·p of direction 2m (xy) and of direction 2m + 1 (zw)
     hull: array<vec4<f32>, 5>,
+    // x: the workgroup rows of the frame's whole-frame dispatch, y: the stride that
+    // `spread_row` spreads them by (computed once per frame on the CPU:
+    // `renderer::spread_stride`)
+    spread: vec4<u32>,
 }
 
 // A sweep pass's geometry (render/src/sweep.rs): the axis its planes are normal to,
