@@ -2332,7 +2332,9 @@ fn workgroup_shapes_render_the_same_pixels() {
 /// rows so that every thread of a CPU device gets rows from all over the image, is a
 /// permutation of the rows for every row count up to 600 (a row rendered twice would
 /// leave another unrendered), and it spreads: the first half of the dispatch's rows
-/// holds between a third and two thirds of the image's top half.
+/// holds between a third and two thirds of the image's top half. The kernel runs the
+/// shader's own search (its frame uniform names no rows here); the stride a frame
+/// uniform hands it is that search's (`renderer::tests::the_spread_stride_permutes_the_rows`).
 #[test]
 fn spread_rows_are_a_permutation() {
     const MAX_ROWS: u32 = 600;
@@ -2342,7 +2344,9 @@ fn spread_rows_are_a_permutation() {
         .expect("spread_row in slice.wgsl");
     let len = template[start..].find("\n}\n").expect("its end") + 3;
     let source = format!(
-        "{}
+        "struct Frame {{ spread: vec4<u32> }}
+var<private> frame: Frame = Frame(vec4<u32>(0u));
+{}
 @group(0) @binding(0) var<storage, read_write> out: array<u32>;
 @compute @workgroup_size(64)
 fn main(@builtin(global_invocation_id) id: vec3<u32>) {{
