@@ -245,10 +245,11 @@ impl GradientEstimator {
         }
     }
 
-    /// The gradient pre-pass (target `gradient`: rgba32float g and the voxel's value, or
-    /// for `quantized` the rgba8unorm code of [`gradient_code`], for `precomputed_normal*`
-    /// that of [`normal_code`]) of the precomputed estimators. The value in w lets the main module read a sample's value and its
-    /// gradient with one fetch ([`PrepassDecl::holds_value`]).
+    /// The gradient pre-pass of the precomputed estimators (target `gradient`:
+    /// rgba32float g and the voxel's value; for `quantized` the rgba8unorm code of
+    /// [`gradient_code`], for `precomputed_normal*` that of [`normal_code`]). The value
+    /// in w lets the main module read a sample's value and its gradient with one fetch
+    /// ([`PrepassDecl::holds_value`]).
     pub fn prepass(self) -> Option<PrepassDecl> {
         let with_value = "vec4<f32>(g, volume_voxel(vec3<i32>(voxel)))";
         let (format, estimator, store) = match self {
