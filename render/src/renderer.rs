@@ -5421,8 +5421,6 @@ fn read_texture(gpu: &GpuContext, tex: &wgpu::Texture, bpp: u32) -> Vec<u8> {
     read_buffer(gpu, &buf, size)
 }
 
-/// The whole-frame march (`pipeline`: `cs_main`, `cs_main_skip` or `cs_main_raw`) over
-/// `n` workgroups, once per part of the frame (`g3s`, [`march_parts`]), in one pass.
 /// The stride by which `spread_row` (shaders/slice.wgsl) permutes `rows` workgroup rows:
 /// the first integer from ⌊rows · 0.618034⌋ (in f32, as the shader computes it; at least
 /// 1) that is coprime to `rows`.
@@ -5440,6 +5438,8 @@ fn spread_stride(rows: u32) -> u32 {
     s
 }
 
+/// The whole-frame march (`pipeline`: `cs_main`, `cs_main_skip` or `cs_main_raw`) over
+/// `n` workgroups, once per part of the frame (`g3s`, [`march_parts`]), in one pass.
 fn encode_march(
     enc: &mut wgpu::CommandEncoder,
     pipeline: &wgpu::ComputePipeline,
