@@ -36,10 +36,19 @@ fn stack(id: &str, estimator: GradientEstimator) -> Vec<PluginInstance> {
 
 /// A ball of radius 0.35 (value 1 at the centre falling linearly to 0 at the box edge).
 fn ball(n: u32) -> std::sync::Arc<vwb_render::Volume> {
+    noisy_ball(n, 0.0)
+}
+
+/// [`ball`] plus `noise` times a hash of the voxel, uniform in [−1, 1).
+fn noisy_ball(n: u32, noise: f32) -> std::sync::Arc<vwb_render::Volume> {
     let c = (n as f32 - 1.0) / 2.0;
-    synthetic([n; 3], |x, y, z| {
+    synthetic([n; 3], move |x, y, z| {
         let d = ((x as f32 - c).powi(2) + (y as f32 - c).powi(2) + (z as f32 - c).powi(2)).sqrt();
-        (1.0 - d / c).max(0.0)
+        let h =
+            (x.wrapping_mul(73_856_093) ^ y.wrapping_mul(19_349_663) ^ z.wrapping_mul(83_492_791))
+                .wrapping_mul(2_654_435_761);
+        let u = (h >> 8) as f32 / (1u32 << 23) as f32 - 1.0;
+        (1.0 - d / c).max(0.0) + noise * u
     })
 }
 
@@ -497,25 +506,11 @@ fn lighting_table_rebakes_only_for_lights_and_material() {
 #[test]
 fn the_normal_texture_shades_the_ball_and_unnormalised_normals_dim_it() {
     let n = 40u32;
-    let c = (n as f32 - 1.0) / 2.0;
-    let ball_with = |noise: f32| {
-        synthetic([n; 3], move |x, y, z| {
-            let d =
-                ((x as f32 - c).powi(2) + (y as f32 - c).powi(2) + (z as f32 - c).powi(2)).sqrt();
-            // a hash of the voxel: uniform in [-1, 1)
-            let h = (x.wrapping_mul(73_856_093)
-                ^ y.wrapping_mul(19_349_663)
-                ^ z.wrapping_mul(83_492_791))
-            .wrapping_mul(2_654_435_761);
-            let u = (h >> 8) as f32 / (1u32 << 23) as f32 - 1.0;
-            (1.0 - d / c).max(0.0) + noise * u
-        })
-    };
     let mut tf = instance("classify.tf1d");
     tf.params.set("opacity", ParamValue::Float(1.0));
     for (noise, smooth) in [(0.0, true), (0.08, false)] {
         let voxels = (n as u64).pow(3);
-        let mut r = Renderer::new(gpu(), ball_with(noise)).unwrap();
+        let mut r = Renderer::new(gpu(), noisy_ball(n, noise)).unwrap();
         for backend in [Backend::Compute, Backend::Raster] {
             let s = settings(64, 64, backend);
             let mut img = |e: GradientEstimator| {
