@@ -1279,6 +1279,7 @@ pub fn compose_for(
                 "@group(3) @binding({next_binding}) var {out}: texture_storage_3d<{fmt}, {access}>;\n\
                  @compute @workgroup_size(4, 4, 4)\n\
                  fn {entry_point}(@builtin(global_invocation_id) gid: vec3<u32>) {{\n    \
+                 load_frame();\n    \
                  let dims = textureDimensions({out});\n    \
                  if (any(gid >= dims)) {{\n        return;\n    }}\n    \
                  textureStore({out}, gid, {p}{entry}(gid, dims, slice_info.index, {prev}));\n\
@@ -1380,6 +1381,7 @@ pub fn compose_for(
                          // state has the size of the list's grid (`slice_tile`), else over every texel.\n\
                          @compute @workgroup_size(8, 8, 1)\n\
                          fn {entry}(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid: vec3<u32>) {{\n    \
+                         load_frame();\n    \
                          let size = textureDimensions({p}state_next);\n    \
                          var tile = wg.xy;\n    \
                          let grid = vec2<u32>(slice_info.list_size & 0xffffu, slice_info.list_size >> 16u);\n    \
@@ -1443,6 +1445,7 @@ fn tile_entry(doc: &str, name: &str, sample: &str, stores: &str) -> String {
         "{doc}\n\
          @compute @workgroup_size(8, 8, 1)\n\
          fn {name}(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid: vec3<u32>) {{\n    \
+         load_frame();\n    \
          let size = vec2<u32>(frame.viewport.xy);\n    \
          let gid = vec3<u32>(slice_tile(wg.xy) * 8u + lid.xy, 0u);\n    \
          if (gid.x >= size.x || gid.y >= size.y) {{\n        return;\n    }}\n    \
@@ -1486,6 +1489,7 @@ fn sweep_entry(out: &str, binding: u32, entry_point: &str, entry: &str) -> Strin
          }}\n\
          @compute @workgroup_size(8, 8, 1)\n\
          fn {entry_point}(@builtin(global_invocation_id) gid: vec3<u32>) {{\n    \
+         load_frame();\n    \
          let sw = {info};\n    \
          let dims = textureDimensions({out});\n    \
          let sizes = sweep_sizes(sw, dims);\n    \
@@ -1548,6 +1552,7 @@ fn compose_prepass(
     let entry = format!(
         "@compute @workgroup_size(4, 4, 4)\n\
          fn prepass_main(@builtin(global_invocation_id) gid: vec3<u32>) {{\n    \
+         load_frame();\n    \
          let dims = textureDimensions({target});\n    \
          if (any(gid >= dims)) {{\n        return;\n    }}\n    \
          textureStore({target}, gid, {prefix}prepass(gid, dims));\n\
@@ -1561,9 +1566,53 @@ fn compose_prepass(
 /// Validates a composed module; errors are mapped through its origin table.
 pub fn validate_composed(m: &ComposedModule, plugins: &[&dyn Plugin]) -> Result<(), ComposeError> {
     match naga_check(&m.source) {
-        Ok(_) => Ok(()),
+        Ok(module) => check_frame_loads(&module).map_err(|message| ComposeError::Shader {
+            file: "<composed>".to_string(),
+            line: 0,
+            column: 0,
+            message,
+            plugin: None,
+        }),
         Err((message, offset)) => Err(map_error(m, plugins, message, offset)),
     }
+}
+
+/// The functions that take the frame's private copy (shaders/common.wgsl `load_frame`,
+/// shaders/slice.wgsl `load_frame_fragment`).
+const FRAME_LOADS: [&str; 2] = ["load_frame", "load_frame_fragment"];
+
+/// Checks that every entry point of a module with the private `frame` (shaders/
+/// common.wgsl) calls one of [`FRAME_LOADS`] before anything else: an entry point that
+/// does not would read a frame of zeros, silently.
+pub fn check_frame_loads(module: &naga::Module) -> Result<(), String> {
+    let has_frame = module
+        .global_variables
+        .iter()
+        .any(|(_, g)| g.name.as_deref() == Some("frame") && g.space == naga::AddressSpace::Private);
+    if !has_frame {
+        return Ok(());
+    }
+    for ep in &module.entry_points {
+        let first = ep
+            .function
+            .body
+            .iter()
+            .find(|st| !matches!(st, naga::Statement::Emit(_)));
+        let loads = match first {
+            Some(naga::Statement::Call { function, .. }) => module.functions[*function]
+                .name
+                .as_deref()
+                .is_some_and(|n| FRAME_LOADS.contains(&n)),
+            _ => false,
+        };
+        if !loads {
+            return Err(format!(
+                "entry point `{}` does not begin with `load_frame()` (or, for a slice fragment, `load_frame_fragment(in)`): it would read a frame of zeros",
+                ep.name
+            ));
+        }
+    }
+    Ok(())
 }
 
 fn map_error(

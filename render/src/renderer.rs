@@ -430,15 +430,22 @@ fn raster_pipeline(
     module: &wgpu::ShaderModule,
     layout: &wgpu::PipelineLayout,
     target: TargetFormat,
-    (fragment, group): (&str, u32),
+    (fragment, group, frame_from_vertex): (&str, u32, bool),
     depth_stencil: Option<wgpu::DepthStencilState>,
     blend: wgpu::BlendComponent,
 ) -> wgpu::RenderPipeline {
-    // the slices per proxy polygon (`RASTER_GROUP` in shaders/slice.wgsl); the
-    // module's default where 1, so that the default pipeline is the module as written
-    let constants = [("RASTER_GROUP", group as f64)];
+    // the slices per proxy polygon (`RASTER_GROUP` in shaders/slice.wgsl) and the
+    // fragments' frame from their vertices (`FRAME_FROM_VERTEX`); the module's defaults
+    // where 1 and off, so that the default pipeline is the module as written
+    let mut constants: Vec<(&str, f64)> = Vec::new();
+    if group > 1 {
+        constants.push(("RASTER_GROUP", group as f64));
+    }
+    if frame_from_vertex {
+        constants.push(("FRAME_FROM_VERTEX", 1.0));
+    }
     let options = || wgpu::PipelineCompilationOptions {
-        constants: if group > 1 { &constants } else { &[] },
+        constants: &constants,
         ..Default::default()
     };
     device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
@@ -481,6 +488,17 @@ fn raster_pipeline(
         multiview_mask: None,
         cache: None,
     })
+}
+
+/// The index of a raster pipeline in [`CompiledStack`]'s cache: by (early termination,
+/// exact position, "over"), the index `g` of its slices per polygon in
+/// [`RASTER_GROUPS`] and the frame from the vertices.
+fn raster_index((et, exact, over): (bool, bool, bool), g: usize, frame_from_vertex: bool) -> usize {
+    et as usize
+        + 2 * exact as usize
+        + 4 * over as usize
+        + 8 * g
+        + 8 * RASTER_GROUPS.len() * frame_from_vertex as usize
 }
 
 /// A full-screen pass (one triangle from `entries.0`, no vertex buffers, group 0 of
@@ -727,9 +745,10 @@ struct CompiledStack {
     /// frames that meet the slices from behind), index `et + 2·exact + 4·over`: the
     /// plain one built with the stack (so that the device validates it), the others on
     /// first use.
-    /// By early termination, exact position, order and slices per proxy polygon
+    /// By early termination, exact position, order, slices per proxy polygon and
+    /// whether the fragments take the frame from their vertices
     /// ([`CompiledStack::raster_for`]).
-    raster: [std::sync::OnceLock<wgpu::RenderPipeline>; 8 * RASTER_GROUPS.len()],
+    raster: [std::sync::OnceLock<wgpu::RenderPipeline>; 16 * RASTER_GROUPS.len()],
     /// The raster backend's chunk bits for empty-space skipping (`fs_raster_chunks`,
     /// [`raster_et`]), built on first use.
     raster_chunks: std::sync::OnceLock<wgpu::RenderPipeline>,
@@ -762,18 +781,18 @@ struct CompiledStack {
 
 impl CompiledStack {
     /// The raster pipeline for early termination (depth test), the exact fragment
-    /// position (proxy cut to the occupied cells), the order ("over") and the slices
-    /// per proxy polygon (one of [`RASTER_GROUPS`]).
+    /// position (proxy cut to the occupied cells), the order ("over"), the slices
+    /// per proxy polygon (one of [`RASTER_GROUPS`]) and the frame from the vertices
+    /// ([`Renderer::set_frame_from_vertex`]).
     fn raster_for(
         &self,
         device: &wgpu::Device,
-        et: bool,
-        exact: bool,
-        over: bool,
+        (et, exact, over): (bool, bool, bool),
         group: u32,
+        frame_from_vertex: bool,
     ) -> &wgpu::RenderPipeline {
         let g = RASTER_GROUPS.iter().position(|&n| n == group).unwrap_or(0);
-        let i = et as usize + 2 * exact as usize + 4 * over as usize + 8 * g;
+        let i = raster_index((et, exact, over), g, frame_from_vertex);
         self.raster[i].get_or_init(|| {
             let entry = match (exact, over) {
                 (false, false) => "fs_main",
@@ -786,7 +805,7 @@ impl CompiledStack {
                 &self.module,
                 &self.raster_layout,
                 self.target,
-                (entry, RASTER_GROUPS[g]),
+                (entry, RASTER_GROUPS[g], frame_from_vertex),
                 et.then(raster_et::slice_depth_state),
                 if over { OVER } else { UNDER },
             )
@@ -1367,6 +1386,9 @@ pub struct Renderer {
     occupied_proxy: bool,
     /// Raster backend: slices per proxy polygon ([`Renderer::set_raster_group`]).
     raster_group: u32,
+    /// Raster backend: the fragments take the frame from their vertices
+    /// ([`Renderer::set_frame_from_vertex`]).
+    frame_from_vertex: bool,
     /// Raster backend: proxy polygons fitted to the occupied bricks' hull
     /// ([`Renderer::set_hull_proxy`]).
     hull_proxy: HullProxy,
@@ -1647,6 +1669,8 @@ impl Renderer {
             raster_et: None,
             occupied_proxy: false,
             raster_group: raster_group_from_env(),
+            frame_from_vertex: gpu.info.device_type == wgpu::DeviceType::Cpu
+                && env_on("VWB_FRAME_FROM_VERTEX"),
             raster_skipping: env_on("VWB_RASTER_SKIP"),
             hull_proxy: HullProxy::from_env(),
             occupied_hull: None,
@@ -2013,6 +2037,22 @@ impl Renderer {
     /// Slices per proxy polygon on the raster backend ([`Renderer::set_raster_group`]).
     pub fn raster_group(&self) -> u32 {
         self.raster_group
+    }
+
+    /// Raster backend: whether the slices' fragments take the frame's most read fields
+    /// from their vertices' flat outputs (`FRAME_FROM_VERTEX` in shaders/slice.wgsl)
+    /// rather than from the uniform buffer. The values are the same, and so are the
+    /// images; on CPU devices the fragments run 0.8–0.9× as long (llvmpipe reads a
+    /// uniform in a fragment shader one lane at a time; docs/perf.md, "The frame as the
+    /// vertices' flat outputs"). On by default on CPU devices, off on GPUs (unmeasured
+    /// there); `VWB_FRAME_FROM_VERTEX=0` turns the default off (a benchmark switch).
+    pub fn set_frame_from_vertex(&mut self, on: bool) {
+        self.frame_from_vertex = on;
+    }
+
+    /// [`Renderer::set_frame_from_vertex`].
+    pub fn frame_from_vertex(&self) -> bool {
+        self.frame_from_vertex
     }
 
     /// Raster backend: cut the proxy polygons to the cells of bricks that can be
@@ -2799,7 +2839,7 @@ impl Renderer {
             &module,
             &raster_layout,
             target,
-            ("fs_main", 1),
+            ("fs_main", 1, self.frame_from_vertex),
             None,
             UNDER,
         );
@@ -2941,9 +2981,10 @@ impl Renderer {
             g2_layout,
             g3_layout,
             raster: {
-                let locks: [std::sync::OnceLock<wgpu::RenderPipeline>; 8 * RASTER_GROUPS.len()] =
+                let locks: [std::sync::OnceLock<wgpu::RenderPipeline>; 16 * RASTER_GROUPS.len()] =
                     std::array::from_fn(|_| std::sync::OnceLock::new());
-                let _ = locks[0].set(raster);
+                let _ = locks[raster_index((false, false, false), 0, self.frame_from_vertex)]
+                    .set(raster);
                 locks
             },
             raster_chunks: std::sync::OnceLock::new(),
@@ -4529,7 +4570,14 @@ impl Renderer {
                 let et = mask_group.as_ref().zip(self.raster_et.as_ref());
                 let raster: Vec<&wgpu::RenderPipeline> = raster_orders
                     .iter()
-                    .map(|&over| p.raster_for(device, et.is_some(), cut_proxy, over, group))
+                    .map(|&over| {
+                        p.raster_for(
+                            device,
+                            (et.is_some(), cut_proxy, over),
+                            group,
+                            self.frame_from_vertex,
+                        )
+                    })
                     .collect();
                 let begin = |enc: &'_ mut wgpu::CommandEncoder, clear: bool| {
                     enc.begin_render_pass(&wgpu::RenderPassDescriptor {
