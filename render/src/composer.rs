@@ -1665,6 +1665,37 @@ impl fmt::Display for Origin {
 mod tests {
     use super::*;
 
+    /// An entry point of a module with the private frame that does not take it first
+    /// (`load_frame`) is refused by name; a late load counts as none; modules without
+    /// the private frame (the display and compositing shaders) are not concerned.
+    #[test]
+    fn every_entry_point_must_load_the_frame_first() {
+        let head = "struct Frame { a: f32 }\n\
+                    @group(0) @binding(0) var<uniform> frame_uniform: Frame;\n\
+                    var<private> frame: Frame;\n\
+                    fn load_frame() { frame = frame_uniform; }\n\
+                    @group(0) @binding(1) var<storage, read_write> out: array<f32>;\n";
+        let good = "@compute @workgroup_size(1) fn good() { load_frame(); out[0] = frame.a; }\n";
+        let module = naga_check(&format!("{head}{good}")).unwrap();
+        assert_eq!(check_frame_loads(&module), Ok(()));
+        for bad in [
+            "@compute @workgroup_size(1) fn bad() { out[0] = frame.a; }\n",
+            "@compute @workgroup_size(1) fn bad() { out[0] = 1.0; load_frame(); }\n",
+        ] {
+            let module = naga_check(&format!("{head}{good}{bad}")).unwrap();
+            let err = check_frame_loads(&module).unwrap_err();
+            assert!(err.contains("`bad`"), "{err}");
+        }
+        let uniform_only = "struct Frame { a: f32 }\n\
+                            @group(0) @binding(0) var<uniform> frame: Frame;\n\
+                            @group(0) @binding(1) var<storage, read_write> out: array<f32>;\n\
+                            @compute @workgroup_size(1) fn main() { out[0] = frame.a; }\n";
+        assert_eq!(
+            check_frame_loads(&naga_check(uniform_only).unwrap()),
+            Ok(())
+        );
+    }
+
     #[test]
     fn tokenizer_keeps_text_and_skips_comments() {
         let src = "fn a(x: f32) -> f32 { /* a /* nested */ b */ return x.a + 1.0e-3; } // a\n";

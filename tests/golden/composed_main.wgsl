@@ -126,7 +126,20 @@ struct SliceInfo {
     pad2: u32,
 }
 
-@group(0) @binding(0) var<uniform> frame: Frame;
+@group(0) @binding(0) var<uniform> frame_uniform: Frame;
+// The frame as the module's code reads it: a private copy that every entry point takes
+// first (`load_frame`, or on the raster backend `load_frame_fragment`; the composer
+// refuses an entry point that does not, `composer::check_frame_loads`). llvmpipe (Mesa
+// 22.3) reads a uniform inside control flow that may leave lanes idle (all of a
+// fragment shader, the rest of a compute shader after its first `return`) one lane at a
+// time, about 30 instructions a word. The copy is read there as a register, and the
+// fragments take theirs from flat vertex outputs (docs/perf.md, "The frame as the
+// vertices' flat outputs").
+var<private> frame: Frame;
+
+fn load_frame() {
+    frame = frame_uniform;
+}
 // binding 1, the scalar volume `volume_tex`: with its reads below (`volume_value`)
 @group(0) @binding(2) var linear_clamp: sampler;
 @group(0) @binding(3) var nearest_clamp: sampler;
@@ -878,6 +891,50 @@ struct VsOut {
     @builtin(position) clip_pos: vec4<f32>,
     @location(0) world: vec3<f32>,
     @location(1) @interpolate(flat) slice: u32,
+    // the frame's fields that a fragment reads most, as flat outputs of every vertex
+    // (where `FRAME_FROM_VERTEX`; `load_frame_fragment`)
+    @location(2) @interpolate(flat) eye: vec4<f32>,
+    @location(3) @interpolate(flat) forward: vec4<f32>,
+    @location(4) @interpolate(flat) slicing: vec4<f32>,
+    @location(5) @interpolate(flat) box_min: vec4<f32>,
+    @location(6) @interpolate(flat) box_max: vec4<f32>,
+    @location(7) @interpolate(flat) inv_extent: vec4<f32>,
+    @location(8) @interpolate(flat) viewport: vec4<f32>,
+    @location(9) @interpolate(flat) volume_dims: vec4<f32>,
+    @location(10) @interpolate(flat) own_min: vec4<f32>,
+    @location(11) @interpolate(flat) own_max: vec4<f32>,
+    @location(12) @interpolate(flat) settings: vec4<f32>,
+    @location(13) @interpolate(flat) counts: vec4<u32>,
+}
+
+// Whether the slices' fragments take the frame's most read fields from their vertices'
+// flat outputs rather than from the uniform buffer (a pipeline constant: the renderer
+// sets it on CPU devices, `Renderer::set_frame_from_vertex`). llvmpipe reads a uniform
+// in a fragment shader one lane at a time, about 30 instructions a word, and a flat
+// input as one broadcast; the values and so the images are the same (docs/perf.md, "The
+// frame as the vertices' flat outputs"). GPUs read uniforms at no such cost and keep
+// the buffer.
+override FRAME_FROM_VERTEX: bool = false;
+
+// A slice fragment's `load_frame`: the uniform's copy, with the fields of `VsOut`
+// taken from the vertices where `FRAME_FROM_VERTEX` (a uniform word left unread after
+// this is never loaded).
+fn load_frame_fragment(in: VsOut) {
+    frame = frame_uniform;
+    if (FRAME_FROM_VERTEX) {
+        frame.eye = in.eye;
+        frame.forward = in.forward;
+        frame.slicing = in.slicing;
+        frame.box_min = in.box_min;
+        frame.box_max = in.box_max;
+        frame.inv_extent = in.inv_extent;
+        frame.viewport = in.viewport;
+        frame.volume_dims = in.volume_dims;
+        frame.own_min = in.own_min;
+        frame.own_max = in.own_max;
+        frame.settings = in.settings;
+        frame.counts = in.counts;
+    }
 }
 
 // Slices per proxy polygon on the raster backend (Rezk-Salama 2001, §9.1; a pipeline
@@ -890,7 +947,22 @@ override RASTER_GROUP: u32 = 1u;
 
 @vertex
 fn vs_main(@location(0) pos: vec3<f32>, @location(1) slice: u32) -> VsOut {
+    load_frame();
     var o: VsOut;
+    if (FRAME_FROM_VERTEX) {
+        o.eye = frame.eye;
+        o.forward = frame.forward;
+        o.slicing = frame.slicing;
+        o.box_min = frame.box_min;
+        o.box_max = frame.box_max;
+        o.inv_extent = frame.inv_extent;
+        o.viewport = frame.viewport;
+        o.volume_dims = frame.volume_dims;
+        o.own_min = frame.own_min;
+        o.own_max = frame.own_max;
+        o.settings = frame.settings;
+        o.counts = frame.counts;
+    }
     o.clip_pos = frame.view_proj * vec4<f32>(pos, 1.0);
     o.clip_pos.z = slice_depth(o.clip_pos, min(slice + RASTER_GROUP - 1u, max(frame.counts.x, 1u) - 1u));
     o.world = pos;
@@ -993,6 +1065,7 @@ fn group_step(acc: vec4<f32>, s: Sample, ratio: f32, world: vec3<f32>, dir: vec3
 
 @fragment
 fn fs_main(in: VsOut) -> @location(0) vec4<f32> {
+    load_frame_fragment(in);
     return fragment_proxy(in, false);
 }
 
@@ -1015,8 +1088,11 @@ fn fragment_exact(in: VsOut, behind: bool) -> vec4<f32> {
 
 @fragment
 fn fs_exact(in: VsOut) -> @location(0) vec4<f32> {
+    load_frame_fragment(in);
     return fragment_exact(in, false);
 }
+
+
 
 
 
@@ -1058,6 +1134,7 @@ fn mark_slices(bits: vec2<u32>, a: u32, b: u32, c: u32) -> vec2<u32> {
 
 @fragment
 fn fs_raster_chunks(@builtin(position) pos: vec4<f32>) -> @location(0) vec2<u32> {
+    load_frame();
     let r = pixel_ray(pos.xy * frame.viewport.zw);
     let range = slice_range(r, true);
     let rs = ray_slices(r);
@@ -1098,12 +1175,14 @@ fn fs_raster_chunks(@builtin(position) pos: vec4<f32>) -> @location(0) vec2<u32>
 
 @vertex
 fn vs_post(@builtin(vertex_index) i: u32) -> @builtin(position) vec4<f32> {
+    load_frame();
     let xy = vec2<f32>(f32((i << 1u) & 2u), f32(i & 2u));
     return vec4<f32>(xy * 2.0 - 1.0, 0.0, 1.0);
 }
 
 @fragment
 fn fs_post(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<f32> {
+    load_frame();
     let c = textureLoad(post_src, vec2<i32>(pos.xy), 0);
     return run_post(c, pos.xy * frame.viewport.zw);
 }
@@ -1535,6 +1614,7 @@ fn cs_main(
     @builtin(num_workgroups) groups: vec3<u32>,
     @builtin(local_invocation_index) li: u32,
 ) {
+    load_frame();
     march_pixel(wg, groups, li, false);
 }
 
@@ -1545,6 +1625,7 @@ fn cs_main_skip(
     @builtin(num_workgroups) groups: vec3<u32>,
     @builtin(local_invocation_index) li: u32,
 ) {
+    load_frame();
     march_pixel(wg, groups, li, true);
 }
 
@@ -1559,6 +1640,7 @@ fn cs_main_raw(
     @builtin(num_workgroups) groups: vec3<u32>,
     @builtin(local_invocation_index) li: u32,
 ) {
+    load_frame();
     let size = vec2<u32>(frame.viewport.xy);
     let px = main_pixel(wg, groups, li);
     if (px.x >= size.x || px.y >= size.y) {
@@ -1667,6 +1749,7 @@ fn placeholder(r: Ray, uv: vec2<f32>) -> Evaluated {
 // sample can be visible: elsewhere it adds nothing).
 @compute @workgroup_size(8, 8, 1)
 fn cs_slice(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid: vec3<u32>) {
+    load_frame();
     let size = vec2<u32>(frame.viewport.xy);
     let gid = slice_tile(wg.xy) * 8u + lid.xy;
     if (gid.x >= size.x || gid.y >= size.y) {
@@ -1678,6 +1761,7 @@ fn cs_slice(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) 
 // Copy the accumulation buffer into the eye buffer.
 @compute @workgroup_size(8, 8, 1)
 fn cs_resolve(@builtin(global_invocation_id) gid: vec3<u32>) {
+    load_frame();
     let size = vec2<u32>(frame.viewport.xy);
     if (gid.x >= size.x || gid.y >= size.y) {
         return;
@@ -1723,6 +1807,7 @@ fn state_texel_sample(texel: vec2<u32>, state_size: vec2<u32>) -> Evaluated {
 // state has the size of the list's grid (`slice_tile`), else over every texel.
 @compute @workgroup_size(8, 8, 1)
 fn cs_update_2(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid: vec3<u32>) {
+    load_frame();
     let size = textureDimensions(p2_slice_shadow_state_next);
     var tile = wg.xy;
     let grid = vec2<u32>(slice_info.list_size & 0xffffu, slice_info.list_size >> 16u);
@@ -1741,6 +1826,7 @@ fn cs_update_2(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_i
 // slice's tiles (`slice_tile`).
 @compute @workgroup_size(8, 8, 1)
 fn cs_slice_fused(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid: vec3<u32>) {
+    load_frame();
     let size = vec2<u32>(frame.viewport.xy);
     let gid = vec3<u32>(slice_tile(wg.xy) * 8u + lid.xy, 0u);
     if (gid.x >= size.x || gid.y >= size.y) {
@@ -1753,6 +1839,7 @@ fn cs_slice_fused(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocatio
 // (`slice_tile`): every update gets the pixel's transparent placeholder sample.
 @compute @workgroup_size(8, 8, 1)
 fn cs_slice_state_only(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid: vec3<u32>) {
+    load_frame();
     let size = vec2<u32>(frame.viewport.xy);
     let gid = vec3<u32>(slice_tile(wg.xy) * 8u + lid.xy, 0u);
     if (gid.x >= size.x || gid.y >= size.y) {

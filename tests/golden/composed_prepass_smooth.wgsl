@@ -126,7 +126,20 @@ struct SliceInfo {
     pad2: u32,
 }
 
-@group(0) @binding(0) var<uniform> frame: Frame;
+@group(0) @binding(0) var<uniform> frame_uniform: Frame;
+// The frame as the module's code reads it: a private copy that every entry point takes
+// first (`load_frame`, or on the raster backend `load_frame_fragment`; the composer
+// refuses an entry point that does not, `composer::check_frame_loads`). llvmpipe (Mesa
+// 22.3) reads a uniform inside control flow that may leave lanes idle (all of a
+// fragment shader, the rest of a compute shader after its first `return`) one lane at a
+// time, about 30 instructions a word. The copy is read there as a register, and the
+// fragments take theirs from flat vertex outputs (docs/perf.md, "The frame as the
+// vertices' flat outputs").
+var<private> frame: Frame;
+
+fn load_frame() {
+    frame = frame_uniform;
+}
 // binding 1, the scalar volume `volume_tex`: with its reads below (`volume_value`)
 @group(0) @binding(2) var linear_clamp: sampler;
 @group(0) @binding(3) var nearest_clamp: sampler;
@@ -636,6 +649,7 @@ fn p0_smooth_prepass(voxel: vec3<u32>, dims: vec3<u32>) -> vec4<f32> {
 }
 @compute @workgroup_size(4, 4, 4)
 fn prepass_main(@builtin(global_invocation_id) gid: vec3<u32>) {
+    load_frame();
     let dims = textureDimensions(p0_smooth_smoothed);
     if (any(gid >= dims)) {
         return;

@@ -824,6 +824,62 @@ fn raster_skipping_keeps_the_image() {
     }
 }
 
+/// The raster backend's fragments take the frame's most read fields from their
+/// vertices' flat outputs on CPU devices (`FRAME_FROM_VERTEX`,
+/// `Renderer::set_frame_from_vertex`): the same values, so the same image bit for bit as
+/// from the uniform buffer, through every fragment entry point and option (early
+/// termination, several slices per polygon, the exact ray–plane point of proxies cut to
+/// occupied cells, back-to-front pixels of half-angle frames with a light, per-slice
+/// state, shading, clipping, pre-integration). On by default on this CPU device.
+#[test]
+fn the_frame_from_the_vertices_keeps_the_raster_image() {
+    let registry = registry();
+    for preset in [
+        "demo.ron",
+        "demo_shaded.ron",
+        "demo_dos_light.ron",
+        "demo_clip_labels.ron",
+        "demo_preintegrated.ron",
+    ] {
+        let (doc, volume, s) = raster_scene(&registry, preset, None);
+        let mut r = Renderer::new(gpu(), volume.clone()).unwrap();
+        assert!(
+            r.frame_from_vertex(),
+            "on by default on a CPU device (unless VWB_FRAME_FROM_VERTEX=0)"
+        );
+        r.set_inputs(vwb_lab::headless::inputs_for(&doc).unwrap());
+        r.update_stack(&doc.stack, doc.render.target).unwrap();
+        for (et, group, cells) in [
+            (None, 1, false),
+            (Some(0.99), 1, false),
+            (None, 8, false),
+            (Some(0.95), 1, true),
+        ] {
+            r.set_raster_group(group);
+            r.set_occupied_proxy(cells);
+            let s = FrameSettings {
+                early_termination: et,
+                ..s
+            };
+            let mut images = Vec::new();
+            for on in [false, true] {
+                r.set_frame_from_vertex(on);
+                r.render(&s).unwrap();
+                images.push(r.read_pixels().unwrap().2);
+            }
+            let label = format!("{preset} et {et:?} group {group} cells {cells}");
+            assert!(
+                mean_luma(&rgb(&images[0])) > 0.02,
+                "{label}: something is drawn"
+            );
+            assert!(
+                images[0] == images[1],
+                "{label}: the same image bit for bit"
+            );
+        }
+    }
+}
+
 /// Several slices per proxy polygon on the raster backend (Rezk-Salama 2001, §9.1;
 /// `render.slices_per_proxy`): a polygon per group of 2, 4 or 16 slices, its fragments
 /// compositing the group's samples along their rays, renders the image of a polygon
