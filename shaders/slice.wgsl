@@ -211,7 +211,7 @@ override FRAME_FROM_VERTEX: bool = false;
 // taken from the vertices where `FRAME_FROM_VERTEX` (a uniform word left unread after
 // this is never loaded).
 fn load_frame_fragment(in: VsOut) {
-    frame = frame_uniform;
+    load_frame();
     if (FRAME_FROM_VERTEX) {
         frame.eye = in.eye;
         frame.forward = in.forward;
@@ -238,7 +238,7 @@ override RASTER_GROUP: u32 = 1u;
 
 @vertex
 fn vs_main(@location(0) pos: vec3<f32>, @location(1) slice: u32) -> VsOut {
-    load_frame();
+    load_frame_vertex();
     var o: VsOut;
     if (FRAME_FROM_VERTEX) {
         o.eye = frame.eye;
@@ -466,7 +466,7 @@ fn fs_raster_chunks(@builtin(position) pos: vec4<f32>) -> @location(0) vec2<u32>
 
 @vertex
 fn vs_post(@builtin(vertex_index) i: u32) -> @builtin(position) vec4<f32> {
-    load_frame();
+    load_frame_vertex();
     let xy = vec2<f32>(f32((i << 1u) & 2u), f32(i & 2u));
     return vec4<f32>(xy * 2.0 - 1.0, 0.0, 1.0);
 }

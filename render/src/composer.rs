@@ -235,9 +235,11 @@ impl Binding {
     pub fn wgsl(&self, prefix: &str, struct_name: &str) -> String {
         let ty = match &self.kind {
             BindingKind::Uniform { .. } => {
+                // the uniform, and the private copy that the code reads (`load_frame`)
                 return format!(
-                    "@group({}) @binding({}) var<uniform> {prefix}{}: {struct_name};",
-                    self.group, self.binding, self.local_name
+                    "@group({}) @binding({}) var<uniform> {prefix}{}{UNIFORM_SUFFIX}: {struct_name};\n\
+                     var<private> {prefix}{}: {struct_name};",
+                    self.group, self.binding, self.local_name, self.local_name
                 );
             }
             BindingKind::StorageBufferU32 => {
@@ -1347,6 +1349,17 @@ pub fn compose_for(
             for (index, _, decls, _) in &segments {
                 m.push_generated("bindings", decls, Some(*index));
             }
+            let prefix_of = |i: usize| {
+                instances
+                    .iter()
+                    .find(|inst| inst.input_index == i)
+                    .map_or_else(String::new, |inst| inst.prefix.clone())
+            };
+            m.push_generated(
+                "frame loads",
+                &frame_loads_wgsl(&param_names(&bindings, prefix_of)),
+                None,
+            );
         } else if trimmed == "//!PLUGINS" {
             for (index, file, _, code) in &segments {
                 m.push_file(file, code, Some(*index));
@@ -1543,6 +1556,11 @@ fn compose_prepass(
     m.push_file(COMMON_FILE, &common_code(false, volume), None);
     m.push_generated("shading scalar", &shading_scalar_wgsl(None), None);
     m.push_generated("bindings", &decls_text(&iso, prefix, uniform), Some(index));
+    m.push_generated(
+        "frame loads",
+        &frame_loads_wgsl(&param_names(&iso, |_| prefix.to_string())),
+        Some(index),
+    );
     m.push_file(
         &pp.shader.file,
         &rename(&pp.shader.source, &names, prefix),
@@ -1577,9 +1595,39 @@ pub fn validate_composed(m: &ComposedModule, plugins: &[&dyn Plugin]) -> Result<
     }
 }
 
-/// The functions that take the frame's private copy (shaders/common.wgsl `load_frame`,
-/// shaders/slice.wgsl `load_frame_fragment`).
-const FRAME_LOADS: [&str; 2] = ["load_frame", "load_frame_fragment"];
+/// The functions that take the frame's private copy (`load_frame`, [`frame_loads_wgsl`];
+/// shaders/common.wgsl `load_frame_vertex`, shaders/slice.wgsl `load_frame_fragment`).
+const FRAME_LOADS: [&str; 3] = ["load_frame", "load_frame_vertex", "load_frame_fragment"];
+
+/// The suffix of a parameter uniform's name; the plugin's code reads the private copy
+/// under the plain name ([`Binding::wgsl`]).
+const UNIFORM_SUFFIX: &str = "_uniform";
+
+/// A module's `load_frame`: the frame's private copy (shaders/common.wgsl) and each of
+/// `params` (the instances' parameters, by their names in the module) from its uniform.
+/// Every entry point calls it first ([`check_frame_loads`]).
+fn frame_loads_wgsl(params: &[String]) -> String {
+    let mut s = String::from(
+        "// Every entry point's first call: the frame's and each plugin instance's parameters'\n\
+         // private copies from their uniforms (shaders/common.wgsl, `frame`).\n\
+         fn load_frame() {\n    frame = frame_uniform;\n",
+    );
+    for p in params {
+        s.push_str(&format!("    {p} = {p}{UNIFORM_SUFFIX};\n"));
+    }
+    s.push_str("}\n");
+    s
+}
+
+/// The names in a module of the parameter uniforms among `bindings` (their private
+/// copies'), for [`frame_loads_wgsl`].
+fn param_names(bindings: &[Binding], prefix: impl Fn(usize) -> String) -> Vec<String> {
+    bindings
+        .iter()
+        .filter(|b| matches!(b.kind, BindingKind::Uniform { .. }))
+        .map(|b| format!("{}{}", prefix(b.instance), b.local_name))
+        .collect()
+}
 
 /// Checks that every entry point of a module with the private `frame` (shaders/
 /// common.wgsl) calls one of [`FRAME_LOADS`] before anything else: an entry point that
@@ -1607,7 +1655,7 @@ pub fn check_frame_loads(module: &naga::Module) -> Result<(), String> {
         };
         if !loads {
             return Err(format!(
-                "entry point `{}` does not begin with `load_frame()` (or, for a slice fragment, `load_frame_fragment(in)`): it would read a frame of zeros",
+                "entry point `{}` does not begin with `load_frame()` (or `load_frame_vertex()`, or for a slice fragment `load_frame_fragment(in)`): it would read a frame of zeros",
                 ep.name
             ));
         }

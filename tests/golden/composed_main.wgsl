@@ -128,16 +128,20 @@ struct SliceInfo {
 
 @group(0) @binding(0) var<uniform> frame_uniform: Frame;
 // The frame as the module's code reads it: a private copy that every entry point takes
-// first (`load_frame`, or on the raster backend `load_frame_fragment`; the composer
-// refuses an entry point that does not, `composer::check_frame_loads`). llvmpipe (Mesa
-// 22.3) reads a uniform inside control flow that may leave lanes idle (all of a
-// fragment shader, the rest of a compute shader after its first `return`) one lane at a
-// time, about 30 instructions a word. The copy is read there as a register, and the
-// fragments take theirs from flat vertex outputs (docs/perf.md, "The frame as the
-// vertices' flat outputs").
+// first, with each plugin instance's parameters (`params`, likewise a private copy of
+// its uniform): `load_frame`, which the composer generates for each module (or on the
+// raster backend `load_frame_fragment`; the composer refuses an entry point that does
+// not begin with one, `composer::check_frame_loads`). llvmpipe (Mesa 22.3) reads a
+// uniform inside control flow that may leave lanes idle (all of a fragment shader, the
+// rest of a compute shader after its first `return`) one lane at a time, about 30
+// instructions a word. The copy is read there as a register, and the slices' fragments
+// take the frame's most read fields from flat vertex outputs (docs/perf.md, "The frame
+// as the vertices' flat outputs").
 var<private> frame: Frame;
 
-fn load_frame() {
+// A vertex shader's `load_frame`: the frame alone (the parameters' uniforms are not
+// bound to the vertex stage).
+fn load_frame_vertex() {
     frame = frame_uniform;
 }
 // binding 1, the scalar volume `volume_tex`: with its reads below (`volume_value`)
@@ -639,19 +643,22 @@ struct p0_smooth_Params {
     radius: i32,
     amount: f32,
 }
-@group(1) @binding(0) var<uniform> p0_smooth_params: p0_smooth_Params;
+@group(1) @binding(0) var<uniform> p0_smooth_params_uniform: p0_smooth_Params;
+var<private> p0_smooth_params: p0_smooth_Params;
 @group(1) @binding(1) var p0_smooth_smoothed: texture_3d<f32>;
 struct p1_tf1d_Params {
     mode: u32,
     opacity: f32,
     shade_at: u32,
 }
-@group(1) @binding(2) var<uniform> p1_tf1d_params: p1_tf1d_Params;
+@group(1) @binding(2) var<uniform> p1_tf1d_params_uniform: p1_tf1d_Params;
+var<private> p1_tf1d_params: p1_tf1d_Params;
 @group(1) @binding(3) var p1_tf1d_lut: texture_1d<f32>;
 struct p2_slice_shadow_Params {
     strength: f32,
 }
-@group(1) @binding(4) var<uniform> p2_slice_shadow_params: p2_slice_shadow_Params;
+@group(1) @binding(4) var<uniform> p2_slice_shadow_params_uniform: p2_slice_shadow_Params;
+var<private> p2_slice_shadow_params: p2_slice_shadow_Params;
 @group(2) @binding(0) var p2_slice_shadow_state_prev: texture_2d<f32>;
 @group(2) @binding(1) var p2_slice_shadow_state_next: texture_storage_2d<rgba32float, write>;
 struct p3_tf1d_Params {
@@ -659,8 +666,18 @@ struct p3_tf1d_Params {
     opacity: f32,
     shade_at: u32,
 }
-@group(1) @binding(5) var<uniform> p3_tf1d_params: p3_tf1d_Params;
+@group(1) @binding(5) var<uniform> p3_tf1d_params_uniform: p3_tf1d_Params;
+var<private> p3_tf1d_params: p3_tf1d_Params;
 @group(1) @binding(6) var p3_tf1d_lut: texture_1d<f32>;
+// Every entry point's first call: the frame's and each plugin instance's parameters'
+// private copies from their uniforms (shaders/common.wgsl, `frame`).
+fn load_frame() {
+    frame = frame_uniform;
+    p0_smooth_params = p0_smooth_params_uniform;
+    p1_tf1d_params = p1_tf1d_params_uniform;
+    p2_slice_shadow_params = p2_slice_shadow_params_uniform;
+    p3_tf1d_params = p3_tf1d_params_uniform;
+}
 
 // test.smooth — demonstrates a pre-pass that fills a 3D texture: the sample hook
 // blends the interpolated value with the box-filtered volume `smoothed`.
@@ -920,7 +937,7 @@ override FRAME_FROM_VERTEX: bool = false;
 // taken from the vertices where `FRAME_FROM_VERTEX` (a uniform word left unread after
 // this is never loaded).
 fn load_frame_fragment(in: VsOut) {
-    frame = frame_uniform;
+    load_frame();
     if (FRAME_FROM_VERTEX) {
         frame.eye = in.eye;
         frame.forward = in.forward;
@@ -947,7 +964,7 @@ override RASTER_GROUP: u32 = 1u;
 
 @vertex
 fn vs_main(@location(0) pos: vec3<f32>, @location(1) slice: u32) -> VsOut {
-    load_frame();
+    load_frame_vertex();
     var o: VsOut;
     if (FRAME_FROM_VERTEX) {
         o.eye = frame.eye;
@@ -1175,7 +1192,7 @@ fn fs_raster_chunks(@builtin(position) pos: vec4<f32>) -> @location(0) vec2<u32>
 
 @vertex
 fn vs_post(@builtin(vertex_index) i: u32) -> @builtin(position) vec4<f32> {
-    load_frame();
+    load_frame_vertex();
     let xy = vec2<f32>(f32((i << 1u) & 2u), f32(i & 2u));
     return vec4<f32>(xy * 2.0 - 1.0, 0.0, 1.0);
 }

@@ -128,16 +128,20 @@ struct SliceInfo {
 
 @group(0) @binding(0) var<uniform> frame_uniform: Frame;
 // The frame as the module's code reads it: a private copy that every entry point takes
-// first (`load_frame`, or on the raster backend `load_frame_fragment`; the composer
-// refuses an entry point that does not, `composer::check_frame_loads`). llvmpipe (Mesa
-// 22.3) reads a uniform inside control flow that may leave lanes idle (all of a
-// fragment shader, the rest of a compute shader after its first `return`) one lane at a
-// time, about 30 instructions a word. The copy is read there as a register, and the
-// fragments take theirs from flat vertex outputs (docs/perf.md, "The frame as the
-// vertices' flat outputs").
+// first, with each plugin instance's parameters (`params`, likewise a private copy of
+// its uniform): `load_frame`, which the composer generates for each module (or on the
+// raster backend `load_frame_fragment`; the composer refuses an entry point that does
+// not begin with one, `composer::check_frame_loads`). llvmpipe (Mesa 22.3) reads a
+// uniform inside control flow that may leave lanes idle (all of a fragment shader, the
+// rest of a compute shader after its first `return`) one lane at a time, about 30
+// instructions a word. The copy is read there as a register, and the slices' fragments
+// take the frame's most read fields from flat vertex outputs (docs/perf.md, "The frame
+// as the vertices' flat outputs").
 var<private> frame: Frame;
 
-fn load_frame() {
+// A vertex shader's `load_frame`: the frame alone (the parameters' uniforms are not
+// bound to the vertex stage).
+fn load_frame_vertex() {
     frame = frame_uniform;
 }
 // binding 1, the scalar volume `volume_tex`: with its reads below (`volume_value`)
@@ -630,8 +634,15 @@ struct p0_smooth_Params {
     radius: i32,
     amount: f32,
 }
-@group(1) @binding(0) var<uniform> p0_smooth_params: p0_smooth_Params;
+@group(1) @binding(0) var<uniform> p0_smooth_params_uniform: p0_smooth_Params;
+var<private> p0_smooth_params: p0_smooth_Params;
 @group(1) @binding(1) var p0_smooth_smoothed: texture_storage_3d<r32float, write>;
+// Every entry point's first call: the frame's and each plugin instance's parameters'
+// private copies from their uniforms (shaders/common.wgsl, `frame`).
+fn load_frame() {
+    frame = frame_uniform;
+    p0_smooth_params = p0_smooth_params_uniform;
+}
 // test.smooth pre-pass: a (2r+1)³ box filter of the volume into `smoothed`.
 fn p0_smooth_prepass(voxel: vec3<u32>, dims: vec3<u32>) -> vec4<f32> {
     let v = vec3<i32>(voxel);
