@@ -203,8 +203,8 @@ struct VsOut {
 // sets it on CPU devices, `Renderer::set_frame_from_vertex`). llvmpipe reads a uniform
 // in a fragment shader one lane at a time, about 30 instructions a word, and a flat
 // input as one broadcast; the values and so the images are the same (docs/perf.md, "The
-// frame as the vertices' flat outputs"). GPUs read uniforms at no such cost and keep
-// the buffer.
+// frame and the parameters as private copies"). GPUs read uniforms at no such cost and
+// keep the buffer.
 override FRAME_FROM_VERTEX: bool = false;
 
 // A slice fragment's `load_frame`: the uniform's copy, with the fields of `VsOut`

@@ -2043,9 +2043,10 @@ impl Renderer {
     /// from their vertices' flat outputs (`FRAME_FROM_VERTEX` in shaders/slice.wgsl)
     /// rather than from the uniform buffer. The values are the same, and so are the
     /// images; on CPU devices the fragments run 0.8–0.9× as long (llvmpipe reads a
-    /// uniform in a fragment shader one lane at a time; docs/perf.md, "The frame as the
-    /// vertices' flat outputs"). On by default on CPU devices, off on GPUs (unmeasured
-    /// there); `VWB_FRAME_FROM_VERTEX=0` turns the default off (a benchmark switch).
+    /// uniform in a fragment shader one lane at a time; docs/perf.md, "The frame and the
+    /// parameters as private copies"). On by default on CPU devices, off on GPUs
+    /// (unmeasured there); `VWB_FRAME_FROM_VERTEX=0` turns the default off (a benchmark
+    /// switch).
     pub fn set_frame_from_vertex(&mut self, on: bool) {
         self.frame_from_vertex = on;
     }

@@ -136,7 +136,7 @@ struct SliceInfo {
 // rest of a compute shader after its first `return`) one lane at a time, about 30
 // instructions a word. The copy is read there as a register, and the slices' fragments
 // take the frame's most read fields from flat vertex outputs (docs/perf.md, "The frame
-// as the vertices' flat outputs").
+// and the parameters as private copies").
 var<private> frame: Frame;
 
 // A vertex shader's `load_frame`: the frame alone (the parameters' uniforms are not
@@ -929,8 +929,8 @@ struct VsOut {
 // sets it on CPU devices, `Renderer::set_frame_from_vertex`). llvmpipe reads a uniform
 // in a fragment shader one lane at a time, about 30 instructions a word, and a flat
 // input as one broadcast; the values and so the images are the same (docs/perf.md, "The
-// frame as the vertices' flat outputs"). GPUs read uniforms at no such cost and keep
-// the buffer.
+// frame and the parameters as private copies"). GPUs read uniforms at no such cost and
+// keep the buffer.
 override FRAME_FROM_VERTEX: bool = false;
 
 // A slice fragment's `load_frame`: the uniform's copy, with the fields of `VsOut`

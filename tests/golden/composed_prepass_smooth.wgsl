@@ -136,7 +136,7 @@ struct SliceInfo {
 // rest of a compute shader after its first `return`) one lane at a time, about 30
 // instructions a word. The copy is read there as a register, and the slices' fragments
 // take the frame's most read fields from flat vertex outputs (docs/perf.md, "The frame
-// as the vertices' flat outputs").
+// and the parameters as private copies").
 var<private> frame: Frame;
 
 // A vertex shader's `load_frame`: the frame alone (the parameters' uniforms are not
