@@ -849,6 +849,9 @@ fn check_plugin_file(
         }
     };
     let module = naga_check(&full).map_err(|(m, o)| shader_err(m, o))?;
+    if let Some((message, offset)) = private_copy_write(&module) {
+        return Err(shader_err(message, offset));
+    }
     let decls = module_decls(source);
     let names_of =
         |src: &str| -> HashSet<String> { module_decls(src).into_iter().map(|d| d.name).collect() };
@@ -1663,6 +1666,92 @@ pub fn check_frame_loads(module: &naga::Module) -> Result<(), String> {
     Ok(())
 }
 
+/// The first assignment to the frame or to a parameter copy (a private global beside a
+/// uniform of its name and [`UNIFORM_SUFFIX`]) outside [`FRAME_LOADS`]: (message, offset
+/// in the source). They were uniforms, read-only; as private copies a write would
+/// change what the writing invocation's later hooks and other plugins read, so plugin
+/// code may not write them.
+fn private_copy_write(module: &naga::Module) -> Option<(String, Option<usize>)> {
+    let name_of = |g: naga::Handle<naga::GlobalVariable>| {
+        module.global_variables[g].name.clone().unwrap_or_default()
+    };
+    let copies: HashSet<naga::Handle<naga::GlobalVariable>> = module
+        .global_variables
+        .iter()
+        .filter(|(_, g)| {
+            g.space == naga::AddressSpace::Private
+                && g.name.as_deref().is_some_and(|n| {
+                    n == "frame"
+                        || module.global_variables.iter().any(|(_, u)| {
+                            u.name.as_deref() == Some(format!("{n}{UNIFORM_SUFFIX}").as_str())
+                        })
+                })
+        })
+        .map(|(h, _)| h)
+        .collect();
+    let functions = module
+        .functions
+        .iter()
+        .map(|(_, f)| f)
+        .chain(module.entry_points.iter().map(|ep| &ep.function));
+    for f in functions {
+        let name = f.name.as_deref().unwrap_or("");
+        if FRAME_LOADS.contains(&name) {
+            continue;
+        }
+        if let Some((g, span)) = store_into(&f.body, f, &copies) {
+            return Some((
+                format!(
+                    "`{name}` assigns to `{}`: the frame and the parameters are read-only (copy them into a local variable to change them)",
+                    name_of(g)
+                ),
+                span.to_range().map(|r| r.start),
+            ));
+        }
+    }
+    None
+}
+
+/// The first statement of `block` (nested blocks included) that stores through a
+/// pointer into one of `globals` (a member or an element of it included).
+fn store_into(
+    block: &naga::Block,
+    f: &naga::Function,
+    globals: &HashSet<naga::Handle<naga::GlobalVariable>>,
+) -> Option<(naga::Handle<naga::GlobalVariable>, naga::Span)> {
+    let root = |mut e: naga::Handle<naga::Expression>| loop {
+        match f.expressions[e] {
+            naga::Expression::GlobalVariable(g) => return Some(g),
+            naga::Expression::AccessIndex { base, .. } | naga::Expression::Access { base, .. } => {
+                e = base
+            }
+            _ => return None,
+        }
+    };
+    for (st, span) in block.span_iter() {
+        let found = match st {
+            naga::Statement::Store { pointer, .. } => root(*pointer)
+                .filter(|g| globals.contains(g))
+                .map(|g| (g, *span)),
+            naga::Statement::Block(b) => store_into(b, f, globals),
+            naga::Statement::If { accept, reject, .. } => {
+                store_into(accept, f, globals).or_else(|| store_into(reject, f, globals))
+            }
+            naga::Statement::Switch { cases, .. } => {
+                cases.iter().find_map(|c| store_into(&c.body, f, globals))
+            }
+            naga::Statement::Loop {
+                body, continuing, ..
+            } => store_into(body, f, globals).or_else(|| store_into(continuing, f, globals)),
+            _ => None,
+        };
+        if found.is_some() {
+            return found;
+        }
+    }
+    None
+}
+
 fn map_error(
     m: &ComposedModule,
     plugins: &[&dyn Plugin],
@@ -1742,6 +1831,47 @@ mod tests {
             check_frame_loads(&naga_check(uniform_only).unwrap()),
             Ok(())
         );
+    }
+
+    /// Plugin code may read the frame and its parameters (private copies of their
+    /// uniforms) and change local copies, but not assign to them, anywhere in a
+    /// function; `load_frame` alone writes them.
+    #[test]
+    fn the_frame_and_the_parameters_are_read_only() {
+        let head = "struct Frame { a: f32, b: vec4<f32> }\n\
+                    struct Params { k: f32 }\n\
+                    @group(0) @binding(0) var<uniform> frame_uniform: Frame;\n\
+                    var<private> frame: Frame;\n\
+                    @group(1) @binding(0) var<uniform> params_uniform: Params;\n\
+                    var<private> params: Params;\n\
+                    var<private> scratch: f32;\n\
+                    fn load_frame() { frame = frame_uniform; params = params_uniform; }\n";
+        let fine = "fn f(x: f32) -> f32 { var p = params; p.k = 2.0; scratch = x; return p.k * frame.a; }\n";
+        let module = naga_check(&format!("{head}{fine}")).unwrap();
+        assert_eq!(private_copy_write(&module), None);
+        for (bad, global) in [
+            (
+                "fn f(x: f32) -> f32 { params.k = x; return x; }\n",
+                "params",
+            ),
+            (
+                "fn f(x: f32) -> f32 { if (x > 0.0) { frame.b.y = x; } return x; }\n",
+                "frame",
+            ),
+            (
+                "fn f(x: f32) -> f32 { loop { frame = frame_uniform; break; } return x; }\n",
+                "frame",
+            ),
+        ] {
+            let src = format!("{head}{bad}");
+            let (message, offset) = private_copy_write(&naga_check(&src).unwrap()).unwrap();
+            assert!(
+                message.contains(&format!("`f` assigns to `{global}`")),
+                "{message}"
+            );
+            let at = offset.expect("the statement's offset");
+            assert!(at >= head.len(), "{at}: in the function");
+        }
     }
 
     #[test]

@@ -156,6 +156,31 @@ fn broken_plugin_is_reported_at_file_line_and_old_pipeline_keeps_rendering() {
     );
 }
 
+/// Plugin code that assigns to its parameters (or the frame), private copies of
+/// uniforms, is refused at its own file and line.
+#[test]
+fn a_plugin_that_writes_its_parameters_is_refused_at_its_line() {
+    let writer = PluginInstance::new(std::sync::Arc::new(Fixture {
+        id: "shade.params_writer_fixture",
+        shader: ShaderSource::new_static(
+            "tests/fixtures/params_writer.wgsl",
+            include_str!("../fixtures/params_writer.wgsl"),
+        ),
+    }));
+    let err = compose(
+        &[writer.plugin.as_ref()],
+        TargetFormat::Rgba16Float,
+        &wgpu::Limits::default(),
+    )
+    .unwrap_err();
+    let msg = err.to_string();
+    assert!(
+        msg.starts_with("tests/fixtures/params_writer.wgsl:6:"),
+        "{msg}"
+    );
+    assert!(msg.contains("assigns to `params`"), "{msg}");
+}
+
 #[test]
 fn wrong_hook_signature_names_the_function_line() {
     let p = Fixture {
