@@ -1092,6 +1092,8 @@ pub fn compose_for(
     let mut bindings = Vec::new();
     let mut instances = Vec::new();
     let mut segments = Vec::new();
+    // the instances' parameter copies in the main module (`load_frame`)
+    let mut params = Vec::new();
     let (mut g1, mut g2) = (0u32, 0u32);
     // the last instance that supplies its scalar (prefix, defines scalar_grid, index)
     let mut scalar_provider: Option<(String, bool, usize)> = None;
@@ -1231,6 +1233,7 @@ pub fn compose_for(
 
         let update_entry = plugin.slice_state().map(|_| format!("cs_update_{index}"));
         segments.push((index, shader.file.to_string(), instance_decls, renamed));
+        params.extend(param_names(&inst_bindings, &prefix));
         bindings.extend(inst_bindings);
         instances.push(InstanceLayout {
             input_index: index,
@@ -1352,17 +1355,7 @@ pub fn compose_for(
             for (index, _, decls, _) in &segments {
                 m.push_generated("bindings", decls, Some(*index));
             }
-            let prefix_of = |i: usize| {
-                instances
-                    .iter()
-                    .find(|inst| inst.input_index == i)
-                    .map_or_else(String::new, |inst| inst.prefix.clone())
-            };
-            m.push_generated(
-                "frame loads",
-                &frame_loads_wgsl(&param_names(&bindings, prefix_of)),
-                None,
-            );
+            m.push_generated("frame loads", &frame_loads_wgsl(&params), None);
         } else if trimmed == "//!PLUGINS" {
             for (index, file, _, code) in &segments {
                 m.push_file(file, code, Some(*index));
@@ -1561,7 +1554,7 @@ fn compose_prepass(
     m.push_generated("bindings", &decls_text(&iso, prefix, uniform), Some(index));
     m.push_generated(
         "frame loads",
-        &frame_loads_wgsl(&param_names(&iso, |_| prefix.to_string())),
+        &frame_loads_wgsl(&param_names(&iso, prefix)),
         Some(index),
     );
     m.push_file(
@@ -1622,13 +1615,13 @@ fn frame_loads_wgsl(params: &[String]) -> String {
     s
 }
 
-/// The names in a module of the parameter uniforms among `bindings` (their private
-/// copies'), for [`frame_loads_wgsl`].
-fn param_names(bindings: &[Binding], prefix: impl Fn(usize) -> String) -> Vec<String> {
+/// The names in a module of the parameter uniforms among an instance's `bindings`
+/// (their private copies', with the instance's `prefix`), for [`frame_loads_wgsl`].
+fn param_names(bindings: &[Binding], prefix: &str) -> Vec<String> {
     bindings
         .iter()
         .filter(|b| matches!(b.kind, BindingKind::Uniform { .. }))
-        .map(|b| format!("{}{}", prefix(b.instance), b.local_name))
+        .map(|b| format!("{prefix}{}", b.local_name))
         .collect()
 }
 
@@ -1675,16 +1668,18 @@ fn private_copy_write(module: &naga::Module) -> Option<(String, Option<usize>)> 
     let name_of = |g: naga::Handle<naga::GlobalVariable>| {
         module.global_variables[g].name.clone().unwrap_or_default()
     };
+    let names: HashSet<&str> = module
+        .global_variables
+        .iter()
+        .filter_map(|(_, g)| g.name.as_deref())
+        .collect();
     let copies: HashSet<naga::Handle<naga::GlobalVariable>> = module
         .global_variables
         .iter()
         .filter(|(_, g)| {
             g.space == naga::AddressSpace::Private
                 && g.name.as_deref().is_some_and(|n| {
-                    n == "frame"
-                        || module.global_variables.iter().any(|(_, u)| {
-                            u.name.as_deref() == Some(format!("{n}{UNIFORM_SUFFIX}").as_str())
-                        })
+                    n == "frame" || names.contains(format!("{n}{UNIFORM_SUFFIX}").as_str())
                 })
         })
         .map(|(h, _)| h)
