@@ -909,7 +909,8 @@ struct VsOut {
     @location(0) world: vec3<f32>,
     @location(1) @interpolate(flat) slice: u32,
     // the frame's fields that a fragment reads most, as flat outputs of every vertex
-    // (where `FRAME_FROM_VERTEX`; `load_frame_fragment`)
+    // (where `FRAME_FROM_VERTEX`): written by `vs_main`, read by `load_frame_fragment`;
+    // a field added here goes into both
     @location(2) @interpolate(flat) eye: vec4<f32>,
     @location(3) @interpolate(flat) forward: vec4<f32>,
     @location(4) @interpolate(flat) slicing: vec4<f32>,
