@@ -197,6 +197,10 @@ struct VsOut {
     @location(11) @interpolate(flat) own_max: vec4<f32>,
     @location(12) @interpolate(flat) settings: vec4<f32>,
     @location(13) @interpolate(flat) counts: vec4<u32>,
+    // the plugin instances' parameters that the fragments read, as flat words (from the
+    // next location, as many as the device allows; render/src/composer.rs
+    // `vertex_params_wgsl`, which also writes `params_to_vertex` and `params_from_vertex`)
+    //!VERTEX_PARAMS
 }
 
 // Whether the slices' fragments take the frame's most read fields from their vertices'
@@ -226,6 +230,7 @@ fn load_frame_fragment(in: VsOut) {
         frame.own_max = in.own_max;
         frame.settings = in.settings;
         frame.counts = in.counts;
+        params_from_vertex(in);
     }
 }
 
@@ -254,6 +259,7 @@ fn vs_main(@location(0) pos: vec3<f32>, @location(1) slice: u32) -> VsOut {
         o.own_max = frame.own_max;
         o.settings = frame.settings;
         o.counts = frame.counts;
+        params_to_vertex(&o);
     }
     o.clip_pos = frame.view_proj * vec4<f32>(pos, 1.0);
     o.clip_pos.z = slice_depth(o.clip_pos, min(slice + RASTER_GROUP - 1u, max(frame.counts.x, 1u) - 1u));

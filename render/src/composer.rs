@@ -305,6 +305,8 @@ impl Binding {
             BindingKind::StorageTexture2d(_)
             | BindingKind::StorageTexture3d(_)
             | BindingKind::StorageBufferU32 => wgpu::ShaderStages::COMPUTE,
+            // the slice vertices read the parameters (`params_to_vertex`)
+            BindingKind::Uniform { .. } => visibility | wgpu::ShaderStages::VERTEX,
             _ => visibility,
         };
         wgpu::BindGroupLayoutEntry {
@@ -1308,6 +1310,10 @@ pub fn compose_for(
     }
 
     check_limits(&bindings, limits)?;
+    let vertex_params = vertex_params_wgsl(
+        &routed_params(&instances, &bindings, &segments, limits),
+        first_params_location(),
+    );
     if let (Some((_, _, index)), Some(reader)) = (&scalar_provider, gradient_prepasses.first()) {
         // a pre-pass sees its own plugin only: its gradient volume would be the data's
         return Err(ComposeError::Plugin {
@@ -1356,6 +1362,9 @@ pub fn compose_for(
                 m.push_generated("bindings", decls, Some(*index));
             }
             m.push_generated("frame loads", &frame_loads_wgsl(&params), None);
+            m.push_generated("parameters through the vertices", &vertex_params.1, None);
+        } else if trimmed == "//!VERTEX_PARAMS" {
+            m.push_generated("parameters through the vertices", &vertex_params.0, None);
         } else if trimmed == "//!PLUGINS" {
             for (index, file, _, code) in &segments {
                 m.push_file(file, code, Some(*index));
@@ -1613,6 +1622,158 @@ fn frame_loads_wgsl(params: &[String]) -> String {
     }
     s.push_str("}\n");
     s
+}
+
+/// The first location of the slice template's `VsOut` (shaders/slice.wgsl) free for
+/// the parameters that [`vertex_params_wgsl`] routes: one past its highest `@location`.
+fn first_params_location() -> u32 {
+    let body = TEMPLATE_WGSL
+        .split("struct VsOut {")
+        .nth(1)
+        .and_then(|s| s.split("\n}").next())
+        .unwrap_or("");
+    body.match_indices("@location(")
+        .filter_map(|(i, m)| body[i + m.len()..].split(')').next()?.parse::<u32>().ok())
+        .max()
+        .map_or(0, |l| l + 1)
+}
+
+/// One parameter that the slice vertices pass to their fragments as flat words.
+struct RoutedParam {
+    /// The instance's private copy in the module (`p1_blinn_phong_params`).
+    copy: String,
+    key: &'static str,
+    wgsl_type: &'static str,
+}
+
+impl RoutedParam {
+    /// The member's type, and the words it takes (vectors by their components).
+    fn words(&self) -> (&'static str, usize) {
+        match self.wgsl_type {
+            "vec4<f32>" => ("f32", 4),
+            "vec3<f32>" => ("f32", 3),
+            t => (t, 1),
+        }
+    }
+}
+
+/// The parameters to route through the slice vertices' flat outputs: each instance's
+/// members that its code reads (`copy.key`), in stack order, as many whole members as
+/// the locations of `VsOut` that the device's `max_inter_stage_shader_variables` leaves
+/// free hold. llvmpipe reads a uniform in a fragment shader one lane at a time, about 30
+/// instructions a word, and a flat input as one broadcast (docs/perf.md, "The
+/// parameters through the vertices").
+fn routed_params(
+    instances: &[InstanceLayout],
+    bindings: &[Binding],
+    segments: &[(usize, String, String, String)],
+    limits: &wgpu::Limits,
+) -> Vec<RoutedParam> {
+    let free = limits
+        .max_inter_stage_shader_variables
+        .saturating_sub(first_params_location()) as usize;
+    let mut budget = 4 * free;
+    let mut out = Vec::new();
+    for inst in instances {
+        let Some(code) = segments
+            .iter()
+            .find(|(i, ..)| *i == inst.input_index)
+            .map(|(.., code)| code)
+        else {
+            continue;
+        };
+        let uniforms = bindings.iter().filter(|b| {
+            b.instance == inst.input_index && matches!(b.kind, BindingKind::Uniform { .. })
+        });
+        for b in uniforms {
+            let copy = format!("{}{}", inst.prefix, b.local_name);
+            for m in &inst.uniform.members {
+                let p = RoutedParam {
+                    copy: copy.clone(),
+                    key: m.key,
+                    wgsl_type: m.wgsl_type,
+                };
+                let words = p.words().1;
+                if words <= budget && reads_member(code, &copy, m.key) {
+                    budget -= words;
+                    out.push(p);
+                }
+            }
+        }
+    }
+    out
+}
+
+/// Whether `code` reads `copy.key` (a whole member name, not a prefix of another).
+fn reads_member(code: &str, copy: &str, key: &str) -> bool {
+    let needle = format!("{copy}.{key}");
+    code.match_indices(&needle).any(|(i, _)| {
+        let before = code[..i].chars().next_back();
+        let after = code[i + needle.len()..].chars().next();
+        let ident = |c: Option<char>| c.is_some_and(|c| c.is_ascii_alphanumeric() || c == '_');
+        !ident(before) && !ident(after)
+    })
+}
+
+/// The fields of `VsOut` (from location `first`) and the functions `params_to_vertex` and
+/// `params_from_vertex` (shaders/slice.wgsl `vs_main`, `load_frame_fragment`) that carry
+/// `routed` as flat words. The values are the uniform's, bit for bit.
+fn vertex_params_wgsl(routed: &[RoutedParam], first: u32) -> (String, String) {
+    const C: [&str; 4] = ["x", "y", "z", "w"];
+    let slot = |w: usize| format!("params_{}.{}", w / 4, C[w % 4]);
+    let mut words: Vec<String> = Vec::new();
+    let mut reads = String::new();
+    for p in routed {
+        let (ty, n) = p.words();
+        let member = format!("{}{UNIFORM_SUFFIX}.{}", p.copy, p.key);
+        let mut parts = Vec::new();
+        for c in C.iter().take(n) {
+            let v = if n == 1 {
+                member.clone()
+            } else {
+                format!("{member}.{c}")
+            };
+            words.push(if ty == "u32" {
+                v
+            } else {
+                format!("bitcast<u32>({v})")
+            });
+            let w = format!("in.{}", slot(words.len() - 1));
+            parts.push(if ty == "u32" {
+                w
+            } else {
+                format!("bitcast<{ty}>({w})")
+            });
+        }
+        let value = if n == 1 {
+            parts.remove(0)
+        } else {
+            format!("{}({})", p.wgsl_type, parts.join(", "))
+        };
+        reads.push_str(&format!("    {}.{} = {value};\n", p.copy, p.key));
+    }
+    let locations = words.len().div_ceil(4);
+    words.resize(4 * locations, "0u".to_string());
+    let mut fields = String::new();
+    let mut writes = String::new();
+    for (l, w) in words.chunks(4).enumerate() {
+        fields.push_str(&format!(
+            "    @location({}) @interpolate(flat) params_{l}: vec4<u32>,\n",
+            first + l as u32
+        ));
+        writes.push_str(&format!(
+            "    (*o).params_{l} = vec4<u32>({});\n",
+            w.join(", ")
+        ));
+    }
+    let fns = format!(
+        "// The plugin instances' parameters that the slice fragments read, as flat words of\n\
+         // every vertex (where `FRAME_FROM_VERTEX`; as many as the device's inter-stage\n\
+         // locations hold): written by `vs_main`, read by `load_frame_fragment`.\n\
+         fn params_to_vertex(o: ptr<function, VsOut>) {{\n{writes}}}\n\
+         fn params_from_vertex(in: VsOut) {{\n{reads}}}\n"
+    );
+    (fields, fns)
 }
 
 /// The names in a module of the parameter uniforms among an instance's `bindings`

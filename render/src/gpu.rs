@@ -275,7 +275,7 @@ pub fn check_backend(info: &wgpu::AdapterInfo) -> Result<(), GpuError> {
 }
 
 /// Limits vwb asks for: the defaults, raised to what the adapter offers for
-/// textures and bindings.
+/// textures, bindings and inter-stage variables.
 pub fn wanted_limits(adapter: &wgpu::Limits) -> wgpu::Limits {
     let base = wgpu::Limits::default();
     wgpu::Limits {
@@ -291,6 +291,11 @@ pub fn wanted_limits(adapter: &wgpu::Limits) -> wgpu::Limits {
         max_uniform_buffers_per_shader_stage: adapter.max_uniform_buffers_per_shader_stage,
         max_storage_buffer_binding_size: adapter.max_storage_buffer_binding_size,
         max_buffer_size: adapter.max_buffer_size,
+        // the slice vertices pass the fragments the parameters as flat outputs
+        // (composer.rs `routed_params`)
+        max_inter_stage_shader_variables: adapter
+            .max_inter_stage_shader_variables
+            .max(base.max_inter_stage_shader_variables),
         ..base
     }
     .using_resolution(adapter.clone())

@@ -678,6 +678,18 @@ fn load_frame() {
     p2_slice_shadow_params = p2_slice_shadow_params_uniform;
     p3_tf1d_params = p3_tf1d_params_uniform;
 }
+// The plugin instances' parameters that the slice fragments read, as flat words of
+// every vertex (where `FRAME_FROM_VERTEX`; as many as the device's inter-stage
+// locations hold): written by `vs_main`, read by `load_frame_fragment`.
+fn params_to_vertex(o: ptr<function, VsOut>) {
+    (*o).params_0 = vec4<u32>(bitcast<u32>(p0_smooth_params_uniform.amount), bitcast<u32>(p1_tf1d_params_uniform.opacity), bitcast<u32>(p2_slice_shadow_params_uniform.strength), bitcast<u32>(p3_tf1d_params_uniform.opacity));
+}
+fn params_from_vertex(in: VsOut) {
+    p0_smooth_params.amount = bitcast<f32>(in.params_0.x);
+    p1_tf1d_params.opacity = bitcast<f32>(in.params_0.y);
+    p2_slice_shadow_params.strength = bitcast<f32>(in.params_0.z);
+    p3_tf1d_params.opacity = bitcast<f32>(in.params_0.w);
+}
 
 // test.smooth — demonstrates a pre-pass that fills a 3D texture: the sample hook
 // blends the interpolated value with the box-filtered volume `smoothed`.
@@ -923,6 +935,10 @@ struct VsOut {
     @location(11) @interpolate(flat) own_max: vec4<f32>,
     @location(12) @interpolate(flat) settings: vec4<f32>,
     @location(13) @interpolate(flat) counts: vec4<u32>,
+    // the plugin instances' parameters that the fragments read, as flat words (from the
+    // next location, as many as the device allows; render/src/composer.rs
+    // `vertex_params_wgsl`, which also writes `params_to_vertex` and `params_from_vertex`)
+    @location(14) @interpolate(flat) params_0: vec4<u32>,
 }
 
 // Whether the slices' fragments take the frame's most read fields from their vertices'
@@ -952,6 +968,7 @@ fn load_frame_fragment(in: VsOut) {
         frame.own_max = in.own_max;
         frame.settings = in.settings;
         frame.counts = in.counts;
+        params_from_vertex(in);
     }
 }
 
@@ -980,6 +997,7 @@ fn vs_main(@location(0) pos: vec3<f32>, @location(1) slice: u32) -> VsOut {
         o.own_max = frame.own_max;
         o.settings = frame.settings;
         o.counts = frame.counts;
+        params_to_vertex(&o);
     }
     o.clip_pos = frame.view_proj * vec4<f32>(pos, 1.0);
     o.clip_pos.z = slice_depth(o.clip_pos, min(slice + RASTER_GROUP - 1u, max(frame.counts.x, 1u) - 1u));

@@ -359,6 +359,75 @@ fn a_supplied_scalar_is_what_the_gradients_differentiate() {
     );
 }
 
+/// The parameters that a stack's code reads travel to the raster fragments as flat
+/// words of the slice vertices (composer.rs `routed_params`), as many as the device's
+/// inter-stage locations hold, and no others.
+#[test]
+fn the_fragments_take_the_parameters_they_read_from_the_vertices() {
+    let reg = registry();
+    let tf = reg.get("classify.tf1d").unwrap();
+    let bp = reg.get("shade.blinn_phong").unwrap();
+    let stack: Vec<&dyn Plugin> = vec![tf.as_ref(), bp.as_ref()];
+    let routed = |locations: u32| {
+        let limits = wgpu::Limits {
+            max_inter_stage_shader_variables: locations,
+            ..Default::default()
+        };
+        let src = compose(&stack, TargetFormat::Rgba16Float, &limits)
+            .unwrap()
+            .main
+            .source;
+        let body = src
+            .split("fn params_from_vertex(in: VsOut) {\n")
+            .nth(1)
+            .and_then(|b| b.split('}').next())
+            .unwrap_or_default()
+            .to_string();
+        let fields = (0..64)
+            .filter(|l| src.contains(&format!("@location({l}) @interpolate(flat) params_")))
+            .collect::<Vec<u32>>();
+        (body, fields)
+    };
+    // none free: nothing routed, and the module is valid without it
+    let (body, fields) = routed(14);
+    assert!(body.trim().is_empty() && fields.is_empty(), "{body}");
+    // lavapipe's 31 locations: every member the shading reads
+    let (body, fields) = routed(31);
+    for key in [
+        "shininess",
+        "kd",
+        "ks",
+        "ka",
+        "gm_scale",
+        "gm_opacity",
+        "light0_on",
+        "light0_color",
+        "light0_vector",
+    ] {
+        assert!(
+            body.contains(&format!("p1_blinn_phong_params.{key} = ")),
+            "{key} is read, so routed:\n{body}"
+        );
+    }
+    assert!(body.contains("p1_blinn_phong_params.light0_color = vec4<f32>(bitcast<f32>(in."));
+    // the lights that are off are compiled out, so not read, so not routed
+    assert!(!body.contains("light1_"), "{body}");
+    assert!(!fields.is_empty() && fields.iter().all(|&l| (14..31).contains(&l)));
+    // the default limit: the two free locations hold what fits
+    let (short, fields16) = routed(16);
+    assert_eq!(fields16, vec![14, 15]);
+    let all: Vec<&str> = body
+        .lines()
+        .map(|l| l.split(" = ").next().unwrap())
+        .collect();
+    let some: Vec<&str> = short
+        .lines()
+        .map(|l| l.split(" = ").next().unwrap())
+        .collect();
+    assert!(!some.is_empty() && some.len() < all.len(), "{short}");
+    assert!(some.iter().all(|m| all.contains(m)), "{short}");
+}
+
 #[test]
 fn clash_with_shared_names_is_reported() {
     let p = Fixture {
