@@ -183,8 +183,8 @@ struct VsOut {
     @location(0) world: vec3<f32>,
     @location(1) @interpolate(flat) slice: u32,
     // the frame's fields that a fragment reads most, as flat outputs of every vertex
-    // (where `FRAME_FROM_VERTEX`): written by `vs_main`, read by `load_frame_fragment`;
-    // a field added here goes into both
+    // (where `FRAME_FROM_VERTEX`): written by `frame_to_vertex`, read by
+    // `load_frame_fragment`; a field added here goes into both
     @location(2) @interpolate(flat) eye: vec4<f32>,
     @location(3) @interpolate(flat) forward: vec4<f32>,
     @location(4) @interpolate(flat) slicing: vec4<f32>,
@@ -242,25 +242,31 @@ fn load_frame_fragment(in: VsOut) {
 // so that the depth masks kill it only where they would kill all n.
 override RASTER_GROUP: u32 = 1u;
 
+// The frame's fields of `VsOut` and the routed parameters (`params_to_vertex`) for the
+// fragments' `load_frame_fragment`, where `FRAME_FROM_VERTEX`.
+fn frame_to_vertex(o: ptr<function, VsOut>) {
+    if (FRAME_FROM_VERTEX) {
+        (*o).eye = frame.eye;
+        (*o).forward = frame.forward;
+        (*o).slicing = frame.slicing;
+        (*o).box_min = frame.box_min;
+        (*o).box_max = frame.box_max;
+        (*o).inv_extent = frame.inv_extent;
+        (*o).viewport = frame.viewport;
+        (*o).volume_dims = frame.volume_dims;
+        (*o).own_min = frame.own_min;
+        (*o).own_max = frame.own_max;
+        (*o).settings = frame.settings;
+        (*o).counts = frame.counts;
+        params_to_vertex(o);
+    }
+}
+
 @vertex
 fn vs_main(@location(0) pos: vec3<f32>, @location(1) slice: u32) -> VsOut {
     load_frame_vertex();
     var o: VsOut;
-    if (FRAME_FROM_VERTEX) {
-        o.eye = frame.eye;
-        o.forward = frame.forward;
-        o.slicing = frame.slicing;
-        o.box_min = frame.box_min;
-        o.box_max = frame.box_max;
-        o.inv_extent = frame.inv_extent;
-        o.viewport = frame.viewport;
-        o.volume_dims = frame.volume_dims;
-        o.own_min = frame.own_min;
-        o.own_max = frame.own_max;
-        o.settings = frame.settings;
-        o.counts = frame.counts;
-        params_to_vertex(&o);
-    }
+    frame_to_vertex(&o);
     o.clip_pos = frame.view_proj * vec4<f32>(pos, 1.0);
     o.clip_pos.z = slice_depth(o.clip_pos, min(slice + RASTER_GROUP - 1u, max(frame.counts.x, 1u) - 1u));
     o.world = pos;
@@ -430,10 +436,22 @@ fn mark_slices(bits: vec2<u32>, a: u32, b: u32, c: u32) -> vec2<u32> {
     return bits | select(vec2<u32>(0u), from_lo & to_hi, lo <= hi);
 }
 
+// The chunk bits' full-screen triangle, whose vertices carry the frame's fields to the
+// fragments as the slices' do (`frame_to_vertex`).
+@vertex
+fn vs_chunks(@builtin(vertex_index) i: u32) -> VsOut {
+    load_frame_vertex();
+    var o: VsOut;
+    frame_to_vertex(&o);
+    let xy = vec2<f32>(f32((i << 1u) & 2u), f32(i & 2u));
+    o.clip_pos = vec4<f32>(xy * 2.0 - 1.0, 0.0, 1.0);
+    return o;
+}
+
 @fragment
-fn fs_raster_chunks(@builtin(position) pos: vec4<f32>) -> @location(0) vec2<u32> {
-    load_frame();
-    let r = pixel_ray(pos.xy * frame.viewport.zw);
+fn fs_raster_chunks(in: VsOut) -> @location(0) vec2<u32> {
+    load_frame_fragment(in);
+    let r = pixel_ray(in.clip_pos.xy * frame.viewport.zw);
     let range = slice_range(r, true);
     let rs = ray_slices(r);
     let c = chunk_slices();

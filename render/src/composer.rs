@@ -1658,9 +1658,9 @@ impl RoutedParam {
 }
 
 /// The parameters to route through the slice vertices' flat outputs: each instance's
-/// members that its code reads (`copy.key`), in stack order, as many whole members as
-/// the locations of `VsOut` that the device's `max_inter_stage_shader_variables` leaves
-/// free hold. llvmpipe reads a uniform in a fragment shader one lane at a time, about 30
+/// members that its code reads (`copy.key`), in stack order, then the frame's ray basis,
+/// as many whole members as the locations of `VsOut` that the device's
+/// `max_inter_stage_shader_variables` leaves free hold. llvmpipe reads a uniform in a fragment shader one lane at a time, about 30
 /// instructions a word, and a flat input as one broadcast (docs/perf.md, "The
 /// parameters through the vertices").
 fn routed_params(
@@ -1701,8 +1701,29 @@ fn routed_params(
             }
         }
     }
+    // then the frame's ray basis, which `pixel_ray` reads (the chunk bits' fragments
+    // always, a slice fragment where an instance sets up its rays)
+    for key in FRAME_RAY_BASIS {
+        if budget >= 4 {
+            budget -= 4;
+            out.push(RoutedParam {
+                copy: "frame".to_string(),
+                key,
+                wgsl_type: "vec4<f32>",
+            });
+        }
+    }
     out
 }
+
+/// The frame's members after the parameters in [`routed_params`]: the columns of its
+/// `ray_basis` (shaders/common.wgsl `pixel_ray`).
+const FRAME_RAY_BASIS: [&str; 4] = [
+    "ray_basis[0]",
+    "ray_basis[1]",
+    "ray_basis[2]",
+    "ray_basis[3]",
+];
 
 /// Whether `code` reads `copy.key` (a whole member name, not a prefix of another).
 fn reads_member(code: &str, copy: &str, key: &str) -> bool {
@@ -1716,7 +1737,7 @@ fn reads_member(code: &str, copy: &str, key: &str) -> bool {
 }
 
 /// The fields of `VsOut` (from location `first`) and the functions `params_to_vertex` and
-/// `params_from_vertex` (shaders/slice.wgsl `vs_main`, `load_frame_fragment`) that carry
+/// `params_from_vertex` (shaders/slice.wgsl `frame_to_vertex`, `load_frame_fragment`) that carry
 /// `routed` as flat words. The values are the uniform's, bit for bit.
 fn vertex_params_wgsl(routed: &[RoutedParam], first: u32) -> (String, String) {
     const C: [&str; 4] = ["x", "y", "z", "w"];
@@ -1768,8 +1789,9 @@ fn vertex_params_wgsl(routed: &[RoutedParam], first: u32) -> (String, String) {
     }
     let fns = format!(
         "// The plugin instances' parameters that the slice fragments read, as flat words of\n\
-         // every vertex (where `FRAME_FROM_VERTEX`; as many as the device's inter-stage\n\
-         // locations hold): written by `vs_main`, read by `load_frame_fragment`.\n\
+         // every vertex, and the frame's ray basis (where `FRAME_FROM_VERTEX`; as many as the\n\
+         // device's inter-stage locations hold): written by `frame_to_vertex`, read by\n\
+         // `load_frame_fragment`.\n\
          fn params_to_vertex(o: ptr<function, VsOut>) {{\n{writes}}}\n\
          fn params_from_vertex(in: VsOut) {{\n{reads}}}\n"
     );

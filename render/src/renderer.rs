@@ -751,7 +751,8 @@ struct CompiledStack {
     raster: [std::sync::OnceLock<wgpu::RenderPipeline>; 16 * RASTER_GROUPS.len()],
     /// The raster backend's chunk bits for empty-space skipping (`fs_raster_chunks`,
     /// [`raster_et`]), built on first use.
-    raster_chunks: std::sync::OnceLock<wgpu::RenderPipeline>,
+    /// (by the frame from the vertices, [`Renderer::set_frame_from_vertex`])
+    raster_chunks: [std::sync::OnceLock<wgpu::RenderPipeline>; 2],
     module: wgpu::ShaderModule,
     raster_layout: wgpu::PipelineLayout,
     compute_layout: wgpu::PipelineLayout,
@@ -813,9 +814,14 @@ impl CompiledStack {
     }
 
     /// The raster backend's chunk-bits pipeline, built on first use.
-    fn chunks_pipeline(&self, device: &wgpu::Device) -> &wgpu::RenderPipeline {
-        self.raster_chunks
-            .get_or_init(|| raster_et::chunks_pipeline(device, &self.module, &self.raster_layout))
+    fn chunks_pipeline(
+        &self,
+        device: &wgpu::Device,
+        frame_from_vertex: bool,
+    ) -> &wgpu::RenderPipeline {
+        self.raster_chunks[frame_from_vertex as usize].get_or_init(|| {
+            raster_et::chunks_pipeline(device, &self.module, &self.raster_layout, frame_from_vertex)
+        })
     }
 
     /// `cs_main_raw`, built on first use.
@@ -2988,7 +2994,7 @@ impl Renderer {
                     .set(raster);
                 locks
             },
-            raster_chunks: std::sync::OnceLock::new(),
+            raster_chunks: Default::default(),
             module,
             raster_layout,
             compute_layout,
@@ -4624,7 +4630,12 @@ impl Renderer {
                         (et, rect_union((0..plan.count).filter_map(slice_scissor)))
                 {
                     let groups = [&self.g0, &g1, &g2[0]];
-                    et.encode_chunks(enc, p.chunks_pipeline(device), groups, rect);
+                    et.encode_chunks(
+                        enc,
+                        p.chunks_pipeline(device, self.frame_from_vertex),
+                        groups,
+                        rect,
+                    );
                 }
                 if per_slice {
                     // one pass per slice followed by the updates (and a mask before every

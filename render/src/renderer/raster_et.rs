@@ -454,19 +454,44 @@ fn mask_pipeline(
 }
 
 /// The pipeline of the chunk bits (`fs_raster_chunks` over a full-screen triangle).
+/// With `frame_from_vertex` its fragments take the frame's fields from the vertices, as
+/// the slices' do (`FRAME_FROM_VERTEX`, [`super::Renderer::set_frame_from_vertex`]).
 pub(super) fn chunks_pipeline(
     device: &wgpu::Device,
     module: &wgpu::ShaderModule,
     layout: &wgpu::PipelineLayout,
+    frame_from_vertex: bool,
 ) -> wgpu::RenderPipeline {
-    fullscreen_render_pipeline(
-        device,
-        "vwb raster chunk bits",
-        (module, layout),
-        ("vs_post", "fs_raster_chunks"),
-        &[Some(CHUNKS_FORMAT.into())],
-        None,
-    )
+    let constants: &[(&str, f64)] = if frame_from_vertex {
+        &[("FRAME_FROM_VERTEX", 1.0)]
+    } else {
+        &[]
+    };
+    let options = || wgpu::PipelineCompilationOptions {
+        constants,
+        ..Default::default()
+    };
+    device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+        label: Some("vwb raster chunk bits"),
+        layout: Some(layout),
+        vertex: wgpu::VertexState {
+            module,
+            entry_point: Some("vs_chunks"),
+            compilation_options: options(),
+            buffers: &[],
+        },
+        primitive: Default::default(),
+        depth_stencil: None,
+        multisample: Default::default(),
+        fragment: Some(wgpu::FragmentState {
+            module,
+            entry_point: Some("fs_raster_chunks"),
+            compilation_options: options(),
+            targets: &[Some(CHUNKS_FORMAT.into())],
+        }),
+        multiview_mask: None,
+        cache: None,
+    })
 }
 
 #[cfg(test)]
