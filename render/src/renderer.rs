@@ -532,12 +532,14 @@ fn fullscreen_pipeline(
         entries,
         targets,
         depth_stencil,
+        &[],
     );
     (pipeline, layout)
 }
 
 /// The render pipeline of a full-screen pass of `module` and `layout` (no vertex
-/// buffers; `entries` the vertex and fragment entry points).
+/// buffers; `entries` the vertex and fragment entry points, both compiled with the
+/// pipeline constants `constants`).
 fn fullscreen_render_pipeline(
     device: &wgpu::Device,
     label: &str,
@@ -545,14 +547,19 @@ fn fullscreen_render_pipeline(
     entries: (&str, &str),
     targets: &[Option<wgpu::ColorTargetState>],
     depth_stencil: Option<wgpu::DepthStencilState>,
+    constants: &[(&str, f64)],
 ) -> wgpu::RenderPipeline {
+    let options = || wgpu::PipelineCompilationOptions {
+        constants,
+        ..Default::default()
+    };
     device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
         label: Some(label),
         layout: Some(layout),
         vertex: wgpu::VertexState {
             module,
             entry_point: Some(entries.0),
-            compilation_options: Default::default(),
+            compilation_options: options(),
             buffers: &[],
         },
         primitive: Default::default(),
@@ -561,7 +568,7 @@ fn fullscreen_render_pipeline(
         fragment: Some(wgpu::FragmentState {
             module,
             entry_point: Some(entries.1),
-            compilation_options: Default::default(),
+            compilation_options: options(),
             targets,
         }),
         multiview_mask: None,

@@ -450,6 +450,7 @@ fn mask_pipeline(
             None => &[],
         },
         Some(depth),
+        &[],
     )
 }
 
@@ -467,31 +468,15 @@ pub(super) fn chunks_pipeline(
     } else {
         &[]
     };
-    let options = || wgpu::PipelineCompilationOptions {
+    fullscreen_render_pipeline(
+        device,
+        "vwb raster chunk bits",
+        (module, layout),
+        ("vs_chunks", "fs_raster_chunks"),
+        &[Some(CHUNKS_FORMAT.into())],
+        None,
         constants,
-        ..Default::default()
-    };
-    device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-        label: Some("vwb raster chunk bits"),
-        layout: Some(layout),
-        vertex: wgpu::VertexState {
-            module,
-            entry_point: Some("vs_chunks"),
-            compilation_options: options(),
-            buffers: &[],
-        },
-        primitive: Default::default(),
-        depth_stencil: None,
-        multisample: Default::default(),
-        fragment: Some(wgpu::FragmentState {
-            module,
-            entry_point: Some("fs_raster_chunks"),
-            compilation_options: options(),
-            targets: &[Some(CHUNKS_FORMAT.into())],
-        }),
-        multiview_mask: None,
-        cache: None,
-    })
+    )
 }
 
 #[cfg(test)]
