@@ -1310,9 +1310,13 @@ pub fn compose_for(
     }
 
     check_limits(&bindings, limits)?;
+    let first = first_params_location();
+    let free = limits
+        .max_inter_stage_shader_variables
+        .saturating_sub(first);
     let vertex_params = vertex_params_wgsl(
-        &routed_params(&instances, &bindings, &segments, limits),
-        first_params_location(),
+        &routed_params(&instances, &bindings, &segments, free),
+        first,
     );
     if let (Some((_, _, index)), Some(reader)) = (&scalar_provider, gradient_prepasses.first()) {
         // a pre-pass sees its own plugin only: its gradient volume would be the data's
@@ -1659,29 +1663,20 @@ impl RoutedParam {
 
 /// The parameters to route through the slice vertices' flat outputs: each instance's
 /// members that its code reads (`copy.key`), in stack order, then the frame's ray basis,
-/// as many whole members as the locations of `VsOut` that the device's
-/// `max_inter_stage_shader_variables` leaves free hold. llvmpipe reads a uniform in a fragment shader one lane at a time, about 30
-/// instructions a word, and a flat input as one broadcast (docs/perf.md, "The
-/// parameters through the vertices").
+/// as many whole members as the `free` locations of `VsOut` hold (those that the device's
+/// `max_inter_stage_shader_variables` leaves). llvmpipe reads a uniform in a fragment
+/// shader one lane at a time, about 30 instructions a word, and a flat input as one
+/// broadcast (docs/perf.md, "The parameters through the vertices"). `instances` and
+/// `segments` are parallel, one entry per enabled instance.
 fn routed_params(
     instances: &[InstanceLayout],
     bindings: &[Binding],
     segments: &[(usize, String, String, String)],
-    limits: &wgpu::Limits,
+    free: u32,
 ) -> Vec<RoutedParam> {
-    let free = limits
-        .max_inter_stage_shader_variables
-        .saturating_sub(first_params_location()) as usize;
-    let mut budget = 4 * free;
+    let mut budget = 4 * free as usize;
     let mut out = Vec::new();
-    for inst in instances {
-        let Some(code) = segments
-            .iter()
-            .find(|(i, ..)| *i == inst.input_index)
-            .map(|(.., code)| code)
-        else {
-            continue;
-        };
+    for (inst, (.., code)) in instances.iter().zip(segments) {
         let uniforms = bindings.iter().filter(|b| {
             b.instance == inst.input_index && matches!(b.kind, BindingKind::Uniform { .. })
         });

@@ -1178,6 +1178,12 @@ fn mark_slices(bits: vec2<u32>, a: u32, b: u32, c: u32) -> vec2<u32> {
     return bits | select(vec2<u32>(0u), from_lo & to_hi, lo <= hi);
 }
 
+// Vertex i of a triangle that covers the whole target (the chunk bits', the post hooks').
+fn fullscreen_vertex(i: u32) -> vec4<f32> {
+    let xy = vec2<f32>(f32((i << 1u) & 2u), f32(i & 2u));
+    return vec4<f32>(xy * 2.0 - 1.0, 0.0, 1.0);
+}
+
 // The chunk bits' full-screen triangle, whose vertices carry the frame's fields to the
 // fragments as the slices' do (`frame_to_vertex`).
 @vertex
@@ -1185,8 +1191,7 @@ fn vs_chunks(@builtin(vertex_index) i: u32) -> VsOut {
     load_frame_vertex();
     var o: VsOut;
     frame_to_vertex(&o);
-    let xy = vec2<f32>(f32((i << 1u) & 2u), f32(i & 2u));
-    o.clip_pos = vec4<f32>(xy * 2.0 - 1.0, 0.0, 1.0);
+    o.clip_pos = fullscreen_vertex(i);
     return o;
 }
 
@@ -1234,8 +1239,7 @@ fn fs_raster_chunks(in: VsOut) -> @location(0) vec2<u32> {
 @vertex
 fn vs_post(@builtin(vertex_index) i: u32) -> @builtin(position) vec4<f32> {
     load_frame_vertex();
-    let xy = vec2<f32>(f32((i << 1u) & 2u), f32(i & 2u));
-    return vec4<f32>(xy * 2.0 - 1.0, 0.0, 1.0);
+    return fullscreen_vertex(i);
 }
 
 @fragment
