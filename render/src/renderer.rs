@@ -241,6 +241,7 @@ struct FrameUniform {
     inv_extent: [f32; 4],
     hull: [[f32; 4]; 5],
     spread: [u32; 4],
+    bricks: [u32; 4],
 }
 
 const SLICE_INFO_STRIDE: u64 = 256;
@@ -3619,6 +3620,11 @@ impl Renderer {
                 let rows = (rect[3] - rect[1]).div_ceil(self.main_workgroup[1].max(1));
                 [rows, spread_stride(rows), 0, 0]
             },
+            // the header words of the bound `occupancy` buffer (`upload_occupancy`)
+            bricks: match occupancy {
+                Some(b) => occupancy_header(self.bricks.dims, b.len()),
+                None => occupancy_header([1, 1, 1], 1),
+            },
         }
     }
 
@@ -5373,10 +5379,17 @@ pub(crate) fn occupancy_words(dims: [u32; 3], bytes: &[u8]) -> Vec<u32> {
     occupancy_words_capped(dims, bytes, crate::skipping::run_bricks_cap())
 }
 
+/// The first four words of [`upload_occupancy`]'s buffer for `bricks` bricks of a grid
+/// of `dims`: the dims, then the word where the bricks' bytes begin (after one bit per
+/// brick from word 4). The frame uniform holds them too (`Frame.bricks`).
+fn occupancy_header(dims: [u32; 3], bricks: usize) -> [u32; 4] {
+    [dims[0], dims[1], dims[2], (4 + bricks.div_ceil(32)) as u32]
+}
+
 /// [`occupancy_words`] with the pure boxes' extents capped at `cap`.
 fn occupancy_words_capped(dims: [u32; 3], bytes: &[u8], cap: u8) -> Vec<u32> {
-    let cells = 4 + bytes.len().div_ceil(32);
-    let mut words = vec![dims[0], dims[1], dims[2], cells as u32];
+    let mut words = occupancy_header(dims, bytes.len()).to_vec();
+    let cells = words[3] as usize;
     words.resize(cells + 2 * bytes.len(), 0);
     for (i, _) in bytes.iter().enumerate().filter(|(_, b)| **b > 127) {
         words[4 + i / 32] |= 1 << (i % 32);

@@ -62,6 +62,12 @@ struct Frame {
     // `spread_row` spreads them by (computed once per frame on the CPU:
     // `renderer::spread_stride`)
     spread: vec4<u32>,
+    // empty-space skipping's brick grid (`occupancy` below): xyz its size in bricks, w
+    // the word of `occupancy` where the bricks' bytes begin. The buffer's words 0–3 hold
+    // the same; read here, they cost a ray no storage-buffer loads, which llvmpipe runs
+    // one lane at a time in divergent control flow (docs/perf.md, "The brick grid in
+    // the frame")
+    bricks: vec4<u32>,
 }
 
 // A sweep pass's geometry (render/src/sweep.rs): the axis its planes are normal to,
@@ -153,7 +159,7 @@ fn load_frame_vertex() {
 // word 4, x fastest; from the word that word 3 names, eight bytes per brick (two
 // words), one per octant of ray directions: bit 7 the same bit, bits 0–6 how far its
 // pure box ahead reaches (`skipping::pure_boxes_ahead`; `upload_occupancy` in
-// render/src/renderer.rs).
+// render/src/renderer.rs). The shaders take words 0–3 from `frame.bricks`.
 @group(0) @binding(5) var<storage, read> occupancy: array<u32>;
 // The tiles of every slice that `slice_info` lists, x | y << 16.
 @group(0) @binding(6) var<storage, read> slice_tile_list: array<u32>;
@@ -233,8 +239,8 @@ fn brick_grid() -> BrickGrid {
     var g: BrickGrid;
     g.scale = frame.volume_dims.xyz / frame.settings.y;
     g.side = frame.settings.y / frame.volume_dims.xyz;
-    g.dims = vec3<u32>(occupancy[0], occupancy[1], occupancy[2]);
-    g.cells = occupancy[3];
+    g.dims = frame.bricks.xyz;
+    g.cells = frame.bricks.w;
     return g;
 }
 

@@ -873,7 +873,15 @@ fn window_retries_at_a_lower_resolution_when_gpu_memory_runs_out() {
         h.run_steps(1);
     }
     let r = h.state().renderer();
-    assert!(!r.refining());
+    // the state that would explain a window that stopped refining (once seen under the
+    // full suite's load, not reproduced alone or under 5 parallel runs)
+    assert!(
+        !r.refining(),
+        "still refining after 40 frames: bricks {:?}, level {:?}, error {:?}",
+        r.brick_refinement(),
+        r.level().map(|l| l.refined),
+        h.state().error()
+    );
     let (done, n) = r.brick_refinement().expect("bricks refined in view");
     assert_eq!(done, n);
     assert!(r.gpu_memory() <= held + (1 << 18), "{}", r.gpu_memory());
