@@ -145,12 +145,13 @@ fn one_dispatch_per_slice_keeps_the_image() {
     }
 }
 
-/// The occlusion update skips its taps where the sample is empty and every tap would
-/// read the clear buffer (`SliceStateDecl::track_clear`): the image is the one with
-/// every tile marked (every update reads), bit for bit, on both backends, for both
-/// kernels and distances, chromatic extinction, a half-resolution buffer and a
-/// directional light. After a frame every tile that holds a texel off the clear value
-/// is marked; behind a small block only the tiles its shadow reaches are.
+/// With `clear_tiles` on, the occlusion update skips its taps where the sample is empty
+/// and every tap would read the clear buffer (`SliceStateDecl::track_clear`): the image
+/// is the one with every tile marked (every update reads) and the default's without
+/// the check and the marks, bit for bit, on both backends, for both kernels and
+/// distances, chromatic extinction, a half-resolution buffer and a directional light.
+/// After a frame every tile that holds a texel off the clear value is marked; behind a
+/// small block only the tiles its shadow reaches are.
 #[test]
 fn clear_tiles_skip_taps_and_keep_the_image() {
     let mut r = Renderer::new(gpu(), demo()).unwrap();
@@ -184,9 +185,10 @@ fn clear_tiles_skip_taps_and_keep_the_image() {
     );
 }
 
-/// Renders `stack` under `s` with the clear tiles tracked and with every tile marked:
-/// the same pixels, and with tracking every texel off the clear value in a marked
-/// tile. The tiles marked and in all, with tracking.
+/// Renders `stack` under `s` with the clear tiles tracked, with every tile marked, and
+/// without `clear_tiles` (the default: no marks kept): the same pixels, and with
+/// tracking every texel off the clear value in a marked tile. The tiles marked and in
+/// all, with tracking.
 fn clear_tiles_keep_the_image(
     r: &mut Renderer,
     stack: &[PluginInstance],
@@ -198,6 +200,8 @@ fn clear_tiles_keep_the_image(
     stack[dos]
         .params
         .set("buffer_format", ParamValue::Enum("fp32".into()));
+    let default = stack.clone();
+    stack[dos].params.set("clear_tiles", ParamValue::Bool(true));
     let tile = vwb_render::composer::STATE_TILE as usize;
     let mut images = Vec::new();
     let mut counts = (0, 0);
@@ -246,9 +250,21 @@ fn clear_tiles_keep_the_image(
         counts = (marked, tiles.len());
     }
     r.set_state_tracking(true);
+    r.update_stack(&default, TargetFormat::Rgba32Float).unwrap();
+    r.render(s).unwrap();
+    images.push(r.read_pixels().unwrap().2);
+    let st = r
+        .read_state(default[dos].uid)
+        .expect("an fp32 state reads back");
+    assert!(st.tiles.is_none(), "{what}: no marks without clear_tiles");
     assert!(
         images[0] == images[1],
         "{what} {:?}: the image with clear tiles skipped differs",
+        s.backend
+    );
+    assert!(
+        images[2] == images[1],
+        "{what} {:?}: the image without clear_tiles differs",
         s.backend
     );
     assert!(mean_luma(&rgb(&images[0])) > 0.001, "{what}");

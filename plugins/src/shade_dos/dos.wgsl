@@ -90,11 +90,16 @@ fn slice_update(s: Sample, c: vec4<f32>, uv: vec2<f32>) -> vec4<f32> {
     let d = state_step();
     let extent = d * tan(radians(params.theta_deg));
     let scale = state_uv_per_world(s.slice);
+    // clear_tiles: begin
     // An empty sample (σt = 0: every tap's transmittance is exactly 1) under a cone
     // whose taps all read the clear buffer (V = 1) gives V = 1 exactly, so its taps
-    // are skipped: the renderer tracks which tiles of the buffer are still clear
-    // (SliceStateDecl::track_clear). Most of a frame's texels are such (in front of
-    // the matter and beside it); the image is the same.
+    // can be skipped where the renderer tracks which tiles of the buffer are still
+    // clear (SliceStateDecl::track_clear; the structural `clear_tiles`, off by
+    // default). The image is the same. Since the per-slice dispatches leave out the
+    // tiles whose state is still clear (renderer/slice_exit.rs), the check finds few
+    // such texels, and on lavapipe its per-lane reads cost more than the taps it
+    // skips: 0.51–0.81× the DOS frame without it (docs/perf.md, "The taps under a
+    // clear buffer, again").
     if (sigma_t == 0.0 && state_prev_clear(uv, extent * abs(scale))) {
         // chromatic: begin
         if (params.extinction == 1u) {
@@ -103,6 +108,7 @@ fn slice_update(s: Sample, c: vec4<f32>, uv: vec2<f32>) -> vec4<f32> {
         // chromatic: end
         return vec4<f32>(1.0, 0.0, 0.0, 1.0);
     }
+    // clear_tiles: end
     // chromatic: begin
     if (params.extinction == 1u) {
         return vec4<f32>(chromatic_taps(uv, scale, extent, d, sigma_t), 1.0);

@@ -120,6 +120,11 @@ pub struct Dos {
     pub grid: u32,
     /// `distance: exact` (Algorithm 2; else the slice distance, Algorithm 3).
     pub exact_distance: bool,
+    /// `clear_tiles`: the buffer's tiles still clear are tracked, and an empty sample
+    /// under clear ones skips its taps (off by default: on lavapipe the check costs
+    /// more than the taps it skips, docs/perf.md, "The taps under a clear buffer,
+    /// again").
+    pub clear_tiles: bool,
 }
 
 impl Default for Dos {
@@ -132,6 +137,7 @@ impl Default for Dos {
             poisson: false,
             grid: 4,
             exact_distance: false,
+            clear_tiles: false,
         }
     }
 }
@@ -265,6 +271,11 @@ impl Plugin for Dos {
                 .with_doc(
                     "fp32: r32float (4 bytes/texel, the default; rgba32float when chromatic); fp16: rgba16float (8 bytes)",
                 ),
+            ParamSpec::boolean("clear_tiles", "Skip taps under clear tiles", false)
+                .structural()
+                .with_doc(
+                    "track the buffer's tiles still clear and skip an empty sample's taps under them; the same image; off: on lavapipe the check costs more than it skips (docs/perf.md, \"The taps under a clear buffer, again\")",
+                ),
         ]
     }
     fn shader(&self) -> ShaderSource {
@@ -291,6 +302,9 @@ impl Plugin for Dos {
         if !self.exact_distance {
             left_out.push(("exact_distance", ""));
         }
+        if !self.clear_tiles {
+            left_out.push(("clear_tiles", ""));
+        }
         ShaderSource::without_regions(FILE, SOURCE, &left_out)
     }
     fn resources(&self) -> Vec<ResourceDecl> {
@@ -314,8 +328,8 @@ impl Plugin for Dos {
                 [1.0, 0.0, 0.0, 1.0]
             },
             light: self.directional,
-            // empty samples under clear cones skip their taps (dos.wgsl)
-            track_clear: true,
+            // empty samples under clear cones skip their taps (dos.wgsl), where asked
+            track_clear: self.clear_tiles,
         })
     }
     fn slice_light(&self, params: &ParamValues, view: &vwb_render::camera::View) -> Option<glam::Vec3> {
@@ -349,6 +363,7 @@ impl Plugin for Dos {
                 params.int("grid").clamp(2, 13) as u32
             },
             exact_distance: params.enumeration("distance") == "exact",
+            clear_tiles: params.boolean("clear_tiles"),
         };
         (c != *self).then(|| Arc::new(c) as Arc<dyn Plugin>)
     }
