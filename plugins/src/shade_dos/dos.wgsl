@@ -98,8 +98,8 @@ fn slice_update(s: Sample, c: vec4<f32>, uv: vec2<f32>) -> vec4<f32> {
     // default). The image is the same. Since the per-slice dispatches leave out the
     // tiles whose state is still clear (renderer/slice_exit.rs), the check finds few
     // such texels, and on lavapipe its per-lane reads cost more than the taps it
-    // skips: 0.51–0.81× the DOS frame without it (docs/perf.md, "The taps under a
-    // clear buffer, again").
+    // skips: 0.51–0.81× the DOS frame without it (docs/perf.md, "Storage-buffer words
+    // one lane at a time").
     if (sigma_t == 0.0 && state_prev_clear(uv, extent * abs(scale))) {
         // chromatic: begin
         if (params.extinction == 1u) {

@@ -63,6 +63,12 @@
 //! - θ = 0: every tap reads the texel itself, V becomes the transmittance towards the
 //!   viewer (no lateral occlusion): the image equals `test.slice_shadow` at strength 1
 //!   with L_a = 1 and no ambient.
+//! - `clear_tiles` (structural, off by default): the renderer keeps marks of the
+//!   buffer's tiles that left the clear value, and an empty sample whose cone reads only
+//!   clear tiles returns V = 1 without its taps. The image is the same. Off by default
+//!   because on lavapipe the marks' reads and stores cost more than the taps they skip
+//!   once the per-slice dispatches leave the clear tiles out (0.51–0.81× the DOS frame
+//!   without them; docs/perf.md, "Storage-buffer words one lane at a time").
 
 pub mod mc;
 #[cfg(feature = "ui")]
@@ -122,8 +128,7 @@ pub struct Dos {
     pub exact_distance: bool,
     /// `clear_tiles`: the buffer's tiles still clear are tracked, and an empty sample
     /// under clear ones skips its taps (off by default: on lavapipe the check costs
-    /// more than the taps it skips, docs/perf.md, "The taps under a clear buffer,
-    /// again").
+    /// more than the taps it skips).
     pub clear_tiles: bool,
 }
 
@@ -274,7 +279,7 @@ impl Plugin for Dos {
             ParamSpec::boolean("clear_tiles", "Skip taps under clear tiles", false)
                 .structural()
                 .with_doc(
-                    "track the buffer's tiles still clear and skip an empty sample's taps under them; the same image; off: on lavapipe the check costs more than it skips (docs/perf.md, \"The taps under a clear buffer, again\")",
+                    "track the buffer's tiles still clear and skip an empty sample's taps under them; the same image; off: on lavapipe the check costs more than it skips (docs/perf.md, \"Storage-buffer words one lane at a time\")",
                 ),
         ]
     }
