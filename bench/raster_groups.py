@@ -16,6 +16,12 @@ interleaved rounds (the order reversed every other round), and writes to the
 
     python3 bench/raster_groups.py [--vwb target/debug/vwb] [--rounds 3] [--frames 3]
         [--groups 1,2,4,8,16] [--twin-size 128x128 | 0] [--block raster-groups]
+        [--targets preset,rgba32float]
+
+`--targets` repeats every variant at each eye-buffer precision it names (`preset`: the
+preset's own, `rgba16float`, `rgba32float`; `vwb render --target`), in the same
+interleaved rounds; each variant's ratios are to the polygon per slice and to compute
+at its own precision.
 
 Needs numpy and pillow (`pip install numpy pillow`; not part of the test set-up).
 """
@@ -36,16 +42,19 @@ from doclib import REPO, bench_parser, publish, round_order, vwb_env
 ET = ["--early-termination", "0.99"]
 
 
-def variants(groups):
-    """(label, backend, extra arguments) of each variant: the groups and compute,
-    without and with early termination."""
-    return (
-        [(f"raster, {n} per polygon", "raster", ["--slices-per-proxy", str(n)]) for n in groups]
-        + [("compute", "compute", [])]
-        + [(f"raster, {n} per polygon, ET 0.99", "raster", ["--slices-per-proxy", str(n)] + ET)
-           for n in groups]
-        + [("compute, ET 0.99", "compute", ET)]
-    )
+def variants(groups, targets=("preset",)):
+    """(label, backend, extra arguments, key) of each variant: the groups and compute,
+    without and with early termination, at each eye-buffer precision of `targets`
+    (`preset`: the preset's own); `key` (precision, termination) names the variants a
+    ratio compares within."""
+    out = []
+    for t in targets:
+        suffix, tx = ("", []) if t == "preset" else (f", {t}", ["--target", t])
+        for et, ex, es in (False, [], ""), (True, ET, ", ET 0.99"):
+            out += [(f"raster, {n} per polygon{suffix}{es}", "raster",
+                     ["--slices-per-proxy", str(n)] + tx + ex, (t, et)) for n in groups]
+            out += [(f"compute{suffix}{es}", "compute", tx + ex, (t, et))]
+    return out
 PRESETS = ["presets/demo.ron", "presets/ct_shade_none.ron", "presets/ct_shade_phong.ron",
            "presets/nuclei.ron"]
 
@@ -68,11 +77,17 @@ def main():
     ap = bench_parser(__doc__, "raster-groups", 3, 3, "demo, CT head unshaded and Blinn–Phong, nuclei")
     ap.add_argument("--twin-size", default="128x128", help="0: no twin column")
     ap.add_argument("--groups", default="1,2,4,8,16", help="slices per polygon (1 first)")
+    ap.add_argument("--targets", default="preset",
+                    help="eye-buffer precisions, comma-separated: preset (the preset's), "
+                         "rgba16float, rgba32float")
     a = ap.parse_args()
     groups = [int(n) for n in a.groups.split(",")]
     if groups[0] != 1:
         sys.exit("--groups starts with 1 (the ratios are to a polygon per slice)")
-    VARIANTS = variants(groups)
+    targets = a.targets.split(",")
+    if not set(targets) <= {"preset", "rgba16float", "rgba32float"}:
+        sys.exit(f"--targets {a.targets}: preset, rgba16float or rgba32float")
+    VARIANTS = variants(groups, targets)
     presets = a.preset or PRESETS
     env = vwb_env(a.gpu)
     tmp = Path(tempfile.gettempdir())
@@ -80,7 +95,7 @@ def main():
     adapter = "?"
     for r in range(a.rounds):
         for p in presets:
-            for label, backend, extra in round_order(VARIANTS, r):
+            for label, backend, extra, _ in round_order(VARIANTS, r):
                 res = perf.run(a.vwb, p, backend, a.size, a.frames, env, extra)
                 adapter = res["adapter"]
                 times[(p, label)].append((res["gpu"] or res["wall"])[0])
@@ -94,10 +109,10 @@ def main():
     labels = [v[0] for v in VARIANTS]
     for p in presets:
         stem = Path(p).stem
-        for i, (label, backend, extra) in enumerate(VARIANTS):
-            et = "ET" in label
-            one = labels.index("raster, 1 per polygon" + (", ET 0.99" if et else ""))
-            comp = labels.index("compute" + (", ET 0.99" if et else ""))
+        for i, (label, backend, extra, key) in enumerate(VARIANTS):
+            # the polygon per slice and compute at this variant's precision and termination
+            one = next(j for j, v in enumerate(VARIANTS) if v[3] == key and v[1] == "raster")
+            comp = next(j for j, v in enumerate(VARIANTS) if v[3] == key and v[1] == "compute")
             m = statistics.median(times[(p, label)])
             base = statistics.median(times[(p, labels[one])])
             c = statistics.median(times[(p, labels[comp])])

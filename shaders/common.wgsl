@@ -65,8 +65,8 @@ struct Frame {
     // empty-space skipping's brick grid (`occupancy` below): xyz its size in bricks, w
     // the word of `occupancy` where the bricks' bytes begin. The buffer's words 0–3 hold
     // the same; read here, they cost a ray no storage-buffer loads, which llvmpipe runs
-    // one lane at a time in divergent control flow (docs/perf.md, "The brick grid in
-    // the frame")
+    // one lane at a time in divergent control flow (docs/perf.md, "Storage-buffer words
+    // one lane at a time")
     bricks: vec4<u32>,
 }
 

@@ -3620,7 +3620,9 @@ impl Renderer {
                 let rows = (rect[3] - rect[1]).div_ceil(self.main_workgroup[1].max(1));
                 [rows, spread_stride(rows), 0, 0]
             },
-            // the header words of the bound `occupancy` buffer (`upload_occupancy`)
+            // the grid of the occupancy this frame skips with (the header words of its
+            // buffer, `upload_occupancy`); without skipping 1 × 1 × 1, which no shader
+            // reads then (`frame.settings.y` is 0)
             bricks: match occupancy {
                 Some(b) => occupancy_header(self.bricks.dims, b.len()),
                 None => occupancy_header([1, 1, 1], 1),
