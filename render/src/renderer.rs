@@ -4630,9 +4630,20 @@ impl Renderer {
                     s.early_termination.and(et).map(|_| et_interval),
                 );
                 let masked = |k: u32| (k > 0 || raster_skip) && starts.binary_search(&k).is_ok();
+                // the pixels that slices k.. can cover: a mask pass before slice k need
+                // touch no other (no later slice tests their depth), so it is scissored
+                // to them; none, and it is left out
+                let mut remaining = vec![None; plan.count as usize + 1];
+                if et.is_some() {
+                    for k in (0..plan.count).rev() {
+                        let later = remaining[k as usize + 1];
+                        remaining[k as usize] =
+                            rect_union(slice_scissor(k).into_iter().chain(later));
+                    }
+                }
                 let mask = |enc: &mut wgpu::CommandEncoder, first: u32| {
-                    if let Some((group, et)) = et {
-                        et.encode_mask(enc, group, first);
+                    if let (Some((group, et)), Some(rect)) = (et, remaining[first as usize]) {
+                        et.encode_mask(enc, group, first, rect);
                     }
                 };
                 // per slice: clear first (the first run's mask raises a cleared depth)
