@@ -261,6 +261,28 @@ fn window_edits_a_scene_like_a_user() {
     assert_eq!(h.state().document().render.slices_per_proxy, 1);
     assert!(rms(&shiny, &image(&h)) == 0.0, "one per polygon again");
 
+    // early ray termination: on at the recommended threshold, lower, and off again
+    click(&mut h, "stop opaque rays");
+    settle(&mut h);
+    assert_eq!(
+        h.state().document().render.early_termination,
+        Some(vwb_app::window::EARLY_TERMINATION)
+    );
+    let slider = h.get_by_role_and_label(egui::Role::Slider, "opacity to stop at");
+    slider.set_value_accesskit(0.9);
+    settle(&mut h);
+    assert_eq!(h.state().document().render.early_termination, Some(0.9));
+    let stopped = rms(&shiny, &image(&h));
+    assert!(stopped > 0.0, "rays stopped at 0.9 changed nothing");
+    click(&mut h, "stop opaque rays");
+    settle(&mut h);
+    assert_eq!(h.state().document().render.early_termination, None);
+    assert!(h.query_by_label("opacity to stop at").is_none());
+    assert!(
+        rms(&shiny, &image(&h)) == 0.0,
+        "termination off: the image as it was"
+    );
+
     // per-plugin GPU time by ablation, in the background
     click(&mut h, "Measure per-plugin cost");
     step_until(&mut h, Duration::from_secs(300), |h| {
