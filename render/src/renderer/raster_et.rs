@@ -21,9 +21,10 @@
 //! stopped stays stopped. The shader writes `frag_depth`, so llvmpipe shades every
 //! pixel a mask covers before its depth test: a mask is scissored to the pixels that
 //! the slices from its run on can cover, whose depth alone is tested again (session
-//! 84: the raster frame with termination 0.88–0.97× by CPU time, images bit for bit). A skipped fragment's sample lies in an empty brick and would
-//! have added exactly nothing, so skipping leaves the image bit for bit as it was
-//! (test `render::raster_skipping_keeps_the_image`).
+//! 84: the raster frame with termination 0.88–0.97× by CPU time, images bit for bit).
+//! A skipped fragment's sample lies in an empty brick and would have added exactly
+//! nothing, so skipping leaves the image bit for bit as it was (test
+//! `render::raster_skipping_keeps_the_image`).
 //!
 //! With termination, the image is that of a ray stopped at the end of the first run of
 //! [`interval`] slices after which its opacity is at least the threshold: up to
