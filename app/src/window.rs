@@ -1130,13 +1130,14 @@ impl Workbench {
         let mut stop = r.early_termination.is_some();
         if ui
             .checkbox(&mut stop, "stop opaque rays")
-            .on_hover_text(
+            .on_hover_text(format!(
                 "early ray termination: a ray stops once its opacity reaches the \
                  threshold (compute: after that slice; raster: at the end of its run of \
-                 32 slices, where 8 slices per polygon keeps it closer to compute's \
+                 {} slices, where 8 slices per polygon keeps it closer to compute's \
                  speed). At 0.99 it adds about 0.03 ΔE*uv and saves up to half the \
                  frame on dense scenes (docs/perf.md)",
-            )
+                vwb_render::renderer::raster_et_interval()
+            ))
             .changed()
         {
             r.early_termination = stop.then_some(EARLY_TERMINATION);

@@ -4650,11 +4650,8 @@ impl Renderer {
                 if per_slice {
                     drop(begin(enc, true));
                 }
-                // the chunk bits, in the pixels a slice can cover
-                if raster_skip
-                    && let (Some((_, et)), Some(rect)) =
-                        (et, rect_union((0..plan.count).filter_map(slice_scissor)))
-                {
+                // the chunk bits, in the pixels a slice can cover (those of slices 0..)
+                if raster_skip && let (Some((_, et)), Some(rect)) = (et, remaining[0]) {
                     let groups = [&self.g0, &g1, &g2[0]];
                     et.encode_chunks(
                         enc,
