@@ -15,7 +15,7 @@ interleaved rounds (the order reversed every other round), and writes to the
   f64 reference renderer with the fp16 target emulated), for every variant.
 
     python3 bench/raster_groups.py [--vwb target/debug/vwb] [--rounds 3] [--frames 3]
-        [--groups 1,2,4,8,16] [--twin-size 128x128 | 0] [--block raster-groups]
+        [--groups 1,2,4,8,16,auto] [--twin-size 128x128 | 0] [--block raster-groups]
         [--targets preset,rgba32float]
 
 `--targets` repeats every variant at each eye-buffer precision it names (`preset`: the
@@ -51,7 +51,8 @@ def variants(groups, targets=("preset",)):
     for t in targets:
         suffix, tx = ("", []) if t == "preset" else (f", {t}", ["--target", t])
         for et, ex, es in (False, [], ""), (True, ET, ", ET 0.99"):
-            out += [(f"raster, {n} per polygon{suffix}{es}", "raster",
+            out += [(f"raster, {n} per polygon{' (the default)' if n == 'auto' else ''}"
+                     f"{suffix}{es}", "raster",
                      ["--slices-per-proxy", str(n)] + tx + ex, (t, et)) for n in groups]
             out += [(f"compute{suffix}{es}", "compute", tx + ex, (t, et))]
     return out
@@ -76,12 +77,14 @@ def twin_error(vwb, preset, backend, extra, size, env):
 def main():
     ap = bench_parser(__doc__, "raster-groups", 3, 3, "demo, CT head unshaded and Blinn–Phong, nuclei")
     ap.add_argument("--twin-size", default="128x128", help="0: no twin column")
-    ap.add_argument("--groups", default="1,2,4,8,16", help="slices per polygon (1 first)")
+    ap.add_argument("--groups", default="1,2,4,8,16",
+                    help="slices per polygon (1 first; auto: the default, 8 with "
+                         "termination and 1 without)")
     ap.add_argument("--targets", default="preset",
                     help="eye-buffer precisions, comma-separated: preset (the preset's), "
                          "rgba16float, rgba32float")
     a = ap.parse_args()
-    groups = [int(n) for n in a.groups.split(",")]
+    groups = [n if n == "auto" else int(n) for n in a.groups.split(",")]
     if groups[0] != 1:
         sys.exit("--groups starts with 1 (the ratios are to a polygon per slice)")
     targets = a.targets.split(",")

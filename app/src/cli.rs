@@ -364,9 +364,10 @@ pub struct FrameArgs {
     /// to that hull instead, with the image unchanged).
     #[arg(long)]
     pub hull_cut: Option<OnOff>,
-    /// Raster backend: slices per proxy polygon, 1, 2, 4, 8 or 16 (Rezk-Salama 2001,
-    /// §9.1: a fragment composites its group's samples and blends once; faster, the
-    /// image moved by rounding; default: the preset's, normally 1).
+    /// Raster backend: slices per proxy polygon, auto, 1, 2, 4, 8 or 16 (Rezk-Salama
+    /// 2001, §9.1: a fragment composites its group's samples and blends once; faster,
+    /// the image moved by rounding; default: the preset's, normally auto: 1, or 8 with
+    /// early termination).
     #[arg(long, value_parser = parse_slices_per_proxy)]
     pub slices_per_proxy: Option<u32>,
     /// How the volume is stored on the GPU: auto (r32float_pairs on CPU devices,
@@ -409,13 +410,17 @@ pub enum OnOff {
     Off,
 }
 
-/// `--slices-per-proxy`: one of [`vwb_render::renderer::RASTER_GROUPS`].
+/// `--slices-per-proxy`: `auto` ([`vwb_render::renderer::RASTER_GROUP_AUTO`]) or one of
+/// [`vwb_render::renderer::RASTER_GROUPS`].
 pub fn parse_slices_per_proxy(s: &str) -> Result<u32, String> {
     let groups = vwb_render::renderer::RASTER_GROUPS;
+    if s.trim().eq_ignore_ascii_case("auto") {
+        return Ok(vwb_render::renderer::RASTER_GROUP_AUTO);
+    }
     s.parse::<u32>()
         .ok()
         .filter(|n| groups.contains(n))
-        .ok_or_else(|| format!("slices per proxy '{s}' is not one of {groups:?}"))
+        .ok_or_else(|| format!("slices per proxy '{s}' is neither auto nor one of {groups:?}"))
 }
 
 /// `--early-termination`: a threshold or off.

@@ -1106,19 +1106,29 @@ impl Workbench {
         });
         if r.backend == Backend::Raster {
             let before = r.slices_per_proxy;
+            let auto = vwb_render::renderer::RASTER_GROUP_AUTO;
+            let name = |n: u32| {
+                if n == auto {
+                    "auto".to_string()
+                } else {
+                    n.to_string()
+                }
+            };
             egui::ComboBox::from_label("slices per polygon")
-                .selected_text(before.to_string())
+                .selected_text(name(before))
                 .show_ui(ui, |ui| {
-                    for n in vwb_render::renderer::RASTER_GROUPS {
-                        ui.selectable_value(&mut r.slices_per_proxy, n, n.to_string());
+                    for n in std::iter::once(auto).chain(vwb_render::renderer::RASTER_GROUPS) {
+                        ui.selectable_value(&mut r.slices_per_proxy, n, name(n));
                     }
                 })
                 .response
-                .on_hover_text(
+                .on_hover_text(format!(
                     "raster: one polygon stands for this many slices, its fragments \
                      composite their samples and blend once (Rezk-Salama 2001, §9.1): \
-                     faster on CPU devices, the image moved by rounding",
-                );
+                     faster on CPU devices, the image moved by rounding. auto: 1, or {} \
+                     while \"stop opaque rays\" is on",
+                    vwb_render::renderer::RASTER_GROUP_WITH_TERMINATION
+                ));
             if r.slices_per_proxy != before {
                 // as a document's section reaches a renderer (`apply_render_switches`)
                 self.renderer.set_raster_group(r.raster_group());
@@ -1133,8 +1143,8 @@ impl Workbench {
             .on_hover_text(format!(
                 "early ray termination: a ray stops once its opacity reaches the \
                  threshold (compute: after that slice; raster: at the end of its run of \
-                 {} slices, where 8 slices per polygon keeps it closer to compute's \
-                 speed). At 0.99 it adds about 0.03 ΔE*uv and saves up to half the \
+                 {} slices, drawn 8 slices per polygon unless \"slices per polygon\" \
+                 says otherwise). At 0.99 it adds about 0.03 ΔE*uv and saves up to half the \
                  frame on dense scenes (docs/perf.md)",
                 vwb_render::renderer::raster_et_interval()
             ))

@@ -160,7 +160,7 @@ pub struct Variant {
     /// frame), `render.backend` (raster, compute), `render.target`,
     /// `render.early_termination`, `render.skipping` (true, false),
     /// `render.occupied_proxy` (true, false), `render.hull_cut` (true, false),
-    /// `render.slices_per_proxy` (1, 2, 4, 8, 16), `render.volume_format` (auto, r32float, r32float_pairs, r16float, r16unorm, r8unorm), `render.table_format` (auto, rgba32float, rgba16float), `camera.yaw_deg`,
+    /// `render.slices_per_proxy` (0: auto, 1, 2, 4, 8, 16), `render.volume_format` (auto, r32float, r32float_pairs, r16float, r16unorm, r8unorm), `render.table_format` (auto, rgba32float, rgba16float), `camera.yaw_deg`,
     /// `camera.pitch_deg`, `camera.distance`, `camera.fov_y_deg` (a perspective
     /// camera's vertical field of view).
     #[serde(default)]
@@ -1664,10 +1664,11 @@ pub fn set_value(doc: &mut Document, key: &str, value: &SetValue) -> Result<()> 
             _ => bail!("'{key}' needs true or false"),
         },
         "render.slices_per_proxy" => {
-            let v = num("slices per proxy polygon: 1, 2, 4, 8 or 16")?;
+            let v = num("slices per proxy polygon: 0 (auto), 1, 2, 4, 8 or 16")?;
             let groups = vwb_render::renderer::RASTER_GROUPS;
-            if !groups.iter().any(|&n| n as f64 == v) {
-                bail!("'{key}' must be one of {groups:?}, got {v}");
+            let auto = vwb_render::renderer::RASTER_GROUP_AUTO;
+            if v != auto as f64 && !groups.iter().any(|&n| n as f64 == v) {
+                bail!("'{key}' must be 0 (auto) or one of {groups:?}, got {v}");
             }
             doc.render.slices_per_proxy = v as u32;
         }

@@ -106,8 +106,10 @@ pub struct RenderSection {
     /// Raster backend: slices per proxy polygon, 1, 2, 4, 8 or 16
     /// ([`crate::Renderer::set_raster_group`], Rezk-Salama 2001 §9.1): fewer
     /// polygons, depth tests and blends for the same samples, the image moved by the
-    /// rounding of the blends and sample positions. Written only when not 1.
-    #[serde(skip_serializing_if = "is_one")]
+    /// rounding of the blends and sample positions. 0 (the default, "auto"): a polygon
+    /// per slice, or [`crate::renderer::RASTER_GROUP_WITH_TERMINATION`] slices per
+    /// polygon where `early_termination` is on. Written only when not 0.
+    #[serde(skip_serializing_if = "is_auto_group")]
     pub slices_per_proxy: u32,
     /// How the volume is stored on the GPU ([`crate::renderer::VolumeFormat`]);
     /// written only when not `Auto`.
@@ -132,10 +134,11 @@ impl RenderSection {
     }
 
     /// The raster backend's slices per proxy polygon this section asks for:
-    /// `slices_per_proxy` where it is not 1, else the renderer's default (1, or what
-    /// the benchmark switch `VWB_RASTER_GROUP` says).
+    /// `slices_per_proxy` where it is not auto, else the renderer's default
+    /// ([`crate::renderer::RASTER_GROUP_AUTO`], or what the benchmark switch
+    /// `VWB_RASTER_GROUP` says).
     pub fn raster_group(&self) -> u32 {
-        if self.slices_per_proxy != 1 {
+        if self.slices_per_proxy != crate::renderer::RASTER_GROUP_AUTO {
             self.slices_per_proxy
         } else {
             crate::renderer::raster_group_from_env()
@@ -155,7 +158,7 @@ impl Default for RenderSection {
             empty_space_skipping: true,
             occupied_proxy: false,
             hull_cut: false,
-            slices_per_proxy: 1,
+            slices_per_proxy: crate::renderer::RASTER_GROUP_AUTO,
             volume_format: crate::renderer::VolumeFormat::Auto,
             table_format: crate::renderer::TableFormat::Auto,
         }
@@ -171,8 +174,8 @@ pub struct PluginEntry {
     pub params: BTreeMap<String, ron::Value>,
 }
 
-fn is_one(n: &u32) -> bool {
-    *n == 1
+fn is_auto_group(n: &u32) -> bool {
+    *n == crate::renderer::RASTER_GROUP_AUTO
 }
 
 fn yes() -> bool {
@@ -324,11 +327,13 @@ impl Document {
                 format!("{:?} must be within 1..=16384 per side", r.size),
             ));
         }
-        if !crate::renderer::RASTER_GROUPS.contains(&r.slices_per_proxy) {
+        if r.slices_per_proxy != crate::renderer::RASTER_GROUP_AUTO
+            && !crate::renderer::RASTER_GROUPS.contains(&r.slices_per_proxy)
+        {
             return Err(value_err(
                 "render.slices_per_proxy".into(),
                 format!(
-                    "{} must be one of {:?}",
+                    "{} must be 0 (auto) or one of {:?}",
                     r.slices_per_proxy,
                     crate::renderer::RASTER_GROUPS
                 ),

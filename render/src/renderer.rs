@@ -337,9 +337,36 @@ pub fn raster_group_of(n: u32) -> u32 {
         .unwrap_or(1)
 }
 
-/// `VWB_RASTER_GROUP` (a benchmark switch) or 1.
+/// [`Renderer::set_raster_group`]'s value that lets each frame choose: 1 slice per
+/// polygon without early termination (the images the presets were made with),
+/// [`RASTER_GROUP_WITH_TERMINATION`] with it.
+pub const RASTER_GROUP_AUTO: u32 = 0;
+
+/// The slices per proxy polygon of a raster frame with early termination when the
+/// group is [`RASTER_GROUP_AUTO`] (the default). Termination is an option, off in
+/// every shipped preset, so no preset's image moves. docs/perf.md, "Eight slices per
+/// polygon where rays stop", measures it: with termination 0.99, 8 per polygon costs
+/// 0.58–0.83× a polygon per slice and brings raster within 1.08–1.25× of compute
+/// (1.35–1.82× per slice), its images 0.26–0.54 levels RMS from the polygon per
+/// slice's and closer to the CPU twins.
+pub const RASTER_GROUP_WITH_TERMINATION: u32 = 8;
+
+/// `VWB_RASTER_GROUP` (a benchmark switch: 1, 2, 4, 8 or 16) or [`RASTER_GROUP_AUTO`].
 pub fn raster_group_from_env() -> u32 {
-    raster_group_of(env_count("VWB_RASTER_GROUP", 1))
+    match env_count("VWB_RASTER_GROUP", 0) {
+        0 => RASTER_GROUP_AUTO,
+        n => raster_group_of(n),
+    }
+}
+
+/// The slices per polygon a raster frame asks for under the group setting `n`
+/// ([`Renderer::set_raster_group`]) and its early termination.
+pub fn raster_group_for(n: u32, early_termination: Option<f32>) -> u32 {
+    match n {
+        RASTER_GROUP_AUTO if early_termination.is_some() => RASTER_GROUP_WITH_TERMINATION,
+        RASTER_GROUP_AUTO => 1,
+        n => n,
+    }
 }
 
 /// [`HullRays::Auto`] cuts the compute backend's rays to the occupied bricks' hull where
@@ -2037,18 +2064,24 @@ impl Renderer {
     /// §9.1, "multi-texture speedup"): its fragments take the group's `n` samples along
     /// their rays, composite them front to back and blend once, which cuts the
     /// rasterisation, depth tests and blends per sample by `n` (docs/perf.md measures
-    /// it). `n` is rounded down to one of [`RASTER_GROUPS`]; 1 (the default) draws a
-    /// polygon per slice. The image moves by the rounding of the blends (the target
+    /// it). `n` is rounded down to one of [`RASTER_GROUPS`]; 1 draws a polygon per
+    /// slice. [`RASTER_GROUP_AUTO`] (0, the default) draws a polygon per slice, or
+    /// [`RASTER_GROUP_WITH_TERMINATION`] slices per polygon in frames with early
+    /// termination. The image moves by the rounding of the blends (the target
     /// rounds once per group, not per slice) and of the sample positions (stepped
     /// along the ray from the group's plane, not interpolated on each plane). Applies
     /// to view-aligned frames without per-slice state whose proxies are not cut (to the
     /// occupied cells or the hull); other frames draw a polygon per slice.
     /// `VWB_RASTER_GROUP` sets the default of new renderers (a benchmark switch).
     pub fn set_raster_group(&mut self, n: u32) {
-        self.raster_group = raster_group_of(n);
+        self.raster_group = match n {
+            RASTER_GROUP_AUTO => RASTER_GROUP_AUTO,
+            n => raster_group_of(n),
+        };
     }
 
-    /// Slices per proxy polygon on the raster backend ([`Renderer::set_raster_group`]).
+    /// Slices per proxy polygon on the raster backend ([`Renderer::set_raster_group`];
+    /// [`RASTER_GROUP_AUTO`]: chosen per frame, [`raster_group_for`]).
     pub fn raster_group(&self) -> u32 {
         self.raster_group
     }
@@ -4401,14 +4434,15 @@ impl Renderer {
             let cut_to_hull = hull.is_some() && self.hull_proxy == HullProxy::Cut;
             // several slices per polygon (§9.1) on the whole proxies of view-aligned
             // frames without per-slice state; a group within every run between masks
-            if self.raster_group > 1
+            let asked = raster_group_for(self.raster_group, s.early_termination);
+            if asked > 1
                 && !per_slice
                 && !cut_proxy
                 && !cut_to_hull
                 && frame_plan.half.is_none()
                 && boxes.len() == 1
             {
-                let mut n = self.raster_group;
+                let mut n = asked;
                 let runs = [
                     raster_skip.then(raster_et::skip_interval),
                     s.early_termination.map(|_| et_interval),

@@ -71,6 +71,32 @@ fn render_timings_and_backend_override() {
     let stdout = String::from_utf8_lossy(&o.stdout);
     assert!(stdout.contains("backend compute"), "{stdout}");
     assert!(stdout.contains("wall_ms median"), "{stdout}");
+    // raster with early termination: 8 slices per polygon by default ("auto"), one
+    // where `--slices-per-proxy 1` says so
+    for (group, want) in [(None, Some(8)), (Some("1"), None), (Some("auto"), Some(8))] {
+        let mut cmd = vwb();
+        cmd.args(["render", "--preset", "presets/demo.ron", "--size", "64x64"])
+            .args([
+                "--backend",
+                "raster",
+                "--early-termination",
+                "0.99",
+                "--timings",
+            ])
+            .args(["--frames", "1", "-o"])
+            .arg(&out);
+        if let Some(g) = group {
+            cmd.args(["--slices-per-proxy", g]);
+        }
+        let o = cmd.output().unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let stdout = String::from_utf8_lossy(&o.stdout);
+        let drawn = stdout
+            .lines()
+            .find_map(|l| l.strip_prefix("slices_per_proxy "))
+            .map(|n| n.trim().parse::<u32>().unwrap());
+        assert_eq!(drawn, want, "--slices-per-proxy {group:?}:\n{stdout}");
+    }
 }
 
 /// `--set KEY=VALUE` sets a plugin parameter or a render setting as an experiment's

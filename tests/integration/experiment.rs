@@ -479,7 +479,7 @@ fn bad_experiments_are_refused_naming_the_file_and_cause() {
         ),
         (
             "variants: [(name: \"a\", set: {\"render.slices_per_proxy\": 5})]",
-            "'render.slices_per_proxy' must be one of [1, 2, 4, 8, 16], got 5",
+            "'render.slices_per_proxy' must be 0 (auto) or one of [1, 2, 4, 8, 16], got 5",
         ),
         (
             "grid: [(param: \"render.size\", values: [16.5])]",

@@ -118,6 +118,16 @@ fn round_trip_saves_only_non_default_parameters() {
         assert_eq!(a.enabled, b.enabled);
         assert_eq!(a.params, b.params);
     }
+    // slices per polygon: "auto" (0) is the default and not saved; a polygon per slice
+    // set outright is saved, so that it stays one where rays stop
+    assert!(!text.contains("slices_per_proxy"), "{text}");
+    let mut one = doc.clone();
+    one.render.slices_per_proxy = 1;
+    let text = one.to_ron();
+    assert!(text.contains("slices_per_proxy: 1"), "{text}");
+    let again = Document::parse(&text, "one.ron", &reg).unwrap().document;
+    assert_eq!(again.render.slices_per_proxy, 1);
+    assert_eq!(again.render.raster_group(), 1);
     // every shipped preset saves and reloads to the same stack; a repeated group is
     // saved as one list, as the shipped presets write it, never as its flat keys
     for path in shipped_presets() {

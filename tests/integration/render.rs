@@ -917,6 +917,25 @@ fn raster_groups_of_slices_keep_the_image() {
         grouped.render.slices_per_proxy = 8;
         let mut r = vwb_lab::headless::renderer_for(gpu(), &grouped, volume.clone()).unwrap();
         assert_eq!(r.raster_group(), 8);
+        // the document's default, "auto": 8 per polygon in frames whose rays stop at an
+        // opacity, 1 in the others, the image that of the group set outright
+        assert_eq!(
+            doc.render.slices_per_proxy,
+            vwb_render::renderer::RASTER_GROUP_AUTO
+        );
+        let mut auto = vwb_lab::headless::renderer_for(gpu(), &doc, volume.clone()).unwrap();
+        let drawn = auto.render(&s).unwrap().raster_group;
+        let want = match et {
+            Some(_) if !per_slice => vwb_render::renderer::RASTER_GROUP_WITH_TERMINATION,
+            _ => 1,
+        };
+        assert_eq!(drawn, want, "{preset} {et:?} {projection:?}: auto");
+        r.set_raster_group(want);
+        r.render(&s).unwrap();
+        assert!(
+            auto.read_pixels().unwrap().2 == r.read_pixels().unwrap().2,
+            "{preset} {et:?} {projection:?}: auto draws the image of {want} per polygon"
+        );
         let mut first = None;
         for n in [1, 2, 4, 16] {
             r.set_raster_group(n);

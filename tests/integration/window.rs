@@ -272,15 +272,30 @@ fn window_edits_a_scene_like_a_user() {
     slider.set_value_accesskit(0.9);
     settle(&mut h);
     assert_eq!(h.state().document().render.early_termination, Some(0.9));
-    let stopped = rms(&shiny, &image(&h));
+    let per_slice = image(&h);
+    let stopped = rms(&shiny, &per_slice);
     assert!(stopped > 0.0, "rays stopped at 0.9 changed nothing");
+    // "auto" slices per polygon: 8 while rays stop (the image moved by rounding)
+    click(&mut h, "slices per polygon");
+    settle(&mut h);
+    h.get_by_role_and_label(egui::Role::Button, "auto").click();
+    settle(&mut h);
+    assert_eq!(
+        h.state().document().render.slices_per_proxy,
+        vwb_render::renderer::RASTER_GROUP_AUTO
+    );
+    let grouped = rms(&per_slice, &image(&h));
+    assert!(
+        grouped > 0.0 && grouped < 2.0,
+        "auto with termination draws 8 per polygon: {grouped}"
+    );
     click(&mut h, "stop opaque rays");
     settle(&mut h);
     assert_eq!(h.state().document().render.early_termination, None);
     assert!(h.query_by_label("opacity to stop at").is_none());
     assert!(
         rms(&shiny, &image(&h)) == 0.0,
-        "termination off: the image as it was"
+        "termination off: the image as it was, auto drawing a polygon per slice"
     );
 
     // per-plugin GPU time by ablation, in the background
