@@ -51,11 +51,11 @@ def num(x: float, decimals: int, sig: int = 3) -> str:
     return f"{x:.{max(decimals, sig - 1 - math.floor(math.log10(abs(x))))}f}"
 
 
-def render(vwb, preset, size, spacing, skipping, frames, env):
+def render(vwb, preset, size, spacing, skipping, frames, env, extra=()):
     out = Path(tempfile.gettempdir()) / "vwb-scaling.png"
     cmd = [vwb, "render", "--preset", str(preset), "--size", f"{size}x{size}",
            "--backend", "compute", "--spacing", str(spacing), "--skipping", skipping,
-           "--timings", "--frames", str(frames), "-o", str(out)]
+           "--timings", "--frames", str(frames), "-o", str(out), *extra]
     p = subprocess.run(cmd, cwd=REPO, env=env, capture_output=True, text=True)
     if p.returncode != 0:
         sys.exit(f"{' '.join(cmd)} failed:\n{p.stderr}")
