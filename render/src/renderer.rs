@@ -346,9 +346,10 @@ pub const RASTER_GROUP_AUTO: u32 = 0;
 /// group is [`RASTER_GROUP_AUTO`] (the default). Termination is an option, off in
 /// every shipped preset, so no preset's image moves. docs/perf.md, "Eight slices per
 /// polygon where rays stop", measures it: with termination 0.99, 8 per polygon costs
-/// 0.58–0.83× a polygon per slice and brings raster within 1.08–1.25× of compute
-/// (1.35–1.82× per slice), its images 0.26–0.54 levels RMS from the polygon per
-/// slice's and closer to the CPU twins.
+/// 0.68–0.79× a polygon per slice and brings raster within 1.16–1.28× of compute
+/// (1.47–1.90× per slice in the same run), its images 0.34–0.53 levels RMS from the
+/// polygon per slice's and closer to the CPU twins (0.09–0.14 ΔE*uv RMS against
+/// 0.23–0.56).
 pub const RASTER_GROUP_WITH_TERMINATION: u32 = 8;
 
 /// `VWB_RASTER_GROUP` (a benchmark switch: 1, 2, 4, 8 or 16) or [`RASTER_GROUP_AUTO`].
