@@ -307,7 +307,7 @@ impl HullRays {
 
 /// The slices per proxy polygon the raster backend can draw ([`Renderer::set_raster_group`];
 /// Rezk-Salama 2001, §9.1): powers of two, so that a group never straddles the runs
-/// between the depth masks ([`raster_et::interval`], [`raster_et::skip_interval`]).
+/// between the depth masks ([`raster_et::interval`], [`raster_et::skip_interval_for`]).
 pub const RASTER_GROUPS: [u32; 5] = [1, 2, 4, 8, 16];
 // shaders/slice.wgsl (`fragment_proxy`) writes a group's steps out for exactly these.
 const _: () = assert!(
@@ -346,9 +346,10 @@ pub const RASTER_GROUP_AUTO: u32 = 0;
 /// group is [`RASTER_GROUP_AUTO`] (the default). Termination is an option, off in
 /// every shipped preset, so no preset's image moves. docs/perf.md, "Eight slices per
 /// polygon where rays stop", measures it: with termination 0.99, 8 per polygon costs
-/// 0.68–0.79× a polygon per slice and brings raster within 1.16–1.28× of compute
-/// (1.47–1.90× per slice in the same run), its images 0.34–0.53 levels RMS from the
-/// polygon per slice's and closer to the CPU twins (0.09–0.14 ΔE*uv RMS against
+/// 0.63–0.75× a polygon per slice and brings raster within 1.01–1.17× of compute
+/// (1.49–1.87× per slice in the same run; with its skipping masks every 32 slices,
+/// `raster_et::RASTER_SKIP_INTERVAL_GROUPED`), its images 0.34–0.53 levels RMS from
+/// the polygon per slice's and closer to the CPU twins (0.09–0.14 ΔE*uv RMS against
 /// 0.23–0.56).
 pub const RASTER_GROUP_WITH_TERMINATION: u32 = 8;
 
@@ -4445,7 +4446,7 @@ impl Renderer {
             {
                 let mut n = asked;
                 let runs = [
-                    raster_skip.then(raster_et::skip_interval),
+                    raster_skip.then(|| raster_et::skip_interval_for(asked)),
                     s.early_termination.map(|_| et_interval),
                 ];
                 while n > 1 && runs.iter().flatten().any(|r| !r.is_multiple_of(n)) {
@@ -4661,7 +4662,7 @@ impl Renderer {
                 // run's too
                 let starts = raster_et::run_starts(
                     plan.count,
-                    raster_skip.then(raster_et::skip_interval),
+                    raster_skip.then(|| raster_et::skip_interval_for(group)),
                     s.early_termination.and(et).map(|_| et_interval),
                 );
                 let masked = |k: u32| (k > 0 || raster_skip) && starts.binary_search(&k).is_ok();

@@ -756,27 +756,41 @@ fn proxies_cut_to_occupied_space_cover_less_and_keep_the_image() {
 /// `Renderer::set_raster_skipping`, on by default): the slices in front of a pixel's
 /// next visible brick fail the depth test, and the image stays the same bit for bit, in
 /// one pass and per slice (per-slice state), with a 2D transfer function, clipping and
-/// early termination. The chunk bits it skips by are neither empty nor full: most drawn
-/// pixels skip some chunks of slices.
+/// early termination, and with 8 slices per polygon (by default where rays stop, and
+/// set outright), whose masks come every 32 slices. The chunk bits it skips by are
+/// neither empty nor full: most drawn pixels skip some chunks of slices.
 #[test]
 fn raster_skipping_keeps_the_image() {
     let registry = registry();
-    for (preset, et) in [
-        ("demo.ron", None),
-        ("demo.ron", Some(0.99)),
-        ("demo_clip_labels.ron", None),
-        ("demo_dos.ron", Some(0.99)),
-        ("demo_tf2d.ron", None),
+    // the group: the renderer's default (auto: 8 per polygon with termination, its
+    // skipping masks every 32 slices), or 8 set outright without termination
+    for (preset, et, group) in [
+        ("demo.ron", None, None),
+        ("demo.ron", Some(0.99), None),
+        ("demo.ron", None, Some(8)),
+        ("demo_clip_labels.ron", None, None),
+        ("demo_dos.ron", Some(0.99), None),
+        ("demo_tf2d.ron", None, None),
     ] {
         let (doc, volume, s) = raster_scene(&registry, preset, et);
         let mut images = Vec::new();
         let mut bits = None;
         for skip in [false, true] {
             let mut r = Renderer::new(gpu(), volume.clone()).unwrap();
+            if let Some(n) = group {
+                r.set_raster_group(n);
+            }
             r.set_inputs(vwb_lab::headless::inputs_for(&doc).unwrap());
             r.set_raster_skipping(skip);
             r.update_stack(&doc.stack, doc.render.target).unwrap();
-            r.render(&s).unwrap();
+            let drawn = r.render(&s).unwrap().raster_group;
+            let want = match (preset, et, group) {
+                ("demo_dos.ron", ..) => 1,
+                (_, _, Some(n)) => n,
+                (_, Some(_), None) => vwb_render::renderer::RASTER_GROUP_WITH_TERMINATION,
+                _ => 1,
+            };
+            assert_eq!(drawn, want, "{preset} {et:?} {group:?}: slices per polygon");
             images.push(r.read_pixels().unwrap().2);
             bits = r.raster_chunk_bits();
             assert_eq!(

@@ -15,7 +15,8 @@
 //!   that may hold a visible sample, or to 1 where none may: a per-frame pass
 //!   (`fs_raster_chunks`) marks, per pixel, the chunks of slices where the ray crosses a
 //!   visible brick, walking the bricks as the compute march does. Runs are
-//!   [`skip_interval`] slices long.
+//!   [`skip_interval_for`] slices long (16; 32 where 8 or more slices share a
+//!   polygon).
 //!
 //! The mask pass's own test `greater-equal` keeps the larger depth, so a pixel that
 //! stopped stays stopped. The shader writes `frag_depth`, so llvmpipe shades every
@@ -59,10 +60,28 @@ pub fn interval() -> u32 {
 /// the raster backend").
 pub const RASTER_SKIP_INTERVAL: u32 = 16;
 
-/// Slices per run of empty-space skipping: `VWB_RASTER_SKIP_INTERVAL` (≥ 1) or
-/// [`RASTER_SKIP_INTERVAL`].
-pub fn skip_interval() -> u32 {
-    env_count("VWB_RASTER_SKIP_INTERVAL", RASTER_SKIP_INTERVAL)
+/// Slices per run of empty-space skipping in frames drawn [`GROUPED_FROM`] or more
+/// slices per polygon, unless `VWB_RASTER_SKIP_INTERVAL` says otherwise: a group's
+/// polygon costs less than its slices' polygons, so the masks weigh more. With
+/// termination every 32 slices the skipping then needs no mask of its own: the
+/// termination mask raises the depth for both (docs/perf.md, "Eight slices per polygon
+/// where rays stop": 0.90–0.99× by CPU time with termination 0.99).
+pub const RASTER_SKIP_INTERVAL_GROUPED: u32 = 32;
+
+/// The slices per polygon from which [`RASTER_SKIP_INTERVAL_GROUPED`] applies.
+pub const GROUPED_FROM: u32 = 8;
+
+/// Slices per run of empty-space skipping in a frame drawn `group` slices per polygon:
+/// `VWB_RASTER_SKIP_INTERVAL` (≥ 1), else [`RASTER_SKIP_INTERVAL_GROUPED`] from
+/// [`GROUPED_FROM`] slices per polygon, else [`RASTER_SKIP_INTERVAL`]. Each of
+/// [`crate::renderer::RASTER_GROUPS`] divides the interval it gets.
+pub fn skip_interval_for(group: u32) -> u32 {
+    let default = if group >= GROUPED_FROM {
+        RASTER_SKIP_INTERVAL_GROUPED
+    } else {
+        RASTER_SKIP_INTERVAL
+    };
+    env_count("VWB_RASTER_SKIP_INTERVAL", default)
 }
 
 /// The first slices of the runs a frame of `count` slices is drawn in: every
