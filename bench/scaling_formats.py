@@ -15,7 +15,6 @@ per sample and its ratio to the same format's sample at 512², spacing 1.
 """
 
 import argparse
-from pathlib import Path
 
 from doclib import REPO, default_vwb, machine_line, vwb_env, write_block
 from scaling import least_of_rounds, num, render

@@ -1143,10 +1143,11 @@ impl Workbench {
             .on_hover_text(format!(
                 "early ray termination: a ray stops once its opacity reaches the \
                  threshold (compute: after that slice; raster: at the end of its run of \
-                 {} slices, drawn 8 slices per polygon unless \"slices per polygon\" \
+                 {} slices, drawn {} slices per polygon unless \"slices per polygon\" \
                  says otherwise). At 0.99 it adds about 0.03 ΔE*uv and saves up to half the \
                  frame on dense scenes (docs/perf.md)",
-                vwb_render::renderer::raster_et_interval()
+                vwb_render::renderer::raster_et_interval(),
+                vwb_render::renderer::RASTER_GROUP_WITH_TERMINATION
             ))
             .changed()
         {

@@ -1666,11 +1666,12 @@ pub fn set_value(doc: &mut Document, key: &str, value: &SetValue) -> Result<()> 
         "render.slices_per_proxy" => {
             let v = num("slices per proxy polygon: 0 (auto), 1, 2, 4, 8 or 16")?;
             let groups = vwb_render::renderer::RASTER_GROUPS;
-            let auto = vwb_render::renderer::RASTER_GROUP_AUTO;
-            if v != auto as f64 && !groups.iter().any(|&n| n as f64 == v) {
+            // `as` saturates (NaN to 0): a value it changes is none of them
+            let n = v as u32;
+            if n as f64 != v || !vwb_render::renderer::is_raster_group_setting(n) {
                 bail!("'{key}' must be 0 (auto) or one of {groups:?}, got {v}");
             }
-            doc.render.slices_per_proxy = v as u32;
+            doc.render.slices_per_proxy = n;
         }
         "render.target" => doc.render.target = parse_target(text()?).map_err(|e| anyhow!(e))?,
         "render.volume_format" => {

@@ -327,9 +327,7 @@ impl Document {
                 format!("{:?} must be within 1..=16384 per side", r.size),
             ));
         }
-        if r.slices_per_proxy != crate::renderer::RASTER_GROUP_AUTO
-            && !crate::renderer::RASTER_GROUPS.contains(&r.slices_per_proxy)
-        {
+        if !crate::renderer::is_raster_group_setting(r.slices_per_proxy) {
             return Err(value_err(
                 "render.slices_per_proxy".into(),
                 format!(

@@ -353,12 +353,24 @@ pub const RASTER_GROUP_AUTO: u32 = 0;
 /// 0.23–0.56).
 pub const RASTER_GROUP_WITH_TERMINATION: u32 = 8;
 
-/// `VWB_RASTER_GROUP` (a benchmark switch: 1, 2, 4, 8 or 16) or [`RASTER_GROUP_AUTO`].
-pub fn raster_group_from_env() -> u32 {
-    match env_count("VWB_RASTER_GROUP", 0) {
-        0 => RASTER_GROUP_AUTO,
+/// Whether `n` is a group setting a document or a command may ask for:
+/// [`RASTER_GROUP_AUTO`] or one of [`RASTER_GROUPS`].
+pub fn is_raster_group_setting(n: u32) -> bool {
+    n == RASTER_GROUP_AUTO || RASTER_GROUPS.contains(&n)
+}
+
+/// The group setting that `n` stands for: [`RASTER_GROUP_AUTO`] as itself, any other
+/// value rounded down to one of [`RASTER_GROUPS`] ([`raster_group_of`]).
+fn raster_group_setting(n: u32) -> u32 {
+    match n {
+        RASTER_GROUP_AUTO => RASTER_GROUP_AUTO,
         n => raster_group_of(n),
     }
+}
+
+/// `VWB_RASTER_GROUP` (a benchmark switch: 1, 2, 4, 8 or 16) or [`RASTER_GROUP_AUTO`].
+pub fn raster_group_from_env() -> u32 {
+    raster_group_setting(env_count("VWB_RASTER_GROUP", RASTER_GROUP_AUTO))
 }
 
 /// The slices per polygon a raster frame asks for under the group setting `n`
@@ -2076,10 +2088,7 @@ impl Renderer {
     /// occupied cells or the hull); other frames draw a polygon per slice.
     /// `VWB_RASTER_GROUP` sets the default of new renderers (a benchmark switch).
     pub fn set_raster_group(&mut self, n: u32) {
-        self.raster_group = match n {
-            RASTER_GROUP_AUTO => RASTER_GROUP_AUTO,
-            n => raster_group_of(n),
-        };
+        self.raster_group = raster_group_setting(n);
     }
 
     /// Slices per proxy polygon on the raster backend ([`Renderer::set_raster_group`];
@@ -5641,9 +5650,15 @@ mod tests {
         assert_eq!(got, [1, 1, 2, 2, 4, 8, 8, 16, 16, 16]);
         // every group divides the runs between the raster backend's depth masks
         for g in super::RASTER_GROUPS {
+            assert!(super::raster_et::skip_interval_default(g).is_multiple_of(g));
             assert!(super::raster_et::RASTER_SKIP_INTERVAL.is_multiple_of(g));
             assert!(super::raster_et::RASTER_ET_INTERVAL.is_multiple_of(g));
         }
+        // the settings: auto and the groups, nothing else
+        assert!(super::is_raster_group_setting(super::RASTER_GROUP_AUTO));
+        assert!(!super::is_raster_group_setting(3));
+        assert_eq!(super::raster_group_setting(0), super::RASTER_GROUP_AUTO);
+        assert_eq!(super::raster_group_setting(12), 8);
     }
 
     /// The occupancy buffer's words: the grid's dims, the first word of the bricks'

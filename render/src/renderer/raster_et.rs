@@ -71,17 +71,22 @@ pub const RASTER_SKIP_INTERVAL_GROUPED: u32 = 32;
 /// The slices per polygon from which [`RASTER_SKIP_INTERVAL_GROUPED`] applies.
 pub const GROUPED_FROM: u32 = 8;
 
-/// Slices per run of empty-space skipping in a frame drawn `group` slices per polygon:
-/// `VWB_RASTER_SKIP_INTERVAL` (≥ 1), else [`RASTER_SKIP_INTERVAL_GROUPED`] from
-/// [`GROUPED_FROM`] slices per polygon, else [`RASTER_SKIP_INTERVAL`]. Each of
-/// [`crate::renderer::RASTER_GROUPS`] divides the interval it gets.
-pub fn skip_interval_for(group: u32) -> u32 {
-    let default = if group >= GROUPED_FROM {
+/// Slices per run of empty-space skipping in a frame drawn `group` slices per polygon,
+/// by default: [`RASTER_SKIP_INTERVAL_GROUPED`] from [`GROUPED_FROM`] slices per
+/// polygon, else [`RASTER_SKIP_INTERVAL`]. Each of [`crate::renderer::RASTER_GROUPS`]
+/// divides the interval it gets (a unit test checks it).
+pub(super) fn skip_interval_default(group: u32) -> u32 {
+    if group >= GROUPED_FROM {
         RASTER_SKIP_INTERVAL_GROUPED
     } else {
         RASTER_SKIP_INTERVAL
-    };
-    env_count("VWB_RASTER_SKIP_INTERVAL", default)
+    }
+}
+
+/// Slices per run of empty-space skipping in a frame drawn `group` slices per polygon:
+/// `VWB_RASTER_SKIP_INTERVAL` (≥ 1), else [`skip_interval_default`].
+pub fn skip_interval_for(group: u32) -> u32 {
+    env_count("VWB_RASTER_SKIP_INTERVAL", skip_interval_default(group))
 }
 
 /// The first slices of the runs a frame of `count` slices is drawn in: every
